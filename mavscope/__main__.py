@@ -1,0 +1,3 @@
+from mavscope.cli import main
+
+raise SystemExit(main())

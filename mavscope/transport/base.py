@@ -1,0 +1,32 @@
+"""What the transport layer hands to the MAVLink framer."""
+
+from __future__ import annotations
+
+from collections.abc import Hashable
+from typing import NamedTuple
+
+from mavscope.notes import Note
+
+TRANSPORT_UDP = "udp"
+TRANSPORT_TCP = "tcp"
+TRANSPORT_TLOG = "tlog"
+TRANSPORT_RAW = "raw"
+
+
+class Payload(NamedTuple):
+    """Bytes that may hold MAVLink, with where they came from.
+
+    Datagram payloads (UDP, one tlog entry) have `stream` None: frames never continue past them.
+    Stream payloads (TCP in one direction, a raw byte stream) carry a hashable `stream` key; the bytes
+    are the next in-order bytes of that stream, and a frame may continue in the next Payload of the
+    same stream.
+    """
+
+    transport: str  # TRANSPORT_*
+    src: str | None  # "ip:port" ("[v6]:port" for IPv6) or None
+    dst: str | None
+    data: bytes
+    stream: Hashable | None
+    record: int  # number of the Record these bytes arrived in
+    offset: int | None  # file offset of data[0] where the bytes are contiguous in the file, else None
+    notes: tuple[Note, ...] = ()  # anomalies the transport layer found (gaps, malformed headers)
