@@ -1,0 +1,137 @@
+"""The offline pipeline: capture records -> transport payloads -> MAVLink frames.
+
+`Dissector.run(reader)` yields, in capture order, every MAVLink frame found (`Frame`) and every
+problem that could not be attached to a frame (`Anomaly`), so nothing the input holds is lost.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable, Iterable, Iterator
+from dataclasses import dataclass
+
+from mavscope.capture.base import Record
+from mavscope.mavlink.dialect import Dialect
+from mavscope.mavlink.frame import Frame
+from mavscope.mavlink.framing import OK, Framer, StreamFramer, build_frame, skipped_note
+from mavscope.notes import Note
+from mavscope.transport.base import TRANSPORT_TLOG, Payload
+from mavscope.transport.decap import Decapsulator
+
+# Ports MAVLink uses by convention (DOMAIN.md). Datagrams on them are taken for MAVLink even when no
+# frame in them has a valid CRC; on any other port, a valid frame must have been seen first.
+MAVLINK_PORTS = frozenset({14550, 14540, 14555, 14557, 14560, 14580, 18570, 5760, 5761, 5762, 5763})
+
+
+@dataclass(frozen=True, slots=True)
+class Anomaly:
+    """Notes that belong to no MAVLink frame (a malformed packet, garbage at the end of a stream)."""
+
+    record: int
+    notes: tuple[Note, ...]
+
+
+def _port(endpoint: str | None) -> int:
+    if not endpoint:
+        return -1
+    try:
+        return int(endpoint.rsplit(":", 1)[1])
+    except (IndexError, ValueError):
+        return -1
+
+
+class Dissector:
+    """Finds and checks the MAVLink frames of a capture. One instance per capture (it keeps stream state)."""
+
+    def __init__(self, dialect: Dialect) -> None:
+        self.dialect = dialect
+        self.messages = dialect.messages
+        self.framer = Framer(dialect.messages)
+        self.decap = Decapsulator()
+        self.streams: dict[Hashable, StreamFramer] = {}
+        self.mavlink_endpoints: set[str] = set()
+        self._record = 0
+        self._index = 0
+        self._time: float | None = None
+
+    def run(self, records: Iterable[Record]) -> Iterator[Frame | Anomaly]:
+        """Every frame and anomaly of the capture, in order."""
+        feed = self.decap.feed
+        for rec in records:
+            self._record = rec.number
+            self._index = 0
+            self._time = rec.time
+            for p in feed(rec):
+                if p.stream is None:
+                    yield from self._datagram(p)
+                else:
+                    yield from self._stream(p, final=False)
+        for p in self.decap.flush():
+            yield from self._stream(p, final=False) if p.stream is not None else self._datagram(p)
+        for key in list(self.streams):
+            yield from self._finish(key)
+
+    def _trusted(self, p: Payload) -> bool:
+        if p.transport == TRANSPORT_TLOG:
+            return True
+        if p.src in self.mavlink_endpoints or p.dst in self.mavlink_endpoints:
+            return True
+        return _port(p.src) in MAVLINK_PORTS or _port(p.dst) in MAVLINK_PORTS
+
+    def _datagram(self, p: Payload) -> Iterator[Frame | Anomaly]:
+        data = p.data
+        if not data:
+            if p.notes:
+                yield Anomaly(p.record, p.notes)
+            return
+        found, skipped, _ = self.framer.scan(data, 0, len(data), True)
+        if not found or (all(f[2] is not OK for f in found) and not self._trusted(p)):
+            if p.notes:
+                yield Anomaly(p.record, p.notes)
+            return
+        if p.src is not None and found[0][2] is OK:
+            self.mavlink_endpoints.add(p.src)
+        base = p.offset
+        pending: list[Note] = list(p.notes)
+        sk = 0
+        messages = self.messages
+        for pos, size, status, crc in found:
+            while sk < len(skipped) and skipped[sk][0] < pos:
+                s_pos, s_count = skipped[sk]
+                sk += 1
+                pending.append(skipped_note(s_count, None if base is None else base + s_pos))
+            self._index += 1
+            frame = build_frame(
+                data, pos, size, status, crc, messages, self._record, self._index, self._time, p.transport,
+                p.src, p.dst, None if base is None else base + pos, tuple(pending) if pending else (), None,
+            )
+            pending = []
+            yield frame
+        if sk < len(skipped):
+            yield Anomaly(
+                p.record,
+                tuple(skipped_note(c, None if base is None else base + s) for s, c in skipped[sk:]),
+            )
+
+    def _emit(self, sf: StreamFramer, p_transport: str, src: str | None, dst: str | None,
+              final: bool) -> Iterator[Frame | Anomaly]:
+        found, orphans = sf.take(final)
+        for buf, pos, size, status, crc, off, span, notes in found:
+            self._index += 1
+            yield build_frame(
+                buf, pos, size, status, crc, self.messages, self._record, self._index, self._time,
+                p_transport, src, dst, off, notes, span,
+            )
+        if orphans:
+            yield Anomaly(self._record, tuple(orphans))
+
+    def _stream(self, p: Payload, final: bool) -> Iterator[Frame | Anomaly]:
+        sf = self.streams.get(p.stream)
+        if sf is None:
+            sf = self.streams[p.stream] = StreamFramer(self.framer, (p.stream, p.transport, p.src, p.dst))
+        sf.feed(p.data, p.record, p.offset, p.notes)
+        yield from self._emit(sf, p.transport, p.src, p.dst, final)
+
+    def _finish(self, key: Hashable) -> Iterator[Frame | Anomaly]:
+        sf = self.streams.pop(key)
+        _, transport, src, dst = sf.key  # type: ignore[misc]
+        yield from self._emit(sf, transport, src, dst, True)

@@ -1,0 +1,341 @@
+"""MAVLink dialects: message and enum definitions compiled from the XML through pymavlink's parser.
+
+Each message is compiled once into a `struct.Struct` for its full wire layout (base fields sorted by
+type size, then extensions), a tuple of field definitions with their payload offsets, and a decoder
+that turns a payload into a dict of raw wire values. Layouts are never written by hand: pymavlink's
+`mavparse` computes field order and CRC_EXTRA from the XML.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+import struct
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from mavscope.errors import DialectError
+
+# Wire type -> struct code (little-endian). `uint8_t_mavlink_version` is HEARTBEAT's constant field.
+_STRUCT_CODE = {
+    "float": "f",
+    "double": "d",
+    "char": "s",
+    "int8_t": "b",
+    "uint8_t": "B",
+    "uint8_t_mavlink_version": "B",
+    "int16_t": "h",
+    "uint16_t": "H",
+    "int32_t": "i",
+    "uint32_t": "I",
+    "int64_t": "q",
+    "uint64_t": "Q",
+}
+
+# Commands whose param1..7 meanings come from the MAV_CMD enum's <param label=...> entries.
+COMMAND_MESSAGES = frozenset({"COMMAND_LONG", "COMMAND_INT", "MISSION_ITEM", "MISSION_ITEM_INT"})
+
+Decoded = dict[str, object]
+
+
+@dataclass(frozen=True, slots=True)
+class EnumEntry:
+    name: str
+    value: int
+    description: str
+    # For MAV_CMD entries: param index (1..7) -> (label, units); empty for other enums.
+    params: tuple[tuple[int, str, str], ...] = ()
+
+
+@dataclass(frozen=True, slots=True)
+class EnumDef:
+    name: str
+    bitmask: bool
+    entries: dict[int, EnumEntry]
+    by_name: dict[str, EnumEntry]
+    description: str = ""
+
+    def name_of(self, value: int) -> str | None:
+        """The entry name for `value`, or None."""
+        entry = self.entries.get(value)
+        return entry.name if entry is not None else None
+
+    def flags_of(self, value: int) -> list[str]:
+        """Names of the bits set in `value` (a bitmask enum); unknown bits as hex."""
+        names: list[str] = []
+        rest = value
+        for bit_value, entry in sorted(self.entries.items()):
+            if bit_value and value & bit_value == bit_value:
+                names.append(entry.name)
+                rest &= ~bit_value
+        if rest:
+            names.append(f"0x{rest:x}")
+        return names
+
+
+@dataclass(frozen=True, slots=True)
+class FieldDef:
+    """One payload field: where it lies on the wire and how to show it."""
+
+    name: str
+    message: str
+    type: str  # MAVLink type name: uint8_t, float, char...
+    array_length: int  # 0 for scalars
+    offset: int  # byte offset in the payload
+    size: int  # bytes on the wire
+    extension: bool
+    units: str
+    enum: str
+    display: str  # "bitmask" or ""
+    description: str
+    print_format: str
+
+    @property
+    def filter_name(self) -> str:
+        return f"{self.message}.{self.name}"
+
+    @property
+    def wireshark_name(self) -> str:
+        return f"mavlink_proto.{self.message}_{self.name}"
+
+
+@dataclass(frozen=True, slots=True)
+class MessageDef:
+    """A compiled message: id, CRC_EXTRA, wire layout and decoder."""
+
+    id: int
+    name: str
+    crc_extra: int
+    fields: tuple[FieldDef, ...]  # wire order
+    base_length: int  # payload bytes of the base fields (all a v1 frame carries)
+    length: int  # payload bytes including extensions
+    description: str
+    source: str  # dialect file that defined it
+    crc_extra_byte: bytes = field(repr=False, compare=False)
+    decode: Callable[[bytes], Decoded] = field(repr=False, compare=False)
+
+    def field(self, name: str) -> FieldDef | None:
+        for f in self.fields:
+            if f.name == name:
+                return f
+        return None
+
+
+def _field_code(f: FieldDef) -> str:
+    code = _STRUCT_CODE[f.type]
+    if f.type == "char":
+        return f"{max(f.array_length, 1)}s"
+    if f.array_length:
+        return f"{f.array_length}{code}"
+    return code
+
+
+def _text(raw: bytes) -> str:
+    # Same rule as pymavlink: trailing NULs go, undecodable bytes are shown escaped.
+    return raw.rstrip(b"\x00").decode("utf-8", errors="backslashreplace")
+
+
+def _make_decoder(fields: tuple[FieldDef, ...], length: int) -> Callable[[bytes], Decoded]:
+    """Build the payload decoder: pad to `length`, unpack once, regroup arrays and strings."""
+    st = struct.Struct("<" + "".join(_field_code(f) for f in fields))
+    assert st.size == length, (st.size, length)
+    unpack = st.unpack_from
+    names = tuple(f.name for f in fields)
+    simple = all(f.array_length == 0 and f.type != "char" for f in fields)
+
+    if simple:
+
+        def decode_simple(payload: bytes) -> Decoded:
+            if len(payload) < length:
+                payload = payload + bytes(length - len(payload))
+            return dict(zip(names, unpack(payload)))
+
+        return decode_simple
+
+    # (name, first index in the flat tuple, count, kind) with kind: 0 scalar, 1 string, 2 array
+    plan: list[tuple[str, int, int, int]] = []
+    i = 0
+    for f in fields:
+        if f.type == "char":
+            plan.append((f.name, i, 1, 1))
+            i += 1
+        elif f.array_length:
+            plan.append((f.name, i, f.array_length, 2))
+            i += f.array_length
+        else:
+            plan.append((f.name, i, 1, 0))
+            i += 1
+    steps = tuple(plan)
+
+    def decode_shaped(payload: bytes) -> Decoded:
+        if len(payload) < length:
+            payload = payload + bytes(length - len(payload))
+        flat = unpack(payload)
+        out: Decoded = {}
+        for name, start, count, kind in steps:
+            if kind == 0:
+                out[name] = flat[start]
+            elif kind == 1:
+                out[name] = _text(flat[start])
+            else:
+                out[name] = list(flat[start : start + count])
+        return out
+
+    return decode_shaped
+
+
+def _compile_message(m: object, source: str) -> MessageDef:
+    base_count = m.base_fields()  # type: ignore[attr-defined]
+    fields = []
+    for i, f in enumerate(m.ordered_fields):  # type: ignore[attr-defined]
+        fields.append(
+            FieldDef(
+                name=f.name,
+                message=m.name,  # type: ignore[attr-defined]
+                type=f.type,
+                array_length=f.array_length,
+                offset=f.wire_offset,
+                size=f.wire_length,
+                extension=i >= base_count,
+                units=(f.units or "").strip("[] "),
+                enum=f.enum or "",
+                display=f.display or "",
+                description=" ".join((f.description or "").split()),
+                print_format=f.print_format or "",
+            )
+        )
+    ftuple = tuple(fields)
+    length = m.wire_length  # type: ignore[attr-defined]
+    return MessageDef(
+        id=m.id,  # type: ignore[attr-defined]
+        name=m.name,  # type: ignore[attr-defined]
+        crc_extra=m.crc_extra,  # type: ignore[attr-defined]
+        fields=ftuple,
+        base_length=m.wire_min_length,  # type: ignore[attr-defined]
+        length=length,
+        description=" ".join((m.description or "").split()),  # type: ignore[attr-defined]
+        source=source,
+        crc_extra_byte=bytes((m.crc_extra,)),  # type: ignore[attr-defined]
+        decode=_make_decoder(ftuple, length),
+    )
+
+
+def _parse_files(root: Path) -> list[object]:
+    """Parse `root` and, breadth first, every file it includes (pymavlink's MAVXML per file)."""
+    from pymavlink.generator import mavparse
+
+    done: dict[Path, object] = {}
+    queue = [root.resolve()]
+    while queue:
+        path = queue.pop(0)
+        if path in done:
+            continue
+        if not path.is_file():
+            raise DialectError(f"{path}: dialect file not found")
+        try:
+            # mavparse prints warnings about upstream XML to stdout; keep our output clean.
+            with contextlib.redirect_stdout(io.StringIO()):
+                xml = mavparse.MAVXML(str(path), "2.0")
+        except Exception as exc:  # mavparse raises bare Exceptions and ExpatErrors
+            raise DialectError(f"{path}: cannot parse dialect: {exc}") from exc
+        done[path] = xml
+        queue.extend((path.parent / inc).resolve() for inc in xml.include)
+    return list(done.values())
+
+
+class Dialect:
+    """Messages and enums from one or more dialect XML files, merged; later files override earlier ones."""
+
+    def __init__(self) -> None:
+        self.messages: dict[int, MessageDef] = {}
+        self.by_name: dict[str, MessageDef] = {}
+        self.enums: dict[str, EnumDef] = {}
+        self.files: list[str] = []
+        self.overrides: list[str] = []  # "MSG (id) from A replaced by B" for each redefinition
+
+    def load(self, path: str | os.PathLike[str]) -> None:
+        """Add every message and enum of `path` and of the files it includes."""
+        xmls = _parse_files(Path(path))
+        self.files.append(str(path))
+        for xml in xmls:
+            src = os.path.basename(xml.filename)  # type: ignore[attr-defined]
+            for m in xml.message:  # type: ignore[attr-defined]
+                old = self.messages.get(m.id)
+                if old is not None:
+                    if old.crc_extra == m.crc_extra and old.name == m.name:
+                        continue
+                    self.overrides.append(f"{old.name} ({m.id}) from {old.source} replaced by {m.name} from {src}")
+                    self.by_name.pop(old.name, None)
+                md = _compile_message(m, src)
+                self.messages[md.id] = md
+                self.by_name[md.name] = md
+            for e in xml.enum:  # type: ignore[attr-defined]
+                self._merge_enum(e)
+
+    def _merge_enum(self, e: object) -> None:
+        existing = self.enums.get(e.name)  # type: ignore[attr-defined]
+        entries = dict(existing.entries) if existing else {}
+        for entry in e.entry:  # type: ignore[attr-defined]
+            if entry.name.endswith("_ENUM_END"):
+                continue
+            params = tuple(
+                (int(p.index), (p.label or "").strip(), (p.units or "").strip())
+                for p in entry.param
+                if not getattr(p, "reserved", False) and (p.label or "").strip()
+            )
+            entries[entry.value] = EnumEntry(
+                entry.name, entry.value, " ".join((entry.description or "").split()), params
+            )
+        self.enums[e.name] = EnumDef(  # type: ignore[attr-defined]
+            name=e.name,  # type: ignore[attr-defined]
+            bitmask=bool(getattr(e, "bitmask", False)) or bool(existing and existing.bitmask),
+            entries=entries,
+            by_name={en.name: en for en in entries.values()},
+            description=" ".join((e.description or "").split()),  # type: ignore[attr-defined]
+        )
+
+    def enum_value(self, name: str) -> tuple[str, int] | None:
+        """Find an enum entry by its name anywhere (MAV_CMD_NAV_RETURN_TO_LAUNCH -> ("MAV_CMD", 20))."""
+        for enum in self.enums.values():
+            entry = enum.by_name.get(name)
+            if entry is not None:
+                return enum.name, entry.value
+        return None
+
+    def command_params(self, command: int) -> tuple[tuple[int, str, str], ...]:
+        """(index, label, units) of the labelled params of MAV_CMD `command`."""
+        enum = self.enums.get("MAV_CMD")
+        entry = enum.entries.get(command) if enum else None
+        return entry.params if entry else ()
+
+
+def pymavlink_dialect_path(name: str = "all") -> Path:
+    """Path of a dialect XML shipped with pymavlink (v2.0 definitions)."""
+    import pymavlink
+
+    return Path(pymavlink.__file__).parent / "dialects" / "v20" / f"{name}.xml"
+
+
+def default_dissectors_dir() -> Path:
+    """The repository's `dissectors/` folder (dialect XML loaded automatically)."""
+    return Path(__file__).resolve().parents[2] / "dissectors"
+
+
+def load_dialect(
+    extra: Iterable[str | os.PathLike[str]] = (),
+    *,
+    base: str | os.PathLike[str] | None = None,
+    dissectors: str | os.PathLike[str] | None = None,
+) -> Dialect:
+    """The default dialect (pymavlink's all.xml), then every XML in `dissectors/`, then `extra` files."""
+    d = Dialect()
+    d.load(base if base is not None else pymavlink_dialect_path("all"))
+    folder = Path(dissectors) if dissectors is not None else default_dissectors_dir()
+    if folder.is_dir():
+        for xml in sorted(folder.glob("*.xml")):
+            d.load(xml)
+    for path in extra:
+        d.load(path)
+    return d

@@ -1,0 +1,367 @@
+"""Finding MAVLink frames in datagrams and byte streams.
+
+A candidate frame starts at an STX byte (0xFE v1, 0xFD v2); its LEN byte gives its size. It is
+accepted when:
+- its CRC (with the message's CRC_EXTRA) is correct; or
+- its CRC is bad or cannot be checked (unknown message id), and it ends exactly where the data ends or
+  where another CRC-valid frame begins. A false STX inside a payload almost never passes either test,
+  so resynchronisation does not produce phantom frames.
+Anything else is skipped one byte at a time, and the skipped bytes are reported in a note. In a
+datagram a frame cut short by the end of the datagram is reported as truncated; in a stream the
+framer waits for more bytes, and only the end of the stream truncates.
+
+Datagrams with no CRC-valid frame are taken for MAVLink only when `trusted` (a well-known MAVLink
+port, a tlog entry, or an endpoint that has carried valid frames before): otherwise a DNS reply that
+happens to start with 0xFD would become a "frame with a bad CRC".
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Hashable
+
+from fastcrc import crc16
+
+from mavscope.mavlink.dialect import MessageDef
+from mavscope.mavlink.frame import (
+    HEADER_V1,
+    HEADER_V2,
+    IFLAG_ENCRYPTION_MASK,
+    IFLAG_SIGNED,
+    KNOWN_IFLAGS,
+    SIGNATURE_LEN,
+    STX_V1,
+    STX_V2,
+    CrcStatus,
+    Frame,
+    Signature,
+)
+from mavscope.notes import Note, note
+
+_mcrf4xx = crc16.mcrf4xx
+_V2 = struct.Struct("<BBBBBBBHB").unpack_from
+_V1 = struct.Struct("<BBBBBB").unpack_from
+_CRC = struct.Struct("<H").unpack_from
+_SIG = struct.Struct("<B6s6s").unpack_from
+_new = tuple.__new__
+
+OK = CrcStatus.OK
+BAD = CrcStatus.BAD
+UNCHECKED = CrcStatus.UNCHECKED
+TRUNCATED = CrcStatus.TRUNCATED
+
+# Candidate: (pos, size, status, header fields...) as a plain tuple, see _candidate().
+Candidate = tuple
+
+
+def frame_size(buf: bytes, pos: int) -> int:
+    """Total size of the frame whose STX is at `pos` (needs 3 bytes: STX, LEN, INCOMPAT)."""
+    if buf[pos] == STX_V2:
+        return HEADER_V2 + buf[pos + 1] + 2 + (SIGNATURE_LEN if buf[pos + 2] & IFLAG_SIGNED else 0)
+    return HEADER_V1 + buf[pos + 1] + 2
+
+
+def _next_stx(buf: bytes, start: int, end: int) -> int:
+    a = buf.find(b"\xfd", start, end)
+    b = buf.find(b"\xfe", start, end)
+    if a < 0:
+        return b if b >= 0 else end
+    if b < 0:
+        return a
+    return a if a < b else b
+
+
+def _crc_status(buf: bytes, pos: int, hlen: int, length: int, md: MessageDef | None) -> tuple[CrcStatus, int]:
+    end = pos + hlen + length
+    crc = buf[end] | (buf[end + 1] << 8)
+    if md is None:
+        return UNCHECKED, crc
+    calc = _mcrf4xx(md.crc_extra_byte, _mcrf4xx(buf[pos + 1 : end]))
+    return (OK if calc == crc else BAD), crc
+
+
+VALID, INVALID, NEED_MORE = 1, 0, -1
+
+
+def _check_at(buf: bytes, pos: int, end: int, messages: dict[int, MessageDef]) -> int:
+    """VALID when a complete CRC-valid frame starts at `pos`; NEED_MORE when buf[pos:end] is too short
+    to tell; INVALID otherwise. Used to confirm where a damaged frame ends."""
+    if pos >= end:
+        return NEED_MORE
+    b = buf[pos]
+    if b != STX_V2 and b != STX_V1:
+        return INVALID
+    if pos + 3 > end:
+        return NEED_MORE
+    size = frame_size(buf, pos)
+    if pos + size > end:
+        return NEED_MORE
+    if b == STX_V2:
+        md = messages.get(buf[pos + 7] | (buf[pos + 8] << 8) | (buf[pos + 9] << 16))
+        hlen = HEADER_V2
+    else:
+        md = messages.get(buf[pos + 5])
+        hlen = HEADER_V1
+    if md is None:
+        return INVALID
+    return VALID if _crc_status(buf, pos, hlen, buf[pos + 1], md)[0] is OK else INVALID
+
+
+class Framer:
+    """Frame finder over one dialect. `parse_datagram` is stateless; `StreamFramer` keeps stream state."""
+
+    def __init__(self, messages: dict[int, MessageDef]) -> None:
+        self.messages = messages
+
+    def candidate(self, buf: bytes, pos: int, end: int) -> tuple[int, CrcStatus, int | None] | None:
+        """Size, CRC verdict and CRC of the frame at `pos`; None if fewer than 3 bytes are there.
+
+        A frame running past `end` is TRUNCATED with size = the bytes present.
+        """
+        if pos + 3 > end:
+            return None
+        size = frame_size(buf, pos)
+        if pos + size > end:
+            return end - pos, TRUNCATED, None
+        if buf[pos] == STX_V2:
+            md = self.messages.get(buf[pos + 7] | (buf[pos + 8] << 8) | (buf[pos + 9] << 16))
+            status, crc = _crc_status(buf, pos, HEADER_V2, buf[pos + 1], md)
+        else:
+            md = self.messages.get(buf[pos + 5])
+            status, crc = _crc_status(buf, pos, HEADER_V1, buf[pos + 1], md)
+        return size, status, crc
+
+    def scan(
+        self, buf: bytes, start: int, end: int, final: bool
+    ) -> tuple[list[tuple[int, int, CrcStatus, int | None]], list[tuple[int, int]], int]:
+        """Scan buf[start:end] for frames.
+
+        Returns (frames as (pos, size, status, crc), skipped runs as (pos, count), resume position).
+        With `final` False, scanning stops where more bytes are needed to decide (a stream); with
+        `final` True (a datagram, or the end of a stream) everything is decided.
+        """
+        frames: list[tuple[int, int, CrcStatus, int | None]] = []
+        skipped: list[tuple[int, int]] = []
+        messages = self.messages
+        pos = start
+        skip_from = -1
+        while pos < end:
+            b = buf[pos]
+            if b != STX_V2 and b != STX_V1:
+                nxt = _next_stx(buf, pos + 1, end)
+                if skip_from < 0:
+                    skip_from = pos
+                pos = nxt
+                continue
+            cand = self.candidate(buf, pos, end)
+            if cand is None or cand[1] is TRUNCATED:
+                if not final:
+                    break  # wait for more bytes
+                # The rest of the data is shorter than this frame: a real truncated frame, unless a
+                # valid frame starts later (then this STX was a stray byte).
+                later = _next_stx(buf, pos + 1, end)
+                while later < end and _check_at(buf, later, end, messages) != VALID:
+                    later = _next_stx(buf, later + 1, end)
+                if later < end:
+                    if skip_from < 0:
+                        skip_from = pos
+                    pos = later
+                    continue
+                if skip_from >= 0:
+                    skipped.append((skip_from, pos - skip_from))
+                    skip_from = -1
+                frames.append((pos, end - pos, TRUNCATED, None))
+                pos = end
+                break
+            size, status, crc = cand
+            if status is not OK:
+                after = pos + size
+                verdict = _check_at(buf, after, end, messages) if after < end else VALID
+                if verdict == NEED_MORE and not final:
+                    break  # not enough lookahead to tell a damaged frame from a stray STX: wait
+                if verdict != VALID:
+                    if skip_from < 0:
+                        skip_from = pos
+                    pos = _next_stx(buf, pos + 1, end)
+                    continue
+                if after == end and not final:
+                    break  # a stream may still bring the proof (or the refutation)
+            if skip_from >= 0:
+                skipped.append((skip_from, pos - skip_from))
+                skip_from = -1
+            frames.append((pos, size, status, crc))
+            pos += size
+        if skip_from >= 0:
+            skipped.append((skip_from, min(pos, end) - skip_from))
+        return frames, skipped, min(pos, end)
+
+
+def build_frame(
+    buf: bytes,
+    pos: int,
+    size: int,
+    status: CrcStatus,
+    crc: int | None,
+    messages: dict[int, MessageDef],
+    record: int,
+    index: int,
+    time: float | None,
+    transport: str,
+    src: str | None,
+    dst: str | None,
+    offset: int | None,
+    notes: tuple[Note, ...],
+    span: tuple[int, ...] | None,
+) -> Frame:
+    """Make a Frame from a scanned candidate (header fields parsed, payload left for later)."""
+    raw = buf[pos : pos + size]
+    if raw[0] == STX_V2 and size >= HEADER_V2:
+        _, length, iflags, cflags, seq, sysid, compid, lo, hi = _V2(raw)
+        msgid = lo | (hi << 16)
+        sig = None
+        if iflags & IFLAG_SIGNED and status is not TRUNCATED:
+            link_id, ts, value = _SIG(raw, size - SIGNATURE_LEN)
+            sig = Signature(link_id, int.from_bytes(ts, "little"), value)
+        version = 2
+    elif raw[0] == STX_V1 and size >= HEADER_V1:
+        _, length, seq, sysid, compid, msgid = _V1(raw)
+        iflags = cflags = 0
+        sig = None
+        version = 1
+    else:  # a truncated header: report what is there
+        version = 2 if raw[0] == STX_V2 else 1
+        hdr = raw + bytes((HEADER_V2 if version == 2 else HEADER_V1) - len(raw))
+        if version == 2:
+            _, length, iflags, cflags, seq, sysid, compid, lo, hi = _V2(hdr)
+            msgid = lo | (hi << 16)
+        else:
+            _, length, seq, sysid, compid, msgid = _V1(hdr)
+            iflags = cflags = 0
+        sig = None
+    md = messages.get(msgid)
+    extra: list[Note] = []
+    if status is TRUNCATED:
+        extra.append(note("truncated-frame", f"frame truncated: {size} of {frame_size_or_header(raw)} bytes present", offset))
+    elif status is BAD:
+        extra.append(note("bad-crc", f"CRC 0x{crc:04x} does not match the frame", offset))
+    elif status is UNCHECKED:
+        extra.append(note("unknown-msgid", f"message id {msgid} is not in the loaded dialects: CRC unchecked", offset))
+    if iflags & ~KNOWN_IFLAGS:
+        if iflags & IFLAG_ENCRYPTION_MASK:
+            extra.append(
+                note("encrypted-payload", f"payload encrypted with method {(iflags & IFLAG_ENCRYPTION_MASK) >> 5} "
+                     "(incompat flag bits 5-7)", offset)
+            )
+        if iflags & ~(KNOWN_IFLAGS | IFLAG_ENCRYPTION_MASK):
+            extra.append(note("unknown-incompat-flags", f"unknown incompat flags 0x{iflags:02x}", offset))
+    if md is not None and status is not TRUNCATED:
+        if version == 1 and length != md.base_length:
+            extra.append(note("length-mismatch", f"v1 payload of {length} bytes, {md.name} has {md.base_length}", offset))
+        elif length > md.length and not iflags & IFLAG_ENCRYPTION_MASK:
+            extra.append(note("length-mismatch", f"payload of {length} bytes, {md.name} has {md.length}", offset))
+    if extra:
+        notes = notes + tuple(extra)
+    return _new(
+        Frame,
+        (record, index, time, transport, src, dst, offset, raw, version, length, iflags, cflags, seq, sysid,
+         compid, msgid, crc, status, md, sig, notes, span),
+    )
+
+
+def frame_size_or_header(raw: bytes) -> int:
+    """The full size a (possibly truncated) frame announces, or its header size if LEN is missing."""
+    if len(raw) >= 3:
+        return frame_size(raw, 0)
+    return HEADER_V2 if raw[0] == STX_V2 else HEADER_V1
+
+
+def skipped_note(count: int, offset: int | None) -> Note:
+    where = f" at offset {offset}" if offset is not None else ""
+    return note("skipped-bytes", f"{count} bytes that are not MAVLink skipped{where}", offset)
+
+
+class StreamFramer:
+    """Frames of one byte stream (a TCP direction, a raw file), fed in order, possibly in pieces."""
+
+    __slots__ = ("framer", "buf", "segs", "seen_valid", "key", "pending")
+
+    def __init__(self, framer: Framer, key: Hashable) -> None:
+        self.framer = framer
+        self.key = key
+        self.buf = b""
+        # (start position in buf, record number, file offset of that position or None)
+        self.segs: list[tuple[int, int, int | None]] = []
+        self.seen_valid = False
+        self.pending: list[Note] = []
+
+    def _locate(self, pos: int) -> tuple[int, int | None]:
+        """Record and file offset of buffer position `pos`."""
+        rec, off = self.segs[0][1], None
+        for start, r, o in self.segs:
+            if start > pos:
+                break
+            rec = r
+            off = None if o is None else o + (pos - start)
+        return rec, off
+
+    def feed(self, data: bytes, record: int, offset: int | None, notes: tuple[Note, ...] = ()) -> None:
+        """Append the next in-order bytes of the stream."""
+        if notes:
+            self.pending.extend(notes)
+        if not data:
+            return
+        self.segs.append((len(self.buf), record, offset))
+        self.buf = self.buf + data if self.buf else data
+
+    def take(self, final: bool) -> tuple[list[tuple[bytes, int, int, CrcStatus, int | None, int | None, tuple[int, ...] | None, tuple[Note, ...]]], list[Note]]:
+        """Frames now complete, as (buf, pos, size, status, crc, offset, span, notes), and orphan notes.
+
+        With `final` the stream has ended: everything left is decided.
+        """
+        buf = self.buf
+        if not buf:
+            orphans = self.pending if final else []
+            if final:
+                self.pending = []
+            return [], orphans
+        found, skipped, resume = self.framer.scan(buf, 0, len(buf), final)
+        out = []
+        orphans: list[Note] = []
+        sk = 0
+        for pos, size, status, crc in found:
+            if status is OK:
+                self.seen_valid = True
+            while sk < len(skipped) and skipped[sk][0] < pos:
+                s_pos, s_count = skipped[sk]
+                sk += 1
+                self.pending.append(skipped_note(s_count, self._locate(s_pos)[1]))
+            first_rec, off = self._locate(pos)
+            last_rec = self._locate(pos + size - 1)[0]
+            span = None
+            if first_rec != last_rec:
+                span = tuple(sorted({r for start, r, _ in self.segs if pos <= start < pos + size} | {first_rec}))
+            notes = tuple(self.pending)
+            self.pending = []
+            out.append((buf, pos, size, status, crc, off, span, notes))
+        for s_pos, s_count in skipped[sk:]:
+            if self.seen_valid:
+                self.pending.append(skipped_note(s_count, self._locate(s_pos)[1]))
+        if not self.seen_valid:
+            # Not (yet) known to be MAVLink: a stream of something else is not reported at all.
+            out = [o for o in out if o[3] is OK]
+        if resume >= len(buf):
+            self.buf = b""
+            self.segs = []
+        else:
+            self.buf = buf[resume:]
+            segs = []
+            for start, r, o in self.segs:
+                if start <= resume:
+                    base = (r, None if o is None else o + (resume - start))
+                    segs = [(0, *base)]
+                else:
+                    segs.append((start - resume, r, o))
+            self.segs = segs
+        if final:
+            orphans, self.pending = self.pending, []
+        return out, orphans

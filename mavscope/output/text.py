@@ -1,0 +1,131 @@
+"""Text presentation: tshark-like summary lines, the -V detail tree and the -x hex dump."""
+
+from __future__ import annotations
+
+import math
+
+from mavscope.mavlink.dialect import Dialect, MessageDef
+from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
+from mavscope.mavlink.items import Item, format_value, frame_items
+
+# The fields a summary line shows per message (default: the first few scalar fields).
+SUMMARY_FIELDS: dict[str, tuple[str, ...]] = {
+    "HEARTBEAT": ("type", "autopilot", "base_mode", "system_status"),
+    "COMMAND_LONG": ("command", "target_system", "target_component", "confirmation"),
+    "COMMAND_INT": ("command", "target_system", "target_component", "frame", "x", "y", "z"),
+    "COMMAND_ACK": ("command", "result"),
+    "MISSION_ITEM_INT": ("seq", "command", "frame", "x", "y", "z"),
+    "MISSION_ITEM": ("seq", "command", "frame", "x", "y", "z"),
+    "MISSION_COUNT": ("count", "target_system", "mission_type"),
+    "MISSION_REQUEST_INT": ("seq", "target_system", "mission_type"),
+    "MISSION_REQUEST": ("seq", "target_system", "mission_type"),
+    "MISSION_ACK": ("type", "target_system", "mission_type"),
+    "STATUSTEXT": ("severity", "text"),
+    "GLOBAL_POSITION_INT": ("lat", "lon", "relative_alt"),
+    "GPS_RAW_INT": ("fix_type", "lat", "lon", "satellites_visible"),
+    "ATTITUDE": ("roll", "pitch", "yaw"),
+    "SYS_STATUS": ("voltage_battery", "battery_remaining", "drop_rate_comm"),
+    "PARAM_VALUE": ("param_id", "param_value", "param_index"),
+    "PARAM_SET": ("param_id", "param_value"),
+    "SETUP_SIGNING": ("target_system", "initial_timestamp"),
+}
+_MAX_DEFAULT = 4
+
+
+def _short(md: MessageDef, name: str, value: object, dialect: Dialect) -> str:
+    fd = md.field(name)
+    if fd is None:
+        return ""
+    if fd.enum and isinstance(value, int):
+        enum = dialect.enums.get(fd.enum)
+        if enum is not None and not (enum.bitmask or fd.display == "bitmask"):
+            n = enum.name_of(value)
+            if n:
+                return f"{name}={n}"
+    if isinstance(value, int) and (
+        fd.units == "degE7" or (name in ("x", "y") and md.name in ("COMMAND_INT", "MISSION_ITEM_INT"))
+    ):
+        return f"{name}={value / 1e7:.7f}"
+    if isinstance(value, float):
+        return f"{name}={'nan' if math.isnan(value) else f'{value:.4g}'}"
+    if isinstance(value, str):
+        return f"{name}={value!r}"
+    if isinstance(value, list):
+        return f"{name}=[{len(value)}]"
+    return f"{name}={value}"
+
+
+def summary_info(frame: Frame, dialect: Dialect, fields: dict[str, object] | None = None) -> str:
+    """The "Info" column: message name and its key fields, plus the verdicts that are not ok."""
+    md = frame.msgdef
+    parts: list[str] = []
+    if md is None:
+        parts.append(f"UNKNOWN msgid={frame.msgid}")
+    else:
+        parts.append(md.name)
+        if fields is None:
+            fields = decode_payload(frame)
+        if fields is not None:
+            names = SUMMARY_FIELDS.get(md.name) or tuple(
+                f.name for f in md.fields if not f.array_length or f.type == "char"
+            )[:_MAX_DEFAULT]
+            parts.extend(s for s in (_short(md, n, fields.get(n), dialect) for n in names) if s)
+        elif frame.encryption_method:
+            parts.append(f"[encrypted, method {frame.encryption_method}]")
+    if frame.crc_status is not CrcStatus.OK:
+        parts.append(f"[CRC {frame.crc_status.value}]")
+    if frame.signature is not None:
+        parts.append(f"[signed link {frame.signature.link_id}]")
+    return " ".join(parts)
+
+
+def summary_line(frame: Frame, dialect: Dialect, t0: float | None, fields: dict[str, object] | None = None) -> str:
+    """One tshark-like line: number, relative time, src -> dst, sysid/compid, seq, info."""
+    if frame.time is not None and t0 is not None:
+        t = f"{frame.time - t0:11.6f}"
+    else:
+        t = f"{'-':>11}"
+    num = f"{frame.record}" if frame.index == 1 else f"{frame.record}.{frame.index}"
+    route = f"{frame.src or frame.transport} → {frame.dst or ''}".rstrip(" →") if frame.src else frame.transport
+    return (
+        f"{num:>7} {t} {route:<34} {frame.sysid:>3}/{frame.compid:<3} "
+        f"v{frame.version} seq {frame.seq:>3} {summary_info(frame, dialect, fields)}"
+    )
+
+
+def tree_lines(items: tuple[Item, ...], indent: int = 0) -> list[str]:
+    """The -V detail tree as indented lines."""
+    out: list[str] = []
+    for it in items:
+        out.append("    " * indent + it.label)
+        out.extend(tree_lines(it.children, indent + 1))
+    return out
+
+
+def detail_text(frame: Frame, dialect: Dialect) -> str:
+    """Everything -V shows for a frame."""
+    head = f"Frame {frame.record}" + (f".{frame.index}" if frame.index > 1 else "")
+    ctx = [f"{head}: {len(frame.raw)} bytes, {frame.transport}"]
+    if frame.src:
+        ctx[0] += f" {frame.src} → {frame.dst}"
+    if frame.offset is not None:
+        ctx[0] += f", file offset {frame.offset}"
+    if frame.span:
+        ctx[0] += f", reassembled from records {', '.join(map(str, frame.span))}"
+    return "\n".join(ctx + tree_lines(frame_items(frame, dialect), 1))
+
+
+def hexdump(data: bytes, width: int = 16) -> str:
+    """Classic hex dump: offset, hex bytes, ASCII."""
+    lines = []
+    for off in range(0, len(data), width):
+        chunk = data[off : off + width]
+        hexpart = " ".join(f"{b:02x}" for b in chunk)
+        if len(chunk) > 8:
+            hexpart = hexpart[:23] + " " + hexpart[23:]
+        asc = "".join(chr(b) if 32 <= b < 127 else "." for b in chunk)
+        lines.append(f"{off:04x}  {hexpart:<{width * 3 + 1}} {asc}")
+    return "\n".join(lines)
+
+
+__all__ = ["detail_text", "format_value", "hexdump", "summary_info", "summary_line", "tree_lines"]
