@@ -132,15 +132,16 @@ def cmd_read(args: argparse.Namespace, env: Env) -> ExitStatus:
     shown = 0
     t0: float | None = None
     anomalies = 0
+    limit = args.count if args.count is not None else -1
     with open_capture(path) as reader:
         update, stop = _progress(env, reader)
         try:
             if fmt == "json":
                 out_b.write(b"[")
             for n, item in enumerate(Dissector(dialect).run(reader)):
-                if n & 0x3FFF == 0:
+                if not n & 0x3FFF:
                     update()
-                if isinstance(item, Anomaly):
+                if type(item) is Anomaly:
                     anomalies += 1
                     for note in item.notes:
                         env.stderr.write(f"mavscope: {path}: record {item.record}: {note.message}\n")
@@ -165,7 +166,7 @@ def cmd_read(args: argparse.Namespace, env: Env) -> ExitStatus:
                         out.write(hexdump(frame.raw) + "\n")
                     if args.verbose or args.hex:
                         out.write("\n")
-                if args.count is not None and shown >= args.count:
+                if shown == limit:
                     break
             if fmt == "json":
                 out_b.write(b"\n]\n" if shown else b"]\n")

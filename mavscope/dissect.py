@@ -9,10 +9,12 @@ from __future__ import annotations
 from collections.abc import Hashable, Iterable, Iterator
 from dataclasses import dataclass
 
+_new = tuple.__new__
+
 from mavscope.capture.base import Record
 from mavscope.mavlink.dialect import Dialect
-from mavscope.mavlink.frame import Frame
-from mavscope.mavlink.framing import OK, Framer, StreamFramer, build_frame, skipped_note
+from mavscope.mavlink.frame import SIGNATURE_LEN, STX_V2, Frame, Signature
+from mavscope.mavlink.framing import unpack_signature, OK, Framer, StreamFramer, mcrf4xx, build_frame, skipped_note
 from mavscope.notes import Note
 from mavscope.transport.base import TRANSPORT_TLOG, Payload
 from mavscope.transport.decap import Decapsulator
@@ -56,17 +58,61 @@ class Dissector:
     def run(self, records: Iterable[Record]) -> Iterator[Frame | Anomaly]:
         """Every frame and anomaly of the capture, in order."""
         feed = self.decap.feed
+        messages = self.messages
+        endpoints = self.mavlink_endpoints
         for rec in records:
-            self._record = rec.number
-            self._index = 0
-            self._time = rec.time
+            number = rec[0]
+            time = rec[1]
+            self._record = number
+            self._time = time
+            index = 0
             for p in feed(rec):
-                if p.stream is None:
-                    yield from self._datagram(p)
-                else:
+                if p[4] is not None:
+                    self._index = index
                     yield from self._stream(p, final=False)
+                    index = self._index
+                    continue
+                # Fast path: a datagram that is a run of clean v2 frames (known message, good CRC,
+                # no unknown flags). Anything else goes to the general scanner from where it stops.
+                data = p[3]
+                n = len(data)
+                pos = 0
+                if not p[7]:
+                    src = p[1]
+                    while pos + 12 <= n and data[pos] == STX_V2:
+                        length = data[pos + 1]
+                        iflags = data[pos + 2]
+                        end = pos + 10 + length
+                        size = length + (25 if iflags & 1 else 12)
+                        if iflags > 1 or pos + size > n:
+                            break
+                        md = messages.get(data[pos + 7] | (data[pos + 8] << 8) | (data[pos + 9] << 16))
+                        if md is None or length > md.length:
+                            break
+                        crc = data[end] | (data[end + 1] << 8)
+                        if mcrf4xx(md.crc_extra_byte, mcrf4xx(data[pos + 1 : end])) != crc:
+                            break
+                        raw = data[pos : pos + size] if size != n else data
+                        sig = None
+                        if iflags:
+                            link_id, ts, value = unpack_signature(raw, size - SIGNATURE_LEN)
+                            sig = Signature(link_id, int.from_bytes(ts, "little"), value)
+                        index += 1
+                        yield _new(Frame, (
+                            number, index, time, p[0], src, p[2], None if p[6] is None else p[6] + pos, raw, 2,
+                            length, iflags, data[pos + 3], data[pos + 4], data[pos + 5], data[pos + 6],
+                            md.id, crc, OK, md, sig, (), None,
+                        ))
+                        pos += size
+                    if pos and src is not None and src not in endpoints:
+                        endpoints.add(src)
+                    if pos == n:
+                        continue
+                self._index = index
+                yield from self._datagram(p, pos)
+                index = self._index
         for p in self.decap.flush():
-            yield from self._stream(p, final=False) if p.stream is not None else self._datagram(p)
+            yield from self._stream(p, final=False) if p.stream is not None else self._datagram(p, 0)
         for key in list(self.streams):
             yield from self._finish(key)
 
@@ -77,14 +123,15 @@ class Dissector:
             return True
         return _port(p.src) in MAVLINK_PORTS or _port(p.dst) in MAVLINK_PORTS
 
-    def _datagram(self, p: Payload) -> Iterator[Frame | Anomaly]:
+    def _datagram(self, p: Payload, start: int) -> Iterator[Frame | Anomaly]:
+        """The general path: scan a datagram from `start` (the frames before it were clean)."""
         data = p.data
         if not data:
             if p.notes:
                 yield Anomaly(p.record, p.notes)
             return
-        found, skipped, _ = self.framer.scan(data, 0, len(data), True)
-        if not found or (all(f[2] is not OK for f in found) and not self._trusted(p)):
+        found, skipped, _ = self.framer.scan(data, start, len(data), True)
+        if not start and (not found or (all(f[2] is not OK for f in found) and not self._trusted(p))):
             if p.notes:
                 yield Anomaly(p.record, p.notes)
             return

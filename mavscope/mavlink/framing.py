@@ -38,11 +38,11 @@ from mavscope.mavlink.frame import (
 )
 from mavscope.notes import Note, note
 
-_mcrf4xx = crc16.mcrf4xx
+mcrf4xx = crc16.mcrf4xx
 _V2 = struct.Struct("<BBBBBBBHB").unpack_from
 _V1 = struct.Struct("<BBBBBB").unpack_from
 _CRC = struct.Struct("<H").unpack_from
-_SIG = struct.Struct("<B6s6s").unpack_from
+unpack_signature = struct.Struct("<B6s6s").unpack_from
 _new = tuple.__new__
 
 OK = CrcStatus.OK
@@ -76,7 +76,7 @@ def _crc_status(buf: bytes, pos: int, hlen: int, length: int, md: MessageDef | N
     crc = buf[end] | (buf[end + 1] << 8)
     if md is None:
         return UNCHECKED, crc
-    calc = _mcrf4xx(md.crc_extra_byte, _mcrf4xx(buf[pos + 1 : end]))
+    calc = mcrf4xx(md.crc_extra_byte, mcrf4xx(buf[pos + 1 : end]))
     return (OK if calc == crc else BAD), crc
 
 
@@ -220,7 +220,7 @@ def build_frame(
         msgid = lo | (hi << 16)
         sig = None
         if iflags & IFLAG_SIGNED and status is not TRUNCATED:
-            link_id, ts, value = _SIG(raw, size - SIGNATURE_LEN)
+            link_id, ts, value = unpack_signature(raw, size - SIGNATURE_LEN)
             sig = Signature(link_id, int.from_bytes(ts, "little"), value)
         version = 2
     elif raw[0] == STX_V1 and size >= HEADER_V1:

@@ -6,7 +6,10 @@ from collections.abc import Iterable, Iterator
 
 import orjson
 
-from mavscope.mavlink.frame import Frame, SignatureStatus, decode_payload
+from mavscope.mavlink.frame import IFLAG_SIGNED, Frame, Signature, SignatureStatus
+from mavscope.mavlink.frame import CrcStatus
+
+TRUNCATED = CrcStatus.TRUNCATED
 
 _dumps = orjson.dumps
 _NL = orjson.OPT_APPEND_NEWLINE
@@ -17,40 +20,45 @@ def frame_to_json(frame: Frame, fields: dict[str, object] | None = None, decode:
 
     Float NaN and infinities become null when serialised with orjson (JSON cannot carry them).
     """
-    if fields is None and decode:
-        fields = decode_payload(frame)
-    sig = frame.signature
-    md = frame.msgdef
+    # One unpacking instead of 20 attribute look-ups: this runs once per frame of a 1M-frame export.
+    (record, index, time, transport, src, dst, _, raw, version, length, iflags, cflags, seq, sysid, compid,
+     msgid, crc, status, md, sig, notes, _) = frame
+    if fields is None and decode and md is not None:
+        if status is not TRUNCATED and not iflags & ~IFLAG_SIGNED:
+            h = 10 if version == 2 else 6
+            fields = md.decode(raw[h : h + length])
     return {
-        "frame": frame.record,
-        "index": frame.index,
-        "time": frame.time,
-        "transport": frame.transport,
-        "src": frame.src,
-        "dst": frame.dst,
-        "version": frame.version,
-        "len": frame.length,
-        "incompat_flags": frame.incompat_flags,
-        "compat_flags": frame.compat_flags,
-        "seq": frame.seq,
-        "sysid": frame.sysid,
-        "compid": frame.compid,
-        "msgid": frame.msgid,
+        "frame": record,
+        "index": index,
+        "time": time,
+        "transport": transport,
+        "src": src,
+        "dst": dst,
+        "version": version,
+        "len": length,
+        "incompat_flags": iflags,
+        "compat_flags": cflags,
+        "seq": seq,
+        "sysid": sysid,
+        "compid": compid,
+        "msgid": msgid,
         "msgname": md.name if md is not None else None,
-        "crc": frame.crc,
-        "crc_status": frame.crc_status.value,
+        "crc": crc,
+        "crc_status": status,  # a str Enum: orjson writes its value
         "fields": fields,
-        "signature": None
-        if sig is None
-        else {
-            "link_id": sig.link_id,
-            "timestamp": sig.timestamp,
-            "time": sig.iso_time(),
-            "value": sig.value.hex(),
-            "status": SignatureStatus.NO_KEY.value,
-        },
+        "signature": None if sig is None else signature_json(sig),
         "encryption": None,
-        "notes": [n.to_json() for n in frame.notes] if frame.notes else [],
+        "notes": [n.to_json() for n in notes] if notes else [],
+    }
+
+
+def signature_json(sig: Signature) -> dict[str, object]:
+    return {
+        "link_id": sig.link_id,
+        "timestamp": sig.timestamp,
+        "time": sig.iso_time(),
+        "value": sig.value.hex(),
+        "status": SignatureStatus.NO_KEY.value,
     }
 
 
