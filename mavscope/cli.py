@@ -12,7 +12,10 @@ import sys
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from enum import IntEnum
-from typing import IO
+from typing import IO, TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from mavscope.export import FrameWriter
 
 from mavscope import __version__
 from mavscope.errors import MavscopeError, UsageError
@@ -134,6 +137,7 @@ def cmd_read(args: argparse.Namespace, env: Env) -> ExitStatus:
     anomalies = 0
     limit = args.count if args.count is not None else -1
     with open_capture(path) as reader:
+        frame_writer = _open_writer(args.write, path, reader.kind) if args.write else None
         update, stop = _progress(env, reader)
         try:
             if fmt == "json":
@@ -148,7 +152,9 @@ def cmd_read(args: argparse.Namespace, env: Env) -> ExitStatus:
                     continue
                 frame = item
                 shown += 1
-                if args.write:
+                if frame_writer is not None:
+                    frame_writer.write(frame)
+                elif args.write:
                     shown_records.update(frame.records)
                 if args.quiet:
                     pass
@@ -172,12 +178,27 @@ def cmd_read(args: argparse.Namespace, env: Env) -> ExitStatus:
                 out_b.write(b"\n]\n" if shown else b"]\n")
         finally:
             stop()
+            if frame_writer is not None:
+                frame_writer.close()
     out_b.flush()
-    if args.write:
+    if args.write and frame_writer is None:
         from mavscope.export import write_records
 
         write_records(path, args.write, shown_records)
     return ExitStatus.OK
+
+
+def _open_writer(out: str, source: str, kind: str) -> FrameWriter | None:
+    """Check `-w OUT` before reading; a FrameWriter for inputs without packets (tlog, raw), else None."""
+    from mavscope.export import FrameWriter
+
+    if os.path.exists(out) and os.path.samefile(out, source):
+        raise UsageError(f"-w: {out} is the capture being read")
+    if kind in ("tlog", "raw"):
+        return FrameWriter(out)
+    if out.lower().endswith(".tlog"):
+        raise UsageError("-w: a packet capture is written as .pcap or .pcapng, not .tlog")
+    return None
 
 
 COMMANDS: dict[str, Callable[[argparse.Namespace, Env], ExitStatus]] = {"read": cmd_read}

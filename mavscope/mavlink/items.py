@@ -139,7 +139,8 @@ def payload_items(frame: Frame, dialect: Dialect, fields: dict[str, object]) -> 
         text = _payload_value_text(md, fd, value, fields, dialect)
         present = max(0, min(fd.size, frame.length - fd.offset))
         if present < fd.size:
-            text += " [zero, truncated on the wire]" if present == 0 else " [partly truncated on the wire]"
+            # MAVLink 2 senders trim trailing zero bytes; the receiver restores them.
+            text += " [trimmed: zero-filled]" if present == 0 else " [partly trimmed: zero-filled]"
         if fd.extension:
             text += " [extension]"
         items.append(Item(text, fd.filter_name, base + fd.offset, present, value))
