@@ -95,7 +95,9 @@ def mavscope_jsonl(capture: Path) -> list[dict[str, Any]]:
         [sys.executable, "-m", "mavscope", "read", str(capture), "-T", "jsonl"],
         capture_output=True, text=True, timeout=MAVSCOPE_TIMEOUT_S, cwd=REPO, check=False,
     )  # fmt: skip
-    assert proc.returncode == 0, f"mavscope read {capture.name} -T jsonl exited {proc.returncode}:\n{proc.stderr[-2000:]}"
+    assert proc.returncode == 0, (
+        f"mavscope read {capture.name} -T jsonl exited {proc.returncode}:\n{proc.stderr[-2000:]}"
+    )
     return [json.loads(line) for line in proc.stdout.splitlines() if line.strip()]
 
 
@@ -146,25 +148,33 @@ class Comparison:
 
     full: int = 0  # clean pairs compared on header, msgid, CRC value and signature
     header_only: int = 0  # pairs involving a damaged frame, compared on the header (incl. msgid) only
-    lua_only: int = 0  # Lua frames failing pymavlink's CRC that mavscope does not report (Lua has no CRC check)
+    lua_only: int = (
+        0  # Lua frames failing pymavlink's CRC that mavscope does not report (Lua has no CRC check)
+    )
     mavscope_only: int = 0  # damaged mavscope frames, or frames the Lua lost after losing sync
+    unread: int = 0  # mavscope frames in a last record cut short by the end of the file: tshark skips it
     problems: list[str] = field(default_factory=list)
 
     def summary(self) -> str:
         """One line with the counts."""
         return (
             f"{self.full} frames fully compared, {self.header_only} header-only, "
-            f"{self.lua_only} Lua-only (CRC-invalid), {self.mavscope_only} mavscope-only (damaged/Lua lost sync)"
+            f"{self.lua_only} Lua-only (CRC-invalid), "
+            f"{self.mavscope_only} mavscope-only (damaged/Lua lost sync), "
+            f"{self.unread} in a record tshark did not read"
         )
 
 
 def _describe(obj: dict[str, Any] | None, lua: tshark.LuaFrame | None) -> str:
     parts = []
     if obj is not None:
-        parts.append(f"mavscope #{obj.get('index')} {mav_key(obj)} crc={obj.get('crc')} {obj.get('crc_status')}")
+        parts.append(
+            f"mavscope #{obj.get('index')} {mav_key(obj)} crc={obj.get('crc')} {obj.get('crc_status')}"
+        )
     if lua is not None:
         parts.append(
-            f"Lua #{lua.order}@{lua.pos} {lua_key(lua)} crc={lua.crc} pymavlink:{tshark.pymavlink_crc_status(lua)}"
+            f"Lua #{lua.order}@{lua.pos} {lua_key(lua)} crc={lua.crc} "
+            f"pymavlink:{tshark.pymavlink_crc_status(lua)}"
         )
     return "; ".join(parts)
 
@@ -174,7 +184,9 @@ def compare_pair(num: int, obj: dict[str, Any], lua: tshark.LuaFrame, out: Compa
     oracle = tshark.pymavlink_crc_status(lua)
     status = obj.get("crc_status")
     if (status == "ok" and oracle == "bad") or (status == "bad" and oracle == "ok"):
-        out.problems.append(f"record {num}: CRC verdicts differ (mavscope vs pymavlink): {_describe(obj, lua)}")
+        out.problems.append(
+            f"record {num}: CRC verdicts differ (mavscope vs pymavlink): {_describe(obj, lua)}"
+        )
         return
     if mav_damaged(obj) or oracle != "ok":
         out.header_only += 1
@@ -223,7 +235,9 @@ def compare_record(
         if tshark.pymavlink_crc_status(frame) != "ok":
             lua_skipped += 1
         else:
-            out.problems.append(f"record {num}: CRC-valid frame missing from mavscope: {_describe(None, frame)}")
+            out.problems.append(
+                f"record {num}: CRC-valid frame missing from mavscope: {_describe(None, frame)}"
+            )
     out.lua_only += lua_skipped
     lost_sync = record is not None and (
         record.unparsed > 0
@@ -247,6 +261,9 @@ def crosscheck(capture: Path, run: tshark.TsharkRun, mav: list[dict[str, Any]]) 
     out = Comparison()
     for num in sorted(set(by_record) | set(run.records)):
         frames = sorted(by_record.get(num, []), key=lambda o: int(o["index"]))
+        if run.cut_short and num > run.last_record:
+            out.unread += len(frames)  # tshark does not dissect a record cut short by the end of the file
+            continue
         compare_record(num, frames, run.records.get(num), out)
     return out
 
@@ -279,7 +296,9 @@ def test_capture_matches_tshark(
 ) -> None:
     """Every frame mavscope reports in a UDP capture agrees with tshark + pymavlink's Lua dissector."""
     if not capture.is_file():
-        where = "../shared/real-captures is absent" if capture.parent == REAL_CAPTURES else "run `make captures`"
+        where = (
+            "../shared/real-captures is absent" if capture.parent == REAL_CAPTURES else "run `make captures`"
+        )
         pytest.skip(f"{capture.name} not available ({where})")
     run = dissect(capture)
     result = assert_agrees(capture, run, mavscope_jsonl(capture))
@@ -349,18 +368,19 @@ def synthetic_records() -> list[SyntheticRecord]:
     """The edge cases, one per datagram, with the Lua behaviour documented in docs/testing-tshark.md."""
     f = _frames()
     hb, hb2 = f["heartbeat"], f["heartbeat2"]
+    rec, gcs, sitl = SyntheticRecord, (18570, 14550), (14580, 14540)
     return [
-        SyntheticRecord("v2 on a registered port", hb, 18570, 14550, (0,)),
-        SyntheticRecord("v2 + v1 + signed in one datagram", hb + f["v1_heartbeat"] + f["signed"], 14580, 14540, (0, 0, 0)),
-        SyntheticRecord("unregistered ports (decode as)", f["attitude"] + f["rtl"], 14540, 14541, (30, 76)),
-        SyntheticRecord("unknown incompat flags decoded as plaintext", f["unknown_flags"] + hb2, 14580, 14540, (0, 0)),
-        SyntheticRecord("bad CRC decoded as if good", f["bad_crc"] + hb, 14580, 14540, (0, 0)),
-        SyntheticRecord("unknown msgid swallows the rest", f["unknown_msgid"] + hb, 14580, 14540, (0xABCDEF,)),
-        SyntheticRecord("garbage between frames stops the Lua", hb + b"\x01\x02\x03" + hb2, 14580, 14540, (0,)),
-        SyntheticRecord("one garbage byte at offset 0 is skipped", b"\x07" + hb, 14580, 14540, (0,)),
-        SyntheticRecord("two garbage bytes at offset 0 stop the Lua", b"\x07\x07" + hb, 14580, 14540, ()),
-        SyntheticRecord("truncated frame at the end", hb + f["truncated"], 14580, 14540, (0, 30)),
-        SyntheticRecord("signature cut short", f["signed"][:-5], 14580, 14540, (0,)),
+        rec("v2 on a registered port", hb, *gcs, (0,)),
+        rec("v2 + v1 + signed in one datagram", hb + f["v1_heartbeat"] + f["signed"], *sitl, (0, 0, 0)),
+        rec("unregistered ports (decode as)", f["attitude"] + f["rtl"], 14540, 14541, (30, 76)),
+        rec("unknown incompat flags decoded as plaintext", f["unknown_flags"] + hb2, *sitl, (0, 0)),
+        rec("bad CRC decoded as if good", f["bad_crc"] + hb, *sitl, (0, 0)),
+        rec("unknown msgid swallows the rest", f["unknown_msgid"] + hb, *sitl, (0xABCDEF,)),
+        rec("garbage between frames stops the Lua", hb + b"\x01\x02\x03" + hb2, *sitl, (0,)),
+        rec("one garbage byte at offset 0 is skipped", b"\x07" + hb, *sitl, (0,)),
+        rec("two garbage bytes at offset 0 stop the Lua", b"\x07\x07" + hb, *sitl, ()),
+        rec("truncated frame at the end", hb + f["truncated"], *sitl, (0, 30)),
+        rec("signature cut short", f["signed"][:-5], *sitl, (0,)),
     ]  # fmt: skip
 
 
@@ -387,7 +407,9 @@ def synthetic_capture(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
-def test_lua_dissector_behaviour(synthetic_capture: Path, dissect: Callable[[Path], tshark.TsharkRun]) -> None:
+def test_lua_dissector_behaviour(
+    synthetic_capture: Path, dissect: Callable[[Path], tshark.TsharkRun]
+) -> None:
     """The Lua dissector decodes the synthetic edge cases the way docs/testing-tshark.md says."""
     run = dissect(synthetic_capture)
     for num, rec in enumerate(synthetic_records(), start=1):

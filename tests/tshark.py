@@ -105,8 +105,10 @@ class TsharkRun:
     """The result of dissecting one capture: records keyed by frame number, plus how it was run."""
 
     capture: Path
-    records: dict[int, LuaRecord]
+    records: dict[int, LuaRecord]  # only records the Lua dissector was invoked on
     command: tuple[str, ...]
+    last_record: int  # number of the last capture record tshark read
+    cut_short: bool  # tshark stopped at a last record cut short by the end of the file (and skipped it)
 
     def frames(self) -> Iterator[LuaFrame]:
         """Every decoded frame, in capture order."""
@@ -173,30 +175,27 @@ def check_lua_loads(exe: str, lua: Path) -> None:
     """
     proc = subprocess.run(
         [exe, "-G", "protocols", "-X", f"lua_script:{lua}"],
-        capture_output=True, text=True, timeout=TSHARK_TIMEOUT_S, check=False, env=_tshark_env(),
+        capture_output=True, text=True, timeout=TSHARK_TIMEOUT_S, check=False, env=_tshark_env(lua.parent),
     )  # fmt: skip
     registered = any(line.split("\t")[-1] == LUA_PROTO for line in proc.stdout.splitlines())
     if proc.returncode != 0 or not registered:
         err = " | ".join(line for line in proc.stderr.splitlines() if "Running as user" not in line)
-        raise TsharkUnavailable(f"tshark did not load the generated Lua dissector: {err[:300] or 'no error text'}")
+        raise TsharkUnavailable(
+            f"tshark did not load the generated Lua dissector: {err[:300] or 'no error text'}"
+        )
 
 
-def _tshark_env() -> dict[str, str]:
-    """Environment for tshark: a private, empty configuration dir so user preferences, profiles,
-    personal Lua plugins and "decode as" entries of whoever runs the tests cannot change the result."""
+def _tshark_env(work_dir: Path) -> dict[str, str]:
+    """Environment for tshark: an empty configuration dir of its own (under ``work_dir``) so the
+    preferences, profiles, personal Lua plugins and "decode as" entries of whoever runs the tests cannot
+    change the result; UTC so nothing time-zone dependent leaks in."""
+    conf = work_dir / "wireshark-config"
+    conf.mkdir(parents=True, exist_ok=True)
     env = dict(os.environ)
-    conf = Path(_private_config_dir())
     env["WIRESHARK_CONFIG_DIR"] = str(conf)
-    env.setdefault("LC_ALL", "C.UTF-8")
     env["TZ"] = "UTC"
+    env.setdefault("LC_ALL", "C.UTF-8")
     return env
-
-
-@cache
-def _private_config_dir() -> str:
-    import tempfile
-
-    return tempfile.mkdtemp(prefix="mavscope-tshark-conf-")
 
 
 def mavlink_udp_ports(capture: Path) -> set[int]:
@@ -224,17 +223,19 @@ def tshark_command(exe: str, lua: Path, capture: Path, udp_ports: Iterable[int] 
     """The tshark command line that dissects ``capture`` with ``lua`` and prints PDML.
 
     ``-J mavlink_proto`` keeps only the MAVLink subtrees (plus PDML's always-present ``geninfo`` with
-    the frame number); ``-Y mavlink_proto`` drops records the Lua was never invoked on; each extra UDP
-    port gets ``-d udp.port==N,mavlink_proto``.
+    the frame number, so every record read shows up); each extra UDP port gets
+    ``-d udp.port==N,mavlink_proto``.
     """
     cmd = [exe, "-n", "-X", f"lua_script:{lua}", "-r", str(capture)]
     for port in sorted(set(udp_ports) - LUA_UDP_PORTS):
         cmd += ["-d", f"udp.port=={port},{LUA_PROTO}"]
-    cmd += ["-Y", LUA_PROTO, "-T", "pdml", "-J", LUA_PROTO]
+    cmd += ["-T", "pdml", "-J", LUA_PROTO]
     return cmd
 
 
-def run_lua_dissector(exe: str, lua: Path, capture: Path, udp_ports: Iterable[int] | None = None) -> TsharkRun:
+def run_lua_dissector(
+    exe: str, lua: Path, capture: Path, udp_ports: Iterable[int] | None = None
+) -> TsharkRun:
     """Dissect ``capture`` with one tshark process and return every MAVLink frame the Lua decoded.
 
     ``udp_ports``: ports to force the dissector onto; by default those found by mavlink_udp_ports().
@@ -244,19 +245,25 @@ def run_lua_dissector(exe: str, lua: Path, capture: Path, udp_ports: Iterable[in
     cmd = tshark_command(exe, lua, capture, ports)
     try:
         proc = subprocess.run(
-            cmd, capture_output=True, timeout=TSHARK_TIMEOUT_S, check=False, env=_tshark_env()
+            cmd, capture_output=True, timeout=TSHARK_TIMEOUT_S, check=False, env=_tshark_env(lua.parent)
         )
     except subprocess.TimeoutExpired as exc:
         raise TsharkUnavailable(f"tshark took over {TSHARK_TIMEOUT_S}s on {capture.name}") from exc
-    if proc.returncode != 0:
-        err = proc.stderr.decode(errors="replace").strip().splitlines()
-        err = [line for line in err if "Running as user" not in line]
+    err = [
+        line for line in proc.stderr.decode(errors="replace").splitlines() if "Running as user" not in line
+    ]
+    # tshark exits 2 when the last record is cut short by the end of the file; it has then printed
+    # every complete record (and closed the PDML), so the run is usable.
+    cut_short = proc.returncode == 2 and any("cut short in the middle of a packet" in line for line in err)
+    if proc.returncode != 0 and not cut_short:
         raise TsharkUnavailable(f"tshark exited {proc.returncode} on {capture.name}: {' | '.join(err)[:300]}")
     try:
-        records = parse_pdml(proc.stdout)
+        records, last = parse_pdml(proc.stdout)
     except ET.ParseError as exc:
         raise TsharkUnavailable(f"tshark output for {capture.name} is not valid PDML: {exc}") from exc
-    return TsharkRun(capture=capture, records=records, command=tuple(cmd))
+    return TsharkRun(
+        capture=capture, records=records, command=tuple(cmd), last_record=last, cut_short=cut_short
+    )
 
 
 def _raw(elem: ET.Element) -> bytes:
@@ -269,15 +276,22 @@ def _le(elem: ET.Element) -> int:
     return int.from_bytes(_raw(elem), "little")
 
 
-def parse_pdml(pdml: bytes) -> dict[int, LuaRecord]:
-    """Turn tshark's PDML output into LuaRecords keyed by capture record number."""
+def parse_pdml(pdml: bytes) -> tuple[dict[int, LuaRecord], int]:
+    """Turn tshark's PDML output into LuaRecords keyed by capture record number.
+
+    Returns the records the Lua dissector was invoked on and the number of the last record read.
+    """
     root = ET.fromstring(pdml)
     records: dict[int, LuaRecord] = {}
+    last = 0
     for packet in root.iter("packet"):
         num_field = packet.find("proto[@name='geninfo']/field[@name='num']")
         if num_field is None:
             continue
         num = int(num_field.get("show", "0"))
+        last = max(last, num)
+        if packet.find(f"proto[@name='{LUA_PROTO}']") is None:
+            continue
         frames: list[LuaFrame] = []
         unparsed = 0
         lua_error: str | None = None
@@ -297,7 +311,7 @@ def parse_pdml(pdml: bytes) -> dict[int, LuaRecord]:
                 lua_error = text
                 break
         records[num] = LuaRecord(frame=num, frames=tuple(frames), unparsed=unparsed, lua_error=lua_error)
-    return records
+    return records, last
 
 
 def _parse_subtree(proto: ET.Element, num: int, order: int) -> LuaFrame | None:
@@ -313,7 +327,16 @@ def _parse_subtree(proto: ET.Element, num: int, order: int) -> LuaFrame | None:
     magic = _le(magic_elem)
     v2 = magic == MAGIC_V2
     header_names = (
-        ("magic", "length", "incompatibility_flag", "compatibility_flag", "sequence", "sysid", "compid", "msgid")
+        (
+            "magic",
+            "length",
+            "incompatibility_flag",
+            "compatibility_flag",
+            "sequence",
+            "sysid",
+            "compid",
+            "msgid",
+        )
         if v2
         else ("magic", "length", "sequence", "sysid", "compid", "msgid")
     )
