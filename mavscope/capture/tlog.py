@@ -1,0 +1,150 @@
+"""QGroundControl / MAVProxy telemetry logs: [8-byte big-endian µs timestamp][one MAVLink frame], repeated."""
+
+from __future__ import annotations
+
+import re
+import struct
+from collections.abc import Iterator
+
+from mavscope.capture.base import LINKTYPE_MAVLINK_TLOG, Record
+from mavscope.capture.reader import READER_BUGS, CaptureReader, make_record
+from mavscope.notes import Note, note
+
+STX_V1 = 0xFE
+STX_V2 = 0xFD
+TS_MIN = 946_684_800 * 1_000_000  # 2000-01-01 in microseconds since the Unix epoch
+TS_MAX = 4_102_444_800 * 1_000_000  # 2100-01-01
+RESYNC_BEHIND = 3_600 * 1_000_000  # how far (µs) before the last good entry a resynchronised one may lie
+RESYNC_AHEAD = 86_400 * 1_000_000  # and how far after
+
+_TS = struct.Struct(">Q")
+_STX = re.compile(rb"[\xfd\xfe]")
+
+
+def frame_length(buf: bytes, p: int, size: int) -> int:
+    """Length of the MAVLink frame whose STX is at `p` (from its header), or -1 if not a frame start or cut."""
+    if p + 3 > size:
+        return -1
+    stx = buf[p]
+    if stx == STX_V2:
+        return 12 + buf[p + 1] + (13 if buf[p + 2] & 1 else 0)
+    if stx == STX_V1:
+        return 8 + buf[p + 1]
+    return -1
+
+
+def entry_end(buf: bytes, p: int, size: int, lo: int = TS_MIN, hi: int = TS_MAX) -> int:
+    """End offset of a plausible, complete tlog entry at `p` (timestamp in [lo, hi)), or -1."""
+    if p < 0 or p + 11 > size:
+        return -1
+    if not lo <= _TS.unpack_from(buf, p)[0] < hi:
+        return -1
+    flen = frame_length(buf, p + 8, size)
+    if flen < 0 or p + 8 + flen > size:
+        return -1
+    return p + 8 + flen
+
+
+def sniff_tlog(buf: bytes, size: int) -> bool:
+    """Whether the file starts like a tlog: a plausible entry followed by another one (or the end)."""
+    end = entry_end(buf, 0, size)
+    if end < 0:
+        return False
+    return end == size or entry_end(buf, end, size) >= 0
+
+
+class TlogReader(CaptureReader):
+    """Reads a telemetry log entry by entry; every record holds exactly one MAVLink frame."""
+
+    kind = "tlog"
+
+    def __init__(self, path: str) -> None:
+        super().__init__(path)
+        self._linktype = LINKTYPE_MAVLINK_TLOG
+
+    def _resync(self, start: int, last_ts: int) -> int:
+        """Offset of the next plausible entry at or after `start`, followed by another one (or the end); or -1."""
+        buf, size = self._buf, self.size
+        lo, hi = TS_MIN, TS_MAX
+        if last_ts >= 0:
+            lo, hi = max(lo, last_ts - RESYNC_BEHIND), min(hi, last_ts + RESYNC_AHEAD)
+        search = _STX.search
+        q = start + 8
+        while True:
+            m = search(buf, q)
+            if m is None:
+                return -1
+            q = m.start()
+            p = q - 8
+            end = entry_end(buf, p, size, lo, hi)
+            if end >= 0 and (end == size or entry_end(buf, end, size, lo, hi) >= 0):
+                return p
+            q += 1
+
+    def _records(self) -> Iterator[Record]:
+        buf, size = self._buf, self.size
+        ts_unpack = _TS.unpack_from
+        tuple_new = tuple.__new__
+        R = Record
+        LT = LINKTYPE_MAVLINK_TLOG
+        n = 0
+        pos = 0
+        last_ts = -1
+        pending: tuple[Note, ...] = ()
+        try:
+            while pos < size:
+                if pos + 11 <= size:
+                    ts = ts_unpack(buf, pos)[0]
+                    stx = buf[pos + 8]
+                    if stx == 0xFD:
+                        end = pos + 20 + buf[pos + 9] + (13 if buf[pos + 10] & 1 else 0)
+                    elif stx == 0xFE:
+                        end = pos + 16 + buf[pos + 9]
+                    else:
+                        end = -1
+                    if end >= 0 and TS_MIN <= ts < TS_MAX:
+                        if end <= size:
+                            n += 1
+                            last_ts = ts
+                            self.position = end
+                            yield tuple_new(R, (n, ts / 1e6, LT, buf[pos + 8:end], pos + 8, end - pos - 8, pending))
+                            pending = ()
+                            pos = end
+                            continue
+                        q = self._resync(pos + 1, last_ts)
+                        if q < 0:  # a cut last entry
+                            n += 1
+                            self.position = size
+                            pending += (note("record-truncated",
+                                             f"tlog entry at offset {pos} has {size - pos - 8} of {end - pos - 8} "
+                                             "frame bytes: file cut short", pos),)
+                            yield make_record(n, ts / 1e6, LT, buf[pos + 8:size], pos + 8, end - pos - 8, pending)
+                            return
+                        pending += (note("capture-garbage", f"broken tlog entry at offset {pos}: {q - pos} bytes skipped",
+                                         pos),)
+                        pos = q
+                        continue
+                q = self._resync(pos + 1, last_ts)
+                if q < 0:
+                    if size - pos < 11:  # too short for an entry header: a cut last entry
+                        ts = ts_unpack(buf, pos)[0] if pos + 8 <= size else -1
+                        n += 1
+                        self.position = size
+                        pending += (note("record-truncated", f"file ends {size - pos} bytes into a tlog entry", pos),)
+                        start = min(pos + 8, size)
+                        t = ts / 1e6 if TS_MIN <= ts < TS_MAX else None
+                        yield make_record(n, t, LT, buf[start:size], start, size - start, pending)
+                        return
+                    pending += (note("capture-garbage",
+                                     f"broken tlog entry at offset {pos}; no later entry found, {size - pos} bytes skipped",
+                                     pos),)
+                    break
+                pending += (note("capture-garbage", f"broken tlog entry at offset {pos}: {q - pos} bytes skipped", pos),)
+                pos = q
+            self.position = size
+            if pending:
+                n += 1
+                yield make_record(n, None, LT, b"", min(pos + 8, size), 0, pending)
+        except READER_BUGS as exc:
+            yield self.failure(n + 1, pos, exc, pending)
+

@@ -1,0 +1,208 @@
+"""Writing captures: classic pcap (one link type) and pcapng (several), plus synthetic UDP framing."""
+
+from __future__ import annotations
+
+import ipaddress
+import math
+import os
+import struct
+from types import TracebackType
+from typing import BinaryIO
+
+from mavscope.capture.base import LINKTYPE_ETHERNET
+from mavscope.capture.pcap import MAGIC_NS, MAGIC_US
+from mavscope.capture.pcapng import BT_EPB, BT_IDB, BT_SHB, BYTE_ORDER_MAGIC, OPT_IF_TSRESOL
+from mavscope.errors import CaptureError, UsageError
+
+DEFAULT_SNAPLEN = 262144
+
+_PCAP_GLOBAL = struct.Struct("<IHHiIII")
+_PCAP_RECORD = struct.Struct("<IIII")
+_EPB_HEAD = struct.Struct("<IIIIIII")
+
+
+def _split_time(time: float | None, units: int) -> tuple[int, int]:
+    """(whole seconds, fraction in 1/units) of a timestamp; None and non-finite values become 0."""
+    if time is None or not math.isfinite(time) or time < 0:
+        return 0, 0
+    sec = math.floor(time)
+    frac = round((time - sec) * units)
+    if frac >= units:
+        sec, frac = sec + 1, frac - units
+    return sec, frac
+
+
+class _Writer:
+    """Shared file handling: a path (owned, closed by close()) or a binary file object (left open)."""
+
+    def __init__(self, path_or_fileobj: str | os.PathLike[str] | BinaryIO) -> None:
+        if isinstance(path_or_fileobj, (str, os.PathLike)):
+            try:
+                self._f: BinaryIO = open(path_or_fileobj, "wb")  # noqa: SIM115 - closed in close()
+            except OSError as e:
+                raise CaptureError(f"cannot write: {e.strerror or e}", path=os.fspath(path_or_fileobj)) from None
+            self._owned = True
+        else:
+            self._f = path_or_fileobj
+            self._owned = False
+        self.closed = False
+
+    def flush(self) -> None:
+        """Push everything written so far to the file (a live capture calls this periodically)."""
+        self._f.flush()
+
+    def close(self) -> None:
+        """Flush, and close the file if this writer opened it (idempotent)."""
+        if self.closed:
+            return
+        self.closed = True
+        self._f.flush()
+        if self._owned:
+            self._f.close()
+
+    def __enter__(self) -> _Writer:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+
+class PcapWriter(_Writer):
+    """Writes a little-endian classic pcap file of one link type, in microseconds or nanoseconds."""
+
+    def __init__(
+        self,
+        path_or_fileobj: str | os.PathLike[str] | BinaryIO,
+        linktype: int,
+        snaplen: int = DEFAULT_SNAPLEN,
+        nanosecond: bool = False,
+    ) -> None:
+        if not 0 <= linktype <= 0xFFFF:
+            raise UsageError(f"pcap link type must be 0..65535, not {linktype}")
+        super().__init__(path_or_fileobj)
+        self.linktype = linktype
+        self.snaplen = snaplen
+        self.units = 1_000_000_000 if nanosecond else 1_000_000
+        magic = MAGIC_NS if nanosecond else MAGIC_US
+        self._f.write(_PCAP_GLOBAL.pack(magic, 2, 4, 0, 0, snaplen, linktype))
+
+    def write(self, time: float | None, data: bytes, orig_len: int | None = None) -> None:
+        """Append one record; data beyond the snap length is cut off (orig_len keeps the real length)."""
+        if self.closed:
+            raise UsageError("write to a closed PcapWriter")
+        orig = max(orig_len if orig_len is not None else len(data), len(data))
+        if len(data) > self.snaplen:
+            data = data[: self.snaplen]
+        sec, frac = _split_time(time, self.units)
+        self._f.write(_PCAP_RECORD.pack(sec & 0xFFFFFFFF, frac, len(data), orig & 0xFFFFFFFF))
+        self._f.write(data)
+
+    def __enter__(self) -> PcapWriter:
+        return self
+
+
+class PcapngWriter(_Writer):
+    """Writes a little-endian pcapng file: one section, one interface per link type, Enhanced Packet Blocks."""
+
+    def __init__(
+        self,
+        path_or_fileobj: str | os.PathLike[str] | BinaryIO,
+        linktype: int | None = None,
+        snaplen: int = DEFAULT_SNAPLEN,
+        nanosecond: bool = False,
+    ) -> None:
+        super().__init__(path_or_fileobj)
+        self.linktype = linktype  # the default for write()
+        self.snaplen = snaplen
+        self.nanosecond = nanosecond
+        self.units = 1_000_000_000 if nanosecond else 1_000_000
+        self._interfaces: dict[int, int] = {}  # link type -> interface id
+        body = struct.pack("<IHHq", BYTE_ORDER_MAGIC, 1, 0, -1)
+        self._block(BT_SHB, body)
+
+    def _block(self, btype: int, body: bytes) -> None:
+        blen = 12 + len(body)
+        self._f.write(struct.pack("<II", btype, blen) + body + struct.pack("<I", blen))
+
+    def _interface(self, linktype: int) -> int:
+        iface = self._interfaces.get(linktype)
+        if iface is None:
+            if not 0 <= linktype <= 0xFFFF:
+                raise UsageError(f"pcapng link type must be 0..65535, not {linktype}")
+            body = struct.pack("<HHI", linktype, 0, self.snaplen)
+            if self.nanosecond:
+                body += struct.pack("<HHB3x", OPT_IF_TSRESOL, 1, 9) + struct.pack("<HH", 0, 0)
+            self._block(BT_IDB, body)
+            iface = self._interfaces[linktype] = len(self._interfaces)
+        return iface
+
+    def write(
+        self, time: float | None, data: bytes, orig_len: int | None = None, linktype: int | None = None
+    ) -> None:
+        """Append one packet of `linktype` (default: the writer's), adding its interface on first use."""
+        if self.closed:
+            raise UsageError("write to a closed PcapngWriter")
+        lt = linktype if linktype is not None else self.linktype
+        if lt is None:
+            raise UsageError("PcapngWriter.write needs a link type (none given and no default)")
+        iface = self._interface(lt)
+        orig = max(orig_len if orig_len is not None else len(data), len(data))
+        if len(data) > self.snaplen:
+            data = data[: self.snaplen]
+        sec, frac = _split_time(time, self.units)
+        ts = sec * self.units + frac
+        pad = -len(data) & 3
+        blen = 32 + len(data) + pad
+        self._f.write(_EPB_HEAD.pack(BT_EPB, blen, iface, ts >> 32, ts & 0xFFFFFFFF, len(data), orig & 0xFFFFFFFF))
+        self._f.write(data + b"\0" * pad + struct.pack("<I", blen))
+
+    def __enter__(self) -> PcapngWriter:
+        return self
+
+
+def _endpoint(text: str) -> tuple[bytes, int]:
+    """Parse "a.b.c.d:port" into 4 address bytes and a port (UsageError when malformed)."""
+    host, sep, port = text.rpartition(":")
+    try:
+        if not sep:
+            raise ValueError("no port")
+        p = int(port)
+        if not 0 <= p <= 0xFFFF:
+            raise ValueError("port out of range")
+        return ipaddress.IPv4Address(host).packed, p
+    except ValueError as e:
+        raise UsageError(f"expected an IPv4 'address:port', got {text!r} ({e})") from None
+
+
+def _checksum(data: bytes) -> int:
+    """The Internet checksum (RFC 1071) of `data`."""
+    if len(data) & 1:
+        data += b"\0"
+    total = sum(struct.unpack(f"!{len(data) // 2}H", data))
+    while total >> 16:
+        total = (total & 0xFFFF) + (total >> 16)
+    return ~total & 0xFFFF
+
+
+def synth_udp_ipv4(src: str, dst: str, payload: bytes) -> bytes:
+    """An Ethernet/IPv4/UDP packet carrying `payload` from `src` to `dst` ("ip:port"), checksums correct.
+
+    For inputs that have no link layer of their own (a live UDP socket, a tlog turned into a pcap).
+    """
+    saddr, sport = _endpoint(src)
+    daddr, dport = _endpoint(dst)
+    ulen = 8 + len(payload)
+    if 20 + ulen > 0xFFFF:
+        raise UsageError(f"UDP payload of {len(payload)} bytes does not fit one IPv4 packet")
+    pseudo = saddr + daddr + struct.pack("!BBH", 0, 17, ulen)
+    csum = _checksum(pseudo + struct.pack("!HHHH", sport, dport, ulen, 0) + payload) or 0xFFFF
+    udp = struct.pack("!HHHH", sport, dport, ulen, csum)
+    ip = bytearray(struct.pack("!BBHHHBBH4s4s", 0x45, 0, 20 + ulen, 0, 0x4000, 64, 17, 0, saddr, daddr))
+    ip[10:12] = struct.pack("!H", _checksum(bytes(ip)))
+    eth = b"\x02\x00\x00\x00\x00\x02" + b"\x02\x00\x00\x00\x00\x01" + b"\x08\x00"
+    return eth + bytes(ip) + udp + payload
+
+
+__all__ = ["DEFAULT_SNAPLEN", "LINKTYPE_ETHERNET", "PcapWriter", "PcapngWriter", "synth_udp_ipv4"]

@@ -1,0 +1,140 @@
+"""The Decapsulator: Records in, MAVLink-bearing Payloads out (UDP datagrams, reassembled TCP, tlog, raw)."""
+
+from __future__ import annotations
+
+import struct
+
+from mavscope.capture.base import LINKTYPE_ETHERNET, LINKTYPE_MAVLINK_RAW, LINKTYPE_MAVLINK_TLOG, Record
+from mavscope.notes import Note, note
+from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TCP, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
+from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, Endpoints, parse_ipv4, parse_ipv6
+from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, strip_link
+from mavscope.transport.tcp import MAX_BUFFERED, TcpReassembler
+
+RAW_STREAM = (TRANSPORT_RAW,)  # the stream key of a raw byte-stream capture
+
+# Ethernet + IPv4 + UDP in one go: (ethertype, version/IHL, TOS), IPv4 total length,
+# (flags/fragment offset, TTL, protocol), UDP length
+_FAST = struct.Struct("!12xIHxxI14xH")
+_FAST_ETH_IP4 = 0x08004500  # ethertype IPv4, version 4, header length 20 (TOS masked off)
+_FAST_UDP_UNFRAGMENTED = 17  # no MF flag, fragment offset 0, protocol UDP (TTL masked off)
+_FLOW = struct.Struct("!IIHH")
+_UDP = struct.Struct("!HHH")
+FLOW_CACHE = 65536  # (addresses, ports) -> names entries kept before the cache starts over
+_TCP = struct.Struct("!HHIxxxxBB")  # ports, sequence number, data offset byte, flags byte
+
+_tuple_new = tuple.__new__
+
+
+class Decapsulator:
+    """Strips link, IP, UDP and TCP headers from Records, keeping TCP reassembly state between them.
+
+    `feed` returns the Payloads a record yields (UDP: at most one; TCP: the in-order pieces it makes
+    deliverable); `flush` returns what TCP buffering still holds at the end of the capture. Record notes
+    are carried on the first Payload produced from their record, or on an empty-data Payload.
+    """
+
+    def __init__(self, max_tcp_buffer: int = MAX_BUFFERED) -> None:
+        self.endpoints = Endpoints()
+        self.tcp = TcpReassembler(max_tcp_buffer)
+        self._unknown_seen: set[int] = set()
+        self._flows: dict[bytes, tuple[str, str]] = {}
+
+    def feed(self, rec: Record) -> list[Payload]:
+        """The Payloads that `rec` yields now (possibly none)."""
+        number, _, linktype, data, offset, _, notes = rec
+        n = len(data)
+        if linktype == LINKTYPE_ETHERNET and n >= 42 and not notes:
+            # fast path: Ethernet + IPv4 without options + UDP, unfragmented, lengths consistent
+            eth_ip, total, frag_proto, ulen = _FAST.unpack_from(data)
+            if ((eth_ip & 0xFFFFFF00) == _FAST_ETH_IP4 and (frag_proto & 0x3FFF00FF) == _FAST_UDP_UNFRAGMENTED
+                    and 28 <= total <= n - 14 and 8 <= ulen <= total - 20):
+                flow = data[26:38]  # addresses and ports
+                names = self._flows.get(flow)
+                if names is None:
+                    names = self._flow_names(flow)
+                return [_tuple_new(Payload, (TRANSPORT_UDP, names[0], names[1], data[42:34 + ulen], None,
+                                             number, offset + 42, ()))]
+        return self._slow(rec)
+
+    def _flow_names(self, flow: bytes) -> tuple[str, str]:
+        """("ip:port", "ip:port") of the 12 bytes source address, destination address, ports."""
+        src, dst, sport, dport = _FLOW.unpack(flow)
+        names = (self.endpoints.v4(src, sport), self.endpoints.v4(dst, dport))
+        if len(self._flows) >= FLOW_CACHE:
+            self._flows.clear()
+        self._flows[flow] = names
+        return names
+
+    def flush(self) -> list[Payload]:
+        """End of capture: deliver the TCP bytes still buffered, with notes for the gaps skipped."""
+        return self.tcp.flush()
+
+    def _slow(self, rec: Record) -> list[Payload]:
+        number, _, linktype, data, roff, _, rnotes = rec
+        if linktype == LINKTYPE_MAVLINK_TLOG:
+            return [Payload(TRANSPORT_TLOG, None, None, data, None, number, roff, rnotes)]
+        if linktype == LINKTYPE_MAVLINK_RAW:
+            return [Payload(TRANSPORT_RAW, None, None, data, RAW_STREAM, number, roff, rnotes)]
+        out, notes = self._decode(rec)
+        notes = rnotes + notes
+        if notes:
+            if out:
+                out[0] = out[0]._replace(notes=notes + out[0].notes)
+            else:
+                out.append(Payload(TRANSPORT_UDP, None, None, b"", None, number, roff, notes))
+        return out
+
+    def _decode(self, rec: Record) -> tuple[list[Payload], tuple[Note, ...]]:
+        """Payloads and notes of one packet record (the slow, general path)."""
+        number, _, linktype, data, roff, _, _ = rec
+        link = strip_link(linktype, data)
+        if link is None:
+            if linktype in self._unknown_seen:
+                return [], ()
+            self._unknown_seen.add(linktype)
+            return [], (note("unknown-linktype", f"link type {linktype} is not decoded", roff),)
+        if isinstance(link, str):
+            return [], (note("malformed-packet", f"record {number}: {link}", roff),)
+        et, off = link
+        if et == ETHERTYPE_IPV4:
+            ip = parse_ipv4(data, off)
+        elif et == ETHERTYPE_IPV6:
+            ip = parse_ipv6(data, off)
+        else:
+            return [], ()
+        if isinstance(ip, str):
+            return [], (note("malformed-packet", f"record {number}: {ip} (packet byte {off})", roff + off),)
+        proto, src, dst, l4, end, fragment = ip
+        if fragment is not None:
+            return [], (note("ip-fragment", f"record {number}: {fragment}", roff + off),)
+        v4 = et == ETHERTYPE_IPV4
+        ep = self.endpoints
+        if proto == PROTO_UDP:
+            if l4 + 8 > end:
+                return [], (note("malformed-packet", f"record {number}: UDP header cut short at byte {l4}",
+                                 roff + l4),)
+            sport, dport, ulen = _UDP.unpack_from(data, l4)
+            if ulen < 8:
+                if ulen or v4:
+                    return [], (note("malformed-packet", f"record {number}: UDP length {ulen} < 8 at byte {l4}",
+                                     roff + l4),)
+                ulen = end - l4  # IPv6 jumbogram
+            s = ep.v4_bytes(src, sport) if v4 else ep.v6(src, sport)
+            d = ep.v4_bytes(dst, dport) if v4 else ep.v6(dst, dport)
+            payload = data[l4 + 8:min(l4 + ulen, end)]
+            return [Payload(TRANSPORT_UDP, s, d, payload, None, number, roff + l4 + 8)], ()
+        if proto == PROTO_TCP:
+            if l4 + 20 > end:
+                return [], (note("malformed-packet", f"record {number}: TCP header cut short at byte {l4}",
+                                 roff + l4),)
+            sport, dport, seq, doff, flags = _TCP.unpack_from(data, l4)
+            hlen = (doff >> 4) * 4
+            if hlen < 20 or l4 + hlen > end:
+                return [], (note("malformed-packet",
+                                 f"record {number}: TCP header length {hlen} does not fit at byte {l4}", roff + l4),)
+            s = ep.v4_bytes(src, sport) if v4 else ep.v6(src, sport)
+            d = ep.v4_bytes(dst, dport) if v4 else ep.v6(dst, dport)
+            pieces = self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, roff + l4 + hlen)
+            return pieces, ()
+        return [], ()

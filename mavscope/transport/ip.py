@@ -1,0 +1,122 @@
+"""IPv4 and IPv6 headers: where the UDP or TCP header lies, and "ip:port" endpoint names."""
+
+from __future__ import annotations
+
+import socket
+import struct
+
+PROTO_TCP = 6
+PROTO_UDP = 17
+# IPv6 extension headers walked on the way to UDP/TCP
+EXT_HOPOPTS = 0
+EXT_ROUTING = 43
+EXT_FRAGMENT = 44
+EXT_DSTOPTS = 60
+_EXT_SKIPPABLE = frozenset((EXT_HOPOPTS, EXT_ROUTING, EXT_DSTOPTS))
+MAX_EXT_HEADERS = 16
+
+_IPV4 = struct.Struct("!BxHHHBBxx4s4s")  # vihl, total length, id, flags+fragment offset, ttl, proto, src, dst
+_IPV6 = struct.Struct("!IHBB16s16s")  # version/class/flow, payload length, next header, hop limit, src, dst
+_FRAG6 = struct.Struct("!BxHI")
+
+# (proto, src address, dst address, L4 offset, L4 end, fragment description or None)
+IpResult = tuple[int, bytes, bytes, int, int, str | None]
+
+
+def parse_ipv4(data: bytes, off: int) -> IpResult | str:
+    """Decode an IPv4 header at `off`; an error message (str) when it is malformed.
+
+    The checksum is never checked (offloading makes it wrong in captures). The end of the layer-4
+    data honours the total length, which strips Ethernet padding, clamped to the captured bytes.
+    """
+    n = len(data)
+    if off + 20 > n:
+        return f"IPv4 header cut short: {n - off} of 20 bytes"
+    vihl, total, ident, frag, _ttl, proto, src, dst = _IPV4.unpack_from(data, off)
+    if vihl >> 4 != 4:
+        return f"IPv4 header with version {vihl >> 4}"
+    ihl = (vihl & 15) * 4
+    if ihl < 20:
+        return f"IPv4 header length {ihl} < 20"
+    if off + ihl > n:
+        return f"IPv4 options cut short: header length {ihl}, {n - off} bytes captured"
+    if total == 0:  # TCP segmentation offload leaves it 0
+        end = n
+    elif total < ihl:
+        return f"IPv4 total length {total} < header length {ihl}"
+    else:
+        end = min(off + total, n)
+    fragment = None
+    if frag & 0x3FFF:
+        fragment = f"IPv4 fragment id {ident} at offset {(frag & 0x1FFF) * 8}{' (more follow)' if frag & 0x2000 else ''}"
+    return proto, src, dst, off + ihl, end, fragment
+
+
+def parse_ipv6(data: bytes, off: int) -> IpResult | str:
+    """Decode an IPv6 header at `off` and walk its extension headers to the upper-layer header."""
+    n = len(data)
+    if off + 40 > n:
+        return f"IPv6 header cut short: {n - off} of 40 bytes"
+    vcf, plen, nxt, _hops, src, dst = _IPV6.unpack_from(data, off)
+    if vcf >> 28 != 6:
+        return f"IPv6 header with version {vcf >> 28}"
+    end = min(off + 40 + plen, n) if plen else n  # 0: jumbogram (hop-by-hop option) or offload
+    p = off + 40
+    fragment = None
+    for _ in range(MAX_EXT_HEADERS):
+        if nxt in _EXT_SKIPPABLE:
+            if p + 8 > end:
+                return f"IPv6 extension header {nxt} cut short at byte {p}"
+            nxt, hlen = data[p], (data[p + 1] + 1) * 8
+            p += hlen
+        elif nxt == EXT_FRAGMENT:
+            if p + 8 > end:
+                return f"IPv6 fragment header cut short at byte {p}"
+            nxt2, offm, ident = _FRAG6.unpack_from(data, p)
+            if offm & 0xFFF9:
+                more = " (more follow)" if offm & 1 else ""
+                fragment = f"IPv6 fragment id {ident} at offset {offm & 0xFFF8}{more}"
+            nxt = nxt2
+            p += 8
+        else:
+            break
+    else:
+        return f"more than {MAX_EXT_HEADERS} IPv6 extension headers"
+    if p > end:
+        return f"IPv6 extension headers run past the packet end at byte {end}"
+    return nxt, src, dst, p, end, fragment
+
+
+class Endpoints:
+    """Formats "ip:port" / "[v6]:port" names, caching them so the hot path rarely builds a string."""
+
+    __slots__ = ("_v4", "_v6", "limit")
+
+    def __init__(self, limit: int = 65536) -> None:
+        self._v4: dict[int, str] = {}
+        self._v6: dict[tuple[bytes, int], str] = {}
+        self.limit = limit
+
+    def v4(self, addr: int, port: int) -> str:
+        """The name of IPv4 address `addr` (as a 32-bit integer) and `port`."""
+        key = (addr << 16) | port
+        s = self._v4.get(key)
+        if s is None:
+            if len(self._v4) >= self.limit:
+                self._v4.clear()
+            s = self._v4[key] = f"{addr >> 24}.{(addr >> 16) & 255}.{(addr >> 8) & 255}.{addr & 255}:{port}"
+        return s
+
+    def v4_bytes(self, addr: bytes, port: int) -> str:
+        """The name of a 4-byte IPv4 address and `port`."""
+        return self.v4(int.from_bytes(addr, "big"), port)
+
+    def v6(self, addr: bytes, port: int) -> str:
+        """The name of a 16-byte IPv6 address and `port`."""
+        key = (addr, port)
+        s = self._v6.get(key)
+        if s is None:
+            if len(self._v6) >= self.limit:
+                self._v6.clear()
+            s = self._v6[key] = f"[{socket.inet_ntop(socket.AF_INET6, addr)}]:{port}"
+        return s
