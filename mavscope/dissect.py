@@ -16,7 +16,7 @@ from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import SIGNATURE_LEN, STX_V2, Frame, Signature
 from mavscope.mavlink.framing import unpack_signature, OK, Framer, StreamFramer, mcrf4xx, build_frame, skipped_note
 from mavscope.notes import Note
-from mavscope.transport.base import TRANSPORT_TLOG, Payload
+from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, Payload
 from mavscope.transport.decap import Decapsulator
 
 # Ports MAVLink uses by convention (DOMAIN.md). Datagrams on them are taken for MAVLink even when no
@@ -131,7 +131,8 @@ class Dissector:
                 yield Anomaly(p.record, p.notes)
             return
         found, skipped, _ = self.framer.scan(data, start, len(data), True)
-        if not start and (not found or (all(f[2] is not OK for f in found) and not self._trusted(p))):
+        if not start and not any(f[2] is OK for f in found) and not self._trusted(p):
+            # No valid frame and no reason to expect MAVLink here: some other protocol.
             if p.notes:
                 yield Anomaly(p.record, p.notes)
             return
@@ -175,6 +176,8 @@ class Dissector:
         sf = self.streams.get(p.stream)
         if sf is None:
             sf = self.streams[p.stream] = StreamFramer(self.framer, (p.stream, p.transport, p.src, p.dst))
+            # A raw file is MAVLink by the user's word; a TCP stream proves it with a valid frame.
+            sf.trusted = p.transport == TRANSPORT_RAW
         sf.feed(p.data, p.record, p.offset, p.notes)
         yield from self._emit(sf, p.transport, p.src, p.dst, final)
 

@@ -9,6 +9,7 @@ find exactly the CRC-valid frames we find.
 from __future__ import annotations
 
 import math
+from collections import Counter
 from pathlib import Path
 
 import pytest
@@ -60,11 +61,11 @@ def test_frames_decode_as_pymavlink_does(path: Path, dialect: Dialect) -> None:
                 mav.decode(bytearray(f.raw))
             continue
         msg = mav.decode(bytearray(f.raw))
+        if f.crc_status is CrcStatus.UNCHECKED:
+            assert isinstance(msg, pm.MAVLink_unknown), where  # pymavlink reports its own id -2
+            continue
         hdr = msg.get_header()
         assert (hdr.seq, hdr.srcSystem, hdr.srcComponent, hdr.msgId) == (f.seq, f.sysid, f.compid, f.msgid), where
-        if f.crc_status is CrcStatus.UNCHECKED:
-            assert isinstance(msg, pm.MAVLink_unknown), where
-            continue
         assert msg.get_type() == f.msgname, where
         assert msg.get_crc() == f.crc, where
         fields = decode_payload(f)
@@ -109,5 +110,17 @@ def pymavlink_valid_frames(path: Path) -> list[bytes]:
 @pytest.mark.parametrize("path", BUNDLED, ids=lambda p: p.name)
 def test_crc_valid_frames_are_those_pymavlink_finds(path: Path, dialect: Dialect) -> None:
     frames, _ = dissect(path, dialect)
-    ours = [f.raw for f in frames if f.crc_status is CrcStatus.OK and not f.incompat_flags & ~0x01]
-    assert sorted(ours) == sorted(pymavlink_valid_frames(path))
+    ours = sorted(f.raw for f in frames if f.crc_status is CrcStatus.OK and not f.incompat_flags & ~0x01)
+    theirs = sorted(pymavlink_valid_frames(path))
+    damaged = any(n.code in ("truncated-frame", "skipped-bytes", "bad-crc") for f in frames for n in f.notes)
+    if not damaged:
+        assert ours == theirs
+        return
+    # After damage pymavlink's stream parser can swallow good frames (it trusts the length of a frame
+    # cut short). mavscope must find every frame pymavlink finds, and each extra one must be a frame
+    # pymavlink's own decoder accepts on its own.
+    missing = Counter(theirs) - Counter(ours)
+    assert not missing
+    mav = pm.MAVLink(None)
+    for raw in (Counter(ours) - Counter(theirs)).elements():
+        assert mav.decode(bytearray(raw)).get_type() != "BAD_DATA"

@@ -123,9 +123,15 @@ class PcapngReader(CaptureReader):
                     break
                 found = self._block_at(pos, e)
                 if found is None:
+                    q = self._resync(pos, e)
+                    if q >= 0:
+                        pending += (note("capture-garbage", f"corrupt block at offset {pos}: {q - pos} bytes skipped",
+                                         pos),)
+                        pos = q
+                        continue
                     head = self._header(pos, e)
                     if head is not None and pos + head[1] > size:
-                        # a sane header whose block runs past the end: the file was cut short
+                        # a sane header whose block runs past the end, and nothing after: the file was cut short
                         btype, blen = head[0], head[1]
                         cut = note("record-truncated",
                                    f"block at offset {pos} has {size - pos} of {blen} bytes: file cut short", pos)
@@ -137,18 +143,11 @@ class PcapngReader(CaptureReader):
                             pending = ()
                         else:
                             pending += (cut,)
-                        pos = size
-                        break
-                    q = self._resync(pos, e)
-                    if q < 0:
-                        pending += (note("capture-garbage",
-                                         f"corrupt block at offset {pos}; no later block found, {size - pos} bytes skipped",
-                                         pos),)
-                        pos = size
-                        break
-                    pending += (note("capture-garbage", f"corrupt block at offset {pos}: {q - pos} bytes skipped", pos),)
-                    pos = q
-                    continue
+                    else:
+                        pending += (note("capture-garbage", f"corrupt block at offset {pos}; no later block found, "
+                                         f"{size - pos} bytes skipped", pos),)
+                    pos = size
+                    break
                 btype, blen, e2 = found
                 if btype == BT_EPB:
                     iface, hi, lo, caplen, orig = epb(buf, pos + 8)

@@ -45,12 +45,40 @@ def entry_end(buf: bytes, p: int, size: int, lo: int = TS_MIN, hi: int = TS_MAX)
     return p + 8 + flen
 
 
+def find_entry(buf: bytes, size: int, start: int, last_ts: int = -1) -> int:
+    """Offset of the next plausible entry at or after `start`, followed by another one (or the end); or -1.
+
+    With `last_ts` (µs) the entry's timestamp must lie near it.
+    """
+    lo, hi = TS_MIN, TS_MAX
+    if last_ts >= 0:
+        lo, hi = max(lo, last_ts - RESYNC_BEHIND), min(hi, last_ts + RESYNC_AHEAD)
+    search = _STX.search
+    q = start + 8
+    while True:
+        m = search(buf, q)
+        if m is None:
+            return -1
+        q = m.start()
+        p = q - 8
+        end = entry_end(buf, p, size, lo, hi)
+        if end >= 0 and (end == size or entry_end(buf, end, size, lo, hi) >= 0):
+            return p
+        q += 1
+
+
 def sniff_tlog(buf: bytes, size: int) -> bool:
-    """Whether the file starts like a tlog: a plausible entry followed by another one (or the end)."""
+    """Whether the file starts like a tlog: a plausible entry followed by another one (or the end).
+
+    A damaged second entry is tolerated when a consistent entry follows within the next 4 KiB.
+    """
     end = entry_end(buf, 0, size)
     if end < 0:
         return False
-    return end == size or entry_end(buf, end, size) >= 0
+    if end == size or entry_end(buf, end, size) >= 0:
+        return True
+    window = min(size, end + 4096)
+    return find_entry(buf, window, end, _TS.unpack_from(buf, 0)[0]) >= 0
 
 
 class TlogReader(CaptureReader):
@@ -61,25 +89,6 @@ class TlogReader(CaptureReader):
     def __init__(self, path: str) -> None:
         super().__init__(path)
         self._linktype = LINKTYPE_MAVLINK_TLOG
-
-    def _resync(self, start: int, last_ts: int) -> int:
-        """Offset of the next plausible entry at or after `start`, followed by another one (or the end); or -1."""
-        buf, size = self._buf, self.size
-        lo, hi = TS_MIN, TS_MAX
-        if last_ts >= 0:
-            lo, hi = max(lo, last_ts - RESYNC_BEHIND), min(hi, last_ts + RESYNC_AHEAD)
-        search = _STX.search
-        q = start + 8
-        while True:
-            m = search(buf, q)
-            if m is None:
-                return -1
-            q = m.start()
-            p = q - 8
-            end = entry_end(buf, p, size, lo, hi)
-            if end >= 0 and (end == size or entry_end(buf, end, size, lo, hi) >= 0):
-                return p
-            q += 1
 
     def _records(self) -> Iterator[Record]:
         buf, size = self._buf, self.size
@@ -111,7 +120,7 @@ class TlogReader(CaptureReader):
                             pending = ()
                             pos = end
                             continue
-                        q = self._resync(pos + 1, last_ts)
+                        q = find_entry(buf, size, pos + 1, last_ts)
                         if q < 0:  # a cut last entry
                             n += 1
                             self.position = size
@@ -124,7 +133,7 @@ class TlogReader(CaptureReader):
                                          pos),)
                         pos = q
                         continue
-                q = self._resync(pos + 1, last_ts)
+                q = find_entry(buf, size, pos + 1, last_ts)
                 if q < 0:
                     if size - pos < 11:  # too short for an entry header: a cut last entry
                         ts = ts_unpack(buf, pos)[0] if pos + 8 <= size else -1

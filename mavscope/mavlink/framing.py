@@ -107,6 +107,31 @@ def _check_at(buf: bytes, pos: int, end: int, messages: dict[int, MessageDef]) -
     return VALID if _crc_status(buf, pos, hlen, buf[pos + 1], md)[0] is OK else INVALID
 
 
+def _cut_short(buf: bytes, start: int, valid: int, messages: dict[int, MessageDef]) -> bool:
+    """True when skipped bytes buf[start:valid] are a frame cut short by the valid frame at `valid`.
+
+    It takes a whole header with a plausible content (a known message id whose length fits the LEN
+    byte, no unknown flags) claiming the bytes where the valid frame begins: a frame that lost bytes on
+    a serial link. Anything less plausible stays skipped bytes, so payload bytes that merely look like
+    an STX do not become phantom frames.
+    """
+    b = buf[start]
+    length = buf[start + 1] if start + 1 < valid else -1
+    if b == STX_V2:
+        if valid - start < HEADER_V2 or buf[start + 2] & ~KNOWN_IFLAGS:
+            return False
+        md = messages.get(buf[start + 7] | (buf[start + 8] << 8) | (buf[start + 9] << 16))
+        plausible = md is not None and 0 < length <= md.length
+    elif b == STX_V1:
+        if valid - start < HEADER_V1:
+            return False
+        md = messages.get(buf[start + 5])
+        plausible = md is not None and length == md.base_length
+    else:
+        return False
+    return plausible and start + frame_size(buf, start) > valid
+
+
 class Framer:
     """Frame finder over one dialect. `parse_datagram` is stateless; `StreamFramer` keeps stream state."""
 
@@ -154,6 +179,12 @@ class Framer:
                 pos = nxt
                 continue
             cand = self.candidate(buf, pos, end)
+            if cand is None and final:
+                # One or two bytes left: too little to call a frame.
+                if skip_from < 0:
+                    skip_from = pos
+                pos = end
+                break
             if cand is None or cand[1] is TRUNCATED:
                 if not final:
                     break  # wait for more bytes
@@ -187,7 +218,10 @@ class Framer:
                 if after == end and not final:
                     break  # a stream may still bring the proof (or the refutation)
             if skip_from >= 0:
-                skipped.append((skip_from, pos - skip_from))
+                if status is OK and _cut_short(buf, skip_from, pos, messages):
+                    frames.append((skip_from, pos - skip_from, TRUNCATED, None))
+                else:
+                    skipped.append((skip_from, pos - skip_from))
                 skip_from = -1
             frames.append((pos, size, status, crc))
             pos += size
@@ -283,7 +317,7 @@ def skipped_note(count: int, offset: int | None) -> Note:
 class StreamFramer:
     """Frames of one byte stream (a TCP direction, a raw file), fed in order, possibly in pieces."""
 
-    __slots__ = ("framer", "buf", "segs", "seen_valid", "key", "pending")
+    __slots__ = ("framer", "buf", "segs", "trusted", "key", "pending")
 
     def __init__(self, framer: Framer, key: Hashable) -> None:
         self.framer = framer
@@ -291,7 +325,7 @@ class StreamFramer:
         self.buf = b""
         # (start position in buf, record number, file offset of that position or None)
         self.segs: list[tuple[int, int, int | None]] = []
-        self.seen_valid = False
+        self.trusted = False
         self.pending: list[Note] = []
 
     def _locate(self, pos: int) -> tuple[int, int | None]:
@@ -330,7 +364,7 @@ class StreamFramer:
         sk = 0
         for pos, size, status, crc in found:
             if status is OK:
-                self.seen_valid = True
+                self.trusted = True
             while sk < len(skipped) and skipped[sk][0] < pos:
                 s_pos, s_count = skipped[sk]
                 sk += 1
@@ -344,9 +378,9 @@ class StreamFramer:
             self.pending = []
             out.append((buf, pos, size, status, crc, off, span, notes))
         for s_pos, s_count in skipped[sk:]:
-            if self.seen_valid:
+            if self.trusted:
                 self.pending.append(skipped_note(s_count, self._locate(s_pos)[1]))
-        if not self.seen_valid:
+        if not self.trusted:
             # Not (yet) known to be MAVLink: a stream of something else is not reported at all.
             out = [o for o in out if o[3] is OK]
         if resume >= len(buf):

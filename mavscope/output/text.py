@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 from mavscope.mavlink.dialect import Dialect, MessageDef
-from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
+from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, IFLAG_SIGNED, CrcStatus, Frame, decode_payload
 from mavscope.mavlink.items import Item, format_value, frame_items
 
 # The fields a summary line shows per message (default: the first few scalar fields).
@@ -74,6 +74,10 @@ def summary_info(frame: Frame, dialect: Dialect, fields: dict[str, object] | Non
             parts.append(f"[encrypted, method {frame.encryption_method}]")
     if frame.crc_status is not CrcStatus.OK:
         parts.append(f"[CRC {frame.crc_status.value}]")
+    if frame.incompat_flags & ~(IFLAG_SIGNED | IFLAG_ENCRYPTION_MASK):
+        parts.append(f"[unknown incompat flags 0x{frame.incompat_flags:02x}]")
+    if any(n.code == "skipped-bytes" for n in frame.notes):
+        parts.append("[after skipped bytes]")
     if frame.signature is not None:
         parts.append(f"[signed link {frame.signature.link_id}]")
     return " ".join(parts)

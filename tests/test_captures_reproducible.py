@@ -1,0 +1,71 @@
+"""The bundled captures are exactly what scripts/make_captures.py builds, and pymavlink agrees with
+expected.json about the frames of px4_sitl_udp.pcap."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+from pymavlink.dialects.v20 import common as pm
+from scapy.layers.inet import UDP
+from scapy.utils import rdpcap
+
+ROOT = Path(__file__).resolve().parents[1]
+CAPTURES = ROOT / "captures"
+SCRIPT = ROOT / "scripts" / "make_captures.py"
+
+
+def load_script() -> ModuleType:
+    spec = importlib.util.spec_from_file_location("make_captures", SCRIPT)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up there
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def regenerated(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("captures")
+    load_script().make_all(out)
+    return out
+
+
+@pytest.fixture(scope="module")
+def expected() -> dict:
+    return json.loads((CAPTURES / "expected.json").read_text(encoding="utf-8"))
+
+
+def test_regenerated_files_are_identical(regenerated: Path) -> None:
+    bundled = sorted(p.name for p in CAPTURES.iterdir() if p.is_file())
+    built = sorted(p.name for p in regenerated.iterdir())
+    assert built == bundled
+    for name in built:
+        assert (regenerated / name).read_bytes() == (CAPTURES / name).read_bytes(), f"{name} differs"
+
+
+def test_counts_are_consistent(expected: dict) -> None:
+    for name, e in expected.items():
+        assert e["frames"] == len(e["frame_list"]) == len(e["frame_offsets"]) == len(e["frame_crc"]), name
+        assert e["frames"] == e["crc_ok"] + e["crc_bad"] + e["crc_unchecked"] == e["v1"] + e["v2"], name
+        assert e["truncated"] == len(e["truncated_list"]), name
+        data = (CAPTURES / name).read_bytes()
+        assert all(data[off] in (0xFD, 0xFE) for off in e["frame_offsets"]), name
+
+
+def test_pymavlink_finds_the_expected_frames_in_px4_sitl_udp(expected: dict) -> None:
+    """pymavlink's robust parser, one datagram at a time, reports the frames expected.json lists."""
+    found = []
+    for number, pkt in enumerate(rdpcap(str(CAPTURES / "px4_sitl_udp.pcap")), start=1):
+        if UDP not in pkt:
+            continue
+        mav = pm.MAVLink(None)
+        mav.robust_parsing = True
+        msgs = [m for m in mav.parse_buffer(bytes(pkt[UDP].payload)) or [] if not isinstance(m, pm.MAVLink_bad_data)]
+        for index, m in enumerate(msgs):
+            found.append([number, index, m.get_srcSystem(), m.get_srcComponent(), m.get_seq(), m.get_msgId()])
+    assert found == expected["px4_sitl_udp.pcap"]["frame_list"]
