@@ -66,6 +66,6 @@ def test_pymavlink_finds_the_expected_frames_in_px4_sitl_udp(expected: dict) -> 
         mav = pm.MAVLink(None)
         mav.robust_parsing = True
         msgs = [m for m in mav.parse_buffer(bytes(pkt[UDP].payload)) or [] if not isinstance(m, pm.MAVLink_bad_data)]
-        for index, m in enumerate(msgs):
+        for index, m in enumerate(msgs, start=1):
             found.append([number, index, m.get_srcSystem(), m.get_srcComponent(), m.get_seq(), m.get_msgId()])
     assert found == expected["px4_sitl_udp.pcap"]["frame_list"]
