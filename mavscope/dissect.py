@@ -101,7 +101,7 @@ class Dissector:
                         yield _new(Frame, (
                             number, index, time, p[0], src, p[2], None if p[6] is None else p[6] + pos, raw, 2,
                             length, iflags, data[pos + 3], data[pos + 4], data[pos + 5], data[pos + 6],
-                            md.id, crc, OK, md, sig, (), None,
+                            md.id, crc, OK, md, sig, (), None, None,
                         ))
                         pos += size
                     if pos and src is not None and src not in endpoints:

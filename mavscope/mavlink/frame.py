@@ -39,6 +39,31 @@ class SignatureStatus(str, Enum):
     TRUNCATED = "truncated"
 
 
+class EncryptionStatus(str, Enum):
+    DECRYPTED = "decrypted"
+    NO_KEY = "no-key"
+    FAILED = "failed"
+
+
+class Encryption(NamedTuple):
+    """What the security layer did with an encrypted payload (incompat flag bits 5-7)."""
+
+    method: int  # 1..7: incompat_flags >> 5
+    scheme: str | None  # "xor", "aes-128-ctr", "aes-gcm"; None when no cipher is configured for the method
+    status: EncryptionStatus
+    plaintext: bytes | None  # the decrypted payload (status DECRYPTED)
+    reason: str = ""  # why it failed, for the notes and the tree
+
+
+class Security(NamedTuple):
+    """Verdicts of the security layer on one frame (None on a Frame that layer has not seen)."""
+
+    signature_status: SignatureStatus | None  # None for unsigned frames
+    key: str | None  # the NAME of the key whose MAC matched (valid or replay); never the key itself
+    encryption: Encryption | None  # None for plaintext frames
+    reason: str = ""  # why the signature verdict is what it is (replay: last accepted timestamp...)
+
+
 class Signature(NamedTuple):
     link_id: int
     timestamp: int  # units of 10 microseconds since 2015-01-01T00:00:00Z
@@ -86,6 +111,7 @@ class Frame(NamedTuple):
     signature: Signature | None
     notes: tuple[Note, ...]
     span: tuple[int, ...] | None  # records holding the frame's bytes when more than `record` alone
+    security: Security | None = None  # set by the security layer (mavscope.security) when it runs
 
     @property
     def header_len(self) -> int:
@@ -109,17 +135,26 @@ class Frame(NamedTuple):
     def records(self) -> tuple[int, ...]:
         return self.span if self.span is not None else (self.record,)
 
-    def decodable(self) -> bool:
-        """True when the payload can be decoded as plaintext with the message definition."""
-        return (
-            self.msgdef is not None
-            and self.crc_status is not CrcStatus.TRUNCATED
-            and not self.incompat_flags & ~KNOWN_IFLAGS
-        )
+
+
+def plaintext_payload(frame: Frame) -> bytes | None:
+    """The payload to decode: the wire payload of a plaintext frame, the decrypted one of an encrypted
+    frame the security layer could decrypt, else None."""
+    if frame.msgdef is None or frame.crc_status is CrcStatus.TRUNCATED:
+        return None
+    iflags = frame.incompat_flags
+    if not iflags & ~KNOWN_IFLAGS:
+        return frame.payload
+    sec = frame.security
+    if (iflags & ~(KNOWN_IFLAGS | IFLAG_ENCRYPTION_MASK)) == 0 and sec is not None and sec.encryption is not None:
+        return sec.encryption.plaintext
+    return None
 
 
 def decode_payload(frame: Frame) -> dict[str, object] | None:
-    """Raw field values of the frame's payload, or None where it cannot be decoded as plaintext."""
-    if not frame.decodable():
+    """Raw field values of the frame's payload (decrypted where it was encrypted and could be
+    decrypted), or None where it cannot be decoded."""
+    payload = plaintext_payload(frame)
+    if payload is None:
         return None
-    return frame.msgdef.decode(frame.payload)  # type: ignore[union-attr]
+    return frame.msgdef.decode(payload)  # type: ignore[union-attr]

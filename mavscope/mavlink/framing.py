@@ -298,7 +298,7 @@ def build_frame(
     return _new(
         Frame,
         (record, index, time, transport, src, dst, offset, raw, version, length, iflags, cflags, seq, sysid,
-         compid, msgid, crc, status, md, sig, notes, span),
+         compid, msgid, crc, status, md, sig, notes, span, None),
     )
 
 

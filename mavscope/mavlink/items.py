@@ -210,12 +210,32 @@ def frame_items(frame: Frame, dialect: Dialect, fields: dict[str, object] | None
                 Item(f"Link id: {sig.link_id}", "signature.link_id", so, 1, sig.link_id),
                 Item(f"Timestamp: {sig.timestamp} ({sig.iso_time()})", "signature.timestamp", so + 1, 6, sig.timestamp),
                 Item(f"Signature: {sig.value.hex()}", "signature.value", so + 7, 6, sig.value.hex()),
-                Item("Status: no-key (no key supplied)", "signature.status", so, 0, "no-key", generated=True),
+                _signature_status_item(frame, so),
             ),
         ))
+    sec = frame.security
+    if sec is not None and sec.encryption is not None:
+        enc = sec.encryption
+        text = f"Encryption: method {enc.method}"
+        if enc.scheme:
+            text += f" ({enc.scheme})"
+        text += f" [{enc.status.value}{': ' + enc.reason if enc.reason else ''}]"
+        tree.append(Item(text, "encryption.status", hlen, plen, enc.status.value, generated=True))
     for n in frame.notes:
         tree.append(Item(f"[{n.severity.value}] {n.message}", f"note.{n.code}", 0, 0, n.code, generated=True))
     return tuple(tree)
+
+
+def _signature_status_item(frame: Frame, offset: int) -> Item:
+    sec = frame.security
+    if sec is None or sec.signature_status is None:
+        return Item("Status: no-key (no key supplied)", "signature.status", offset, 0, "no-key", generated=True)
+    text = f"Status: {sec.signature_status.value}"
+    if sec.key:
+        text += f" (key {sec.key})"
+    if sec.reason:
+        text += f": {sec.reason}"
+    return Item(text, "signature.status", offset, 0, sec.signature_status.value, generated=True)
 
 
 def _flags_text(flags: int) -> str:

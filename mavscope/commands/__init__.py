@@ -1,0 +1,1 @@
+"""Subcommands of the `mavscope` command line, one module each (`register(subparsers)`)."""

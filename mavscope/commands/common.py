@@ -1,0 +1,85 @@
+"""What the capture-reading subcommands share: options, opening a capture, the frame pipeline.
+
+`capture_session(args, env)` is the one place where a command gets its frames: it loads the dialects,
+opens the capture, runs the dissector and then every later stage the options ask for (key material,
+display filters). A stage added here serves `read`, `stats`, `mission` and the rest at once.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+from mavscope.capture.reader import CaptureReader
+from mavscope.cli import Env
+from mavscope.dissect import Anomaly, Dissector
+from mavscope.errors import UsageError
+from mavscope.mavlink.dialect import Dialect, load_dialect
+from mavscope.mavlink.frame import Frame
+
+
+def add_capture_options(p: argparse.ArgumentParser) -> None:
+    """FILE / -r FILE and --dialect."""
+    p.add_argument("file", nargs="?", help="capture file: pcap, pcapng, tlog or raw bytes (detected by content)")
+    p.add_argument("-r", dest="file_opt", metavar="FILE", help="capture file (tshark spelling)")
+    p.add_argument("--dialect", action="append", default=[], metavar="XML",
+                   help="load another dialect XML (repeatable; dissectors/*.xml load automatically)")
+
+
+def capture_path(args: argparse.Namespace) -> str:
+    path = args.file_opt or args.file
+    if not path:
+        raise UsageError(f"{args.command}: a capture file is required (mavscope {args.command} FILE)")
+    if args.file_opt and args.file:
+        raise UsageError(f"{args.command}: give the capture file once (either FILE or -r FILE)")
+    return path
+
+
+@dataclass
+class Session:
+    """An open capture and the frames it yields after every stage the options asked for."""
+
+    path: str
+    reader: CaptureReader
+    dialect: Dialect
+    items: Iterator[Frame | Anomaly]
+
+
+@contextmanager
+def capture_session(args: argparse.Namespace, env: Env) -> Iterator[Session]:
+    """Open the capture named by `args` and build its frame pipeline."""
+    from mavscope.capture.detect import open_capture
+
+    path = capture_path(args)
+    dialect = load_dialect(args.dialect)
+    with open_capture(path) as reader:
+        items: Iterator[Frame | Anomaly] = Dissector(dialect).run(reader)
+        yield Session(path, reader, dialect, items)
+
+
+def report_anomaly(env: Env, path: str, item: Anomaly) -> None:
+    """Problems that belong to no frame go to stderr, one line each, with the file offset where known."""
+    for note in item.notes:
+        where = f"offset {note.offset}: " if note.offset is not None and str(note.offset) not in note.message else ""
+        env.stderr.write(f"mavscope: {path}: record {item.record}: {where}{note.message}\n")
+
+
+def progress(env: Env, reader: CaptureReader) -> tuple[Callable[[], None], Callable[[], None]]:
+    """A rich progress bar on stderr for long files when stderr is a terminal; no-ops otherwise."""
+    size = getattr(reader, "size", 0) or 0
+    if not env.stderr_is_terminal or size < 8 * 1024 * 1024:
+        return (lambda: None), (lambda: None)
+    from rich.console import Console
+    from rich.progress import BarColumn, DownloadColumn, Progress, TimeRemainingColumn
+
+    bar = Progress("[progress.description]{task.description}", BarColumn(), DownloadColumn(),
+                   TimeRemainingColumn(), console=Console(file=env.stderr), transient=True)
+    task = bar.add_task("reading", total=size)
+    bar.start()
+
+    def update() -> None:
+        bar.update(task, completed=getattr(reader, "position", 0))
+
+    return update, bar.stop

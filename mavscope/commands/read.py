@@ -1,0 +1,98 @@
+"""`mavscope read FILE`: dissect a capture like `tshark -r` (summary, -V tree, -x hex, JSON)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+from mavscope.cli import Env, ExitStatus
+from mavscope.commands.common import add_capture_options, capture_session, progress, report_anomaly
+from mavscope.dissect import Anomaly
+from mavscope.errors import UsageError
+from mavscope.export import FrameWriter, write_records
+from mavscope.output.jsonout import jsonl_bytes
+from mavscope.output.text import detail_text, hexdump, summary_line
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("read", help="dissect a capture (pcap, pcapng, tlog, raw) like tshark -r",
+                       description="Dissect every MAVLink frame of a capture.")
+    add_capture_options(p)
+    p.add_argument("-V", dest="verbose", action="store_true", help="print the detail tree of every frame")
+    p.add_argument("-x", dest="hex", action="store_true", help="print a hex dump of every frame")
+    p.add_argument("-T", dest="format", choices=("text", "json", "jsonl"), default="text",
+                   help="output format (default text)")
+    p.add_argument("-c", dest="count", type=int, metavar="N", help="stop after N frames")
+    p.add_argument("-w", dest="write", metavar="OUT", help="write the capture records holding the shown frames")
+    p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w)")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    if args.count is not None and args.count < 1:
+        raise UsageError("read: -c needs a positive number of frames")
+    out_b = env.stdout_bytes
+    out = env.stdout
+    fmt = args.format
+    limit = args.count if args.count is not None else -1
+    shown_records: set[int] = set()
+    shown = 0
+    t0: float | None = None
+    with capture_session(args, env) as session:
+        path, dialect = session.path, session.dialect
+        frame_writer = _open_writer(args.write, path, session.reader.kind) if args.write else None
+        update, stop = progress(env, session.reader)
+        try:
+            if fmt == "json":
+                out_b.write(b"[")
+            for n, item in enumerate(session.items):
+                if not n & 0x3FFF:
+                    update()
+                if type(item) is Anomaly:
+                    report_anomaly(env, path, item)
+                    continue
+                frame = item
+                shown += 1
+                if frame_writer is not None:
+                    frame_writer.write(frame)
+                elif args.write:
+                    shown_records.update(frame.records)
+                if args.quiet:
+                    pass
+                elif fmt == "jsonl":
+                    out_b.write(jsonl_bytes(frame))
+                elif fmt == "json":
+                    out_b.write((b"\n" if shown == 1 else b",\n") + jsonl_bytes(frame)[:-1])
+                else:
+                    if t0 is None:
+                        t0 = frame.time
+                    out.write(summary_line(frame, dialect, t0) + "\n")
+                    if args.verbose:
+                        out.write(detail_text(frame, dialect) + "\n")
+                    if args.hex:
+                        out.write(hexdump(frame.raw) + "\n")
+                    if args.verbose or args.hex:
+                        out.write("\n")
+                if shown == limit:
+                    break
+            if fmt == "json":
+                out_b.write(b"\n]\n" if shown else b"]\n")
+        finally:
+            stop()
+            if frame_writer is not None:
+                frame_writer.close()
+    out_b.flush()
+    if args.write and frame_writer is None:
+        write_records(path, args.write, shown_records)
+    return ExitStatus.OK
+
+
+def _open_writer(out: str, source: str, kind: str) -> FrameWriter | None:
+    """Check `-w OUT` before reading; a FrameWriter for inputs without packets (tlog, raw), else None."""
+    if os.path.exists(out) and os.path.samefile(out, source):
+        raise UsageError(f"read: -w {out} is the capture being read")
+    if kind in ("tlog", "raw"):
+        return FrameWriter(out)
+    if out.lower().endswith(".tlog"):
+        raise UsageError("read: -w: a packet capture is written as .pcap or .pcapng, not .tlog")
+    return None
