@@ -1,0 +1,1 @@
+"""Analysis over dissected frames: display filters, statistics, forensic reconstruction, findings."""
