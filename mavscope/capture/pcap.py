@@ -56,6 +56,7 @@ class PcapReader(CaptureReader):
         size = self.size
         linktype = self.linktype
         if not self._header_ok:
+            self.position = size
             if size:
                 yield make_record(1, None, linktype, b"", 0, 0, (
                     note("record-truncated", f"file ends {size} bytes into the 24-byte pcap header", 0),))

@@ -45,6 +45,15 @@ def entry_end(buf: bytes, p: int, size: int, lo: int = TS_MIN, hi: int = TS_MAX)
     return p + 8 + flen
 
 
+def _followed(buf: bytes, p: int, size: int, lo: int, hi: int) -> bool:
+    """Whether an entry ending at `p` is followed by a plausible entry, a cut one at the end, or the end."""
+    if size - p < 11:  # the end, or an entry cut inside its header
+        return True
+    if not lo <= _TS.unpack_from(buf, p)[0] < hi or buf[p + 8] not in (STX_V1, STX_V2):
+        return False
+    return entry_end(buf, p, size, lo, hi) >= 0 or p + 8 + frame_length(buf, p + 8, size) > size
+
+
 def find_entry(buf: bytes, size: int, start: int, last_ts: int = -1) -> int:
     """Offset of the next plausible entry at or after `start`, followed by another one (or the end); or -1.
 
@@ -62,7 +71,7 @@ def find_entry(buf: bytes, size: int, start: int, last_ts: int = -1) -> int:
         q = m.start()
         p = q - 8
         end = entry_end(buf, p, size, lo, hi)
-        if end >= 0 and (end == size or entry_end(buf, end, size, lo, hi) >= 0):
+        if end >= 0 and _followed(buf, end, size, lo, hi):
             return p
         q += 1
 
@@ -75,7 +84,7 @@ def sniff_tlog(buf: bytes, size: int) -> bool:
     end = entry_end(buf, 0, size)
     if end < 0:
         return False
-    if end == size or entry_end(buf, end, size) >= 0:
+    if _followed(buf, end, size, TS_MIN, TS_MAX):
         return True
     window = min(size, end + 4096)
     return find_entry(buf, window, end, _TS.unpack_from(buf, 0)[0]) >= 0
