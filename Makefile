@@ -20,10 +20,15 @@ $(TSTAMP): pyproject.toml | $(BIN)/python
 	touch $(STAMP) $@
 
 demo: $(STAMP)
-	$(BIN)/mavscope read captures/px4_sitl_udp.pcap -c 40
+	@echo "--- mavscope read: a PX4 SITL session (first 25 frames) ---"
+	$(BIN)/mavscope read captures/px4_sitl_udp.pcap -c 25
 	@echo
-	@echo "--- the COMMAND_LONG (return to launch) frame in detail ---"
-	$(BIN)/mavscope read captures/px4_sitl_udp.pcap -V -x -Y 'COMMAND_LONG' -c 1
+	@echo "--- a damaged capture: bad CRCs, garbage, truncation, unknown ids are reported, not dropped ---"
+	$(BIN)/mavscope read captures/damaged.pcap
+	@echo
+	@echo "--- one frame in detail (-V tree, -x hex) and as JSON Lines (-T jsonl) ---"
+	$(BIN)/mavscope read captures/px4_sitl_udp.pcap -c 1 -V -x
+	$(BIN)/mavscope read captures/px4_sitl_udp.pcap -c 1 -T jsonl
 
 test: $(TSTAMP)
 	$(BIN)/python -m pytest -q
