@@ -8,10 +8,11 @@ display filters). A stage added here serves `read`, `stats`, `mission` and the r
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 
+from mavscope.capture.base import Record
 from mavscope.capture.reader import CaptureReader
 from mavscope.cli import Env
 from mavscope.dissect import Anomaly, Dissector
@@ -47,6 +48,18 @@ class Session:
     items: Iterator[Frame | Anomaly]
 
 
+def build_pipeline(
+    args: argparse.Namespace, env: Env, dialect: Dialect, records: Iterable[Record]
+) -> Iterator[Frame | Anomaly]:
+    """Frames and anomalies of `records` after every stage the options ask for.
+
+    Shared by offline commands (through `capture_session`) and live capture, which feeds records as
+    they arrive. Stages are added here, in data-path order.
+    """
+    items: Iterator[Frame | Anomaly] = Dissector(dialect).run(records)
+    return items
+
+
 @contextmanager
 def capture_session(args: argparse.Namespace, env: Env) -> Iterator[Session]:
     """Open the capture named by `args` and build its frame pipeline."""
@@ -55,8 +68,7 @@ def capture_session(args: argparse.Namespace, env: Env) -> Iterator[Session]:
     path = capture_path(args)
     dialect = load_dialect(args.dialect)
     with open_capture(path) as reader:
-        items: Iterator[Frame | Anomaly] = Dissector(dialect).run(reader)
-        yield Session(path, reader, dialect, items)
+        yield Session(path, reader, dialect, build_pipeline(args, env, dialect, reader))
 
 
 def report_anomaly(env: Env, path: str, item: Anomaly) -> None:
