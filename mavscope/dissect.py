@@ -14,7 +14,16 @@ _new = tuple.__new__
 from mavscope.capture.base import Record
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import SIGNATURE_LEN, STX_V2, Frame, Signature
-from mavscope.mavlink.framing import unpack_signature, OK, Framer, StreamFramer, mcrf4xx, build_frame, skipped_note
+from mavscope.mavlink.framing import (
+    OK,
+    Framer,
+    StreamFramer,
+    build_frame,
+    mcrf4xx,
+    skipped_note,
+    unpack_signature,
+    unpack_v2,
+)
 from mavscope.notes import Note
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, Payload
 from mavscope.transport.decap import Decapsulator
@@ -80,13 +89,12 @@ class Dissector:
                 if not p[7]:
                     src = p[1]
                     while pos + 12 <= n and data[pos] == STX_V2:
-                        length = data[pos + 1]
-                        iflags = data[pos + 2]
+                        stx, length, iflags, cflags, seq, sysid, compid, lo, hi = unpack_v2(data, pos)
                         end = pos + 10 + length
                         size = length + (25 if iflags & 1 else 12)
                         if iflags > 1 or pos + size > n:
                             break
-                        md = messages.get(data[pos + 7] | (data[pos + 8] << 8) | (data[pos + 9] << 16))
+                        md = messages.get(lo | (hi << 16))
                         if md is None or length > md.length:
                             break
                         crc = data[end] | (data[end + 1] << 8)
@@ -100,8 +108,7 @@ class Dissector:
                         index += 1
                         yield _new(Frame, (
                             number, index, time, p[0], src, p[2], None if p[6] is None else p[6] + pos, raw, 2,
-                            length, iflags, data[pos + 3], data[pos + 4], data[pos + 5], data[pos + 6],
-                            md.id, crc, OK, md, sig, (), None, None,
+                            length, iflags, cflags, seq, sysid, compid, md.id, crc, OK, md, sig, (), None, None,
                         ))
                         pos += size
                     if pos and src is not None and src not in endpoints:

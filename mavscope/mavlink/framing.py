@@ -39,7 +39,7 @@ from mavscope.mavlink.frame import (
 from mavscope.notes import Note, note
 
 mcrf4xx = crc16.mcrf4xx
-_V2 = struct.Struct("<BBBBBBBHB").unpack_from
+unpack_v2 = struct.Struct("<BBBBBBBHB").unpack_from
 _V1 = struct.Struct("<BBBBBB").unpack_from
 _CRC = struct.Struct("<H").unpack_from
 unpack_signature = struct.Struct("<B6s6s").unpack_from
@@ -250,7 +250,7 @@ def build_frame(
     """Make a Frame from a scanned candidate (header fields parsed, payload left for later)."""
     raw = buf[pos : pos + size]
     if raw[0] == STX_V2 and size >= HEADER_V2:
-        _, length, iflags, cflags, seq, sysid, compid, lo, hi = _V2(raw)
+        _, length, iflags, cflags, seq, sysid, compid, lo, hi = unpack_v2(raw)
         msgid = lo | (hi << 16)
         sig = None
         if iflags & IFLAG_SIGNED and status is not TRUNCATED:
@@ -266,7 +266,7 @@ def build_frame(
         version = 2 if raw[0] == STX_V2 else 1
         hdr = raw + bytes((HEADER_V2 if version == 2 else HEADER_V1) - len(raw))
         if version == 2:
-            _, length, iflags, cflags, seq, sysid, compid, lo, hi = _V2(hdr)
+            _, length, iflags, cflags, seq, sysid, compid, lo, hi = unpack_v2(hdr)
             msgid = lo | (hi << 16)
         else:
             _, length, seq, sysid, compid, msgid = _V1(hdr)
