@@ -50,9 +50,6 @@ BAD = CrcStatus.BAD
 UNCHECKED = CrcStatus.UNCHECKED
 TRUNCATED = CrcStatus.TRUNCATED
 
-# Candidate: (pos, size, status, header fields...) as a plain tuple, see _candidate().
-Candidate = tuple
-
 
 def frame_size(buf: bytes, pos: int) -> int:
     """Total size of the frame whose STX is at `pos` (needs 3 bytes: STX, LEN, INCOMPAT)."""
@@ -275,7 +272,7 @@ def build_frame(
     md = messages.get(msgid)
     extra: list[Note] = []
     if status is TRUNCATED:
-        extra.append(note("truncated-frame", f"frame truncated: {size} of {frame_size_or_header(raw)} bytes present", offset))
+        extra.append(note("truncated-frame", f"frame truncated: {size} of {announced_size(raw)} bytes present", offset))
     elif status is BAD:
         extra.append(note("bad-crc", f"CRC 0x{crc:04x} does not match the frame", offset))
     elif status is UNCHECKED:
@@ -302,7 +299,7 @@ def build_frame(
     )
 
 
-def frame_size_or_header(raw: bytes) -> int:
+def announced_size(raw: bytes) -> int:
     """The full size a (possibly truncated) frame announces, or its header size if LEN is missing."""
     if len(raw) >= 3:
         return frame_size(raw, 0)

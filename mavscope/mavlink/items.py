@@ -70,9 +70,7 @@ def _fmt_float(v: float) -> str:
     return f"{v:.7g}"
 
 
-def format_value(
-    fd: FieldDef, value: object, dialect: Dialect, fields: dict[str, object] | None = None
-) -> str:
+def format_value(fd: FieldDef, value: object, dialect: Dialect) -> str:
     """Human text for one payload field value: enum names, flags, degrees, units."""
     units = fd.units
     if isinstance(value, list):
@@ -121,11 +119,11 @@ def _payload_value_text(md: MessageDef, fd: FieldDef, value: object, fields: dic
         if is_int_coord and isinstance(value, int) and (frame in GLOBAL_FRAMES or frame is None):
             text = f"{value / 1e7:.7f}° ({value})"
         else:
-            text = format_value(fd, value, dialect, fields)
+            text = format_value(fd, value, dialect)
             if punits and not fd.units and isinstance(value, float):
                 text = f"{text} {punits}"
         return f"{plabel} ({fd.name}): {text}"
-    return f"{fd.name}: {format_value(fd, value, dialect, fields)}"
+    return f"{fd.name}: {format_value(fd, value, dialect)}"
 
 
 def payload_items(frame: Frame, dialect: Dialect, fields: dict[str, object]) -> tuple[Item, ...]:

@@ -6,7 +6,7 @@ import math
 
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, IFLAG_SIGNED, CrcStatus, Frame, decode_payload
-from mavscope.mavlink.items import Item, format_value, frame_items
+from mavscope.mavlink.items import Item, frame_items
 
 # The fields a summary line shows per message (default: the first few scalar fields).
 SUMMARY_FIELDS: dict[str, tuple[str, ...]] = {
@@ -132,4 +132,3 @@ def hexdump(data: bytes, width: int = 16) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["detail_text", "format_value", "hexdump", "summary_info", "summary_line", "tree_lines"]
