@@ -12,6 +12,7 @@ from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 
+from mavscope.analysis.filter import DisplayFilter, compile_filter
 from mavscope.capture.base import Record
 from mavscope.capture.reader import CaptureReader
 from mavscope.cli import Env
@@ -57,7 +58,25 @@ def build_pipeline(
     they arrive. Stages are added here, in data-path order.
     """
     items: Iterator[Frame | Anomaly] = Dissector(dialect).run(records)
+    display_filter = getattr(args, "display_filter", None)
+    if display_filter:  # the last stage: it may test the verdicts of every stage before it
+        items = filter_stage(compile_filter(display_filter, dialect), items)
     return items
+
+
+def add_filter_option(p: argparse.ArgumentParser) -> None:
+    """-Y FILTER: keep only the MAVLink frames a display filter matches (docs/filters.md)."""
+    p.add_argument("-Y", dest="display_filter", metavar="FILTER",
+                   help="display filter, e.g. 'COMMAND_LONG.command == MAV_CMD_NAV_RETURN_TO_LAUNCH' "
+                        "(docs/filters.md); applies per MAVLink frame")
+
+
+def filter_stage(flt: DisplayFilter, items: Iterable[Frame | Anomaly]) -> Iterator[Frame | Anomaly]:
+    """The frames `flt` matches; anomalies (which belong to no frame) pass through."""
+    matches = flt.matches
+    for item in items:
+        if type(item) is Anomaly or matches(item):  # type: ignore[arg-type]
+            yield item
 
 
 @contextmanager

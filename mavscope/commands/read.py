@@ -6,7 +6,13 @@ import argparse
 import os
 
 from mavscope.cli import Env, ExitStatus
-from mavscope.commands.common import add_capture_options, capture_session, progress, report_anomaly
+from mavscope.commands.common import (
+    add_capture_options,
+    add_filter_option,
+    capture_session,
+    progress,
+    report_anomaly,
+)
 from mavscope.dissect import Anomaly
 from mavscope.errors import UsageError
 from mavscope.export import FrameWriter, write_records
@@ -18,6 +24,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = sub.add_parser("read", help="dissect a capture (pcap, pcapng, tlog, raw) like tshark -r",
                        description="Dissect every MAVLink frame of a capture.")
     add_capture_options(p)
+    add_filter_option(p)
     p.add_argument("-V", dest="verbose", action="store_true", help="print the detail tree of every frame")
     p.add_argument("-x", dest="hex", action="store_true", help="print a hex dump of every frame")
     p.add_argument("-T", dest="format", choices=("text", "json", "jsonl"), default="text",
