@@ -47,6 +47,7 @@ class Session:
     reader: CaptureReader
     dialect: Dialect
     items: Iterator[Frame | Anomaly]
+    t0: float | None = None  # time of the capture's first record: relative times count from it (as tshark's)
 
 
 def build_pipeline(
@@ -86,8 +87,11 @@ def capture_session(args: argparse.Namespace, env: Env) -> Iterator[Session]:
 
     path = capture_path(args)
     dialect = load_dialect(args.dialect)
+    with open_capture(path) as first:
+        head = next(iter(first), None)
+        t0 = head.time if head is not None else None
     with open_capture(path) as reader:
-        yield Session(path, reader, dialect, build_pipeline(args, env, dialect, reader))
+        yield Session(path, reader, dialect, build_pipeline(args, env, dialect, reader), t0)
 
 
 def report_anomaly(env: Env, path: str, item: Anomaly) -> None:

@@ -44,8 +44,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     limit = args.count if args.count is not None else -1
     shown_records: set[int] = set()
     shown = 0
-    t0: float | None = None
     with capture_session(args, env) as session:
+        t0 = session.t0
         path, dialect = session.path, session.dialect
         frame_writer = _open_writer(args.write, path, session.reader.kind) if args.write else None
         update, stop = progress(env, session.reader)
@@ -71,8 +71,6 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                 elif fmt == "json":
                     out_b.write((b"\n" if shown == 1 else b",\n") + jsonl_bytes(frame)[:-1])
                 else:
-                    if t0 is None:
-                        t0 = frame.time
                     out.write(summary_line(frame, dialect, t0) + "\n")
                     if args.verbose:
                         out.write(detail_text(frame, dialect) + "\n")
