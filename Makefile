@@ -26,9 +26,10 @@ demo: $(STAMP)
 	@echo "--- a damaged capture: bad CRCs, garbage, truncation, unknown ids are reported, not dropped ---"
 	$(BIN)/mavscope read captures/damaged.pcap
 	@echo
-	@echo "--- one frame in detail (-V tree, -x hex) and as JSON Lines (-T jsonl) ---"
-	$(BIN)/mavscope read captures/px4_sitl_udp.pcap -c 1 -V -x
-	$(BIN)/mavscope read captures/px4_sitl_udp.pcap -c 1 -T jsonl
+	@echo "--- the first waypoint of the mission upload in detail (-Y filter, -V tree, -x hex) ---"
+	$(BIN)/mavscope read captures/px4_sitl_udp.pcap -Y 'MISSION_ITEM_INT.command == MAV_CMD_NAV_WAYPOINT' -c 1 -V -x
+	@echo "--- the return-to-launch command as JSON Lines (-T jsonl) ---"
+	$(BIN)/mavscope read captures/px4_sitl_udp.pcap -Y 'COMMAND_LONG.command == MAV_CMD_NAV_RETURN_TO_LAUNCH' -T jsonl
 
 test: $(TSTAMP)
 	$(BIN)/python -m pytest -q
