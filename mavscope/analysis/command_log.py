@@ -1,0 +1,131 @@
+"""The command log: every COMMAND_LONG / COMMAND_INT with the COMMAND_ACK that answered it.
+
+A command is matched to the first final ACK (any result but MAV_RESULT_IN_PROGRESS) that comes from
+the system it targeted (any component when it targeted component 0), for the same command id, and,
+where the ACK says (MAVLink 2 extensions), addressed to the sender. The same command from the same
+sender to the same target before that ACK is a retry (COMMAND_LONG counts them in `confirmation`), not
+a new command. `latency_ms` runs from the first transmission to the ACK. Commands without an ACK are
+unanswered; ACKs that match no command are listed apart.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+from mavscope.mavlink.dialect import Dialect
+from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
+
+MAV_RESULT_IN_PROGRESS = 5
+GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})  # MAV_FRAMEs whose x/y are latitude/longitude
+
+
+@dataclass
+class Command:
+    message: str  # COMMAND_LONG or COMMAND_INT
+    command: int
+    sender: tuple[int, int]
+    target: tuple[int, int]
+    params: dict[str, object]
+    time: float | None
+    frames: list[int] = field(default_factory=list)
+    retries: int = 0
+    result: int | None = None
+    progress: list[int] = field(default_factory=list)
+    ack_frame: int | None = None
+    ack_time: float | None = None
+    src: str | None = None
+
+    @property
+    def latency_ms(self) -> float | None:
+        if self.ack_time is None or self.time is None:
+            return None
+        return round((self.ack_time - self.time) * 1000, 3)
+
+
+def _name(dialect: Dialect, enum: str, value: int | None) -> str | None:
+    if value is None:
+        return None
+    e = dialect.enums.get(enum)
+    n = e.name_of(value) if e is not None else None
+    return n or str(value)
+
+
+def _clean(v: object) -> object:
+    return None if isinstance(v, float) and (math.isnan(v) or math.isinf(v)) else v
+
+
+def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> tuple[list[Command], list[dict[str, object]]]:
+    """(commands in the order first sent, ACKs that answer no command)."""
+    commands: list[Command] = []
+    pending: list[Command] = []
+    orphans: list[dict[str, object]] = []
+    for f in frames:
+        md = f.msgdef
+        if md is None or md.name not in ("COMMAND_LONG", "COMMAND_INT", "COMMAND_ACK") or f.crc_status is CrcStatus.BAD:
+            continue
+        fields = decode_payload(f)
+        if fields is None:
+            continue
+        me = (f.sysid, f.compid)
+        if md.name != "COMMAND_ACK":
+            cmd_id = int(fields["command"])  # type: ignore[call-overload]
+            target = (int(fields["target_system"]), int(fields["target_component"]))  # type: ignore[call-overload]
+            same = next((c for c in pending if c.message == md.name and c.command == cmd_id and c.sender == me
+                         and c.target == target), None)
+            if same is not None:
+                same.retries += 1
+                same.frames.append(f.record)
+                continue
+            names = [n for n in ("param1", "param2", "param3", "param4", "param5", "param6", "param7", "x", "y", "z",
+                                 "frame", "confirmation") if n in fields]
+            params = {n: _clean(fields[n]) for n in names}
+            if md.name == "COMMAND_INT" and params.get("frame") in GLOBAL_FRAMES:
+                params["x"] = int(params["x"]) / 1e7  # type: ignore[call-overload]  # degrees
+                params["y"] = int(params["y"]) / 1e7  # type: ignore[call-overload]
+            c = Command(md.name, cmd_id, me, target, params, f.time, [f.record], src=f.src)
+            commands.append(c)
+            pending.append(c)
+            continue
+        cmd_id = int(fields["command"])  # type: ignore[call-overload]
+        result = int(fields["result"])  # type: ignore[call-overload]
+        to_sys, to_comp = fields.get("target_system", 0), fields.get("target_component", 0)
+        match = None
+        for c in pending:
+            if c.command != cmd_id or c.target[0] not in (0, f.sysid) or c.target[1] not in (0, f.compid):
+                continue
+            if to_sys and to_sys != c.sender[0]:
+                continue
+            if to_comp and to_comp != c.sender[1]:
+                continue
+            match = c
+            break
+        if match is None:
+            orphans.append({"frame": f.record, "command": _name(dialect, "MAV_CMD", cmd_id),
+                            "result": _name(dialect, "MAV_RESULT", result), "from": [f.sysid, f.compid],
+                            "time": f.time})
+            continue
+        if result == MAV_RESULT_IN_PROGRESS:
+            match.progress.append(int(fields.get("progress", 0) or 0))  # type: ignore[call-overload]
+            match.frames.append(f.record)
+            continue
+        match.result, match.ack_frame, match.ack_time = result, f.record, f.time
+        pending.remove(match)
+    return commands, orphans
+
+
+def command_json(c: Command, dialect: Dialect) -> dict[str, object]:
+    labels = {f"param{i}": label for i, label, _ in dialect.command_params(c.command)}
+    if c.message == "COMMAND_INT":
+        labels |= {{"param5": "x", "param6": "y", "param7": "z"}.get(k, k): v for k, v in labels.items()
+                   if k in ("param5", "param6", "param7")}
+    return {
+        "command": _name(dialect, "MAV_CMD", c.command), "command_id": c.command, "message": c.message,
+        "from": list(c.sender), "to": list(c.target), "src": c.src, "time": c.time,
+        "result": _name(dialect, "MAV_RESULT", c.result), "result_id": c.result,
+        "answered": c.result is not None, "latency_ms": c.latency_ms, "retries": c.retries,
+        "progress": c.progress, "params": c.params,
+        "param_labels": {k: v for k, v in labels.items() if k in c.params},
+        "frames": c.frames, "ack_frame": c.ack_frame,
+    }

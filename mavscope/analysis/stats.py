@@ -1,0 +1,274 @@
+"""Link statistics: per message stream, per link (sysid, compid), per conversation, and totals.
+
+`compute_stats(frames)` takes frames in capture order (after any display filter) and returns a
+`Stats` whose `to_json()` is the `mavscope stats --json` document (docs/analysis.md). No presentation
+here: the command renders the tables and sparklines.
+
+Loss comes from sequence gaps per (sysid, compid), modulo 256 (`SeqTracker`): a frame whose sequence
+number is ahead of the last one by d counts d - 1 lost; the same number again is a duplicate; a number
+behind (by up to 128) is a late frame: it fills a gap already counted (loss - 1, `reordered`) or, if no
+gap holds it, is a duplicate. Gaps of more than 127 cannot be told from late frames and count as late.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+from mavscope.mavlink.frame import Frame, SignatureStatus
+
+LATE_WINDOW = 128
+
+
+@dataclass
+class SeqTracker:
+    """Sequence-number bookkeeping for one sender. `feed(seq)` returns what the number was."""
+
+    last: int | None = None
+    lost: int = 0
+    duplicates: int = 0
+    reordered: int = 0
+    missing: dict[int, int] = field(default_factory=dict)  # seq -> how far back it went missing (ordered)
+
+    def feed(self, seq: int) -> tuple[str, int]:
+        """("first" | "next" | "gap" | "duplicate" | "late", frames lost by this step)."""
+        if self.last is None:
+            self.last = seq
+            return "first", 0
+        d = (seq - self.last) % 256
+        if d == 1:
+            self.last = seq
+            self._expire()
+            return "next", 0
+        if d == 0:
+            self.duplicates += 1
+            return "duplicate", 0
+        if d < LATE_WINDOW:
+            for k in range(1, d):
+                s = (self.last + k) % 256
+                self.missing.pop(s, None)
+                self.missing[s] = 0
+            self.lost += d - 1
+            self.last = seq
+            self._expire()
+            return "gap", d - 1
+        if seq in self.missing:
+            del self.missing[seq]
+            self.lost -= 1
+            self.reordered += 1
+            return "late", -1
+        self.duplicates += 1
+        return "duplicate", 0
+
+    def _expire(self) -> None:
+        last = self.last
+        assert last is not None
+        while self.missing:
+            s = next(iter(self.missing))
+            if (last - s) % 256 < LATE_WINDOW:
+                break
+            del self.missing[s]
+
+
+@dataclass
+class _Stream:
+    count: int = 0
+    bytes: int = 0
+    first: float | None = None
+    last: float | None = None
+    per_second: Counter[int] = field(default_factory=Counter)
+
+
+@dataclass
+class _Link:
+    received: int = 0
+    bytes: int = 0
+    v1: int = 0
+    v2: int = 0
+    crc: Counter[str] = field(default_factory=Counter)
+    signature: Counter[str] = field(default_factory=Counter)
+    seq: SeqTracker = field(default_factory=SeqTracker)
+    first: float | None = None
+    last: float | None = None
+    endpoints: set[str] = field(default_factory=set)
+
+
+@dataclass
+class _Conversation:
+    a: str
+    b: str
+    transport: str
+    frames_ab: int = 0
+    frames_ba: int = 0
+    bytes_ab: int = 0
+    bytes_ba: int = 0
+    first: float | None = None
+    last: float | None = None
+    systems: set[tuple[int, int]] = field(default_factory=set)
+
+
+def _span(first: float | None, last: float | None) -> float | None:
+    return None if first is None or last is None else last - first
+
+
+def message_name(frame: Frame) -> str:
+    return frame.msgdef.name if frame.msgdef is not None else f"UNKNOWN_{frame.msgid}"
+
+
+def signature_verdict(frame: Frame) -> str:
+    """`unsigned`, or the signature status (no-key without key material)."""
+    sec = frame.security
+    if sec is not None and sec.signature_status is not None:
+        return sec.signature_status.value
+    if frame.signature is None and not frame.incompat_flags & 1:
+        return "unsigned"
+    return SignatureStatus.NO_KEY.value
+
+
+@dataclass
+class Stats:
+    streams: dict[tuple[int, int, str], _Stream]
+    links: dict[tuple[int, int], _Link]
+    conversations: dict[tuple[str, str, str], _Conversation]
+    frames: int
+    bytes: int
+    first: float | None
+    last: float | None
+    crc: Counter[str]
+    versions: Counter[int]
+    signature: Counter[str]
+
+    @property
+    def duration(self) -> float | None:
+        return _span(self.first, self.last)
+
+    def messages_json(self) -> list[dict[str, object]]:
+        out = []
+        for (sysid, compid, name), s in sorted(self.streams.items()):
+            span = _span(s.first, s.last)
+            rate = (s.count - 1) / span if span and s.count > 1 else None
+            out.append({"sysid": sysid, "compid": compid, "msgname": name, "count": s.count,
+                        "rate_hz": None if rate is None else round(rate, 4), "bytes": s.bytes,
+                        "first": s.first, "last": s.last})
+        return out
+
+    def links_json(self) -> list[dict[str, object]]:
+        out = []
+        for (sysid, compid), lk in sorted(self.links.items()):
+            expected = lk.received - lk.seq.duplicates + lk.seq.lost
+            out.append({
+                "sysid": sysid, "compid": compid, "received": lk.received, "lost": lk.seq.lost,
+                "loss_pct": round(100.0 * lk.seq.lost / expected, 3) if expected > 0 else 0.0,
+                "duplicates": lk.seq.duplicates, "reordered": lk.seq.reordered, "bytes": lk.bytes,
+                "v1": lk.v1, "v2": lk.v2, "crc": dict(sorted(lk.crc.items())),
+                "signature": dict(sorted(lk.signature.items())), "first": lk.first, "last": lk.last,
+                "endpoints": sorted(lk.endpoints),
+            })
+        return out
+
+    def conversations_json(self) -> list[dict[str, object]]:
+        out = []
+        for c in sorted(self.conversations.values(), key=lambda c: (c.first or 0.0, c.a, c.b)):
+            out.append({
+                "transport": c.transport, "a": c.a, "b": c.b, "frames": c.frames_ab + c.frames_ba,
+                "bytes": c.bytes_ab + c.bytes_ba, "frames_a_to_b": c.frames_ab, "frames_b_to_a": c.frames_ba,
+                "bytes_a_to_b": c.bytes_ab, "bytes_b_to_a": c.bytes_ba, "start": c.first,
+                "duration": _span(c.first, c.last),
+                "systems": [list(s) for s in sorted(c.systems)],
+            })
+        return out
+
+    def totals_json(self) -> dict[str, object]:
+        return {
+            "frames": self.frames, "bytes": self.bytes, "start": self.first, "duration": self.duration,
+            "links": len(self.links), "messages": len({k[2] for k in self.streams}),
+            "lost": sum(lk.seq.lost for lk in self.links.values()),
+            "v1": self.versions.get(1, 0), "v2": self.versions.get(2, 0),
+            "crc": dict(sorted(self.crc.items())), "signature": dict(sorted(self.signature.items())),
+        }
+
+    def to_json(self) -> dict[str, object]:
+        return {"messages": self.messages_json(), "links": self.links_json(),
+                "conversations": self.conversations_json(), "totals": self.totals_json()}
+
+    def per_second(self, key: tuple[int, int, str]) -> list[int]:
+        """Frames of one stream in each second of the capture (for a rate sparkline)."""
+        if self.first is None or self.last is None:
+            return []
+        n = int(self.last - self.first) + 1
+        counts = self.streams[key].per_second
+        return [counts.get(i, 0) for i in range(n)]
+
+
+def compute_stats(frames: Iterable[Frame]) -> Stats:
+    streams: dict[tuple[int, int, str], _Stream] = {}
+    links: dict[tuple[int, int], _Link] = {}
+    convs: dict[tuple[str, str, str], _Conversation] = {}
+    crc: Counter[str] = Counter()
+    versions: Counter[int] = Counter()
+    sigs: Counter[str] = Counter()
+    total = nbytes = 0
+    first: float | None = None
+    last: float | None = None
+    for f in frames:
+        total += 1
+        size = len(f.raw)
+        nbytes += size
+        t = f.time
+        if t is not None:
+            if first is None:
+                first = t
+            last = t
+        name = message_name(f)
+        key = (f.sysid, f.compid, name)
+        s = streams.get(key)
+        if s is None:
+            s = streams[key] = _Stream()
+        s.count += 1
+        s.bytes += size
+        if t is not None:
+            if s.first is None:
+                s.first = t
+            s.last = t
+            s.per_second[int(t - first)] += 1  # type: ignore[operator]
+        lk = links.get(key[:2])
+        if lk is None:
+            lk = links[key[:2]] = _Link()
+        lk.received += 1
+        lk.bytes += size
+        if f.version == 1:
+            lk.v1 += 1
+        else:
+            lk.v2 += 1
+        status = f.crc_status.value
+        lk.crc[status] += 1
+        crc[status] += 1
+        versions[f.version] += 1
+        verdict = signature_verdict(f)
+        lk.signature[verdict] += 1
+        sigs[verdict] += 1
+        lk.seq.feed(f.seq)
+        if t is not None:
+            if lk.first is None:
+                lk.first = t
+            lk.last = t
+        if f.src:
+            lk.endpoints.add(f.src)
+        a, b = f.src or f.transport, f.dst or ""
+        ck = (f.transport, a, b) if a <= b else (f.transport, b, a)
+        c = convs.get(ck)
+        if c is None:
+            c = convs[ck] = _Conversation(ck[1], ck[2], f.transport)
+        if a == c.a:
+            c.frames_ab += 1
+            c.bytes_ab += size
+        else:
+            c.frames_ba += 1
+            c.bytes_ba += size
+        if t is not None:
+            if c.first is None:
+                c.first = t
+            c.last = t
+        c.systems.add(key[:2])
+    return Stats(streams, links, convs, total, nbytes, first, last, crc, versions, sigs)

@@ -1,0 +1,46 @@
+"""`mavscope commands FILE`: every COMMAND_LONG / COMMAND_INT with its COMMAND_ACK."""
+
+from __future__ import annotations
+
+import argparse
+
+from mavscope.analysis.command_log import command_json, reconstruct
+from mavscope.cli import Env, ExitStatus
+from mavscope.commands.analysis_common import add_analysis_options, read_frames
+from mavscope.output.tables import console, fmt, iso, write_json
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("commands", help="commands sent (COMMAND_LONG/INT) with their ACK, latency and retries",
+                       description="Every COMMAND_LONG and COMMAND_INT with the COMMAND_ACK that answered it.")
+    add_analysis_options(p)
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    frames, dialect, path = read_frames(args, env)
+    commands, orphans = reconstruct(frames, dialect)
+    docs = [command_json(c, dialect) for c in commands]
+    unanswered = sum(1 for d in docs if not d["answered"])
+    if args.json:
+        write_json(env, {"file": path, "commands": docs, "unanswered": unanswered, "unmatched_acks": orphans})
+        return ExitStatus.OK
+    from rich.table import Table
+
+    con = console(env)
+    t = Table(title=f"Commands ({path})", title_justify="left")
+    for col in ("frame", "time", "from", "to", "command", "parameters", "result", "latency ms", "retries"):
+        t.add_column(col, justify="right" if col in ("frame", "latency ms", "retries") else "left")
+    for d in docs:
+        labels = d["param_labels"]
+        params = ", ".join(f"{labels.get(k, k)} {fmt(v, 2)}" for k, v in d["params"].items()  # type: ignore[union-attr]
+                           if k in labels or (v not in (0, 0.0, None) and k != "confirmation"))  # type: ignore[operator]
+        t.add_row(str(d["frames"][0]), iso(d["time"]), "{}/{}".format(*d["from"]), "{}/{}".format(*d["to"]),  # type: ignore[index, arg-type]
+                  str(d["command"]).removeprefix("MAV_CMD_"), params,
+                  str(d["result"]).removeprefix("MAV_RESULT_") if d["answered"] else "UNANSWERED",
+                  fmt(d["latency_ms"], 1), str(d["retries"]))
+    con.print(t)
+    con.print(f"{len(docs)} commands, {unanswered} unanswered, {len(orphans)} ACKs matching no command")
+    for o in orphans:
+        con.print(f"  frame {o['frame']}: ACK {o['command']} {o['result']} from {o['from'][0]}/{o['from'][1]}")  # type: ignore[index]
+    return ExitStatus.OK

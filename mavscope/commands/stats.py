@@ -1,0 +1,88 @@
+"""`mavscope stats FILE`: message rates, loss per link, conversations, totals and expert findings."""
+
+from __future__ import annotations
+
+import argparse
+
+from mavscope.analysis.expert import expert_findings
+from mavscope.analysis.stats import compute_stats
+from mavscope.cli import Env, ExitStatus
+from mavscope.commands.analysis_common import add_analysis_options, read_frames
+from mavscope.output.tables import console, fmt, iso, sparkline, write_json
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("stats", help="message rates, loss per link, conversations, expert findings",
+                       description="Statistics over the MAVLink frames of a capture (after -Y, if given). "
+                                   "Loss is counted from sequence gaps per (sysid, compid): filter by link, "
+                                   "not by message, when loss matters.")
+    add_analysis_options(p)
+    p.add_argument("--sparklines", type=int, default=12, metavar="N",
+                   help="per-second rate sparklines for the N busiest message streams (default 12, 0: none)")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    frames, dialect, path = read_frames(args, env)
+    stats = compute_stats(frames)
+    findings = expert_findings(frames, dialect)
+    if args.json:
+        doc = stats.to_json()
+        doc["findings"] = [f.to_json() for f in findings]
+        doc["file"] = path
+        doc["filter"] = getattr(args, "display_filter", None)
+        write_json(env, doc)
+        return ExitStatus.OK
+    from rich.table import Table
+
+    con = console(env)
+    busiest = sorted(stats.streams, key=lambda k: -stats.streams[k].count)[: max(0, args.sparklines)]
+    spark = set(busiest)
+    t = Table(title=f"Messages ({path})", title_justify="left")
+    for col, just in (("sysid/compid", "right"), ("message", "left"), ("count", "right"), ("rate Hz", "right"),
+                      ("bytes", "right"), ("rate per second", "left")):
+        t.add_column(col, justify=just)  # type: ignore[arg-type]
+    for m in stats.messages_json():
+        key = (m["sysid"], m["compid"], m["msgname"])
+        line = sparkline(stats.per_second(key)) if key in spark else ""  # type: ignore[arg-type]
+        t.add_row(f"{m['sysid']}/{m['compid']}", str(m["msgname"]), str(m["count"]), fmt(m["rate_hz"], 2),
+                  str(m["bytes"]), line)
+    con.print(t)
+
+    t = Table(title="Links (sysid, compid)", title_justify="left")
+    for col in ("sysid/compid", "received", "lost", "loss %", "dup", "late", "v1", "v2", "CRC", "signature",
+                "endpoints"):
+        t.add_column(col, justify="left" if col in ("CRC", "signature", "endpoints") else "right")
+    for lk in stats.links_json():
+        t.add_row(f"{lk['sysid']}/{lk['compid']}", str(lk["received"]), str(lk["lost"]), fmt(lk["loss_pct"], 2),
+                  str(lk["duplicates"]), str(lk["reordered"]), str(lk["v1"]), str(lk["v2"]),
+                  _counts(lk["crc"]), _counts(lk["signature"]), ", ".join(lk["endpoints"]))  # type: ignore[arg-type]
+    con.print(t)
+
+    t = Table(title="Conversations", title_justify="left")
+    for col in ("transport", "A", "B", "frames", "A→B", "B→A", "bytes", "start", "duration s", "systems"):
+        t.add_column(col, justify="right" if col in ("frames", "A→B", "B→A", "bytes", "duration s") else "left")
+    for c in stats.conversations_json():
+        t.add_row(str(c["transport"]), str(c["a"]), str(c["b"]) or "-", str(c["frames"]), str(c["frames_a_to_b"]),
+                  str(c["frames_b_to_a"]), str(c["bytes"]), iso(c["start"]), fmt(c["duration"]),  # type: ignore[arg-type]
+                  ", ".join(f"{s}/{k}" for s, k in c["systems"]))  # type: ignore[union-attr]
+    con.print(t)
+
+    tot = stats.totals_json()
+    con.print(f"Totals: {tot['frames']} frames, {tot['bytes']} bytes, {fmt(tot['duration'])} s, "
+              f"{tot['links']} links, {tot['messages']} message types, {tot['lost']} lost; "
+              f"v1 {tot['v1']}, v2 {tot['v2']}; CRC {_counts(tot['crc'])}; "  # type: ignore[arg-type]
+              f"signature {_counts(tot['signature'])}")  # type: ignore[arg-type]
+    if findings:
+        t = Table(title="Expert findings", title_justify="left")
+        for col in ("severity", "code", "frames", "message"):
+            t.add_column(col)
+        for f in findings:
+            nums = ", ".join(map(str, f.frames[:8])) + (" …" if len(f.frames) > 8 else "")
+            t.add_row(f.severity.value, f.code, nums, f.message)
+        con.print(t)
+    return ExitStatus.OK
+
+
+def _counts(d: dict[str, int]) -> str:
+    return ", ".join(f"{k} {v}" for k, v in d.items()) or "-"

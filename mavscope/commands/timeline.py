@@ -1,0 +1,47 @@
+"""`mavscope timeline FILE`: the clocks of each system side by side with capture time."""
+
+from __future__ import annotations
+
+import argparse
+
+from mavscope.analysis.timeline import reconstruct
+from mavscope.cli import Env, ExitStatus
+from mavscope.commands.analysis_common import add_analysis_options, read_frames
+from mavscope.output.tables import console, fmt, iso, write_json
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("timeline", help="clocks per system: capture time vs signatures, SYSTEM_TIME, TIMESYNC, PING",
+                       description="Compare every clock a capture reveals with capture time: offset, drift and "
+                                   "round-trip times.")
+    add_analysis_options(p)
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    frames, _, path = read_frames(args, env)
+    doc = reconstruct(frames).to_json()
+    if args.json:
+        doc["file"] = path
+        write_json(env, doc)
+        return ExitStatus.OK
+    from rich.table import Table
+
+    con = console(env)
+    con.print(f"Capture {path}: {iso(doc['start'])} to {iso(doc['end'])} ({fmt(doc['duration'])} s); "  # type: ignore[arg-type]
+              "offsets are clock minus capture time at the first frame")
+    for s in doc["systems"]:  # type: ignore[attr-defined]
+        t = Table(title=f"System {s['sysid']}", title_justify="left")
+        for col in ("comp", "clock", "kind", "samples", "offset s", "drift ppm", "jitter ms", "reads zero at"):
+            t.add_column(col, justify="left" if col in ("clock", "kind", "reads zero at") else "right")
+        for c in s["clocks"]:
+            t.add_row(str(c["component"]), c["source"], c["kind"], str(c["samples"]),
+                      f"{c['offset_s']:+.6f}" if c["kind"] == "unix" else "-",
+                      f"{c['drift_ppm']:+.1f}", fmt(c["jitter_ms"]), iso(c.get("zero_at")))
+        con.print(t)
+        for r in s["round_trips"]:
+            con.print(f"  {r['kind']} round trips to system {r['peer']}: {r['count']}, "
+                      f"min {r['min_ms']:.3f} ms, mean {r['mean_ms']:.3f} ms, max {r['max_ms']:.3f} ms")
+    if not doc["systems"]:
+        con.print("No clock information (the capture has no timestamps or no timed messages).")
+    return ExitStatus.OK
