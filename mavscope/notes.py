@@ -49,6 +49,12 @@ CODES: dict[str, NoteCode] = {
         NoteCode("unknown-incompat-flags", Severity.WARN, "incompatibility flags mavscope does not know"),
         NoteCode("encrypted-payload", Severity.NOTE, "payload encrypted (incompat flag bits 5-7)"),
         NoteCode("v1-nonzero-padding", Severity.CHAT, "trailing zero bytes present in a v2 payload"),
+        # security (mavscope.security)
+        NoteCode("unsigned-in-signed-stream", Severity.WARN, "unsigned frame from a sender that signs its frames"),
+        NoteCode("key-leak", Severity.ERROR, "SETUP_SIGNING carries a signing key in clear"),
+        NoteCode("signature-skew", Severity.NOTE, "new signing stream more than a minute from capture time"),
+        NoteCode("key-exchange", Severity.NOTE, "MAVSCOPE_KEY_EXCHANGE public key (ECDH epoch)"),
+        NoteCode("nonce-reuse", Severity.ERROR, "aes-gcm nonce used twice under one key"),
     )
 }
 

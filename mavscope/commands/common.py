@@ -20,6 +20,8 @@ from mavscope.dissect import Anomaly, Dissector
 from mavscope.errors import UsageError
 from mavscope.mavlink.dialect import Dialect, load_dialect
 from mavscope.mavlink.frame import Frame
+from mavscope.security.keys import build_material
+from mavscope.security.stage import SecurityStage
 
 
 def add_capture_options(p: argparse.ArgumentParser) -> None:
@@ -59,10 +61,35 @@ def build_pipeline(
     they arrive. Stages are added here, in data-path order.
     """
     items: Iterator[Frame | Anomaly] = Dissector(dialect).run(records)
+    items = security_stage(args, env).run(items)  # verdicts the later stages (filters) may test
     display_filter = getattr(args, "display_filter", None)
     if display_filter:  # the last stage: it may test the verdicts of every stage before it
         items = filter_stage(compile_filter(display_filter, dialect), items)
     return items
+
+
+def add_key_options(p: argparse.ArgumentParser) -> None:
+    """--key, --cipher, --ecdh-private, --use-leaked-keys (docs/security.md)."""
+    g = p.add_argument_group("key material (docs/security.md)")
+    g.add_argument("--key", action="append", default=[], metavar="[NAME=]SPEC",
+                   help="signing key: hex:<64 hex>, base64:..., passphrase:TEXT (SHA-256), qgc:TEXT "
+                        "(QGroundControl PBKDF2), file:KEYRING.toml; repeatable ($MAVSCOPE_KEYRING: default keyring)")
+    g.add_argument("--cipher", action="append", default=[], metavar="METHOD=SCHEME:KEYSPEC[:iv=HEX]",
+                   help="payload cipher for incompat method 1..7: xor, aes-128-ctr, aes-gcm (method 7, "
+                        "SecureMAV's XOR 0xAB, needs none); repeatable")
+    g.add_argument("--ecdh-private", action="append", default=[], metavar="hex:KEY",
+                   help="X25519 private key of one side of MAVSCOPE_KEY_EXCHANGE: derive each epoch's keys")
+    g.add_argument("--use-leaked-keys", action="store_true",
+                   help="verify the frames after a SETUP_SIGNING with the key it leaks")
+
+
+def security_stage(args: argparse.Namespace, env: Env) -> SecurityStage:
+    """The security stage for the key options in `args` (commands without them get the key-free checks)."""
+    material = build_material(getattr(args, "key", None) or (), getattr(args, "cipher", None) or (),
+                              getattr(args, "ecdh_private", None) or (),
+                              use_leaked_keys=bool(getattr(args, "use_leaked_keys", False)),
+                              environ=env.environ, warn=lambda m: env.stderr.write(f"mavscope: {m}\n"))
+    return SecurityStage(material)
 
 
 def add_filter_option(p: argparse.ArgumentParser) -> None:

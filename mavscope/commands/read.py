@@ -9,6 +9,7 @@ from mavscope.cli import Env, ExitStatus
 from mavscope.commands.common import (
     add_capture_options,
     add_filter_option,
+    add_key_options,
     capture_session,
     progress,
     report_anomaly,
@@ -25,6 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                        description="Dissect every MAVLink frame of a capture.")
     add_capture_options(p)
     add_filter_option(p)
+    add_key_options(p)
     p.add_argument("-V", dest="verbose", action="store_true", help="print the detail tree of every frame")
     p.add_argument("-x", dest="hex", action="store_true", help="print a hex dump of every frame")
     p.add_argument("-T", dest="format", choices=("text", "json", "jsonl"), default="text",

@@ -57,13 +57,13 @@ def frame_to_json(frame: Frame, fields: dict[str, object] | None = None, decode:
         "crc": crc,
         "crc_status": status,  # a str Enum: orjson writes its value
         "fields": fields,
-        "signature": None if sig is None else signature_json(sig, security),
+        "signature": None if sig is None else signature_json(sig, security, time),
         "encryption": None if security is None or security.encryption is None else encryption_json(security.encryption),
         "notes": [n.to_json() for n in notes] if notes else [],
     }
 
 
-def signature_json(sig: Signature, security: Security | None = None) -> dict[str, object]:
+def signature_json(sig: Signature, security: Security | None = None, time: float | None = None) -> dict[str, object]:
     out: dict[str, object] = {
         "link_id": sig.link_id,
         "timestamp": sig.timestamp,
@@ -74,11 +74,16 @@ def signature_json(sig: Signature, security: Security | None = None) -> dict[str
     }
     if security is not None and security.key is not None:
         out["key"] = security.key
+    if security is not None and time is not None:  # the security layer ran: signature time - capture time
+        out["skew"] = round(sig.unix_time - time, 6)
     return out
 
 
 def encryption_json(enc: Encryption) -> dict[str, object]:
-    return {"method": enc.method, "scheme": enc.scheme, "status": enc.status.value}
+    out: dict[str, object] = {"method": enc.method, "scheme": enc.scheme, "status": enc.status.value}
+    if enc.reason:
+        out["reason"] = enc.reason
+    return out
 
 
 def jsonl_bytes(frame: Frame) -> bytes:

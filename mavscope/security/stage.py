@@ -1,0 +1,203 @@
+"""The security stage of the pipeline: signature verdicts, decryption, and the key-free notes.
+
+`SecurityStage(material).run(items)` passes every item on; a frame it has something to say about
+comes out as `frame._replace(security=Security(...), notes=...)`. It always runs (method 7 needs no
+key; `key-leak` and `unsigned-in-signed-stream` need none), and frames it has nothing to say about
+pass through untouched on a fast path.
+
+Rules (docs/security.md):
+- Signed frames: `valid` / `invalid` / `replay` / `no-key` from `SignatureVerifier`, checked over
+  the frame as sent (ciphertext included), before any decryption.
+- `unsigned-in-signed-stream`: an unsigned frame (not RADIO_STATUS) from a (sysid, compid) that has
+  sent a validly signed frame; without any signing key material, one that has sent a signed frame
+  with a good CRC.
+- `key-leak`: SETUP_SIGNING (its key travels in clear); with `use_leaked_keys` that key verifies the
+  frames after it.
+- MAVSCOPE_KEY_EXCHANGE with `--ecdh-private`: each peer public key opens an epoch whose keys
+  verify and decrypt the frames after it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+
+from mavscope.dissect import Anomaly
+from mavscope.mavlink.frame import (
+    CrcStatus,
+    Encryption,
+    EncryptionStatus,
+    Frame,
+    Security,
+    SignatureStatus,
+)
+from mavscope.notes import Note, note
+from mavscope.security.ciphers import CipherError, FixedKeystream, gcm_nonce, gcm_open, gcm_session_key
+from mavscope.security.kex import KEY_EXCHANGE_MSGID, KeyExchangeTracker
+from mavscope.security.keys import (
+    AES_GCM_DEFAULT_METHOD,
+    SECUREMAV_TEST_METHOD,
+    SECUREMAV_TEST_XOR,
+    CipherKey,
+    KeyMaterial,
+    SigningKey,
+)
+from mavscope.security.signing import NEW_STREAM_WINDOW, SignatureVerifier
+
+SETUP_SIGNING = 256
+RADIO_STATUS = 109
+_TRUNCATED = CrcStatus.TRUNCATED
+_OK = CrcStatus.OK
+_SPECIAL = frozenset({SETUP_SIGNING, KEY_EXCHANGE_MSGID})
+
+
+class SecurityStage:
+    """One instance per capture: it keeps the replay state, the senders seen signing, the epochs."""
+
+    def __init__(self, material: KeyMaterial | None = None) -> None:
+        self.material = material or KeyMaterial()
+        m = self.material
+        self.verifier = SignatureVerifier(m.signing)
+        self.check_signatures = m.has_signing_material
+        self.kex = KeyExchangeTracker(m.ecdh_private)
+        self.ciphers: dict[int, CipherKey] = dict(m.ciphers)
+        if m.ecdh_private and not any(c.from_ecdh for c in self.ciphers.values()):
+            self.ciphers.setdefault(AES_GCM_DEFAULT_METHOD,
+                                    CipherKey(AES_GCM_DEFAULT_METHOD, "aes-gcm", b"", from_ecdh=True))
+        self.ciphers.setdefault(SECUREMAV_TEST_METHOD, CipherKey(SECUREMAV_TEST_METHOD, "xor", SECUREMAV_TEST_XOR))
+        self.keystreams: dict[int, FixedKeystream] = {}
+        for method, c in self.ciphers.items():
+            if c.scheme == "xor":
+                self.keystreams[method] = FixedKeystream.xor(c.key)
+            elif c.scheme == "aes-128-ctr":
+                self.keystreams[method] = FixedKeystream.aes_ctr(c.key, c.iv)
+        self.session_keys: dict[tuple[bytes, int], bytes] = {}
+        self.nonces: dict[tuple[bytes, int, int], tuple[int, bytes]] = {}
+        self.signed_senders: set[tuple[int, int]] = set()
+        self.leaked: list[SigningKey] = []
+
+    def add_signing_key(self, key: SigningKey, first: bool = False) -> None:
+        self.verifier.add_key(key, first)
+        self.check_signatures = True
+
+    def run(self, items: Iterable[Frame | Anomaly]) -> Iterator[Frame | Anomaly]:
+        process = self.process
+        senders = self.signed_senders
+        special = _SPECIAL
+        for item in items:
+            # fast path: a plaintext unsigned frame from a sender that never signed, not a key message
+            if type(item) is Anomaly or (not item[10] and item[15] not in special  # type: ignore[index]
+                                         and (item[13], item[14]) not in senders):  # type: ignore[index]
+                yield item
+                continue
+            yield process(item)  # type: ignore[arg-type]
+
+    def process(self, frame: Frame) -> Frame:
+        iflags = frame.incompat_flags
+        sender = (frame.sysid, frame.compid)
+        notes: list[Note] = []
+        status: SignatureStatus | None = None
+        key_name: str | None = None
+        reason = ""
+        sig = frame.signature
+        if frame.version == 2 and iflags & 1:
+            if sig is None or frame.crc_status is _TRUNCATED:
+                status = SignatureStatus.TRUNCATED
+            elif self.check_signatures:
+                v = self.verifier.verify(frame.raw, frame.sysid, frame.compid, sig.link_id, sig.timestamp,
+                                         frame.time, sig.unix_time)
+                status = v.status
+                key_name = v.key.name if v.key is not None else None
+                reason = v.reason.value + (f" ({v.detail})" if v.detail else "")
+                if status is SignatureStatus.VALID:
+                    self.signed_senders.add(sender)
+                if v.skew is not None and abs(v.skew) > NEW_STREAM_WINDOW:
+                    notes.append(note("signature-skew",
+                                      f"new signing stream (link {sig.link_id}) with a timestamp {v.skew:+.3f} s "
+                                      "from capture time: a receiver allows one minute", frame.offset))
+            elif frame.crc_status is _OK:
+                self.signed_senders.add(sender)
+        elif sender in self.signed_senders and frame.msgid != RADIO_STATUS:
+            reason = "unsigned frame in a signed stream"
+            notes.append(note("unsigned-in-signed-stream",
+                              f"unsigned {frame.msgname or frame.msgid} from {sender[0]}/{sender[1]}, "
+                              "which sends signed frames", frame.offset))
+        enc: Encryption | None = None
+        if frame.version == 2 and iflags & 0xE0:
+            enc = self.decrypt(frame, notes)
+        if frame.msgid in _SPECIAL and frame.crc_status is _OK and frame.msgdef is not None:
+            plain = frame.payload if enc is None else enc.plaintext
+            if plain is not None:
+                self.key_message(frame, frame.msgdef.decode(plain), notes)
+        if status is None and enc is None and not notes and not reason:
+            return frame
+        security = Security(status, key_name, enc, reason)
+        if notes:
+            return frame._replace(security=security, notes=frame.notes + tuple(notes))
+        return frame._replace(security=security)
+
+    # --- key messages -----------------------------------------------------------------------
+
+    def key_message(self, frame: Frame, fields: dict[str, object], notes: list[Note]) -> None:
+        if frame.msgid == SETUP_SIGNING:
+            secret = bytes(int(b) & 0xFF for b in fields.get("secret_key", ()))  # type: ignore[union-attr]
+            target = f"{fields.get('target_system')}/{fields.get('target_component')}"
+            if not any(secret):
+                notes.append(note("key-leak", f"SETUP_SIGNING to {target} with an all-zero key (signing disabled)",
+                                  frame.offset))
+                return
+            used = ""
+            if self.material.use_leaked_keys and len(secret) == 32:
+                key = SigningKey(f"leaked-{frame.record}", secret)
+                self.leaked.append(key)
+                self.add_signing_key(key)
+                used = f"; it verifies later frames as key {key.name}"
+            notes.append(note("key-leak", f"SETUP_SIGNING to {target} carries a signing key in clear{used}",
+                              frame.offset))
+        else:
+            epoch, text = self.kex.observe(fields, frame.sysid, frame.compid, frame.record)
+            if epoch is not None:
+                self.add_signing_key(epoch.signing, first=True)
+            notes.append(note("key-exchange", text, frame.offset))
+
+    # --- decryption -------------------------------------------------------------------------
+
+    def decrypt(self, frame: Frame, notes: list[Note]) -> Encryption:
+        method = frame.incompat_flags >> 5
+        cipher = self.ciphers.get(method)
+        if cipher is None:
+            return Encryption(method, None, EncryptionStatus.NO_KEY, None, f"no cipher for method {method} (--cipher)")
+        scheme = cipher.scheme
+        if frame.crc_status is _TRUNCATED:
+            return Encryption(method, scheme, EncryptionStatus.FAILED, None, "frame truncated")
+        payload = frame.payload
+        if scheme == "aes-gcm":
+            try:
+                nonce = gcm_nonce(payload)
+            except CipherError as exc:
+                return Encryption(method, scheme, EncryptionStatus.FAILED, None, str(exc))
+            if cipher.from_ecdh:
+                epoch = self.kex.epochs.get(nonce.session_id)
+                if epoch is None:
+                    return Encryption(method, scheme, EncryptionStatus.NO_KEY, None,
+                                      f"no key exchange for session id {nonce.session_id}")
+                master = epoch.gcm_master
+            else:
+                master = cipher.key
+            sk = self.session_keys.get((master, nonce.session_id))
+            if sk is None:
+                sk = self.session_keys[(master, nonce.session_id)] = gcm_session_key(master, nonce.session_id)
+            try:
+                plain = gcm_open(sk, frame.raw[:10], payload)
+            except CipherError as exc:
+                return Encryption(method, scheme, EncryptionStatus.FAILED, None, str(exc))
+            seen = self.nonces.setdefault((master, nonce.session_id, nonce.counter), (frame.record, payload))
+            if seen[1] != payload:
+                notes.append(note("nonce-reuse", f"aes-gcm nonce (session {nonce.session_id}, counter {nonce.counter}) "
+                                  f"already used in frame {seen[0]} for another plaintext", frame.offset))
+        else:
+            plain = self.keystreams[method].apply(payload)
+        md = frame.msgdef
+        if md is not None and len(plain) > md.length:
+            return Encryption(method, scheme, EncryptionStatus.FAILED, None,
+                              f"decrypted payload of {len(plain)} bytes is longer than {md.name} ({md.length})")
+        return Encryption(method, scheme, EncryptionStatus.DECRYPTED, plain)
