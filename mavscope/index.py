@@ -1,0 +1,456 @@
+"""A compact index of every frame of a capture, for browsing a million frames (the TUI's model).
+
+Walking the pipeline once, `FrameIndex` keeps per frame only a row of numbers in parallel `array`
+columns (record, index, time, endpoints, header fields, verdict codes, where the bytes are), about 45
+bytes a frame, instead of a `Frame` (a tuple of 23 fields plus its bytes: about 500). A frame is
+rebuilt on demand from its row and its bytes, and the decoded details (fields, detail tree, summary)
+of recently viewed frames are kept in an LRU, as toolong and termshark do.
+
+Where the bytes come from (measured on a 1.1M-frame pcap; see docs/tui.md):
+- A frame that lies contiguous in the capture file (every datagram frame of a pcap/pcapng, every tlog
+  entry, most TCP and raw-stream frames) is re-read from the memory-mapped file at `Frame.offset`: 10
+  bytes of index (offset and length), no copy of the bytes. The build checks that the file holds exactly
+  the frame's bytes there.
+- A frame whose bytes are split across records (TCP segments, raw-stream chunks) or that has no file
+  (a live source) keeps its bytes in a side table.
+What the pipeline said that the bytes cannot tell again (notes such as skipped bytes before the frame,
+the records a reassembled frame spans, the security layer's verdicts) is kept exactly: notes and spans
+in sparse tables, security verdicts interned (a signed capture has a handful of distinct ones).
+
+The index is filled by one thread (`build`) while another reads it: rows below `len(index)` are
+complete and never change. No Textual here: the TUI drives `build` from a worker.
+"""
+
+from __future__ import annotations
+
+import mmap
+import os
+import threading
+from array import array
+from collections import OrderedDict
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass
+from typing import NamedTuple
+
+from mavscope.capture.reader import open_mapped
+from mavscope.dissect import Anomaly
+from mavscope.mavlink.dialect import Dialect
+from mavscope.mavlink.frame import (
+    HEADER_V1,
+    HEADER_V2,
+    STX_V2,
+    CrcStatus,
+    EncryptionStatus,
+    Frame,
+    Security,
+    SignatureStatus,
+    decode_payload,
+)
+from mavscope.mavlink.framing import build_frame
+from mavscope.mavlink.items import Item, frame_items
+from mavscope.notes import Note
+from mavscope.output.text import summary_info
+
+CRC_CODES: tuple[CrcStatus, ...] = (CrcStatus.OK, CrcStatus.BAD, CrcStatus.UNCHECKED, CrcStatus.TRUNCATED)
+_CRC_CODE = {s: i for i, s in enumerate(CRC_CODES)}
+NO_OFFSET = -1  # offset column: Frame.offset is None
+
+PROGRESS_EVERY = 8192  # items between progress callbacks (and cancellation checks)
+
+
+class Row(NamedTuple):
+    """What the packet list shows of one frame, straight from the index (no decoding)."""
+
+    row: int  # 0-based position in the index
+    record: int
+    index: int
+    time: float | None
+    transport: str
+    src: str | None
+    dst: str | None
+    sysid: int
+    compid: int
+    seq: int
+    msgid: int
+    msgname: str | None
+    incompat_flags: int
+    crc_status: CrcStatus
+    security: Security | None
+
+    @property
+    def number(self) -> str:
+        """Wireshark's frame number: the record, with the frame's index within it after a dot."""
+        return str(self.record) if self.index == 1 else f"{self.record}.{self.index}"
+
+    @property
+    def signature_status(self) -> SignatureStatus | None:
+        return self.security.signature_status if self.security is not None else None
+
+    @property
+    def encryption_status(self) -> EncryptionStatus | None:
+        sec = self.security
+        if sec is not None and sec.encryption is not None:
+            return sec.encryption.status
+        return None
+
+
+@dataclass(frozen=True, slots=True)
+class Detail:
+    """A frame decoded for display: its fields, detail tree and summary."""
+
+    frame: Frame
+    fields: dict[str, object] | None
+    items: tuple[Item, ...]
+    summary: str
+
+
+@dataclass(frozen=True, slots=True)
+class Progress:
+    """How far a build has got: frames indexed, bytes of the capture read (of `total`), finished or not."""
+
+    frames: int
+    position: int
+    total: int
+    done: bool
+    cancelled: bool = False
+
+    @property
+    def fraction(self) -> float:
+        if self.done:
+            return 1.0
+        return min(1.0, self.position / self.total) if self.total else 0.0
+
+
+class _LRU:
+    """A small thread-safe LRU map (the UI and a filter worker may both ask for details)."""
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self.data: OrderedDict[int, object] = OrderedDict()
+        self.lock = threading.Lock()
+
+    def get(self, key: int) -> object | None:
+        with self.lock:
+            v = self.data.get(key)
+            if v is not None:
+                self.data.move_to_end(key)
+            return v
+
+    def put(self, key: int, value: object) -> None:
+        with self.lock:
+            self.data[key] = value
+            self.data.move_to_end(key)
+            while len(self.data) > self.size:
+                self.data.popitem(last=False)
+
+    def clear(self) -> None:
+        with self.lock:
+            self.data.clear()
+
+
+class FrameIndex:
+    """Every frame of one capture as a compact row; frames and their details rebuilt on demand.
+
+    `path` is the capture file the frames came from (None for a live source: every frame's bytes are
+    then kept). `limit` bounds the number of rows for a live source: older rows are dropped in blocks
+    (`first` counts them) so memory stays bounded.
+    """
+
+    def __init__(self, dialect: Dialect, path: str | os.PathLike[str] | None = None,
+                 cache_size: int = 2048) -> None:
+        self.dialect = dialect
+        self.path = os.fspath(path) if path is not None else None
+        self._file: object | None = None
+        self._buf: mmap.mmap | bytes = b""
+        if self.path is not None:
+            _, self._file, self._buf, _ = open_mapped(self.path)
+        # columns, one entry per frame
+        self._record = array("I")
+        self._index = array("H")
+        self._time = array("d")  # NaN where the capture has no time
+        self._transport = array("B")
+        self._src = array("I")
+        self._dst = array("I")
+        self._offset = array("q")  # Frame.offset (NO_OFFSET for None); the bytes are there unless in _raw
+        self._rawlen = array("H")
+        self._crc = array("B")  # index into CRC_CODES
+        self._iflags = array("B")
+        self._sysid = array("B")
+        self._compid = array("B")
+        self._seq = array("B")
+        self._msgid = array("I")
+        self._security = array("I")  # index into self._securities (0: None)
+        # interned strings and verdicts
+        self._transports: list[str] = []
+        self._transport_ids: dict[str, int] = {}
+        self._endpoints: list[str | None] = [None]
+        self._endpoint_ids: dict[str | None, int] = {None: 0}
+        self._securities: list[Security | None] = [None]
+        self._security_ids: dict[Security, int] = {}
+        # sparse side tables
+        self._raw: dict[int, bytes] = {}
+        self._notes: dict[int, tuple[Note, ...]] = {}
+        self._spans: dict[int, tuple[int, ...]] = {}
+        self.anomalies: list[Anomaly] = []
+        self._count = 0
+        self._details = _LRU(cache_size)
+        self.progress = Progress(0, 0, 0, False)
+        self.first_time: float | None = None  # time of the first frame
+        self.t0: float | None = None  # time of the capture's first record, where the caller knows it
+
+    # --- building -----------------------------------------------------------------------------
+
+    def build(
+        self,
+        items: Iterable[Frame | Anomaly],
+        *,
+        position: Callable[[], int] = lambda: 0,
+        total: int = 0,
+        on_progress: Callable[[Progress], None] | None = None,
+        cancelled: Callable[[], bool] = lambda: False,
+        every: int = PROGRESS_EVERY,
+    ) -> Progress:
+        """Index every frame of `items` (the pipeline's output); returns the final progress.
+
+        `position()` tells how far into the capture the reader is (bytes, of `total`); `on_progress`
+        is called every `every` items and at the end; `cancelled()` is checked as often, and a
+        cancelled build stops there (its rows stay valid).
+        """
+        add = self.add
+        n = 0
+        first_batch = min(every, 256)  # the first rows go out quickly so a UI can show them at once
+        for item in items:
+            if type(item) is Anomaly:
+                self.anomalies.append(item)
+            else:
+                add(item)  # type: ignore[arg-type]
+            n += 1
+            if n == first_batch or not n % every:
+                self.progress = Progress(self._count, position(), total, False)
+                if on_progress is not None:
+                    on_progress(self.progress)
+                if cancelled():
+                    self.progress = Progress(self._count, position(), total, False, True)
+                    break
+        else:
+            self.progress = Progress(self._count, total, total, True)
+        if on_progress is not None:
+            on_progress(self.progress)
+        return self.progress
+
+    def add(self, frame: Frame) -> None:
+        """Append one frame (from the building thread)."""
+        i = self._count
+        raw = frame.raw
+        off = frame.offset
+        if off is None or off < 0 or self._buf[off : off + len(raw)] != raw:
+            self._raw[i] = raw  # not in the file as one piece: keep the bytes
+        if off is None:
+            off = NO_OFFSET
+        t = frame.time
+        if t is not None and self.first_time is None:
+            self.first_time = t
+        tr = self._transport_ids.get(frame.transport)
+        if tr is None:
+            tr = self._transport_ids[frame.transport] = len(self._transports)
+            self._transports.append(frame.transport)
+        eps = self._endpoint_ids
+        src = eps.get(frame.src)
+        if src is None:
+            src = eps[frame.src] = len(self._endpoints)
+            self._endpoints.append(frame.src)
+        dst = eps.get(frame.dst)
+        if dst is None:
+            dst = eps[frame.dst] = len(self._endpoints)
+            self._endpoints.append(frame.dst)
+        sec = frame.security
+        if sec is None:
+            sid = 0
+        else:
+            sid = self._security_ids.get(sec)  # type: ignore[assignment]
+            if sid is None:
+                sid = self._security_ids[sec] = len(self._securities)
+                self._securities.append(sec)
+        if frame.notes:
+            self._notes[i] = frame.notes
+        if frame.span is not None:
+            self._spans[i] = frame.span
+        self._record.append(frame.record)
+        self._index.append(min(frame.index, 0xFFFF))
+        self._time.append(t if t is not None else float("nan"))
+        self._transport.append(tr)
+        self._src.append(src)
+        self._dst.append(dst)
+        self._offset.append(off)
+        self._rawlen.append(len(raw))
+        self._crc.append(_CRC_CODE[frame.crc_status])
+        self._iflags.append(frame.incompat_flags)
+        self._sysid.append(frame.sysid)
+        self._compid.append(frame.compid)
+        self._seq.append(frame.seq)
+        self._msgid.append(frame.msgid)
+        self._security.append(sid)
+        self._count = i + 1  # published last: readers only look below _count
+
+    # --- reading ------------------------------------------------------------------------------
+
+    def __len__(self) -> int:
+        return self._count
+
+    @property
+    def time_base(self) -> float | None:
+        """What relative times count from: the capture's first record (as tshark), else the first frame."""
+        return self.t0 if self.t0 is not None else self.first_time
+
+    @property
+    def done(self) -> bool:
+        return self.progress.done
+
+    def row(self, i: int) -> Row:
+        """The list row of frame `i` (0-based)."""
+        if not 0 <= i < self._count:
+            raise IndexError(i)
+        t = self._time[i]
+        msgid = self._msgid[i]
+        md = self.dialect.messages.get(msgid)
+        return Row(
+            i, self._record[i], self._index[i], None if t != t else t, self._transports[self._transport[i]],
+            self._endpoints[self._src[i]], self._endpoints[self._dst[i]], self._sysid[i], self._compid[i],
+            self._seq[i], msgid, md.name if md is not None else None, self._iflags[i], CRC_CODES[self._crc[i]],
+            self._securities[self._security[i]],
+        )
+
+    def raw(self, i: int) -> bytes:
+        raw = self._raw.get(i)
+        if raw is not None:
+            return raw
+        off = self._offset[i]
+        return bytes(self._buf[off : off + self._rawlen[i]])
+
+    def frame(self, i: int) -> Frame:
+        """Frame `i` as the pipeline yielded it, rebuilt from its row and bytes."""
+        if not 0 <= i < self._count:
+            raise IndexError(i)
+        raw = self.raw(i)
+        status = CRC_CODES[self._crc[i]]
+        crc = None
+        if status is not CrcStatus.TRUNCATED:
+            hl = HEADER_V2 if raw[0] == STX_V2 else HEADER_V1
+            end = hl + raw[1]
+            crc = raw[end] | (raw[end + 1] << 8)
+        off = self._offset[i]
+        t = self._time[i]
+        f = build_frame(
+            raw, 0, len(raw), status, crc, self.dialect.messages, self._record[i], self._index[i],
+            None if t != t else t, self._transports[self._transport[i]], self._endpoints[self._src[i]],
+            self._endpoints[self._dst[i]], None if off == NO_OFFSET else off, (), self._spans.get(i),
+        )
+        return f._replace(notes=self._notes.get(i, ()), security=self._securities[self._security[i]])
+
+    def frames(self, rows: Iterable[int] | None = None) -> Iterable[Frame]:
+        """Frames of `rows` (default: every row indexed so far), rebuilt one by one (not cached)."""
+        for i in range(self._count) if rows is None else rows:
+            yield self.frame(i)
+
+    def detail(self, i: int) -> Detail:
+        """Frame `i` decoded: fields, detail tree and summary (LRU-cached)."""
+        d = self._details.get(i)
+        if d is None:
+            frame = self.frame(i)
+            fields = decode_payload(frame)
+            d = Detail(frame, fields, frame_items(frame, self.dialect, fields),
+                       summary_info(frame, self.dialect, fields))
+            self._details.put(i, d)
+        return d  # type: ignore[return-value]
+
+    def summary(self, i: int) -> str:
+        return self.detail(i).summary
+
+    def find_record(self, record: int) -> int | None:
+        """The first row of capture record `record` (binary search: records are in capture order)."""
+        col = self._record
+        lo, hi = 0, self._count
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if col[mid] < record:
+                lo = mid + 1
+            else:
+                hi = mid
+        return lo if lo < self._count and col[lo] == record else None
+
+    def columns(self) -> dict[str, Sequence[int | float]]:
+        """The raw columns (read-only use: statistics over the whole capture without rebuilding frames)."""
+        return {"record": self._record, "time": self._time, "sysid": self._sysid, "compid": self._compid,
+                "seq": self._seq, "msgid": self._msgid, "crc": self._crc, "security": self._security}
+
+    def memory(self) -> int:
+        """Bytes held by the columns and side tables (an estimate, for the docs and tests)."""
+        cols = (self._record, self._index, self._time, self._transport, self._src, self._dst, self._offset,
+                self._rawlen, self._crc, self._iflags, self._sysid, self._compid, self._seq, self._msgid,
+                self._security)
+        total = sum(c.buffer_info()[1] * c.itemsize for c in cols)
+        total += sum(len(b) + 33 for b in self._raw.values()) + 100 * len(self._raw)
+        total += 150 * (len(self._notes) + len(self._spans))
+        return total
+
+    def close(self) -> None:
+        buf = self._buf
+        self._buf = b""
+        if isinstance(buf, mmap.mmap):
+            try:
+                buf.close()
+            except BufferError:
+                pass
+        if self._file is not None:
+            self._file.close()  # type: ignore[attr-defined]
+            self._file = None
+
+
+class FrameSequence(Sequence[Frame]):
+    """A read-only sequence of the frames of some rows, rebuilt on each access (nothing held).
+
+    For analyses that take a `Sequence[Frame]` (expert findings): a list of a million Frames would
+    take gigabytes; this takes the rows' numbers. Iterating twice rebuilds twice.
+    """
+
+    def __init__(self, index: FrameIndex, rows: Sequence[int] | None = None,
+                 on_frame: Callable[[int], None] | None = None) -> None:
+        self.index = index
+        self.rows = rows if rows is not None else range(len(index))
+        self.on_frame = on_frame
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def __getitem__(self, i):  # type: ignore[no-untyped-def, override]
+        if isinstance(i, slice):
+            return FrameSequence(self.index, self.rows[i])
+        return self.index.frame(self.rows[i])
+
+    def __iter__(self) -> Iterator[Frame]:
+        frame = self.index.frame
+        tick = self.on_frame
+        for n, r in enumerate(self.rows):
+            if tick is not None and not n & 0x3FFF:
+                tick(n)
+            yield frame(r)
+
+
+def rows_matching(index: FrameIndex, predicate: Callable[[Frame], bool], *,
+                  on_progress: Callable[[int, int], None] | None = None,
+                  cancelled: Callable[[], bool] = lambda: False, every: int = PROGRESS_EVERY) -> array | None:
+    """The rows whose frame satisfies `predicate` (a display filter's `matches`), in order.
+
+    None when cancelled. `on_progress(done, total)` is called every `every` rows.
+    """
+    out = array("I")
+    total = len(index)
+    frame = index.frame
+    for i in range(total):
+        if predicate(frame(i)):
+            out.append(i)
+        if on_progress is not None and not (i + 1) % every:
+            on_progress(i + 1, total)
+            if cancelled():
+                return None
+    return out

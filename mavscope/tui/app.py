@@ -1,0 +1,489 @@
+"""The Textual app: packet list, detail tree and hex pane over a `FrameIndex`, with a filter bar.
+
+`create_app(path, options)` builds it; `mavscope tui` and the tests both call it. The index is filled
+by a thread worker that walks the pipeline once (`commands.common.build_pipeline`, so the security
+stage and every other stage the options ask for run as in `mavscope read`) and posts progress
+messages; rows show as soon as the first batch is in. Display filters run in another thread worker
+over the index, incrementally while the index is still growing. Adding a key re-runs the pipeline
+into a new index and swaps it in when complete (replay verdicts depend on every earlier frame).
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import io
+import os
+import time
+from array import array
+from collections.abc import Sequence
+
+from textual import work
+from textual.app import App, ComposeResult
+from textual.binding import Binding
+from textual.containers import Vertical, VerticalScroll
+from textual.message import Message
+from textual.widgets import Footer
+from textual.worker import Worker, WorkerState, get_current_worker
+
+from mavscope.analysis.filter import DisplayFilter, FilterError, compile_filter
+from mavscope.cli import Env
+from mavscope.errors import MavscopeError
+from mavscope.index import FrameIndex, Progress
+from mavscope.mavlink.dialect import Dialect, load_dialect
+from mavscope.tui.widgets.detail_tree import DetailTree
+from mavscope.tui.widgets.filter_bar import FilterBar
+from mavscope.tui.widgets.hex_view import HexView
+from mavscope.tui.widgets.packet_list import PacketList
+from mavscope.tui.widgets.status_bar import StatusBar
+
+PANES = ("#packets", "#tree", "#hex")
+MAIN_SCREEN_ACTIONS = frozenset({"cycle", "filter", "stats", "mission", "expert", "keys", "help"})
+
+
+class IndexProgress(Message):
+    """The index worker got further (`index` tells which build: a key may have started another)."""
+
+    def __init__(self, index: FrameIndex, progress: Progress) -> None:
+        super().__init__()
+        self.index = index
+        self.progress = progress
+
+
+class FilterProgress(Message):
+    """The filter worker has looked at `done` of `total` rows; `rows` holds the matches so far."""
+
+    def __init__(self, flt: DisplayFilter, rows: array, done: int, total: int, finished: bool) -> None:
+        super().__init__()
+        self.flt = flt
+        self.rows = rows
+        self.done = done
+        self.total = total
+        self.finished = finished
+
+
+class FrameSource:
+    """How the app gets its frames: the capture file and the command-line options (no Textual here).
+
+    `open()` gives the reader and the pipeline, built exactly as `mavscope read` builds it, minus the
+    display filter (the TUI applies that itself, so that it can be changed).
+    """
+
+    def __init__(self, path: str, options: argparse.Namespace, dialect: Dialect, env: Env | None = None) -> None:
+        self.path = path
+        self.options = options
+        self.dialect = dialect
+        # the stages' warnings must not go to the terminal the app draws on: the app shows them
+        base = env or Env()
+        self.env = Env(stdout=io.StringIO(), stderr=io.StringIO(), environ=base.environ)
+
+    def pipeline_options(self) -> argparse.Namespace:
+        opts = copy.copy(self.options)
+        opts.display_filter = None
+        return opts
+
+    def open(self):  # type: ignore[no-untyped-def]
+        """(reader, pipeline, time of the first record)."""
+        from mavscope.capture.detect import open_capture
+        from mavscope.commands.common import build_pipeline
+
+        with open_capture(self.path) as first:
+            head = next(iter(first), None)
+        reader = open_capture(self.path)
+        return reader, build_pipeline(self.pipeline_options(), self.env, self.dialect, reader), \
+            (head.time if head is not None else None)
+
+    def check(self) -> None:
+        """Build the pipeline over no records: the stages parse their options (MavscopeError if wrong)."""
+        from mavscope.commands.common import build_pipeline
+
+        for _ in build_pipeline(self.pipeline_options(), self.env, self.dialect, iter(())):
+            pass
+
+    def messages(self) -> str:
+        """What the stages wrote to stderr (warnings), taken once."""
+        err = self.env.stderr
+        text = err.getvalue() if isinstance(err, io.StringIO) else ""
+        if text:
+            err.seek(0)
+            err.truncate()
+        return text.strip()
+
+    def with_options(self, **changes: object) -> FrameSource:
+        opts = copy.copy(self.options)
+        for k, v in changes.items():
+            setattr(opts, k, v)
+        return FrameSource(self.path, opts, self.dialect, Env(environ=self.env.environ))
+
+
+class MavscopeApp(App[None]):
+    """Browse the MAVLink frames of one capture."""
+
+    TITLE = "mavscope"
+    CSS = """
+    Screen { layout: vertical; }
+    #packets { height: 2fr; min-height: 6; border-top: solid $primary-darken-2; }
+    #tree { height: 2fr; min-height: 5; border-top: solid $primary-darken-2; }
+    #hex-pane { height: auto; min-height: 3; max-height: 12; border-top: solid $primary-darken-2; }
+    #packets:focus-within, #tree:focus, #hex-pane:focus-within { border-top: solid $accent; }
+    """
+    BINDINGS = [
+        Binding("slash", "filter", "Filter"),
+        Binding("s", "stats", "Statistics"),
+        Binding("m", "mission", "Mission"),
+        Binding("e", "expert", "Expert"),
+        Binding("k", "keys", "Keys"),
+        Binding("question_mark", "help", "Help"),
+        Binding("q", "quit", "Quit"),
+        Binding("tab", "cycle(1)", "Next pane", show=False, priority=True),
+        Binding("shift+tab", "cycle(-1)", "Previous pane", show=False, priority=True),
+    ]
+
+    def __init__(self, source: FrameSource, index: FrameIndex) -> None:
+        super().__init__()
+        self.source = source
+        self.dialect = source.dialect
+        self.index = index
+        self.pending: FrameIndex | None = None  # an index being rebuilt with new keys
+        self.display_filter: DisplayFilter | None = None
+        self.keys_added: list[str] = []
+        self.first_rows_at: float | None = None  # seconds from mount to the first rows (measured)
+        self.indexed_at: float | None = None  # seconds from mount to the complete index
+        self._mounted_at = 0.0
+
+    # --- layout -------------------------------------------------------------------------------
+
+    def compose(self) -> ComposeResult:
+        initial = getattr(self.source.options, "display_filter", None) or ""
+        yield FilterBar(initial, id="filter")
+        yield PacketList(self.index, id="packets")
+        yield DetailTree(id="tree")
+        with VerticalScroll(id="hex-pane"):
+            yield HexView(id="hex")
+        yield StatusBar(os.path.basename(self.source.path), id="status")
+        yield Footer()
+
+    @property
+    def packet_list(self) -> PacketList:
+        return self.query_one(PacketList)
+
+    @property
+    def tree(self) -> DetailTree:
+        return self.query_one(DetailTree)
+
+    @property
+    def hex(self) -> HexView:
+        return self.query_one(HexView)
+
+    @property
+    def filter_bar(self) -> FilterBar:
+        return self.query_one(FilterBar)
+
+    @property
+    def status(self) -> StatusBar:
+        return self.query_one(StatusBar)
+
+    def on_mount(self) -> None:
+        self.title = f"mavscope: {self.source.path}"
+        self._mounted_at = time.perf_counter()
+        self.packet_list.focus()
+        self.status.keys = self._keys_text()
+        self.status.update_status()
+        self.build_index(self.index, self.source)
+        initial = self.filter_bar.text
+        if initial:
+            self.apply_filter(initial)
+
+    def on_unmount(self) -> None:
+        self.workers.cancel_all()
+
+    def on_worker_state_changed(self, event: Worker.StateChanged) -> None:
+        if event.state is WorkerState.ERROR:
+            err = event.worker.error
+            self.notify(f"{event.worker.name}: {type(err).__name__}: {err}", title="mavscope: error",
+                        severity="error", timeout=30)
+
+    # --- indexing -----------------------------------------------------------------------------
+
+    @work(thread=True, group="index", exit_on_error=False)
+    def build_index(self, index: FrameIndex, source: FrameSource) -> None:
+        worker = get_current_worker()
+        post = self.post_message
+        reader, items, index.t0 = source.open()
+        with reader:
+            index.build(items, position=lambda: reader.position, total=reader.size,
+                        on_progress=lambda p: post(IndexProgress(index, p)),
+                        cancelled=lambda: worker.is_cancelled)
+
+    def on_index_progress(self, msg: IndexProgress) -> None:
+        if msg.index is self.pending:
+            self.status.activity = f"re-checking with the new key {msg.progress.fraction:.0%}"
+            if msg.progress.done:
+                self._swap_index(msg.index)
+            self.status.update_status()
+            return
+        if msg.index is not self.index:
+            return
+        if self.first_rows_at is None and len(self.index):
+            self.first_rows_at = time.perf_counter() - self._mounted_at
+        if msg.progress.done and self.indexed_at is None:
+            self.indexed_at = time.perf_counter() - self._mounted_at
+            self._report_messages()
+        self.status.progress = msg.progress
+        if self.display_filter is None:
+            self.packet_list.sync()
+        self.status.update_status()
+
+    def _report_messages(self) -> None:
+        text = self.source.messages()
+        if text:
+            self.notify(text, title="mavscope", severity="warning", timeout=10)
+
+    def _swap_index(self, index: FrameIndex) -> None:
+        self._report_messages()
+        old = self.index
+        self.index = index
+        self.pending = None
+        self.status.activity = ""
+        self.status.progress = index.progress
+        self.status.keys = self._keys_text()
+        row = self.packet_list.cursor_row
+        self.packet_list.set_index(index)
+        if self.display_filter is not None:
+            self._start_filter(self.display_filter, keep_row=row)
+        else:
+            self.packet_list.set_view(None, keep_row=row)
+        old.close()
+
+    # --- selection ----------------------------------------------------------------------------
+
+    def on_packet_list_highlighted(self, msg: PacketList.Highlighted) -> None:
+        if msg.row is None:
+            self.tree.show(None)
+            self.hex.show(b"")
+            return
+        detail = self.index.detail(msg.row)
+        self.tree.show(detail)
+        self.hex.show(detail.frame.raw)
+
+    def on_packet_list_activated(self, msg: PacketList.Activated) -> None:
+        self.tree.focus()
+
+    def on_detail_tree_item_highlighted(self, msg: DetailTree.ItemHighlighted) -> None:
+        item = msg.item
+        if item is None:
+            self.hex.set_highlight(0, 0)
+        else:
+            self.hex.set_highlight(item.offset, item.length)
+
+    def on_hex_view_byte_selected(self, msg: HexView.ByteSelected) -> None:
+        self.tree.select_byte(msg.byte)
+
+    def action_cycle(self, step: int) -> None:
+        """Tab: packet list -> detail tree -> hex -> packet list (from the filter bar: the list)."""
+        focused = self.focused
+        current = -1
+        for i, sel in enumerate(PANES):
+            widget = self.query_one(sel)
+            if focused is widget:
+                current = i
+        nxt = 0 if current < 0 else (current + step) % len(PANES)
+        self.query_one(PANES[nxt]).focus()
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        # pane cycling and the screen keys belong to the main screen; dialogs keep their keys
+        if action in MAIN_SCREEN_ACTIONS and len(self.screen_stack) > 1:
+            return False
+        return True
+
+    # --- filtering ----------------------------------------------------------------------------
+
+    def action_filter(self) -> None:
+        self.filter_bar.input.focus()
+
+    def on_filter_bar_left(self, msg: FilterBar.Left) -> None:
+        self.packet_list.focus()
+
+    def on_filter_bar_submitted(self, msg: FilterBar.Submitted) -> None:
+        self.apply_filter(msg.text)
+
+    def apply_filter(self, text: str) -> bool:
+        """Apply a display filter (empty: none). False, with the error shown in the bar, if it does not compile."""
+        bar = self.filter_bar
+        if not text:
+            self.workers.cancel_group(self, "filter")
+            self.display_filter = None
+            bar.clear_error()
+            bar.set_applied(False)
+            self.status.shown = None
+            self.status.filtering = None
+            self.status.update_status()
+            self.packet_list.set_view(None, keep_row=self.packet_list.cursor_row)
+            self.packet_list.focus()
+            return True
+        try:
+            flt = compile_filter(text, self.dialect)
+        except FilterError as exc:
+            bar.show_error(exc.message, exc.position, exc.length)
+            return False
+        bar.clear_error()
+        bar.set_applied(True)
+        self.display_filter = flt
+        self._start_filter(flt, keep_row=self.packet_list.cursor_row)
+        self.packet_list.focus()
+        return True
+
+    def _start_filter(self, flt: DisplayFilter, keep_row: int | None) -> None:
+        self._keep_row = keep_row
+        self._filter_view_set = False
+        self.status.shown = 0
+        self.status.filtering = 0.0
+        self.status.update_status()
+        self.run_filter(flt, self.index)
+
+    @work(thread=True, group="filter", exclusive=True, exit_on_error=False)
+    def run_filter(self, flt: DisplayFilter, index: FrameIndex) -> None:
+        worker = get_current_worker()
+        rows = array("I")
+        matches = flt.matches
+        frame = index.frame
+        done = 0
+        last_post = time.perf_counter()
+        while True:
+            n = len(index)
+            complete = index.done or index.progress.cancelled
+            for i in range(done, n):
+                if matches(frame(i)):
+                    rows.append(i)
+                if not i & 0x1FFF:
+                    if worker.is_cancelled:
+                        return
+                    now = time.perf_counter()
+                    if now - last_post > 0.1:
+                        last_post = now
+                        self.post_message(FilterProgress(flt, rows, i + 1, max(n, 1), False))
+            done = n
+            if complete and done == len(index):
+                break
+            self.post_message(FilterProgress(flt, rows, done, max(n, 1), False))
+            time.sleep(0.05)
+            if worker.is_cancelled:
+                return
+        self.post_message(FilterProgress(flt, rows, done, done, True))
+
+    def on_filter_progress(self, msg: FilterProgress) -> None:
+        if msg.flt is not self.display_filter:
+            return
+        pl = self.packet_list
+        if not self._filter_view_set:
+            self._filter_view_set = True
+            pl.set_view(msg.rows, keep_row=self._keep_row)
+        else:
+            pl.sync()
+        self.status.shown = len(msg.rows)
+        self.status.filtering = None if msg.finished else msg.done / msg.total
+        self.status.update_status()
+
+    # --- screens ------------------------------------------------------------------------------
+
+    def action_help(self) -> None:
+        from mavscope.tui.screens.help import HelpScreen
+
+        self.push_screen(HelpScreen())
+
+    def action_keys(self) -> None:
+        from mavscope.tui.screens.keys import KeyDialog
+
+        self.push_screen(KeyDialog())
+
+    def action_stats(self) -> None:
+        from mavscope.tui.screens.stats import StatsScreen
+
+        self.push_screen(StatsScreen(self.index, self._view()))
+
+    def action_mission(self) -> None:
+        from mavscope.tui.screens.mission import MissionScreen
+
+        self.push_screen(MissionScreen(self.index, self._view()))
+
+    def action_expert(self) -> None:
+        from mavscope.tui.screens.expert import ExpertScreen
+
+        self.push_screen(ExpertScreen(self.index, self._view()))
+
+    def _view(self) -> Sequence[int] | None:
+        """The rows the screens analyse: the filtered view, or every frame."""
+        view = self.packet_list.view
+        return None if view is None else array("I", view)
+
+    def goto_record(self, record: int) -> None:
+        """Select the first frame of capture record `record` (from the expert and mission screens)."""
+        row = self.index.find_record(record)
+        if row is None:
+            return
+        if self.display_filter is not None:
+            self.apply_filter("")
+            self.filter_bar.input.value = ""
+        pl = self.packet_list
+        pl.move_to(row if pl.view is None else pl._position_of(row))
+        pl.focus()
+
+    # --- keys ---------------------------------------------------------------------------------
+
+    def _keys_text(self) -> str:
+        n = len(getattr(self.source.options, "key", None) or ())
+        c = len(getattr(self.source.options, "cipher", None) or ())
+        parts = []
+        if n:
+            parts.append(f"{n} signing key{'s' if n > 1 else ''}")
+        if c:
+            parts.append(f"{c} cipher{'s' if c > 1 else ''}")
+        return ", ".join(parts) if parts else "no keys (k adds one)"
+
+    def add_key(self, kind: str, spec: str) -> str | None:
+        """Add a signing key (`kind` "key") or cipher ("cipher") as the command line's --key/--cipher
+        would, and re-check the capture with it. Returns an error message, or None when accepted."""
+        current = list(getattr(self.source.options, kind, None) or [])
+        source = self.source.with_options(**{kind: current + [spec]})
+        try:
+            source.check()
+        except MavscopeError as exc:
+            return str(exc)
+        self.source = source
+        self.keys_added.append(kind)
+        self.workers.cancel_group(self, "rebuild")
+        if self.pending is not None:
+            self.pending.close()
+        index = FrameIndex(self.dialect, self.source.path)
+        self.pending = index
+        self.status.activity = "re-checking with the new key"
+        self.status.update_status()
+        self.rebuild_index(index, source)
+        return None
+
+    @work(thread=True, group="rebuild", exit_on_error=False)
+    def rebuild_index(self, index: FrameIndex, source: FrameSource) -> None:
+        worker = get_current_worker()
+        reader, items, index.t0 = source.open()
+        with reader:
+            index.build(items, position=lambda: reader.position, total=reader.size,
+                        on_progress=lambda p: self.post_message(IndexProgress(index, p)),
+                        cancelled=lambda: worker.is_cancelled)
+
+
+def create_app(path: str | os.PathLike[str], options: argparse.Namespace | None = None,
+               env: Env | None = None) -> MavscopeApp:
+    """The TUI over the capture `path`. `options` are `mavscope tui`'s parsed arguments (None: defaults).
+
+    Raises CaptureError (missing, unreadable file) before anything is drawn.
+    """
+    from mavscope.commands.tui import parse_options
+
+    spath = os.fspath(path)
+    if options is None:
+        options = parse_options([spath])
+    dialect = load_dialect(getattr(options, "dialect", None) or [])
+    source = FrameSource(spath, options, dialect, env)
+    source.check()
+    index = FrameIndex(dialect, spath)
+    return MavscopeApp(source, index)

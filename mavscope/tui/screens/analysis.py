@@ -1,0 +1,112 @@
+"""What the statistics, mission and expert screens share: run an analysis over the frames in a
+thread worker (with progress and cancellation on close), then show the result.
+
+The frames are the rows of the packet list's current view (a display filter applies, as it does to
+`mavscope stats -Y`), rebuilt from the index one by one, never all held at once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from textual import work
+from textual.app import ComposeResult
+from textual.binding import Binding
+from textual.containers import Vertical
+from textual.message import Message
+from textual.screen import Screen
+from textual.widgets import Footer, Static
+from textual.worker import get_current_worker
+
+from mavscope.index import FrameIndex, FrameSequence
+
+
+class _Cancelled(Exception):
+    pass
+
+
+class AnalysisScreen(Screen[None]):
+    """Subclasses implement `analyse(frames)` (in a thread) and `show(result)` (in the UI)."""
+
+    TITLE_TEXT = ""
+    BINDINGS = [
+        Binding("escape", "dismiss", "Back"),
+        Binding("q", "dismiss", "Back", show=False),
+    ]
+    DEFAULT_CSS = """
+    AnalysisScreen #analysis-status { height: auto; padding: 0 1; color: $text-muted; }
+    AnalysisScreen #analysis-body { height: 1fr; }
+    """
+
+    class Done(Message):
+        def __init__(self, result: object) -> None:
+            super().__init__()
+            self.result = result
+
+    class Step(Message):
+        def __init__(self, done: int, total: int) -> None:
+            super().__init__()
+            self.done = done
+            self.total = total
+
+    def __init__(self, index: FrameIndex, rows: Sequence[int] | None) -> None:
+        super().__init__()
+        self.index = index
+        self.rows = rows
+        self.result: object = None
+
+    def compose(self) -> ComposeResult:
+        yield Static(self._scope() + "  analysing…", id="analysis-status")
+        with Vertical(id="analysis-body"):
+            yield from self.compose_body()
+        yield Footer()
+
+    def compose_body(self) -> ComposeResult:
+        yield from ()
+
+    def _scope(self) -> str:
+        n = len(self.index) if self.rows is None else len(self.rows)
+        what = "all frames" if self.rows is None else "the frames the display filter shows"
+        partial = "" if self.index.done else " (the index is still being built: frames so far)"
+        return f"{self.TITLE_TEXT}: {n:,} frames, {what}{partial}"
+
+    def on_mount(self) -> None:
+        self.sub_title = self.TITLE_TEXT
+        self.run_analysis()
+
+    @work(thread=True, exclusive=True, group="analysis", exit_on_error=False)
+    def run_analysis(self) -> None:
+        worker = get_current_worker()
+        rows = self.rows if self.rows is not None else range(len(self.index))
+        total = len(rows)
+
+        def tick(n: int) -> None:
+            if worker.is_cancelled:
+                raise _Cancelled
+            self.post_message(self.Step(n, total))
+
+        try:
+            result = self.analyse(FrameSequence(self.index, rows, tick))
+        except _Cancelled:
+            return
+        if not worker.is_cancelled:
+            self.post_message(self.Done(result))
+
+    def analyse(self, frames: FrameSequence) -> object:
+        raise NotImplementedError
+
+    def on_analysis_screen_step(self, msg: Step) -> None:
+        if msg.total:
+            self.query_one("#analysis-status", Static).update(
+                f"{self._scope()}  analysing {msg.done / msg.total:.0%}")
+
+    def on_analysis_screen_done(self, msg: Done) -> None:
+        self.result = msg.result
+        self.query_one("#analysis-status", Static).update(self._scope() + "  (Escape: back)")
+        self.show(msg.result)
+
+    def show(self, result: object) -> None:
+        raise NotImplementedError
+
+    def on_unmount(self) -> None:
+        self.workers.cancel_group(self, "analysis")

@@ -1,0 +1,53 @@
+"""`e`: expert findings (mavscope.analysis.expert), most severe first; Enter jumps to the first frame."""
+
+from __future__ import annotations
+
+from rich.text import Text
+from textual.app import ComposeResult
+from textual.widgets import DataTable, Label
+
+from mavscope.analysis.expert import expert_findings
+from mavscope.analysis.findings import Finding
+from mavscope.index import FrameSequence
+from mavscope.notes import Severity
+from mavscope.tui.screens.analysis import AnalysisScreen
+from mavscope.tui.verdicts import BLUE, DIM, ORANGE, RED
+
+SEVERITY_STYLE = {Severity.ERROR: RED, Severity.WARN: ORANGE, Severity.NOTE: BLUE, Severity.CHAT: DIM}
+
+
+class ExpertScreen(AnalysisScreen):
+    TITLE_TEXT = "Expert findings"
+    DEFAULT_CSS = """
+    ExpertScreen DataTable { height: 1fr; }
+    ExpertScreen Label { padding: 0 1; }
+    """
+
+    def compose_body(self) -> ComposeResult:
+        yield Label("Enter: go to the finding's first frame", id="expert-title")
+        yield DataTable(id="findings", cursor_type="row", zebra_stripes=True)
+
+    def analyse(self, frames: FrameSequence) -> list[Finding]:
+        return expert_findings(frames, frames.index.dialect)
+
+    def show(self, result: object) -> None:
+        findings: list[Finding] = result  # type: ignore[assignment]
+        table = self.query_one("#findings", DataTable)
+        table.add_columns("Severity", "Code", "Finding", "Frames")
+        for i, f in enumerate(findings):
+            frames = ", ".join(map(str, f.frames[:8])) + ("…" if len(f.frames) > 8 else "")
+            table.add_row(Text(f.severity.value, style=SEVERITY_STYLE.get(f.severity, "")), f.code, f.message,
+                          frames, key=str(i))
+        counts = {s: sum(1 for f in findings if f.severity is s) for s in Severity}
+        summary = ", ".join(f"{n} {s.value}" for s, n in counts.items() if n) or "no findings"
+        self.query_one("#expert-title", Label).update(f"{summary}.  Enter: go to the finding's first frame")
+        table.focus()
+
+    def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
+        findings: list[Finding] = self.result  # type: ignore[assignment]
+        if event.row_key.value is None:
+            return
+        f = findings[int(event.row_key.value)]
+        if f.frames:
+            self.dismiss(None)
+            self.app.goto_record(f.frames[0])  # type: ignore[attr-defined]

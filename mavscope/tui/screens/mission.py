@@ -1,0 +1,147 @@
+"""`m`: mission transfers, the waypoint table of the chosen one, and a plot of the track.
+
+The reconstruction is mavscope.analysis.mission's (`mavscope mission`); only the frames of mission
+messages and of GLOBAL_POSITION_INT are rebuilt from the index (picked by message id from its columns).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from rich.text import Text
+from textual.app import ComposeResult
+from textual.containers import Horizontal, Vertical
+from textual.widgets import DataTable, Label
+
+from mavscope.analysis.mission import MISSION_MESSAGES, Transfer, reconstruct
+from mavscope.index import FrameSequence
+from mavscope.mavlink.frame import decode_payload
+from mavscope.tui.screens.analysis import AnalysisScreen
+from mavscope.tui.verdicts import GREEN, ORANGE, RED
+from mavscope.tui.widgets.track_plot import TrackPlot
+
+MAX_TRACK_POINTS = 4000
+GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})
+
+
+@dataclass
+class MissionResult:
+    transfers: list[Transfer]
+    track: list[tuple[float, float]]
+
+
+def _fmt(v: float) -> str:
+    return "nan" if isinstance(v, float) and math.isnan(v) else f"{v:.7g}"
+
+
+class MissionScreen(AnalysisScreen):
+    TITLE_TEXT = "Mission"
+    DEFAULT_CSS = """
+    MissionScreen #mission-left { width: 3fr; }
+    MissionScreen #mission-right { width: 2fr; border-left: solid $primary-darken-2; }
+    MissionScreen #transfers { height: auto; max-height: 8; }
+    MissionScreen #items { height: 1fr; }
+    MissionScreen Label { padding: 0 1; text-style: bold; }
+    """
+
+    def compose_body(self) -> ComposeResult:
+        with Horizontal():
+            with Vertical(id="mission-left"):
+                yield Label("Transfers (Enter: show its items)")
+                yield DataTable(id="transfers", cursor_type="row", zebra_stripes=True)
+                yield Label("Items", id="items-title")
+                yield DataTable(id="items", cursor_type="row", zebra_stripes=True)
+            with Vertical(id="mission-right"):
+                yield Label("Track (blue: GLOBAL_POSITION_INT; orange: waypoints in order)")
+                yield TrackPlot(id="plot")
+
+    def analyse(self, frames: FrameSequence) -> MissionResult:
+        index = frames.index
+        dialect = index.dialect
+        ids = {md.id for name, md in dialect.by_name.items() if name in MISSION_MESSAGES}
+        gpi = dialect.by_name.get("GLOBAL_POSITION_INT")
+        gpi_id = gpi.id if gpi is not None else -1
+        msgid = index.columns()["msgid"]
+        mission_rows = []
+        track_rows = []
+        for r in frames.rows:
+            m = msgid[r]
+            if m in ids:
+                mission_rows.append(r)
+            elif m == gpi_id:
+                track_rows.append(r)
+        transfers = reconstruct(FrameSequence(index, mission_rows, frames.on_frame), dialect)
+        step = max(1, len(track_rows) // MAX_TRACK_POINTS)
+        track = []
+        for r in track_rows[::step]:
+            fields = decode_payload(index.frame(r))
+            if fields and (fields.get("lat") or fields.get("lon")):
+                track.append((int(fields["lat"]) / 1e7, int(fields["lon"]) / 1e7))  # type: ignore[call-overload]
+        return MissionResult(transfers, track)
+
+    def show(self, result: object) -> None:
+        res: MissionResult = result  # type: ignore[assignment]
+        table = self.query_one("#transfers", DataTable)
+        table.add_columns("#", "Direction", "From", "To", "Type", "Items", "Result", "Frames")
+        dialect = self.index.dialect
+        mtypes = dialect.enums.get("MAV_MISSION_TYPE")
+        for i, t in enumerate(res.transfers):
+            style = GREEN if t.complete else (ORANGE if t.closed in ("end", "abandoned") else RED)
+            mtype = (mtypes.name_of(t.mission_type) if mtypes else None) or str(t.mission_type)
+            table.add_row(str(i + 1), t.direction, f"{t.sender[0]}/{t.sender[1]}",
+                          f"{t.receiver[0]}/{t.receiver[1]}", mtype.replace("MAV_MISSION_TYPE_", ""),
+                          f"{len(t.items)}/{t.count}", Text(t.reason, style=style),
+                          f"{t.frames[0]}…{t.frames[-1]}" if t.frames else "", key=str(i))
+        if not res.transfers:
+            self.query_one("#items-title", Label).update("Items: no mission transfer in these frames")
+        best = next((i for i in range(len(res.transfers) - 1, -1, -1)
+                     if res.transfers[i].direction == "upload" and res.transfers[i].items), len(res.transfers) - 1)
+        if best >= 0:
+            table.move_cursor(row=best)
+            self.show_transfer(best)
+        else:
+            self.query_one(TrackPlot).set_data(res.track, [])
+        self.query_one("#items", DataTable).focus()
+
+    def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
+        if event.data_table.id == "transfers" and event.row_key.value is not None:
+            self.show_transfer(int(event.row_key.value))
+
+    def show_transfer(self, i: int) -> None:
+        res: MissionResult = self.result  # type: ignore[assignment]
+        t = res.transfers[i]
+        dialect = self.index.dialect
+        cmds = dialect.enums.get("MAV_CMD")
+        frames = dialect.enums.get("MAV_FRAME")
+        table = self.query_one("#items", DataTable)
+        table.clear(columns=True)
+        table.add_columns("Seq", "Command", "Latitude", "Longitude", "Altitude", "Parameters", "Frame", "Frames")
+        waypoints = []
+        for seq in sorted(t.items):
+            it = t.items[seq]
+            name = (cmds.name_of(it.command) if cmds else None) or str(it.command)
+            labels = {idx: (label, units) for idx, label, units in dialect.command_params(it.command)}
+            params = []
+            for n, v in enumerate(it.params, 1):
+                if n in labels:
+                    label, units = labels[n]
+                    params.append(f"{label} {_fmt(v)}{' ' + units if units else ''}")
+                elif v and not (isinstance(v, float) and math.isnan(v)):
+                    params.append(f"param{n} {_fmt(v)}")
+            glob = it.frame in GLOBAL_FRAMES
+            lat = f"{it.x:.7f}°" if glob else _fmt(it.x)
+            lon = f"{it.y:.7f}°" if glob else _fmt(it.y)
+            z_label = labels.get(7, ("Altitude", "m"))
+            alt = f"{_fmt(it.z)} {z_label[1] or 'm'}"
+            fname = (frames.name_of(it.frame) if frames else None) or str(it.frame)
+            table.add_row(str(seq), name.replace("MAV_CMD_", ""), lat, lon, alt, ", ".join(params),
+                          fname.replace("MAV_FRAME_", ""), ", ".join(map(str, it.frames[:4])))
+            if glob and (it.x or it.y) and it.command < 100:  # NAV commands with a position
+                waypoints.append((seq, it.x, it.y))
+        title = f"Items of transfer {i + 1}: {t.direction} {t.sender[0]}/{t.sender[1]} → " \
+                f"{t.receiver[0]}/{t.receiver[1]}, {len(t.items)} of {t.count}"
+        if t.missing:
+            title += f", missing {', '.join(map(str, t.missing))}"
+        self.query_one("#items-title", Label).update(title)
+        self.query_one(TrackPlot).set_data(res.track, waypoints)

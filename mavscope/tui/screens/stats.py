@@ -1,0 +1,77 @@
+"""`s`: message rates per stream with sparklines, loss per link, totals (mavscope.analysis.stats)."""
+
+from __future__ import annotations
+
+from rich.text import Text
+from textual.app import ComposeResult
+from textual.widgets import DataTable, Label
+
+from mavscope.analysis.stats import Stats, compute_stats
+from mavscope.index import FrameSequence
+from mavscope.tui.screens.analysis import AnalysisScreen
+from mavscope.tui.verdicts import GREEN, ORANGE, RED
+
+SPARK = "▁▂▃▄▅▆▇█"
+SPARK_WIDTH = 30
+
+
+def sparkline(values: list[int], width: int = SPARK_WIDTH) -> str:
+    """`values` (frames per second) squeezed into `width` cells, each the busiest second of its slice."""
+    if not values:
+        return ""
+    if len(values) > width:
+        step = len(values) / width
+        values = [max(values[int(i * step) : max(int(i * step) + 1, int((i + 1) * step))]) for i in range(width)]
+    top = max(values) or 1
+    return "".join(" " if v == 0 else SPARK[min(len(SPARK) - 1, (v * len(SPARK) - 1) // top)] for v in values)
+
+
+def _pct(v: float) -> Text:
+    style = GREEN if v == 0 else (ORANGE if v < 5 else RED)
+    return Text(f"{v:.2f} %", style=style, justify="right")
+
+
+class StatsScreen(AnalysisScreen):
+    TITLE_TEXT = "Statistics"
+    DEFAULT_CSS = """
+    StatsScreen DataTable { height: 1fr; }
+    StatsScreen #links { height: auto; max-height: 12; }
+    StatsScreen Label { padding: 0 1; text-style: bold; margin-top: 1; }
+    """
+
+    def compose_body(self) -> ComposeResult:
+        yield Label("Loss per link (sequence gaps per sysid/compid)")
+        yield DataTable(id="links", zebra_stripes=True, cursor_type="row")
+        yield Label("Message rates", id="rates-title")
+        yield DataTable(id="rates", zebra_stripes=True, cursor_type="row")
+
+    def analyse(self, frames: FrameSequence) -> Stats:
+        return compute_stats(frames)
+
+    def show(self, result: object) -> None:
+        stats: Stats = result  # type: ignore[assignment]
+        links = self.query_one("#links", DataTable)
+        links.add_columns("Sys/Comp", "Received", "Lost", "Loss", "Duplicates", "Reordered", "CRC", "Signature",
+                          "Endpoints")
+        for lk in stats.links_json():
+            crc = ", ".join(f"{k} {v}" for k, v in lk["crc"].items())  # type: ignore[attr-defined]
+            sig = ", ".join(f"{k} {v}" for k, v in lk["signature"].items())  # type: ignore[attr-defined]
+            links.add_row(f"{lk['sysid']}/{lk['compid']}", Text(f"{lk['received']:,}", justify="right"),
+                          Text(f"{lk['lost']:,}", justify="right"), _pct(lk["loss_pct"]),  # type: ignore[arg-type]
+                          Text(str(lk["duplicates"]), justify="right"), Text(str(lk["reordered"]), justify="right"),
+                          crc, sig, ", ".join(lk["endpoints"]))  # type: ignore[arg-type]
+        rates = self.query_one("#rates", DataTable)
+        duration = stats.duration
+        rates.add_columns("Sys/Comp", "Message", "Count", "Rate", "Bytes", f"Frames per second over {duration or 0:.0f} s")
+        for m in stats.messages_json():
+            key = (m["sysid"], m["compid"], m["msgname"])
+            rate = m["rate_hz"]
+            rates.add_row(f"{m['sysid']}/{m['compid']}", m["msgname"], Text(f"{m['count']:,}", justify="right"),
+                          Text("-" if rate is None else f"{rate:.2f} Hz", justify="right"),
+                          Text(f"{m['bytes']:,}", justify="right"),
+                          Text(sparkline(stats.per_second(key)), style="cyan"))  # type: ignore[arg-type]
+        t = stats.totals_json()
+        self.query_one("#rates-title", Label).update(
+            f"Message rates: {t['frames']:,} frames, {t['bytes']:,} bytes over {duration or 0:.1f} s, "
+            f"{t['links']} links, {t['messages']} message types")
+        rates.focus()

@@ -1,0 +1,50 @@
+"""The status line: capture, indexing progress, frames shown, keys in use."""
+
+from __future__ import annotations
+
+from rich.text import Text
+from textual.widgets import Static
+
+from mavscope.index import Progress
+
+
+def _bar(fraction: float, width: int = 12) -> str:
+    full = int(fraction * width)
+    return "█" * full + "░" * (width - full)
+
+
+class StatusBar(Static):
+    DEFAULT_CSS = """
+    StatusBar { height: 1; background: $panel; color: $text; padding: 0 1; }
+    """
+
+    def __init__(self, name: str, *, id: str | None = None) -> None:
+        super().__init__("", id=id)
+        self.capture = name
+        self.progress: Progress | None = None
+        self.shown: int | None = None  # frames the filter kept (None: no filter)
+        self.filtering: float | None = None  # filter progress while it runs
+        self.activity = ""  # another task running ("re-checking with 1 key")
+        self.keys = ""
+
+    def update_status(self) -> None:
+        text = Text(self.capture, style="bold")
+        p = self.progress
+        if p is not None:
+            if p.done:
+                text.append(f"  {p.frames:,} frames")
+            elif p.cancelled:
+                text.append(f"  {p.frames:,} frames (indexing stopped)", style="yellow")
+            else:
+                text.append(f"  indexing {_bar(p.fraction)} {p.fraction:4.0%}  {p.frames:,} frames so far",
+                            style="yellow")
+        if self.shown is not None:
+            text.append(f"  │  filter: {self.shown:,} shown")
+            if self.filtering is not None:
+                text.append(f" (filtering {self.filtering:.0%})", style="yellow")
+        if self.activity:
+            text.append(f"  │  {self.activity}", style="yellow")
+        if self.keys:
+            text.append(f"  │  {self.keys}")
+        text.append("  │  ? help", style="dim")
+        self.update(text)
