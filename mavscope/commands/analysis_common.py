@@ -6,7 +6,13 @@ from __future__ import annotations
 import argparse
 
 from mavscope.cli import Env
-from mavscope.commands.common import add_capture_options, add_filter_option, capture_session, report_anomaly
+from mavscope.commands.common import (
+    add_capture_options,
+    add_filter_option,
+    add_key_options,
+    capture_session,
+    report_anomaly,
+)
 from mavscope.dissect import Anomaly
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
@@ -15,6 +21,7 @@ from mavscope.mavlink.frame import Frame
 def add_analysis_options(p: argparse.ArgumentParser) -> None:
     add_capture_options(p)
     add_filter_option(p)
+    add_key_options(p)  # signature and encryption verdicts for filters, statistics and findings
     p.add_argument("--json", action="store_true", help="write one JSON document to stdout (docs/analysis.md)")
 
 
