@@ -75,3 +75,9 @@ def test_compute_stats_on_frames(dialect: Dialect) -> None:
     st = compute_stats(frames("px4_sitl_tcp.pcap", dialect))
     assert st.frames == EXPECTED["px4_sitl_tcp.pcap"]["frames"]
     assert st.conversations_json()[0]["transport"] == "tcp"
+
+
+def test_signature_verdicts_with_the_key() -> None:
+    doc = run_json("stats", str(CAPTURES / "signed_udp.pcap"), "--key", "passphrase:mavscope-demo",
+                   "-Y", "signature.status == valid")
+    assert doc["totals"]["signature"] == {"valid": EXPECTED["signed_udp.pcap"]["signed"]}
