@@ -17,8 +17,7 @@ from mavscope.commands.common import (
 from mavscope.dissect import Anomaly
 from mavscope.errors import UsageError
 from mavscope.export import FrameWriter, write_records
-from mavscope.output.jsonout import jsonl_bytes
-from mavscope.output.text import detail_text, hexdump, summary_line
+from mavscope.output.printer import FramePrinter
 
 
 def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -41,8 +40,6 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     if args.count is not None and args.count < 1:
         raise UsageError("read: -c needs a positive number of frames")
     out_b = env.stdout_bytes
-    out = env.stdout
-    fmt = args.format
     limit = args.count if args.count is not None else -1
     shown_records: set[int] = set()
     shown = 0
@@ -51,9 +48,10 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         path, dialect = session.path, session.dialect
         frame_writer = _open_writer(args.write, path, session.reader.kind) if args.write else None
         update, stop = progress(env, session.reader)
+        printer = FramePrinter(env, dialect, args.format, verbose=args.verbose, hex=args.hex, quiet=args.quiet, t0=t0)
+        show = printer.frame
         try:
-            if fmt == "json":
-                out_b.write(b"[")
+            printer.begin()
             for n, item in enumerate(session.items):
                 if not n & 0x3FFF:
                     update()
@@ -66,24 +64,10 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                     frame_writer.write(frame)
                 elif args.write:
                     shown_records.update(frame.records)
-                if args.quiet:
-                    pass
-                elif fmt == "jsonl":
-                    out_b.write(jsonl_bytes(frame))
-                elif fmt == "json":
-                    out_b.write((b"\n" if shown == 1 else b",\n") + jsonl_bytes(frame)[:-1])
-                else:
-                    out.write(summary_line(frame, dialect, t0) + "\n")
-                    if args.verbose:
-                        out.write(detail_text(frame, dialect) + "\n")
-                    if args.hex:
-                        out.write(hexdump(frame.raw) + "\n")
-                    if args.verbose or args.hex:
-                        out.write("\n")
+                show(frame)
                 if shown == limit:
                     break
-            if fmt == "json":
-                out_b.write(b"\n]\n" if shown else b"]\n")
+            printer.end()
         finally:
             stop()
             if frame_writer is not None:
