@@ -1,0 +1,72 @@
+"""`mavscope audit FILE`: security findings (leaked keys, replays, forged and injected frames, weak
+passphrases, fixed keystreams) as a list, or `{"findings": [...]}` with --json."""
+
+from __future__ import annotations
+
+import argparse
+
+from mavscope.cli import Env, ExitStatus
+from mavscope.commands.common import add_capture_options, add_key_options, capture_session
+from mavscope.dissect import Anomaly
+from mavscope.errors import UsageError
+from mavscope.mavlink.dialect import load_dialect
+from mavscope.notes import Severity
+from mavscope.security.audit import audit, parse_known_plaintext, read_wordlist
+
+RECOVERED_SHOWN = 10
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser("audit", help="security audit: key leaks, replays, forgeries, weak passphrases, "
+                                     "fixed keystreams",
+                       description="Security findings of a capture (docs/security.md). Exit status 1 when a "
+                                   "finding of severity warn or error is reported, 0 otherwise, 2 on bad usage.")
+    add_capture_options(p)
+    add_key_options(p)
+    p.add_argument("--wordlist", metavar="FILE", help="try every line as the signing passphrase (SHA-256)")
+    p.add_argument("--qgc", action="store_true",
+                   help="with --wordlist, also try QGroundControl's PBKDF2 derivation (600000 iterations: slow)")
+    p.add_argument("--known-plaintext", action="append", default=[], metavar="MSG=HEX",
+                   help="a guessed plaintext payload of message MSG, to recover a fixed keystream")
+    p.add_argument("--json", action="store_true", help='print {"findings": [...]}')
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    if args.qgc and not args.wordlist:
+        raise UsageError("audit: --qgc needs --wordlist")
+    dialect = load_dialect(args.dialect)
+    known = [parse_known_plaintext(s, dialect) for s in args.known_plaintext]
+    words = None
+    if args.wordlist:
+        try:
+            words = read_wordlist(args.wordlist)
+        except OSError as exc:
+            raise UsageError(f"audit: --wordlist {args.wordlist}: {exc.strerror or exc}") from None
+    with capture_session(args, env) as session:
+        frames = [item for item in session.items if type(item) is not Anomaly]
+    findings, recoveries = audit(frames, words=words, qgc=args.qgc, known=known)  # type: ignore[arg-type]
+    status = ExitStatus.FINDINGS if any(f.severity in (Severity.ERROR, Severity.WARN) for f in findings) \
+        else ExitStatus.OK
+    if args.json:
+        from mavscope.output.tables import write_json
+
+        doc: dict[str, object] = {"findings": [f.to_json() for f in findings]}
+        if recoveries:
+            doc["recovered"] = [{"frame": r.record, "msgname": r.msgname, "bytes": r.recovered.hex(),
+                                 "length": r.length, "fields": r.fields} for r in recoveries]
+        write_json(env, doc)
+        return status
+    out = env.stdout
+    if not findings:
+        out.write("no findings\n")
+    for f in findings:
+        out.write(f"[{f.severity.value}] {f.code}: {f.message}\n")
+    if recoveries:
+        out.write(f"\nRecovered without the key ({len(recoveries)} frames; first {RECOVERED_SHOWN}):\n")
+        for r in recoveries[:RECOVERED_SHOWN]:
+            text = f"  frame {r.record} {r.msgname}: {len(r.recovered)}/{r.length} bytes {r.recovered.hex(' ')}"
+            if r.fields is not None:
+                text += "\n      " + " ".join(f"{k}={v}" for k, v in r.fields.items())
+            out.write(text + "\n")
+    return status
