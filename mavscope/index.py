@@ -38,6 +38,7 @@ from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import (
     HEADER_V1,
     HEADER_V2,
+    IFLAG_SIGNED,
     STX_V2,
     CrcStatus,
     EncryptionStatus,
@@ -84,7 +85,10 @@ class Row(NamedTuple):
 
     @property
     def signature_status(self) -> SignatureStatus | None:
-        return self.security.signature_status if self.security is not None else None
+        """The security layer's verdict; `no-key` for a signed frame it did not judge; None if unsigned."""
+        if self.security is not None and self.security.signature_status is not None:
+            return self.security.signature_status
+        return SignatureStatus.NO_KEY if self.incompat_flags & IFLAG_SIGNED else None
 
     @property
     def encryption_status(self) -> EncryptionStatus | None:

@@ -122,10 +122,12 @@ class MavscopeApp(App[None]):
     TITLE = "mavscope"
     CSS = """
     Screen { layout: vertical; }
-    #packets { height: 2fr; min-height: 6; border-top: solid $primary-darken-2; }
-    #tree { height: 2fr; min-height: 5; border-top: solid $primary-darken-2; }
-    #hex-pane { height: auto; min-height: 3; max-height: 12; border-top: solid $primary-darken-2; }
-    #packets:focus-within, #tree:focus, #hex-pane:focus-within { border-top: solid $accent; }
+    #packets { height: 1fr; min-height: 6; border-top: solid $primary-darken-2; }
+    #tree { height: 1fr; min-height: 5; border-top: solid $primary-darken-2; }
+    #hex-pane { height: 7; border-top: solid $primary-darken-2; }
+    #packets, #tree, #hex-pane { border-title-color: $text-muted; }
+    #packets:focus-within, #tree:focus, #hex-pane:focus-within { border-top: solid $accent;
+                                                                border-title-color: $text; }
     """
     BINDINGS = [
         Binding("slash", "filter", "Filter"),
@@ -186,6 +188,9 @@ class MavscopeApp(App[None]):
     def on_mount(self) -> None:
         self.title = f"mavscope: {self.source.path}"
         self._mounted_at = time.perf_counter()
+        self.packet_list.border_title = "Frames (Enter: details)"
+        self.tree.border_title = "Detail"
+        self.query_one("#hex-pane").border_title = "Bytes (click a byte to select its field)"
         self.packet_list.focus()
         self.status.keys = self._keys_text()
         self.status.update_status()
@@ -270,11 +275,14 @@ class MavscopeApp(App[None]):
         self.tree.focus()
 
     def on_detail_tree_item_highlighted(self, msg: DetailTree.ItemHighlighted) -> None:
+        hexview = self.screen_stack[0].query(HexView).first(HexView) if self.screen_stack else None
+        if hexview is None:  # shutting down
+            return
         item = msg.item
         if item is None:
-            self.hex.set_highlight(0, 0)
+            hexview.set_highlight(0, 0)
         else:
-            self.hex.set_highlight(item.offset, item.length)
+            hexview.set_highlight(item.offset, item.length)
 
     def on_hex_view_byte_selected(self, msg: HexView.ByteSelected) -> None:
         self.tree.select_byte(msg.byte)

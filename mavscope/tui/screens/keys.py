@@ -41,7 +41,7 @@ class KeyDialog(ModalScreen[None]):
             v.border_title = "Add key material"
             with RadioSet(id="key-kind"):
                 for i, kind in enumerate(KINDS):
-                    yield RadioButton(kind[2], value=i == 0)
+                    yield RadioButton(kind[2], value=i == 0, id=f"kind-{i}")
             yield Label(KINDS[0][3], id="key-help")
             yield Input(placeholder="key", id="key-input")
             yield Static("", id="key-error")

@@ -155,6 +155,16 @@ class PacketList(ScrollView, can_focus=True):
     def on_resize(self) -> None:
         self._strips.clear()
         self._update_size()
+        self.call_after_refresh(self._reveal_cursor)
+
+    def _reveal_cursor(self) -> None:
+        new = self.cursor
+        if new >= 0:
+            top = round(self.scroll_y)
+            if new < top:
+                self.scroll_to(y=new, animate=False)
+            elif new >= top + self.page:
+                self.scroll_to(y=new - self.page + 1, animate=False)
 
     # --- cursor -------------------------------------------------------------------------------
 
@@ -163,12 +173,7 @@ class PacketList(ScrollView, can_focus=True):
         return max(1, self.scrollable_content_region.height - 1)
 
     def watch_cursor(self, old: int, new: int) -> None:
-        if new >= 0:
-            top = round(self.scroll_y)
-            if new < top:
-                self.scroll_to(y=new, animate=False)
-            elif new >= top + self.page:
-                self.scroll_to(y=new - self.page + 1, animate=False)
+        self._reveal_cursor()
         self.refresh()
         self.post_message(self.Highlighted(self.cursor_row))
 
