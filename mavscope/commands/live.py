@@ -1,0 +1,186 @@
+"""`mavscope live`: dissect MAVLink as it arrives on a UDP port (optionally relaying) or an interface.
+
+The records a live source yields go through the same pipeline as a capture file's
+(`build_pipeline`: dissector, security verdicts, display filter) and the same per-frame output as
+`read` (`FramePrinter`). Output is flushed whenever mavscope has caught up with the link, so
+`mavscope live ... -T jsonl | jq` sees each line as soon as it is decoded. SIGINT and SIGTERM stop
+cleanly: the receiver stops, what it already received is decoded, the pcap is flushed and closed, and a
+one-line summary goes to stderr (exit status 0).
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import threading
+from collections.abc import Iterator
+from types import FrameType
+
+from mavscope.capture.base import Record
+from mavscope.cli import Env, ExitStatus
+from mavscope.commands.common import add_filter_option, add_key_options, build_pipeline, report_anomaly
+from mavscope.dissect import Anomaly
+from mavscope.errors import MavscopeError, UsageError
+from mavscope.live.sink import LivePcapWriter
+from mavscope.live.source import DEFAULT_QUEUE_ITEMS, LiveSource
+from mavscope.live.udp import UdpSource, parse_endpoint
+from mavscope.mavlink.dialect import load_dialect
+from mavscope.output.printer import FramePrinter
+
+
+def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = sub.add_parser(
+        "live", help="dissect MAVLink live from a UDP port (optionally relaying) or a network interface",
+        description="Capture and dissect MAVLink as it arrives. Stop with Ctrl-C (or -c / --duration); "
+                    "a summary of frames, bytes and drops goes to stderr. See docs/live.md.")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("--udp", metavar="[HOST:]PORT",
+                     help="bind this UDP port (default host 0.0.0.0; [::]:PORT for IPv6) and decode every datagram")
+    src.add_argument("--sniff", metavar="IFACE", help="capture passively on a network interface (root or CAP_NET_RAW)")
+    p.add_argument("--bpf", metavar="EXPR", help="with --sniff: a capture filter, e.g. 'udp port 14550'")
+    p.add_argument("--forward", metavar="HOST:PORT",
+                   help="with --udp: relay datagrams to HOST:PORT and its replies back to the last sender")
+    p.add_argument("--dialect", action="append", default=[], metavar="XML",
+                   help="load another dialect XML (repeatable; dissectors/*.xml load automatically)")
+    add_filter_option(p)
+    add_key_options(p)
+    p.add_argument("-V", dest="verbose", action="store_true", help="print the detail tree of every frame")
+    p.add_argument("-x", dest="hex", action="store_true", help="print a hex dump of every frame")
+    p.add_argument("-T", dest="format", choices=("text", "jsonl"), default="text", help="output format (default text)")
+    p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w)")
+    p.add_argument("-c", dest="count", type=int, metavar="N", help="stop after N frames")
+    p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    p.add_argument("-w", dest="write", metavar="OUT.pcap", help="write every packet received to a pcap as it goes "
+                   "(flushed at least every second)")
+    p.add_argument("--ring", type=float, metavar="N", help="with -w: keep only the last N MB (OUT and OUT.1 alternate)")
+    p.add_argument("--rcvbuf", type=float, default=32, metavar="MB",
+                   help="socket receive buffer to ask the kernel for (default 32 MB; the granted size is reported)")
+    p.add_argument("--queue", type=int, default=DEFAULT_QUEUE_ITEMS, metavar="N",
+                   help=f"datagrams waiting for the decoder before new ones are dropped (default {DEFAULT_QUEUE_ITEMS})")
+    p.set_defaults(run=run)
+
+
+def _check(args: argparse.Namespace) -> None:
+    if args.count is not None and args.count < 1:
+        raise UsageError("live: -c needs a positive number of frames")
+    if args.duration is not None and args.duration <= 0:
+        raise UsageError("live: --duration needs a positive number of seconds")
+    if args.bpf and not args.sniff:
+        raise UsageError("live: --bpf goes with --sniff (a UDP port needs no capture filter)")
+    if args.forward and not args.udp:
+        raise UsageError("live: --forward goes with --udp (the port to relay from)")
+    if args.ring is not None and not args.write:
+        raise UsageError("live: --ring goes with -w OUT.pcap")
+    if args.write and not args.write.lower().endswith((".pcap", ".cap")):
+        raise UsageError("live: -w writes a classic pcap: name it OUT.pcap")
+    if args.rcvbuf <= 0 or args.queue < 1:
+        raise UsageError("live: --rcvbuf and --queue need positive values")
+
+
+def make_source(args: argparse.Namespace) -> LiveSource:
+    """The live source the options name (not opened yet)."""
+    rcvbuf = int(args.rcvbuf * (1 << 20))
+    if args.sniff:
+        from mavscope.live.sniff import SniffSource
+
+        return SniffSource(args.sniff, args.bpf, rcvbuf=rcvbuf, max_items=args.queue)
+    listen = parse_endpoint(args.udp, what="--udp")
+    forward = parse_endpoint(args.forward, what="--forward", default_host=None) if args.forward else None
+    if forward is not None and forward.port == 0:
+        raise UsageError("--forward: port 0 is not a destination")
+    return UdpSource(listen, forward, rcvbuf=rcvbuf, max_items=args.queue)
+
+
+def describe(source: LiveSource) -> str:
+    if isinstance(source, UdpSource):
+        text = f"listening on udp {source.bound}"
+        if source.forward is not None:
+            text += f", relaying to {source.forward} from {source.up_local[0]}:{source.up_local[1]}"
+    else:
+        text = f"sniffing on {getattr(source, 'iface', '?')}"
+        if getattr(source, "bpf", None):
+            text += f" (filter {source.bpf!r})"  # type: ignore[attr-defined]
+    return text + f" (receive buffer {getattr(source, 'rcvbuf', 0)} bytes granted)"
+
+
+def summary(source: LiveSource, frames: int) -> str:
+    st = source.stats()
+    kernel = "unknown" if st.kernel_drops is None else str(st.kernel_drops)
+    return (f"mavscope: live: {frames} frames, {st.bytes} bytes, {st.dropped} dropped "
+            f"({st.queue_drops} queue, {kernel} kernel)")
+
+
+def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    _check(args)
+    dialect = load_dialect(args.dialect)
+    source = make_source(args)
+    source.open()
+    printer = FramePrinter(env, dialect, args.format, verbose=args.verbose, hex=args.hex, quiet=args.quiet)
+    writer: LivePcapWriter | None = None
+    restore: list[tuple[int, object]] = []
+    timer: threading.Timer | None = None
+    shown = 0
+    try:
+        if args.write:
+            writer = LivePcapWriter(args.write, source.linktype, args.ring)
+        env.stderr.write(f"mavscope: live: {describe(source)}\n")
+        env.stderr.flush()
+
+        def idle() -> None:
+            printer.flush()
+            if writer is not None:
+                writer.tick()
+
+        def records() -> Iterator[Record]:
+            for rec in source.records(on_idle=idle):
+                if printer.t0 is None:
+                    printer.t0 = rec[1]
+                if writer is not None:
+                    writer.write(rec)
+                yield rec
+
+        if threading.current_thread() is threading.main_thread():
+            def on_signal(signum: int, frame: FrameType | None) -> None:
+                if source.stopping and signum == signal.SIGINT:
+                    raise KeyboardInterrupt  # a second Ctrl-C: stop waiting for the drain
+                source.stop()
+
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                restore.append((sig, signal.signal(sig, on_signal)))
+        if args.duration is not None:
+            timer = threading.Timer(args.duration, source.stop)
+            timer.daemon = True
+        limit = args.count if args.count is not None else -1
+        show = printer.frame
+        source.start()
+        if timer is not None:
+            timer.start()
+        try:
+            for item in build_pipeline(args, env, dialect, records()):
+                if type(item) is Anomaly:
+                    report_anomaly(env, "live", item)
+                    continue
+                show(item)
+                shown += 1
+                if shown == limit:
+                    source.stop(drain=False)
+                    break
+        except OSError as e:
+            raise MavscopeError(f"live: receiving failed: {e.strerror or e}") from None
+    finally:
+        if timer is not None:
+            timer.cancel()
+        source.close()
+        for sig, old in restore:
+            signal.signal(sig, old)  # type: ignore[arg-type]
+        if writer is not None:
+            writer.close()
+        try:
+            printer.flush()
+        finally:
+            if isinstance(source, UdpSource) and source.forward is not None:
+                env.stderr.write(f"mavscope: live: relayed {source.forwarded} datagrams "
+                                 f"({source.forward_errors} could not be relayed)\n")
+            env.stderr.write(summary(source, shown) + "\n")
+            env.stderr.flush()
+    return ExitStatus.OK

@@ -1,0 +1,240 @@
+"""Live sources: a receiver thread, a bounded queue, and an iterator of Records in arrival order.
+
+`LiveSource` is the part every source shares. Its receiver thread does as little as it can (receive,
+timestamp, enqueue) so that it gets back to the socket quickly; the consumer turns queue items into
+`Record`s (`_record`) and feeds them to the same pipeline offline captures go through. The queue is
+bounded by datagram count and bytes; what does not fit is dropped by the receiver and counted, never
+silently. Kernel drops (the socket buffer overflowing before the receiver got to it) are counted by each
+source from what the kernel reports.
+
+Usage (the command line's `live`, or a TUI's follow mode)::
+
+    src = UdpSource(parse_endpoint("14550"))
+    src.open(); src.start()
+    for rec in src.records(on_idle=flush):   # ends after src.stop() (from any thread or a signal handler)
+        ...
+    src.close()
+"""
+
+from __future__ import annotations
+
+import queue
+import select
+import socket
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+from mavscope.capture.base import LINKTYPE_ETHERNET, Record
+
+DEFAULT_QUEUE_ITEMS = 200_000  # datagrams waiting for the decoder (10 s at 20,000 datagrams/s)
+DEFAULT_QUEUE_BYTES = 64 << 20  # and at most this many payload bytes
+PCAP_HEADER = 24  # a classic pcap file header, then 16 bytes before each record
+PCAP_RECORD_HEADER = 16
+
+
+@dataclass(frozen=True)
+class LiveStats:
+    """A snapshot of a source's counters."""
+
+    received: int  # datagrams (or packets) taken from the kernel
+    bytes: int  # their payload bytes (UDP payload; whole link-layer frames when sniffing)
+    delivered: int  # records handed to the consumer
+    queue_drops: int  # received but dropped because the queue was full
+    kernel_drops: int | None  # dropped by the kernel before the receiver got them; None: unknown here
+
+    @property
+    def dropped(self) -> int:
+        return self.queue_drops + (self.kernel_drops or 0)
+
+
+class LiveSource:
+    """A receiver thread filling a bounded queue, and `records()` draining it as numbered Records.
+
+    Subclasses implement `open()` (sockets; errors raised there are the user's: bad port, no
+    permission), `_receive()` (the thread body: call `self._offer(item, size)` per datagram until
+    `self._stopping` is set, then return) and `_record(number, offset, item)`.
+    """
+
+    linktype = LINKTYPE_ETHERNET
+    description = "live source"
+
+    def __init__(self, max_items: int = DEFAULT_QUEUE_ITEMS, max_bytes: int = DEFAULT_QUEUE_BYTES) -> None:
+        self.max_items = max_items
+        self.max_bytes = max_bytes
+        self._q: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self._stopping = threading.Event()
+        self._drain = True
+        self._thread: threading.Thread | None = None
+        self._wake_r, self._wake_w = socket.socketpair()
+        self._wake_r.setblocking(False)
+        self.error: BaseException | None = None  # what ended the receiver, if not stop()
+        # written by the receiver thread only
+        self.received = 0
+        self.received_bytes = 0
+        self.queue_drops = 0
+        self._queued_bytes = 0
+        # written by the consumer only
+        self.delivered = 0
+        self._delivered_bytes = 0
+        self._next_offset = PCAP_HEADER
+        self.t0: float | None = None  # time of the first record delivered
+
+    # -- life cycle ---------------------------------------------------------------------------------
+
+    def open(self) -> None:
+        """Create the sockets (raises MavscopeError with a one-line reason)."""
+
+    def start(self) -> None:
+        """Start the receiver thread (after open())."""
+        if self._thread is not None:
+            return
+        self._thread = threading.Thread(target=self._run, name=f"mavscope {self.description}", daemon=True)
+        self._thread.start()
+
+    def stop(self, drain: bool = True) -> None:
+        """Ask the receiver to stop; safe from any thread and from a signal handler (does not wait).
+
+        `drain`: first take what the kernel already holds for the socket, so that nothing that
+        arrived before the stop is lost; records() ends once the queue is empty.
+        """
+        self._drain = self._drain and drain
+        if not self._stopping.is_set():
+            self._stopping.set()
+            try:
+                self._wake_w.send(b"x")
+            except OSError:
+                pass
+
+    def close(self, timeout: float = 5.0) -> None:
+        """Stop, wait for the receiver thread, release the sockets."""
+        self.stop(drain=False)
+        if self._thread is not None:
+            self._thread.join(timeout)
+        self._close_sockets()
+        for s in (self._wake_r, self._wake_w):
+            s.close()
+
+    @property
+    def stopping(self) -> bool:
+        """stop() was called."""
+        return self._stopping.is_set()
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def stats(self) -> LiveStats:
+        return LiveStats(self.received, self.received_bytes, self.delivered, self.queue_drops, self.kernel_drops())
+
+    def kernel_drops(self) -> int | None:
+        """Datagrams the kernel dropped for this source's sockets; None where it cannot tell."""
+        return None
+
+    # -- the consumer side --------------------------------------------------------------------------
+
+    def records(self, on_idle: Callable[[], None] | None = None, idle_interval: float = 0.25) -> Iterator[Record]:
+        """Records in arrival order, numbered from 1, until stop() (or the receiver fails: then its error).
+
+        `on_idle` is called whenever the queue is empty (before waiting) and every `idle_interval`
+        seconds while it stays empty: the place to flush output and files.
+        """
+        get = self._q.get
+        empty = queue.Empty
+        record = self._record
+        while True:
+            try:
+                item = get(block=False)
+            except empty:
+                if on_idle is not None:
+                    on_idle()
+                while True:
+                    try:
+                        item = get(timeout=idle_interval)
+                        break
+                    except empty:
+                        if on_idle is not None:
+                            on_idle()
+            if item is None:
+                break
+            self.delivered += 1
+            self._delivered_bytes += item[-1]
+            rec = record(self.delivered, self._next_offset + PCAP_RECORD_HEADER, item)
+            self._next_offset += PCAP_RECORD_HEADER + len(rec[3])
+            if self.t0 is None:
+                self.t0 = rec[1]
+            yield rec
+        if self.error is not None:
+            raise self.error
+
+    __iter__ = records
+
+    # -- the receiver side --------------------------------------------------------------------------
+
+    def _run(self) -> None:
+        try:
+            self._receive()
+        except BaseException as exc:  # noqa: BLE001 - handed to the consumer, raised there
+            self.error = exc
+        finally:
+            self._q.put(None)
+
+    def _offer(self, item: tuple[Any, ...], size: int) -> None:
+        """Queue one received item (its last element must be `size`); count it as dropped when full."""
+        self.received += 1
+        self.received_bytes += size
+        if (self.received - self.queue_drops - self.delivered > self.max_items
+                or self._queued_bytes - self._delivered_bytes + size > self.max_bytes):
+            self.queue_drops += 1
+            return
+        self._queued_bytes += size
+        self._q.put(item)
+
+    def _receive(self) -> None:
+        raise NotImplementedError
+
+    def _record(self, number: int, offset: int, item: tuple[Any, ...]) -> Record:
+        raise NotImplementedError
+
+    def _close_sockets(self) -> None:
+        pass
+
+
+# Linux socket options the socket module does not name.
+SO_RCVBUFFORCE = getattr(socket, "SO_RCVBUFFORCE", 33)
+SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35)
+SO_RXQ_OVFL = getattr(socket, "SO_RXQ_OVFL", 40)
+
+
+def set_receive_buffer(sock: socket.socket, wanted: int) -> int:
+    """Ask for a `wanted`-byte receive buffer, beyond net.core.rmem_max where allowed (CAP_NET_ADMIN);
+    return what the kernel granted (its figure, which Linux doubles for bookkeeping)."""
+    for opt in (SO_RCVBUFFORCE, socket.SO_RCVBUF):
+        try:
+            sock.setsockopt(socket.SOL_SOCKET, opt, wanted)
+            break
+        except OSError:
+            continue
+    return sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)
+
+
+def enable_option(sock: socket.socket, level: int, opt: int) -> bool:
+    try:
+        sock.setsockopt(level, opt, 1)
+        return True
+    except OSError:
+        return False
+
+
+def wait_readable(poller: select.poll, timeout_s: float) -> list[int]:
+    """File descriptors ready to read (EINTR from a signal counts as none ready)."""
+    try:
+        return [fd for fd, _ in poller.poll(timeout_s * 1000)]
+    except InterruptedError:
+        return []
+
+
+def now() -> float:
+    return time.time()

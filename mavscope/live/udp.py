@@ -1,0 +1,300 @@
+"""`live --udp [HOST:]PORT` and `--forward HOST:PORT`: bind a UDP port, optionally relay, record every datagram.
+
+Each datagram becomes a Record holding a synthesised Ethernet/IPv4/UDP (or IPv6/UDP) packet with the
+real addresses and ports (`synth_udp_ipv4`), link type Ethernet, so the offline pipeline and the pcap
+writer serve live capture unchanged. The capture time is the kernel's receive timestamp
+(SO_TIMESTAMPNS; `time.time()` at receipt where the kernel gives none), so it is not skewed by how long
+the datagram waited for the receiver thread. When bound to a wildcard address the destination address
+comes from IP_PKTINFO / IPV6_PKTINFO (the address the datagram was really sent to).
+
+Forward mode relays like mavlink-router's UDP endpoints: datagrams arriving on the listening socket go
+out to HOST:PORT from a second socket connected to it; datagrams from HOST:PORT go back to the last
+sender seen on the listening side. Relaying happens on the receiver thread, before the decoder sees the
+datagram, so a slow decoder never delays the link. Each datagram is recorded once, as received: client
+-> listening address, and HOST:PORT -> the relay socket's address.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import select
+import socket
+import struct
+import time
+from dataclasses import dataclass
+from typing import Any
+
+from mavscope.capture.base import LINKTYPE_ETHERNET, Record
+from mavscope.capture.writer import synth_udp_ipv4
+from mavscope.errors import MavscopeError, UsageError
+from mavscope.live.drops import proc_udp_drops, socket_inode
+from mavscope.live.source import (
+    SO_RXQ_OVFL,
+    SO_TIMESTAMPNS,
+    LiveSource,
+    enable_option,
+    set_receive_buffer,
+    wait_readable,
+)
+
+DEFAULT_RCVBUF = 32 << 20  # asked for; the kernel grants up to net.core.rmem_max without CAP_NET_ADMIN
+IP_PKTINFO = getattr(socket, "IP_PKTINFO", 8)
+IPV6_RECVPKTINFO = getattr(socket, "IPV6_RECVPKTINFO", 49)
+IPV6_PKTINFO = getattr(socket, "IPV6_PKTINFO", 50)
+_SOL_SOCKET = socket.SOL_SOCKET
+_IPPROTO_IP = socket.IPPROTO_IP
+_IPPROTO_IPV6 = socket.IPPROTO_IPV6
+_TIMESPEC = struct.Struct("=qq")
+_BURST = 1024  # datagrams taken from one socket before looking at the others and at stop()
+_FINAL_DRAIN_S = 1.0  # at most this long to empty the kernel's buffer after stop()
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    host: str  # a numeric address
+    port: int
+    family: int
+
+    def __str__(self) -> str:
+        return f"[{self.host}]:{self.port}" if self.family == socket.AF_INET6 else f"{self.host}:{self.port}"
+
+
+def parse_endpoint(text: str, *, what: str, default_host: str | None = "0.0.0.0") -> Endpoint:
+    """`PORT`, `HOST:PORT` or `[IPV6]:PORT` (HOST may be a name); UsageError with the option name when bad."""
+    t = text.strip()
+    if t.startswith("["):
+        host, close, rest = t[1:].partition("]")
+        if not close or not rest.startswith(":"):
+            raise UsageError(f"{what}: expected [IPV6]:PORT, got {text!r}")
+        port_s = rest[1:]
+    elif t.count(":") == 1:
+        host, port_s = t.split(":")
+    elif ":" not in t:
+        host, port_s = "", t
+    else:
+        raise UsageError(f"{what}: put an IPv6 address in brackets, as in [::1]:14550 (got {text!r})")
+    if not host:
+        if default_host is None:
+            raise UsageError(f"{what}: expected HOST:PORT, got {text!r}")
+        host = default_host
+    try:
+        port = int(port_s)
+        if not 0 <= port <= 0xFFFF:
+            raise ValueError
+    except ValueError:
+        raise UsageError(f"{what}: {port_s!r} is not a UDP port (0-65535)") from None
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
+    except socket.gaierror as e:
+        raise UsageError(f"{what}: cannot resolve {host!r}: {e.strerror}") from None
+    infos.sort(key=lambda i: i[0] != socket.AF_INET)  # prefer IPv4 for names that have both
+    family, _, _, _, sockaddr = infos[0]
+    return Endpoint(str(sockaddr[0]), port, family)
+
+
+def _v4(host: str) -> str | None:
+    """The IPv4 address of `host` when it is one (or an IPv4-mapped IPv6 address), else None."""
+    if ":" not in host:
+        return host
+    if host.startswith("::ffff:") and "." in host:
+        return host[7:]
+    return None
+
+
+def _sum16(data: bytes) -> int:
+    value = int.from_bytes(data + b"\0" * (len(data) & 1), "big")
+    total = value % 0xFFFF
+    return 0xFFFF if total == 0 and value else total
+
+
+def synth_udp_ipv6(src: tuple[str, int], dst: tuple[str, int], payload: bytes) -> bytes:
+    """An Ethernet/IPv6/UDP packet carrying `payload` from `src` to `dst` ((address, port)), checksum correct."""
+    saddr = ipaddress.IPv6Address(src[0].split("%")[0]).packed
+    daddr = ipaddress.IPv6Address(dst[0].split("%")[0]).packed
+    ulen = 8 + len(payload)
+    pseudo = saddr + daddr + struct.pack("!IxxxB", ulen, 17)
+    csum = (~_sum16(pseudo + struct.pack("!HHHH", src[1], dst[1], ulen, 0) + payload) & 0xFFFF) or 0xFFFF
+    udp = struct.pack("!HHHH", src[1], dst[1], ulen, csum)
+    ip = struct.pack("!IHBB", 6 << 28, ulen, 17, 64) + saddr + daddr
+    eth = b"\x02\x00\x00\x00\x00\x02" + b"\x02\x00\x00\x00\x00\x01" + b"\x86\xdd"
+    return eth + ip + udp + payload
+
+
+def synth_udp(sh: str, sp: int, dh: str, dp: int, payload: bytes) -> bytes:
+    """The Ethernet/IP/UDP packet of one received datagram (IPv4 when both ends are IPv4)."""
+    s4, d4 = _v4(sh), _v4(dh)
+    if s4 is not None and d4 is not None:
+        return synth_udp_ipv4(f"{s4}:{sp}", f"{d4}:{dp}", payload)
+    if s4 is not None:
+        sh = "::ffff:" + s4
+    if d4 is not None:
+        dh = "::ffff:" + d4
+    return synth_udp_ipv6((sh, sp), (dh, dp), payload)
+
+
+class UdpSource(LiveSource):
+    """Binds `listen` (and relays to `forward` when given); every datagram received becomes a Record."""
+
+    linktype = LINKTYPE_ETHERNET
+    description = "udp receiver"
+
+    def __init__(self, listen: Endpoint, forward: Endpoint | None = None, rcvbuf: int = DEFAULT_RCVBUF,
+                 **queue_limits: int) -> None:
+        super().__init__(**queue_limits)
+        self.listen = listen
+        self.forward = forward
+        self.rcvbuf_wanted = rcvbuf
+        self.rcvbuf = 0  # granted (the kernel's figure)
+        self.sock: socket.socket | None = None
+        self.up: socket.socket | None = None  # forward mode: connected to `forward`
+        self.local: tuple[str, int] = ("", 0)
+        self.up_local: tuple[str, int] = ("", 0)
+        self.last_client: Any = None  # forward mode: where replies go
+        self.forwarded = 0  # datagrams relayed (both directions)
+        self.forward_errors = 0  # relay sends that failed, replies with no client yet, ICMP errors
+        self._ovfl: dict[int, int] = {}  # fd -> latest SO_RXQ_OVFL value
+        self._inodes: dict[int, int] = {}
+
+    @property
+    def bound(self) -> Endpoint:
+        """The address actually bound (the port is known here when 0 was asked for)."""
+        return Endpoint(self.local[0], self.local[1], self.listen.family)
+
+    def open(self) -> None:
+        lst = self.listen
+        sock = socket.socket(lst.family, socket.SOCK_DGRAM)
+        try:
+            if lst.family == socket.AF_INET6 and lst.host == "::":
+                sock.setsockopt(_IPPROTO_IPV6, socket.IPV6_V6ONLY, 0)  # [::]:PORT takes IPv4 too
+            sock.bind((lst.host, lst.port))
+        except OSError as e:
+            sock.close()
+            raise MavscopeError(f"live: cannot listen on udp {lst}: {e.strerror or e}") from None
+        self.sock = sock
+        self.local = sock.getsockname()[:2]
+        self.rcvbuf = set_receive_buffer(sock, self.rcvbuf_wanted)
+        self._setup(sock)
+        if self.local[0] in ("0.0.0.0", "::"):
+            if lst.family == socket.AF_INET:
+                enable_option(sock, _IPPROTO_IP, IP_PKTINFO)
+            else:
+                enable_option(sock, _IPPROTO_IPV6, IPV6_RECVPKTINFO)
+        if self.forward is not None:
+            fwd = self.forward
+            up = socket.socket(fwd.family, socket.SOCK_DGRAM)
+            try:
+                up.connect((fwd.host, fwd.port))
+            except OSError as e:
+                up.close()
+                raise MavscopeError(f"live: cannot forward to udp {fwd}: {e.strerror or e}") from None
+            self.up = up
+            self.up_local = up.getsockname()[:2]
+            set_receive_buffer(up, self.rcvbuf_wanted)
+            self._setup(up)
+
+    def _setup(self, sock: socket.socket) -> None:
+        sock.setblocking(False)
+        enable_option(sock, _SOL_SOCKET, SO_TIMESTAMPNS)
+        if enable_option(sock, _SOL_SOCKET, SO_RXQ_OVFL):
+            self._ovfl[sock.fileno()] = 0
+        try:
+            self._inodes[sock.fileno()] = socket_inode(sock)
+        except OSError:
+            pass
+
+    def kernel_drops(self) -> int | None:
+        total: int | None = None
+        for fd, inode in self._inodes.items():
+            seen = [v for v in (self._ovfl.get(fd), proc_udp_drops(inode)) if v is not None]
+            if seen:
+                total = (total or 0) + max(seen)
+        return total
+
+    def _close_sockets(self) -> None:
+        for s in (self.sock, self.up):
+            if s is not None:
+                s.close()
+
+    # -- receiver thread ----------------------------------------------------------------------------
+
+    def _receive(self) -> None:
+        assert self.sock is not None
+        poller = select.poll()
+        socks = [self.sock] + ([self.up] if self.up is not None else [])
+        by_fd = {s.fileno(): s for s in socks}
+        for s in socks:
+            poller.register(s, select.POLLIN)
+        poller.register(self._wake_r, select.POLLIN)
+        stopping = self._stopping
+        while not stopping.is_set():
+            for fd in wait_readable(poller, 1.0):
+                s = by_fd.get(fd)
+                if s is not None:
+                    self._take(s, _BURST)
+        if self._drain:
+            deadline = time.monotonic() + _FINAL_DRAIN_S
+            while any(self._take(s, _BURST) == _BURST for s in socks) and time.monotonic() < deadline:
+                pass
+
+    def _take(self, sock: socket.socket, limit: int) -> int:
+        """Receive up to `limit` datagrams waiting on `sock`; return how many."""
+        recvmsg = sock.recvmsg
+        offer = self._offer
+        fd = sock.fileno()
+        upstream = sock is self.up
+        relay = self.sock if upstream else self.up
+        if upstream:
+            dst_host, dst_port = self.up_local
+        else:
+            dst_host, dst_port = self.local
+        n = 0
+        while n < limit:
+            try:
+                data, anc, _flags, addr = recvmsg(65535, 256)
+            except BlockingIOError:
+                break
+            except ConnectionRefusedError:  # ICMP port unreachable for an earlier relay to `forward`
+                self.forward_errors += 1
+                continue
+            n += 1
+            t = None
+            dh = dst_host
+            for level, typ, cd in anc:
+                if level == _SOL_SOCKET:
+                    if typ == SO_TIMESTAMPNS:
+                        sec, nsec = _TIMESPEC.unpack_from(cd)
+                        t = sec + nsec * 1e-9
+                    elif typ == SO_RXQ_OVFL:
+                        self._ovfl[fd] = int.from_bytes(cd[:4], "little")
+                elif level == _IPPROTO_IP and typ == IP_PKTINFO:
+                    dh = socket.inet_ntoa(cd[8:12])
+                elif level == _IPPROTO_IPV6 and typ == IPV6_PKTINFO:
+                    dh = socket.inet_ntop(socket.AF_INET6, cd[:16])
+            if t is None:
+                t = time.time()
+            if relay is not None:
+                self._relay(relay, upstream, data, addr)
+            size = len(data)
+            offer((t, data, addr[0], addr[1], dh, dst_port, size), size)
+        return n
+
+    def _relay(self, relay: socket.socket, upstream: bool, data: bytes, addr: Any) -> None:
+        try:
+            if upstream:
+                if self.last_client is None:
+                    self.forward_errors += 1  # a reply before any client spoke: nowhere to send it
+                    return
+                relay.sendto(data, self.last_client)
+            else:
+                self.last_client = addr
+                relay.send(data)
+            self.forwarded += 1
+        except OSError:
+            self.forward_errors += 1
+
+    # -- consumer side ------------------------------------------------------------------------------
+
+    def _record(self, number: int, offset: int, item: tuple[Any, ...]) -> Record:
+        t, data, sh, sp, dh, dp, size = item
+        packet = synth_udp(sh, sp, dh, dp, data)
+        return Record(number, t, LINKTYPE_ETHERNET, packet, offset, len(packet))
