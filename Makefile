@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
-.PHONY: demo test captures bench clean
+.PHONY: demo test captures bench snapshots clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -39,6 +39,9 @@ captures: $(TSTAMP)
 
 bench: $(TSTAMP)
 	$(BIN)/python benchmarks/bench_read.py
+
+snapshots: $(TSTAMP)
+	$(BIN)/python -m pytest --snapshot-update tests/test_tui_snapshots.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache .hypothesis
