@@ -165,25 +165,35 @@ def keystream_audit(frames: list[Frame], known: list[tuple[int, bytes]] = ()) ->
                 f"method {method}: {len(repeats)} of {len(group)} encrypted frames repeat the ciphertext of an "
                 f"earlier frame with another sequence number ({', '.join(names)}): every frame is encrypted with "
                 f"the same keystream (frames {_frames_text(repeats)})", tuple(repeats)))
-        # known plaintext: a plaintext frame of the same message from the same system, or a guess
-        best: tuple[bytes, int, str] | None = None  # (keystream prefix, record it came from, source)
+        # known plaintext: a plaintext frame of the same message from the same system, or a guess.
+        # Each encrypted frame of that message gives a keystream candidate; a byte is trusted only where
+        # every candidate agrees (the plaintext may vary between frames: a battery voltage does).
+        best: tuple[bytes, Frame, str] | None = None  # (keystream prefix, frame it came from, source)
         guesses = dict(known)
+        by_message: dict[tuple[int, int], list[Frame]] = defaultdict(list)
         for f in group:
-            ref = plain_ref.get((f.sysid, f.msgid))
-            p, source = (ref[1], f"the plaintext {f.msgname} of frame {ref[0]}") if ref else (None, "")
-            if p is None and f.msgid in guesses:
-                p, source = guesses[f.msgid], f"the --known-plaintext {f.msgname}"
-            if p is None:
+            by_message[(f.sysid, f.msgid)].append(f)
+        for (sysid, msgid), fs in sorted(by_message.items()):
+            ref = plain_ref.get((sysid, msgid))
+            if ref is not None:
+                p, source = ref[1], f"the plaintext {fs[0].msgname} of frame {ref[0]}"
+            elif msgid in guesses:
+                p, source = guesses[msgid], f"the --known-plaintext {fs[0].msgname}"
+            else:
                 continue
-            n = min(len(f.payload), len(p))
-            if best is None or n > len(best[0]):
-                best = (xor_bytes(f.payload[:n], p[:n]), f.record, source)
+            cands = [xor_bytes(f.payload[: len(p)], p[: len(f.payload)]) for f in fs]
+            n = 0
+            while all(len(c) > n for c in cands) and len({c[n] for c in cands}) == 1:
+                n += 1
+            if n and (best is None or n > len(best[0])):
+                best = (cands[0][:n], fs[0], f"{source} ({len(fs)} frames agree)")
         if best is None:
             continue
-        ks, from_record, source = best
+        ks, from_frame, source = best
+        from_record = from_frame.record
         recovered: list[int] = []
         for f in group:
-            if f.record == from_record:
+            if f is from_frame:
                 continue
             n = min(len(ks), len(f.payload))
             plain = xor_bytes(f.payload[:n], ks[:n])
@@ -192,7 +202,7 @@ def keystream_audit(frames: list[Frame], known: list[tuple[int, bytes]] = ()) ->
                 fields = f.msgdef.decode(plain)
             out.recoveries.append(Recovery(f.record, f.msgname or str(f.msgid), plain, len(f.payload), fields))
             recovered.append(f.record)
-        full = sum(1 for r in out.recoveries if r.fields is not None and r.record in set(recovered))
+        full = sum(1 for r in out.recoveries[-len(recovered):] if r.fields is not None) if recovered else 0
         out.findings.append(Finding(
             "keystream-reuse", Severity.ERROR,
             f"method {method}: keystream prefix of {len(ks)} bytes recovered from encrypted frame {from_record} "
