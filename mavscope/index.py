@@ -197,6 +197,9 @@ class FrameIndex:
         self._spans: dict[int, tuple[int, ...]] = {}
         self.anomalies: list[Anomaly] = []
         self._count = 0
+        self.first = 0  # rows dropped from the front so far (a bounded live index)
+        self.limit: int | None = None  # keep at most this many rows (None: all)
+        self.lock = threading.RLock()  # held while rows are read or dropped
         self._details = _LRU(cache_size)
         self.progress = Progress(0, 0, 0, False)
         self.first_time: float | None = None  # time of the first frame
@@ -244,6 +247,8 @@ class FrameIndex:
 
     def add(self, frame: Frame) -> None:
         """Append one frame (from the building thread)."""
+        if self.limit is not None and self._count >= self.limit:
+            self.trim(max(1, self.limit // 4))
         i = self._count
         raw = frame.raw
         off = frame.offset
@@ -296,6 +301,21 @@ class FrameIndex:
         self._security.append(sid)
         self._count = i + 1  # published last: readers only look below _count
 
+    def trim(self, n: int) -> None:
+        """Drop the oldest `n` rows (row i becomes row i - n); `first` counts every row dropped."""
+        with self.lock:
+            n = min(n, self._count)
+            for col in (self._record, self._index, self._time, self._transport, self._src, self._dst, self._offset,
+                        self._rawlen, self._crc, self._iflags, self._sysid, self._compid, self._seq, self._msgid,
+                        self._security):
+                del col[:n]
+            self._raw = {k - n: v for k, v in self._raw.items() if k >= n}
+            self._notes = {k - n: v for k, v in self._notes.items() if k >= n}
+            self._spans = {k - n: v for k, v in self._spans.items() if k >= n}
+            self._count -= n
+            self.first += n
+            self._details.clear()
+
     # --- reading ------------------------------------------------------------------------------
 
     def __len__(self) -> int:
@@ -312,6 +332,10 @@ class FrameIndex:
 
     def row(self, i: int) -> Row:
         """The list row of frame `i` (0-based)."""
+        with self.lock:
+            return self._row(i)
+
+    def _row(self, i: int) -> Row:
         if not 0 <= i < self._count:
             raise IndexError(i)
         t = self._time[i]
@@ -333,6 +357,10 @@ class FrameIndex:
 
     def frame(self, i: int) -> Frame:
         """Frame `i` as the pipeline yielded it, rebuilt from its row and bytes."""
+        with self.lock:
+            return self._frame(i)
+
+    def _frame(self, i: int) -> Frame:
         if not 0 <= i < self._count:
             raise IndexError(i)
         raw = self.raw(i)

@@ -16,7 +16,7 @@ import io
 import os
 import time
 from array import array
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from textual import work
 from textual.app import App, ComposeResult
@@ -29,7 +29,7 @@ from textual.worker import Worker, WorkerState, get_current_worker
 from mavscope.analysis.filter import DisplayFilter, FilterError, compile_filter
 from mavscope.cli import Env
 from mavscope.errors import MavscopeError
-from mavscope.index import FrameIndex, Progress
+from mavscope.index import PROGRESS_EVERY, FrameIndex, Progress
 from mavscope.mavlink.dialect import Dialect, load_dialect
 from mavscope.tui.widgets.detail_tree import DetailTree
 from mavscope.tui.widgets.filter_bar import FilterBar
@@ -68,6 +68,8 @@ class FrameSource:
     `open()` gives the reader and the pipeline, built exactly as `mavscope read` builds it, minus the
     display filter (the TUI applies that itself, so that it can be changed).
     """
+
+    live = False
 
     def __init__(self, path: str, options: argparse.Namespace, dialect: Dialect, env: Env | None = None) -> None:
         self.path = path
@@ -116,6 +118,52 @@ class FrameSource:
         return FrameSource(self.path, opts, self.dialect, Env(environ=self.env.environ))
 
 
+class _LiveReader:
+    """A live source where the index build expects a reader: context manager, `position`, `size`."""
+
+    size = 0
+    position = 0
+
+    def __init__(self, source) -> None:  # type: ignore[no-untyped-def]
+        self.source = source
+        self.on_idle: Callable[[], None] = lambda: None
+
+    def __enter__(self) -> _LiveReader:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.source.stop(drain=False)
+        self.source.close()
+
+
+class LiveFrameSource(FrameSource):
+    """Follow mode: the frames of a UDP port as they arrive (`--live --udp PORT`), through the same
+    pipeline. The index keeps the newest `keep` frames."""
+
+    live = True
+
+    def __init__(self, listen: str, options: argparse.Namespace, dialect: Dialect, env: Env | None = None) -> None:
+        super().__init__(f"udp {listen}", options, dialect, env)
+        self.listen = listen
+        self.udp = None
+
+    def open(self):  # type: ignore[no-untyped-def]
+        from mavscope.commands.common import build_pipeline
+        from mavscope.live.udp import UdpSource, parse_endpoint
+
+        self.udp = src = UdpSource(parse_endpoint(self.listen, what="--udp"))
+        src.open()
+        src.start()
+        self.path = f"udp {src.bound}"
+        reader = _LiveReader(src)
+        records = src.records(on_idle=lambda: reader.on_idle())
+        return reader, build_pipeline(self.pipeline_options(), self.env, self.dialect, records), None
+
+    def stop(self) -> None:
+        if self.udp is not None:
+            self.udp.stop(drain=False)
+
+
 class MavscopeApp(App[None]):
     """Browse the MAVLink frames of one capture."""
 
@@ -152,6 +200,7 @@ class MavscopeApp(App[None]):
         self.first_rows_at: float | None = None  # seconds from mount to the first rows (measured)
         self.indexed_at: float | None = None  # seconds from mount to the complete index
         self._mounted_at = 0.0
+        self._first_seen = 0
 
     # --- layout -------------------------------------------------------------------------------
 
@@ -201,6 +250,8 @@ class MavscopeApp(App[None]):
 
     def on_unmount(self) -> None:
         self.workers.cancel_all()
+        if self.source.live:
+            self.source.stop()  # type: ignore[attr-defined]
 
     def on_worker_state_changed(self, event: Worker.StateChanged) -> None:
         if event.state is WorkerState.ERROR:
@@ -216,9 +267,21 @@ class MavscopeApp(App[None]):
         post = self.post_message
         reader, items, index.t0 = source.open()
         with reader:
+            if source.live:
+                last = [0.0]
+
+                def idle() -> None:  # no traffic: show what came, stop when the app goes
+                    if worker.is_cancelled:
+                        source.stop()  # type: ignore[attr-defined]
+                    now = time.monotonic()
+                    if now - last[0] > 0.2:
+                        last[0] = now
+                        post(IndexProgress(index, Progress(len(index), 0, 0, False)))
+
+                reader.on_idle = idle
             index.build(items, position=lambda: reader.position, total=reader.size,
                         on_progress=lambda p: post(IndexProgress(index, p)),
-                        cancelled=lambda: worker.is_cancelled)
+                        cancelled=lambda: worker.is_cancelled, every=256 if source.live else PROGRESS_EVERY)
 
     def on_index_progress(self, msg: IndexProgress) -> None:
         if msg.index is self.pending:
@@ -235,8 +298,18 @@ class MavscopeApp(App[None]):
             self.indexed_at = time.perf_counter() - self._mounted_at
             self._report_messages()
         self.status.progress = msg.progress
+        if self.source.live:
+            self.status.live = True
+            self.status.capture = self.source.path
+            self.title = f"mavscope: {self.source.path}"
+        dropped = self.index.first - self._first_seen
+        if dropped:  # a bounded live index dropped its oldest rows: row numbers moved down
+            self._first_seen = self.index.first
+            self.packet_list.shift(dropped)
+            if self.display_filter is not None:
+                self._start_filter(self.display_filter, keep_row=self.packet_list.cursor_row)
         if self.display_filter is None:
-            self.packet_list.sync()
+            self.packet_list.sync(follow=self.source.live)
         self.status.update_status()
 
     def _report_messages(self) -> None:
@@ -451,6 +524,8 @@ class MavscopeApp(App[None]):
     def add_key(self, kind: str, spec: str) -> str | None:
         """Add a signing key (`kind` "key") or cipher ("cipher") as the command line's --key/--cipher
         would, and re-check the capture with it. Returns an error message, or None when accepted."""
+        if self.source.live:
+            return "live capture: give keys with --key / --cipher when starting (frames are not kept to re-check)"
         current = list(getattr(self.source.options, kind, None) or [])
         source = self.source.with_options(**{kind: current + [spec]})
         try:
@@ -479,18 +554,25 @@ class MavscopeApp(App[None]):
                         cancelled=lambda: worker.is_cancelled)
 
 
-def create_app(path: str | os.PathLike[str], options: argparse.Namespace | None = None,
+def create_app(path: str | os.PathLike[str] | None, options: argparse.Namespace | None = None,
                env: Env | None = None) -> MavscopeApp:
-    """The TUI over the capture `path`. `options` are `mavscope tui`'s parsed arguments (None: defaults).
+    """The TUI over the capture `path` (None with `--live --udp PORT` in `options`: follow mode).
+    `options` are `mavscope tui`'s parsed arguments (None: defaults).
 
     Raises CaptureError (missing, unreadable file) before anything is drawn.
     """
     from mavscope.commands.tui import parse_options
 
-    spath = os.fspath(path)
     if options is None:
-        options = parse_options([spath])
+        options = parse_options([os.fspath(path)] if path is not None else ["--live", "--udp", "14550"])
     dialect = load_dialect(getattr(options, "dialect", None) or [])
+    if getattr(options, "live", False):
+        source: FrameSource = LiveFrameSource(options.udp, options, dialect, env)
+        source.check()
+        index = FrameIndex(dialect, None)
+        index.limit = options.keep
+        return MavscopeApp(source, index)
+    spath = os.fspath(path)  # type: ignore[arg-type]
     source = FrameSource(spath, options, dialect, env)
     source.check()
     index = FrameIndex(dialect, spath)

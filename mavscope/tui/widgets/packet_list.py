@@ -124,9 +124,15 @@ class PacketList(ScrollView, can_focus=True):
         self.cursor = target if self._count else -1
         self.refresh()
 
-    def sync(self) -> None:
-        """The index or the view grew: take in the new lines (the cursor goes to the first line if unset)."""
+    def sync(self, follow: bool = False) -> None:
+        """The index or the view grew: take in the new lines (the cursor goes to the first line if unset;
+        with `follow`, a cursor on the last line stays on the last line, as `tail -f`)."""
         n = len(self.index) if self.view is None else len(self.view)
+        if follow and n and self.cursor == self._count - 1 and n != self._count:
+            self._count = n
+            self._update_size()
+            self.cursor = n - 1
+            return
         if n != self._count:
             self._count = n
             self._update_size()
@@ -135,6 +141,16 @@ class PacketList(ScrollView, can_focus=True):
             self.cursor = 0
         elif self.cursor >= 0:
             self.refresh()
+
+    def shift(self, dropped: int) -> None:
+        """The index dropped its `dropped` oldest rows: every row number moved down by that much."""
+        self._strips.clear()
+        was_last = self.cursor == self._count - 1
+        self._count = len(self.index) if self.view is None else len(self.view)
+        self._update_size()
+        if self.view is None and self.cursor >= 0:
+            self.cursor = self._count - 1 if was_last else max(0, self.cursor - dropped)
+        self.refresh()
 
     def _position_of(self, row: int) -> int:
         if self.view is None:

@@ -26,11 +26,14 @@ class StatusBar(Static):
         self.filtering: float | None = None  # filter progress while it runs
         self.activity = ""  # another task running ("re-checking with 1 key")
         self.keys = ""
+        self.live = False
 
     def update_status(self) -> None:
         text = Text(self.capture, style="bold")
         p = self.progress
-        if p is not None:
+        if p is not None and self.live:
+            text.append(f"  live: {p.frames:,} frames kept", style="green")
+        elif p is not None:
             if p.done:
                 text.append(f"  {p.frames:,} frames")
             elif p.cancelled:

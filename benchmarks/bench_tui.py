@@ -1,0 +1,115 @@
+"""TUI figures on a large generated capture: time to the first rows, full index time, memory.
+
+    python benchmarks/bench_tui.py [RECORDS]      # default 1,000,000 records (about 1.1M frames)
+
+Generates the capture in a temporary directory (px4_sitl_udp.pcap's records repeated), then
+1. builds the FrameIndex alone (no UI): first batch, full build, bytes per frame, RSS;
+2. runs the app headless (Textual's Pilot) and reads `first_rows_at` / `indexed_at` off it;
+3. compares with Textual's DataTable: the time to add 100k rows (why the packet list is a Line API widget).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import resource
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from mavscope.capture.detect import open_capture  # noqa: E402
+from mavscope.dissect import Dissector  # noqa: E402
+from mavscope.index import FrameIndex  # noqa: E402
+from mavscope.mavlink.dialect import load_dialect  # noqa: E402
+from tests.tui_helpers import write_big_capture  # noqa: E402
+
+
+def rss_anon_mb() -> float:
+    for line in open("/proc/self/status"):
+        if line.startswith("RssAnon:"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def bench_index(path: Path) -> None:
+    dialect = load_dialect()
+    before = rss_anon_mb()
+    t0 = time.perf_counter()
+    first: list[float] = []
+    index = FrameIndex(dialect, path)
+    with open_capture(path) as reader:
+        index.build(Dissector(dialect).run(reader), position=lambda: reader.position, total=reader.size,
+                    on_progress=lambda p: first or first.append(time.perf_counter() - t0))
+    full = time.perf_counter() - t0
+    n = len(index)
+    print(f"index alone: {n:,} frames; first batch after {first[0] * 1000:.0f} ms; complete after {full:.2f} s "
+          f"({full / n * 1e6:.2f} µs/frame)")
+    print(f"index memory: {index.memory() / 1e6:.1f} MB ({index.memory() / n:.0f} bytes/frame); "
+          f"process anonymous RSS grew {rss_anon_mb() - before:.0f} MB")
+    t = time.perf_counter()
+    for i in range(0, n, max(1, n // 1000)):
+        index.detail(i)
+    print(f"detail (frame + decode + tree + summary), 1000 random rows: {(time.perf_counter() - t):.3f} s")
+    index.close()
+
+
+def bench_app(path: Path) -> None:
+    from mavscope.tui.app import create_app
+
+    async def scenario() -> None:
+        app = create_app(path)
+        async with app.run_test(size=(140, 45)) as pilot:
+            while app.indexed_at is None:
+                await pilot.pause(0.05)
+            print(f"app: first rows on screen after {app.first_rows_at * 1000:.0f} ms; index complete after "
+                  f"{app.indexed_at:.2f} s; {len(app.index):,} frames")
+            t = time.perf_counter()
+            for _ in range(20):
+                await pilot.press("pagedown")
+            await pilot.press("end")
+            await pilot.pause()
+            print(f"app: 20 PageDown + End: {time.perf_counter() - t:.2f} s")
+
+    asyncio.run(scenario())
+    print(f"max RSS of the process: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB "
+          "(includes the memory-mapped capture)")
+
+
+def bench_datatable(rows: int = 100_000) -> None:
+    from textual.app import App
+    from textual.widgets import DataTable
+
+    class T(App[None]):
+        def compose(self):  # type: ignore[no-untyped-def]
+            yield DataTable()
+
+    async def scenario() -> None:
+        app = T()
+        async with app.run_test() as pilot:
+            table = app.query_one(DataTable)
+            table.add_columns(*"abcdefgh")
+            t = time.perf_counter()
+            table.add_rows([(str(i), "0.000000", "127.0.0.1:14580", "1/1", "1", "ATTITUDE", "✓", "roll=0")
+                            for i in range(rows)])
+            await pilot.pause()
+            print(f"DataTable: adding {rows:,} rows took {time.perf_counter() - t:.2f} s")
+
+    asyncio.run(scenario())
+
+
+def main() -> None:
+    records = int(sys.argv[1]) if len(sys.argv) > 1 else 1_000_000
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "big.pcap"
+        t = time.perf_counter()
+        write_big_capture(path, records)
+        print(f"generated {records:,} records ({path.stat().st_size / 1e6:.0f} MB) in {time.perf_counter() - t:.1f} s")
+        bench_index(path)
+        bench_app(path)
+    bench_datatable()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,115 @@
+"""The TUI's model (mavscope.index, no Textual) and the app on a large generated capture."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import pytest
+
+from mavscope.capture.detect import open_capture
+from mavscope.commands.common import build_pipeline
+from mavscope.commands.tui import parse_options
+from mavscope.dissect import Anomaly, Dissector
+from mavscope.index import FrameIndex, FrameSequence, rows_matching
+from mavscope.cli import Env
+from mavscope.tui.app import create_app
+from tests.tui_helpers import CAPTURES, SIZE, run, wait_for, write_big_capture
+
+ALL = sorted(p for p in CAPTURES.iterdir() if p.suffix in (".pcap", ".pcapng", ".tlog", ".raw"))
+
+
+def _pipeline(path: Path, dialect, args: list[str] = ()):  # type: ignore[no-untyped-def]
+    reader = open_capture(path)
+    return reader, build_pipeline(parse_options([str(path), *args]), Env(), dialect, reader)
+
+
+@pytest.mark.parametrize("path", ALL, ids=lambda p: p.name)
+def test_frames_rebuilt_from_the_index_equal_the_pipelines(path: Path, dialect) -> None:  # type: ignore[no-untyped-def]
+    reader, items = _pipeline(path, dialect)
+    with reader:
+        expected = [f for f in items if type(f) is not Anomaly]
+    reader, items = _pipeline(path, dialect)
+    index = FrameIndex(dialect, path)
+    with reader:
+        progress = index.build(items, position=lambda: reader.position, total=reader.size)
+    assert progress.done and progress.frames == len(expected) == len(index)
+    assert [index.frame(i) for i in range(len(index))] == expected
+    assert list(FrameSequence(index)) == expected
+    for i in (0, len(index) // 2, len(index) - 1):
+        row = index.row(i)
+        f = expected[i]
+        assert (row.record, row.index, row.sysid, row.compid, row.seq, row.msgid, row.crc_status) == \
+            (f.record, f.index, f.sysid, f.compid, f.seq, f.msgid, f.crc_status)
+        assert index.detail(i).frame == f
+    index.close()
+
+
+def test_security_verdicts_survive_the_index(dialect) -> None:  # type: ignore[no-untyped-def]
+    path = CAPTURES / "signed_udp.pcap"
+    reader, items = _pipeline(path, dialect, ["--key", "passphrase:mavscope-demo"])
+    index = FrameIndex(dialect, path)
+    with reader:
+        index.build(items)
+    assert {index.row(i).signature_status.value for i in range(len(index))} == {"valid"}
+    assert index.frame(0).security.key == "key1"
+    assert len(index._securities) <= 4  # interned, not one per frame
+
+
+def test_reassembled_tcp_frames_keep_their_bytes_and_offsets(dialect) -> None:  # type: ignore[no-untyped-def]
+    path = CAPTURES / "px4_sitl_tcp.pcap"
+    reader, items = _pipeline(path, dialect)
+    with reader:
+        expected = [f for f in items if type(f) is not Anomaly]
+    reader, items = _pipeline(path, dialect)
+    index = FrameIndex(dialect, path)
+    with reader:
+        index.build(items)
+    split = [i for i, f in enumerate(expected) if f.span]
+    assert split, "the capture has frames split across segments"
+    assert all(index.frame(i) == expected[i] for i in split)
+
+
+def test_build_reports_progress_and_stops_when_cancelled(dialect) -> None:  # type: ignore[no-untyped-def]
+    path = CAPTURES / "px4_sitl_udp.pcap"
+    seen = []
+    index = FrameIndex(dialect, path)
+    with open_capture(path) as reader:
+        p = index.build(Dissector(dialect).run(reader), on_progress=seen.append, cancelled=lambda: len(seen) >= 3,
+                        every=100)
+    assert p.cancelled and not p.done
+    assert 0 < len(index) < 1371
+    assert [s.frames for s in seen] == sorted(s.frames for s in seen)
+    rows = rows_matching(index, lambda f: f.msgname == "HEARTBEAT")
+    assert rows and all(index.row(r).msgname == "HEARTBEAT" for r in rows)
+
+
+def test_large_capture_first_rows_before_the_index_completes(tmp_path: Path, dialect) -> None:  # type: ignore[no-untyped-def]
+    """200k records (about 220k frames): the first screen is drawn long before indexing ends."""
+    path = tmp_path / "big.pcap"
+    write_big_capture(path, 200_000)
+
+    async def scenario() -> None:
+        app = create_app(path)
+        async with app.run_test(size=SIZE) as pilot:
+            await wait_for(pilot, lambda: app.packet_list.count > 0 and app.tree.detail is not None, timeout=10)
+            first = app.first_rows_at
+            assert first is not None and first < 1.0, first
+            assert not app.index.done, "the index was complete before the first rows were shown"
+            lines = app.packet_list.visible_rows()
+            assert lines[:3] == [0, 1, 2]
+            assert "indexing" in str(app.status.render())
+            # the list stays usable while indexing: moving and scrolling work
+            await pilot.press("pagedown", "down")
+            assert app.packet_list.cursor == app.packet_list.page + 1
+            await wait_for(pilot, lambda: app.index.done, timeout=60)
+            assert len(app.index) > 200_000
+            assert app.packet_list.count == len(app.index)
+            await pilot.press("end")
+            await pilot.pause()
+            assert app.tree.detail.frame.record == 200_000
+            assert app.index.memory() < 100 * len(app.index)  # bytes per frame, far below a Frame's
+
+    t = time.perf_counter()
+    run(scenario())
+    assert time.perf_counter() - t < 60
