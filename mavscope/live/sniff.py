@@ -95,7 +95,7 @@ class SniffSource(LiveSource):
         sock.setblocking(False)
         packet_socket_drops(sock)  # the kernel counts from open(); reading resets: start from zero
 
-    def kernel_drops(self) -> int | None:
+    def _kernel_drops_now(self) -> int | None:
         if self.sock is not None and self.sock.fileno() >= 0:
             got = packet_socket_drops(self.sock)
             if got is not None:
@@ -105,7 +105,6 @@ class SniffSource(LiveSource):
 
     def _close_sockets(self) -> None:
         if self._scapy_sock is not None:
-            self.kernel_drops()
             self._scapy_sock.close()
 
     def _receive(self) -> None:

@@ -81,6 +81,8 @@ class LiveSource:
         self._delivered_bytes = 0
         self._next_offset = PCAP_HEADER
         self.t0: float | None = None  # time of the first record delivered
+        self._closed = False
+        self._kernel_at_close: int | None = None
 
     # -- life cycle ---------------------------------------------------------------------------------
 
@@ -113,6 +115,9 @@ class LiveSource:
         self.stop(drain=False)
         if self._thread is not None:
             self._thread.join(timeout)
+        if not self._closed:
+            self._kernel_at_close = self._kernel_drops_now()  # the sockets' counters go with them
+            self._closed = True
         self._close_sockets()
         for s in (self._wake_r, self._wake_w):
             s.close()
@@ -131,6 +136,9 @@ class LiveSource:
 
     def kernel_drops(self) -> int | None:
         """Datagrams the kernel dropped for this source's sockets; None where it cannot tell."""
+        return self._kernel_at_close if self._closed else self._kernel_drops_now()
+
+    def _kernel_drops_now(self) -> int | None:
         return None
 
     # -- the consumer side --------------------------------------------------------------------------

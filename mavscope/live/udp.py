@@ -202,7 +202,7 @@ class UdpSource(LiveSource):
         except OSError:
             pass
 
-    def kernel_drops(self) -> int | None:
+    def _kernel_drops_now(self) -> int | None:
         total: int | None = None
         for fd, inode in self._inodes.items():
             seen = [v for v in (self._ovfl.get(fd), proc_udp_drops(inode)) if v is not None]
