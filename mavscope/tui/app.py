@@ -18,7 +18,7 @@ import time
 from array import array
 from collections.abc import Callable, Sequence
 
-from textual import work
+from textual import events, work
 from textual.app import App, ComposeResult
 from textual.binding import Binding
 from textual.containers import Vertical, VerticalScroll
@@ -345,7 +345,7 @@ class MavscopeApp(App[None]):
         self.hex.show(detail.frame.raw)
 
     def on_packet_list_activated(self, msg: PacketList.Activated) -> None:
-        self.tree.focus()
+        self._focus(self.tree)
 
     def on_detail_tree_item_highlighted(self, msg: DetailTree.ItemHighlighted) -> None:
         hexview = self.screen_stack[0].query(HexView).first(HexView) if self.screen_stack else None
@@ -369,7 +369,7 @@ class MavscopeApp(App[None]):
             if focused is widget:
                 current = i
         nxt = 0 if current < 0 else (current + step) % len(PANES)
-        self.query_one(PANES[nxt]).focus()
+        self._focus(self.query_one(PANES[nxt]))
 
     def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
         # pane cycling and the screen keys belong to the main screen; dialogs keep their keys
@@ -379,11 +379,35 @@ class MavscopeApp(App[None]):
 
     # --- filtering ----------------------------------------------------------------------------
 
+    def _focus(self, widget) -> None:  # type: ignore[no-untyped-def]
+        """Focus now, not after the queued keys (Widget.focus defers): `/` then fast typing goes to the bar."""
+        self.screen_stack[0].set_focus(widget)
+
+    async def on_key(self, event: events.Key) -> None:
+        """Keys typed right after `/` in one burst (a paste without bracketed paste, a fast typist) were
+        already queued for the widget focused before: hand them to the filter bar they were meant for."""
+        bar = self.filter_bar.input if self.screen is self.screen_stack[0] else None
+        if bar is None or self.focused is not bar:
+            return
+        if event.key == "enter":
+            await bar.action_submit()
+        elif event.key == "backspace":
+            bar.action_delete_left()
+        elif event.is_printable and event.character:
+            bar.insert_text_at_cursor(event.character)
+        else:
+            return
+        event.stop()
+        event.prevent_default()
+
     def action_filter(self) -> None:
-        self.filter_bar.input.focus()
+        bar = self.filter_bar
+        if not bar.error:
+            bar.input.cursor_position = len(bar.input.value)
+        self._focus(bar.input)
 
     def on_filter_bar_left(self, msg: FilterBar.Left) -> None:
-        self.packet_list.focus()
+        self._focus(self.packet_list)
 
     def on_filter_bar_submitted(self, msg: FilterBar.Submitted) -> None:
         self.apply_filter(msg.text)
@@ -400,7 +424,7 @@ class MavscopeApp(App[None]):
             self.status.filtering = None
             self.status.update_status()
             self.packet_list.set_view(None, keep_row=self.packet_list.cursor_row)
-            self.packet_list.focus()
+            self._focus(self.packet_list)
             return True
         try:
             flt = compile_filter(text, self.dialect)
@@ -411,7 +435,7 @@ class MavscopeApp(App[None]):
         bar.set_applied(True)
         self.display_filter = flt
         self._start_filter(flt, keep_row=self.packet_list.cursor_row)
-        self.packet_list.focus()
+        self._focus(self.packet_list)
         return True
 
     def _start_filter(self, flt: DisplayFilter, keep_row: int | None) -> None:

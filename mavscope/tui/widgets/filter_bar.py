@@ -32,7 +32,8 @@ class FilterBar(Widget):
     FilterBar Horizontal { height: 1; }
     FilterBar Label { width: auto; color: $text-muted; }
     FilterBar Input { border: none; height: 1; padding: 0 0; width: 1fr; background: $boost; }
-    FilterBar Input:focus { background: $boost; }
+    FilterBar Input:focus, FilterBar Input.-invalid, FilterBar Input.-invalid:focus { border: none; height: 1;
+                                                                            background: $boost; }
     FilterBar.-applied Label { color: $success; text-style: bold; }
     FilterBar.-error Input { background: $error 25%; }
     FilterBar #filter-error { color: $error; height: auto; display: none; }
