@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from datetime import datetime, timezone
+from functools import lru_cache
 from enum import Enum
 from typing import NamedTuple
 
@@ -74,12 +75,19 @@ class Signature(NamedTuple):
         return SIGNING_EPOCH + self.timestamp / 100_000
 
     def iso_time(self) -> str:
-        """The timestamp as ISO-8601 UTC with microseconds; out-of-range values as seconds."""
-        try:
-            dt = datetime.fromtimestamp(self.unix_time, tz=timezone.utc)
-        except (OverflowError, OSError, ValueError):
-            return f"+{self.timestamp / 100_000:.5f}s since 2015-01-01T00:00:00Z"
-        return dt.isoformat(timespec="microseconds").replace("+00:00", "Z")
+        """The timestamp as ISO-8601 UTC to its 10 µs resolution, e.g. 2026-03-14T10:00:00.00075Z."""
+        seconds, frac = divmod(self.timestamp, 100_000)
+        return f"{_iso_second(seconds)}.{frac:05d}Z"
+
+
+@lru_cache(maxsize=4096)
+def _iso_second(seconds: int) -> str:
+    """ISO-8601 text of a whole second of the signing epoch (cached: signed frames share their seconds)."""
+    try:
+        dt = datetime.fromtimestamp(SIGNING_EPOCH + seconds, tz=timezone.utc)
+    except (OverflowError, OSError, ValueError):  # 48-bit timestamps reach far past datetime's range
+        return f"+{seconds}s-since-2015-01-01T00:00:00"
+    return dt.strftime("%Y-%m-%dT%H:%M:%S")
 
 
 class Frame(NamedTuple):
