@@ -225,6 +225,68 @@ def step(start: int, step_by: int, seconds: float, extra: list[str], tmp: Path, 
 
 
 # --------------------------------------------------------------------------------------------------
+# where the time goes (one thread, no pacing: the cost of each step per datagram)
+
+
+def breakdown(n: int = 100_000) -> list[str]:
+    """Per-datagram cost of each step of the live path, cumulative, measured in this process."""
+    import argparse as _ap
+
+    sys.path.insert(0, str(ROOT))
+    from mavscope.cli import Env
+    from mavscope.commands.common import build_pipeline
+    from mavscope.dissect import Dissector
+    from mavscope.live.udp import UdpSource, parse_endpoint
+    from mavscope.mavlink.dialect import load_dialect
+    from mavscope.output.jsonout import jsonl_bytes
+    from mavscope.output.text import summary_line
+
+    frames = encode_frames()
+    src = UdpSource(parse_endpoint("127.0.0.1:0", what="--udp"), rcvbuf=256 << 20)
+    src.open()
+    port = src.local[1]
+    tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    for i in range(n):
+        tx.sendto(frames[i % len(frames)], ("127.0.0.1", port))
+    t = time.perf_counter()
+    got = src._take(src.sock, n + 10)  # the receiver's loop body: recvmsg, ancillary data, enqueue
+    t_recv = (time.perf_counter() - t) / max(got, 1)
+    src.stop()
+    items = [src._q.get() for _ in range(got)]
+    src.close()
+    t = time.perf_counter()
+    records = [src._record(i + 1, 0, it) for i, it in enumerate(items)]
+    t_rec = (time.perf_counter() - t) / len(items)
+    dialect = load_dialect([])
+    t = time.perf_counter()
+    out = list(Dissector(dialect).run(records))
+    t_dis = (time.perf_counter() - t) / len(items)
+    env = Env(stdout=open(os.devnull, "w"), stderr=sys.stderr)  # noqa: SIM115
+    opts = _ap.Namespace(display_filter=None)
+    t = time.perf_counter()
+    out = list(build_pipeline(opts, env, dialect, records))
+    t_pipe = (time.perf_counter() - t) / len(items)
+    t = time.perf_counter()
+    for f in out:
+        jsonl_bytes(f)
+    t_json = (time.perf_counter() - t) / len(items)
+    t = time.perf_counter()
+    for f in out:
+        summary_line(f, dialect, 0.0)
+    t_text = (time.perf_counter() - t) / len(items)
+    return [
+        f"| step ({len(items):,} datagrams, one frame each) | us per datagram |",
+        "|---|---:|",
+        f"| receive: `recvmsg` + ancillary data (timestamp, drops, destination) + enqueue | {t_recv * 1e6:.1f} |",
+        f"| Record with a synthesised Ethernet/IPv4/UDP header | {t_rec * 1e6:.1f} |",
+        f"| dissector (decapsulation, framing, CRC, Frame) | {t_dis * 1e6:.1f} |",
+        f"| whole pipeline (dissector + security stage) | {t_pipe * 1e6:.1f} |",
+        f"| JSON Lines line (`jsonl_bytes`) | {t_json * 1e6:.1f} |",
+        f"| summary line instead (`summary_line`) | {t_text * 1e6:.1f} |",
+    ]
+
+
+# --------------------------------------------------------------------------------------------------
 # report
 
 
@@ -251,7 +313,7 @@ def table(runs: list[dict[str, object]]) -> list[str]:
 
 
 def report(args: argparse.Namespace, main_runs: list[dict[str, object]], steps: dict[str, tuple[list, int]],
-           took: float) -> str:
+           took: float, breakdown_rows: list[str]) -> str:
     lines = [
         f"Command: `benchmarks/bench_live.py {' '.join(sys.argv[1:])}`  ",
         f"Machine: {machine()}  ",
@@ -272,6 +334,9 @@ def report(args: argparse.Namespace, main_runs: list[dict[str, object]], steps: 
     for label, (runs, best) in steps.items():
         lines += ["", f"### Step-up, {label} ({args.step_seconds:g} s per rate): highest rate held "
                       f"**{best:,} frames/s**", "", *table(runs)]
+    if breakdown_rows:
+        lines += ["", "### Where the time goes (each step alone, one thread, in-process; the pipeline row includes the dissector)", "",
+                  *breakdown_rows]
     lines += ["", "\"held\": every frame sent is in the output, no queue or kernel drop, and the output "
                   "caught up within 1 s of the sender stopping (a growing backlog means the rate is not "
                   "sustainable even before the queue overflows)."]
@@ -312,6 +377,7 @@ def main() -> None:
     ap.add_argument("--step-start", type=int, default=10_000)
     ap.add_argument("--step-by", type=int, default=5_000)
     ap.add_argument("--formats", default="jsonl,text,quiet", help="outputs for the main run (comma-separated)")
+    ap.add_argument("--breakdown", action="store_true", help="also measure the cost of each step in-process")
     ap.add_argument("--write-doc", action="store_true")
     args = ap.parse_args()
     extras = {"jsonl": ["-T", "jsonl"], "text": [], "quiet": ["-q"], "jsonl+pcap": ["-T", "jsonl", "-w", "PCAP"]}
@@ -324,7 +390,7 @@ def main() -> None:
             return [str(tmp / "out.pcap") if a == "PCAP" else a for a in extras[name]]
 
         main_runs = []
-        for name in args.formats.split(","):
+        for name in filter(None, args.formats.split(",")):
             r = run_once(args.rate, args.seconds, extra(name), tmp, name)
             print(json.dumps(r), file=sys.stderr, flush=True)
             main_runs.append(r)
@@ -332,7 +398,8 @@ def main() -> None:
         if args.step:
             for name in ("jsonl", "quiet"):
                 steps[name] = step(args.step_start, args.step_by, args.step_seconds, extra(name), tmp, name)
-    text = report(args, main_runs, steps, time.perf_counter() - t0)
+    rows = breakdown() if args.breakdown else []
+    text = report(args, main_runs, steps, time.perf_counter() - t0, rows)
     print(text)
     if args.write_doc:
         write_doc(text)

@@ -114,7 +114,11 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     _check(args)
     dialect = load_dialect(args.dialect)
     source = make_source(args)
-    source.open()
+    try:
+        source.open()
+    except BaseException:
+        source.close()
+        raise
     printer = FramePrinter(env, dialect, args.format, verbose=args.verbose, hex=args.hex, quiet=args.quiet)
     writer: LivePcapWriter | None = None
     restore: list[tuple[int, object]] = []
