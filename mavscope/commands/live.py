@@ -35,8 +35,9 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
                     "a summary of frames, bytes and drops goes to stderr. See docs/live.md.")
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("--udp", metavar="[HOST:]PORT",
-                     help="bind this UDP port (default host 0.0.0.0; [::]:PORT for IPv6) and decode every datagram")
-    src.add_argument("--sniff", metavar="IFACE", help="capture passively on a network interface (root or CAP_NET_RAW)")
+                     help="bind this UDP port (host 0.0.0.0 unless given; [::]:PORT for IPv6)")
+    src.add_argument("--sniff", metavar="IFACE",
+                     help="capture passively on a network interface (root or CAP_NET_RAW)")
     p.add_argument("--bpf", metavar="EXPR", help="with --sniff: a capture filter, e.g. 'udp port 14550'")
     p.add_argument("--forward", metavar="HOST:PORT",
                    help="with --udp: relay datagrams to HOST:PORT and its replies back to the last sender")
@@ -46,17 +47,20 @@ def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     add_key_options(p)
     p.add_argument("-V", dest="verbose", action="store_true", help="print the detail tree of every frame")
     p.add_argument("-x", dest="hex", action="store_true", help="print a hex dump of every frame")
-    p.add_argument("-T", dest="format", choices=("text", "jsonl"), default="text", help="output format (default text)")
+    p.add_argument("-T", dest="format", choices=("text", "jsonl"), default="text",
+                   help="output format (default text)")
     p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w)")
     p.add_argument("-c", dest="count", type=int, metavar="N", help="stop after N frames")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
-    p.add_argument("-w", dest="write", metavar="OUT.pcap", help="write every packet received to a pcap as it goes "
-                   "(flushed at least every second)")
-    p.add_argument("--ring", type=float, metavar="N", help="with -w: keep only the last N MB (OUT and OUT.1 alternate)")
+    p.add_argument("-w", dest="write", metavar="OUT.pcap",
+                   help="write every packet received to a pcap as it goes (flushed at least every second)")
+    p.add_argument("--ring", type=float, metavar="N",
+                   help="with -w: keep only the last N MB (OUT and OUT.1 alternate)")
     p.add_argument("--rcvbuf", type=float, default=32, metavar="MB",
-                   help="socket receive buffer to ask the kernel for (default 32 MB; the granted size is reported)")
+                   help="socket receive buffer to ask for (default 32 MB; the granted size is reported)")
     p.add_argument("--queue", type=int, default=DEFAULT_QUEUE_ITEMS, metavar="N",
-                   help=f"datagrams waiting for the decoder before new ones are dropped (default {DEFAULT_QUEUE_ITEMS})")
+                   help="datagrams waiting for the decoder before new ones are dropped "
+                        f"(default {DEFAULT_QUEUE_ITEMS})")
     p.set_defaults(run=run)
 
 

@@ -48,7 +48,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         path, dialect = session.path, session.dialect
         frame_writer = _open_writer(args.write, path, session.reader.kind) if args.write else None
         update, stop = progress(env, session.reader)
-        printer = FramePrinter(env, dialect, args.format, verbose=args.verbose, hex=args.hex, quiet=args.quiet, t0=t0)
+        printer = FramePrinter(env, dialect, args.format, verbose=args.verbose, hex=args.hex, quiet=args.quiet,
+                               t0=t0)
         show = printer.frame
         try:
             printer.begin()

@@ -46,7 +46,8 @@ class SniffSource(LiveSource):
 
     description = "sniffer"
 
-    def __init__(self, iface: str, bpf: str | None = None, rcvbuf: int = DEFAULT_RCVBUF, **queue_limits: int) -> None:
+    def __init__(self, iface: str, bpf: str | None = None, rcvbuf: int = DEFAULT_RCVBUF,
+                 **queue_limits: int) -> None:
         super().__init__(**queue_limits)
         self.iface = iface
         self.bpf = bpf

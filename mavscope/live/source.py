@@ -132,7 +132,8 @@ class LiveSource:
         return self._thread is not None and self._thread.is_alive()
 
     def stats(self) -> LiveStats:
-        return LiveStats(self.received, self.received_bytes, self.delivered, self.queue_drops, self.kernel_drops())
+        return LiveStats(self.received, self.received_bytes, self.delivered, self.queue_drops,
+                         self.kernel_drops())
 
     def kernel_drops(self) -> int | None:
         """Datagrams the kernel dropped for this source's sockets; None where it cannot tell."""
@@ -143,7 +144,9 @@ class LiveSource:
 
     # -- the consumer side --------------------------------------------------------------------------
 
-    def records(self, on_idle: Callable[[], None] | None = None, idle_interval: float = 0.25) -> Iterator[Record]:
+    def records(
+        self, on_idle: Callable[[], None] | None = None, idle_interval: float = 0.25
+    ) -> Iterator[Record]:
         """Records in arrival order, numbered from 1, until stop() (or the receiver fails: then its error).
 
         `on_idle` is called whenever the queue is empty (before waiting) and every `idle_interval`

@@ -1,4 +1,4 @@
-"""`live --udp [HOST:]PORT` and `--forward HOST:PORT`: bind a UDP port, optionally relay, record every datagram.
+"""`live --udp [HOST:]PORT` and `--forward HOST:PORT`: bind a UDP port, maybe relay, record every datagram.
 
 Each datagram becomes a Record holding a synthesised Ethernet/IPv4/UDP (or IPv6/UDP) packet with the
 real addresses and ports (`synth_udp_ipv4`), link type Ethernet, so the offline pipeline and the pcap
@@ -108,7 +108,7 @@ def _sum16(data: bytes) -> int:
 
 
 def synth_udp_ipv6(src: tuple[str, int], dst: tuple[str, int], payload: bytes) -> bytes:
-    """An Ethernet/IPv6/UDP packet carrying `payload` from `src` to `dst` ((address, port)), checksum correct."""
+    """Ethernet/IPv6/UDP carrying `payload` from `src` to `dst` ((address, port)), checksum right."""
     saddr = ipaddress.IPv6Address(src[0].split("%")[0]).packed
     daddr = ipaddress.IPv6Address(dst[0].split("%")[0]).packed
     ulen = 8 + len(payload)
