@@ -374,3 +374,28 @@ def test_sniff_without_privilege_is_one_line() -> None:
         pytest.skip("this user may capture (CAP_NET_RAW granted)")
     assert proc.returncode == ExitStatus.ERROR
     assert proc.stderr == "mavscope: live --sniff needs root or CAP_NET_RAW\n"
+
+
+def test_reader_going_away_ends_quietly() -> None:
+    """`mavscope live ... | head -1`: the pipe closes, mavscope stops with its summary and status 0."""
+    proc = subprocess.Popen([sys.executable, "-m", "mavscope", "live", "--udp", "127.0.0.1:0", "-T", "jsonl",
+                             "--duration", "10"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
+    try:
+        assert proc.stderr is not None and proc.stdout is not None
+        m = LISTENING.search(proc.stderr.readline().decode())
+        assert m
+        port = int(m.group(2))
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            s.sendto(pmav.heartbeat(pmav.mav2(1, 1)), ("127.0.0.1", port))
+            assert json.loads(proc.stdout.readline())["sysid"] == 1
+            proc.stdout.close()
+            for _ in range(20):
+                s.sendto(pmav.heartbeat(pmav.mav2(1, 1)), ("127.0.0.1", port))
+                time.sleep(0.01)
+        err = proc.stderr.read().decode()
+        proc.wait(10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    assert SUMMARY.match(err.splitlines()[-1]) and "Traceback" not in err

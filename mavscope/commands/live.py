@@ -173,6 +173,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                 if shown == limit:
                     source.stop(drain=False)
                     break
+        except BrokenPipeError:
+            raise  # `mavscope live ... | head`: main() ends quietly
         except OSError as e:
             raise MavscopeError(f"live: receiving failed: {e.strerror or e}") from None
     finally:
