@@ -399,3 +399,20 @@ def test_reader_going_away_ends_quietly() -> None:
             proc.kill()
     assert proc.returncode == 0, err
     assert SUMMARY.match(err.splitlines()[-1]) and "Traceback" not in err
+
+
+def test_signature_verdicts_live() -> None:
+    """--key works live: the capture time (the kernel's receive time) is the receiver clock for new streams."""
+    from tests.security_helpers import SHA_KEY, signer
+
+    now = int((time.time() - 1_420_070_400) * 100_000)
+    good = signer(SHA_KEY, sysid=1, compid=1, timestamp=now)
+    forged = signer(bytes(32), sysid=2, compid=1, timestamp=now)
+    run = LiveRun("--udp", "127.0.0.1:0", "-T", "jsonl", "--key", f"hex:{SHA_KEY.hex()}", "-c", "2", "--duration", "8")
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.sendto(pmav.heartbeat(good), ("127.0.0.1", run.port))
+        s.sendto(pmav.heartbeat(forged), ("127.0.0.1", run.port))
+    status, out, _ = run.join()
+    assert status == ExitStatus.OK
+    frames = _frames_of(out)
+    assert [f["signature"]["status"] for f in frames] == ["valid", "invalid"]  # type: ignore[index]
