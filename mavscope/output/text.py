@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from weakref import WeakKeyDictionary
 
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, IFLAG_SIGNED, CrcStatus, Frame, decode_payload
@@ -32,19 +33,46 @@ SUMMARY_FIELDS: dict[str, tuple[str, ...]] = {
 _MAX_DEFAULT = 4
 
 
-def _short(md: MessageDef, name: str, value: object, dialect: Dialect) -> str:
-    fd = md.field(name)
-    if fd is None:
-        return ""
-    if fd.enum and isinstance(value, int):
-        enum = dialect.enums.get(fd.enum)
+# How a summary shows one field: by its name, an enum's names, degE7 as degrees, or by the value's type.
+_PLAIN, _ENUM, _DEGREES = 0, 1, 2
+_Plan = tuple[tuple[str, int, dict[int, str]], ...]
+_PLANS: WeakKeyDictionary[Dialect, dict[int, tuple[MessageDef, _Plan]]] = WeakKeyDictionary()
+
+
+def _summary_plan(md: MessageDef, dialect: Dialect) -> _Plan:
+    """(name, how, enum names) for the fields the summary of `md` shows: worked out once per message."""
+    cache = _PLANS.get(dialect)
+    if cache is None:
+        cache = _PLANS[dialect] = {}
+    hit = cache.get(md.id)
+    if hit is not None and hit[0] is md:
+        return hit[1]
+    names = SUMMARY_FIELDS.get(md.name) or tuple(
+        f.name for f in md.fields if not f.array_length or f.type == "char"
+    )[:_MAX_DEFAULT]
+    plan = []
+    for name in names:
+        fd = md.field(name)
+        if fd is None:
+            continue
+        enum = dialect.enums.get(fd.enum) if fd.enum else None
         if enum is not None and not (enum.bitmask or fd.display == "bitmask"):
-            n = enum.name_of(value)
-            if n:
-                return f"{name}={n}"
-    if isinstance(value, int) and (
-        fd.units == "degE7" or (name in ("x", "y") and md.name in ("COMMAND_INT", "MISSION_ITEM_INT"))
-    ):
+            plan.append((name, _ENUM, {v: e.name for v, e in enum.entries.items()}))
+        elif fd.units == "degE7" or (name in ("x", "y") and md.name in ("COMMAND_INT", "MISSION_ITEM_INT")):
+            plan.append((name, _DEGREES, {}))
+        else:
+            plan.append((name, _PLAIN, {}))
+    result = tuple(plan)
+    cache[md.id] = (md, result)
+    return result
+
+
+def _short(name: str, how: int, names: dict[int, str], value: object) -> str:
+    if how == _ENUM and isinstance(value, int):
+        text = names.get(value)
+        if text:
+            return f"{name}={text}"
+    elif how == _DEGREES and isinstance(value, int):
         return f"{name}={value / 1e7:.7f}"
     if isinstance(value, float):
         return f"{name}={'nan' if math.isnan(value) else f'{value:.4g}'}"
@@ -66,10 +94,7 @@ def summary_info(frame: Frame, dialect: Dialect, fields: dict[str, object] | Non
         if fields is None:
             fields = decode_payload(frame)
         if fields is not None:
-            names = SUMMARY_FIELDS.get(md.name) or tuple(
-                f.name for f in md.fields if not f.array_length or f.type == "char"
-            )[:_MAX_DEFAULT]
-            parts.extend(s for s in (_short(md, n, fields.get(n), dialect) for n in names) if s)
+            parts.extend(_short(name, how, names, fields.get(name)) for name, how, names in _summary_plan(md, dialect))
         elif frame.encryption_method:
             parts.append(f"[encrypted, method {frame.encryption_method}]")
     if frame.crc_status is not CrcStatus.OK:
