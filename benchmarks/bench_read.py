@@ -6,7 +6,8 @@
 1. Generates, deterministically and cached in DIR (default benchmarks/out/, git-ignored), an N-frame
    (default 1,000,000) Ethernet/IPv4/UDP pcap: a vehicle (1/1, :14580) and a GCS (255/190, :14550)
    exchanging a telemetry mix, mostly one frame per datagram, ~10% of vehicle datagrams carrying 2-3
-   frames (as mavlink-router does), a quarter of the frames signed. Frames are packed by pymavlink.
+   frames (as mavlink-router does); a quarter of the datagrams come from two other senders (vehicle
+   2/1, GCS 254/190) that sign every frame, as signing is set up per link. Frames are packed by pymavlink.
 2. Times, each in a fresh subprocess (start-up included), as MAVLink frames per wall-clock second:
    `mavscope read -T jsonl`, `mavscope read` (summary), a pymavlink baseline (struct pcap loop +
    MAVLink.parse_buffer + json.dumps(msg.to_dict())), the same baseline with scapy's PcapReader,
@@ -37,7 +38,10 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 DOC = ROOT / "docs" / "performance.md"
-GEN_VERSION = 1  # bump when the generated capture changes
+GEN_VERSION = 2  # bump when the generated capture changes
+SIGNED_SHARE = 0.25  # of the datagrams, from the two signing senders
+SIGNING_VEHICLE_SYSID = 2
+SIGNING_GCS_SYSID = 254
 SLICE_FRAMES = 20_000
 PY = sys.executable
 # Subprocesses run without PYTHONUNBUFFERED (some CI/containers set it; it turns every write of mavscope
@@ -132,11 +136,16 @@ def generate(path: Path, frames: int, seed: int = 20240501) -> dict:
     rng = random.Random(seed)
     pools = _pools(mavlink, rng)
     names, senders, weights = zip(*MIX)
+    # Signing is per sender, as on a real link: a signing vehicle (sysid 2) and a signing GCS (254) send
+    # a quarter of the datagrams, every frame signed; vehicle 1 and GCS 255 never sign.
     macs = {"V": mavlink.MAVLink(None, VEHICLE[3], VEHICLE[4]), "G": mavlink.MAVLink(None, GCS[3], GCS[4])}
-    for mav in macs.values():
+    signing_macs = {"V": mavlink.MAVLink(None, SIGNING_VEHICLE_SYSID, VEHICLE[4]),
+                    "G": mavlink.MAVLink(None, SIGNING_GCS_SYSID, GCS[4])}
+    for mav in signing_macs.values():
         mav.signing.secret_key = SIGNING_KEY
         mav.signing.link_id = 1
         mav.signing.timestamp = 280_000_000_000  # fixed: 2023-11-14 in 10 us units since 2015
+        mav.signing.sign_outgoing = True
     ends = {"V": VEHICLE, "G": GCS}
     rec = struct.Struct("<IIII")
     eth = struct.Struct("!6s6sH")
@@ -156,7 +165,8 @@ def generate(path: Path, frames: int, seed: int = 20240501) -> dict:
         if who == "V" and rng.random() < 0.10:
             count = rng.choice((2, 2, 3))
         count = min(count, frames - n)
-        mav = macs[who]
+        signed = rng.random() < SIGNED_SHARE
+        mav = signing_macs[who] if signed else macs[who]
         payload = bytearray()
         for j in range(count):
             if j:
@@ -169,8 +179,6 @@ def generate(path: Path, frames: int, seed: int = 20240501) -> dict:
             for fld in _TIME_FIELDS:
                 if hasattr(msg, fld):
                     setattr(msg, fld, tb * 1000 if fld in ("time_usec", "time_unix_usec", "ts1") else tb & 0xFFFFFFFF)
-            signed = rng.random() < 0.25
-            mav.signing.sign_outgoing = signed
             payload += msg.pack(mav)
             mav.seq = (mav.seq + 1) & 0xFF
             truth["signed"] += signed
