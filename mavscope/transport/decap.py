@@ -6,7 +6,7 @@ import struct
 
 from mavscope.capture.base import LINKTYPE_ETHERNET, LINKTYPE_MAVLINK_RAW, LINKTYPE_MAVLINK_TLOG, Record
 from mavscope.notes import Note, note
-from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TCP, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
+from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
 from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, Endpoints, parse_ipv4, parse_ipv6
 from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, strip_link
 from mavscope.transport.tcp import MAX_BUFFERED, TcpReassembler
