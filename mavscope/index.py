@@ -32,7 +32,7 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from mavscope.capture.reader import open_mapped
+from mavscope.capture.reader import close_mapped, open_mapped
 from mavscope.dissect import Anomaly
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import (
@@ -426,16 +426,9 @@ class FrameIndex:
         return total
 
     def close(self) -> None:
-        buf = self._buf
-        self._buf = b""
-        if isinstance(buf, mmap.mmap):
-            try:
-                buf.close()
-            except BufferError:
-                pass
-        if self._file is not None:
-            self._file.close()  # type: ignore[attr-defined]
-            self._file = None
+        buf, self._buf = self._buf, b""
+        file, self._file = self._file, None
+        close_mapped(file, buf)
 
 
 class FrameSequence(Sequence[Frame]):

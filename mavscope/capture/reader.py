@@ -65,6 +65,17 @@ def open_mapped(path: str | os.PathLike[str]) -> tuple[str, object, mmap.mmap | 
     return spath, f, data, size
 
 
+def close_mapped(file: object | None, buf: mmap.mmap | bytes) -> None:
+    """Close what `open_mapped` opened (the mapping first; idempotent on a closed file)."""
+    if isinstance(buf, mmap.mmap):
+        try:
+            buf.close()
+        except BufferError:  # a memoryview still exported: let the GC release it
+            pass
+    if file is not None:
+        file.close()  # type: ignore[attr-defined]
+
+
 def _is_regular(mode: int) -> bool:
     return stat.S_ISREG(mode)
 
@@ -107,14 +118,8 @@ class CaptureReader:
 
     def close(self) -> None:
         """Release the mapping and the file (idempotent)."""
-        buf = self._buf
-        self._buf = b""
-        if isinstance(buf, mmap.mmap):
-            try:
-                buf.close()
-            except BufferError:  # a memoryview still exported: let the GC release it
-                pass
-        self._file.close()  # type: ignore[attr-defined]
+        buf, self._buf = self._buf, b""
+        close_mapped(self._file, buf)
 
     def __enter__(self) -> CaptureReader:
         return self
