@@ -71,17 +71,29 @@ class SeqTracker:
             del self.missing[s]
 
 
-@dataclass
-class _Stream:
-    count: int = 0
-    bytes: int = 0
+@dataclass(kw_only=True)
+class _Timed:
+    """The capture times of the first and last frame seen."""
+
     first: float | None = None
     last: float | None = None
+
+    def see(self, t: float | None) -> None:
+        if t is not None:
+            if self.first is None:
+                self.first = t
+            self.last = t
+
+
+@dataclass
+class _Stream(_Timed):
+    count: int = 0
+    bytes: int = 0
     per_second: Counter[int] = field(default_factory=Counter)
 
 
 @dataclass
-class _Link:
+class _Link(_Timed):
     received: int = 0
     bytes: int = 0
     v1: int = 0
@@ -89,13 +101,11 @@ class _Link:
     crc: Counter[str] = field(default_factory=Counter)
     signature: Counter[str] = field(default_factory=Counter)
     seq: SeqTracker = field(default_factory=SeqTracker)
-    first: float | None = None
-    last: float | None = None
     endpoints: set[str] = field(default_factory=set)
 
 
 @dataclass
-class _Conversation:
+class _Conversation(_Timed):
     a: str
     b: str
     transport: str
@@ -103,8 +113,6 @@ class _Conversation:
     frames_ba: int = 0
     bytes_ab: int = 0
     bytes_ba: int = 0
-    first: float | None = None
-    last: float | None = None
     systems: set[tuple[int, int]] = field(default_factory=set)
 
 
@@ -227,10 +235,8 @@ def compute_stats(frames: Iterable[Frame]) -> Stats:
             s = streams[key] = _Stream()
         s.count += 1
         s.bytes += size
+        s.see(t)
         if t is not None:
-            if s.first is None:
-                s.first = t
-            s.last = t
             s.per_second[int(t - first)] += 1  # type: ignore[operator]
         lk = links.get(key[:2])
         if lk is None:
@@ -249,10 +255,7 @@ def compute_stats(frames: Iterable[Frame]) -> Stats:
         lk.signature[verdict] += 1
         sigs[verdict] += 1
         lk.seq.feed(f.seq)
-        if t is not None:
-            if lk.first is None:
-                lk.first = t
-            lk.last = t
+        lk.see(t)
         if f.src:
             lk.endpoints.add(f.src)
         a, b = f.src or f.transport, f.dst or ""
@@ -266,9 +269,6 @@ def compute_stats(frames: Iterable[Frame]) -> Stats:
         else:
             c.frames_ba += 1
             c.bytes_ba += size
-        if t is not None:
-            if c.first is None:
-                c.first = t
-            c.last = t
+        c.see(t)
         c.systems.add(key[:2])
     return Stats(streams, links, convs, total, nbytes, first, last, crc, versions, sigs)
