@@ -24,6 +24,7 @@ complete and never change. No Textual here: the TUI drives `build` from a worker
 from __future__ import annotations
 
 import mmap
+from bisect import bisect_left
 import os
 import threading
 from array import array
@@ -401,13 +402,7 @@ class FrameIndex:
     def find_record(self, record: int) -> int | None:
         """The first row of capture record `record` (binary search: records are in capture order)."""
         col = self._record
-        lo, hi = 0, self._count
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if col[mid] < record:
-                lo = mid + 1
-            else:
-                hi = mid
+        lo = bisect_left(col, record, 0, self._count)
         return lo if lo < self._count and col[lo] == record else None
 
     def columns(self) -> dict[str, Sequence[int | float]]:

@@ -8,6 +8,7 @@ current view (every indexed frame, or the rows a display filter kept).
 
 from __future__ import annotations
 
+from bisect import bisect_left
 from collections import OrderedDict
 from collections.abc import Sequence
 
@@ -156,14 +157,7 @@ class PacketList(ScrollView, can_focus=True):
         if self.view is None:
             return min(row, self._count - 1)
         view = self.view
-        lo, hi = 0, len(view)
-        while lo < hi:
-            mid = (lo + hi) // 2
-            if view[mid] < row:
-                lo = mid + 1
-            else:
-                hi = mid
-        return min(lo, len(view) - 1)
+        return min(bisect_left(view, row), len(view) - 1)
 
     def _update_size(self) -> None:
         self.virtual_size = Size(self.size.width, self._count + 1)
