@@ -1406,6 +1406,14 @@ def _udp_capture(outdir: Path, name: str, sends: list[Send], rng: Random) -> dic
     return summarize_packets("pcap", [LINKTYPE_ETHERNET], pkts, offsets)
 
 
+
+def _secure_heartbeat_and_status(script: list[Any], rng: Random, sec: int, quad: Any, state: Any) -> None:
+    """The vehicle's HEARTBEAT and SYS_STATUS of second `sec` in the secure sessions' scripts."""
+    script.append((sec * 1_000_000 + 1_000 + rng.randint(0, 500), "vehicle", lambda mav: quad(mav, state, 0)))
+    script.append((sec * 1_000_000 + 2_000 + rng.randint(0, 500), "vehicle",
+                   lambda mav: mav.sys_status_encode(SENSORS_PRESENT, SENSORS_PRESENT, SENSORS_PRESENT, 250,
+                                                     15_800 - sec * 2, -1, 87 - sec // 4, 0, 0, 0, 0, 0, 0)))
+
 def securemav_udp(outdir: Path) -> dict[str, Any]:
     """20 s, plaintext for 5 s, then SecureMAV: vehicle payloads AES-128-CTR (method 2, counter restarted
     every frame), GCS heartbeats XOR 0xAB (method 7). Vehicle frames are signed over the ciphertext."""
@@ -1419,11 +1427,7 @@ def securemav_udp(outdir: Path) -> dict[str, Any]:
     quad = _heartbeat(MAV_AUTOPILOT_PX4)
     script: list[tuple[int, str, Callable[[Any], Any]]] = []
     for sec in range(20):
-        script.append((sec * 1_000_000 + 1_000 + rng.randint(0, 500), "vehicle", lambda mav: quad(mav, state, 0)))
-        script.append((sec * 1_000_000 + 2_000 + rng.randint(0, 500), "vehicle",
-                       lambda mav, sec=sec: mav.sys_status_encode(SENSORS_PRESENT, SENSORS_PRESENT,
-                                                                  SENSORS_PRESENT, 250, 15_800 - sec * 2, -1,
-                                                                  87 - sec // 4, 0, 0, 0, 0, 0, 0)))
+        _secure_heartbeat_and_status(script, rng, sec, quad, state)
         for q in range(4):
             t = sec * 1_000_000 + q * 250_000 + 100_000 + rng.randint(0, 999)
             script.append((t, "vehicle", lambda mav, t=t, q=q: mav.attitude_encode(
@@ -1473,11 +1477,7 @@ def key_exchange_udp(outdir: Path) -> dict[str, Any]:
     quad = _heartbeat(MAV_AUTOPILOT_PX4)
     script: list[tuple[int, str, Any]] = []
     for sec in range(30):
-        script.append((sec * 1_000_000 + 1_000 + rng.randint(0, 500), "vehicle", lambda mav: quad(mav, state, 0)))
-        script.append((sec * 1_000_000 + 2_000 + rng.randint(0, 500), "vehicle",
-                       lambda mav, sec=sec: mav.sys_status_encode(SENSORS_PRESENT, SENSORS_PRESENT,
-                                                                  SENSORS_PRESENT, 250, 15_800 - sec * 2, -1,
-                                                                  87 - sec // 4, 0, 0, 0, 0, 0, 0)))
+        _secure_heartbeat_and_status(script, rng, sec, quad, state)
         for q in range(2):
             t = sec * 1_000_000 + q * 500_000 + 100_000 + rng.randint(0, 999)
             script.append((t, "vehicle", lambda mav, t=t: mav.attitude_encode(
