@@ -319,8 +319,11 @@ def pymavlink_dialect_path(name: str = "all") -> Path:
 
 
 def default_dissectors_dir() -> Path:
-    """The repository's `dissectors/` folder (dialect XML loaded automatically)."""
-    return Path(__file__).resolve().parents[2] / "dissectors"
+    """The `dissectors/` folder whose XML loads automatically: the repository's in a source checkout
+    (where users drop their dialects), else the copy a wheel installs inside the package."""
+    package = Path(__file__).resolve().parents[1]
+    checkout = package.parent / "dissectors"
+    return checkout if checkout.is_dir() else package / "dissectors"
 
 
 def load_dialect(

@@ -12,7 +12,8 @@ import math
 from dataclasses import dataclass
 
 from mavscope.mavlink.dialect import COMMAND_MESSAGES, Dialect, FieldDef, MessageDef
-from mavscope.mavlink.frame import HEADER_V1, HEADER_V2, SIGNATURE_LEN, Frame, decode_payload
+from mavscope.mavlink.frame import HEADER_V1, HEADER_V2, SIGNATURE_LEN, CrcStatus, Frame, decode_payload
+from mavscope.mavlink.framing import mcrf4xx
 
 
 @dataclass(frozen=True, slots=True)
@@ -189,10 +190,8 @@ def frame_items(frame: Frame, dialect: Dialect, fields: dict[str, object] | None
     if frame.crc is not None:
         expected = ""
         md = frame.msgdef
-        if md is not None and frame.crc_status.value == "bad":
-            from fastcrc import crc16
-
-            calc = crc16.mcrf4xx(md.crc_extra_byte, crc16.mcrf4xx(frame.raw[1:crc_off]))
+        if md is not None and frame.crc_status is CrcStatus.BAD:
+            calc = mcrf4xx(md.crc_extra_byte, mcrf4xx(frame.raw[1:crc_off]))
             expected = f", should be 0x{calc:04x}"
         tree.append(Item(f"CRC: 0x{frame.crc:04x} [{frame.crc_status.value}{expected}]", "mavlink.crc", crc_off, 2,
                          frame.crc))
