@@ -63,7 +63,7 @@ PROGRESS_EVERY = 8192  # items between progress callbacks (and cancellation chec
 class Row(NamedTuple):
     """What the packet list shows of one frame, straight from the index (no decoding)."""
 
-    row: int  # 0-based position in the index
+    row: int  # the frame's row number (0-based, kept for good: a bounded index drops rows, never renumbers)
     record: int
     index: int
     time: float | None
@@ -158,7 +158,8 @@ class FrameIndex:
 
     `path` is the capture file the frames came from (None for a live source: every frame's bytes are
     then kept). `limit` bounds the number of rows for a live source: older rows are dropped in blocks
-    (`first` counts them) so memory stays bounded.
+    so memory stays bounded. Row numbers never change: rows `first` .. `end - 1` are held, and asking
+    for a dropped row raises `IndexError`, so a number taken before a drop never names another frame.
     """
 
     def __init__(self, dialect: Dialect, path: str | os.PathLike[str] | None = None,
@@ -198,7 +199,7 @@ class FrameIndex:
         self._spans: dict[int, tuple[int, ...]] = {}
         self.anomalies: list[Anomaly] = []
         self._count = 0
-        self.first = 0  # rows dropped from the front so far (a bounded live index)
+        self.first = 0  # the oldest row held (rows dropped from the front so far, in a bounded live index)
         self.limit: int | None = None  # keep at most this many rows (None: all)
         self.lock = threading.RLock()  # held while rows are read or dropped
         self._details = _LRU(cache_size)
@@ -303,7 +304,7 @@ class FrameIndex:
         self._count = i + 1  # published last: readers only look below _count
 
     def trim(self, n: int) -> None:
-        """Drop the oldest `n` rows (row i becomes row i - n); `first` counts every row dropped."""
+        """Drop the oldest `n` rows (their numbers are not reused: `first` moves up by `n`)."""
         with self.lock:
             n = min(n, self._count)
             for col in (self._record, self._index, self._time, self._transport, self._src, self._dst, self._offset,
@@ -315,12 +316,31 @@ class FrameIndex:
             self._spans = {k - n: v for k, v in self._spans.items() if k >= n}
             self._count -= n
             self.first += n
-            self._details.clear()
+            self._details.clear()  # a dropped frame is gone everywhere
 
     # --- reading ------------------------------------------------------------------------------
 
     def __len__(self) -> int:
+        """Rows held (all rows, unless a bounded index dropped some)."""
         return self._count
+
+    @property
+    def end(self) -> int:
+        """One past the newest row's number."""
+        with self.lock:
+            return self.first + self._count
+
+    def rows(self) -> range:
+        """The numbers of the rows held."""
+        with self.lock:
+            return range(self.first, self.first + self._count)
+
+    def _position(self, n: int) -> int:
+        """Where row `n` sits in the columns (call with the lock held)."""
+        i = n - self.first
+        if not 0 <= i < self._count:
+            raise IndexError(n)
+        return i
 
     @property
     def time_base(self) -> float | None:
@@ -331,40 +351,42 @@ class FrameIndex:
     def done(self) -> bool:
         return self.progress.done
 
-    def row(self, i: int) -> Row:
-        """The list row of frame `i` (0-based)."""
+    def row(self, n: int) -> Row:
+        """The list row of frame `n` (its row number)."""
         with self.lock:
-            return self._row(i)
+            i = self._position(n)
+            return self._row(n, i)
 
-    def _row(self, i: int) -> Row:
-        if not 0 <= i < self._count:
-            raise IndexError(i)
+    def _row(self, n: int, i: int) -> Row:
         t = self._time[i]
         msgid = self._msgid[i]
         md = self.dialect.messages.get(msgid)
         return Row(
-            i, self._record[i], self._index[i], None if t != t else t, self._transports[self._transport[i]],
+            n, self._record[i], self._index[i], None if t != t else t, self._transports[self._transport[i]],
             self._endpoints[self._src[i]], self._endpoints[self._dst[i]], self._sysid[i], self._compid[i],
             self._seq[i], msgid, md.name if md is not None else None, self._iflags[i], CRC_CODES[self._crc[i]],
             self._securities[self._security[i]],
         )
 
-    def raw(self, i: int) -> bytes:
+    def raw(self, n: int) -> bytes:
+        """The bytes of frame `n`."""
+        with self.lock:
+            return self._raw_at(self._position(n))
+
+    def _raw_at(self, i: int) -> bytes:
         raw = self._raw.get(i)
         if raw is not None:
             return raw
         off = self._offset[i]
         return bytes(self._buf[off : off + self._rawlen[i]])
 
-    def frame(self, i: int) -> Frame:
-        """Frame `i` as the pipeline yielded it, rebuilt from its row and bytes."""
+    def frame(self, n: int) -> Frame:
+        """Frame `n` as the pipeline yielded it, rebuilt from its row and bytes."""
         with self.lock:
-            return self._frame(i)
+            return self._frame(self._position(n))
 
     def _frame(self, i: int) -> Frame:
-        if not 0 <= i < self._count:
-            raise IndexError(i)
-        raw = self.raw(i)
+        raw = self._raw_at(i)
         status = CRC_CODES[self._crc[i]]
         crc = None
         if status is not CrcStatus.TRUNCATED:
@@ -380,35 +402,45 @@ class FrameIndex:
         )
         return f._replace(notes=self._notes.get(i, ()), security=self._securities[self._security[i]])
 
-    def frames(self, rows: Iterable[int] | None = None) -> Iterable[Frame]:
-        """Frames of `rows` (default: every row indexed so far), rebuilt one by one (not cached)."""
-        for i in range(self._count) if rows is None else rows:
-            yield self.frame(i)
+    def frames(self, rows: Iterable[int] | None = None) -> Iterator[Frame]:
+        """Frames of `rows` (default: every row held), rebuilt one by one (not cached); rows a bounded
+        index dropped meanwhile are skipped."""
+        frame = self.frame
+        for n in self.rows() if rows is None else rows:
+            try:
+                yield frame(n)
+            except IndexError:
+                continue
 
-    def detail(self, i: int) -> Detail:
-        """Frame `i` decoded: fields, detail tree and summary (LRU-cached)."""
-        d = self._details.get(i)
+    def detail(self, n: int) -> Detail:
+        """Frame `n` decoded: fields, detail tree and summary (LRU-cached)."""
+        d = self._details.get(n)
         if d is None:
-            frame = self.frame(i)
+            frame = self.frame(n)
             fields = decode_payload(frame)
             d = Detail(frame, fields, frame_items(frame, self.dialect, fields),
                        summary_info(frame, self.dialect, fields))
-            self._details.put(i, d)
+            self._details.put(n, d)
         return d  # type: ignore[return-value]
 
-    def summary(self, i: int) -> str:
-        return self.detail(i).summary
+    def summary(self, n: int) -> str:
+        return self.detail(n).summary
 
     def find_record(self, record: int) -> int | None:
         """The first row of capture record `record` (binary search: records are in capture order)."""
-        col = self._record
-        lo = bisect_left(col, record, 0, self._count)
-        return lo if lo < self._count and col[lo] == record else None
+        with self.lock:
+            col = self._record
+            lo = bisect_left(col, record, 0, self._count)
+            return lo + self.first if lo < self._count and col[lo] == record else None
 
-    def columns(self) -> dict[str, Sequence[int | float]]:
-        """The raw columns (read-only use: statistics over the whole capture without rebuilding frames)."""
-        return {"record": self._record, "time": self._time, "sysid": self._sysid, "compid": self._compid,
-                "seq": self._seq, "msgid": self._msgid, "crc": self._crc, "security": self._security}
+    def column(self, name: str, rows: Iterable[int]) -> list[int | float | None]:
+        """One column's values for `rows`, without rebuilding frames (to pick rows out of a whole
+        capture); None for rows no longer held. Names: record, time, sysid, compid, seq, msgid, crc."""
+        col = {"record": self._record, "time": self._time, "sysid": self._sysid, "compid": self._compid,
+               "seq": self._seq, "msgid": self._msgid, "crc": self._crc}[name]
+        with self.lock:
+            first, count = self.first, self._count
+            return [col[n - first] if 0 <= n - first < count else None for n in rows]
 
     def memory(self) -> int:
         """Bytes held by the columns and side tables (an estimate, for the docs and tests)."""
@@ -430,13 +462,14 @@ class FrameSequence(Sequence[Frame]):
     """A read-only sequence of the frames of some rows, rebuilt on each access (nothing held).
 
     For analyses that take a `Sequence[Frame]` (expert findings): a list of a million Frames would
-    take gigabytes; this takes the rows' numbers. Iterating twice rebuilds twice.
+    take gigabytes; this takes the rows' numbers. Iterating twice rebuilds twice. Iteration skips rows
+    that a bounded live index dropped after the rows were taken.
     """
 
     def __init__(self, index: FrameIndex, rows: Sequence[int] | None = None,
                  on_frame: Callable[[int], None] | None = None) -> None:
         self.index = index
-        self.rows = rows if rows is not None else range(len(index))
+        self.rows = rows if rows is not None else index.rows()
         self.on_frame = on_frame
 
     def __len__(self) -> int:
@@ -453,24 +486,8 @@ class FrameSequence(Sequence[Frame]):
         for n, r in enumerate(self.rows):
             if tick is not None and not n & 0x3FFF:
                 tick(n)
-            yield frame(r)
-
-
-def rows_matching(index: FrameIndex, predicate: Callable[[Frame], bool], *,
-                  on_progress: Callable[[int, int], None] | None = None,
-                  cancelled: Callable[[], bool] = lambda: False, every: int = PROGRESS_EVERY) -> array | None:
-    """The rows whose frame satisfies `predicate` (a display filter's `matches`), in order.
-
-    None when cancelled. `on_progress(done, total)` is called every `every` rows.
-    """
-    out = array("I")
-    total = len(index)
-    frame = index.frame
-    for i in range(total):
-        if predicate(frame(i)):
-            out.append(i)
-        if on_progress is not None and not (i + 1) % every:
-            on_progress(i + 1, total)
-            if cancelled():
-                return None
-    return out
+            try:
+                f = frame(r)
+            except IndexError:  # dropped by a bounded live index since the rows were taken
+                continue
+            yield f

@@ -331,9 +331,19 @@ def test_ipv6_loopback(tmp_path: Path) -> None:
     assert rows == [["::1", str(run.port), "1"]]
 
 
+def _have_libpcap() -> bool:
+    try:
+        import scapy.libs.winpcapy  # noqa: F401 - loads libpcap through ctypes
+    except (OSError, ImportError):
+        return False
+    return True
+
+
 def test_sniff_loopback_with_bpf(tmp_path: Path) -> None:
     if os.geteuid() != 0:
         pytest.skip("sniffing needs root or CAP_NET_RAW (not running as root)")
+    if not _have_libpcap():
+        pytest.skip("--bpf needs libpcap (scripts/install-test-tools.sh installs it with tshark)")
     with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sink:
         sink.bind(("127.0.0.1", 0))
         port = sink.getsockname()[1]
@@ -360,6 +370,19 @@ def test_sniff_loopback_with_bpf(tmp_path: Path) -> None:
     assert all(f["dst"] == f"127.0.0.1:{port}" for f in frames)
     rows = _tshark_fields(pcap, "udp.dstport")
     assert rows == [[str(port)]] * 3
+
+
+def test_bpf_without_libpcap_is_one_line(monkeypatch: pytest.MonkeyPatch) -> None:
+    import scapy.arch  # noqa: F401 - sets conf.L2listen
+    from scapy.config import conf
+
+    def no_libpcap(**kwargs: object) -> None:
+        raise ImportError("libpcap is not available. Cannot compile filter !")  # what scapy raises
+
+    monkeypatch.setattr(conf, "L2listen", no_libpcap)
+    code, out, err = _run_cli("live", "--sniff", "lo", "--bpf", "udp", "--duration", "1")
+    assert code == ExitStatus.ERROR and out == ""
+    assert err.strip().count("\n") == 0 and "--bpf needs libpcap" in err and "apt-get install libpcap0.8" in err
 
 
 def test_sniff_without_privilege_is_one_line() -> None:

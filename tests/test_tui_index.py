@@ -11,7 +11,7 @@ from mavscope.capture.detect import open_capture
 from mavscope.commands.common import build_pipeline
 from mavscope.commands.tui import parse_options
 from mavscope.dissect import Anomaly, Dissector
-from mavscope.index import FrameIndex, FrameSequence, rows_matching
+from mavscope.index import FrameIndex, FrameSequence
 from mavscope.cli import Env
 from mavscope.tui.app import create_app
 from tests.tui_helpers import CAPTURES, SIZE, run, wait_for, write_big_capture
@@ -56,6 +56,37 @@ def test_security_verdicts_survive_the_index(dialect) -> None:  # type: ignore[n
     assert len(index._securities) <= 4  # interned, not one per frame
 
 
+def test_a_bounded_index_drops_rows_without_renumbering_the_rest(dialect) -> None:  # type: ignore[no-untyped-def]
+    """A live index keeps its newest rows; a row number taken before a drop still names the same frame
+    (or raises IndexError once that frame is gone), never a newer one."""
+    path = CAPTURES / "px4_sitl_udp.pcap"
+    reader, items = _pipeline(path, dialect)
+    with reader:
+        expected = [f for f in items if type(f) is not Anomaly]
+    index = FrameIndex(dialect)
+    index.limit = 100
+    for f in expected[:100]:
+        index.add(f)
+    index.detail(90)
+    for f in expected[100:300]:
+        index.add(f)
+    assert len(index) <= 100 and index.end == 300 and index.first == 300 - len(index)
+    assert list(index.rows()) == list(range(index.first, 300))
+    with pytest.raises(IndexError):
+        index.row(90)
+    with pytest.raises(IndexError):
+        index.frame(index.first - 1)
+    with pytest.raises(IndexError):
+        index.detail(90)  # not served from the detail cache either
+    for n in (index.first, 250, 299):
+        assert index.frame(n) == expected[n]
+        assert index.row(n).row == n
+    assert index.find_record(expected[250].record) == 250
+    assert index.find_record(expected[10].record) is None
+    assert list(FrameSequence(index, range(0, 300))) == expected[index.first:300]  # dropped rows skipped
+    assert index.column("seq", [5, 250, 299]) == [None, expected[250].seq, expected[299].seq]
+
+
 def test_reassembled_tcp_frames_keep_their_bytes_and_offsets(dialect) -> None:  # type: ignore[no-untyped-def]
     path = CAPTURES / "px4_sitl_tcp.pcap"
     reader, items = _pipeline(path, dialect)
@@ -80,8 +111,7 @@ def test_build_reports_progress_and_stops_when_cancelled(dialect) -> None:  # ty
     assert p.cancelled and not p.done
     assert 0 < len(index) < 1371
     assert [s.frames for s in seen] == sorted(s.frames for s in seen)
-    rows = rows_matching(index, lambda f: f.msgname == "HEARTBEAT")
-    assert rows and all(index.row(r).msgname == "HEARTBEAT" for r in rows)
+    assert [f.record for f in index.frames()] == [index.row(n).record for n in range(len(index))]  # rows stay valid
 
 
 def test_large_capture_first_rows_before_the_index_completes(tmp_path: Path, dialect) -> None:  # type: ignore[no-untyped-def]

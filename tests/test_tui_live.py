@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import socket
+from array import array
 
 from mavscope.capture.detect import open_capture
 from mavscope.commands.tui import parse_options
 from mavscope.transport.decap import Decapsulator
-from mavscope.tui.app import create_app
+from mavscope.tui.app import FilterProgress, IndexProgress, create_app
+from mavscope.tui.widgets.packet_list import PacketList
 from tests.tui_helpers import CAPTURES, SIZE, run, wait_for
 
 
@@ -47,5 +49,85 @@ def test_live_follow_mode_shows_frames_as_they_arrive_and_drops_the_oldest() -> 
             await pilot.press("k")
             assert app.add_key("key", "passphrase:x").startswith("live capture")
         assert app.source.udp.stopping
+
+    run(scenario())
+
+
+def test_rows_dropped_while_a_selection_is_in_flight_are_skipped_not_fatal() -> None:
+    """The CI race: the list posts "row 60 selected", the bounded index drops rows 0-99 before the app
+    handles it. The stale message is ignored, lines of dropped rows render blank until the list takes
+    them out, and then the cursor and the detail tree agree on a frame that is still held."""
+    async def scenario() -> None:
+        app = create_app(CAPTURES / "px4_sitl_udp.pcap")
+        async with app.run_test(size=SIZE) as pilot:
+            await wait_for(pilot, lambda: app.index.done and app.tree.detail is not None)
+            pl = app.packet_list
+            pl.move_to(50)
+            await pilot.pause()
+            assert app.tree.detail.frame == app.index.frame(50)
+            record_50 = app.index.row(50).record
+            pl.post_message(PacketList.Highlighted(60))
+            app.index.trim(100)  # before the message is handled: frames 0-99 are gone
+            assert pl.stale and pl.cursor_row == 50
+            app.refresh()
+            await pilot.pause()  # handled (ignored) and painted: nothing raised
+            assert app.tree.detail.frame.record == record_50  # unchanged, not another frame's
+            app.post_message(IndexProgress(app.index, app.index.progress))
+            await pilot.pause()
+            assert not pl.stale and pl.count == len(app.index)
+            assert pl.cursor == 0 and pl.cursor_row == 100 and pl.visible_rows()[0] == 100
+            assert app.tree.detail.frame == app.index.frame(100)
+            await pilot.press("down")
+            assert app.tree.detail.frame == app.index.frame(101)
+
+    run(scenario())
+
+
+def test_follow_mode_survives_moving_and_filtering_while_rows_are_dropped() -> None:
+    """Keys pressed and a filter applied while a small bounded index drops rows under a steady stream."""
+    async def scenario() -> None:
+        app = create_app(None, parse_options(["--live", "--udp", "127.0.0.1:0", "--keep", "120"]))
+        async with app.run_test(size=SIZE) as pilot:
+            await wait_for(pilot, lambda: app.source.udp is not None and app.source.udp.sock is not None)
+            port = app.source.udp.bound.port
+            tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            datagrams = _payloads(1000)
+            keys = ["up", "pageup", "down", "end", "home", "pagedown"]
+            for n, start in enumerate(range(0, 600, 50)):
+                for d in datagrams[start : start + 50]:
+                    tx.sendto(d, ("127.0.0.1", port))
+                await pilot.press(keys[n % len(keys)])
+                await pilot.pause(0.02)
+            await pilot.press("slash", *"HEARTBEAT", "enter")
+            for d in datagrams[600:]:
+                tx.sendto(d, ("127.0.0.1", port))
+            tx.close()
+            pl = app.packet_list
+
+            def settled() -> bool:  # the last frame is in and the list has caught up with the drops
+                shown = pl.visible_rows()
+                return (app.index.end >= 1000 and not pl.stale and bool(shown)
+                        and all(app.index.first <= r < app.index.end for r in shown)
+                        and app.tree.detail is not None and app.tree.detail.frame.record
+                        == app.index.row(pl.cursor_row).record)
+
+            await wait_for(pilot, settled, timeout=10)
+            assert len(app.index) <= 120
+            assert all(app.index.row(r).msgname == "HEARTBEAT" for r in pl.visible_rows())
+
+    run(scenario())
+
+
+def test_worker_messages_arriving_while_the_app_exits_are_ignored() -> None:
+    """The index and filter workers post from their threads; one handled after the widgets are gone
+    (quitting during a live capture) must not raise."""
+    async def scenario() -> None:
+        app = create_app(CAPTURES / "px4_sitl_udp.pcap", parse_options([str(CAPTURES / "px4_sitl_udp.pcap"),
+                                                                         "-Y", "HEARTBEAT"]))
+        async with app.run_test(size=SIZE) as pilot:
+            await wait_for(pilot, lambda: app.index.done and app.status.filtering is None)
+            flt = app.display_filter
+        app.on_index_progress(IndexProgress(app.index, app.index.progress))
+        app.on_filter_progress(FilterProgress(flt, array("I"), 0, 0, True))
 
     run(scenario())

@@ -79,7 +79,10 @@ class SniffSource(LiveSource):
             if e.errno in (1, 13):  # EPERM, EACCES
                 raise MavscopeError(NEED_PRIVILEGE) from None
             raise MavscopeError(f"live --sniff {self.iface}: {e.strerror or e}") from None
-        except (Scapy_Exception, ValueError) as e:
+        except (Scapy_Exception, ValueError, ImportError) as e:
+            if self.bpf and "libpcap" in str(e):
+                raise MavscopeError(f"live --sniff {self.iface}: --bpf needs libpcap to compile the filter "
+                                    "(Debian: apt-get install libpcap0.8); without --bpf no library is needed") from None
             raise MavscopeError(f"live --sniff {self.iface}: {e}") from None
         finally:
             quiet.setLevel(level)

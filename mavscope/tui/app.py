@@ -200,7 +200,6 @@ class MavscopeApp(App[None]):
         self.first_rows_at: float | None = None  # seconds from mount to the first rows (measured)
         self.indexed_at: float | None = None  # seconds from mount to the complete index
         self._mounted_at = 0.0
-        self._first_seen = 0
 
     # --- layout -------------------------------------------------------------------------------
 
@@ -283,7 +282,14 @@ class MavscopeApp(App[None]):
                         on_progress=lambda p: post(IndexProgress(index, p)),
                         cancelled=lambda: worker.is_cancelled, every=256 if source.live else PROGRESS_EVERY)
 
+    def _torn_down(self) -> bool:
+        """The main screen's widgets are gone (the app is exiting): late worker messages have nothing to
+        update."""
+        return not self.default_screen.query(PacketList)
+
     def on_index_progress(self, msg: IndexProgress) -> None:
+        if self._torn_down():
+            return
         if msg.index is self.pending:
             self.status.activity = f"re-checking with the new key {msg.progress.fraction:.0%}"
             if msg.progress.done:
@@ -302,12 +308,8 @@ class MavscopeApp(App[None]):
             self.status.live = True
             self.status.capture = self.source.path
             self.title = f"mavscope: {self.source.path}"
-        dropped = self.index.first - self._first_seen
-        if dropped:  # a bounded live index dropped its oldest rows: row numbers moved down
-            self._first_seen = self.index.first
-            self.packet_list.shift(dropped)
-            if self.display_filter is not None:
-                self._start_filter(self.display_filter, keep_row=self.packet_list.cursor_row)
+        if self.packet_list.stale:  # a bounded live index dropped its oldest rows
+            self.packet_list.drop_lines()
         if self.display_filter is None:
             self.packet_list.sync(follow=self.source.live)
         self.status.update_status()
@@ -340,7 +342,10 @@ class MavscopeApp(App[None]):
             self.tree.show(None)
             self.hex.show(b"")
             return
-        detail = self.index.detail(msg.row)
+        try:
+            detail = self.index.detail(msg.row)
+        except IndexError:  # dropped by the bounded live index meanwhile: the list posts the next row
+            return
         self.tree.show(detail)
         self.hex.show(detail.frame.raw)
 
@@ -452,32 +457,35 @@ class MavscopeApp(App[None]):
         rows = array("I")
         matches = flt.matches
         frame = index.frame
-        done = 0
+        start = done = index.first  # row numbers: a bounded live index drops rows but never renumbers
         last_post = time.perf_counter()
         while True:
-            n = len(index)
             complete = index.done or index.progress.cancelled
-            for i in range(done, n):
-                if matches(frame(i)):
-                    rows.append(i)
+            end = index.end
+            for i in range(max(done, index.first), end):
+                try:
+                    if matches(frame(i)):
+                        rows.append(i)
+                except IndexError:  # dropped meanwhile
+                    pass
                 if not i & 0x1FFF:
                     if worker.is_cancelled:
                         return
                     now = time.perf_counter()
                     if now - last_post > 0.1:
                         last_post = now
-                        self.post_message(FilterProgress(flt, rows, i + 1, max(n, 1), False))
-            done = n
-            if complete and done == len(index):
+                        self.post_message(FilterProgress(flt, rows, i + 1 - start, max(end - start, 1), False))
+            done = end
+            if complete and done == index.end:
                 break
-            self.post_message(FilterProgress(flt, rows, done, max(n, 1), False))
+            self.post_message(FilterProgress(flt, rows, done - start, max(end - start, 1), False))
             time.sleep(0.05)
             if worker.is_cancelled:
                 return
-        self.post_message(FilterProgress(flt, rows, done, done, True))
+        self.post_message(FilterProgress(flt, rows, done - start, done - start, True))
 
     def on_filter_progress(self, msg: FilterProgress) -> None:
-        if msg.flt is not self.display_filter:
+        if msg.flt is not self.display_filter or self._torn_down():
             return
         pl = self.packet_list
         if not self._filter_view_set:
@@ -485,7 +493,7 @@ class MavscopeApp(App[None]):
             pl.set_view(msg.rows, keep_row=self._keep_row)
         else:
             pl.sync()
-        self.status.shown = len(msg.rows)
+        self.status.shown = pl.count
         self.status.filtering = None if msg.finished else msg.done / msg.total
         self.status.update_status()
 
@@ -530,7 +538,7 @@ class MavscopeApp(App[None]):
             self.apply_filter("")
             self.filter_bar.input.value = ""
         pl = self.packet_list
-        pl.move_to(row if pl.view is None else pl._position_of(row))
+        pl.move_to(pl.position_of(row))
         pl.focus()
 
     # --- keys ---------------------------------------------------------------------------------

@@ -77,7 +77,7 @@ class AnalysisScreen(Screen[None]):
     @work(thread=True, exclusive=True, group="analysis", exit_on_error=False)
     def run_analysis(self) -> None:
         worker = get_current_worker()
-        rows = self.rows if self.rows is not None else range(len(self.index))
+        rows = self.rows if self.rows is not None else self.index.rows()
         total = len(rows)
 
         def tick(n: int) -> None:

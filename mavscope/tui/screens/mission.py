@@ -62,11 +62,9 @@ class MissionScreen(AnalysisScreen):
         ids = {md.id for name, md in dialect.by_name.items() if name in MISSION_MESSAGES}
         gpi = dialect.by_name.get("GLOBAL_POSITION_INT")
         gpi_id = gpi.id if gpi is not None else -1
-        msgid = index.columns()["msgid"]
         mission_rows = []
         track_rows = []
-        for r in frames.rows:
-            m = msgid[r]
+        for r, m in zip(frames.rows, index.column("msgid", frames.rows)):
             if m in ids:
                 mission_rows.append(r)
             elif m == gpi_id:
@@ -74,8 +72,8 @@ class MissionScreen(AnalysisScreen):
         transfers = reconstruct(FrameSequence(index, mission_rows, frames.on_frame), dialect)
         step = max(1, len(track_rows) // MAX_TRACK_POINTS)
         track = []
-        for r in track_rows[::step]:
-            fields = decode_payload(index.frame(r))
+        for frame in index.frames(track_rows[::step]):
+            fields = decode_payload(frame)
             if fields and (fields.get("lat") or fields.get("lon")):
                 track.append((int(fields["lat"]) / 1e7, int(fields["lon"]) / 1e7))  # type: ignore[call-overload]
         return MissionResult(transfers, track)

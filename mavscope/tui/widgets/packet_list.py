@@ -71,7 +71,10 @@ class PacketList(ScrollView, can_focus=True):
     cursor: reactive[int] = reactive(-1, always_update=False, repaint=False)
 
     class Highlighted(Message):
-        """The cursor moved to another frame (`row` is the index row, or None when the view is empty)."""
+        """The cursor moved to another frame (`row` is its row number, or None when the view is empty).
+
+        A bounded live index may drop that row before the message is handled: the handler then finds
+        it gone (IndexError), and the line's move that followed the drop has posted another message."""
 
         def __init__(self, row: int | None) -> None:
             super().__init__()
@@ -88,6 +91,8 @@ class PacketList(ScrollView, can_focus=True):
         super().__init__(id=id)
         self.index = index
         self.view: Sequence[int] | None = None  # None: every indexed row
+        self._base = index.first  # without a view: the row number of the first line
+        self._skip = 0  # with a view: its entries naming rows the index has dropped since
         self._count = 0
         self._strips: OrderedDict[tuple[int, int, int], Strip] = OrderedDict()
 
@@ -99,7 +104,11 @@ class PacketList(ScrollView, can_focus=True):
         return self._count
 
     def row_at(self, position: int) -> int:
-        return position if self.view is None else self.view[position]
+        """The row number of line `position`."""
+        return self._base + position if self.view is None else self.view[self._skip + position]
+
+    def _lines(self) -> int:
+        return self.index.end - self._base if self.view is None else len(self.view) - self._skip
 
     @property
     def cursor_row(self) -> int | None:
@@ -110,17 +119,20 @@ class PacketList(ScrollView, can_focus=True):
         """Show another index of the same capture (after a key was added): same rows, new verdicts."""
         self.index = index
         self._strips.clear()
+        self._base = index.first
         self.sync()
 
     def set_view(self, view: Sequence[int] | None, keep_row: int | None = None) -> None:
         """Show `view` (index rows, ascending; None for all); the cursor goes to `keep_row` or the nearest."""
         self.view = view
         self._strips.clear()
-        self._count = len(self.index) if view is None else len(view)
+        self._base = self.index.first
+        self._skip = 0 if view is None else bisect_left(view, self.index.first)
+        self._count = self._lines()
         self._update_size()
         target = 0
         if keep_row is not None and self._count:
-            target = self._position_of(keep_row)
+            target = self.position_of(keep_row)
         self.cursor = -1  # always post a Highlighted for the new view
         self.cursor = target if self._count else -1
         self.refresh()
@@ -128,7 +140,7 @@ class PacketList(ScrollView, can_focus=True):
     def sync(self, follow: bool = False) -> None:
         """The index or the view grew: take in the new lines (the cursor goes to the first line if unset;
         with `follow`, a cursor on the last line stays on the last line, as `tail -f`)."""
-        n = len(self.index) if self.view is None else len(self.view)
+        n = self._lines()
         if follow and n and self.cursor == self._count - 1 and n != self._count:
             self._count = n
             self._update_size()
@@ -143,21 +155,40 @@ class PacketList(ScrollView, can_focus=True):
         elif self.cursor >= 0:
             self.refresh()
 
-    def shift(self, dropped: int) -> None:
-        """The index dropped its `dropped` oldest rows: every row number moved down by that much."""
-        self._strips.clear()
-        was_last = self.cursor == self._count - 1
-        self._count = len(self.index) if self.view is None else len(self.view)
-        self._update_size()
-        if self.view is None and self.cursor >= 0:
-            self.cursor = self._count - 1 if was_last else max(0, self.cursor - dropped)
-        self.refresh()
+    @property
+    def stale(self) -> bool:
+        """The index dropped rows that this list still shows as lines (see `drop_lines`)."""
+        return self.index.first != self._base if self.view is None else bool(
+            len(self.view) > self._skip and self.view[self._skip] < self.index.first)
 
-    def _position_of(self, row: int) -> int:
+    def drop_lines(self) -> None:
+        """Take out the lines of the rows the bounded index dropped: the cursor stays on its frame, on
+        the first line if that frame went, or on the last line if it was there (following)."""
+        old_row = self.cursor_row
+        was_last = self.cursor == self._count - 1
+        first = self.index.first
         if self.view is None:
-            return min(row, self._count - 1)
-        view = self.view
-        return min(bisect_left(view, row), len(view) - 1)
+            self._base = first
+        else:
+            self._skip = bisect_left(self.view, first, self._skip)
+        self._count = self._lines()
+        self._update_size()
+        self.refresh()
+        if not self._count:
+            self.cursor = -1
+            return
+        if self.cursor < 0:
+            return
+        target = self._count - 1 if was_last or old_row is None else self.position_of(old_row)
+        if target == self.cursor and self.cursor_row != old_row:
+            self.post_message(self.Highlighted(self.cursor_row))  # same line, another frame
+        self.cursor = target
+
+    def position_of(self, row: int) -> int:
+        """The line of `row`, or of the next row shown (the last line if none)."""
+        if self.view is None:
+            return max(0, min(row - self._base, self._count - 1))
+        return max(0, min(bisect_left(self.view, row, self._skip) - self._skip, self._count - 1))
 
     def _update_size(self) -> None:
         self.virtual_size = Size(self.size.width, self._count + 1)
@@ -246,7 +277,10 @@ class PacketList(ScrollView, can_focus=True):
         key = (row, width, state)
         strip = self._strips.get(key)
         if strip is None:
-            strip = self._render_row(row, width, state, base)
+            try:
+                strip = self._render_row(row, width, state, base)
+            except IndexError:  # the bounded live index dropped this row: drop_lines comes next
+                return Strip.blank(width, base)
             self._strips[key] = strip
             if len(self._strips) > 512:
                 self._strips.popitem(last=False)
