@@ -40,11 +40,11 @@ def test_live_follow_mode_shows_frames_as_they_arrive_and_drops_the_oldest() -> 
             await pilot.press("end")  # on the last line: the list follows new frames
             for d in datagrams[10:]:
                 tx.sendto(d, ("127.0.0.1", port))
-            await wait_for(pilot, lambda: app.index.first > 0 and app.index.first + len(app.index) >= 1300)
-            await pilot.pause(0.3)
-            assert len(app.index) <= 1000  # bounded
-            assert app.packet_list.cursor == app.packet_list.count - 1  # still following
-            assert app.tree.detail is not None
+            pl = app.packet_list
+            await wait_for(pilot, lambda: app.index.end >= 1300 and not pl.stale and pl.count == len(app.index)
+                           and app.tree.detail is not None and app.tree.detail.frame == app.index.frame(app.index.end - 1))
+            assert app.index.first > 0 and len(app.index) <= 1000  # bounded
+            assert pl.cursor == pl.count - 1  # still following: the newest frame is selected
             tx.close()
             await pilot.press("k")
             assert app.add_key("key", "passphrase:x").startswith("live capture")
