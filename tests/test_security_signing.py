@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import hashlib
+import threading
 from pathlib import Path
 
 import pytest
 
+from mavscope.capture.base import LINKTYPE_MAVLINK_TLOG, Record
+from mavscope.dissect import Anomaly, Dissector
 from mavscope.security.keys import QGC_SALT, SigningKey, build_material
+from mavscope.security.stage import SecurityStage
 from tests.security_helpers import (
     EPOCH_2026,
     PASSPHRASE,
@@ -154,3 +158,30 @@ def test_key_specs() -> None:
             build_material([bad])
     with pytest.raises(UsageError, match="twice"):
         build_material(["a=passphrase:1", "a=passphrase:2"])
+
+
+def test_keys_handed_to_a_running_stage_apply_from_the_next_frame(dialect) -> None:  # type: ignore[no-untyped-def]
+    """Live capture adds keys from another thread: the stage takes them between two frames and its
+    replay state carries on (the last frame is the third sent again: a replay)."""
+    mav = signer(SHA_KEY)
+    raws = [heartbeat(mav), command_long(mav), heartbeat(mav), command_long(mav)]
+    raws.append(raws[2])
+    records = [Record(n, 1_773_482_400.0 + n, LINKTYPE_MAVLINK_TLOG, raw, 8, len(raw))
+               for n, raw in enumerate(raws, 1)]
+    dissected = [f for f in Dissector(dialect).run(records) if type(f) is not Anomaly]
+    stage = SecurityStage()
+    material = build_material([f"live={'passphrase:' + PASSPHRASE}"])
+
+    def feed():  # type: ignore[no-untyped-def]
+        for n, frame in enumerate(dissected):
+            if n == 2:  # the UI thread hands over a key while the stage runs
+                t = threading.Thread(target=stage.add_material, args=(material,))
+                t.start()
+                t.join()
+            yield frame
+
+    got = [(f.security.signature_status.value, f.security.key) if f.security else None for f in stage.run(feed())]
+    assert got == [None, None, ("valid", "live"), ("valid", "live"), ("replay", "live")]
+    stage.add_material(material)  # the same key again: taken, and nothing changes
+    assert len(list(stage.run(dissected[:1]))) == 1
+    assert stage._incoming == [] and len(stage.verifier.keys) == 1

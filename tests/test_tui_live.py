@@ -10,7 +10,10 @@ from mavscope.commands.tui import parse_options
 from mavscope.transport.decap import Decapsulator
 from mavscope.tui.app import FilterProgress, IndexProgress, create_app
 from mavscope.tui.widgets.packet_list import PacketList
-from tests.tui_helpers import CAPTURES, SIZE, run, wait_for
+from mavscope.mavlink.frame import SignatureStatus
+from mavscope.tui.screens.keys import KeyDialog
+from tests.security_helpers import PASSPHRASE, SHA_KEY, command_long, heartbeat, signer
+from tests.tui_helpers import CAPTURES, SIZE, run, type_text, wait_for
 
 
 def _payloads(n: int) -> list[bytes]:
@@ -46,8 +49,6 @@ def test_live_follow_mode_shows_frames_as_they_arrive_and_drops_the_oldest() -> 
             assert app.index.first > 0 and len(app.index) <= 1000  # bounded
             assert pl.cursor == pl.count - 1  # still following: the newest frame is selected
             tx.close()
-            await pilot.press("k")
-            assert app.add_key("key", "passphrase:x").startswith("live capture")
         assert app.source.udp.stopping
 
     run(scenario())
@@ -129,5 +130,41 @@ def test_worker_messages_arriving_while_the_app_exits_are_ignored() -> None:
             flt = app.display_filter
         app.on_index_progress(IndexProgress(app.index, app.index.progress))
         app.on_filter_progress(FilterProgress(flt, array("I"), 0, 0, True))
+
+    run(scenario())
+
+
+def test_a_key_added_while_live_checks_the_frames_that_follow() -> None:
+    """`k` in follow mode: the running security stage takes the key; frames already shown keep their
+    verdicts (no-key), the ones after it verify, and the dialog refuses a bad key with the CLI's message."""
+    async def scenario() -> None:
+        app = create_app(None, parse_options(["--live", "--udp", "127.0.0.1:0"]))
+        async with app.run_test(size=SIZE) as pilot:
+            await wait_for(pilot, lambda: app.source.udp is not None and app.source.udp.sock is not None)
+            port = app.source.udp.bound.port
+            mav = signer(SHA_KEY)
+            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
+                for _ in range(3):
+                    tx.sendto(heartbeat(mav), ("127.0.0.1", port))
+                await wait_for(pilot, lambda: app.packet_list.count == 3)
+                await pilot.press("k")
+                assert isinstance(app.screen, KeyDialog)
+                await pilot.click("#kind-2", offset=(6, 0))  # hex
+                await pilot.click("#key-input")
+                await type_text(pilot, "abcd")
+                await pilot.press("enter")
+                await pilot.pause()
+                assert "32 bytes" in str(app.screen.query_one("#key-error").render())
+                await pilot.click("#kind-0", offset=(6, 0))  # passphrase
+                app.screen.query_one("#key-input").value = PASSPHRASE
+                await pilot.press("enter")
+                await wait_for(pilot, lambda: app.screen is app.screen_stack[0])
+                assert "1 signing key" in app.status.keys
+                for _ in range(3):
+                    tx.sendto(command_long(mav), ("127.0.0.1", port))
+                await wait_for(pilot, lambda: app.packet_list.count == 6)
+            verdicts = [app.index.row(n).signature_status for n in app.index.rows()]
+            assert verdicts == [SignatureStatus.NO_KEY] * 3 + [SignatureStatus.VALID] * 3
+            assert app.index.frame(5).security.key == "key1"
 
     run(scenario())

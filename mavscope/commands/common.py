@@ -53,15 +53,19 @@ class Session:
 
 
 def build_pipeline(
-    args: argparse.Namespace, env: Env, dialect: Dialect, records: Iterable[Record]
+    args: argparse.Namespace, env: Env, dialect: Dialect, records: Iterable[Record],
+    security: SecurityStage | None = None,
 ) -> Iterator[Frame | Anomaly]:
     """Frames and anomalies of `records` after every stage the options ask for.
 
     Shared by offline commands (through `capture_session`) and live capture, which feeds records as
-    they arrive. Stages are added here, in data-path order.
+    they arrive (and passes its own `security` stage, to hand it keys while it runs). Stages are
+    added here, in data-path order.
     """
     items: Iterator[Frame | Anomaly] = Dissector(dialect).run(records)
-    items = security_stage(args, env).run(items)  # verdicts the later stages (filters) may test
+    if security is None:
+        security = security_stage(args, env)
+    items = security.run(items)  # verdicts the later stages (filters) may test
     display_filter = getattr(args, "display_filter", None)
     if display_filter:  # the last stage: it may test the verdicts of every stage before it
         items = filter_stage(compile_filter(display_filter, dialect), items)

@@ -15,10 +15,13 @@ Rules (docs/security.md):
   frames after it.
 - MAVSCOPE_KEY_EXCHANGE with `--ecdh-private`: each peer public key opens an epoch whose keys
   verify and decrypt the frames after it.
+- Live capture may hand the stage more keys and ciphers while it runs (`add_material`, from another
+  thread); they apply from the next frame on, with the replay state kept.
 """
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterable, Iterator
 
 from mavscope.dissect import Anomaly
@@ -65,25 +68,53 @@ class SecurityStage:
                                     CipherKey(AES_GCM_DEFAULT_METHOD, "aes-gcm", b"", from_ecdh=True))
         self.ciphers.setdefault(SECUREMAV_TEST_METHOD, CipherKey(SECUREMAV_TEST_METHOD, "xor", SECUREMAV_TEST_XOR))
         self.keystreams: dict[int, FixedKeystream] = {}
-        for method, c in self.ciphers.items():
-            if c.scheme == "xor":
-                self.keystreams[method] = FixedKeystream.xor(c.key)
-            elif c.scheme == "aes-128-ctr":
-                self.keystreams[method] = FixedKeystream.aes_ctr(c.key, c.iv)
+        for c in list(self.ciphers.values()):
+            self._install_cipher(c)
+        self._incoming: list[KeyMaterial] = []  # from add_material, taken by run() between frames
+        self._incoming_lock = threading.Lock()
         self.session_keys: dict[tuple[bytes, int], bytes] = {}
         self.nonces: dict[tuple[bytes, int, int], tuple[int, bytes]] = {}
         self.signed_senders: set[tuple[int, int]] = set()
         self.leaked: list[SigningKey] = []
 
+    def _install_cipher(self, c: CipherKey) -> None:
+        self.ciphers[c.method] = c
+        if c.scheme == "xor":
+            self.keystreams[c.method] = FixedKeystream.xor(c.key)
+        elif c.scheme == "aes-128-ctr":
+            self.keystreams[c.method] = FixedKeystream.aes_ctr(c.key, c.iv)
+        else:
+            self.keystreams.pop(c.method, None)
+
     def add_signing_key(self, key: SigningKey, first: bool = False) -> None:
         self.verifier.add_key(key, first)
         self.check_signatures = True
+
+    def add_material(self, material: KeyMaterial) -> None:
+        """More signing keys and ciphers, from any thread: `run` takes them before its next frame.
+
+        Keys already known (same name and secret) are skipped; a cipher replaces the one of its
+        method. Replay state, signing senders and key-exchange epochs carry on.
+        """
+        with self._incoming_lock:
+            self._incoming.append(material)
+
+    def _take_incoming(self) -> None:
+        with self._incoming_lock:
+            incoming, self._incoming = self._incoming, []
+        for m in incoming:
+            for key in m.signing:
+                self.add_signing_key(key)
+            for c in m.ciphers.values():
+                self._install_cipher(c)
 
     def run(self, items: Iterable[Frame | Anomaly]) -> Iterator[Frame | Anomaly]:
         process = self.process
         senders = self.signed_senders
         special = _SPECIAL
         for item in items:
+            if self._incoming:
+                self._take_incoming()
             # fast path: a plaintext unsigned frame from a sender that never signed, not a key message
             if type(item) is Anomaly or (not item[10] and item[15] not in special  # type: ignore[index]
                                          and (item[13], item[14]) not in senders):  # type: ignore[index]

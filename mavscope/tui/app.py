@@ -14,6 +14,7 @@ import argparse
 import copy
 import io
 import os
+import threading
 import time
 from array import array
 from collections.abc import Callable, Sequence
@@ -31,6 +32,7 @@ from mavscope.cli import Env
 from mavscope.errors import MavscopeError
 from mavscope.index import PROGRESS_EVERY, FrameIndex, Progress
 from mavscope.mavlink.dialect import Dialect, load_dialect
+from mavscope.security.stage import SecurityStage
 from mavscope.tui.widgets.detail_tree import DetailTree
 from mavscope.tui.widgets.filter_bar import FilterBar
 from mavscope.tui.widgets.hex_view import HexView
@@ -111,11 +113,15 @@ class FrameSource:
             err.truncate()
         return text.strip()
 
-    def with_options(self, **changes: object) -> FrameSource:
+    def changed_options(self, **changes: object) -> argparse.Namespace:
+        """A copy of the options with `changes`."""
         opts = copy.copy(self.options)
         for k, v in changes.items():
             setattr(opts, k, v)
-        return FrameSource(self.path, opts, self.dialect, Env(environ=self.env.environ))
+        return opts
+
+    def with_options(self, **changes: object) -> FrameSource:
+        return FrameSource(self.path, self.changed_options(**changes), self.dialect, Env(environ=self.env.environ))
 
 
 class _LiveReader:
@@ -146,9 +152,11 @@ class LiveFrameSource(FrameSource):
         super().__init__(f"udp {listen}", options, dialect, env)
         self.listen = listen
         self.udp = None
+        self.security: SecurityStage | None = None
+        self._keys_lock = threading.Lock()  # the options the stage was built from, and the stage
 
     def open(self):  # type: ignore[no-untyped-def]
-        from mavscope.commands.common import build_pipeline
+        from mavscope.commands.common import build_pipeline, security_stage
         from mavscope.live.udp import UdpSource, parse_endpoint
 
         self.udp = src = UdpSource(parse_endpoint(self.listen, what="--udp"))
@@ -157,7 +165,22 @@ class LiveFrameSource(FrameSource):
         self.path = f"udp {src.bound}"
         reader = _LiveReader(src)
         records = src.records(on_idle=lambda: reader.on_idle())
-        return reader, build_pipeline(self.pipeline_options(), self.env, self.dialect, records), None
+        with self._keys_lock:
+            opts = self.pipeline_options()
+            self.security = security_stage(opts, self.env)
+        return reader, build_pipeline(opts, self.env, self.dialect, records, self.security), None
+
+    def add_keys(self, **changes: object) -> None:
+        """Take the key options `changes` (the whole new --key / --cipher lists): frames from the next
+        one on are checked with them. MavscopeError (nothing changed) when a spec is wrong."""
+        from mavscope.commands.common import security_stage
+
+        opts = self.changed_options(**changes)
+        material = security_stage(opts, self.env).material  # parses every spec, raises if one is wrong
+        with self._keys_lock:
+            self.options = opts
+            if self.security is not None:  # else open() builds the stage from these options
+                self.security.add_material(material)
 
     def stop(self) -> None:
         if self.udp is not None:
@@ -556,9 +579,18 @@ class MavscopeApp(App[None]):
     def add_key(self, kind: str, spec: str) -> str | None:
         """Add a signing key (`kind` "key") or cipher ("cipher") as the command line's --key/--cipher
         would, and re-check the capture with it. Returns an error message, or None when accepted."""
-        if self.source.live:
-            return "live capture: give keys with --key / --cipher when starting (frames are not kept to re-check)"
         current = list(getattr(self.source.options, kind, None) or [])
+        if isinstance(self.source, LiveFrameSource):
+            try:
+                self.source.add_keys(**{kind: current + [spec]})
+            except MavscopeError as exc:
+                return str(exc)
+            self.keys_added.append(kind)
+            self.status.keys = self._keys_text()
+            self.status.update_status()
+            self.notify(f"frames from now on are checked with it; the {len(self.index):,} frames already "
+                        "shown keep their verdicts", title="key added", timeout=8)
+            return None
         source = self.source.with_options(**{kind: current + [spec]})
         try:
             source.check()
