@@ -43,3 +43,9 @@ def test_filter_and_text() -> None:
     assert all(c["from"] != [66, 190] for c in doc["commands"])
     status, out, _ = run("commands", CMDS)
     assert status == 0 and "DENIED" in out and "UNANSWERED" in out and "8 commands, 2 unanswered" in out
+
+
+def test_a_capture_without_commands_says_so_instead_of_an_empty_table() -> None:
+    status, out, _ = run("commands", CMDS, "-Y", "COMMAND_ACK")  # only the ACKs: none has its command
+    assert status == 0 and out.startswith("No COMMAND_LONG or COMMAND_INT in ")
+    assert "0 commands, 0 unanswered, " in out and "ACK MAV_CMD_" in out and "┏" not in out

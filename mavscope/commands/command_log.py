@@ -39,7 +39,10 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                   str(d["command"]).removeprefix("MAV_CMD_"), params,
                   str(d["result"]).removeprefix("MAV_RESULT_") if d["answered"] else "UNANSWERED",
                   fmt(d["latency_ms"], 1), str(d["retries"]))
-    con.print(t)
+    if docs:
+        con.print(t)
+    else:
+        con.print(f"No COMMAND_LONG or COMMAND_INT in {path}.")
     con.print(f"{len(docs)} commands, {unanswered} unanswered, {len(orphans)} ACKs matching no command")
     for o in orphans:
         con.print(f"  frame {o['frame']}: ACK {o['command']} {o['result']} from {o['from'][0]}/{o['from'][1]}")  # type: ignore[index]
