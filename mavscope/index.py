@@ -29,7 +29,7 @@ import os
 import threading
 from array import array
 from collections import OrderedDict
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -275,13 +275,7 @@ class FrameIndex:
             dst = eps[frame.dst] = len(self._endpoints)
             self._endpoints.append(frame.dst)
         sec = frame.security
-        if sec is None:
-            sid = 0
-        else:
-            sid = self._security_ids.get(sec)  # type: ignore[assignment]
-            if sid is None:
-                sid = self._security_ids[sec] = len(self._securities)
-                self._securities.append(sec)
+        sid = 0 if sec is None else self._security_id(sec)
         if frame.notes:
             self._notes[i] = frame.notes
         if frame.span is not None:
@@ -302,6 +296,40 @@ class FrameIndex:
         self._msgid.append(frame.msgid)
         self._security.append(sid)
         self._count = i + 1  # published last: readers only look below _count
+
+    def _security_id(self, sec: Security) -> int:
+        sid = self._security_ids.get(sec)
+        if sid is None:
+            sid = self._security_ids[sec] = len(self._securities)
+            self._securities.append(sec)
+        return sid
+
+    def rejudge(self, judge: Callable[[Iterable[Frame]], Iterable[Frame | Anomaly]],
+                strip: Collection[str]) -> int:
+        """Judge every row held again, oldest first, after the key material changed (live capture):
+        each frame loses its verdicts and the notes whose codes are in `strip`, goes through `judge` (a
+        security stage's `run`, one frame out per frame in), and takes what comes out. Call it from
+        the thread that adds rows. Returns the number of rows judged."""
+        rows = self.rows()
+
+        def bare() -> Iterator[Frame]:
+            for n in rows:
+                f = self.frame(n)
+                yield f._replace(security=None, notes=tuple(x for x in f.notes if x.code not in strip))
+
+        done = 0
+        for n, f in zip(rows, judge(bare())):
+            sid = 0 if f.security is None else self._security_id(f.security)  # type: ignore[union-attr]
+            with self.lock:
+                i = self._position(n)
+                self._security[i] = sid
+                if f.notes:  # type: ignore[union-attr]
+                    self._notes[i] = f.notes  # type: ignore[union-attr]
+                else:
+                    self._notes.pop(i, None)
+            done += 1
+        self._details.clear()
+        return done
 
     def trim(self, n: int) -> None:
         """Drop the oldest `n` rows (their numbers are not reused: `first` moves up by `n`)."""

@@ -10,7 +10,8 @@ import pytest
 
 from mavscope.capture.base import LINKTYPE_MAVLINK_TLOG, Record
 from mavscope.dissect import Anomaly, Dissector
-from mavscope.security.keys import QGC_SALT, SigningKey, build_material
+from mavscope.mavlink.frame import Frame
+from mavscope.security.keys import QGC_SALT, KeyMaterial, SigningKey, build_material
 from mavscope.security.stage import SecurityStage
 from tests.security_helpers import (
     EPOCH_2026,
@@ -160,9 +161,10 @@ def test_key_specs() -> None:
         build_material(["a=passphrase:1", "a=passphrase:2"])
 
 
-def test_keys_handed_to_a_running_stage_apply_from_the_next_frame(dialect) -> None:  # type: ignore[no-untyped-def]
-    """Live capture adds keys from another thread: the stage takes them between two frames and its
-    replay state carries on (the last frame is the third sent again: a replay)."""
+def test_key_material_handed_to_a_running_stage_is_taken_between_two_frames(dialect) -> None:  # type: ignore[no-untyped-def]
+    """Live capture hands new keys over from another thread: the stage takes them before its next
+    frame, on its own thread, where `then` judges the frames so far again (rebuilding the replay
+    state), so that the last frame, the third sent again, is a replay."""
     mav = signer(SHA_KEY)
     raws = [heartbeat(mav), command_long(mav), heartbeat(mav), command_long(mav)]
     raws.append(raws[2])
@@ -171,17 +173,29 @@ def test_keys_handed_to_a_running_stage_apply_from_the_next_frame(dialect) -> No
     dissected = [f for f in Dissector(dialect).run(records) if type(f) is not Anomaly]
     stage = SecurityStage()
     material = build_material([f"live={'passphrase:' + PASSPHRASE}"])
+    seen: list[Frame] = []
+    again: list[tuple[str, list[Frame]]] = []
+
+    def then(s: SecurityStage) -> None:
+        again.append((threading.current_thread().name, list(s.run(f._replace(security=None) for f in seen))))
 
     def feed():  # type: ignore[no-untyped-def]
         for n, frame in enumerate(dissected):
-            if n == 2:  # the UI thread hands over a key while the stage runs
-                t = threading.Thread(target=stage.add_material, args=(material,))
+            if n == 2:  # the UI thread hands the key over while the stage runs
+                t = threading.Thread(target=stage.replace_material, args=(material, then))
                 t.start()
                 t.join()
             yield frame
 
-    got = [(f.security.signature_status.value, f.security.key) if f.security else None for f in stage.run(feed())]
-    assert got == [None, None, ("valid", "live"), ("valid", "live"), ("replay", "live")]
-    stage.add_material(material)  # the same key again: taken, and nothing changes
-    assert len(list(stage.run(dissected[:1]))) == 1
-    assert stage._incoming == [] and len(stage.verifier.keys) == 1
+    def verdicts(frames: list[Frame]) -> list[tuple[str, str | None] | None]:
+        return [(f.security.signature_status.value, f.security.key) if f.security else None for f in frames]
+
+    for f in stage.run(feed()):
+        seen.append(f)
+    valid = ("valid", "live")
+    assert verdicts(seen) == [None, None, valid, valid, ("replay", "live")]
+    assert len(again) == 1 and again[0][0] == threading.current_thread().name  # on the stage's thread
+    assert verdicts(again[0][1]) == [valid, valid]  # the two frames before the key, judged again
+    stage.replace_material(KeyMaterial())  # no keys: starts over, nothing verifies any more
+    assert verdicts(list(stage.run(dissected[:1]))) == [None]
+    assert stage._incoming == [] and stage.verifier.keys == []

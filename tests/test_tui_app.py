@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from array import array
+
 import pytest
 
 from mavscope.commands.tui import parse_options
 from mavscope.errors import CaptureError, UsageError
 from mavscope.mavlink.frame import CrcStatus, SignatureStatus
-from mavscope.tui.app import MavscopeApp, create_app
+from mavscope.tui.app import FilterProgress, MavscopeApp, create_app
 from mavscope.tui.screens.expert import ExpertScreen
 from mavscope.tui.screens.help import HelpScreen
 from mavscope.tui.screens.keys import KeyDialog
@@ -314,5 +316,25 @@ def test_damaged_capture_rows_carry_their_verdicts() -> None:
             crc = next(n for n in app.tree.root.children if n.data.name == "mavlink.crc")
             assert "[bad, should be 0x" in str(crc.label)
             assert "ff5f5f" in str(crc.label.style) or any("ff5f5f" in str(s.style) for s in crc.label.spans)
+
+    run(scenario())
+
+
+def test_a_superseded_filter_runs_late_message_does_not_replace_the_view() -> None:
+    """The same filter started again (after a key, or rows judged again) while its first run still had
+    a message in flight: that message belongs to the cancelled run and is ignored."""
+    async def scenario() -> None:
+        app = create_app(CAPTURES / "px4_sitl_udp.pcap")
+        async with app.run_test(size=SIZE) as pilot:
+            await ready(pilot)
+            app.apply_filter("HEARTBEAT")
+            await wait_for(pilot, lambda: app.status.filtering is None and app.packet_list.view is not None)
+            shown = app.packet_list.count
+            assert shown > 0
+            flt = app.display_filter
+            app._start_filter(flt, keep_row=None)
+            app.post_message(FilterProgress(flt, array("I"), 0, 1, False))  # the first run, late
+            await wait_for(pilot, lambda: app.status.filtering is None)
+            assert app.packet_list.count == shown
 
     run(scenario())

@@ -12,6 +12,7 @@ from mavscope.commands.common import build_pipeline
 from mavscope.commands.tui import parse_options
 from mavscope.dissect import Anomaly, Dissector
 from mavscope.index import FrameIndex, FrameSequence
+from mavscope.mavlink.frame import SignatureStatus
 from mavscope.cli import Env
 from mavscope.tui.app import create_app
 from tests.tui_helpers import CAPTURES, SIZE, run, wait_for, write_big_capture
@@ -143,3 +144,39 @@ def test_large_capture_first_rows_before_the_index_completes(tmp_path: Path, dia
     t = time.perf_counter()
     run(scenario())
     assert time.perf_counter() - t < 60
+
+
+def test_rejudge_replaces_verdicts_and_the_stages_notes_without_doubling_them(dialect) -> None:  # type: ignore[no-untyped-def]
+    """What a key added during live capture does to the rows held: verdicts from the new stage; the
+    notes the old stage added are replaced (an injected unsigned frame keeps exactly one note)."""
+    from mavscope.capture.base import LINKTYPE_MAVLINK_TLOG, Record
+    from mavscope.security.keys import build_material
+    from mavscope.security.stage import NOTE_CODES, SecurityStage
+    from tests.security_helpers import PASSPHRASE, SHA_KEY, command_long, heartbeat, signer
+
+    raws = [heartbeat(signer(SHA_KEY)), command_long(signer(None))]
+    raws.append(raws[0])  # sent again
+    records = [Record(n, 1_773_482_400.0 + n, LINKTYPE_MAVLINK_TLOG, raw, 8, len(raw)) for n, raw in enumerate(raws, 1)]
+    index = FrameIndex(dialect)
+    index.build(SecurityStage().run(Dissector(dialect).run(records)))
+    before = [(index.row(n).signature_status, [x.code for x in index.frame(n).notes]) for n in index.rows()]
+    assert before[0][0] is before[2][0] is SignatureStatus.NO_KEY
+    assert before[1] == (None, ["unsigned-in-signed-stream"])  # key-free: the sender signed before
+    index.detail(2)  # cached with the old verdict
+    stage = SecurityStage(build_material([f"passphrase:{PASSPHRASE}"]))
+    assert index.rejudge(stage.run, NOTE_CODES) == 3
+    after = [(index.row(n).signature_status, [x.code for x in index.frame(n).notes]) for n in index.rows()]
+    assert after == [(SignatureStatus.VALID, []), (None, ["unsigned-in-signed-stream"]),
+                     (SignatureStatus.REPLAY, [])]
+    assert index.detail(2).frame.security.signature_status is SignatureStatus.REPLAY  # not the cached one
+
+
+def test_note_codes_lists_every_note_the_security_layer_adds() -> None:
+    """FrameIndex.rejudge strips exactly these before judging a frame again."""
+    import re
+
+    from mavscope.security.stage import NOTE_CODES
+
+    root = Path(__file__).resolve().parents[1] / "mavscope" / "security"
+    codes = {m for p in root.glob("*.py") for m in re.findall(r'\bnote\(\s*"([a-z-]+)"', p.read_text())}
+    assert codes == NOTE_CODES

@@ -134,19 +134,26 @@ def test_worker_messages_arriving_while_the_app_exits_are_ignored() -> None:
     run(scenario())
 
 
-def test_a_key_added_while_live_checks_the_frames_that_follow() -> None:
-    """`k` in follow mode: the running security stage takes the key; frames already shown keep their
-    verdicts (no-key), the ones after it verify, and the dialog refuses a bad key with the CLI's message."""
+def test_a_key_added_while_live_judges_the_kept_frames_again_and_those_that_follow() -> None:
+    """`k` in follow mode: the capture thread takes the key between two frames, judges the frames the
+    index holds again (verdicts update on screen) and checks the ones after with the state that built;
+    the dialog refuses a bad key with the command line's message."""
     async def scenario() -> None:
         app = create_app(None, parse_options(["--live", "--udp", "127.0.0.1:0"]))
         async with app.run_test(size=SIZE) as pilot:
             await wait_for(pilot, lambda: app.source.udp is not None and app.source.udp.sock is not None)
             port = app.source.udp.bound.port
             mav = signer(SHA_KEY)
+            first = heartbeat(mav)
             with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
-                for _ in range(3):
+                tx.sendto(first, ("127.0.0.1", port))
+                for _ in range(2):
                     tx.sendto(heartbeat(mav), ("127.0.0.1", port))
-                await wait_for(pilot, lambda: app.packet_list.count == 3)
+                await wait_for(pilot, lambda: app.packet_list.count == 3 and app.tree.detail is not None)
+                assert app.index.row(0).signature_status is SignatureStatus.NO_KEY
+                app.apply_filter("signature.status == valid")
+                await wait_for(pilot, lambda: app.packet_list.view is not None)
+                assert app.packet_list.count == 0
                 await pilot.press("k")
                 assert isinstance(app.screen, KeyDialog)
                 await pilot.click("#kind-2", offset=(6, 0))  # hex
@@ -158,13 +165,22 @@ def test_a_key_added_while_live_checks_the_frames_that_follow() -> None:
                 await pilot.click("#kind-0", offset=(6, 0))  # passphrase
                 app.screen.query_one("#key-input").value = PASSPHRASE
                 await pilot.press("enter")
-                await wait_for(pilot, lambda: app.screen is app.screen_stack[0])
+                # no traffic now: the capture thread takes the key while idle
+                await wait_for(pilot, lambda: app.screen is app.screen_stack[0] and not app.status.activity)
                 assert "1 signing key" in app.status.keys
-                for _ in range(3):
+                assert [app.index.row(n).signature_status for n in app.index.rows()] == [SignatureStatus.VALID] * 3
+                await wait_for(pilot, lambda: app.packet_list.count == 3)  # the filter ran again
+                app.apply_filter("")
+                await wait_for(pilot, lambda: app.packet_list.view is None and app.tree.detail is not None)
+                sig = next(n for n in app.tree.root.children if n.data.name == "signature")
+                status = next(n for n in sig.children if n.data.name == "signature.status")
+                assert str(status.label).startswith("Status: valid (key key1)")  # the open frame's tree too
+                for _ in range(2):
                     tx.sendto(command_long(mav), ("127.0.0.1", port))
+                tx.sendto(first, ("127.0.0.1", port))  # an old frame again
                 await wait_for(pilot, lambda: app.packet_list.count == 6)
             verdicts = [app.index.row(n).signature_status for n in app.index.rows()]
-            assert verdicts == [SignatureStatus.NO_KEY] * 3 + [SignatureStatus.VALID] * 3
-            assert app.index.frame(5).security.key == "key1"
+            assert verdicts == [SignatureStatus.VALID] * 5 + [SignatureStatus.REPLAY]
+            assert app.index.frame(4).security.key == "key1"
 
     run(scenario())

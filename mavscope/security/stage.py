@@ -15,14 +15,15 @@ Rules (docs/security.md):
   frames after it.
 - MAVSCOPE_KEY_EXCHANGE with `--ecdh-private`: each peer public key opens an epoch whose keys
   verify and decrypt the frames after it.
-- Live capture may hand the stage more keys and ciphers while it runs (`add_material`, from another
-  thread); they apply from the next frame on, with the replay state kept.
+- Live capture may hand the stage new key material while it runs (`replace_material`, from another
+  thread); the stage starts over with it between two frames, after the frames seen so far are judged
+  again. NOTE_CODES are the notes this stage adds (what a second judgement replaces).
 """
 
 from __future__ import annotations
 
 import threading
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 
 from mavscope.dissect import Anomaly
 from mavscope.mavlink.frame import (
@@ -51,14 +52,22 @@ RADIO_STATUS = 109
 _TRUNCATED = CrcStatus.TRUNCATED
 _OK = CrcStatus.OK
 _SPECIAL = frozenset({SETUP_SIGNING, KEY_EXCHANGE_MSGID})
+NOTE_CODES = frozenset({"signature-skew", "unsigned-in-signed-stream", "key-leak", "key-exchange", "nonce-reuse"})
 
 
 class SecurityStage:
     """One instance per capture: it keeps the replay state, the senders seen signing, the epochs."""
 
     def __init__(self, material: KeyMaterial | None = None) -> None:
-        self.material = material or KeyMaterial()
-        m = self.material
+        self.signed_senders: set[tuple[int, int]] = set()  # one set for good: run() holds it
+        self._incoming: list[tuple[KeyMaterial, Callable[[SecurityStage], None] | None]] = []
+        self._incoming_lock = threading.Lock()
+        self._taking = False
+        self._setup(material or KeyMaterial())
+
+    def _setup(self, material: KeyMaterial) -> None:
+        """Start over with `material`: keys, ciphers, and empty replay, sender and epoch state."""
+        self.material = m = material
         self.verifier = SignatureVerifier(m.signing)
         self.check_signatures = m.has_signing_material
         self.kex = KeyExchangeTracker(m.ecdh_private)
@@ -68,45 +77,43 @@ class SecurityStage:
                                     CipherKey(AES_GCM_DEFAULT_METHOD, "aes-gcm", b"", from_ecdh=True))
         self.ciphers.setdefault(SECUREMAV_TEST_METHOD, CipherKey(SECUREMAV_TEST_METHOD, "xor", SECUREMAV_TEST_XOR))
         self.keystreams: dict[int, FixedKeystream] = {}
-        for c in list(self.ciphers.values()):
-            self._install_cipher(c)
-        self._incoming: list[KeyMaterial] = []  # from add_material, taken by run() between frames
-        self._incoming_lock = threading.Lock()
+        for method, c in self.ciphers.items():
+            if c.scheme == "xor":
+                self.keystreams[method] = FixedKeystream.xor(c.key)
+            elif c.scheme == "aes-128-ctr":
+                self.keystreams[method] = FixedKeystream.aes_ctr(c.key, c.iv)
         self.session_keys: dict[tuple[bytes, int], bytes] = {}
         self.nonces: dict[tuple[bytes, int, int], tuple[int, bytes]] = {}
-        self.signed_senders: set[tuple[int, int]] = set()
+        self.signed_senders.clear()
         self.leaked: list[SigningKey] = []
-
-    def _install_cipher(self, c: CipherKey) -> None:
-        self.ciphers[c.method] = c
-        if c.scheme == "xor":
-            self.keystreams[c.method] = FixedKeystream.xor(c.key)
-        elif c.scheme == "aes-128-ctr":
-            self.keystreams[c.method] = FixedKeystream.aes_ctr(c.key, c.iv)
-        else:
-            self.keystreams.pop(c.method, None)
 
     def add_signing_key(self, key: SigningKey, first: bool = False) -> None:
         self.verifier.add_key(key, first)
         self.check_signatures = True
 
-    def add_material(self, material: KeyMaterial) -> None:
-        """More signing keys and ciphers, from any thread: `run` takes them before its next frame.
-
-        Keys already known (same name and secret) are skipped; a cipher replaces the one of its
-        method. Replay state, signing senders and key-exchange epochs carry on.
-        """
+    def replace_material(self, material: KeyMaterial,
+                         then: Callable[[SecurityStage], None] | None = None) -> None:
+        """New key material, from any thread (live capture): the stage's own thread takes it between
+        two frames (`run` before its next item, or `take_material` while no frame comes), starts over
+        with it, and calls `then(stage)` there, before the next frame: the place to judge again the
+        frames seen so far (see `FrameIndex.rejudge`), which also rebuilds the replay state."""
         with self._incoming_lock:
-            self._incoming.append(material)
+            self._incoming.append((material, then))
 
-    def _take_incoming(self) -> None:
+    def take_material(self) -> None:
+        """Apply what `replace_material` handed over (call from the thread that runs the stage)."""
+        if not self._incoming or self._taking:
+            return
         with self._incoming_lock:
             incoming, self._incoming = self._incoming, []
-        for m in incoming:
-            for key in m.signing:
-                self.add_signing_key(key)
-            for c in m.ciphers.values():
-                self._install_cipher(c)
+        self._taking = True  # `then` runs frames through this stage: not again from inside it
+        try:
+            for material, then in incoming:
+                self._setup(material)
+                if then is not None:
+                    then(self)
+        finally:
+            self._taking = False
 
     def run(self, items: Iterable[Frame | Anomaly]) -> Iterator[Frame | Anomaly]:
         process = self.process
@@ -114,7 +121,7 @@ class SecurityStage:
         special = _SPECIAL
         for item in items:
             if self._incoming:
-                self._take_incoming()
+                self.take_material()
             # fast path: a plaintext unsigned frame from a sender that never signed, not a key message
             if type(item) is Anomaly or (not item[10] and item[15] not in special  # type: ignore[index]
                                          and (item[13], item[14]) not in senders):  # type: ignore[index]

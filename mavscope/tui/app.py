@@ -64,6 +64,15 @@ class FilterProgress(Message):
         self.finished = finished
 
 
+class Rejudged(Message):
+    """Live capture: the capture thread judged the `count` frames `index` held again with new keys."""
+
+    def __init__(self, index: FrameIndex, count: int) -> None:
+        super().__init__()
+        self.index = index
+        self.count = count
+
+
 class FrameSource:
     """How the app gets its frames: the capture file and the command-line options (no Textual here).
 
@@ -170,17 +179,27 @@ class LiveFrameSource(FrameSource):
             self.security = security_stage(opts, self.env)
         return reader, build_pipeline(opts, self.env, self.dialect, records, self.security), None
 
-    def add_keys(self, **changes: object) -> None:
-        """Take the key options `changes` (the whole new --key / --cipher lists): frames from the next
-        one on are checked with them. MavscopeError (nothing changed) when a spec is wrong."""
+    def add_keys(self, index: FrameIndex, on_done: Callable[[int], None], **changes: object) -> None:
+        """Take the key options `changes` (the whole new --key / --cipher lists). The capture thread
+        hands them to the running security stage between two frames, judges the frames `index` holds
+        again, and calls `on_done(frames judged)`; the frames after are checked with them too.
+        MavscopeError (nothing changed) when a spec is wrong."""
         from mavscope.commands.common import security_stage
+        from mavscope.security.stage import NOTE_CODES
 
         opts = self.changed_options(**changes)
         material = security_stage(opts, self.env).material  # parses every spec, raises if one is wrong
         with self._keys_lock:
             self.options = opts
-            if self.security is not None:  # else open() builds the stage from these options
-                self.security.add_material(material)
+            if self.security is None:  # not capturing yet: open() builds the stage from these options
+                on_done(0)
+                return
+            self.security.replace_material(material, lambda stage: on_done(index.rejudge(stage.run, NOTE_CODES)))
+
+    def take_keys(self) -> None:
+        """On the capture thread while no frame comes: apply keys handed over meanwhile."""
+        if self.security is not None:
+            self.security.take_material()
 
     def stop(self) -> None:
         if self.udp is not None:
@@ -219,6 +238,9 @@ class MavscopeApp(App[None]):
         self.index = index
         self.pending: FrameIndex | None = None  # an index being rebuilt with new keys
         self.display_filter: DisplayFilter | None = None
+        self._filter_rows: array | None = None  # the rows the current filter run fills
+        self._filter_view_set = False
+        self._keep_row: int | None = None
         self.keys_added: list[str] = []
         self.first_rows_at: float | None = None  # seconds from mount to the first rows (measured)
         self.indexed_at: float | None = None  # seconds from mount to the complete index
@@ -292,9 +314,10 @@ class MavscopeApp(App[None]):
             if source.live:
                 last = [0.0]
 
-                def idle() -> None:  # no traffic: show what came, stop when the app goes
+                def idle() -> None:  # no traffic: take new keys, show what came, stop when the app goes
                     if worker.is_cancelled:
                         source.stop()  # type: ignore[attr-defined]
+                    source.take_keys()  # type: ignore[attr-defined]
                     now = time.monotonic()
                     if now - last[0] > 0.2:
                         last[0] = now
@@ -337,6 +360,20 @@ class MavscopeApp(App[None]):
             self.packet_list.sync(follow=self.source.live)
         self.status.update_status()
 
+    def on_rejudged(self, msg: Rejudged) -> None:
+        if self._torn_down() or msg.index is not self.index:
+            return
+        self.status.activity = ""
+        self.status.update_status()
+        self.packet_list.redraw()
+        row = self.packet_list.cursor_row
+        if self.display_filter is not None:  # it may test the verdicts that changed
+            self._start_filter(self.display_filter, keep_row=row)
+        elif row is not None:
+            self.on_packet_list_highlighted(PacketList.Highlighted(row))
+        self.notify(f"{msg.count:,} frames checked again; the frames that follow are checked with it too",
+                    title="key added", timeout=6)
+
     def _report_messages(self) -> None:
         text = self.source.messages()
         if text:
@@ -361,6 +398,8 @@ class MavscopeApp(App[None]):
     # --- selection ----------------------------------------------------------------------------
 
     def on_packet_list_highlighted(self, msg: PacketList.Highlighted) -> None:
+        if self._torn_down():
+            return
         if msg.row is None:
             self.tree.show(None)
             self.hex.show(b"")
@@ -469,15 +508,16 @@ class MavscopeApp(App[None]):
     def _start_filter(self, flt: DisplayFilter, keep_row: int | None) -> None:
         self._keep_row = keep_row
         self._filter_view_set = False
+        self._filter_rows = rows = array("I")  # names this run: a cancelled run's late messages are ignored
         self.status.shown = 0
         self.status.filtering = 0.0
         self.status.update_status()
-        self.run_filter(flt, self.index)
+        self.run_filter(flt, self.index, rows)
 
     @work(thread=True, group="filter", exclusive=True, exit_on_error=False)
-    def run_filter(self, flt: DisplayFilter, index: FrameIndex) -> None:
+    def run_filter(self, flt: DisplayFilter, index: FrameIndex, rows: array) -> None:
+        """Fill `rows` with the rows `flt` matches (following a live index as it grows)."""
         worker = get_current_worker()
-        rows = array("I")
         matches = flt.matches
         frame = index.frame
         start = done = index.first  # row numbers: a bounded live index drops rows but never renumbers
@@ -508,7 +548,7 @@ class MavscopeApp(App[None]):
         self.post_message(FilterProgress(flt, rows, done - start, done - start, True))
 
     def on_filter_progress(self, msg: FilterProgress) -> None:
-        if msg.flt is not self.display_filter or self._torn_down():
+        if msg.flt is not self.display_filter or msg.rows is not self._filter_rows or self._torn_down():
             return
         pl = self.packet_list
         if not self._filter_view_set:
@@ -581,15 +621,16 @@ class MavscopeApp(App[None]):
         would, and re-check the capture with it. Returns an error message, or None when accepted."""
         current = list(getattr(self.source.options, kind, None) or [])
         if isinstance(self.source, LiveFrameSource):
+            index = self.index
             try:
-                self.source.add_keys(**{kind: current + [spec]})
+                self.source.add_keys(index, lambda n: self.post_message(Rejudged(index, n)),
+                                     **{kind: current + [spec]})
             except MavscopeError as exc:
                 return str(exc)
             self.keys_added.append(kind)
             self.status.keys = self._keys_text()
+            self.status.activity = "re-checking with the new key"
             self.status.update_status()
-            self.notify(f"frames from now on are checked with it; the {len(self.index):,} frames already "
-                        "shown keep their verdicts", title="key added", timeout=8)
             return None
         source = self.source.with_options(**{kind: current + [spec]})
         try:

@@ -118,9 +118,14 @@ class PacketList(ScrollView, can_focus=True):
     def set_index(self, index: FrameIndex) -> None:
         """Show another index of the same capture (after a key was added): same rows, new verdicts."""
         self.index = index
-        self._strips.clear()
         self._base = index.first
+        self.redraw()
         self.sync()
+
+    def redraw(self) -> None:
+        """The rows' verdicts changed (judged again with new keys): draw every line anew."""
+        self._strips.clear()
+        self.refresh()
 
     def set_view(self, view: Sequence[int] | None, keep_row: int | None = None) -> None:
         """Show `view` (index rows, ascending; None for all); the cursor goes to `keep_row` or the nearest."""
