@@ -306,9 +306,11 @@ def table(runs: list[dict[str, object]]) -> list[str]:
             "| CPU us/frame | CPU load | peak RSS MB | held |",
             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
     for r in runs:
+        catch_up = r["catch_up_s"] if r["catch_up_s"] is not None else "-"
+        held = "yes" if r["held"] else "no"
         rows.append(f"| {r['label']} | {int(r['rate']):,} | {r['seconds']} | {r['sent']:,} | {r['received']:,} "
-                    f"| {r['queue_drops']} | {r['kernel_drops']} | {r['catch_up_s'] if r['catch_up_s'] is not None else '-'} "
-                    f"| {r['cpu_us_per_frame']} | {r['cpu_load']} | {r['peak_rss_mb']} | {'yes' if r['held'] else 'no'} |")
+                    f"| {r['queue_drops']} | {r['kernel_drops']} | {catch_up} "
+                    f"| {r['cpu_us_per_frame']} | {r['cpu_load']} | {r['peak_rss_mb']} | {held} |")
     return rows
 
 
@@ -335,7 +337,8 @@ def report(args: argparse.Namespace, main_runs: list[dict[str, object]], steps: 
         lines += ["", f"### Step-up, {label} ({args.step_seconds:g} s per rate): highest rate held "
                       f"**{best:,} frames/s**", "", *table(runs)]
     if breakdown_rows:
-        lines += ["", "### Where the time goes (each step alone, one thread, in-process; the pipeline row includes the dissector)", "",
+        lines += ["", "### Where the time goes (each step alone, one thread, in-process; "
+                  "the pipeline row includes the dissector)", "",
                   *breakdown_rows]
     lines += ["", "\"held\": every frame sent is in the output, no queue or kernel drop, and the output "
                   "caught up within 1 s of the sender stopping (a growing backlog means the rate is not "

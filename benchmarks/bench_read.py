@@ -32,7 +32,6 @@ import shutil
 import struct
 import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -146,7 +145,6 @@ def generate(path: Path, frames: int, seed: int = 20240501) -> dict:
         mav.signing.link_id = 1
         mav.signing.timestamp = 280_000_000_000  # fixed: 2023-11-14 in 10 us units since 2015
         mav.signing.sign_outgoing = True
-    ends = {"V": VEHICLE, "G": GCS}
     rec = struct.Struct("<IIII")
     eth = struct.Struct("!6s6sH")
     ip = struct.Struct("!BBHHHBBH4s4s")
@@ -362,7 +360,8 @@ def stages(path: Path) -> tuple[list[tuple[str, float, int]], float, int]:
 
     rows = []
     frames = 0
-    for name, fn, rep in (("pcap records (open_capture)", records, 3), ("+ decapsulation (Decapsulator.feed)", decap, 3),
+    for name, fn, rep in (("pcap records (open_capture)", records, 3),
+                          ("+ decapsulation (Decapsulator.feed)", decap, 3),
                           ("+ framing, CRC, Frame (Dissector.run)", framing, 3),
                           ("+ JSON (jsonl_bytes), no write", to_json, 2),
                           ("+ summary (summary_line) instead of JSON", to_summary, 2)):
@@ -612,7 +611,8 @@ def main() -> int:
     L.append(f"Command: `{' '.join(['benchmarks/bench_read.py'] + sys.argv[1:])}`  ")
     L.append(f"Machine: {machine()}  ")
     L.append(f"Date: {datetime.date.today().isoformat()}; whole run {time.perf_counter() - t_start:.0f} s; "
-             f"children run with PYTHONUNBUFFERED unset (it was {'set' if 'PYTHONUNBUFFERED' in os.environ else 'unset'} "
+             "children run with PYTHONUNBUFFERED unset "
+             f"(it was {'set' if 'PYTHONUNBUFFERED' in os.environ else 'unset'} "
              "in the calling shell)")
     L.append("")
     L.append(f"Capture: {N:,} MAVLink frames in {truth['datagrams']:,} Ethernet/IPv4/UDP datagrams "
@@ -641,7 +641,8 @@ def main() -> int:
         for what, dt, n in slice_rows:
             L.append(f"| {what} | {dt:.2f} | {fmt_rate(n, dt)} |")
         L.append("")
-    L.append(f"### Where the time goes: cumulative layers in one process (dialect load {t_dialect:.2f} s, not included)")
+    L.append("### Where the time goes: cumulative layers in one process "
+             f"(dialect load {t_dialect:.2f} s, not included)")
     L.append("")
     L.append("| stage | seconds | items | frames/s |")
     L.append("|---|---:|---:|---:|")

@@ -20,7 +20,9 @@ from mavscope import __version__
 from mavscope.errors import MavscopeError, UsageError
 
 # Subcommand modules, in the order `mavscope --help` lists them.
-COMMAND_MODULES: tuple[str, ...] = ("read", "live", "stats", "mission", "command_log", "timeline", "tui", "verify", "audit")
+COMMAND_MODULES: tuple[str, ...] = (
+    "read", "live", "stats", "mission", "command_log", "timeline", "tui", "verify", "audit",
+)
 
 
 class ExitStatus(IntEnum):

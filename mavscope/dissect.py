@@ -9,8 +9,6 @@ from __future__ import annotations
 from collections.abc import Hashable, Iterable, Iterator
 from dataclasses import dataclass
 
-_new = tuple.__new__
-
 from mavscope.capture.base import Record
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import SIGNATURE_LEN, STX_V2, Frame, Signature
@@ -27,6 +25,8 @@ from mavscope.mavlink.framing import (
 from mavscope.notes import Note
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, Payload
 from mavscope.transport.decap import Decapsulator
+
+_new = tuple.__new__
 
 # Ports MAVLink uses by convention (DOMAIN.md). Datagrams on them are taken for MAVLink even when no
 # frame in them has a valid CRC; on any other port, a valid frame must have been seen first.

@@ -24,10 +24,10 @@ complete and never change. No Textual here: the TUI drives `build` from a worker
 from __future__ import annotations
 
 import mmap
-from bisect import bisect_left
 import os
 import threading
 from array import array
+from bisect import bisect_left
 from collections import OrderedDict
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from dataclasses import dataclass

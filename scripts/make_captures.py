@@ -671,8 +671,9 @@ def noise_packets(t_us: int, rng: Random) -> list[Pkt]:
     # DNS query "px4.io A" by hand: header (id, RD, one question), name, QTYPE A, QCLASS IN.
     dns = struct.pack(">HHHHHH", rng.randint(0, 65_535), 0x0100, 1, 0, 0, 0) + b"\x03px4\x02io\x00" \
         + struct.pack(">HH", 1, 1)
-    query = Ether(src=ZERO_MAC, dst=ZERO_MAC) / IP(src=LOOPBACK_V4, dst="127.0.0.53", id=rng.randint(1, 65_535),
-                                                   flags="DF", ttl=64) / UDP(sport=rng.randint(32_768, 60_999), dport=53)
+    query = (Ether(src=ZERO_MAC, dst=ZERO_MAC)
+             / IP(src=LOOPBACK_V4, dst="127.0.0.53", id=rng.randint(1, 65_535), flags="DF", ttl=64)
+             / UDP(sport=rng.randint(32_768, 60_999), dport=53))
     return [_wrap(arp, b"", t_us), _wrap(query, dns, t_us + 40_000)]
 
 
@@ -954,8 +955,9 @@ def damaged(outdir: Path) -> tuple[dict[str, Any], list[DamageCase]]:
         for i in (i for i in junk_at if payload[i] in (0xFD, 0xFE)):
             # a stray start byte must not begin a complete frame: its claimed length runs past the end
             assert i + 2 >= len(payload) or i + payload[i + 1] + (12 if payload[i] == 0xFD else 8) > len(payload)
-        udp = Ether(src=ZERO_MAC, dst=ZERO_MAC) / IP(src=LOOPBACK_V4, dst=LOOPBACK_V4, id=31_000 + len(pkts),
-                                                     flags="DF", ttl=64) / UDP(sport=VEHICLE_UDP_PORT, dport=GCS_UDP_PORT)
+        udp = (Ether(src=ZERO_MAC, dst=ZERO_MAC)
+               / IP(src=LOOPBACK_V4, dst=LOOPBACK_V4, id=31_000 + len(pkts), flags="DF", ttl=64)
+               / UDP(sport=VEHICLE_UDP_PORT, dport=GCS_UDP_PORT))
         pkt = _wrap(udp, payload, now(), frames, frame_offsets=offsets,
                     cuts=cuts,
                     skipped=sum(len(p.data) for p in parts if isinstance(p, Junk)))
@@ -1530,6 +1532,7 @@ def render_security_captures(expected: dict[str, Any]) -> str:
     kx = expected["key_exchange_udp.pcap"]["truth"]
     epochs = "\n".join(f"| {e['key_id']} | {e['exchange_s']} | `{e['vehicle_private']}` | `{e['signing_key']}` | "
                        f"`{e['aes_gcm_key']}` |" for e in kx["epochs"])
+    aes_cipher = f"{sm['aes_method']}=aes-128-ctr:hex:{sm['aes_key']}"
     return f"""
 ## Security captures (`mavscope verify`, `audit`, `read --key/--cipher/--ecdh-private`; docs/security.md)
 
@@ -1540,7 +1543,7 @@ for every frame: {sm['encrypted_vehicle_frames']} frames); GCS heartbeats use Se
 {VEHICLE_LINK_ID}) over the ciphertext, as SecureMAV computes CRC and signature after encrypting. The plaintext
 frames of the first seconds are known plaintext for `mavscope audit` (keystream-reuse):
 
-    mavscope read captures/securemav_udp.pcap --key passphrase:{SIGNING_PASSPHRASE} --cipher {sm['aes_method']}=aes-128-ctr:hex:{sm['aes_key']}
+    mavscope read captures/securemav_udp.pcap --key passphrase:{SIGNING_PASSPHRASE} --cipher {aes_cipher}
     mavscope audit captures/securemav_udp.pcap
 
 `key_exchange_udp.pcap`: MAVSCOPE_KEY_EXCHANGE (id 65100, X25519) between the GCS (static key) and the
@@ -1574,7 +1577,8 @@ def dump_expected(expected: dict[str, Any]) -> str:
             comma = "," if i < len(items) - 1 else ""
             if key.startswith("frame_") or key == "cases":
                 inner = ",\n".join(f"      {json.dumps(v)}" for v in value)
-                lines.append(f"    {json.dumps(key)}: [\n{inner}\n    ]{comma}" if value else f"    {json.dumps(key)}: []{comma}")
+                body = f"[\n{inner}\n    ]" if value else "[]"
+                lines.append(f"    {json.dumps(key)}: {body}{comma}")
             else:
                 lines.append(f"    {json.dumps(key)}: {json.dumps(value)}{comma}")
         lines.append("  }" + ("," if n < len(expected) - 1 else ""))

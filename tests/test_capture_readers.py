@@ -188,7 +188,8 @@ def test_pcapng_two_interfaces_different_linktypes_and_resolutions(tmp_path: Pat
     assert recs[0].time == pytest.approx(T0 + 0.25)
     assert recs[1].time == pytest.approx(T0 + 1e-9, abs=1e-6)
     assert recs[2].time == pytest.approx(1000 + 5.5)
-    assert recs[0].offset == len(shb(e)) + len(idb(1, e=e)) * 1 + len(idb(101, 9, e=e)) + len(idb(113, 0x8A, 1000, e=e)) + 28
+    idbs = len(idb(1, e=e)) + len(idb(101, 9, e=e)) + len(idb(113, 0x8A, 1000, e=e))
+    assert recs[0].offset == len(shb(e)) + idbs + 28
 
 
 def test_pcapng_sections_reset_interfaces_and_byte_order(tmp_path: Path) -> None:

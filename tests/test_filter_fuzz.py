@@ -1,14 +1,32 @@
-"""Property tests: the filter parser and compiler raise nothing but FilterError, whatever the input."""
+"""Property tests: the filter parser and compiler raise nothing but FilterError, whatever the input, and
+a filter that compiles evaluates to a bool on any frame."""
 
 from __future__ import annotations
+
+from functools import cache
 
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from mavscope.analysis.filter import FilterError, compile_filter
+from mavscope.capture.detect import open_capture
+from mavscope.dissect import Dissector
 from mavscope.mavlink.dialect import Dialect, load_dialect
+from mavscope.mavlink.frame import Frame
+from tests.conftest import CAPTURES
 
 DIALECT: Dialect = load_dialect()
+
+
+@cache
+def sample_frames() -> tuple[Frame, ...]:
+    """A few frames of every kind the captures hold: clean, damaged, signed, TCP, tlog."""
+    out: list[Frame] = []
+    for name in ("px4_sitl_udp.pcap", "damaged.pcap", "signed_udp.pcap", "px4_sitl_tcp.pcap", "px4_sitl.tlog"):
+        with open_capture(CAPTURES / name) as reader:
+            frames = [f for f in Dissector(DIALECT).run(reader) if isinstance(f, Frame)]
+        out.extend(frames[:: max(1, len(frames) // 40)])
+    return tuple(out)
 
 PIECES = st.sampled_from([
     "mavlink.sysid", "mavlink_proto.msgid", "HEARTBEAT", "COMMAND_LONG.command", "command", "x", "ip.src",
@@ -25,6 +43,9 @@ def check(text: str) -> None:
     except FilterError as exc:
         assert 0 <= exc.position <= len(text)
         assert str(exc).startswith("filter error: ")
+        return
+    for frame in sample_frames():
+        assert flt.matches(frame) in (True, False)
 
 
 @settings(max_examples=400, deadline=None, suppress_health_check=[HealthCheck.too_slow])

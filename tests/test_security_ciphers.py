@@ -47,7 +47,8 @@ def test_securemav_xor_method_7_decrypts_without_options(tmp_path: Path) -> None
     assert all(r["crc_status"] == "ok" for r in rows)
     assert [r["encryption"] for r in rows] == [{"method": 7, "scheme": "xor", "status": "decrypted"}] * 3
     assert [r["fields"]["time_boot_ms"] for r in rows] == [1000, 1001, 1002]
-    assert rows[0]["fields"]["roll"] == 0.125 and rows[0]["fields"]["yawspeed"] == struct.unpack("<f", struct.pack("<f", -0.03))[0]
+    yawspeed = struct.unpack("<f", struct.pack("<f", -0.03))[0]
+    assert rows[0]["fields"]["roll"] == 0.125 and rows[0]["fields"]["yawspeed"] == yawspeed
 
 
 def ctr_encrypt(key: bytes):  # type: ignore[no-untyped-def]

@@ -106,7 +106,8 @@ def test_audit_summaries_of_commands_capture() -> None:
 def test_output_validates_against_the_schema() -> None:
     truth = json.loads((CAPTURES / "expected.json").read_text())
     kx, sm = truth["key_exchange_udp.pcap"]["truth"], truth["securemav_udp.pcap"]["truth"]
-    runs = [(SIGNED, "--key", DEMO), (SECUREMAV, "--key", DEMO), (SECUREMAV, "--cipher", f"2=aes-128-ctr:hex:{sm['aes_key']}"),
+    runs = [(SIGNED, "--key", DEMO), (SECUREMAV, "--key", DEMO),
+            (SECUREMAV, "--cipher", f"2=aes-128-ctr:hex:{sm['aes_key']}"),
             (str(CAPTURES / "key_exchange_udp.pcap"), "--ecdh-private", f"hex:{kx['gcs_private']}"),
             (str(CAPTURES / "key_exchange_udp.pcap"),)]
     validator = jsonschema.Draft202012Validator(SCHEMA)

@@ -50,7 +50,7 @@ def test_retransmission_dropped_with_note() -> None:
 
 def test_partial_overlap_is_trimmed_and_offset_moves() -> None:
     r = TcpReassembler()
-    out = feed(r, 0, b"abcdef")
+    assert stream(feed(r, 0, b"abcdef")) == b"abcdef"
     more = feed(r, 4, b"efghij", record=2, offset=500)
     assert stream(more) == b"ghij" and more[0].offset == 502 and codes(more) == ["tcp-retransmission"]
 

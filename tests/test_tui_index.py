@@ -8,12 +8,12 @@ from pathlib import Path
 import pytest
 
 from mavscope.capture.detect import open_capture
+from mavscope.cli import Env
 from mavscope.commands.common import build_pipeline
 from mavscope.commands.tui import parse_options
 from mavscope.dissect import Anomaly, Dissector
 from mavscope.index import FrameIndex, FrameSequence
 from mavscope.mavlink.frame import SignatureStatus
-from mavscope.cli import Env
 from mavscope.tui.app import create_app
 from tests.tui_helpers import CAPTURES, SIZE, run, wait_for, write_big_capture
 

@@ -7,11 +7,11 @@ from array import array
 
 from mavscope.capture.detect import open_capture
 from mavscope.commands.tui import parse_options
+from mavscope.mavlink.frame import SignatureStatus
 from mavscope.transport.decap import Decapsulator
 from mavscope.tui.app import FilterProgress, IndexProgress, create_app
-from mavscope.tui.widgets.packet_list import PacketList
-from mavscope.mavlink.frame import SignatureStatus
 from mavscope.tui.screens.keys import KeyDialog
+from mavscope.tui.widgets.packet_list import PacketList
 from tests.security_helpers import PASSPHRASE, SHA_KEY, command_long, heartbeat, signer
 from tests.tui_helpers import CAPTURES, SIZE, run, type_text, wait_for
 
@@ -45,7 +45,8 @@ def test_live_follow_mode_shows_frames_as_they_arrive_and_drops_the_oldest() -> 
                 tx.sendto(d, ("127.0.0.1", port))
             pl = app.packet_list
             await wait_for(pilot, lambda: app.index.end >= 1300 and not pl.stale and pl.count == len(app.index)
-                           and app.tree.detail is not None and app.tree.detail.frame == app.index.frame(app.index.end - 1))
+                           and app.tree.detail is not None
+                           and app.tree.detail.frame == app.index.frame(app.index.end - 1))
             assert app.index.first > 0 and len(app.index) <= 1000  # bounded
             assert pl.cursor == pl.count - 1  # still following: the newest frame is selected
             tx.close()

@@ -49,8 +49,9 @@ def bad_crc_bursts(frames: Sequence[Frame], dialect: Dialect) -> list[Finding]:
         if len(run) >= BURST_MIN:
             span = (run[-1].time - run[0].time) if run[0].time is not None and run[-1].time is not None else None
             when = f" within {span:.3f} s" if span is not None else ""
+            links = ", ".join(sorted({_link(f) for f in run}))
             out.append(Finding("bad-crc-burst", Severity.WARN,
-                               f"{len(run)} frames with a bad CRC{when} (links {', '.join(sorted({_link(f) for f in run}))})",
+                               f"{len(run)} frames with a bad CRC{when} (links {links})",
                                _frames([f.record for f in run])))
 
     for f in frames:
@@ -183,7 +184,8 @@ def replayed_commands(frames: Sequence[Frame], dialect: Dialect) -> list[Finding
         sec = f.security
         if sec is not None and sec.signature_status is SignatureStatus.REPLAY:
             out.append(Finding("replayed-command", Severity.ERROR,
-                               f"{f.msgname or f.msgid} from {_link(f)}: signature replay ({sec.reason or 'old timestamp'})",
+                               f"{f.msgname or f.msgid} from {_link(f)}: "
+                               f"signature replay ({sec.reason or 'old timestamp'})",
                                (f.record,)))
             continue
         md = f.msgdef

@@ -138,8 +138,8 @@ class TlogReader(CaptureReader):
                                              "frame bytes: file cut short", pos),)
                             yield make_record(n, ts / 1e6, LT, buf[pos + 8:size], pos + 8, end - pos - 8, pending)
                             return
-                        pending += (note("capture-garbage", f"broken tlog entry at offset {pos}: {q - pos} bytes skipped",
-                                         pos),)
+                        pending += (note("capture-garbage",
+                                         f"broken tlog entry at offset {pos}: {q - pos} bytes skipped", pos),)
                         pos = q
                         continue
                 q = find_entry(buf, size, pos + 1, last_ts)
@@ -153,11 +153,11 @@ class TlogReader(CaptureReader):
                         t = ts / 1e6 if TS_MIN <= ts < TS_MAX else None
                         yield make_record(n, t, LT, buf[start:size], start, size - start, pending)
                         return
-                    pending += (note("capture-garbage",
-                                     f"broken tlog entry at offset {pos}; no later entry found, {size - pos} bytes skipped",
-                                     pos),)
+                    pending += (note("capture-garbage", f"broken tlog entry at offset {pos}; "
+                                     f"no later entry found, {size - pos} bytes skipped", pos),)
                     break
-                pending += (note("capture-garbage", f"broken tlog entry at offset {pos}: {q - pos} bytes skipped", pos),)
+                pending += (note("capture-garbage",
+                                 f"broken tlog entry at offset {pos}: {q - pos} bytes skipped", pos),)
                 pos = q
             self.position = size
             if pending:

@@ -82,7 +82,8 @@ class SniffSource(LiveSource):
         except (Scapy_Exception, ValueError, ImportError) as e:
             if self.bpf and "libpcap" in str(e):
                 raise MavscopeError(f"live --sniff {self.iface}: --bpf needs libpcap to compile the filter "
-                                    "(Debian: apt-get install libpcap0.8); without --bpf no library is needed") from None
+                                    "(Debian: apt-get install libpcap0.8); without --bpf no library is needed"
+                                    ) from None
             raise MavscopeError(f"live --sniff {self.iface}: {e}") from None
         finally:
             quiet.setLevel(level)

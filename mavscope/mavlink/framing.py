@@ -50,6 +50,9 @@ BAD = CrcStatus.BAD
 UNCHECKED = CrcStatus.UNCHECKED
 TRUNCATED = CrcStatus.TRUNCATED
 
+# a frame StreamFramer.take found: (buf, pos, size, status, crc, offset, span, notes)
+StreamPiece = tuple[bytes, int, int, CrcStatus, int | None, int | None, tuple[int, ...] | None, tuple[Note, ...]]
+
 
 def frame_size(buf: bytes, pos: int) -> int:
     """Total size of the frame whose STX is at `pos` (needs 3 bytes: STX, LEN, INCOMPAT)."""
@@ -287,7 +290,8 @@ def build_frame(
             extra.append(note("unknown-incompat-flags", f"unknown incompat flags 0x{iflags:02x}", offset))
     if md is not None and status is not TRUNCATED:
         if version == 1 and length != md.base_length:
-            extra.append(note("length-mismatch", f"v1 payload of {length} bytes, {md.name} has {md.base_length}", offset))
+            extra.append(note("length-mismatch", f"v1 payload of {length} bytes, {md.name} has {md.base_length}",
+                              offset))
         elif length > md.length and not iflags & IFLAG_ENCRYPTION_MASK:
             extra.append(note("length-mismatch", f"payload of {length} bytes, {md.name} has {md.length}", offset))
     if extra:
@@ -344,7 +348,7 @@ class StreamFramer:
         self.segs.append((len(self.buf), record, offset))
         self.buf = self.buf + data if self.buf else data
 
-    def take(self, final: bool) -> tuple[list[tuple[bytes, int, int, CrcStatus, int | None, int | None, tuple[int, ...] | None, tuple[Note, ...]]], list[Note]]:
+    def take(self, final: bool) -> tuple[list[StreamPiece], list[Note]]:
         """Frames now complete, as (buf, pos, size, status, crc, offset, span, notes), and orphan notes.
 
         With `final` the stream has ended: everything left is decided.

@@ -96,7 +96,9 @@ def format_value(fd: FieldDef, value: object, dialect: Dialect) -> str:
     return f"{text} {units}" if units else text
 
 
-def command_param_label(md: MessageDef, fd: FieldDef, fields: dict[str, object], dialect: Dialect) -> tuple[str, str] | None:
+def command_param_label(
+    md: MessageDef, fd: FieldDef, fields: dict[str, object], dialect: Dialect
+) -> tuple[str, str] | None:
     """(label, units) of param1..7 / x / y / z of a command-carrying message, from MAV_CMD's <param>s."""
     if md.name not in COMMAND_MESSAGES:
         return None
@@ -111,7 +113,9 @@ def command_param_label(md: MessageDef, fd: FieldDef, fields: dict[str, object],
     return None
 
 
-def _payload_value_text(md: MessageDef, fd: FieldDef, value: object, fields: dict[str, object], dialect: Dialect) -> str:
+def _payload_value_text(
+    md: MessageDef, fd: FieldDef, value: object, fields: dict[str, object], dialect: Dialect
+) -> str:
     label = command_param_label(md, fd, fields, dialect)
     if label is not None:
         plabel, punits = label

@@ -94,7 +94,8 @@ def gcm_nonce(payload: bytes) -> GcmNonce:
 def gcm_seal(session_key: bytes, session_id: int, counter: int, header: bytes, plaintext: bytes) -> bytes:
     """The encrypted payload (nonce || ciphertext || tag) for a frame whose header is `header`."""
     if len(plaintext) + GCM_OVERHEAD > MAX_PAYLOAD:
-        raise CipherError(f"aes-gcm plaintext of {len(plaintext)} bytes does not fit (at most {MAX_PAYLOAD - GCM_OVERHEAD})")
+        raise CipherError(f"aes-gcm plaintext of {len(plaintext)} bytes does not fit "
+                          f"(at most {MAX_PAYLOAD - GCM_OVERHEAD})")
     nonce = struct.pack(">IQ", session_id, counter)
     return nonce + AESGCM(session_key).encrypt(nonce, plaintext, bytes(header))
 

@@ -220,7 +220,8 @@ def load_keyring(path: str, material: KeyMaterial, warn: Callable[[str], None]) 
         raise UsageError(f"keyring {path}: [keys] must be a table of NAME = \"SPEC\"")
     for name, spec in keys.items():
         if not isinstance(spec, str) or not _NAME.match(name):
-            raise UsageError(f"keyring {path}: key {name!r}: expected NAME = \"hex:...\" (or base64:, passphrase:, qgc:)")
+            raise UsageError(f"keyring {path}: key {name!r}: "
+                             'expected NAME = "hex:..." (or base64:, passphrase:, qgc:)')
         material.signing.append(SigningKey(name, secret_from_spec(spec, f"keyring {path}: key {name}")))
     ciphers = data.get("ciphers", [])
     if not isinstance(ciphers, list) or not all(isinstance(c, str) for c in ciphers):

@@ -48,7 +48,8 @@ def parse_ipv4(data: bytes, off: int) -> IpResult | str:
         end = min(off + total, n)
     fragment = None
     if frag & 0x3FFF:
-        fragment = f"IPv4 fragment id {ident} at offset {(frag & 0x1FFF) * 8}{' (more follow)' if frag & 0x2000 else ''}"
+        more = " (more follow)" if frag & 0x2000 else ""
+        fragment = f"IPv4 fragment id {ident} at offset {(frag & 0x1FFF) * 8}{more}"
     return proto, src, dst, off + ihl, end, fragment
 
 

@@ -62,7 +62,8 @@ class StatsScreen(AnalysisScreen):
                           crc, sig, ", ".join(lk["endpoints"]))  # type: ignore[arg-type]
         rates = self.query_one("#rates", DataTable)
         duration = stats.duration
-        rates.add_columns("Sys/Comp", "Message", "Count", "Rate", "Bytes", f"Frames per second over {duration or 0:.0f} s")
+        rates.add_columns("Sys/Comp", "Message", "Count", "Rate", "Bytes",
+                          f"Frames per second over {duration or 0:.0f} s")
         for m in stats.messages_json():
             key = (m["sysid"], m["compid"], m["msgname"])
             rate = m["rate_hz"]

@@ -58,9 +58,9 @@ class FilterBar(Widget):
     def compose(self) -> ComposeResult:
         with Horizontal():
             yield Label(PROMPT)
-            yield FilterInput(self._initial, placeholder="display filter, e.g. COMMAND_LONG or mavlink.crc_status == bad "
-                              "(/ to edit, Enter to apply, Escape to leave)", id="filter-input",
-                              select_on_focus=False)
+            yield FilterInput(self._initial, id="filter-input", select_on_focus=False,
+                              placeholder="display filter, e.g. COMMAND_LONG or mavlink.crc_status == bad "
+                                          "(/ to edit, Enter to apply, Escape to leave)")
         yield Static("", id="filter-error")
 
     @property
