@@ -36,6 +36,7 @@ test: $(TSTAMP)
 
 lint: $(TSTAMP)
 	$(BIN)/ruff check mavscope scripts benchmarks tests
+	$(BIN)/mypy
 
 captures: $(TSTAMP)
 	$(BIN)/python scripts/make_captures.py captures

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Hashable, Iterable, Iterator
 from dataclasses import dataclass
+from typing import final
 
 from mavscope.capture.base import Record
 from mavscope.mavlink.dialect import Dialect
@@ -33,6 +34,7 @@ _new = tuple.__new__
 MAVLINK_PORTS = frozenset({14550, 14540, 14555, 14557, 14560, 14580, 18570, 5760, 5761, 5762, 5763})
 
 
+@final  # never subclassed: consumers tell it from a Frame with `type(item) is Anomaly`
 @dataclass(frozen=True, slots=True)
 class Anomaly:
     """Notes that belong to no MAVLink frame (a malformed packet, garbage at the end of a stream)."""
@@ -190,5 +192,8 @@ class Dissector:
 
     def _finish(self, key: Hashable) -> Iterator[Frame | Anomaly]:
         sf = self.streams.pop(key)
-        _, transport, src, dst = sf.key  # type: ignore[misc]
+        transport: str
+        src: str | None
+        dst: str | None
+        _, transport, src, dst = sf.key  # type: ignore[misc]  # the key _stream made: (stream, transport, src, dst)
         yield from self._emit(sf, transport, src, dst, True)

@@ -31,7 +31,7 @@ from bisect import bisect_left
 from collections import OrderedDict
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import NamedTuple, overload
 
 from mavscope.capture.reader import close_mapped, open_mapped
 from mavscope.dissect import Anomaly
@@ -65,7 +65,7 @@ class Row(NamedTuple):
 
     row: int  # the frame's row number (0-based, kept for good: a bounded index drops rows, never renumbers)
     record: int
-    index: int
+    index: int  # type: ignore[assignment]  # shadows tuple.index, as Frame.index does
     time: float | None
     transport: str
     src: str | None
@@ -215,7 +215,7 @@ class FrameIndex:
         *,
         position: Callable[[], int] = lambda: 0,
         total: int = 0,
-        on_progress: Callable[[Progress], None] | None = None,
+        on_progress: Callable[[Progress], object] | None = None,
         cancelled: Callable[[], bool] = lambda: False,
         every: int = PROGRESS_EVERY,
     ) -> Progress:
@@ -232,7 +232,7 @@ class FrameIndex:
             if type(item) is Anomaly:
                 self.anomalies.append(item)
             else:
-                add(item)  # type: ignore[arg-type]
+                add(item)
             n += 1
             if n == first_batch or not n % every:
                 self.progress = Progress(self._count, position(), total, False)
@@ -323,8 +323,8 @@ class FrameIndex:
             with self.lock:
                 i = self._position(n)
                 self._security[i] = sid
-                if f.notes:  # type: ignore[union-attr]
-                    self._notes[i] = f.notes  # type: ignore[union-attr]
+                if f.notes:
+                    self._notes[i] = f.notes
                 else:
                     self._notes.pop(i, None)
             done += 1
@@ -464,8 +464,10 @@ class FrameIndex:
     def column(self, name: str, rows: Iterable[int]) -> list[int | float | None]:
         """One column's values for `rows`, without rebuilding frames (to pick rows out of a whole
         capture); None for rows no longer held. Names: record, time, sysid, compid, seq, msgid, crc."""
-        col = {"record": self._record, "time": self._time, "sysid": self._sysid, "compid": self._compid,
-               "seq": self._seq, "msgid": self._msgid, "crc": self._crc}[name]
+        cols: dict[str, array[int] | array[float]] = {
+            "record": self._record, "time": self._time, "sysid": self._sysid, "compid": self._compid,
+            "seq": self._seq, "msgid": self._msgid, "crc": self._crc}
+        col = cols[name]
         with self.lock:
             first, count = self.first, self._count
             return [col[n - first] if 0 <= n - first < count else None for n in rows]
@@ -494,6 +496,8 @@ class FrameSequence(Sequence[Frame]):
     that a bounded live index dropped after the rows were taken.
     """
 
+    index: FrameIndex  # type: ignore[assignment]  # shadows Sequence.index (public attribute, kept)
+
     def __init__(self, index: FrameIndex, rows: Sequence[int] | None = None,
                  on_frame: Callable[[int], None] | None = None) -> None:
         self.index = index
@@ -503,7 +507,13 @@ class FrameSequence(Sequence[Frame]):
     def __len__(self) -> int:
         return len(self.rows)
 
-    def __getitem__(self, i):  # type: ignore[no-untyped-def, override]
+    @overload
+    def __getitem__(self, i: int) -> Frame: ...
+
+    @overload
+    def __getitem__(self, i: slice) -> FrameSequence: ...
+
+    def __getitem__(self, i: int | slice) -> Frame | FrameSequence:
         if isinstance(i, slice):
             return FrameSequence(self.index, self.rows[i])
         return self.index.frame(self.rows[i])

@@ -80,7 +80,7 @@ def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> tuple[list[Command
                 continue
             names = [n for n in ("param1", "param2", "param3", "param4", "param5", "param6", "param7", "x", "y", "z",
                                  "frame", "confirmation") if n in fields]
-            params = {n: _clean(fields[n]) for n in names}
+            params: dict[str, object] = {n: _clean(fields[n]) for n in names}
             if md.name == "COMMAND_INT" and params.get("frame") in GLOBAL_FRAMES:
                 params["x"] = int(params["x"]) / 1e7  # type: ignore[call-overload]  # degrees
                 params["y"] = int(params["y"]) / 1e7  # type: ignore[call-overload]

@@ -281,8 +281,8 @@ class FieldRegistry:
         if canonical.startswith("mavlink_proto."):
             fd = self._lua_index().get(canonical)
             if fd is not None:
-                md = self.dialect.by_name[fd.message]
-                return PayloadField(fd.filter_name, {md.id: fd})
+                owner = self.dialect.by_name[fd.message]
+                return PayloadField(fd.filter_name, {owner.id: fd})
             return None
         if "." in name:
             msg, _, fname = name.partition(".")

@@ -32,6 +32,7 @@ import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
+from typing import cast
 
 from mavscope.analysis.fields import (
     BYTES,
@@ -328,8 +329,11 @@ Pred = Callable[[Frame, "dict[str, object] | None"], bool]
 Getter = Callable[[Frame, "dict[str, object] | None"], object]
 _NO = object()  # a literal that cannot match this message's field
 
+# typeshed types the ordering operators for comparable values only; here they get any field value and
+# the callers catch the TypeError of a mismatch.
 _CMP: dict[str, Callable[[object, object], bool]] = {
-    "==": operator.eq, "!=": operator.ne, "<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge,
+    "==": operator.eq, "!=": operator.ne,
+    "<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge,  # type: ignore[dict-item]
 }
 
 
@@ -400,7 +404,7 @@ class Compiler:
             return _Side(name, lambda f, _d: get(f), False, frame_field=hit)
         self.needs_payload = True
         defs = hit.defs
-        kinds = {mid: (_field_kind(fd), fd) for mid, fd in defs.items()}
+        kinds: dict[int, tuple[str, FieldDef | None]] = {mid: (_field_kind(fd), fd) for mid, fd in defs.items()}
         return _Side(name, lambda f, d: payload_value(defs, f, d), True, kinds)
 
     # literals -----------------------------------------------------------------------------------
@@ -572,11 +576,13 @@ class Compiler:
     @staticmethod
     def frame_test(getter: Getter, op: str | None, consts: list[object], multi: bool, kind: str) -> Pred:
         match = _matcher(op or "==", consts, kind)
-        if multi:
+        if multi:  # the field's value is a tuple of values
             if op == "!=":
                 eq = _matcher("==", consts, kind)
-                return lambda f, d: (v := getter(f, d)) is not MISSING and not any(eq(x) for x in v)  # type: ignore[union-attr]
-            return lambda f, d: (v := getter(f, d)) is not MISSING and any(match(x) for x in v)  # type: ignore[union-attr]
+                return lambda f, d: ((v := getter(f, d)) is not MISSING
+                                     and not any(eq(x) for x in cast("tuple[object, ...]", v)))
+            return lambda f, d: ((v := getter(f, d)) is not MISSING
+                                 and any(match(x) for x in cast("tuple[object, ...]", v)))
 
         def pred(f: Frame, d: dict[str, object] | None) -> bool:
             v = getter(f, d)
@@ -610,14 +616,14 @@ def _matcher(op: str, consts: list[object], kind: str) -> Callable[[object], boo
     """A test of one field value against the converted literal(s)."""
     if op == "in":
         singles = [c for c in consts if not (isinstance(c, tuple) and c and c[0] == "range")]
-        ranges = [(c[1], c[2]) for c in consts if isinstance(c, tuple) and c and c[0] == "range"]  # type: ignore[index]
+        ranges = [(c[1], c[2]) for c in consts if isinstance(c, tuple) and c and c[0] == "range"]
         eqs = [_matcher("==", [c], kind) for c in singles]
 
         def in_(v: object) -> bool:
             if any(e(v) for e in eqs):
                 return True
             try:
-                return any(lo <= v <= hi for lo, hi in ranges)  # type: ignore[operator]
+                return any(lo <= v <= hi for lo, hi in ranges)
             except TypeError:
                 return False
         return in_
@@ -634,8 +640,8 @@ def _matcher(op: str, consts: list[object], kind: str) -> Callable[[object], boo
     if isinstance(c, (ipaddress.IPv4Network, ipaddress.IPv6Network)):
         net = c
         if op == "==":
-            return lambda v: v in net  # type: ignore[operator]
-        return lambda v: v not in net  # type: ignore[operator]
+            return lambda v: v in net
+        return lambda v: v not in net
     cmp = _CMP[op]
     if isinstance(c, float) and math.isnan(c):
         return lambda v: False

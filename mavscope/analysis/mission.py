@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import cast
 
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
@@ -102,15 +103,16 @@ def _enum_name(dialect: Dialect, enum: str, value: int | None) -> str:
 
 
 def _item(name: str, fields: dict[str, object], record: int) -> Item:
-    frame = int(fields.get("frame", 0))  # type: ignore[arg-type]
-    x, y = fields.get("x", 0), fields.get("y", 0)
+    num = cast("dict[str, float]", fields)  # every MISSION_ITEM(_INT) field is a number (int or float)
+    frame = int(num.get("frame", 0))
+    x, y = num.get("x", 0), num.get("y", 0)
     if name == "MISSION_ITEM_INT":
         scale = 1e7 if frame in GLOBAL_FRAMES else 1e4
-        x, y = int(x) / scale, int(y) / scale  # type: ignore[call-overload]
-    return Item(int(fields["seq"]), int(fields["command"]), frame,  # type: ignore[call-overload]
-                tuple(float(fields[f"param{i}"]) for i in range(1, 5)),  # type: ignore[arg-type]
-                float(x), float(y), float(fields.get("z", 0.0)),  # type: ignore[arg-type]
-                int(fields.get("current", 0)), int(fields.get("autocontinue", 1)), name, [record])  # type: ignore[call-overload]
+        x, y = int(x) / scale, int(y) / scale
+    return Item(int(num["seq"]), int(num["command"]), frame,
+                tuple(float(num[f"param{i}"]) for i in range(1, 5)),  # type: ignore[arg-type]  # 4 params
+                float(x), float(y), float(num.get("z", 0.0)),
+                int(num.get("current", 0)), int(num.get("autocontinue", 1)), name, [record])
 
 
 def _matches(addr: tuple[int, int], sysid: object, compid: object) -> bool:
@@ -122,7 +124,7 @@ def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> list[Transfer]:
     """Every mission transfer of the capture, in the order they started."""
     transfers: list[Transfer] = []
     open_: dict[tuple[tuple[int, int], int], Transfer] = {}  # (sender, mission_type) -> open transfer
-    asked: dict[tuple[tuple[int, int], int], tuple[int, int]] = {}  # (holder sysid/compid?, type) -> asker
+    asked: dict[tuple[int, int], tuple[int, int]] = {}  # (holder sysid, type) -> asker (sysid, compid)
     for f in frames:
         md = f.msgdef
         if md is None or md.name not in MISSION_MESSAGES or f.crc_status is CrcStatus.BAD:
@@ -135,7 +137,7 @@ def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> list[Transfer]:
         mtype = int(fields.get("mission_type", 0) or 0)  # type: ignore[call-overload]
         ts, tc = fields.get("target_system"), fields.get("target_component")
         if name == "MISSION_REQUEST_LIST":
-            asked[((int(ts), mtype))] = me  # type: ignore[index, call-overload]
+            asked[((int(ts), mtype))] = me  # type: ignore[call-overload]
             continue
         if name == "MISSION_COUNT":
             prev = open_.get((me, mtype))
@@ -151,9 +153,9 @@ def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> list[Transfer]:
             receiver = (int(ts), int(tc))  # type: ignore[call-overload]
             if asker is not None and asker[0] == ts:
                 receiver = asker
-            t = Transfer(me, receiver, mtype, count, direction, f.time, [f.record])
-            transfers.append(t)
-            open_[(me, mtype)] = t
+            new = Transfer(me, receiver, mtype, count, direction, f.time, [f.record])
+            transfers.append(new)
+            open_[(me, mtype)] = new
             continue
         if name in ("MISSION_REQUEST", "MISSION_REQUEST_INT"):
             t = _find(open_, ts, tc, mtype, requester=me)
@@ -240,7 +242,7 @@ def to_plan(transfers: list[Transfer], home: tuple[float, float, float] | None =
     def pick(mtype: int) -> Transfer | None:
         cands = [t for t in transfers if t.mission_type == mtype and t.items]
         done = [t for t in cands if t.complete]
-        return (done or cands or [None])[-1]
+        return (done or cands)[-1] if cands else None
 
     mission = pick(0)
     items = []

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import TypedDict
 
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
 
@@ -56,6 +57,14 @@ class RoundTrips:
     frames: list[tuple[int, int]] = field(default_factory=list)
 
 
+class _System(TypedDict):
+    """One system's entry in `Timeline.to_json`."""
+
+    sysid: int
+    clocks: list[dict[str, object]]
+    round_trips: list[dict[str, object]]
+
+
 @dataclass
 class Timeline:
     start: float | None
@@ -64,7 +73,7 @@ class Timeline:
     round_trips: dict[tuple[str, int, int], RoundTrips]
 
     def to_json(self) -> dict[str, object]:
-        systems: dict[int, dict[str, object]] = {}
+        systems: dict[int, _System] = {}
         at = self.start or 0.0
         for (sysid, compid, source), c in sorted(self.clocks.items()):
             if not c.samples:
@@ -77,12 +86,12 @@ class Timeline:
             }
             if c.kind == "boot":
                 entry["zero_at"] = round(-offset, 6)  # capture time at which this clock read zero
-            systems.setdefault(sysid, {"sysid": sysid, "clocks": [], "round_trips": []})["clocks"].append(entry)  # type: ignore[union-attr]
+            systems.setdefault(sysid, {"sysid": sysid, "clocks": [], "round_trips": []})["clocks"].append(entry)
         for (kind, req, resp), rt in sorted(self.round_trips.items()):
             if not rt.rtt_ms:
                 continue
             r = rt.rtt_ms
-            systems.setdefault(req, {"sysid": req, "clocks": [], "round_trips": []})["round_trips"].append({  # type: ignore[union-attr]
+            systems.setdefault(req, {"sysid": req, "clocks": [], "round_trips": []})["round_trips"].append({
                 "kind": kind, "peer": resp, "count": len(r), "min_ms": round(min(r), 3),
                 "mean_ms": round(sum(r) / len(r), 3), "max_ms": round(max(r), 3),
                 "rtt_ms": [round(x, 3) for x in r], "frames": [list(p) for p in rt.frames],

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import mmap
 import re
 import struct
 from collections.abc import Iterator
@@ -21,7 +22,7 @@ _TS = struct.Struct(">Q")
 _STX = re.compile(rb"[\xfd\xfe]")
 
 
-def frame_length(buf: bytes, p: int, size: int) -> int:
+def frame_length(buf: mmap.mmap | bytes, p: int, size: int) -> int:
     """Length of the MAVLink frame whose STX is at `p` (from its header), or -1 if not a frame start or cut."""
     if p + 3 > size:
         return -1
@@ -33,7 +34,7 @@ def frame_length(buf: bytes, p: int, size: int) -> int:
     return -1
 
 
-def entry_end(buf: bytes, p: int, size: int, lo: int = TS_MIN, hi: int = TS_MAX) -> int:
+def entry_end(buf: mmap.mmap | bytes, p: int, size: int, lo: int = TS_MIN, hi: int = TS_MAX) -> int:
     """End offset of a plausible, complete tlog entry at `p` (timestamp in [lo, hi)), or -1."""
     if p < 0 or p + 11 > size:
         return -1
@@ -45,7 +46,7 @@ def entry_end(buf: bytes, p: int, size: int, lo: int = TS_MIN, hi: int = TS_MAX)
     return p + 8 + flen
 
 
-def _followed(buf: bytes, p: int, size: int, lo: int, hi: int) -> bool:
+def _followed(buf: mmap.mmap | bytes, p: int, size: int, lo: int, hi: int) -> bool:
     """Whether an entry ending at `p` is followed by a plausible entry, a cut one at the end, or the end."""
     if size - p < 11:  # the end, or an entry cut inside its header
         return True
@@ -54,7 +55,7 @@ def _followed(buf: bytes, p: int, size: int, lo: int, hi: int) -> bool:
     return entry_end(buf, p, size, lo, hi) >= 0 or p + 8 + frame_length(buf, p + 8, size) > size
 
 
-def find_entry(buf: bytes, size: int, start: int, last_ts: int = -1) -> int:
+def find_entry(buf: mmap.mmap | bytes, size: int, start: int, last_ts: int = -1) -> int:
     """Offset of the next plausible entry at or after `start`, followed by another one (or the end); or -1.
 
     With `last_ts` (µs) the entry's timestamp must lie near it.
@@ -76,7 +77,7 @@ def find_entry(buf: bytes, size: int, start: int, last_ts: int = -1) -> int:
         q += 1
 
 
-def sniff_tlog(buf: bytes, size: int) -> bool:
+def sniff_tlog(buf: mmap.mmap | bytes, size: int) -> bool:
     """Whether the file starts like a tlog: a plausible entry followed by another one (or the end).
 
     A damaged second entry is tolerated when a consistent entry follows within the next 4 KiB.

@@ -33,5 +33,5 @@ def read_frames(args: argparse.Namespace, env: Env) -> tuple[list[Frame], Dialec
             if type(item) is Anomaly:
                 report_anomaly(env, session.path, item)
             else:
-                frames.append(item)  # type: ignore[arg-type]
+                frames.append(item)
         return frames, session.dialect, session.path

@@ -16,7 +16,7 @@ from mavscope.security.audit import audit, parse_known_plaintext, read_wordlist
 RECOVERED_SHOWN = 10
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("audit", help="security audit: key leaks, replays, forgeries, weak passphrases, "
                                      "fixed keystreams",
                        description="Security findings of a capture (docs/security.md). Exit status 1 when a "
@@ -45,7 +45,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
             raise UsageError(f"audit: --wordlist {args.wordlist}: {exc.strerror or exc}") from None
     with capture_session(args, env) as session:
         frames = [item for item in session.items if type(item) is not Anomaly]
-    findings, recoveries = audit(frames, words=words, qgc=args.qgc, known=known)  # type: ignore[arg-type]
+    findings, recoveries = audit(frames, words=words, qgc=args.qgc, known=known)
     status = ExitStatus.FINDINGS if any(f.severity in (Severity.ERROR, Severity.WARN) for f in findings) \
         else ExitStatus.OK
     if args.json:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from typing import cast
 
 from mavscope.analysis.command_log import command_json, reconstruct
 from mavscope.cli import Env, ExitStatus
@@ -10,7 +11,7 @@ from mavscope.commands.analysis_common import add_analysis_options, read_frames
 from mavscope.output.tables import console, fmt, iso, write_json
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("commands", help="commands sent (COMMAND_LONG/INT) with their ACK, latency and retries",
                        description="Every COMMAND_LONG and COMMAND_INT with the COMMAND_ACK that answered it.")
     add_analysis_options(p)
@@ -31,11 +32,14 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     t = Table(title=f"Commands ({path})", title_justify="left")
     for col in ("frame", "time", "from", "to", "command", "parameters", "result", "latency ms", "retries"):
         t.add_column(col, justify="right" if col in ("frame", "latency ms", "retries") else "left")
-    for d in docs:
-        labels = d["param_labels"]
-        params = ", ".join(f"{labels.get(k, k)} {fmt(v, 2)}" for k, v in d["params"].items()  # type: ignore[union-attr]
-                           if k in labels or (v not in (0, 0.0, None) and k != "confirmation"))  # type: ignore[operator]
-        t.add_row(str(d["frames"][0]), iso(d["time"]), "{}/{}".format(*d["from"]), "{}/{}".format(*d["to"]),  # type: ignore[index, arg-type]
+    for d in docs:  # the fields command_json writes, with their types
+        labels = cast("dict[str, str]", d["param_labels"])
+        values = cast("dict[str, object]", d["params"])
+        sender, target = cast("list[int]", d["from"]), cast("list[int]", d["to"])
+        params = ", ".join(f"{labels.get(k, k)} {fmt(v, 2)}" for k, v in values.items()
+                           if k in labels or (v not in (0, 0.0, None) and k != "confirmation"))
+        t.add_row(str(cast("list[int]", d["frames"])[0]), iso(cast("float | None", d["time"])),
+                  "{}/{}".format(*sender), "{}/{}".format(*target),
                   str(d["command"]).removeprefix("MAV_CMD_"), params,
                   str(d["result"]).removeprefix("MAV_RESULT_") if d["answered"] else "UNANSWERED",
                   fmt(d["latency_ms"], 1), str(d["retries"]))

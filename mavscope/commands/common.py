@@ -107,7 +107,7 @@ def filter_stage(flt: DisplayFilter, items: Iterable[Frame | Anomaly]) -> Iterat
     """The frames `flt` matches; anomalies (which belong to no frame) pass through."""
     matches = flt.matches
     for item in items:
-        if type(item) is Anomaly or matches(item):  # type: ignore[arg-type]
+        if type(item) is Anomaly or matches(item):
             yield item
 
 

@@ -28,7 +28,7 @@ from mavscope.mavlink.dialect import load_dialect
 from mavscope.output.printer import FramePrinter
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "live", help="dissect MAVLink live from a UDP port (optionally relaying) or a network interface",
         description="Capture and dissect MAVLink as it arrives. Stop with Ctrl-C (or -c / --duration); "
@@ -125,7 +125,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         raise
     printer = FramePrinter(env, dialect, args.format, verbose=args.verbose, hex=args.hex, quiet=args.quiet)
     writer: LivePcapWriter | None = None
-    restore: list[tuple[int, object]] = []
+    restore: list[tuple[signal.Signals, object]] = []
     timer: threading.Timer | None = None
     shown = 0
     try:

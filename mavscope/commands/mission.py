@@ -14,7 +14,7 @@ from mavscope.mavlink.frame import Frame, decode_payload
 from mavscope.output.tables import console, fmt, iso, write_json
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("mission", help="rebuild mission uploads and downloads; export a QGroundControl .plan",
                        description="Rebuild every mission transfer (MISSION_COUNT, MISSION_REQUEST(_INT), "
                                    "MISSION_ITEM(_INT), MISSION_ACK) in both directions.")

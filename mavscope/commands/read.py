@@ -20,7 +20,7 @@ from mavscope.export import FrameWriter, write_records
 from mavscope.output.printer import FramePrinter
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("read", help="dissect a capture (pcap, pcapng, tlog, raw) like tshark -r",
                        description="Dissect every MAVLink frame of a capture.")
     add_capture_options(p)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from typing import cast
 
 from mavscope.analysis.expert import expert_findings
 from mavscope.analysis.stats import compute_stats
@@ -11,7 +12,7 @@ from mavscope.commands.analysis_common import add_analysis_options, read_frames
 from mavscope.output.tables import console, fmt, iso, sparkline, write_json
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("stats", help="message rates, loss per link, conversations, expert findings",
                        description="Statistics over the MAVLink frames of a capture (after -Y, if given). "
                                    "Loss is counted from sequence gaps per (sysid, compid): filter by link, "
@@ -44,7 +45,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         t.add_column(col, justify=just)  # type: ignore[arg-type]
     for m in stats.messages_json():
         key = (m["sysid"], m["compid"], m["msgname"])
-        line = sparkline(stats.per_second(key)) if key in spark else ""  # type: ignore[arg-type]
+        line = sparkline(stats.per_second(key)) if key in spark else ""
         t.add_row(f"{m['sysid']}/{m['compid']}", str(m["msgname"]), str(m["count"]), fmt(m["rate_hz"], 2),
                   str(m["bytes"]), line)
     con.print(t)
@@ -65,7 +66,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     for c in stats.conversations_json():
         t.add_row(str(c["transport"]), str(c["a"]), str(c["b"]) or "-", str(c["frames"]), str(c["frames_a_to_b"]),
                   str(c["frames_b_to_a"]), str(c["bytes"]), iso(c["start"]), fmt(c["duration"]),  # type: ignore[arg-type]
-                  ", ".join(f"{s}/{k}" for s, k in c["systems"]))  # type: ignore[union-attr]
+                  ", ".join(f"{s}/{k}" for s, k in cast("list[list[int]]", c["systems"])))
     con.print(t)
 
     tot = stats.totals_json()

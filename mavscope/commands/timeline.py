@@ -10,7 +10,7 @@ from mavscope.commands.analysis_common import add_analysis_options, read_frames
 from mavscope.output.tables import console, fmt, iso, write_json
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("timeline", help="clocks per system: capture time vs signatures, SYSTEM_TIME, TIMESYNC, PING",
                        description="Compare every clock a capture reveals with capture time: offset, drift and "
                                    "round-trip times.")

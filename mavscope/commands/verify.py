@@ -16,7 +16,7 @@ from mavscope.mavlink.frame import SignatureStatus
 SHOWN = 20
 
 
-def register(sub: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("verify", help="verify the signatures of a capture; exit 1 on invalid, replayed or "
                                       "injected frames",
                        description="Check every signed frame against the supplied keys (docs/security.md). "

@@ -228,9 +228,9 @@ class UdpSource(LiveSource):
         stopping = self._stopping
         while not stopping.is_set():
             for fd in wait_readable(poller, 1.0):
-                s = by_fd.get(fd)
-                if s is not None:
-                    self._take(s, _BURST)
+                ready = by_fd.get(fd)
+                if ready is not None:
+                    self._take(ready, _BURST)
         if self._drain:
             deadline = time.monotonic() + _FINAL_DRAIN_S
             while any(self._take(s, _BURST) == _BURST for s in socks) and time.monotonic() < deadline:

@@ -98,7 +98,8 @@ class Frame(NamedTuple):
     """
 
     record: int  # capture record number where the frame completed (1-based)
-    index: int  # 1-based position of the frame among the frames completed in that record
+    # index: 1-based position of the frame among the frames completed in that record (shadows tuple.index)
+    index: int  # type: ignore[assignment]
     time: float | None  # capture time of that record
     transport: str  # "udp" | "tcp" | "tlog" | "raw"
     src: str | None

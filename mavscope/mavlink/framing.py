@@ -355,13 +355,13 @@ class StreamFramer:
         """
         buf = self.buf
         if not buf:
-            orphans = self.pending if final else []
+            orphans: list[Note] = self.pending if final else []
             if final:
                 self.pending = []
             return [], orphans
         found, skipped, resume = self.framer.scan(buf, 0, len(buf), final)
         out = []
-        orphans: list[Note] = []
+        orphans = []
         sk = 0
         for pos, size, status, crc in found:
             if status is OK:

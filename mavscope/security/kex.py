@@ -15,7 +15,8 @@ the aes-gcm key is chosen by the nonce's session id, which is the epoch's key id
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from collections.abc import Iterable
+from typing import NamedTuple, cast
 
 from cryptography.hazmat.primitives.asymmetric.x25519 import X25519PrivateKey, X25519PublicKey
 
@@ -65,8 +66,9 @@ class KeyExchangeTracker:
 
     def observe(self, fields: dict[str, object], sysid: int, compid: int, record: int) -> tuple[Epoch | None, str]:
         """Handle one exchange message: (the new epoch or None, a description for the note)."""
-        key_id = int(fields.get("key_id", 0))  # type: ignore[arg-type]
-        pub = bytes(int(b) & 0xFF for b in fields.get("public_key", ()))  # type: ignore[union-attr]
+        key_id = int(cast(int, fields.get("key_id", 0)))  # uint32_t
+        key_bytes = cast("Iterable[int]", fields.get("public_key", ()))  # uint8_t[32]: a list of ints
+        pub = bytes(int(b) & 0xFF for b in key_bytes)
         if len(pub) != 32:
             return None, f"key exchange {key_id}: public key of {len(pub)} bytes"
         if pub in self.own:

@@ -202,7 +202,7 @@ def ecdh_private_from_spec(spec: str, what: str = "--ecdh-private") -> bytes:
     return raw
 
 
-def load_keyring(path: str, material: KeyMaterial, warn: Callable[[str], None]) -> None:
+def load_keyring(path: str, material: KeyMaterial, warn: Callable[[str], object]) -> None:
     """Add the keys, ciphers and ECDH private keys of a TOML keyring to `material`."""
     try:
         st = os.stat(path)
@@ -240,7 +240,7 @@ def load_keyring(path: str, material: KeyMaterial, warn: Callable[[str], None]) 
 
 def build_material(keys: Iterable[str] = (), ciphers: Iterable[str] = (), ecdh_private: Iterable[str] = (),
                    *, use_leaked_keys: bool = False, environ: Mapping[str, str] | None = None,
-                   warn: Callable[[str], None] = lambda _m: None) -> KeyMaterial:
+                   warn: Callable[[str], object] = lambda _m: None) -> KeyMaterial:
     """Key material from command-line specs (and the keyring `MAVSCOPE_KEYRING` names, first)."""
     material = KeyMaterial(use_leaked_keys=use_leaked_keys)
     default_ring = (environ or {}).get(KEYRING_ENV)

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Iterable, Iterator
+from typing import cast
 
 from mavscope.dissect import Anomaly
 from mavscope.mavlink.frame import (
@@ -60,7 +61,7 @@ class SecurityStage:
 
     def __init__(self, material: KeyMaterial | None = None) -> None:
         self.signed_senders: set[tuple[int, int]] = set()  # one set for good: run() holds it
-        self._incoming: list[tuple[KeyMaterial, Callable[[SecurityStage], None] | None]] = []
+        self._incoming: list[tuple[KeyMaterial, Callable[[SecurityStage], object] | None]] = []
         self._incoming_lock = threading.Lock()
         self._taking = False
         self._setup(material or KeyMaterial())
@@ -92,7 +93,7 @@ class SecurityStage:
         self.check_signatures = True
 
     def replace_material(self, material: KeyMaterial,
-                         then: Callable[[SecurityStage], None] | None = None) -> None:
+                         then: Callable[[SecurityStage], object] | None = None) -> None:
         """New key material, from any thread (live capture): the stage's own thread takes it between
         two frames (`run` before its next item, or `take_material` while no frame comes), starts over
         with it, and calls `then(stage)` there, before the next frame: the place to judge again the
@@ -123,11 +124,11 @@ class SecurityStage:
             if self._incoming:
                 self.take_material()
             # fast path: a plaintext unsigned frame from a sender that never signed, not a key message
-            if type(item) is Anomaly or (not item[10] and item[15] not in special  # type: ignore[index]
-                                         and (item[13], item[14]) not in senders):  # type: ignore[index]
+            if type(item) is Anomaly or (not item[10] and item[15] not in special
+                                         and (item[13], item[14]) not in senders):
                 yield item
                 continue
-            yield process(item)  # type: ignore[arg-type]
+            yield process(item)
 
     def process(self, frame: Frame) -> Frame:
         iflags = frame.incompat_flags
@@ -177,7 +178,8 @@ class SecurityStage:
 
     def key_message(self, frame: Frame, fields: dict[str, object], notes: list[Note]) -> None:
         if frame.msgid == SETUP_SIGNING:
-            secret = bytes(int(b) & 0xFF for b in fields.get("secret_key", ()))  # type: ignore[union-attr]
+            key_bytes = cast("Iterable[int]", fields.get("secret_key", ()))  # uint8_t[32]: a list of ints
+            secret = bytes(int(b) & 0xFF for b in key_bytes)
             target = f"{fields.get('target_system')}/{fields.get('target_component')}"
             if not any(secret):
                 notes.append(note("key-leak", f"SETUP_SIGNING to {target} with an all-zero key (signing disabled)",

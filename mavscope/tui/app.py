@@ -179,7 +179,7 @@ class LiveFrameSource(FrameSource):
             self.security = security_stage(opts, self.env)
         return reader, build_pipeline(opts, self.env, self.dialect, records, self.security), None
 
-    def add_keys(self, index: FrameIndex, on_done: Callable[[int], None], **changes: object) -> None:
+    def add_keys(self, index: FrameIndex, on_done: Callable[[int], object], **changes: object) -> None:
         """Take the key options `changes` (the whole new --key / --cipher lists). The capture thread
         hands them to the running security stage between two frames, judges the frames `index` holds
         again, and calls `on_done(frames judged)`; the frames after are checked with them too.
@@ -263,7 +263,7 @@ class MavscopeApp(App[None]):
         return self.query_one(PacketList)
 
     @property
-    def tree(self) -> DetailTree:
+    def tree(self) -> DetailTree:  # type: ignore[override]  # shadows DOMNode.tree (a debug view) on purpose
         return self.query_one(DetailTree)
 
     @property
