@@ -27,12 +27,17 @@ def _payloads(n: int) -> list[bytes]:
     return out[:n]
 
 
+async def bound_port(pilot, app) -> int:  # type: ignore[no-untyped-def]
+    """The UDP port the live app listens on, once its capture thread has bound it."""
+    await wait_for(pilot, lambda: app.source.udp is not None and app.source.udp.sock is not None)
+    return int(app.source.udp.bound.port)
+
+
 def test_live_follow_mode_shows_frames_as_they_arrive_and_drops_the_oldest() -> None:
     async def scenario() -> None:
         app = create_app(None, parse_options(["--live", "--udp", "127.0.0.1:0", "--keep", "1000"]))
         async with app.run_test(size=SIZE) as pilot:
-            await wait_for(pilot, lambda: app.source.udp is not None and app.source.udp.sock is not None)
-            port = app.source.udp.bound.port
+            port = await bound_port(pilot, app)
             tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             datagrams = _payloads(1200)
             for d in datagrams[:10]:
@@ -90,8 +95,7 @@ def test_follow_mode_survives_moving_and_filtering_while_rows_are_dropped() -> N
     async def scenario() -> None:
         app = create_app(None, parse_options(["--live", "--udp", "127.0.0.1:0", "--keep", "120"]))
         async with app.run_test(size=SIZE) as pilot:
-            await wait_for(pilot, lambda: app.source.udp is not None and app.source.udp.sock is not None)
-            port = app.source.udp.bound.port
+            port = await bound_port(pilot, app)
             tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             datagrams = _payloads(1000)
             keys = ["up", "pageup", "down", "end", "home", "pagedown"]
@@ -142,8 +146,7 @@ def test_a_key_added_while_live_judges_the_kept_frames_again_and_those_that_foll
     async def scenario() -> None:
         app = create_app(None, parse_options(["--live", "--udp", "127.0.0.1:0"]))
         async with app.run_test(size=SIZE) as pilot:
-            await wait_for(pilot, lambda: app.source.udp is not None and app.source.udp.sock is not None)
-            port = app.source.udp.bound.port
+            port = await bound_port(pilot, app)
             mav = signer(SHA_KEY)
             first = heartbeat(mav)
             with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as tx:
