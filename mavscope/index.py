@@ -519,13 +519,8 @@ class FrameSequence(Sequence[Frame]):
         return self.index.frame(self.rows[i])
 
     def __iter__(self) -> Iterator[Frame]:
-        frame = self.index.frame
         tick = self.on_frame
-        for n, r in enumerate(self.rows):
+        for n, f in enumerate(self.index.frames(self.rows)):  # skips rows dropped since they were taken
             if tick is not None and not n & 0x3FFF:
                 tick(n)
-            try:
-                f = frame(r)
-            except IndexError:  # dropped by a bounded live index since the rows were taken
-                continue
             yield f

@@ -369,8 +369,8 @@ class MavscopeApp(App[None]):
         row = self.packet_list.cursor_row
         if self.display_filter is not None:  # it may test the verdicts that changed
             self._start_filter(self.display_filter, keep_row=row)
-        elif row is not None:
-            self.on_packet_list_highlighted(PacketList.Highlighted(row))
+        else:
+            self._show_frame(row)
         self.notify(f"{msg.count:,} frames checked again; the frames that follow are checked with it too",
                     title="key added", timeout=6)
 
@@ -398,14 +398,17 @@ class MavscopeApp(App[None]):
     # --- selection ----------------------------------------------------------------------------
 
     def on_packet_list_highlighted(self, msg: PacketList.Highlighted) -> None:
-        if self._torn_down():
-            return
-        if msg.row is None:
+        if not self._torn_down():
+            self._show_frame(msg.row)
+
+    def _show_frame(self, row: int | None) -> None:
+        """Row `row` in the detail tree and hex pane (None: empty them)."""
+        if row is None:
             self.tree.show(None)
             self.hex.show(b"")
             return
         try:
-            detail = self.index.detail(msg.row)
+            detail = self.index.detail(row)
         except IndexError:  # dropped by the bounded live index meanwhile: the list posts the next row
             return
         self.tree.show(detail)
