@@ -5,7 +5,8 @@
 Generates the capture in a temporary directory (px4_sitl_udp.pcap's records repeated), then
 1. builds the FrameIndex alone (no UI): first batch, full build, bytes per frame, RSS;
 2. runs the app headless (Textual's Pilot) and reads `first_rows_at` / `indexed_at` off it;
-3. compares with Textual's DataTable: the time to add 100k rows (why the packet list is a Line API widget).
+3. compares with Textual's DataTable: the time to add 100k rows (why the packet list is a Line API widget);
+4. times FrameIndex.rejudge over the whole index (what a key added in the live TUI costs per kept frame).
 """
 
 from __future__ import annotations
@@ -23,6 +24,8 @@ from mavscope.capture.detect import open_capture  # noqa: E402
 from mavscope.dissect import Dissector  # noqa: E402
 from mavscope.index import FrameIndex  # noqa: E402
 from mavscope.mavlink.dialect import load_dialect  # noqa: E402
+from mavscope.security.keys import build_material  # noqa: E402
+from mavscope.security.stage import NOTE_CODES, SecurityStage  # noqa: E402
 from tests.tui_helpers import write_big_capture  # noqa: E402
 
 
@@ -52,6 +55,12 @@ def bench_index(path: Path) -> None:
     for i in range(0, n, max(1, n // 1000)):
         index.detail(i)
     print(f"detail (frame + decode + tree + summary), 1000 random rows: {(time.perf_counter() - t):.3f} s")
+    stage = SecurityStage(build_material(["passphrase:mavscope-demo"]))
+    t = time.perf_counter()
+    judged = index.rejudge(stage.run, NOTE_CODES)
+    took = time.perf_counter() - t
+    print(f"rejudge (a key added in the live TUI): {judged:,} frames in {took:.2f} s "
+          f"({took / judged * 1e6:.1f} µs/frame)")
     index.close()
 
 
