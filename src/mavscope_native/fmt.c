@@ -1,0 +1,229 @@
+#include "fmt.h"
+
+#include <string.h>
+
+#include "vendor/ryu/ryu_d2d.h"
+
+static const char DIGIT_PAIRS[200] = {
+    '0', '0', '0', '1', '0', '2', '0', '3', '0', '4', '0', '5', '0', '6', '0', '7', '0', '8', '0', '9',
+    '1', '0', '1', '1', '1', '2', '1', '3', '1', '4', '1', '5', '1', '6', '1', '7', '1', '8', '1', '9',
+    '2', '0', '2', '1', '2', '2', '2', '3', '2', '4', '2', '5', '2', '6', '2', '7', '2', '8', '2', '9',
+    '3', '0', '3', '1', '3', '2', '3', '3', '3', '4', '3', '5', '3', '6', '3', '7', '3', '8', '3', '9',
+    '4', '0', '4', '1', '4', '2', '4', '3', '4', '4', '4', '5', '4', '6', '4', '7', '4', '8', '4', '9',
+    '5', '0', '5', '1', '5', '2', '5', '3', '5', '4', '5', '5', '5', '6', '5', '7', '5', '8', '5', '9',
+    '6', '0', '6', '1', '6', '2', '6', '3', '6', '4', '6', '5', '6', '6', '6', '7', '6', '8', '6', '9',
+    '7', '0', '7', '1', '7', '2', '7', '3', '7', '4', '7', '5', '7', '6', '7', '7', '7', '8', '7', '9',
+    '8', '0', '8', '1', '8', '2', '8', '3', '8', '4', '8', '5', '8', '6', '8', '7', '8', '8', '8', '9',
+    '9', '0', '9', '1', '9', '2', '9', '3', '9', '4', '9', '5', '9', '6', '9', '7', '9', '8', '9', '9',
+};
+
+int ms_fmt_u64(uint64_t v, char *out) {
+    char tmp[20];
+    int i = 20;
+    while (v >= 100) {
+        unsigned r = (unsigned)(v % 100);
+        v /= 100;
+        i -= 2;
+        tmp[i] = DIGIT_PAIRS[2 * r];
+        tmp[i + 1] = DIGIT_PAIRS[2 * r + 1];
+    }
+    if (v >= 10) {
+        i -= 2;
+        tmp[i] = DIGIT_PAIRS[2 * v];
+        tmp[i + 1] = DIGIT_PAIRS[2 * v + 1];
+    } else {
+        tmp[--i] = (char)('0' + v);
+    }
+    memcpy(out, tmp + i, (size_t)(20 - i));
+    return 20 - i;
+}
+
+int ms_fmt_i64(int64_t v, char *out) {
+    if (v < 0) {
+        out[0] = '-';
+        /* -(v + 1) + 1 avoids negating INT64_MIN */
+        return 1 + ms_fmt_u64((uint64_t)(-(v + 1)) + 1u, out + 1);
+    }
+    return ms_fmt_u64((uint64_t)v, out);
+}
+
+int ms_fmt_double(double v, char *out) {
+    uint64_t bits;
+    memcpy(&bits, &v, sizeof bits);
+    const int sign = (int)(bits >> 63);
+    const uint64_t mant = bits & ((1ull << DOUBLE_MANTISSA_BITS) - 1);
+    const uint32_t expo = (uint32_t)((bits >> DOUBLE_MANTISSA_BITS) & 0x7FFu);
+    if (expo == 0x7FFu) {
+        memcpy(out, "null", 4);
+        return 4;
+    }
+    char *p = out;
+    if (sign)
+        *p++ = '-';
+    if (expo == 0 && mant == 0) {
+        memcpy(p, "0.0", 3);
+        return sign + 3;
+    }
+    floating_decimal_64 fd = d2d(mant, expo);
+    char digits[20];
+    const int n = ms_fmt_u64(fd.mantissa, digits);
+    const int k = fd.exponent;   /* value = digits * 10^k */
+    const int x = n + k - 1;     /* value = d.ddd * 10^x */
+    if (x >= -5 && x < 16) {
+        if (k >= 0) { /* 1230000.0 */
+            memcpy(p, digits, (size_t)n);
+            p += n;
+            memset(p, '0', (size_t)k);
+            p += k;
+            memcpy(p, ".0", 2);
+            p += 2;
+        } else if (x >= 0) { /* 12.34 */
+            memcpy(p, digits, (size_t)(x + 1));
+            p += x + 1;
+            *p++ = '.';
+            memcpy(p, digits + x + 1, (size_t)(n - x - 1));
+            p += n - x - 1;
+        } else { /* 0.00123 */
+            memcpy(p, "0.", 2);
+            p += 2;
+            memset(p, '0', (size_t)(-x - 1));
+            p += -x - 1;
+            memcpy(p, digits, (size_t)n);
+            p += n;
+        }
+    } else { /* 1.23e+16, 1e-7 */
+        *p++ = digits[0];
+        if (n > 1) {
+            *p++ = '.';
+            memcpy(p, digits + 1, (size_t)(n - 1));
+            p += n - 1;
+        }
+        *p++ = 'e';
+        int e = x;
+        if (e < 0) {
+            *p++ = '-';
+            e = -e;
+        } else {
+            *p++ = '+';
+        }
+        if (e >= 100) {
+            *p++ = (char)('0' + e / 100);
+            e %= 100;
+            *p++ = DIGIT_PAIRS[2 * e];
+            *p++ = DIGIT_PAIRS[2 * e + 1];
+        } else if (e >= 10) {
+            *p++ = DIGIT_PAIRS[2 * e];
+            *p++ = DIGIT_PAIRS[2 * e + 1];
+        } else {
+            *p++ = (char)('0' + e);
+        }
+    }
+    return (int)(p - out);
+}
+
+void ms_put_u64(ms_buf *b, uint64_t v) {
+    char *p = ms_buf_room(b, 20);
+    if (p != NULL)
+        b->len += (size_t)ms_fmt_u64(v, p);
+}
+
+void ms_put_i64(ms_buf *b, int64_t v) {
+    char *p = ms_buf_room(b, 21);
+    if (p != NULL)
+        b->len += (size_t)ms_fmt_i64(v, p);
+}
+
+void ms_put_double(ms_buf *b, double v) {
+    char *p = ms_buf_room(b, MS_DOUBLE_MAX);
+    if (p != NULL)
+        b->len += (size_t)ms_fmt_double(v, p);
+}
+
+/* Length of the valid UTF-8 sequence at s[0..n) (n >= 1, s[0] >= 0x80), or 0 when it is not one.
+ * Python's strict decoder: no overlong forms, no surrogates, nothing above U+10FFFF. */
+static size_t utf8_seq(const uint8_t *s, size_t n) {
+    const uint8_t c = s[0];
+    if (c >= 0xC2 && c <= 0xDF)
+        return (n >= 2 && (s[1] & 0xC0) == 0x80) ? 2 : 0;
+    if (c >= 0xE0 && c <= 0xEF) {
+        if (n < 3)
+            return 0;
+        uint8_t lo = 0x80, hi = 0xBF;
+        if (c == 0xE0)
+            lo = 0xA0;
+        else if (c == 0xED)
+            hi = 0x9F;
+        return (s[1] >= lo && s[1] <= hi && (s[2] & 0xC0) == 0x80) ? 3 : 0;
+    }
+    if (c >= 0xF0 && c <= 0xF4) {
+        if (n < 4)
+            return 0;
+        uint8_t lo = 0x80, hi = 0xBF;
+        if (c == 0xF0)
+            lo = 0x90;
+        else if (c == 0xF4)
+            hi = 0x8F;
+        return (s[1] >= lo && s[1] <= hi && (s[2] & 0xC0) == 0x80 && (s[3] & 0xC0) == 0x80) ? 4 : 0;
+    }
+    return 0;
+}
+
+static const char HEX[16] = {'0', '1', '2', '3', '4', '5', '6', '7', '8', '9', 'a', 'b', 'c', 'd', 'e', 'f'};
+
+void ms_put_text(ms_buf *b, const uint8_t *s, size_t n) {
+    /* worst case 6 output bytes per input byte (\u00XX), plus the quotes */
+    if (n > (SIZE_MAX - 2) / 6) {
+        b->failed = 1;
+        return;
+    }
+    char *p = ms_buf_room(b, 6 * n + 2);
+    if (p == NULL)
+        return;
+    char *const start = p;
+    *p++ = '"';
+    size_t i = 0;
+    while (i < n) {
+        const uint8_t c = s[i];
+        if (c >= 0x80) {
+            size_t k = utf8_seq(s + i, n - i);
+            if (k) {
+                memcpy(p, s + i, k);
+                p += k;
+                i += k;
+            } else { /* backslashreplace gives the 4 characters \xNN; JSON escapes the backslash */
+                p[0] = '\\';
+                p[1] = '\\';
+                p[2] = 'x';
+                p[3] = HEX[c >> 4];
+                p[4] = HEX[c & 15];
+                p += 5;
+                i += 1;
+            }
+            continue;
+        }
+        i += 1;
+        if (c >= 0x20 && c != '"' && c != '\\') {
+            *p++ = (char)c;
+            continue;
+        }
+        *p++ = '\\';
+        switch (c) {
+        case '"': *p++ = '"'; break;
+        case '\\': *p++ = '\\'; break;
+        case '\b': *p++ = 'b'; break;
+        case '\t': *p++ = 't'; break;
+        case '\n': *p++ = 'n'; break;
+        case '\f': *p++ = 'f'; break;
+        case '\r': *p++ = 'r'; break;
+        default:
+            p[0] = 'u';
+            p[1] = '0';
+            p[2] = '0';
+            p[3] = HEX[c >> 4];
+            p[4] = HEX[c & 15];
+            p += 5;
+        }
+    }
+    *p++ = '"';
+    b->len += (size_t)(p - start);
+}

@@ -1,0 +1,423 @@
+/* mavscope._native: the CPython face of the native core (see mavscope/native.py for the Python side).
+ *
+ *   Table(blob: bytes)                  the message layouts, compiled by mavscope.native from a Dialect
+ *   Walker(buffer, kind, table, endpoints: set[str], signed_senders: set[tuple[int, int]])
+ *     .next(signed_nokey: bool, limit: int = 1 << 20) -> list[bytes | tuple] | None
+ *     .last_record() -> tuple[int, float | None, int | None] | None
+ *     .close()
+ *   format_double(x) -> bytes, text_json(b) -> bytes   (the JSON formatting, for the tests)
+ *
+ * The walk itself runs without the GIL; the two Python sets are read before and updated after it. */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+
+#include "buf.h"
+#include "capture.h"
+#include "fmt.h"
+#include "netlayers.h"
+#include "table.h"
+#include "walk.h"
+
+/* ---- Table -------------------------------------------------------------------------------- */
+
+typedef struct {
+    PyObject_HEAD
+    ms_table table;
+    int ok;
+} TableObject;
+
+static void Table_dealloc(TableObject *self) {
+    ms_table_free(&self->table);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static int Table_init(TableObject *self, PyObject *args, PyObject *kwds) {
+    static char *kwlist[] = {"blob", NULL};
+    Py_buffer blob;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "y*", kwlist, &blob))
+        return -1;
+    if (self->ok) {
+        ms_table_free(&self->table);
+        self->ok = 0;
+    }
+    int r = ms_table_parse(&self->table, (const uint8_t *)blob.buf, (size_t)blob.len);
+    PyBuffer_Release(&blob);
+    if (r != 0) {
+        PyErr_SetString(PyExc_ValueError, "malformed message table");
+        return -1;
+    }
+    self->ok = 1;
+    return 0;
+}
+
+static PyObject *Table_len(TableObject *self, PyObject *Py_UNUSED(ignored)) {
+    return PyLong_FromSize_t(self->table.count);
+}
+
+static PyMethodDef Table_methods[] = {
+    {"count", (PyCFunction)Table_len, METH_NOARGS, "number of messages in the table"},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject TableType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "mavscope._native.Table",
+    .tp_basicsize = sizeof(TableObject),
+    .tp_dealloc = (destructor)Table_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "Message layouts for the native walker (built by mavscope.native.build_table).",
+    .tp_methods = Table_methods,
+    .tp_init = (initproc)Table_init,
+    .tp_new = PyType_GenericNew,
+};
+
+/* ---- Walker ------------------------------------------------------------------------------- */
+
+typedef struct {
+    PyObject_HEAD
+    ms_walker walker;
+    Py_buffer view;
+    int have_view;
+    int have_walker;
+    int ended;
+    int busy;
+    PyObject *table;     /* TableObject, kept alive while the walker points into it */
+    PyObject *endpoints; /* set[str] */
+    PyObject *senders;   /* set[tuple[int, int]] */
+    ms_buf out;
+} WalkerObject;
+
+static void Walker_release(WalkerObject *self) {
+    if (self->have_walker) {
+        ms_walker_free(&self->walker);
+        self->have_walker = 0;
+    }
+    if (self->have_view) {
+        PyBuffer_Release(&self->view);
+        self->have_view = 0;
+    }
+    ms_buf_free(&self->out);
+    self->ended = 1;
+}
+
+static void Walker_dealloc(WalkerObject *self) {
+    Walker_release(self);
+    Py_XDECREF(self->table);
+    Py_XDECREF(self->endpoints);
+    Py_XDECREF(self->senders);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
+    static char *kwlist[] = {"buffer", "kind", "table", "endpoints", "signed_senders", NULL};
+    PyObject *buffer, *table, *endpoints, *senders;
+    int kind;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "OiO!O!O!", kwlist, &buffer, &kind, &TableType, &table,
+                                     &PySet_Type, &endpoints, &PySet_Type, &senders))
+        return -1;
+    if (kind < MS_KIND_PCAP || kind > MS_KIND_RAW) {
+        PyErr_SetString(PyExc_ValueError, "unknown capture kind");
+        return -1;
+    }
+    if (self->have_view || self->have_walker) {
+        PyErr_SetString(PyExc_RuntimeError, "Walker already initialised");
+        return -1;
+    }
+    if (PyObject_GetBuffer(buffer, &self->view, PyBUF_SIMPLE) != 0)
+        return -1;
+    self->have_view = 1;
+    Py_INCREF(table);
+    self->table = table;
+    Py_INCREF(endpoints);
+    self->endpoints = endpoints;
+    Py_INCREF(senders);
+    self->senders = senders;
+    ms_buf_init(&self->out);
+    ms_walker_init(&self->walker, (const uint8_t *)self->view.buf, (size_t)self->view.len, kind,
+                   &((TableObject *)table)->table);
+    self->have_walker = 1;
+    self->ended = 0;
+    return 0;
+}
+
+/* The record's time as a Python float (or None), exactly as the Python readers compute it. */
+static PyObject *record_time(const ms_record *rec) {
+    double t;
+    int r = ms_record_time(rec, &t);
+    if (r == 0)
+        Py_RETURN_NONE;
+    if (r > 0)
+        return PyFloat_FromDouble(t);
+    /* pcapng units beyond 2**64: ticks / (base ** exp) + tsoffset with Python ints */
+    PyObject *ticks = PyLong_FromUnsignedLongLong(rec->ticks);
+    PyObject *base = PyLong_FromLong(rec->units_pow2 ? 2 : 10);
+    PyObject *exp = PyLong_FromLong(rec->units_exp);
+    PyObject *off = PyLong_FromLongLong(rec->tsoffset);
+    PyObject *units = NULL, *q = NULL, *res = NULL;
+    if (ticks && base && exp && off && (units = PyNumber_Power(base, exp, Py_None)) != NULL &&
+        (q = PyNumber_TrueDivide(ticks, units)) != NULL)
+        res = PyNumber_Add(q, off);
+    Py_XDECREF(ticks);
+    Py_XDECREF(base);
+    Py_XDECREF(exp);
+    Py_XDECREF(off);
+    Py_XDECREF(units);
+    Py_XDECREF(q);
+    return res;
+}
+
+static PyObject *handback_tuple(WalkerObject *self, const ms_record *rec) {
+    const ms_notes *ns = rec->notes;
+    PyObject *notes = PyTuple_New((Py_ssize_t)(ns ? ns->n : 0));
+    if (notes == NULL)
+        return NULL;
+    for (size_t i = 0; ns && i < ns->n; i++) {
+        const ms_note *n = &ns->v[i];
+        PyObject *item = Py_BuildValue("(ss#L)", ms_note_code_name(n->code), ns->text.data + n->msg_off,
+                                       (Py_ssize_t)n->msg_len, (long long)n->offset);
+        if (item == NULL) {
+            Py_DECREF(notes);
+            return NULL;
+        }
+        PyTuple_SET_ITEM(notes, (Py_ssize_t)i, item);
+    }
+    PyObject *time = record_time(rec);
+    if (time == NULL) {
+        Py_DECREF(notes);
+        return NULL;
+    }
+    const char *base = (const char *)self->view.buf;
+    PyObject *data = PyBytes_FromStringAndSize(base + rec->start, (Py_ssize_t)rec->len);
+    if (data == NULL) {
+        Py_DECREF(notes);
+        Py_DECREF(time);
+        return NULL;
+    }
+    return Py_BuildValue("(KNLNnKN)", (unsigned long long)rec->number, time, (long long)rec->linktype, data,
+                         (Py_ssize_t)rec->start, (unsigned long long)rec->orig_len, notes);
+}
+
+/* Load the bitmap of senders seen signing from the Python set (items other than two ints 0..255 are
+ * ignored: the security stage only stores (sysid, compid)). */
+static int load_signers(WalkerObject *self) {
+    memset(self->walker.signers, 0, sizeof self->walker.signers);
+    PyObject *it = PyObject_GetIter(self->senders);
+    if (it == NULL)
+        return -1;
+    PyObject *key;
+    while ((key = PyIter_Next(it)) != NULL) {
+        if (PyTuple_Check(key) && PyTuple_GET_SIZE(key) == 2) {
+            long a = PyLong_AsLong(PyTuple_GET_ITEM(key, 0));
+            long b = PyLong_AsLong(PyTuple_GET_ITEM(key, 1));
+            if (PyErr_Occurred())
+                PyErr_Clear();
+            else if (a >= 0 && a <= 255 && b >= 0 && b <= 255)
+                ms_signer_set(&self->walker, (unsigned)((a << 8) | b));
+        }
+        Py_DECREF(key);
+    }
+    Py_DECREF(it);
+    return PyErr_Occurred() ? -1 : 0;
+}
+
+/* Push what the batch added into the Python sets. */
+static int push_state(WalkerObject *self) {
+    ms_walker *w = &self->walker;
+    for (size_t i = 0; i < w->n_new_signers; i++) {
+        PyObject *t = Py_BuildValue("(ii)", w->new_signers[i] >> 8, w->new_signers[i] & 0xFF);
+        if (t == NULL || PySet_Add(self->senders, t) != 0) {
+            Py_XDECREF(t);
+            return -1;
+        }
+        Py_DECREF(t);
+    }
+    w->n_new_signers = 0;
+    for (size_t i = 0; i < w->n_new_endpoints; i++) {
+        const ms_endpoint *e = &w->new_endpoints[i];
+        char text[MS_ENDPOINT_MAX];
+        int len = ms_fmt_endpoint(e->v6, e->addr, e->port, text);
+        PyObject *s = PyUnicode_FromStringAndSize(text, len);
+        if (s == NULL || PySet_Add(self->endpoints, s) != 0) {
+            Py_XDECREF(s);
+            return -1;
+        }
+        Py_DECREF(s);
+    }
+    w->n_new_endpoints = 0;
+    return 0;
+}
+
+static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds) {
+    static char *kwlist[] = {"signed_nokey", "limit", NULL};
+    int nokey = 0;
+    Py_ssize_t limit = 1 << 20;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "|pn", kwlist, &nokey, &limit))
+        return NULL;
+    if (self->busy) {
+        PyErr_SetString(PyExc_RuntimeError, "Walker.next is already running");
+        return NULL;
+    }
+    if (self->ended || !self->have_walker)
+        Py_RETURN_NONE;
+    if (limit < 1)
+        limit = 1;
+    if (load_signers(self) != 0)
+        return NULL;
+    self->walker.sign_mode = nokey ? MS_SIGNED_NOKEY : MS_SIGNED_HANDBACK;
+    self->out.len = 0;
+    ms_record rec;
+    int r;
+    self->busy = 1;
+    Py_BEGIN_ALLOW_THREADS
+    r = ms_walk(&self->walker, &self->out, (size_t)limit, &rec);
+    Py_END_ALLOW_THREADS
+    self->busy = 0;
+    if (r == MS_WALK_NOMEM) {
+        Walker_release(self);
+        return PyErr_NoMemory();
+    }
+    if (push_state(self) != 0)
+        return NULL;
+    PyObject *list = PyList_New(0);
+    if (list == NULL)
+        return NULL;
+    if (self->out.len) {
+        PyObject *chunk = PyBytes_FromStringAndSize(self->out.data, (Py_ssize_t)self->out.len);
+        if (chunk == NULL || PyList_Append(list, chunk) != 0) {
+            Py_XDECREF(chunk);
+            Py_DECREF(list);
+            return NULL;
+        }
+        Py_DECREF(chunk);
+    }
+    if (r == MS_WALK_HANDBACK) {
+        PyObject *t = handback_tuple(self, &rec);
+        if (t == NULL || PyList_Append(list, t) != 0) {
+            Py_XDECREF(t);
+            Py_DECREF(list);
+            return NULL;
+        }
+        Py_DECREF(t);
+    } else if (r == MS_WALK_END) {
+        self->ended = 1;
+        if (PyList_GET_SIZE(list) == 0) {
+            Py_DECREF(list);
+            Py_RETURN_NONE;
+        }
+    }
+    if (self->out.cap > (8u << 20)) /* do not keep a huge buffer after one long line */
+        ms_buf_free(&self->out);
+    return list;
+}
+
+static PyObject *Walker_last_record(WalkerObject *self, PyObject *Py_UNUSED(ignored)) {
+    if (!self->have_walker || !self->walker.have_last)
+        Py_RETURN_NONE;
+    PyObject *time = record_time(&self->walker.last);
+    if (time == NULL)
+        return NULL;
+    if (self->walker.py_index < 0)
+        return Py_BuildValue("(KNO)", (unsigned long long)self->walker.last.number, time, Py_None);
+    return Py_BuildValue("(KNL)", (unsigned long long)self->walker.last.number, time,
+                         (long long)self->walker.py_index);
+}
+
+static PyObject *Walker_close(WalkerObject *self, PyObject *Py_UNUSED(ignored)) {
+    if (self->busy) {
+        PyErr_SetString(PyExc_RuntimeError, "Walker.next is running");
+        return NULL;
+    }
+    Walker_release(self);
+    Py_RETURN_NONE;
+}
+
+static PyObject *Walker_stats(WalkerObject *self, PyObject *Py_UNUSED(ignored)) {
+    const ms_walker *w = &self->walker;
+    return Py_BuildValue("{sKsKsKsn}", "records_native", (unsigned long long)w->records_native,
+                         "records_handed_back", (unsigned long long)w->records_handed_back, "frames_native",
+                         (unsigned long long)w->frames_native, "position",
+                         (Py_ssize_t)(self->have_walker ? w->reader.pos : 0));
+}
+
+static PyMethodDef Walker_methods[] = {
+    {"next", (PyCFunction)(void (*)(void))Walker_next, METH_VARARGS | METH_KEYWORDS,
+     "next(signed_nokey=False, limit=1<<20): the next segments (bytes of JSON lines, or a handed-back "
+     "record tuple, which always comes last), or None at the end"},
+    {"last_record", (PyCFunction)Walker_last_record, METH_NOARGS, "(number, time, index) of the last record walked; index: the frame count Python's dissector would "
+     "hold from the records walked natively since the last handback, or None"},
+    {"stats", (PyCFunction)Walker_stats, METH_NOARGS, "counters of the walk"},
+    {"close", (PyCFunction)Walker_close, METH_NOARGS, "release the buffer"},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject WalkerType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "mavscope._native.Walker",
+    .tp_basicsize = sizeof(WalkerObject),
+    .tp_dealloc = (destructor)Walker_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "Walks a capture held in a buffer, writing JSON Lines and handing records back.",
+    .tp_methods = Walker_methods,
+    .tp_init = (initproc)Walker_init,
+    .tp_new = PyType_GenericNew,
+};
+
+/* ---- module functions (tests) ------------------------------------------------------------- */
+
+static PyObject *format_double(PyObject *Py_UNUSED(mod), PyObject *arg) {
+    double v = PyFloat_AsDouble(arg);
+    if (v == -1.0 && PyErr_Occurred())
+        return NULL;
+    char out[MS_DOUBLE_MAX];
+    int n = ms_fmt_double(v, out);
+    return PyBytes_FromStringAndSize(out, n);
+}
+
+static PyObject *text_json(PyObject *Py_UNUSED(mod), PyObject *arg) {
+    Py_buffer b;
+    if (PyObject_GetBuffer(arg, &b, PyBUF_SIMPLE) != 0)
+        return NULL;
+    ms_buf out;
+    ms_buf_init(&out);
+    ms_put_text(&out, (const uint8_t *)b.buf, (size_t)b.len);
+    PyBuffer_Release(&b);
+    if (out.failed) {
+        ms_buf_free(&out);
+        return PyErr_NoMemory();
+    }
+    PyObject *res = PyBytes_FromStringAndSize(out.data ? out.data : "", (Py_ssize_t)out.len);
+    ms_buf_free(&out);
+    return res;
+}
+
+static PyMethodDef module_methods[] = {
+    {"format_double", format_double, METH_O, "JSON text of a float, as the native writer makes it"},
+    {"text_json", text_json, METH_O, "JSON string of bytes decoded as UTF-8 with backslashreplace"},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef native_module = {
+    PyModuleDef_HEAD_INIT, "mavscope._native", "The native fast path of mavscope (docs/native.md).", -1,
+    module_methods, NULL, NULL, NULL, NULL,
+};
+
+PyMODINIT_FUNC PyInit__native(void) {
+    if (PyType_Ready(&TableType) < 0 || PyType_Ready(&WalkerType) < 0)
+        return NULL;
+    PyObject *m = PyModule_Create(&native_module);
+    if (m == NULL)
+        return NULL;
+    Py_INCREF(&TableType);
+    Py_INCREF(&WalkerType);
+    if (PyModule_AddObject(m, "Table", (PyObject *)&TableType) < 0 ||
+        PyModule_AddObject(m, "Walker", (PyObject *)&WalkerType) < 0 ||
+        PyModule_AddIntConstant(m, "KIND_PCAP", MS_KIND_PCAP) < 0 ||
+        PyModule_AddIntConstant(m, "KIND_PCAPNG", MS_KIND_PCAPNG) < 0 ||
+        PyModule_AddIntConstant(m, "KIND_TLOG", MS_KIND_TLOG) < 0 ||
+        PyModule_AddIntConstant(m, "KIND_RAW", MS_KIND_RAW) < 0 ||
+        PyModule_AddIntConstant(m, "TABLE_VERSION", 1) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}
