@@ -66,8 +66,12 @@ class Dissector:
         self._index = 0
         self._time: float | None = None
 
-    def run(self, records: Iterable[Record]) -> Iterator[Frame | Anomaly]:
-        """Every frame and anomaly of the capture, in order."""
+    def run(self, records: Iterable[Record], final: bool = True) -> Iterator[Frame | Anomaly]:
+        """Every frame and anomaly of the capture, in order.
+
+        With `final` False the capture goes on after `records`: TCP and stream state is kept for more
+        (`feed` and `finish` are the record-at-a-time face of this).
+        """
         feed = self.decap.feed
         messages = self.messages
         endpoints = self.mavlink_endpoints
@@ -120,10 +124,29 @@ class Dissector:
                 self._index = index
                 yield from self._datagram(p, pos)
                 index = self._index
+        if not final:
+            return
         for p in self.decap.flush():
             yield from self._stream(p, final=False) if p.stream is not None else self._datagram(p, 0)
         for key in list(self.streams):
             yield from self._finish(key)
+
+    def feed(self, record: Record) -> list[Frame | Anomaly]:
+        """The frames and anomalies `record` yields now; stream and TCP state carry over to the next."""
+        return list(self.run((record,), final=False))
+
+    def finish(self) -> list[Frame | Anomaly]:
+        """End of capture: what TCP reassembly and the stream framers still hold."""
+        return list(self.run((), final=True))
+
+    def passed(self, number: int, time: float | None, index: int | None = None) -> None:
+        """Record `number` was dissected elsewhere (the native walker, mavscope/native.py): keep the state
+        this dissector would have kept from it, the record and time that frames completed at the end of
+        the capture belong to, and `index` when not None (what the general scanner leaves in `_index`)."""
+        self._record = number
+        self._time = time
+        if index is not None:
+            self._index = index
 
     def _trusted(self, p: Payload) -> bool:
         if p.transport == TRANSPORT_TLOG:
