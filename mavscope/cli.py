@@ -74,9 +74,11 @@ class ArgParser(argparse.ArgumentParser):
         raise UsageError(f"{self.prog}: {message}" if self.prog != "mavscope" else message)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(environ: dict[str, str] | None = None) -> argparse.ArgumentParser:
+    from mavscope.native import engine
+
     p = ArgParser(prog="mavscope", description="MAVLink packet analysis and forensics.")
-    p.add_argument("--version", action="version", version=f"mavscope {__version__}")
+    p.add_argument("--version", action="version", version=f"mavscope {__version__} (engine: {engine(environ)})")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=ArgParser)
     for name in COMMAND_MODULES:
         importlib.import_module(f"mavscope.commands.{name}").register(sub)
@@ -86,7 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None, env: Env | None = None) -> int:
     """Entry point of the `mavscope` console script."""
     env = env or Env()
-    parser = build_parser()
+    parser = build_parser(env.environ)
     try:
         args = parser.parse_args(list(argv) if argv is not None else None)
         if args.command is None:

@@ -10,9 +10,11 @@ from mavscope.commands.common import (
     add_capture_options,
     add_filter_option,
     add_key_options,
+    capture_path,
     capture_session,
     progress,
     report_anomaly,
+    security_stage,
 )
 from mavscope.dissect import Anomaly
 from mavscope.errors import UsageError
@@ -40,6 +42,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     if args.count is not None and args.count < 1:
         raise UsageError("read: -c needs a positive number of frames")
     out_b = env.stdout_bytes
+    if _native_eligible(args, env):
+        return _run_native(args, env)
     limit = args.count if args.count is not None else -1
     shown_records: set[int] = set()
     shown = 0
@@ -76,6 +80,30 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     out_b.flush()
     if args.write and frame_writer is None:
         write_records(path, args.write, shown_records)
+    return ExitStatus.OK
+
+
+def _native_eligible(args: argparse.Namespace, env: Env) -> bool:
+    """The native walker serves plain `read -T jsonl` (no filter, count, -w or -q) when it is built and
+    MAVSCOPE_PURE is not set; its output is byte-identical to the Python path's (docs/native.md)."""
+    from mavscope.native import engine
+
+    return (args.format == "jsonl" and not args.display_filter and args.count is None and not args.write
+            and not args.quiet and engine(env.environ) == "native")
+
+
+def _run_native(args: argparse.Namespace, env: Env) -> ExitStatus:
+    from mavscope.capture.detect import detect_kind
+    from mavscope.mavlink.dialect import load_dialect
+    from mavscope.native import write_jsonl
+
+    path = capture_path(args)
+    dialect = load_dialect(args.dialect)
+    detect_kind(path)  # the capture's errors before the key options', as capture_session orders them
+    stage = security_stage(args, env)
+    out_b = env.stdout_bytes
+    write_jsonl(path, dialect, stage, out_b, lambda item: report_anomaly(env, path, item))
+    out_b.flush()
     return ExitStatus.OK
 
 

@@ -1,0 +1,221 @@
+"""The native fast path: the optional C extension `mavscope._native` and its Python side.
+
+The C walker reads a capture's records and writes the JSON Lines of every record whose frames are
+all clean (docs/native.md says exactly which); every other record is handed back, in capture order,
+to the Python pipeline (`Dissector.feed`, then the security stage), whose output is the reference.
+The two paths share their state explicitly: the dissector's `mavlink_endpoints` and the security
+stage's `signed_senders` are the very sets the walker reads before each batch and adds to after it.
+
+- `engine(environ)`: "native" or "pure-python" (MAVSCOPE_PURE=1, or no compiled extension: pure).
+- `build_table(dialect)`: the message layouts as the byte string `_native.Table` takes, compiled from
+  mavscope's MessageDef/FieldDef (so from pymavlink's parser), never written by hand.
+- `NativeWalk`: the batch walker over an open capture: bytes (finished JSON lines) or Records.
+- `write_jsonl(...)`: the whole `read -T jsonl` output of a capture, both paths interleaved.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+from collections.abc import Callable, Iterator, Mapping
+from types import ModuleType, TracebackType
+from typing import IO
+
+import orjson
+
+from mavscope.capture.base import Record
+from mavscope.capture.detect import detect_kind
+from mavscope.capture.reader import close_mapped, make_record, open_mapped
+from mavscope.dissect import Anomaly, Dissector
+from mavscope.mavlink.dialect import Dialect, MessageDef
+from mavscope.notes import note
+from mavscope.output.jsonout import jsonl_bytes
+from mavscope.security.stage import SecurityStage
+
+_native: ModuleType | None
+try:
+    from mavscope import _native  # type: ignore[attr-defined,no-redef]
+except ImportError:  # built without a compiler: the pure-Python path serves
+    _native = None
+
+PURE_ENV = "MAVSCOPE_PURE"
+TABLE_MAGIC = b"MSNT"
+TABLE_VERSION = 1
+BATCH_BYTES = 1 << 20  # JSON text per batch handed to Python
+
+# MavLink wire type -> (native type code, bytes per element); the codes of src/mavscope_native/table.h
+_TYPES: dict[str, tuple[int, int]] = {
+    "uint8_t": (1, 1),
+    "uint8_t_mavlink_version": (1, 1),
+    "int8_t": (2, 1),
+    "uint16_t": (3, 2),
+    "int16_t": (4, 2),
+    "uint32_t": (5, 4),
+    "int32_t": (6, 4),
+    "uint64_t": (7, 8),
+    "int64_t": (8, 8),
+    "float": (9, 4),
+    "double": (10, 8),
+    "char": (11, 1),
+}
+_ARRAY = 0x80
+_KINDS = {"pcap": 1, "pcapng": 2, "tlog": 3, "raw": 4}
+
+
+def native_module() -> ModuleType | None:
+    """The compiled extension, or None when this install has none."""
+    return _native
+
+
+def engine(environ: Mapping[str, str] | None = None) -> str:
+    """Which engine `read -T jsonl` runs: "native", or "pure-python" (no extension, or MAVSCOPE_PURE set)."""
+    env = os.environ if environ is None else environ
+    if _native is None or env.get(PURE_ENV, "") not in ("", "0"):
+        return "pure-python"
+    return "native"
+
+
+def _message_entry(md: MessageDef) -> bytes:
+    """One message of the table: header, name, fields (see table.h for the layout)."""
+    fields: list[bytes] = []
+    offset = 0
+    python_only = False
+    names: set[str] = set()
+    for f in md.fields:
+        code, size = _TYPES[f.type]
+        if f.type == "char":
+            count = max(f.array_length, 1)
+        elif f.array_length:
+            count = f.array_length
+            code |= _ARRAY
+        else:
+            count = 1
+        key = orjson.dumps(f.name) + b":"
+        if count > 255 or offset > 255 or len(key) > 255 or f.name in names:
+            python_only = True  # cannot be described to C (never in a real dialect): Python decodes it
+        names.add(f.name)
+        fields.append(struct.pack("<BBBB", code, count & 0xFF, offset & 0xFF, len(key) & 0xFF) + key)
+        offset += size * count
+    if offset != md.length or md.length > 255:
+        python_only = True
+    if python_only:
+        fields = []
+    name = orjson.dumps(md.name)
+    head = struct.pack("<IBBBBHH", md.id, md.crc_extra, md.length & 0xFF, min(md.base_length, md.length) & 0xFF,
+                       int(python_only), len(fields), len(name))
+    return head + name + b"".join(fields)
+
+
+def build_table(dialect: Dialect) -> bytes:
+    """The layouts of every message of `dialect` as the native table blob (wire order, padded offsets)."""
+    entries = [_message_entry(md) for md in sorted(dialect.messages.values(), key=lambda m: m.id)]
+    return TABLE_MAGIC + struct.pack("<II", TABLE_VERSION, len(entries)) + b"".join(entries)
+
+
+_tables: dict[int, tuple[Dialect, object]] = {}
+
+
+def table_for(dialect: Dialect) -> object:
+    """The compiled `_native.Table` of `dialect`, built once per Dialect object."""
+    if _native is None:
+        raise RuntimeError("mavscope._native is not built")
+    cached = _tables.get(id(dialect))
+    if cached is None or cached[0] is not dialect:
+        cached = (dialect, _native.Table(build_table(dialect)))
+        _tables[id(dialect)] = cached
+    return cached[1]
+
+
+def _record(seg: tuple) -> Record:  # type: ignore[type-arg]
+    """A handed-back record description as the Record the Python readers would have yielded."""
+    number, time, linktype, data, offset, orig_len, notes = seg
+    return make_record(number, time, linktype, data, offset, orig_len,
+                       tuple(note(code, message, off) for code, message, off in notes))
+
+
+class NativeWalk:
+    """A capture walked in C: yields finished JSON Lines (bytes) and the Records handed back for Python.
+
+    `endpoints` and `signed_senders` are the Python sets both paths share (the dissector's
+    `mavlink_endpoints` and the security stage's `signed_senders`). `signed_nokey()` is asked before
+    each batch whether signed frames may be written natively (no signing key configured: `no-key`).
+    The walker stops after each handed-back record, so what Python does with it (keys learnt, senders
+    seen signing) holds for the records after it.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], dialect: Dialect, endpoints: set[str],
+                 signed_senders: set[tuple[int, int]], kind: str | None = None) -> None:
+        if _native is None:
+            raise RuntimeError("mavscope._native is not built")
+        self.kind = kind or detect_kind(path)
+        self.path, self._file, self._buf, self.size = open_mapped(path)
+        try:
+            self.walker = _native.Walker(self._buf, _KINDS[self.kind], table_for(dialect), endpoints,
+                                         signed_senders)
+        except BaseException:
+            close_mapped(self._file, self._buf)
+            raise
+
+    def segments(self, signed_nokey: Callable[[], bool] = lambda: False,
+                 limit: int = BATCH_BYTES) -> Iterator[bytes | Record]:
+        """Finished JSON text and handed-back Records, in capture order."""
+        walk = self.walker.next
+        while True:
+            segs = walk(signed_nokey(), limit)
+            if segs is None:
+                return
+            for seg in segs:
+                yield seg if type(seg) is bytes else _record(seg)
+
+    def last_record(self) -> tuple[int, float | None, int | None] | None:
+        """(number, time, index) of the last record walked, for `Dissector.passed`."""
+        last: tuple[int, float | None, int | None] | None = self.walker.last_record()
+        return last
+
+    def stats(self) -> dict[str, int]:
+        """Records written natively, records handed back, frames written natively, file position."""
+        out: dict[str, int] = self.walker.stats()
+        return out
+
+    def close(self) -> None:
+        self.walker.close()
+        buf, self._buf = self._buf, b""
+        close_mapped(self._file, buf)
+
+    def __enter__(self) -> NativeWalk:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+
+def write_jsonl(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityStage, out: IO[bytes],
+                anomaly: Callable[[Anomaly], None]) -> dict[str, int]:
+    """`read -T jsonl` of a whole capture: native JSON text and, for handed-back records, the Python
+    pipeline (dissector, security stage, jsonl_bytes) in between, in capture order. Anomalies go to
+    `anomaly`. Returns the walk's counters."""
+    dissector = Dissector(dialect)
+    write = out.write
+    nokey: Callable[[], bool] = lambda: not stage.check_signatures  # noqa: E731 - asked per batch
+    run = stage.run
+    with NativeWalk(path, dialect, dissector.mavlink_endpoints, stage.signed_senders) as walk:
+        for seg in walk.segments(nokey):
+            if type(seg) is bytes:
+                write(seg)
+                continue
+            for item in run(dissector.feed(seg)):  # type: ignore[arg-type]
+                if type(item) is Anomaly:
+                    anomaly(item)
+                else:
+                    write(jsonl_bytes(item))  # type: ignore[arg-type]
+        last = walk.last_record()
+        stats = walk.stats()
+    if last is not None:
+        dissector.passed(*last)
+    for item in run(dissector.finish()):
+        if type(item) is Anomaly:
+            anomaly(item)
+        else:
+            write(jsonl_bytes(item))  # type: ignore[arg-type]
+    return stats
