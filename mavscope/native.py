@@ -16,7 +16,9 @@ stage's `signed_senders` are the very sets the walker reads before each batch an
 from __future__ import annotations
 
 import os
+import queue
 import struct
+import threading
 from collections.abc import Callable, Iterator, Mapping
 from types import ModuleType, TracebackType
 from typing import IO
@@ -190,32 +192,85 @@ class NativeWalk:
         self.close()
 
 
+class _Writer:
+    """Writes byte chunks to `out` on a thread of its own, in the order they are put.
+
+    The walk runs in C without the GIL, and a write(2) to a file releases it too: with two cores the
+    JSON text of the next batch is made while the last one is copied to the file. An error of `out`
+    (a closed pipe) is raised again in the producing thread by `put` or `close`.
+    """
+
+    def __init__(self, out: IO[bytes], depth: int = 8) -> None:
+        self.out = out
+        self.queue: queue.Queue[bytes | None] = queue.Queue(depth)
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._run, name="mavscope-jsonl-writer", daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        write = self.out.write
+        get = self.queue.get
+        while True:
+            chunk = get()
+            if chunk is None:
+                return
+            if self.error is None:
+                try:
+                    write(chunk)
+                except BaseException as exc:  # noqa: BLE001 - handed to the producing thread
+                    self.error = exc
+
+    def put(self, chunk: bytes) -> None:
+        if self.error is not None:
+            raise self.error
+        self.queue.put(chunk)
+
+    def close(self) -> None:
+        """Wait until everything put is written; raise the writing error if there was one."""
+        self.queue.put(None)
+        self.thread.join()
+        if self.error is not None:
+            raise self.error
+
+
 def write_jsonl(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityStage, out: IO[bytes],
-                anomaly: Callable[[Anomaly], None]) -> dict[str, int]:
+                anomaly: Callable[[Anomaly], None], threaded: bool = True) -> dict[str, int]:
     """`read -T jsonl` of a whole capture: native JSON text and, for handed-back records, the Python
     pipeline (dissector, security stage, jsonl_bytes) in between, in capture order. Anomalies go to
-    `anomaly`. Returns the walk's counters."""
+    `anomaly`. With `threaded` the writing to `out` happens on a thread of its own (_Writer).
+    Returns the walk's counters."""
     dissector = Dissector(dialect)
-    write = out.write
+    writer = _Writer(out) if threaded else None
+    put = writer.put if writer is not None else out.write
     nokey: Callable[[], bool] = lambda: not stage.check_signatures  # noqa: E731 - asked per batch
     run = stage.run
-    with NativeWalk(path, dialect, dissector.mavlink_endpoints, stage.signed_senders) as walk:
-        for seg in walk.segments(nokey):
-            if type(seg) is bytes:
-                write(seg)
-                continue
-            for item in run(dissector.feed(seg)):  # type: ignore[arg-type]
-                if type(item) is Anomaly:
-                    anomaly(item)
-                else:
-                    write(jsonl_bytes(item))  # type: ignore[arg-type]
-        last = walk.last_record()
-        stats = walk.stats()
-    if last is not None:
-        dissector.passed(*last)
-    for item in run(dissector.finish()):
-        if type(item) is Anomaly:
-            anomaly(item)
-        else:
-            write(jsonl_bytes(item))  # type: ignore[arg-type]
+    try:
+        with NativeWalk(path, dialect, dissector.mavlink_endpoints, stage.signed_senders) as walk:
+            for seg in walk.segments(nokey):
+                if type(seg) is bytes:
+                    put(seg)
+                    continue
+                lines = []
+                for item in run(dissector.feed(seg)):  # type: ignore[arg-type]
+                    if type(item) is Anomaly:
+                        anomaly(item)
+                    else:
+                        lines.append(jsonl_bytes(item))  # type: ignore[arg-type]
+                if lines:
+                    put(b"".join(lines))
+            last = walk.last_record()
+            stats = walk.stats()
+        if last is not None:
+            dissector.passed(*last)
+        lines = []
+        for item in run(dissector.finish()):
+            if type(item) is Anomaly:
+                anomaly(item)
+            else:
+                lines.append(jsonl_bytes(item))  # type: ignore[arg-type]
+        if lines:
+            put(b"".join(lines))
+    finally:
+        if writer is not None:
+            writer.close()
     return stats

@@ -21,56 +21,58 @@ static inline double f64_at(const uint8_t *p) {
     return d;
 }
 
-static void put_scalar(ms_buf *b, unsigned type, const uint8_t *p) {
+static inline char *w_scalar(char *p, unsigned type, const uint8_t *v) {
     switch (type) {
-    case MS_T_U8: ms_put_u64(b, p[0]); break;
-    case MS_T_I8: ms_put_i64(b, (int8_t)p[0]); break;
-    case MS_T_U16: ms_put_u64(b, ms_le16(p)); break;
-    case MS_T_I16: ms_put_i64(b, (int16_t)ms_le16(p)); break;
-    case MS_T_U32: ms_put_u64(b, ms_le32(p)); break;
-    case MS_T_I32: ms_put_i64(b, (int32_t)ms_le32(p)); break;
-    case MS_T_U64: ms_put_u64(b, ms_le64(p)); break;
-    case MS_T_I64: ms_put_i64(b, (int64_t)ms_le64(p)); break;
-    case MS_T_F32: ms_put_double(b, (double)f32_at(p)); break;
-    case MS_T_F64: ms_put_double(b, f64_at(p)); break;
-    default: MS_BUF_LIT(b, "null"); break; /* never: the table parser refuses other types */
+    case MS_T_U8: return ms_w_u32(p, v[0]);
+    case MS_T_I8: return ms_w_i64(p, (int8_t)v[0]);
+    case MS_T_U16: return ms_w_u32(p, ms_le16(v));
+    case MS_T_I16: return ms_w_i64(p, (int16_t)ms_le16(v));
+    case MS_T_U32: return ms_w_u32(p, ms_le32(v));
+    case MS_T_I32: return ms_w_i64(p, (int32_t)ms_le32(v));
+    case MS_T_U64: return ms_w_u64(p, ms_le64(v));
+    case MS_T_I64: return ms_w_i64(p, (int64_t)ms_le64(v));
+    case MS_T_F32: return ms_w_double(p, (double)f32_at(v));
+    case MS_T_F64: return ms_w_double(p, f64_at(v));
+    default: return MS_W_LIT(p, "null"); /* never: the table parser refuses other types */
     }
 }
 
-static const size_t SIZE_OF[] = {0, 1, 1, 2, 2, 4, 4, 8, 8, 4, 8, 1};
+static const uint8_t SIZE_OF[] = {0, 1, 1, 2, 2, 4, 4, 8, 8, 4, 8, 1};
 
-void ms_put_fields(ms_buf *b, const ms_message *m, const uint8_t *payload, size_t len) {
+char *ms_w_fields(char *p, const ms_message *m, const uint8_t *payload, size_t len) {
     uint8_t padded[256];
-    memset(padded, 0, sizeof padded);
-    if (len > sizeof padded)
-        len = sizeof padded;
+    if (len > m->length)
+        len = m->length; /* never: longer payloads are Python's (length-mismatch) */
     memcpy(padded, payload, len);
-    ms_buf_byte(b, '{');
+    memset(padded + len, 0, (size_t)m->length - len); /* the fields lie inside the message's length */
+    *p++ = '{';
     for (uint16_t i = 0; i < m->nfields; i++) {
         const ms_field *f = &m->fields[i];
         if (i)
-            ms_buf_byte(b, ',');
-        ms_buf_put(b, f->key, f->key_len);
-        const uint8_t *p = padded + f->offset; /* offset + size <= length <= 255: checked by the parser */
-        unsigned type = f->type & 0x7F;
+            *p++ = ',';
+        p = ms_w_padded(p, f->key, f->key_len);
+        const uint8_t *v = padded + f->offset; /* offset + size <= length <= 255: checked by the parser */
+        const unsigned type = f->type & 0x7F;
         if (type == MS_T_CHAR) {
             size_t n = f->count;
-            while (n && p[n - 1] == 0)
+            while (n && v[n - 1] == 0)
                 n--;
-            ms_put_text(b, p, n);
+            p = ms_w_text(p, v, n);
         } else if (f->type & MS_T_ARRAY) {
-            ms_buf_byte(b, '[');
+            *p++ = '[';
+            const unsigned step = SIZE_OF[type];
             for (unsigned k = 0; k < f->count; k++) {
                 if (k)
-                    ms_buf_byte(b, ',');
-                put_scalar(b, type, p + k * SIZE_OF[type]);
+                    *p++ = ',';
+                p = w_scalar(p, type, v + k * step);
             }
-            ms_buf_byte(b, ']');
+            *p++ = ']';
         } else {
-            put_scalar(b, type, p);
+            p = w_scalar(p, type, v);
         }
     }
-    ms_buf_byte(b, '}');
+    *p++ = '}';
+    return p;
 }
 
 /* days since 1970-01-01 -> civil date (H. Hinnant's algorithm), for days >= 0 */
@@ -115,33 +117,29 @@ void ms_iso_second(uint64_t seconds, char out[19]) {
 
 static const char HEXDIGITS[] = "0123456789abcdef";
 
-void ms_put_signature_nokey(ms_buf *b, const uint8_t *block) {
+char *ms_w_signature_nokey(char *p, const uint8_t *block) {
     uint64_t ts = 0;
     for (int i = 5; i >= 0; i--)
         ts = (ts << 8) | block[1 + i];
-    MS_BUF_LIT(b, "{\"link_id\":");
-    ms_put_u64(b, block[0]);
-    MS_BUF_LIT(b, ",\"timestamp\":");
-    ms_put_u64(b, ts);
-    MS_BUF_LIT(b, ",\"time\":\"");
-    char iso[19];
-    ms_iso_second(ts / 100000, iso);
-    ms_buf_put(b, iso, sizeof iso);
-    char frac[7];
+    p = MS_W_LIT(p, "{\"link_id\":");
+    p = ms_w_u32(p, block[0]);
+    p = MS_W_LIT(p, ",\"timestamp\":");
+    p = ms_w_u64(p, ts);
+    p = MS_W_LIT(p, ",\"time\":\"");
+    ms_iso_second(ts / 100000, p);
+    p += 19;
     unsigned f = (unsigned)(ts % 100000);
-    frac[0] = '.';
+    *p = '.';
     for (int i = 5; i >= 1; i--) {
-        frac[i] = (char)('0' + f % 10);
+        p[i] = (char)('0' + f % 10);
         f /= 10;
     }
-    frac[6] = 'Z';
-    ms_buf_put(b, frac, sizeof frac);
-    MS_BUF_LIT(b, "\",\"value\":\"");
-    char hex[12];
+    p[6] = 'Z';
+    p += 7;
+    p = MS_W_LIT(p, "\",\"value\":\"");
     for (int i = 0; i < 6; i++) {
-        hex[2 * i] = HEXDIGITS[block[7 + i] >> 4];
-        hex[2 * i + 1] = HEXDIGITS[block[7 + i] & 15];
+        *p++ = HEXDIGITS[block[7 + i] >> 4];
+        *p++ = HEXDIGITS[block[7 + i] & 15];
     }
-    ms_buf_put(b, hex, sizeof hex);
-    MS_BUF_LIT(b, "\",\"status\":\"no-key\"}");
+    return MS_W_LIT(p, "\",\"status\":\"no-key\"}");
 }

@@ -4,7 +4,7 @@
 
 #include "vendor/ryu/ryu_d2d.h"
 
-static const char DIGIT_PAIRS[200] = {
+const char MS_DIGIT_PAIRS[200] = {
     '0', '0', '0', '1', '0', '2', '0', '3', '0', '4', '0', '5', '0', '6', '0', '7', '0', '8', '0', '9',
     '1', '0', '1', '1', '1', '2', '1', '3', '1', '4', '1', '5', '1', '6', '1', '7', '1', '8', '1', '9',
     '2', '0', '2', '1', '2', '2', '2', '3', '2', '4', '2', '5', '2', '6', '2', '7', '2', '8', '2', '9',
@@ -17,37 +17,9 @@ static const char DIGIT_PAIRS[200] = {
     '9', '0', '9', '1', '9', '2', '9', '3', '9', '4', '9', '5', '9', '6', '9', '7', '9', '8', '9', '9',
 };
 
-int ms_fmt_u64(uint64_t v, char *out) {
-    char tmp[20];
-    int i = 20;
-    while (v >= 100) {
-        unsigned r = (unsigned)(v % 100);
-        v /= 100;
-        i -= 2;
-        tmp[i] = DIGIT_PAIRS[2 * r];
-        tmp[i + 1] = DIGIT_PAIRS[2 * r + 1];
-    }
-    if (v >= 10) {
-        i -= 2;
-        tmp[i] = DIGIT_PAIRS[2 * v];
-        tmp[i + 1] = DIGIT_PAIRS[2 * v + 1];
-    } else {
-        tmp[--i] = (char)('0' + v);
-    }
-    memcpy(out, tmp + i, (size_t)(20 - i));
-    return 20 - i;
-}
+int ms_fmt_u64(uint64_t v, char *out) { return (int)(ms_w_u64(out, v) - out); }
 
-int ms_fmt_i64(int64_t v, char *out) {
-    if (v < 0) {
-        out[0] = '-';
-        /* -(v + 1) + 1 avoids negating INT64_MIN */
-        return 1 + ms_fmt_u64((uint64_t)(-(v + 1)) + 1u, out + 1);
-    }
-    return ms_fmt_u64((uint64_t)v, out);
-}
-
-int ms_fmt_double(double v, char *out) {
+char *ms_w_double(char *out, double v) {
     uint64_t bits;
     memcpy(&bits, &v, sizeof bits);
     const int sign = (int)(bits >> 63);
@@ -55,18 +27,18 @@ int ms_fmt_double(double v, char *out) {
     const uint32_t expo = (uint32_t)((bits >> DOUBLE_MANTISSA_BITS) & 0x7FFu);
     if (expo == 0x7FFu) {
         memcpy(out, "null", 4);
-        return 4;
+        return out + 4;
     }
     char *p = out;
     if (sign)
         *p++ = '-';
     if (expo == 0 && mant == 0) {
         memcpy(p, "0.0", 3);
-        return sign + 3;
+        return p + 3;
     }
     floating_decimal_64 fd = d2d(mant, expo);
-    char digits[20];
-    const int n = ms_fmt_u64(fd.mantissa, digits);
+    char digits[MS_U64_MAX];
+    const int n = (int)(ms_w_u64(digits, fd.mantissa) - digits);
     const int k = fd.exponent;   /* value = digits * 10^k */
     const int x = n + k - 1;     /* value = d.ddd * 10^x */
     if (x >= -5 && x < 16) {
@@ -109,34 +81,30 @@ int ms_fmt_double(double v, char *out) {
         if (e >= 100) {
             *p++ = (char)('0' + e / 100);
             e %= 100;
-            *p++ = DIGIT_PAIRS[2 * e];
-            *p++ = DIGIT_PAIRS[2 * e + 1];
+            *p++ = MS_DIGIT_PAIRS[2 * e];
+            *p++ = MS_DIGIT_PAIRS[2 * e + 1];
         } else if (e >= 10) {
-            *p++ = DIGIT_PAIRS[2 * e];
-            *p++ = DIGIT_PAIRS[2 * e + 1];
+            *p++ = MS_DIGIT_PAIRS[2 * e];
+            *p++ = MS_DIGIT_PAIRS[2 * e + 1];
         } else {
             *p++ = (char)('0' + e);
         }
     }
-    return (int)(p - out);
+    return p;
 }
+
+int ms_fmt_double(double v, char *out) { return (int)(ms_w_double(out, v) - out); }
 
 void ms_put_u64(ms_buf *b, uint64_t v) {
-    char *p = ms_buf_room(b, 20);
+    char *p = ms_buf_room(b, MS_U64_MAX);
     if (p != NULL)
-        b->len += (size_t)ms_fmt_u64(v, p);
-}
-
-void ms_put_i64(ms_buf *b, int64_t v) {
-    char *p = ms_buf_room(b, 21);
-    if (p != NULL)
-        b->len += (size_t)ms_fmt_i64(v, p);
+        b->len += (size_t)(ms_w_u64(p, v) - p);
 }
 
 void ms_put_double(ms_buf *b, double v) {
     char *p = ms_buf_room(b, MS_DOUBLE_MAX);
     if (p != NULL)
-        b->len += (size_t)ms_fmt_double(v, p);
+        b->len += (size_t)(ms_w_double(p, v) - p);
 }
 
 /* Length of the valid UTF-8 sequence at s[0..n) (n >= 1, s[0] >= 0x80), or 0 when it is not one.
@@ -171,15 +139,16 @@ static size_t utf8_seq(const uint8_t *s, size_t n) {
 static const char HEX[16] = {'0', '1', '2', '3', '4', '5', '6', '7', '8', '9', 'a', 'b', 'c', 'd', 'e', 'f'};
 
 void ms_put_text(ms_buf *b, const uint8_t *s, size_t n) {
-    /* worst case 6 output bytes per input byte (\u00XX), plus the quotes */
     if (n > (SIZE_MAX - 2) / 6) {
         b->failed = 1;
         return;
     }
-    char *p = ms_buf_room(b, 6 * n + 2);
-    if (p == NULL)
-        return;
-    char *const start = p;
+    char *p = ms_buf_room(b, ms_text_max(n));
+    if (p != NULL)
+        b->len += (size_t)(ms_w_text(p, s, n) - p);
+}
+
+char *ms_w_text(char *p, const uint8_t *s, size_t n) {
     *p++ = '"';
     size_t i = 0;
     while (i < n) {
@@ -225,5 +194,5 @@ void ms_put_text(ms_buf *b, const uint8_t *s, size_t n) {
         }
     }
     *p++ = '"';
-    b->len += (size_t)(p - start);
+    return p;
 }

@@ -164,7 +164,7 @@ int ms_fmt_endpoint(int v6, const uint8_t *a, uint16_t port, char *out) {
     char *p = out;
     if (!v6) {
         for (int i = 0; i < 4; i++) {
-            p += ms_fmt_u64(a[i], p);
+            p = ms_w_u32(p, a[i]);
             *p++ = i < 3 ? '.' : ':';
         }
     } else {
@@ -178,6 +178,6 @@ int ms_fmt_endpoint(int v6, const uint8_t *a, uint16_t port, char *out) {
         *p++ = ']';
         *p++ = ':';
     }
-    p += ms_fmt_u64(port, p);
+    p = ms_w_u32(p, port);
     return (int)(p - out);
 }

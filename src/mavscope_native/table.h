@@ -12,12 +12,25 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <string.h>
 
 enum {
     MS_T_U8 = 1, MS_T_I8, MS_T_U16, MS_T_I16, MS_T_U32, MS_T_I32, MS_T_U64, MS_T_I64, MS_T_F32, MS_T_F64,
     MS_T_CHAR, /* a string: trailing NULs stripped, UTF-8 with backslashreplace */
     MS_T_ARRAY = 0x80,
 };
+
+/* Every name and key is followed by this many readable bytes, so a text of at most MS_TEXT_PAD bytes
+ * can be copied with one fixed-size memcpy of MS_TEXT_PAD bytes (the writer leaves room for it). */
+#define MS_TEXT_PAD 32
+
+static inline char *ms_w_padded(char *p, const char *text, size_t len) {
+    if (len <= MS_TEXT_PAD)
+        memcpy(p, text, MS_TEXT_PAD);
+    else
+        memcpy(p, text, len);
+    return p + len;
+}
 
 typedef struct {
     uint8_t type;
@@ -37,6 +50,7 @@ typedef struct {
     uint16_t name_len;
     const char *name;
     ms_field *fields;
+    size_t json_max; /* the longest "fields" object ms_w_fields can write for this message */
 } ms_message;
 
 typedef struct {
@@ -44,7 +58,7 @@ typedef struct {
     size_t count;
     int32_t *slots;  /* open addressing: index into messages or -1 */
     size_t nslots;   /* a power of two */
-    char *blob;      /* a private copy of the blob the names and keys point into */
+    char *text;      /* the names and keys, each followed by MS_TEXT_PAD zero bytes (fixed-size copies) */
 } ms_table;
 
 /* 0 on success, -1 when the blob is malformed or memory runs out (the table is left empty). */

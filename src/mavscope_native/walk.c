@@ -176,10 +176,14 @@ static int scan_clean(ms_walker *w, const uint8_t *d, size_t n, size_t *count, s
     return CLEAN;
 }
 
+#define LINE_FIXED_MAX 512 /* the keys, header numbers and the signature object of one line */
+#define LINE_SLACK 128     /* fixed-size copies write up to this much past the text they copy */
+#define MID_MAX (64 + 2 * MS_ENDPOINT_MAX + MS_DOUBLE_MAX)
+
 /* One JSON line per frame of a clean datagram. `lead` is `{"frame":N,"index":`, `mid` everything from
- * `,"time":` to `"version":`. */
-static void write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t count, const char *lead,
-                         size_t lead_len, const char *mid, size_t mid_len) {
+ * `,"time":` to `"version":`. Room is made once per line for the most it can hold. */
+static int write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t count, const char *lead,
+                        size_t lead_len, const char *mid, size_t mid_len) {
     for (size_t i = 0; i < count; i++) {
         const uint8_t *f = d + w->frames[2 * i];
         const size_t size = w->frames[2 * i + 1];
@@ -188,38 +192,52 @@ static void write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t cou
         const size_t len = f[1];
         const uint32_t msgid = v2 ? (uint32_t)f[7] | ((uint32_t)f[8] << 8) | ((uint32_t)f[9] << 16) : f[5];
         const ms_message *m = ms_table_get(w->table, msgid); /* found by scan_clean */
-        ms_buf_put(out, lead, lead_len);
-        ms_put_u64(out, i + 1);
-        ms_buf_put(out, mid, mid_len);
-        ms_buf_byte(out, v2 ? '2' : '1');
-        MS_BUF_LIT(out, ",\"len\":");
-        ms_put_u64(out, len);
-        MS_BUF_LIT(out, ",\"incompat_flags\":");
-        ms_put_u64(out, v2 ? f[2] : 0);
-        MS_BUF_LIT(out, ",\"compat_flags\":");
-        ms_put_u64(out, v2 ? f[3] : 0);
-        MS_BUF_LIT(out, ",\"seq\":");
-        ms_put_u64(out, f[v2 ? 4 : 2]);
-        MS_BUF_LIT(out, ",\"sysid\":");
-        ms_put_u64(out, f[v2 ? 5 : 3]);
-        MS_BUF_LIT(out, ",\"compid\":");
-        ms_put_u64(out, f[v2 ? 6 : 4]);
-        MS_BUF_LIT(out, ",\"msgid\":");
-        ms_put_u64(out, msgid);
-        MS_BUF_LIT(out, ",\"msgname\":");
-        ms_buf_put(out, m->name, m->name_len);
-        MS_BUF_LIT(out, ",\"crc\":");
-        ms_put_u64(out, ms_le16(f + hlen + len));
-        MS_BUF_LIT(out, ",\"crc_status\":\"ok\",\"fields\":");
-        ms_put_fields(out, m, f + hlen, len);
+        const size_t room = lead_len + mid_len + LINE_FIXED_MAX + LINE_SLACK + m->name_len + m->json_max;
+        char *const start = ms_buf_room(out, room);
+        if (start == NULL)
+            return -1;
+        char *p = start;
+        memcpy(p, lead, 48); /* lead[48]: fixed-size copies, the room has the slack */
+        p += lead_len;
+        p = ms_w_u64(p, i + 1);
+        if (mid_len <= LINE_SLACK)
+            memcpy(p, mid, LINE_SLACK);
+        else
+            memcpy(p, mid, mid_len);
+        p += mid_len;
+        *p++ = v2 ? '2' : '1';
+        p = MS_W_LIT(p, ",\"len\":");
+        p = ms_w_u32(p, (uint32_t)len);
+        p = MS_W_LIT(p, ",\"incompat_flags\":");
+        p = ms_w_u32(p, v2 ? f[2] : 0);
+        p = MS_W_LIT(p, ",\"compat_flags\":");
+        p = ms_w_u32(p, v2 ? f[3] : 0);
+        p = MS_W_LIT(p, ",\"seq\":");
+        p = ms_w_u32(p, f[v2 ? 4 : 2]);
+        p = MS_W_LIT(p, ",\"sysid\":");
+        p = ms_w_u32(p, f[v2 ? 5 : 3]);
+        p = MS_W_LIT(p, ",\"compid\":");
+        p = ms_w_u32(p, f[v2 ? 6 : 4]);
+        p = MS_W_LIT(p, ",\"msgid\":");
+        p = ms_w_u32(p, msgid);
+        p = MS_W_LIT(p, ",\"msgname\":");
+        p = ms_w_padded(p, m->name, m->name_len);
+        p = MS_W_LIT(p, ",\"crc\":");
+        p = ms_w_u32(p, ms_le16(f + hlen + len));
+        p = MS_W_LIT(p, ",\"crc_status\":\"ok\",\"fields\":");
+        p = ms_w_fields(p, m, f + hlen, len);
         if (v2 && (f[2] & 1)) {
-            MS_BUF_LIT(out, ",\"signature\":");
-            ms_put_signature_nokey(out, f + size - MS_SIGNATURE_LEN);
-            MS_BUF_LIT(out, ",\"encryption\":null,\"notes\":[]}\n");
+            p = MS_W_LIT(p, ",\"signature\":");
+            p = ms_w_signature_nokey(p, f + size - MS_SIGNATURE_LEN);
+            p = MS_W_LIT(p, ",\"encryption\":null,\"notes\":[]}\n");
         } else {
-            MS_BUF_LIT(out, ",\"signature\":null,\"encryption\":null,\"notes\":[]}\n");
+            p = MS_W_LIT(p, ",\"signature\":null,\"encryption\":null,\"notes\":[]}\n");
         }
+        if ((size_t)(p - start) > room)
+            abort(); /* the bound above is wrong: memory is already corrupt, stop here */
+        out->len += (size_t)(p - start);
     }
+    return 0;
 }
 
 /* MS_WALK_FULL when the record was written (or had nothing), MS_WALK_HANDBACK, or MS_WALK_NOMEM. */
@@ -281,12 +299,12 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
         src_len = ms_fmt_endpoint(udp.v6, udp.src, udp.sport, src);
         dst_len = ms_fmt_endpoint(udp.v6, udp.dst, udp.dport, dst);
     }
-    char lead[48];
+    char lead[48] = {0};
     memcpy(lead, "{\"frame\":", 9);
-    size_t lead_len = 9 + (size_t)ms_fmt_u64(rec->number, lead + 9);
+    size_t lead_len = (size_t)(ms_w_u64(lead + 9, rec->number) - lead);
     memcpy(lead + lead_len, ",\"index\":", 9);
     lead_len += 9;
-    char mid[64 + 2 * MS_ENDPOINT_MAX + MS_DOUBLE_MAX];
+    char mid[MID_MAX > LINE_SLACK ? MID_MAX : LINE_SLACK] = {0};
     size_t mid_len = 0;
 #define MID(s)                                   \
     do {                                         \
@@ -295,7 +313,7 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
     } while (0)
     MID(",\"time\":");
     if (has_time)
-        mid_len += (size_t)ms_fmt_double(t, mid + mid_len);
+        mid_len = (size_t)(ms_w_double(mid + mid_len, t) - mid);
     else
         MID("null");
     if (is_udp) {
@@ -310,7 +328,8 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
         MID(",\"transport\":\"tlog\",\"src\":null,\"dst\":null,\"version\":");
     }
 #undef MID
-    write_frames(w, out, d, count, lead, lead_len, mid, mid_len);
+    if (write_frames(w, out, d, count, lead, lead_len, mid, mid_len) != 0)
+        return MS_WALK_NOMEM;
     w->frames_native += count;
     for (size_t i = 0; i < count; i++) {
         if (d[w->frames[2 * i]] == MS_STX_V1) { /* Python's fast path stops there: its scanner counts them all */
