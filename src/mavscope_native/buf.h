@@ -24,7 +24,7 @@ int ms_buf_grow(ms_buf *b, size_t need);
 
 /* A pointer where `need` bytes may be written, or NULL when out of memory. Advance `len` after writing. */
 static inline char *ms_buf_room(ms_buf *b, size_t need) {
-    if (b->cap - b->len < need && ms_buf_grow(b, need) != 0)
+    if ((b->cap - b->len < need || b->data == NULL) && ms_buf_grow(b, need) != 0)
         return NULL;
     return b->data + b->len;
 }

@@ -1,0 +1,218 @@
+/* libFuzzer harness for the native core: arbitrary bytes as a capture file, walked by the C record
+ * walkers, link/IP/UDP parsers, framer, payload decoder and JSON writer (src/mavscope_native).
+ *
+ * Input: one selector byte, then the file. Selector bits 0-1: the format (pcap, pcapng, tlog, raw);
+ * bit 2: signed frames written natively (no key) or handed back; bits 3-7: a sender preset as seen
+ * signing. The batch limit is small so batches end mid-capture. Every JSON line written is checked to
+ * be well-formed JSON; handed-back records are read whole (data and notes) so the sanitizers see
+ * every byte the Python glue would.
+ *
+ * Build and run: scripts/fuzz-native.sh SECONDS (docs/native.md). The message table comes from
+ * mavscope's default dialect, written by the script to the file named in $MAVSCOPE_FUZZ_TABLE. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "capture.h"
+#include "table.h"
+#include "walk.h"
+
+static ms_table table;
+
+int LLVMFuzzerInitialize(int *argc, char ***argv);
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+int LLVMFuzzerInitialize(int *argc, char ***argv) {
+    (void)argc;
+    (void)argv;
+    const char *path = getenv("MAVSCOPE_FUZZ_TABLE");
+    if (path == NULL) {
+        fprintf(stderr, "fuzz_native: set MAVSCOPE_FUZZ_TABLE to the table blob (scripts/fuzz-native.sh)\n");
+        abort();
+    }
+    FILE *f = fopen(path, "rb");
+    if (f == NULL) {
+        perror(path);
+        abort();
+    }
+    static uint8_t blob[1 << 20];
+    size_t n = fread(blob, 1, sizeof blob, f);
+    fclose(f);
+    if (ms_table_parse(&table, blob, n) != 0) {
+        fprintf(stderr, "fuzz_native: %s is not a table blob\n", path);
+        abort();
+    }
+    return 0;
+}
+
+/* A JSON value at *p (end e); depth-limited recursive descent, returns 0 when malformed. */
+static int json_value(const char **p, const char *e, int depth);
+
+static int json_string(const char **p, const char *e) {
+    const char *s = *p;
+    if (s >= e || *s != '"')
+        return 0;
+    s++;
+    while (s < e && *s != '"') {
+        unsigned char c = (unsigned char)*s;
+        if (c < 0x20)
+            return 0;
+        if (c == '\\') {
+            s++;
+            if (s >= e)
+                return 0;
+            if (*s == 'u') {
+                if (e - s < 5)
+                    return 0;
+                for (int i = 1; i <= 4; i++)
+                    if (!strchr("0123456789abcdef", s[i]) || s[i] == '\0')
+                        return 0;
+                s += 4;
+            } else if (!strchr("\"\\/bfnrt", *s) || *s == '\0') {
+                return 0;
+            }
+        }
+        s++;
+    }
+    if (s >= e)
+        return 0;
+    *p = s + 1;
+    return 1;
+}
+
+static int json_number(const char **p, const char *e) {
+    const char *s = *p;
+    if (s < e && *s == '-')
+        s++;
+    const char *d = s;
+    while (s < e && *s >= '0' && *s <= '9')
+        s++;
+    if (s == d || (s - d > 1 && *d == '0'))
+        return 0;
+    if (s < e && *s == '.') {
+        s++;
+        d = s;
+        while (s < e && *s >= '0' && *s <= '9')
+            s++;
+        if (s == d)
+            return 0;
+    }
+    if (s < e && (*s == 'e' || *s == 'E')) {
+        s++;
+        if (s < e && (*s == '+' || *s == '-'))
+            s++;
+        d = s;
+        while (s < e && *s >= '0' && *s <= '9')
+            s++;
+        if (s == d)
+            return 0;
+    }
+    *p = s;
+    return 1;
+}
+
+static int json_value(const char **p, const char *e, int depth) {
+    const char *s = *p;
+    if (s >= e || depth > 8)
+        return 0;
+    if (*s == '{' || *s == '[') {
+        const char close = *s == '{' ? '}' : ']';
+        s++;
+        if (s < e && *s == close) {
+            *p = s + 1;
+            return 1;
+        }
+        for (;;) {
+            if (close == '}') {
+                if (!json_string(&s, e) || s >= e || *s != ':')
+                    return 0;
+                s++;
+            }
+            if (!json_value(&s, e, depth + 1) || s >= e)
+                return 0;
+            if (*s == close) {
+                *p = s + 1;
+                return 1;
+            }
+            if (*s != ',')
+                return 0;
+            s++;
+        }
+    }
+    if (*s == '"')
+        return json_string(p, e);
+    if ((size_t)(e - s) >= 4 && memcmp(s, "null", 4) == 0) {
+        *p = s + 4;
+        return 1;
+    }
+    return json_number(p, e);
+}
+
+static void check_lines(const char *text, size_t len) {
+    if (len == 0)
+        return;
+    const char *p = text, *e = text + len;
+    while (p < e) {
+        const char *nl = memchr(p, '\n', (size_t)(e - p));
+        if (nl == NULL || *p != '{')
+            abort();
+        const char *q = p;
+        if (!json_value(&q, nl, 0) || q != nl)
+            abort(); /* a malformed JSON line */
+        p = nl + 1;
+    }
+}
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
+    if (size < 1)
+        return 0;
+    const unsigned sel = data[0];
+    /* an exactly sized copy: a read past the end of the file is a heap overflow for ASan */
+    size_t n = size - 1;
+    uint8_t *file = malloc(n ? n : 1);
+    if (file == NULL)
+        return 0;
+    memcpy(file, data + 1, n);
+    ms_walker w;
+    ms_walker_init(&w, file, n, MS_KIND_PCAP + (int)(sel & 3), &table);
+    w.sign_mode = (sel & 4) ? MS_SIGNED_NOKEY : MS_SIGNED_HANDBACK;
+    ms_buf out;
+    ms_buf_init(&out);
+    for (;;) {
+        if (sel >> 3)
+            ms_signer_set(&w, ((sel >> 3) << 8) | 1u); /* a sender seen signing, as Python may add */
+        out.len = 0;
+        ms_record rec;
+        int r = ms_walk(&w, &out, 4096, &rec);
+        if (r == MS_WALK_NOMEM)
+            break;
+        check_lines(out.data, out.len);
+        if (r == MS_WALK_HANDBACK) {
+            /* what the glue reads of a handed-back record */
+            volatile unsigned sum = 0;
+            const uint8_t *d = file + rec.start;
+            if (rec.start > n || rec.len > n - rec.start)
+                abort();
+            for (size_t i = 0; i < rec.len; i++)
+                sum += d[i];
+            for (size_t i = 0; i < rec.notes->n; i++) {
+                const ms_note *note = &rec.notes->v[i];
+                if (note->msg_off + note->msg_len > rec.notes->text.len)
+                    abort();
+                for (size_t k = 0; k < note->msg_len; k++)
+                    sum += (unsigned char)rec.notes->text.data[note->msg_off + k];
+            }
+            double t;
+            (void)ms_record_time(&rec, &t);
+            (void)sum;
+        }
+        if (r == MS_WALK_END)
+            break;
+        w.n_new_signers = 0;
+        w.n_new_endpoints = 0;
+    }
+    ms_buf_free(&out);
+    ms_walker_free(&w);
+    free(file);
+    return 0;
+}

@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# Fuzz the native core under AddressSanitizer + UndefinedBehaviorSanitizer with libFuzzer.
+#
+#   scripts/fuzz-native.sh [SECONDS] [JOBS]     (default 600 s, 1 job; docs/native.md)
+#
+# Needs clang with libFuzzer (Debian: apt-get install -y clang-14 libclang-rt-14-dev) and the project's
+# .venv (for the message table, compiled from the default dialect). Builds fuzz/build/fuzz_native,
+# seeds fuzz/build/corpus from captures/ (one copy per format selector), then runs. A finding leaves a
+# crash-* file in fuzz/build/ and makes this script exit non-zero.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+SECONDS_TO_RUN="${1:-600}"
+JOBS="${2:-1}"
+CLANG="${CLANG:-$(command -v clang-14 || command -v clang || true)}"
+[ -n "$CLANG" ] || { echo "fuzz-native: clang not found (apt-get install -y clang-14 libclang-rt-14-dev)" >&2; exit 2; }
+PY="${PYTHON:-.venv/bin/python}"
+OUT=fuzz/build
+mkdir -p "$OUT/corpus"
+
+"$PY" - "$OUT/table.bin" <<'PYEOF'
+import sys
+from mavscope.mavlink.dialect import load_dialect
+from mavscope.native import build_table
+open(sys.argv[1], "wb").write(build_table(load_dialect()))
+PYEOF
+
+SRC=src/mavscope_native
+"$CLANG" -std=c11 -g -O1 -Wall -Wextra -fno-omit-frame-pointer \
+    -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
+    -I"$SRC" fuzz/fuzz_native.c \
+    "$SRC"/walk.c "$SRC"/capture.c "$SRC"/capture_pcap.c "$SRC"/capture_pcapng.c "$SRC"/capture_tlog.c \
+    "$SRC"/netlayers.c "$SRC"/mavlink.c "$SRC"/table.c "$SRC"/decode.c "$SRC"/fmt.c "$SRC"/buf.c \
+    -o "$OUT/fuzz_native"
+
+# Seeds: every bundled capture under the selector of its own format (0 pcap, 1 pcapng, 2 tlog, 3 raw),
+# with and without native signed frames (bit 2). Small files only: libFuzzer's -max_len bounds them.
+"$PY" - "$OUT/corpus" <<'PYEOF'
+import hashlib, pathlib, sys
+from mavscope.capture.detect import detect_kind
+corpus = pathlib.Path(sys.argv[1])
+sel = {"pcap": 0, "pcapng": 1, "tlog": 2, "raw": 3}
+for path in sorted(pathlib.Path("captures").glob("*")):
+    if path.suffix in (".md", ".json"):
+        continue
+    data = path.read_bytes()
+    base = sel[detect_kind(path)]
+    for extra in (0, 4):
+        for piece in (data[:4096], data[:65536]):
+            blob = bytes([base | extra]) + piece
+            (corpus / hashlib.sha1(blob).hexdigest()).write_bytes(blob)
+PYEOF
+
+export MAVSCOPE_FUZZ_TABLE="$PWD/$OUT/table.bin"
+export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}"
+export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
+cd "$OUT"
+exec ./fuzz_native -max_total_time="$SECONDS_TO_RUN" -max_len=65536 -timeout=10 -rss_limit_mb=2048 \
+    -jobs="$JOBS" -workers="$JOBS" -print_final_stats=1 corpus
