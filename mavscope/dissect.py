@@ -168,7 +168,7 @@ class Dissector:
             if p.notes:
                 yield Anomaly(p.record, p.notes)
             return
-        if p.src is not None and found[0][2] is OK:
+        if p.src is not None and found and found[0][2] is OK:  # found is empty for a stray byte or two
             self.mavlink_endpoints.add(p.src)
         base = p.offset
         pending: list[Note] = list(p.notes)
