@@ -128,7 +128,12 @@ def table_for(dialect: Dialect) -> object:
     return cached[1]
 
 
-def _record(seg: tuple) -> Record:  # type: ignore[type-arg]
+# what _native.Walker.next hands back for a record: (number, time, linktype, data, offset, orig_len,
+# notes as (code, message, offset))
+HandedBack = tuple[int, float | None, int, bytes, int, int, tuple[tuple[str, str, int], ...]]
+
+
+def _record(seg: HandedBack) -> Record:
     """A handed-back record description as the Record the Python readers would have yielded."""
     number, time, linktype, data, offset, orig_len, notes = seg
     return make_record(number, time, linktype, data, offset, orig_len,
@@ -250,26 +255,26 @@ def write_jsonl(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityS
                 if type(seg) is bytes:
                     put(seg)
                     continue
-                lines = []
+                lines: list[bytes] = []
                 for item in run(dissector.feed(seg)):  # type: ignore[arg-type]
                     if type(item) is Anomaly:
                         anomaly(item)
                     else:
-                        lines.append(jsonl_bytes(item))  # type: ignore[arg-type]
+                        lines.append(jsonl_bytes(item))
                 if lines:
                     put(b"".join(lines))
             last = walk.last_record()
             stats = walk.stats()
         if last is not None:
             dissector.passed(*last)
-        lines = []
+        tail: list[bytes] = []
         for item in run(dissector.finish()):
             if type(item) is Anomaly:
                 anomaly(item)
             else:
-                lines.append(jsonl_bytes(item))  # type: ignore[arg-type]
-        if lines:
-            put(b"".join(lines))
+                tail.append(jsonl_bytes(item))
+        if tail:
+            put(b"".join(tail))
     finally:
         if writer is not None:
             writer.close()
