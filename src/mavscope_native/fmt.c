@@ -19,6 +19,28 @@ const char MS_DIGIT_PAIRS[200] = {
 
 int ms_fmt_u64(uint64_t v, char *out) { return (int)(ms_w_u64(out, v) - out); }
 
+static const uint64_t POW10[20] = {
+    1ull, 10ull, 100ull, 1000ull, 10000ull, 100000ull, 1000000ull, 10000000ull, 100000000ull, 1000000000ull,
+    10000000000ull, 100000000000ull, 1000000000000ull, 10000000000000ull, 100000000000000ull,
+    1000000000000000ull, 10000000000000000ull, 100000000000000000ull, 1000000000000000000ull,
+    10000000000000000000ull,
+};
+
+/* All 20 decimal digits of v (leading zeros) in buf[0..20), '0' in buf[20..64); returns how many digits v
+ * has (1..20), so its text is buf + 20 - n. Three independent 8-digit conversions instead of a loop. */
+static inline int digits20(uint64_t v, char buf[64]) {
+    memset(buf + 20, '0', 44);
+    const uint64_t a = v / 10000000000000000ull; /* <= 1844 */
+    const uint64_t rest = v % 10000000000000000ull;
+    memcpy(buf, MS_DIGIT_PAIRS + 2 * (a / 100), 2);
+    memcpy(buf + 2, MS_DIGIT_PAIRS + 2 * (a % 100), 2);
+    ms_w_8digits(buf + 4, (uint32_t)(rest / 100000000));
+    ms_w_8digits(buf + 12, (uint32_t)(rest % 100000000));
+    const int bits = 64 - __builtin_clzll(v | 1);
+    const int t = (bits * 1233) >> 12; /* floor(log10(2**bits)) */
+    return t + (v >= POW10[t]);
+}
+
 char *ms_w_double(char *out, double v) {
     uint64_t bits;
     memcpy(&bits, &v, sizeof bits);
@@ -37,59 +59,60 @@ char *ms_w_double(char *out, double v) {
         return p + 3;
     }
     floating_decimal_64 fd = d2d(mant, expo);
-    char digits[MS_U64_MAX];
-    const int n = (int)(ms_w_u64(digits, fd.mantissa) - digits);
+    /* digits[] is longer than any digit string so that fixed-size copies (vector moves) can be used;
+     * the room the caller made (MS_DOUBLE_MAX) covers what they write past the text. */
+    char buf[64];
+    const int n = digits20(fd.mantissa, buf);
+    const char *const digits = buf + 20 - n;
     const int k = fd.exponent;   /* value = digits * 10^k */
     const int x = n + k - 1;     /* value = d.ddd * 10^x */
     if (x >= -5 && x < 16) {
-        if (k >= 0) { /* 1230000.0 */
-            memcpy(p, digits, (size_t)n);
-            p += n;
-            memset(p, '0', (size_t)k);
-            p += k;
+        if (k >= 0) { /* 1230000.0: the digits, k zeros (n + k <= 16), ".0" */
+            memcpy(p, digits, 16);
+            memset(p + n, '0', 16);
+            p += n + k;
             memcpy(p, ".0", 2);
-            p += 2;
-        } else if (x >= 0) { /* 12.34 */
-            memcpy(p, digits, (size_t)(x + 1));
-            p += x + 1;
-            *p++ = '.';
-            memcpy(p, digits + x + 1, (size_t)(n - x - 1));
-            p += n - x - 1;
-        } else { /* 0.00123 */
-            memcpy(p, "0.", 2);
-            p += 2;
-            memset(p, '0', (size_t)(-x - 1));
-            p += -x - 1;
-            memcpy(p, digits, (size_t)n);
-            p += n;
+            return p + 2;
         }
-    } else { /* 1.23e+16, 1e-7 */
-        *p++ = digits[0];
-        if (n > 1) {
-            *p++ = '.';
-            memcpy(p, digits + 1, (size_t)(n - 1));
-            p += n - 1;
+        if (x >= 0) { /* 12.34: x + 1 <= 16 digits, the point, the other n - x - 1 <= 16 */
+            memcpy(p, digits, 16);
+            p[x + 1] = '.';
+            memcpy(p + x + 2, digits + x + 1, 16);
+            return p + n + 1;
         }
-        *p++ = 'e';
-        int e = x;
-        if (e < 0) {
-            *p++ = '-';
-            e = -e;
-        } else {
-            *p++ = '+';
-        }
-        if (e >= 100) {
-            *p++ = (char)('0' + e / 100);
-            e %= 100;
-            *p++ = MS_DIGIT_PAIRS[2 * e];
-            *p++ = MS_DIGIT_PAIRS[2 * e + 1];
-        } else if (e >= 10) {
-            *p++ = MS_DIGIT_PAIRS[2 * e];
-            *p++ = MS_DIGIT_PAIRS[2 * e + 1];
-        } else {
-            *p++ = (char)('0' + e);
-        }
+        /* 0.00123: "0." then -x - 1 <= 4 zeros, then the digits */
+        memcpy(p, "0.0000", 6);
+        memcpy(p + 1 - x, digits, 20);
+        return p + 1 - x + n;
     }
+    /* 1.23e+16, 1e-7 */
+    p[0] = digits[0];
+    if (n > 1) {
+        p[1] = '.';
+        memcpy(p + 2, digits + 1, 16);
+        p += n + 1;
+    } else {
+        p += 1;
+    }
+    *p++ = 'e';
+    int e = x;
+    if (e < 0) {
+        *p++ = '-';
+        e = -e;
+    } else {
+        *p++ = '+';
+    }
+    if (e >= 100) {
+        *p++ = (char)('0' + e / 100);
+        e %= 100;
+        memcpy(p, MS_DIGIT_PAIRS + 2 * e, 2);
+        return p + 2;
+    }
+    if (e >= 10) {
+        memcpy(p, MS_DIGIT_PAIRS + 2 * e, 2);
+        return p + 2;
+    }
+    *p++ = (char)('0' + e);
     return p;
 }
 

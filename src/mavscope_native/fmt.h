@@ -21,7 +21,9 @@
 
 #define MS_U64_MAX 20    /* 18446744073709551615 */
 #define MS_I64_MAX 20    /* -9223372036854775808 */
-#define MS_DOUBLE_MAX 32 /* the longest double text is 24 bytes: -1.2345678901234567e-308 */
+/* The longest double text is 24 bytes (-1.2345678901234567e-308); ms_w_double's fixed-size copies write
+ * up to 40 bytes past p (sign, x + 2 <= 17, then 16 more digits; or 7 + 20): room for 48. */
+#define MS_DOUBLE_MAX 48
 
 extern const char MS_DIGIT_PAIRS[200];
 

@@ -1,11 +1,13 @@
 #include "table.h"
 
+#include "fmt.h"
+
 #include <stdlib.h>
 #include <string.h>
 
 static const size_t TYPE_SIZE[] = {0, 1, 1, 2, 2, 4, 4, 8, 8, 4, 8, 1};
-/* longest JSON text of one element: u8 255, i8 -128, u16, i16, u32, i32, u64, i64, floats (fmt.h) */
-static const size_t TEXT_MAX[] = {0, 3, 4, 5, 6, 10, 11, 20, 20, 32, 32, 0};
+/* the room the writer of one element needs: u8 255, i8 -128, u16, i16, u32, i32, u64, i64, floats (fmt.h) */
+static const size_t TEXT_MAX[] = {0, 3, 4, 5, 6, 10, 11, 20, 20, MS_DOUBLE_MAX, MS_DOUBLE_MAX, 0};
 
 typedef struct {
     const uint8_t *p;
