@@ -26,6 +26,14 @@
 #define MS_DOUBLE_MAX 48
 
 extern const char MS_DIGIT_PAIRS[200];
+/* MS_U8_TEXT[v]: the decimal text of v in the first bytes, its length in the last one */
+extern const char MS_U8_TEXT[256][4];
+
+/* Decimal text of a byte; writes 4 bytes (room for 4), returns the end of the text. */
+static inline char *ms_w_u8(char *p, unsigned v) {
+    memcpy(p, MS_U8_TEXT[v & 0xFF], 4);
+    return p + MS_U8_TEXT[v & 0xFF][3];
+}
 
 /* Decimal text of v < 10**8 in exactly 8 digits (leading zeros). */
 static inline char *ms_w_8digits(char *p, uint32_t v) {

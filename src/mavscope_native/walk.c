@@ -56,6 +56,10 @@ static uint32_t endpoint_hash(const ms_endpoint *e) {
 
 /* Record `e` as a source of valid MAVLink unless it was reported already. */
 static int note_endpoint(ms_walker *w, const ms_endpoint *e) {
+    if (w->have_last_noted && memcmp(&w->last_noted, e, sizeof *e) == 0)
+        return 0;
+    w->last_noted = *e;
+    w->have_last_noted = 1;
     if (w->capseen == 0 || w->nseen * 2 >= w->capseen) {
         if (w->capseen >= 2 * SEEN_MAX) {
             memset(w->seen_used, 0, w->capseen); /* start over: re-adding to a Python set is harmless */
@@ -98,6 +102,29 @@ static int note_endpoint(ms_walker *w, const ms_endpoint *e) {
     w->nseen++;
     w->new_endpoints[w->n_new_endpoints++] = *e;
     return 0;
+}
+
+/* The "ip:port" text of an endpoint, from a two-entry cache (a flow and its reverse). */
+static const char *endpoint_text(ms_walker *w, int v6, const uint8_t *addr, uint16_t port, int *len) {
+    ms_endpoint e;
+    memset(&e, 0, sizeof e);
+    e.v6 = (uint8_t)v6;
+    memcpy(e.addr, addr, v6 ? 16 : 4);
+    e.port = port;
+    for (int i = 0; i < 2; i++) {
+        if (w->text_len[i] && memcmp(&w->text_key[i], &e, sizeof e) == 0) {
+            *len = w->text_len[i];
+            return w->text[i];
+        }
+    }
+    /* replace the older entry: keep [0] the most recent */
+    w->text_key[1] = w->text_key[0];
+    memcpy(w->text[1], w->text[0], sizeof w->text[0]);
+    w->text_len[1] = w->text_len[0];
+    w->text_key[0] = e;
+    w->text_len[0] = ms_fmt_endpoint(v6, addr, port, w->text[0]);
+    *len = w->text_len[0];
+    return w->text[0];
 }
 
 enum { CLEAN = 1, NOT_CLEAN = 0, NOMEM = -1 };
@@ -179,6 +206,8 @@ static int scan_clean(ms_walker *w, const uint8_t *d, size_t n, size_t *count, s
 #define LINE_FIXED_MAX 512 /* the keys, header numbers and the signature object of one line */
 #define LINE_SLACK 128     /* fixed-size copies write up to this much past the text they copy */
 #define MID_MAX (64 + 2 * MS_ENDPOINT_MAX + MS_DOUBLE_MAX)
+#define LEAD_MAX 48
+#define LINE_ROOM (LEAD_MAX + MID_MAX + LINE_FIXED_MAX + LINE_SLACK) /* + name and fields of the message */
 
 /* One JSON line per frame of a clean datagram. `lead` is `{"frame":N,"index":`, `mid` everything from
  * `,"time":` to `"version":`. Room is made once per line for the most it can hold. */
@@ -192,12 +221,13 @@ static int write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t coun
         const size_t len = f[1];
         const uint32_t msgid = v2 ? (uint32_t)f[7] | ((uint32_t)f[8] << 8) | ((uint32_t)f[9] << 16) : f[5];
         const ms_message *m = ms_table_get(w->table, msgid); /* found by scan_clean */
-        const size_t room = lead_len + mid_len + LINE_FIXED_MAX + LINE_SLACK + m->name_len + m->json_max;
+        const size_t room = LINE_ROOM + m->name_len + m->json_max;
+        (void)lead_len;
         char *const start = ms_buf_room(out, room);
         if (start == NULL)
             return -1;
         char *p = start;
-        memcpy(p, lead, 48); /* lead[48]: fixed-size copies, the room has the slack */
+        memcpy(p, lead, LEAD_MAX); /* fixed-size copies: the room has the slack */
         p += lead_len;
         p = ms_w_u64(p, i + 1);
         if (mid_len <= LINE_SLACK)
@@ -207,17 +237,17 @@ static int write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t coun
         p += mid_len;
         *p++ = v2 ? '2' : '1';
         p = MS_W_LIT(p, ",\"len\":");
-        p = ms_w_u32(p, (uint32_t)len);
+        p = ms_w_u8(p, (unsigned)len);
         p = MS_W_LIT(p, ",\"incompat_flags\":");
-        p = ms_w_u32(p, v2 ? f[2] : 0);
+        p = ms_w_u8(p, v2 ? f[2] : 0);
         p = MS_W_LIT(p, ",\"compat_flags\":");
-        p = ms_w_u32(p, v2 ? f[3] : 0);
+        p = ms_w_u8(p, v2 ? f[3] : 0);
         p = MS_W_LIT(p, ",\"seq\":");
-        p = ms_w_u32(p, f[v2 ? 4 : 2]);
+        p = ms_w_u8(p, f[v2 ? 4 : 2]);
         p = MS_W_LIT(p, ",\"sysid\":");
-        p = ms_w_u32(p, f[v2 ? 5 : 3]);
+        p = ms_w_u8(p, f[v2 ? 5 : 3]);
         p = MS_W_LIT(p, ",\"compid\":");
-        p = ms_w_u32(p, f[v2 ? 6 : 4]);
+        p = ms_w_u8(p, f[v2 ? 6 : 4]);
         p = MS_W_LIT(p, ",\"msgid\":");
         p = ms_w_u32(p, msgid);
         p = MS_W_LIT(p, ",\"msgname\":");
@@ -286,7 +316,7 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
         ms_signer_set(w, s);
         w->new_signers[w->n_new_signers++] = (uint16_t)s;
     }
-    char src[MS_ENDPOINT_MAX], dst[MS_ENDPOINT_MAX];
+    const char *src = NULL, *dst = NULL;
     int src_len = 0, dst_len = 0;
     if (is_udp) {
         ms_endpoint e;
@@ -296,10 +326,10 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
         e.port = udp.sport;
         if (note_endpoint(w, &e) != 0)
             return MS_WALK_NOMEM;
-        src_len = ms_fmt_endpoint(udp.v6, udp.src, udp.sport, src);
-        dst_len = ms_fmt_endpoint(udp.v6, udp.dst, udp.dport, dst);
+        src = endpoint_text(w, udp.v6, udp.src, udp.sport, &src_len);
+        /* the cache may move the source's text: copy it into `mid` before asking for the destination */
     }
-    char lead[48] = {0};
+    char lead[LEAD_MAX] = {0};
     memcpy(lead, "{\"frame\":", 9);
     size_t lead_len = (size_t)(ms_w_u64(lead + 9, rec->number) - lead);
     memcpy(lead + lead_len, ",\"index\":", 9);
@@ -321,6 +351,7 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
         memcpy(mid + mid_len, src, (size_t)src_len);
         mid_len += (size_t)src_len;
         MID("\",\"dst\":\"");
+        dst = endpoint_text(w, udp.v6, udp.dst, udp.dport, &dst_len);
         memcpy(mid + mid_len, dst, (size_t)dst_len);
         mid_len += (size_t)dst_len;
         MID("\",\"version\":");

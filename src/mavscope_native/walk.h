@@ -31,6 +31,8 @@ typedef struct {
     uint16_t port;
 } ms_endpoint;
 
+#define MS_ENDPOINT_TEXT 64
+
 typedef struct {
     ms_reader reader;
     const ms_table *table;
@@ -47,6 +49,11 @@ typedef struct {
     size_t cap_frames;
     uint16_t *tentative;        /* scratch: senders the current record would add */
     size_t cap_tentative;
+    ms_endpoint last_noted;     /* the endpoint note_endpoint saw last (most records repeat it) */
+    int have_last_noted;
+    ms_endpoint text_key[2];    /* the last two endpoints formatted, and their text */
+    char text[2][MS_ENDPOINT_TEXT];
+    int text_len[2];
     ms_record last;             /* the last record walked (for the Python pipeline's end of capture) */
     int have_last;
     int64_t py_index;           /* what Dissector._index would hold after the records walked here since
