@@ -174,6 +174,11 @@ class NativeWalk:
             for seg in segs:
                 yield seg if type(seg) is bytes else _record(seg)
 
+    @property
+    def position(self) -> int:
+        """The file offset the walk has reached (for a progress bar)."""
+        return int(self.walker.stats()["position"])
+
     def last_record(self) -> tuple[int, float | None, int | None] | None:
         """(number, time, index) of the last record walked, for `Dissector.passed`."""
         last: tuple[int, float | None, int | None] | None = self.walker.last_record()
@@ -239,10 +244,12 @@ class _Writer:
 
 
 def write_jsonl(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityStage, out: IO[bytes],
-                anomaly: Callable[[Anomaly], None], threaded: bool = True) -> dict[str, int]:
+                anomaly: Callable[[Anomaly], None], threaded: bool = True,
+                progress: Callable[[int], None] | None = None) -> dict[str, int]:
     """`read -T jsonl` of a whole capture: native JSON text and, for handed-back records, the Python
     pipeline (dissector, security stage, jsonl_bytes) in between, in capture order. Anomalies go to
-    `anomaly`. With `threaded` the writing to `out` happens on a thread of its own (_Writer).
+    `anomaly`. With `threaded` the writing to `out` happens on a thread of its own (_Writer);
+    `progress` is called with the file offset reached after each native batch.
     Returns the walk's counters."""
     dissector = Dissector(dialect)
     writer = _Writer(out) if threaded else None
@@ -254,6 +261,8 @@ def write_jsonl(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityS
             for seg in walk.segments(nokey):
                 if type(seg) is bytes:
                     put(seg)
+                    if progress is not None:
+                        progress(walk.position)
                     continue
                 lines: list[bytes] = []
                 for item in run(dissector.feed(seg)):  # type: ignore[arg-type]

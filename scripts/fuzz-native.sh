@@ -6,7 +6,9 @@
 # Needs clang with libFuzzer (Debian: apt-get install -y clang-14 libclang-rt-14-dev) and the project's
 # .venv (for the message table, compiled from the default dialect). Builds fuzz/build/fuzz_native,
 # seeds fuzz/build/corpus from captures/ (one copy per format selector), then runs. A finding leaves a
-# crash-* file in fuzz/build/ and makes this script exit non-zero.
+# crash-* file in fuzz/build/ and makes this script exit non-zero. Afterwards the corpus is replayed
+# through a coverage build (llvm-profdata/llvm-cov, when installed) and the line coverage of the native
+# sources printed; the fuzzer's own log is fuzz/build/fuzz-0.log.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SECONDS_TO_RUN="${1:-600}"
@@ -53,6 +55,27 @@ PYEOF
 export MAVSCOPE_FUZZ_TABLE="$PWD/$OUT/table.bin"
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
-cd "$OUT"
-exec ./fuzz_native -max_total_time="$SECONDS_TO_RUN" -max_len=65536 -timeout=10 -rss_limit_mb=2048 \
-    -jobs="$JOBS" -workers="$JOBS" -print_final_stats=1 corpus
+status=0
+(cd "$OUT" && ./fuzz_native -max_total_time="$SECONDS_TO_RUN" -max_len=65536 -timeout=10 -rss_limit_mb=2048 \
+    -jobs="$JOBS" -workers="$JOBS" -print_final_stats=1 corpus) || status=$?
+grep -h -E "^#[0-9]+.*DONE|^Done|stat::" "$OUT"/fuzz-*.log 2>/dev/null | tail -n 8 || true
+if ls "$OUT"/crash-* "$OUT"/leak-* "$OUT"/timeout-* "$OUT"/oom-* >/dev/null 2>&1; then
+    echo "fuzz-native: findings in $OUT:" >&2
+    ls "$OUT"/crash-* "$OUT"/leak-* "$OUT"/timeout-* "$OUT"/oom-* 2>/dev/null >&2
+    status=1
+fi
+
+# Line coverage of the corpus (a second build, no sanitizers, with clang's source-based coverage)
+PROFDATA="$(command -v llvm-profdata-14 || command -v llvm-profdata || true)"
+LLVMCOV="$(command -v llvm-cov-14 || command -v llvm-cov || true)"
+if [ -n "$PROFDATA" ] && [ -n "$LLVMCOV" ]; then
+    "$CLANG" -std=c11 -O1 -fsanitize=fuzzer -fprofile-instr-generate -fcoverage-mapping -I"$SRC" \
+        fuzz/fuzz_native.c "$SRC"/walk.c "$SRC"/capture.c "$SRC"/capture_pcap.c "$SRC"/capture_pcapng.c \
+        "$SRC"/capture_tlog.c "$SRC"/netlayers.c "$SRC"/mavlink.c "$SRC"/table.c "$SRC"/decode.c "$SRC"/fmt.c \
+        "$SRC"/buf.c -o "$OUT/fuzz_native_cov"
+    rm -f "$OUT"/cov.profraw
+    (cd "$OUT" && LLVM_PROFILE_FILE=cov.profraw ./fuzz_native_cov -runs=0 corpus >/dev/null 2>&1) || true
+    "$PROFDATA" merge -sparse "$OUT/cov.profraw" -o "$OUT/cov.profdata"
+    "$LLVMCOV" report "$OUT/fuzz_native_cov" -instr-profile="$OUT/cov.profdata" "$SRC"/*.c
+fi
+exit $status

@@ -102,9 +102,27 @@ def _run_native(args: argparse.Namespace, env: Env) -> ExitStatus:
     detect_kind(path)  # the capture's errors before the key options', as capture_session orders them
     stage = security_stage(args, env)
     out_b = env.stdout_bytes
-    write_jsonl(path, dialect, stage, out_b, lambda item: report_anomaly(env, path, item))
+    where = _Position(os.path.getsize(path))
+    update, stop = progress(env, where)  # type: ignore[arg-type]  # it reads .size and .position only
+
+    def advance(position: int) -> None:
+        where.position = position
+        update()
+
+    try:
+        write_jsonl(path, dialect, stage, out_b, lambda item: report_anomaly(env, path, item), progress=advance)
+    finally:
+        stop()
     out_b.flush()
     return ExitStatus.OK
+
+
+class _Position:
+    """What the progress bar reads of a capture walked natively."""
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self.position = 0
 
 
 def _open_writer(out: str, source: str, kind: str) -> FrameWriter | None:
