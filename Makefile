@@ -5,17 +5,20 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
-.PHONY: demo test lint captures bench snapshots clean
+.PHONY: demo test lint captures bench fuzz-native snapshots clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
-$(STAMP): pyproject.toml | $(BIN)/python
+# The C extension is compiled by the install: a change to its sources installs again.
+NATIVE_SRC := setup.py $(wildcard src/mavscope_native/*.c src/mavscope_native/*.h)
+
+$(STAMP): pyproject.toml $(NATIVE_SRC) | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e .
 	touch $@
 
-$(TSTAMP): pyproject.toml | $(BIN)/python
+$(TSTAMP): pyproject.toml $(NATIVE_SRC) | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP) $@
 
@@ -44,8 +47,11 @@ captures: $(TSTAMP)
 bench: $(TSTAMP)
 	$(BIN)/python benchmarks/bench_read.py
 
+fuzz-native: $(TSTAMP)
+	scripts/fuzz-native.sh $(or $(SECONDS),600)
+
 snapshots: $(TSTAMP)
 	$(BIN)/python -m pytest --snapshot-update tests/test_tui_snapshots.py
 
 clean:
-	rm -rf $(VENV) .pytest_cache .hypothesis
+	rm -rf $(VENV) .pytest_cache .hypothesis build fuzz/build mavscope/_native*.so
