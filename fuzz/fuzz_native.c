@@ -2,10 +2,13 @@
  * walkers, link/IP/UDP parsers, framer, payload decoder and JSON writer (src/mavscope_native).
  *
  * Input: one selector byte, then the file. Selector bits 0-1: the format (pcap, pcapng, tlog, raw);
- * bit 2: signed frames written natively (no key) or handed back; bits 3-7: a sender preset as seen
- * signing. The batch limit is small so batches end mid-capture. Every JSON line written is checked to
- * be well-formed JSON; handed-back records are read whole (data and notes) so the sanitizers see
- * every byte the Python glue would.
+ * bit 2: signed frames written natively (no key) or handed back; bit 3: every CRC taken for good (so
+ * that mutated payloads reach the decoder and the JSON writer past the CRC check); bits 4-7: a sender
+ * preset as seen signing. The batch limit is small so batches end mid-capture. Every JSON line written
+ * is checked to be well-formed JSON; handed-back records are read whole (data and notes) so the
+ * sanitizers see every byte the Python glue would. The number and string writers also run directly on
+ * the input's bytes, into buffers of exactly the room they claim (MS_DOUBLE_MAX, ms_text_max), so a
+ * write past it is a heap overflow for ASan.
  *
  * Build and run: scripts/fuzz-native.sh SECONDS (docs/native.md). The message table comes from
  * mavscope's default dialect, written by the script to the file named in $MAVSCOPE_FUZZ_TABLE. */
@@ -14,6 +17,7 @@
 #include <string.h>
 
 #include "capture.h"
+#include "fmt.h"
 #include "table.h"
 #include "walk.h"
 
@@ -163,9 +167,44 @@ static void check_lines(const char *text, size_t len) {
     }
 }
 
+/* ms_w_double on doubles and widened floats from the input, ms_w_text on a piece of it, each into a
+ * heap buffer of exactly the room it claims */
+static void check_writers(const uint8_t *data, size_t size) {
+    char *room = malloc(MS_DOUBLE_MAX);
+    if (room == NULL)
+        return;
+    for (size_t i = 0; i + 8 <= size && i < 512; i += 8) {
+        uint64_t bits;
+        memcpy(&bits, data + i, 8);
+        double d;
+        memcpy(&d, &bits, 8);
+        char *end = ms_w_double(room, d);
+        if (end <= room || end > room + 24)
+            abort(); /* no double text is longer than 24 bytes */
+        float f;
+        memcpy(&f, data + i, 4);
+        end = ms_w_double(room, (double)f);
+        if (end <= room || end > room + 24)
+            abort();
+    }
+    free(room);
+    size_t n = size < 256 ? size : 256;
+    char *text = malloc(ms_text_max(n));
+    if (text == NULL)
+        return;
+    char *end = ms_w_text(text, data, n);
+    if (end - text < 2 || text[0] != '"' || end[-1] != '"')
+        abort();
+    const char *q = text;
+    if (!json_value(&q, end, 0) || q != end)
+        abort();
+    free(text);
+}
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     if (size < 1)
         return 0;
+    check_writers(data + 1, size - 1);
     const unsigned sel = data[0];
     /* an exactly sized copy: a read past the end of the file is a heap overflow for ASan */
     size_t n = size - 1;
@@ -176,11 +215,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     ms_walker w;
     ms_walker_init(&w, file, n, MS_KIND_PCAP + (int)(sel & 3), &table);
     w.sign_mode = (sel & 4) ? MS_SIGNED_NOKEY : MS_SIGNED_HANDBACK;
+    w.fuzz_any_crc = (sel & 8) != 0;
     ms_buf out;
     ms_buf_init(&out);
     for (;;) {
-        if (sel >> 3)
-            ms_signer_set(&w, ((sel >> 3) << 8) | 1u); /* a sender seen signing, as Python may add */
+        if (sel >> 4)
+            ms_signer_set(&w, ((sel >> 4) << 8) | 1u); /* a sender seen signing, as Python may add */
         out.len = 0;
         ms_record rec;
         int r = ms_walk(&w, &out, 4096, &rec);

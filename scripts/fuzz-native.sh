@@ -35,7 +35,8 @@ SRC=src/mavscope_native
     -o "$OUT/fuzz_native"
 
 # Seeds: every bundled capture under the selector of its own format (0 pcap, 1 pcapng, 2 tlog, 3 raw),
-# with and without native signed frames (bit 2). Small files only: libFuzzer's -max_len bounds them.
+# with and without native signed frames (bit 2) and with every CRC taken (bit 3). libFuzzer's -max_len
+# bounds the size.
 "$PY" - "$OUT/corpus" <<'PYEOF'
 import hashlib, pathlib, sys
 from mavscope.capture.detect import detect_kind
@@ -46,7 +47,7 @@ for path in sorted(pathlib.Path("captures").glob("*")):
         continue
     data = path.read_bytes()
     base = sel[detect_kind(path)]
-    for extra in (0, 4):
+    for extra in (0, 4, 8, 12):
         for piece in (data[:4096], data[:65536]):
             blob = bytes([base | extra]) + piece
             (corpus / hashlib.sha1(blob).hexdigest()).write_bytes(blob)

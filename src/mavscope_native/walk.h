@@ -37,6 +37,8 @@ typedef struct {
     ms_reader reader;
     const ms_table *table;
     int sign_mode;              /* MS_SIGNED_*, set by the glue before each batch */
+    int fuzz_any_crc;           /* the fuzz harness only: take every CRC for good, so that mutated
+                                   payloads reach the decoder and the JSON writer (never set by the glue) */
     uint8_t signers[8192];      /* bit sysid << 8 | compid: senders seen signing */
     uint16_t *new_signers;      /* added by this batch */
     size_t n_new_signers, cap_new_signers;
