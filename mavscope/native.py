@@ -163,16 +163,24 @@ class NativeWalk:
             close_mapped(self._file, self._buf)
             raise
 
-    def segments(self, signed_nokey: Callable[[], bool] = lambda: False,
-                 limit: int = BATCH_BYTES) -> Iterator[bytes | Record]:
-        """Finished JSON text and handed-back Records, in capture order."""
+    def segments(self, signed_nokey: Callable[[], bool] = lambda: False, limit: int = BATCH_BYTES,
+                 buffers: Callable[[], bytearray | None] | None = None) -> Iterator[bytes | bytearray | Record]:
+        """Finished JSON text and handed-back Records, in capture order.
+
+        The text comes as bytes, or, with `buffers`, in the bytearray it returns for each batch (the
+        caller recycles them once written: their memory stays mapped, where a new 1 MiB bytes object
+        costs fresh pages every batch).
+        """
         walk = self.walker.next
+        spare: bytearray | None = None  # a buffer a batch without text did not use: the next one takes it
         while True:
-            segs = walk(signed_nokey(), limit)
+            buf = spare if spare is not None else (buffers() if buffers is not None else None)
+            segs = walk(signed_nokey(), limit, buf)
             if segs is None:
                 return
+            spare = buf if buf is not None and not any(seg is buf for seg in segs) else None
             for seg in segs:
-                yield seg if type(seg) is bytes else _record(seg)
+                yield _record(seg) if type(seg) is tuple else seg
 
     @property
     def position(self) -> int:
@@ -206,13 +214,18 @@ class _Writer:
     """Writes byte chunks to `out` on a thread of its own, in the order they are put.
 
     The walk runs in C without the GIL, and a write(2) to a file releases it too: with two cores the
-    JSON text of the next batch is made while the last one is copied to the file. An error of `out`
-    (a closed pipe) is raised again in the producing thread by `put` or `close`.
+    JSON text of the next batch is made while the last one is copied to the file. The walker's batches
+    come in bytearrays of a small pool (`buffer()`), given back once written, so the process does not
+    map fresh memory for every batch; the pool's size bounds what waits to be written. An error of `out`
+    (a closed pipe) is raised again in the producing thread by `put`, `buffer` or `close`.
     """
 
     def __init__(self, out: IO[bytes], depth: int = 8) -> None:
         self.out = out
-        self.queue: queue.Queue[bytes | None] = queue.Queue(depth)
+        self.queue: queue.Queue[bytes | bytearray | None] = queue.Queue()
+        self.free: queue.Queue[bytearray] = queue.Queue()
+        for _ in range(depth):
+            self.free.put(bytearray())
         self.error: BaseException | None = None
         self.thread = threading.Thread(target=self._run, name="mavscope-jsonl-writer", daemon=True)
         self.thread.start()
@@ -229,8 +242,16 @@ class _Writer:
                     write(chunk)
                 except BaseException as exc:  # noqa: BLE001 - handed to the producing thread
                     self.error = exc
+            if type(chunk) is bytearray:
+                self.free.put(chunk)
 
-    def put(self, chunk: bytes) -> None:
+    def buffer(self) -> bytearray:
+        """A bytearray for the next batch (waits while every one is queued for writing)."""
+        if self.error is not None:
+            raise self.error
+        return self.free.get()
+
+    def put(self, chunk: bytes | bytearray) -> None:
         if self.error is not None:
             raise self.error
         self.queue.put(chunk)
@@ -254,18 +275,23 @@ def write_jsonl(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityS
     dissector = Dissector(dialect)
     writer = _Writer(out) if threaded else None
     put = writer.put if writer is not None else out.write
+    if writer is not None:
+        buffers = writer.buffer
+    else:
+        only = bytearray()  # written before the next batch: one serves
+        buffers = lambda: only  # noqa: E731
     nokey: Callable[[], bool] = lambda: not stage.check_signatures  # noqa: E731 - asked per batch
     run = stage.run
     try:
         with NativeWalk(path, dialect, dissector.mavlink_endpoints, stage.signed_senders) as walk:
-            for seg in walk.segments(nokey):
-                if type(seg) is bytes:
-                    put(seg)
+            for seg in walk.segments(nokey, buffers=buffers):
+                if type(seg) is not Record:
+                    put(seg)  # type: ignore[arg-type]
                     if progress is not None:
                         progress(walk.position)
                     continue
                 lines: list[bytes] = []
-                for item in run(dissector.feed(seg)):  # type: ignore[arg-type]
+                for item in run(dissector.feed(seg)):
                     if type(item) is Anomaly:
                         anomaly(item)
                     else:

@@ -2,7 +2,8 @@
  *
  *   Table(blob: bytes)                  the message layouts, compiled by mavscope.native from a Dialect
  *   Walker(buffer, kind, table, endpoints: set[str], signed_senders: set[tuple[int, int]])
- *     .next(signed_nokey: bool, limit: int = 1 << 20) -> list[bytes | tuple] | None
+ *     .next(signed_nokey: bool, limit: int = 1 << 20, into: bytearray | None = None)
+ *         -> list[bytes | bytearray | tuple] | None
  *     .last_record() -> tuple[int, float | None, int | None] | None
  *     .close()
  *   format_double(x) -> bytes, text_json(b) -> bytes   (the JSON formatting, for the tests)
@@ -248,11 +249,16 @@ static int push_state(WalkerObject *self) {
 }
 
 static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds) {
-    static char *kwlist[] = {"signed_nokey", "limit", NULL};
+    static char *kwlist[] = {"signed_nokey", "limit", "into", NULL};
     int nokey = 0;
     Py_ssize_t limit = 1 << 20;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "|pn", kwlist, &nokey, &limit))
+    PyObject *into = Py_None;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "|pnO", kwlist, &nokey, &limit, &into))
         return NULL;
+    if (into != Py_None && !PyByteArray_CheckExact(into)) {
+        PyErr_SetString(PyExc_TypeError, "into must be a bytearray or None");
+        return NULL;
+    }
     if (self->busy) {
         PyErr_SetString(PyExc_RuntimeError, "Walker.next is already running");
         return NULL;
@@ -282,7 +288,21 @@ static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds)
     if (list == NULL)
         return NULL;
     if (self->out.len) {
-        PyObject *chunk = PyBytes_FromStringAndSize(self->out.data, (Py_ssize_t)self->out.len);
+        /* into a bytearray the caller recycles (its memory stays mapped: no fresh pages per batch), or
+         * a new bytes object */
+        PyObject *chunk;
+        if (into != Py_None) {
+            chunk = into;
+            Py_INCREF(chunk);
+            if (PyByteArray_Resize(chunk, (Py_ssize_t)self->out.len) != 0) {
+                Py_DECREF(chunk);
+                Py_DECREF(list);
+                return NULL;
+            }
+            memcpy(PyByteArray_AS_STRING(chunk), self->out.data, self->out.len);
+        } else {
+            chunk = PyBytes_FromStringAndSize(self->out.data, (Py_ssize_t)self->out.len);
+        }
         if (chunk == NULL || PyList_Append(list, chunk) != 0) {
             Py_XDECREF(chunk);
             Py_DECREF(list);
@@ -341,8 +361,8 @@ static PyObject *Walker_stats(WalkerObject *self, PyObject *Py_UNUSED(ignored)) 
 
 static PyMethodDef Walker_methods[] = {
     {"next", (PyCFunction)(void (*)(void))Walker_next, METH_VARARGS | METH_KEYWORDS,
-     "next(signed_nokey=False, limit=1<<20): the next segments (bytes of JSON lines, or a handed-back "
-     "record tuple, which always comes last), or None at the end"},
+     "next(signed_nokey=False, limit=1<<20, into=None): the next segments (JSON lines as bytes, or in "
+     "the bytearray `into`; a handed-back record tuple, which always comes last), or None at the end"},
     {"last_record", (PyCFunction)Walker_last_record, METH_NOARGS, "(number, time, index) of the last record walked; index: the frame count Python's dissector would "
      "hold from the records walked natively since the last handback, or None"},
     {"stats", (PyCFunction)Walker_stats, METH_NOARGS, "counters of the walk"},
