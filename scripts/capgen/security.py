@@ -4,7 +4,6 @@ exchange with re-keying, signed over the ciphertext as SecureMAV does."""
 from __future__ import annotations
 
 import hashlib
-import struct
 from collections.abc import Callable
 from pathlib import Path
 from random import Random
@@ -31,7 +30,9 @@ from .constants import (
     VEHICLE_SYSID,
     VEHICLE_UDP_PORT,
 )
+from .encode import encode_frame
 from .frames import Endpoint, Frame, Send
+from .kex import KEY_EXCHANGE_MSGID, epoch_keys, key_exchange_crc_extra, key_exchange_payload, public_key, shared_secret
 from .packets import UdpFlow
 from .story import SHORT_STORY, vehicle_state
 from .summary import summarize_packets
@@ -45,23 +46,14 @@ SECUREMAV_START_US = 5_000_000  # encryption switched on 5 s into the capture
 KEX_GCS_PRIVATE = hashlib.sha256(b"mavscope key exchange: gcs static key").digest()
 KEX_EPOCHS = ((1, 3_000_000), (2, 12_000_000), (3, 22_000_000))  # (key id, capture time of the exchange)
 KEX_AES_GCM_METHOD = 6
-KEX_MSGID = 65_100  # MAVSCOPE_KEY_EXCHANGE (dissectors/mavscope.xml)
 
 
 def kex_vehicle_private(key_id: int) -> bytes:
     return hashlib.sha256(f"mavscope key exchange: vehicle epoch {key_id}".encode()).digest()
 
 
-def kex_crc_extra() -> int:
-    """CRC_EXTRA of MAVSCOPE_KEY_EXCHANGE as pymavlink's parser computes it from the XML."""
-    from pymavlink.generator import mavparse
-
-    xml = mavparse.MAVXML(str(REPO / "dissectors" / "mavscope.xml"), mavparse.PROTOCOL_2_0)
-    return next(m.crc_extra for m in xml.message if m.id == KEX_MSGID)
-
-
 class SecureSender:
-    """A sender whose payloads pymavlink encodes and mavscope's security encoder encrypts and signs
+    """A sender whose payloads pymavlink encodes and `encode.encode_frame` encrypts and signs
     (SecureMAV's order: encrypt, then CRC and signature over the ciphertext)."""
 
     def __init__(self, sysid: int, compid: int, link_id: int) -> None:
@@ -74,17 +66,17 @@ class SecureSender:
         data = msg.pack(self.ep.mav)
         return msg.get_msgId(), data[10:10 + data[1]], msg.crc_extra
 
-    def frame(self, t_us: int, msgid: int, payload: bytes, crc_extra: int, signing: Any = None,
+    def frame(self, t_us: int, msgid: int, payload: bytes, crc_extra: int, signing_key: bytes | None = None,
               **cipher: Any) -> Frame:
-        from mavscope.security.encode import encode_frame
-
+        """The next frame of this sender, sent at capture time `t_us`; signed when `signing_key` is given
+        (timestamps follow the capture clock and strictly increase, as pymavlink's do)."""
         seq = self.ep.next_seq()
-        if signing is not None:
+        if signing_key is not None:
             self.timestamp = max(self.timestamp + 1, (BASE_TIME_US + t_us - SIGNING_EPOCH_US) // 10)
         data = encode_frame(msgid, payload, crc_extra, seq=seq, sysid=self.ep.mav.srcSystem,
-                            compid=self.ep.mav.srcComponent, signing=signing, link_id=self.link_id,
+                            compid=self.ep.mav.srcComponent, signing_key=signing_key, link_id=self.link_id,
                             timestamp=self.timestamp, **cipher)
-        return Frame(data, self.ep.mav.srcSystem, self.ep.mav.srcComponent, seq, msgid, 2, signing is not None)
+        return Frame(data, self.ep.mav.srcSystem, self.ep.mav.srcComponent, seq, msgid, 2, signing_key is not None)
 
 
 def _udp_capture(outdir: Path, name: str, sends: list[Send], rng: Random) -> dict[str, Any]:
@@ -94,7 +86,6 @@ def _udp_capture(outdir: Path, name: str, sends: list[Send], rng: Random) -> dic
     return summarize_packets("pcap", [LINKTYPE_ETHERNET], pkts, offsets)
 
 
-
 def _secure_heartbeat_and_status(script: list[Any], rng: Random, sec: int, quad: Any, state: Any) -> None:
     """The vehicle's HEARTBEAT and SYS_STATUS of second `sec` in the secure sessions' scripts."""
     script.append((sec * 1_000_000 + 1_000 + rng.randint(0, 500), "vehicle", lambda mav: quad(mav, state, 0)))
@@ -102,13 +93,11 @@ def _secure_heartbeat_and_status(script: list[Any], rng: Random, sec: int, quad:
                    lambda mav: mav.sys_status_encode(SENSORS_PRESENT, SENSORS_PRESENT, SENSORS_PRESENT, 250,
                                                      15_800 - sec * 2, -1, 87 - sec // 4, 0, 0, 0, 0, 0, 0)))
 
+
 def securemav_udp(outdir: Path) -> dict[str, Any]:
     """20 s, plaintext for 5 s, then SecureMAV: vehicle payloads AES-128-CTR (method 2, counter restarted
     every frame), GCS heartbeats XOR 0xAB (method 7). Vehicle frames are signed over the ciphertext."""
-    from mavscope.security.keys import SigningKey
-
     rng = Random(15)
-    signing = SigningKey("capture", SIGNING_KEY)
     vehicle = SecureSender(VEHICLE_SYSID, VEHICLE_COMPID, VEHICLE_LINK_ID)
     gcs = SecureSender(GCS_SYSID, GCS_COMPID, GCS_LINK_ID)
     state = vehicle_state(SHORT_STORY, 0.0)
@@ -132,7 +121,7 @@ def securemav_udp(outdir: Path) -> dict[str, Any]:
             encrypted[side] += 1
             cipher = ({"method": SECUREMAV_AES_METHOD, "scheme": "aes-128-ctr", "key": SECUREMAV_AES_KEY}
                       if side == "vehicle" else {"method": SECUREMAV_XOR_METHOD, "scheme": "xor", "key": b"\xab"})
-        frame = sender.frame(t_us, msgid, payload, crc_extra, signing if side == "vehicle" else None, **cipher)
+        frame = sender.frame(t_us, msgid, payload, crc_extra, SIGNING_KEY if side == "vehicle" else None, **cipher)
         sends.append(Send(t_us, side, [frame]))
     summary = _udp_capture(outdir, "securemav_udp.pcap", sends, rng)
     summary["truth"] = {"aes_method": SECUREMAV_AES_METHOD, "aes_key": SECUREMAV_AES_KEY.hex(), "aes_iv": "00" * 16,
@@ -146,21 +135,11 @@ def key_exchange_udp(outdir: Path) -> dict[str, Any]:
     12 s (epoch 2) and 22 s (epoch 3). From each exchange both sides sign with the epoch's signing key
     and the vehicle encrypts ATTITUDE and SYS_STATUS with the aes-gcm profile (method 6, session id =
     key id); HEARTBEATs stay readable."""
-    from cryptography.hazmat.primitives import serialization
-    from cryptography.hazmat.primitives.asymmetric.x25519 import X25519PrivateKey
-
-    from mavscope.security.kex import derive_epoch_keys, shared_secret
-    from mavscope.security.keys import SigningKey
-
-    def pub(private: bytes) -> bytes:
-        return X25519PrivateKey.from_private_bytes(private).public_key().public_bytes(
-            serialization.Encoding.Raw, serialization.PublicFormat.Raw)
-
     rng = Random(16)
-    crc_extra = kex_crc_extra()
+    crc_extra = key_exchange_crc_extra(REPO / "dissectors" / "mavscope.xml")
     vehicle = SecureSender(VEHICLE_SYSID, VEHICLE_COMPID, VEHICLE_LINK_ID)
     gcs = SecureSender(GCS_SYSID, GCS_COMPID, GCS_LINK_ID)
-    gcs_pub = pub(KEX_GCS_PRIVATE)
+    gcs_pub = public_key(KEX_GCS_PRIVATE)
     state = vehicle_state(SHORT_STORY, 0.0)
     quad = vehicle_heartbeat(MAV_AUTOPILOT_PX4)
     script: list[tuple[int, str, Any]] = []
@@ -176,11 +155,12 @@ def key_exchange_udp(outdir: Path) -> dict[str, Any]:
     for key_id, t_ex in KEX_EPOCHS:
         v_priv = kex_vehicle_private(key_id)
         script.append((t_ex, "gcs", ("kex", key_id, gcs_pub, (VEHICLE_SYSID, VEHICLE_COMPID))))
-        script.append((t_ex + 50_000, "vehicle", ("kex", key_id, pub(v_priv), (GCS_SYSID, GCS_COMPID))))
-        signing, gcm = derive_epoch_keys(shared_secret(v_priv, gcs_pub), key_id, pub(v_priv), gcs_pub)
+        v_pub = public_key(v_priv)
+        script.append((t_ex + 50_000, "vehicle", ("kex", key_id, v_pub, (GCS_SYSID, GCS_COMPID))))
+        signing, gcm = epoch_keys(shared_secret(v_priv, gcs_pub), key_id, v_pub, gcs_pub)
         epochs.append({"key_id": key_id, "exchange_s": t_ex / 1e6, "vehicle_private": v_priv.hex(),
                        "signing_key": signing.hex(), "aes_gcm_key": gcm.hex(), "t_us": t_ex,
-                       "signing": SigningKey(f"ecdh-{key_id}", signing), "gcm": gcm})
+                       "signing": signing, "gcm": gcm})
     counters: dict[int, int] = {}
     sends: list[Send] = []
     for t_us, side, build in sorted(script, key=lambda e: e[0]):
@@ -190,10 +170,10 @@ def key_exchange_udp(outdir: Path) -> dict[str, Any]:
         signing_key = epoch["signing"] if epoch is not None else None
         if isinstance(build, tuple):  # the key exchange: sent in clear, signed with the previous epoch's key
             _, key_id, public, target = build
-            payload = struct.pack("<QIBB32s", BASE_TIME_US + t_us, key_id, *target, public)
+            payload = key_exchange_payload(BASE_TIME_US + t_us, key_id, *target, public)
             previous = [e for e in epochs if e["key_id"] < key_id]
             sk = previous[-1]["signing"] if previous else None
-            sends.append(Send(t_us, side, [sender.frame(t_us, KEX_MSGID, payload, crc_extra, sk)]))
+            sends.append(Send(t_us, side, [sender.frame(t_us, KEY_EXCHANGE_MSGID, payload, crc_extra, sk)]))
             continue
         msgid, payload, extra = sender.payload(build)
         cipher: dict[str, Any] = {}
