@@ -1,5 +1,7 @@
 """Payload decryption: SecureMAV XOR and AES-128-CTR frames built here with `cryptography` directly,
-the aes-gcm profile, and the ECDH key-exchange capture with re-keying."""
+the aes-gcm profile, and the ECDH key-exchange capture with re-keying. Frames that need the full
+encoder (signed over the ciphertext, aes-gcm) come from the capture generator's `encode_frame`, written
+from docs/security.md independently of mavscope's code."""
 
 from __future__ import annotations
 
@@ -11,8 +13,7 @@ from pathlib import Path
 from cryptography.hazmat.primitives.ciphers import Cipher, algorithms, modes
 
 from mavscope.security.ciphers import GCM_OVERHEAD
-from mavscope.security.encode import encode_frame
-from mavscope.security.keys import SigningKey
+from scripts.capgen.encode import encode_frame
 from tests.conftest import CAPTURES
 from tests.security_helpers import SHA_KEY, read_json, signer, statuses, write_raw
 
@@ -78,12 +79,11 @@ def test_securemav_aes_128_ctr_decrypts_to_the_plaintext_fields(tmp_path: Path) 
 
 
 def test_signature_is_checked_over_the_ciphertext(tmp_path: Path) -> None:
-    key = SigningKey("k", SHA_KEY)
     mav = signer(None, sysid=1, compid=1)
     m = attitude(mav, 5)
     payload = bytes(m.pack(mav))[10:-2]
     frame = encode_frame(30, payload, m.crc_extra, method=3, scheme="aes-128-ctr", key=SECUREMAV_KEY,
-                         signing=key, link_id=0, timestamp=100)
+                         signing_key=SHA_KEY, link_id=0, timestamp=100)
     rows = read_json(write_raw(tmp_path, [frame]), "--key", f"hex:{SHA_KEY.hex()}")
     assert rows[0]["signature"]["status"] == "valid"
     assert rows[0]["encryption"]["status"] == "no-key"  # no cipher: still listed with its verdicts
