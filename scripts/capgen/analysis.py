@@ -65,6 +65,7 @@ def pack_script(script: Script, endpoints: dict[str, Endpoint],
 
 
 def heartbeats(script: Script, duration_s: int, sides: Sequence[str] = ("vehicle", "gcs")) -> None:
+    """Add one HEARTBEAT a second per side, so that the scripted captures look like live links."""
     quad = vehicle_heartbeat(MAV_AUTOPILOT_PX4)
     state = vehicle_state(SHORT_STORY, 0.0)
     for sec in range(duration_s):
@@ -119,6 +120,7 @@ def stats_loss(outdir: Path) -> dict[str, Any]:
 def mission_item(seq: int, cmd: int, x: int, y: int, z: float, p1: float = 0.0, p2: float = 0.0,
                  target: tuple[int, int] = (VEHICLE_SYSID, VEHICLE_COMPID),
                  mission_type: int = MAV_MISSION_TYPE_MISSION) -> Callable[[Any], Any]:
+    """A MISSION_ITEM_INT builder (NaN yaw for waypoints, as QGC sends; item 0 current)."""
     return lambda mav: mav.mission_item_int_encode(target[0], target[1], seq, MAV_FRAME_GLOBAL_RELATIVE_ALT_INT,
                                                    cmd, int(seq == 0), 1, p1, p2, 0.0, NAN if cmd == 16 else 0.0,
                                                    x, y, z, mission_type)

@@ -49,6 +49,8 @@ def noise_packets(t_us: int, rng: Random) -> list[Pkt]:
 
 
 def px4_sitl_udp(outdir: Path) -> tuple[dict[str, Any], list[Send]]:
+    """The 60 s PX4 SITL session over UDP, with ARP and DNS noise; also returns its sends, which the tlog
+    and the serial dump reuse."""
     rng = Random(1)
     profile = Profile(mav2, MAV_AUTOPILOT_PX4, PX4_STREAMS)
     sends = build_session(profile, PX4_UDP_STORY, rng)
@@ -101,6 +103,7 @@ def serial_dump(outdir: Path, sends: Sequence[Send]) -> dict[str, Any]:
 
 
 def mavlink_v1_udp(outdir: Path) -> dict[str, Any]:
+    """An ArduCopter-style MAVLink v1 session: one frame per datagram, arm and its ACK."""
     rng = Random(3)
     story = Story(duration=20.0, keyframes=(Keyframe(0, 0, 0, 0, 0), Keyframe(20, 0, 0, 0, 0)), arm_at=8.0)
     profile = Profile(mav1, MAV_AUTOPILOT_ARDUPILOTMEGA, ("HEARTBEAT", "SYS_STATUS", "ATTITUDE", "GPS_RAW_INT"),
@@ -113,6 +116,7 @@ def mavlink_v1_udp(outdir: Path) -> dict[str, Any]:
 
 
 def signed_udp(outdir: Path) -> dict[str, Any]:
+    """Every frame signed by pymavlink (vehicle link 0, GCS link 1): arm and RTL with their ACKs."""
     rng = Random(4)
     story = Story(duration=20.0, keyframes=(Keyframe(0, 0, 0, 0, 0), Keyframe(5, 0, 0, 0, 0),
                                             Keyframe(8, 0, 0, 15, 0), Keyframe(13, 30, 0, 15, 0),

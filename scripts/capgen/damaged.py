@@ -37,6 +37,8 @@ from .writers import write_pcap
 
 @dataclass(frozen=True)
 class DamageCase:
+    """One record of damaged.pcap as README.md documents it."""
+
     record: int
     what: str
     expect: str

@@ -39,6 +39,7 @@ def wrap_packet(pkt: ScapyPacket, payload: bytes, t_us: int, frames: Sequence[Fr
 
 
 def stacked_offsets(frames: Sequence[Frame]) -> list[int]:
+    """Offset of each frame in the frames written back to back."""
     out, pos = [], 0
     for fr in frames:
         out.append(pos)
@@ -57,6 +58,7 @@ class UdpFlow:
         self.ip_id = {side: rng.randint(1_000, 60_000) for side in addr}
 
     def packet(self, send: Send) -> Pkt:
+        """One datagram from `send.side` to the other side, with that sender's next IP id."""
         src, dst = send.side, "gcs" if send.side == "vehicle" else "vehicle"
         self.ip_id[src] = (self.ip_id[src] + 1) % 65_536
         link = Ether(src=self.macs[src], dst=self.macs[dst])

@@ -60,6 +60,7 @@ LINKTYPE_NAMES = {LINKTYPE_ETHERNET: "Ethernet (1)", LINKTYPE_LINUX_SLL2: "Linux
 
 
 def render_readme(expected: dict[str, Any], cases: Sequence[DamageCase]) -> str:
+    """The README up to its analysis and security sections: files, keys, counts, damaged.pcap case by case."""
     key_hex = SIGNING_KEY.hex()
     udp, tcp, serial = expected["px4_sitl_udp.pcap"], expected["px4_sitl_tcp.pcap"], expected["serial_dump.raw"]
     rows = []

@@ -49,6 +49,7 @@ KEX_AES_GCM_METHOD = 6
 
 
 def kex_vehicle_private(key_id: int) -> bytes:
+    """The vehicle's X25519 private key for epoch `key_id`: fixed, so the README can publish it."""
     return hashlib.sha256(f"mavscope key exchange: vehicle epoch {key_id}".encode()).digest()
 
 
@@ -62,6 +63,7 @@ class SecureSender:
         self.timestamp = 0
 
     def payload(self, build: Callable[[Any], Any]) -> tuple[int, bytes, int]:
+        """(msgid, trimmed plaintext payload, CRC_EXTRA) of a message as pymavlink encodes it."""
         msg = build(self.ep.mav)
         data = msg.pack(self.ep.mav)
         return msg.get_msgId(), data[10:10 + data[1]], msg.crc_extra
@@ -80,6 +82,7 @@ class SecureSender:
 
 
 def _udp_capture(outdir: Path, name: str, sends: list[Send], rng: Random) -> dict[str, Any]:
+    """Write `sends` as one datagram each between the loopback ports, in time order."""
     flow = UdpFlow({"vehicle": (LOOPBACK_V4, VEHICLE_UDP_PORT), "gcs": (LOOPBACK_V4, GCS_UDP_PORT)}, rng)
     pkts = [flow.packet(s) for s in sorted(sends, key=lambda s: s.t_us)]
     offsets = write_pcap(outdir / name, LINKTYPE_ETHERNET, pkts)

@@ -18,6 +18,8 @@ from .constants import (
 
 @dataclass(frozen=True)
 class Keyframe:
+    """Where the vehicle is at time `t`; between keyframes it moves in a straight line."""
+
     t: float  # seconds since the capture start
     north: float  # metres from home
     east: float
@@ -43,6 +45,8 @@ class Story:
 
 @dataclass(frozen=True)
 class VehicleState:
+    """What the telemetry reports at one moment."""
+
     lat: int  # degE7
     lon: int
     rel_alt: float  # m above home

@@ -39,6 +39,7 @@ def summarize(fmt: str, linktypes: list[int], records: int | None,
 
 
 def summarize_packets(fmt: str, linktypes: list[int], pkts: Sequence[Pkt], offsets: Sequence[int]) -> dict[str, Any]:
+    """`summarize` for a packet capture: records numbered from 1, frame offsets in the file."""
     located, cuts = [], []
     for number, (p, data_off) in enumerate(zip(pkts, offsets), start=1):
         for idx, (off, fr) in enumerate(p.frames, start=1):

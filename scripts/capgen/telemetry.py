@@ -96,6 +96,7 @@ def _custom_mode(autopilot: int, mode: str) -> int:
 
 
 def vehicle_heartbeat(autopilot: int) -> MessageFactory:
+    """The vehicle's HEARTBEAT: base mode and custom mode follow the armed state and the flight mode."""
     def build(mav: Any, s: VehicleState, t_us: int) -> Any:
         base = MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | MAV_MODE_FLAG_STABILIZE_ENABLED
         if s.mode != "HOLD" or s.armed:
@@ -180,6 +181,7 @@ def gcs_heartbeat(mav: Any, s: VehicleState, t_us: int) -> Any:
 
 
 def command_ack(command: int) -> MessageFactory:
+    """COMMAND_ACK (accepted) to the GCS; MAVLink v1 has no target fields."""
     def build(mav: Any, s: VehicleState, t_us: int) -> Any:
         if isinstance(mav, mav1.MAVLink):
             return mav.command_ack_encode(command, MAV_RESULT_ACCEPTED)
@@ -188,6 +190,7 @@ def command_ack(command: int) -> MessageFactory:
 
 
 def command_long(command: int, *params: float) -> MessageFactory:
+    """COMMAND_LONG to the vehicle, unused params zero."""
     p = list(params) + [0.0] * (7 - len(params))
     return lambda mav, s, t_us: mav.command_long_encode(VEHICLE_SYSID, VEHICLE_COMPID, command, 0, *p)
 

@@ -40,7 +40,7 @@ def _pcapng_options(options: Sequence[tuple[int, bytes]]) -> bytes:
 def write_pcapng(path: Path, interfaces: Sequence[tuple[int, str, int]], pkts: Sequence[Pkt]) -> list[int]:
     """pcapng: one SHB, one IDB per (linktype, name, tsresol), one EPB per packet. Returns data offsets."""
     out = bytearray(_pcapng_block(0x0A0D0D0A, struct.pack("<IHHq", 0x1A2B3C4D, 1, 0, -1) + _pcapng_options(
-        [(4, b"mavscope scripts/make_captures.py")])))  # shb_userappl
+        [(4, b"mavscope scripts/make_captures.py")])))  # shb_userappl: in the bytes, so kept as is
     for linktype, name, tsresol in interfaces:
         opts = [(2, name.encode())] + ([(9, bytes([tsresol]))] if tsresol != 6 else [])  # if_name, if_tsresol
         out += _pcapng_block(1, struct.pack("<HHI", linktype, 0, SNAPLEN) + _pcapng_options(opts))
