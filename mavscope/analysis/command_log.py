@@ -10,15 +10,14 @@ unanswered; ACKs that match no command are listed apart.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
+from mavscope.mavlink.semantics import INT_COORDINATE_MESSAGES, enum_name, finite, int_coordinate
 
 MAV_RESULT_IN_PROGRESS = 5
-GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})  # MAV_FRAMEs whose x/y are latitude/longitude
 
 
 @dataclass
@@ -45,15 +44,7 @@ class Command:
 
 
 def _name(dialect: Dialect, enum: str, value: int | None) -> str | None:
-    if value is None:
-        return None
-    e = dialect.enums.get(enum)
-    n = e.name_of(value) if e is not None else None
-    return n or str(value)
-
-
-def _clean(v: object) -> object:
-    return None if isinstance(v, float) and (math.isnan(v) or math.isinf(v)) else v
+    return None if value is None else enum_name(dialect, enum, value)
 
 
 def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> tuple[list[Command], list[dict[str, object]]]:
@@ -80,11 +71,13 @@ def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> tuple[list[Command
                 continue
             names = [n for n in ("param1", "param2", "param3", "param4", "param5", "param6", "param7", "x", "y", "z",
                                  "frame", "confirmation") if n in fields]
-            params: dict[str, object] = {n: _clean(fields[n]) for n in names}
-            if md.name == "COMMAND_INT" and params.get("frame") in GLOBAL_FRAMES:
-                params["x"] = int(params["x"]) / 1e7  # type: ignore[call-overload]  # degrees
-                params["y"] = int(params["y"]) / 1e7  # type: ignore[call-overload]
-            c = Command(md.name, cmd_id, me, target, params, f.time, [f.record], src=f.src)
+            params: dict[str, object] = {n: finite(fields[n]) for n in names}
+            if md.name in INT_COORDINATE_MESSAGES:  # degrees in a global frame, metres in a local one
+                frame = params.get("frame")
+                params["x"] = int_coordinate(int(params["x"]), frame)  # type: ignore[call-overload, arg-type]
+                params["y"] = int_coordinate(int(params["y"]), frame)  # type: ignore[call-overload, arg-type]
+            src = None if f.src is None else f.src.text
+            c = Command(md.name, cmd_id, me, target, params, f.time, [f.record], src=src)
             commands.append(c)
             pending.append(c)
             continue

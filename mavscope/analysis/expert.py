@@ -10,11 +10,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
-from mavscope.analysis.findings import Finding, sort_findings
 from mavscope.analysis.stats import SeqTracker
+from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, SignatureStatus, decode_payload
-from mavscope.notes import Severity
+from mavscope.notes import Finding, finding, sort_findings
 
 # Messages that tell a vehicle what to do (their target_system is the vehicle commanded).
 COMMANDING = frozenset({
@@ -50,8 +50,7 @@ def bad_crc_bursts(frames: Sequence[Frame], dialect: Dialect) -> list[Finding]:
             span = (run[-1].time - run[0].time) if run[0].time is not None and run[-1].time is not None else None
             when = f" within {span:.3f} s" if span is not None else ""
             links = ", ".join(sorted({_link(f) for f in run}))
-            out.append(Finding("bad-crc-burst", Severity.WARN,
-                               f"{len(run)} frames with a bad CRC{when} (links {links})",
+            out.append(finding("bad-crc-burst", f"{len(run)} frames with a bad CRC{when} (links {links})",
                                _frames([f.record for f in run])))
 
     for f in frames:
@@ -81,23 +80,23 @@ def sequence_anomalies(frames: Sequence[Frame], dialect: Dialect) -> list[Findin
         prev = tr.last
         what, n = tr.feed(f.seq)
         if what == "gap" and n >= GAP_MIN:
-            out.append(Finding("seq-gap", Severity.WARN,
+            out.append(finding("seq-gap",
                                f"link {f.sysid}/{f.compid}: {n} frames lost (seq {prev} -> {f.seq})", (f.record,)))
         elif what in ("duplicate", "late"):
             events.setdefault((key, what), []).append(f.record)
     for (key, what), nums in events.items():
         sysid, compid = key
         if what == "duplicate":
-            out.append(Finding("seq-duplicate", Severity.NOTE,
+            out.append(finding("seq-duplicate",
                                f"link {sysid}/{compid}: {len(nums)} frames repeat a sequence number already seen",
                                _frames(nums)))
         else:
-            out.append(Finding("seq-reordered", Severity.NOTE,
+            out.append(finding("seq-reordered",
                                f"link {sysid}/{compid}: {len(nums)} frames arrived after later ones", _frames(nums)))
     for key, total in counts.items():
         back = len(events.get((key, "duplicate"), ())) + len(events.get((key, "late"), ()))
         if back >= 5 and back * 20 >= total:
-            out.append(Finding("seq-interleaved", Severity.WARN,
+            out.append(finding("seq-interleaved",
                                f"link {key[0]}/{key[1]}: {back} of {total} frames step back in sequence: two senders "
                                "may share this system/component id",
                                _frames(events.get((key, "duplicate"), []) + events.get((key, "late"), []))))
@@ -133,7 +132,7 @@ def command_sources(frames: Sequence[Frame], dialect: Dialect) -> list[Finding]:
     heartbeat_seen: set[tuple[int, int]] = set()
     first_commander: dict[int, tuple[int, int]] = {}
     reported: set[tuple[str, object]] = set()
-    endpoints: dict[tuple[int, int], str] = {}
+    endpoints: dict[tuple[int, int], Endpoint] = {}
     cmds = {id(f): fields for f, fields in _command_frames(frames)}
     out: list[Finding] = []
     for f in frames:
@@ -150,19 +149,19 @@ def command_sources(frames: Sequence[Frame], dialect: Dialect) -> list[Finding]:
         est = first_commander.setdefault(target, sender)
         if est[0] != sender[0] and ("new", (target, sender)) not in reported:
             reported.add(("new", (target, sender)))
-            out.append(Finding("new-commander", Severity.WARN,
+            out.append(finding("new-commander",
                                f"system {sender[0]}/{sender[1]} commands system {target} ({name}), which "
                                f"{est[0]}/{est[1]} commanded until then", (f.record,)))
         if f.src:
             known = endpoints.setdefault(sender, f.src)
             if known != f.src and ("src", (sender, f.src)) not in reported:
                 reported.add(("src", (sender, f.src)))
-                out.append(Finding("unexpected-command-source", Severity.WARN,
+                out.append(finding("unexpected-command-source",
                                    f"{name} from {sender[0]}/{sender[1]} arrives from {f.src}; its commands came "
                                    f"from {known} until then", (f.record,)))
         if sender not in heartbeat_seen and ("hb", sender) not in reported:
             reported.add(("hb", sender))
-            out.append(Finding("command-without-heartbeat", Severity.NOTE,
+            out.append(finding("command-without-heartbeat",
                                f"{sender[0]}/{sender[1]} sends {name} to system {target} before any HEARTBEAT "
                                "of its own", (f.record,)))
     return out
@@ -183,9 +182,8 @@ def replayed_commands(frames: Sequence[Frame], dialect: Dialect) -> list[Finding
         step, _ = tr.feed(f.seq)
         sec = f.security
         if sec is not None and sec.signature_status is SignatureStatus.REPLAY:
-            out.append(Finding("replayed-command", Severity.ERROR,
-                               f"{f.msgname or f.msgid} from {_link(f)}: "
-                               f"signature replay ({sec.reason or 'old timestamp'})",
+            out.append(finding("replay", f"{f.msgname or f.msgid} from {_link(f)}: "
+                               f"signature replay ({sec.reason_text or 'old timestamp'})",
                                (f.record,)))
             continue
         md = f.msgdef
@@ -196,7 +194,7 @@ def replayed_commands(frames: Sequence[Frame], dialect: Dialect) -> list[Finding
             seen[f.raw] = f
             continue
         gap = f" {f.time - prev.time:.3f} s later" if f.time is not None and prev.time is not None else ""
-        out.append(Finding("replayed-command", Severity.WARN,
+        out.append(finding("replayed-command",
                            f"{md.name} from {_link(f)} is a byte-for-byte copy of frame {prev.record}{gap} "
                            "(same sequence number: a replay or a duplicated packet)", (prev.record, f.record)))
     return out
@@ -213,7 +211,7 @@ def unsigned_commands(frames: Sequence[Frame], dialect: Dialect) -> list[Finding
             continue
         target = fields.get("target_system")
         if f.sysid in signing or target in signing:
-            out.append(Finding("unsigned-command", Severity.WARN,
+            out.append(finding("unsigned-command",
                                f"unsigned {f.msgname} from {_link(f)} to system {target}, where signed traffic is seen",
                                (f.record,)))
     return out
@@ -224,8 +222,7 @@ def key_leaks(frames: Sequence[Frame], dialect: Dialect) -> list[Finding]:
     nums = [f.record for f in frames if f.msgdef is not None and f.msgdef.name == "SETUP_SIGNING"]
     if not nums:
         return []
-    return [Finding("key-leak", Severity.ERROR,
-                    f"{len(nums)} SETUP_SIGNING frame(s): the signing key travels in clear in this capture",
+    return [finding("key-leak", f"{len(nums)} SETUP_SIGNING frame(s): the signing key travels in clear in this capture",
                     _frames(nums))]
 
 

@@ -12,26 +12,20 @@ before any ACK).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import cast
 
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
+from mavscope.mavlink.semantics import enum_name, finite, int_coordinate, is_global
 
 MISSION_MESSAGES = frozenset({"MISSION_COUNT", "MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ITEM",
                               "MISSION_ITEM_INT", "MISSION_ACK", "MISSION_REQUEST_LIST"})
 MAV_MISSION_ACCEPTED = 0
-# MAV_FRAME values whose x/y are latitude/longitude (degrees, or degrees * 1e7 in MISSION_ITEM_INT)
-GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})
 # *_INT frame variants -> the frame QGroundControl writes in a .plan
 PLAN_FRAME = {5: 0, 6: 3, 11: 10}
 ALTITUDE_MODE = {0: 2, 5: 2, 3: 1, 6: 1, 10: 3, 11: 3}  # QGC AltitudeMode: 1 relative, 2 AMSL, 3 terrain
-
-
-def _clean(v: object) -> object:
-    return None if isinstance(v, float) and (math.isnan(v) or math.isinf(v)) else v
 
 
 @dataclass
@@ -49,7 +43,7 @@ class Item:
     frames: list[int] = field(default_factory=list)
 
     def plan_params(self) -> list[object]:
-        return [_clean(p) for p in self.params] + [_clean(self.x), _clean(self.y), _clean(self.z)]
+        return [finite(p) for p in self.params] + [finite(self.x), finite(self.y), finite(self.z)]
 
 
 @dataclass
@@ -95,11 +89,7 @@ class Transfer:
 
 
 def _enum_name(dialect: Dialect, enum: str, value: int | None) -> str:
-    if value is None:
-        return "none"
-    e = dialect.enums.get(enum)
-    name = e.name_of(value) if e is not None else None
-    return name or str(value)
+    return "none" if value is None else enum_name(dialect, enum, value)
 
 
 def _item(name: str, fields: dict[str, object], record: int) -> Item:
@@ -107,8 +97,7 @@ def _item(name: str, fields: dict[str, object], record: int) -> Item:
     frame = int(num.get("frame", 0))
     x, y = num.get("x", 0), num.get("y", 0)
     if name == "MISSION_ITEM_INT":
-        scale = 1e7 if frame in GLOBAL_FRAMES else 1e4
-        x, y = int(x) / scale, int(y) / scale
+        x, y = int_coordinate(int(x), frame), int_coordinate(int(y), frame)
     return Item(int(num["seq"]), int(num["command"]), frame,
                 tuple(float(num[f"param{i}"]) for i in range(1, 5)),  # type: ignore[arg-type]  # 4 params
                 float(x), float(y), float(num.get("z", 0.0)),
@@ -212,10 +201,10 @@ def item_json(item: Item, dialect: Dialect) -> dict[str, object]:
         "command_id": item.command,
         "frame": _enum_name(dialect, "MAV_FRAME", item.frame),
         "frame_id": item.frame,
-        "params": [_clean(p) for p in item.params],
+        "params": [finite(p) for p in item.params],
         "param_labels": [labels.get(i) for i in range(1, 8)],
-        "x": item.x, "y": item.y, "z": _clean(item.z),
-        "units": "deg" if item.frame in GLOBAL_FRAMES else "m",
+        "x": item.x, "y": item.y, "z": finite(item.z),
+        "units": "deg" if is_global(item.frame) else "m",
         "current": item.current, "autocontinue": item.autocontinue,
         "message": item.message, "frames": item.frames,
     }
@@ -250,7 +239,7 @@ def to_plan(transfers: list[Transfer], home: tuple[float, float, float] | None =
         for seq in sorted(mission.items):
             it = mission.items[seq]
             items.append({
-                "AMSLAltAboveTerrain": None, "Altitude": _clean(it.z),
+                "AMSLAltAboveTerrain": None, "Altitude": finite(it.z),
                 "AltitudeMode": ALTITUDE_MODE.get(it.frame, 1), "autoContinue": bool(it.autocontinue),
                 "command": it.command, "doJumpId": seq + 1, "frame": PLAN_FRAME.get(it.frame, it.frame),
                 "params": it.plan_params(), "type": "SimpleItem",

@@ -16,9 +16,10 @@ from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-from mavscope.mavlink.frame import Frame, SignatureStatus
+from mavscope.mavlink.frame import Frame, signature_status
 
 LATE_WINDOW = 128
+RATE_BINS = 256  # a stream's frame times are counted in at most this many bins (bounded whatever the span)
 
 
 @dataclass
@@ -85,11 +86,49 @@ class _Timed:
             self.last = t
 
 
+class RateHistogram:
+    """Frames counted in time bins from `origin`: at most RATE_BINS bins, whose width (1 s at first)
+    doubles whenever a frame falls beyond them, so memory stays bounded whatever the capture's span (two
+    records 56 years apart make 35 doublings, not 1.8e9 seconds)."""
+
+    __slots__ = ("origin", "width", "bins")
+
+    def __init__(self, origin: float) -> None:
+        self.origin = origin
+        self.width = 1.0
+        self.bins: list[int] = []
+
+    def add(self, t: float) -> None:
+        i = int((t - self.origin) / self.width) if t > self.origin else 0
+        while i >= RATE_BINS:
+            self.width *= 2
+            self.bins = [sum(self.bins[k : k + 2]) for k in range(0, len(self.bins), 2)]
+            i //= 2
+        bins = self.bins
+        if i >= len(bins):
+            bins.extend([0] * (i + 1 - len(bins)))
+        bins[i] += 1
+
+    def series(self, span: float, buckets: int) -> list[float]:
+        """Frames per second in at most `buckets` equal slices of `span` seconds from the origin, each slice
+        the average of the bins it holds (fewer slices when the span holds fewer bins)."""
+        nbins = max(1, min(RATE_BINS, int(span / self.width) + 1))
+        n = max(1, min(buckets, nbins))
+        counts = [0] * n
+        widths = [0] * n
+        for i in range(nbins):
+            k = i * n // nbins
+            widths[k] += 1
+            if i < len(self.bins):
+                counts[k] += self.bins[i]
+        return [c / (w * self.width) for c, w in zip(counts, widths)]
+
+
 @dataclass
 class _Stream(_Timed):
     count: int = 0
     bytes: int = 0
-    per_second: Counter[int] = field(default_factory=Counter)
+    rates: RateHistogram | None = None
 
 
 @dataclass
@@ -126,12 +165,8 @@ def message_name(frame: Frame) -> str:
 
 def signature_verdict(frame: Frame) -> str:
     """`unsigned`, or the signature status (no-key without key material)."""
-    sec = frame.security
-    if sec is not None and sec.signature_status is not None:
-        return sec.signature_status.value
-    if frame.signature is None and not frame.incompat_flags & 1:
-        return "unsigned"
-    return SignatureStatus.NO_KEY.value
+    status = signature_status(frame.incompat_flags, frame.security)
+    return "unsigned" if status is None else status.value
 
 
 @dataclass
@@ -200,13 +235,12 @@ class Stats:
         return {"messages": self.messages_json(), "links": self.links_json(),
                 "conversations": self.conversations_json(), "totals": self.totals_json()}
 
-    def per_second(self, key: tuple[int, int, str]) -> list[int]:
-        """Frames of one stream in each second of the capture (for a rate sparkline)."""
-        if self.first is None or self.last is None:
+    def rate_series(self, key: tuple[int, int, str], buckets: int) -> list[float]:
+        """Frames per second of one stream in at most `buckets` equal slices of the capture (a sparkline)."""
+        rates = self.streams[key].rates
+        if self.first is None or self.last is None or rates is None:
             return []
-        n = int(self.last - self.first) + 1
-        counts = self.streams[key].per_second
-        return [counts.get(i, 0) for i in range(n)]
+        return rates.series(self.last - self.first, buckets)
 
 
 def compute_stats(frames: Iterable[Frame]) -> Stats:
@@ -237,7 +271,9 @@ def compute_stats(frames: Iterable[Frame]) -> Stats:
         s.bytes += size
         s.see(t)
         if t is not None:
-            s.per_second[int(t - first)] += 1  # type: ignore[operator]
+            if s.rates is None:
+                s.rates = RateHistogram(first)  # type: ignore[arg-type]  # set with the first time
+            s.rates.add(t)
         lk = links.get(key[:2])
         if lk is None:
             lk = links[key[:2]] = _Link()
@@ -256,9 +292,9 @@ def compute_stats(frames: Iterable[Frame]) -> Stats:
         sigs[verdict] += 1
         lk.seq.feed(f.seq)
         lk.see(t)
-        if f.src:
-            lk.endpoints.add(f.src)
-        a, b = f.src or f.transport, f.dst or ""
+        if f.src is not None:
+            lk.endpoints.add(f.src.text)
+        a, b = str(f.src or f.transport), str(f.dst or "")
         ck = (f.transport, a, b) if a <= b else (f.transport, b, a)
         c = convs.get(ck)
         if c is None:

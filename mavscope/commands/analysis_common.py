@@ -13,9 +13,9 @@ from mavscope.commands.common import (
     capture_session,
     report_anomaly,
 )
-from mavscope.dissect import Anomaly
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
+from mavscope.pipeline.dissect import Anomaly
 
 
 def add_analysis_options(p: argparse.ArgumentParser) -> None:
@@ -26,10 +26,10 @@ def add_analysis_options(p: argparse.ArgumentParser) -> None:
 
 
 def read_frames(args: argparse.Namespace, env: Env) -> tuple[list[Frame], Dialect, str]:
-    """Every frame the session yields, in capture order; anomalies go to stderr as `read` reports them."""
+    """Every frame the session shows, in capture order; anomalies go to stderr as `read` reports them."""
     frames: list[Frame] = []
     with capture_session(args, env) as session:
-        for item in session.items:
+        for item in session.shown():
             if type(item) is Anomaly:
                 report_anomaly(env, session.path, item)
             else:

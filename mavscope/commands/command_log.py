@@ -8,7 +8,8 @@ from typing import cast
 from mavscope.analysis.command_log import command_json, reconstruct
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, read_frames
-from mavscope.output.tables import console, fmt, iso, write_json
+from mavscope.commands.common import console, write_json
+from mavscope.output.tables import fmt, iso
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -1,7 +1,7 @@
 """`mavscope live`: dissect MAVLink as it arrives on a UDP port (optionally relaying) or an interface.
 
 The records a live source yields go through the same pipeline as a capture file's
-(`build_pipeline`: dissector, security verdicts, display filter) and the same per-frame output as
+(`pipeline.session.build_pipeline`: dissector, security verdicts, display filter) and the same per-frame output as
 `read` (`FramePrinter`). Output is flushed whenever mavscope has caught up with the link, so
 `mavscope live ... -T jsonl | jq` sees each line as soon as it is decoded. SIGINT and SIGTERM stop
 cleanly: the receiver stops, what it already received is decoded, the pcap is flushed and closed, and a
@@ -18,14 +18,22 @@ from types import FrameType
 
 from mavscope.capture.base import Record
 from mavscope.cli import Env, ExitStatus
-from mavscope.commands.common import add_filter_option, add_key_options, build_pipeline, report_anomaly
-from mavscope.dissect import Anomaly
+from mavscope.commands.common import (
+    add_dialect_option,
+    add_filter_option,
+    add_key_options,
+    pipeline_options,
+    report_anomaly,
+    warner,
+)
 from mavscope.errors import MavscopeError, UsageError
 from mavscope.live.sink import LivePcapWriter
 from mavscope.live.source import DEFAULT_QUEUE_ITEMS, LiveSource
 from mavscope.live.udp import UdpSource, parse_endpoint
 from mavscope.mavlink.dialect import load_dialect
 from mavscope.output.printer import FramePrinter
+from mavscope.pipeline.dissect import Anomaly
+from mavscope.pipeline.session import build_pipeline
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -41,8 +49,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bpf", metavar="EXPR", help="with --sniff: a capture filter, e.g. 'udp port 14550'")
     p.add_argument("--forward", metavar="HOST:PORT",
                    help="with --udp: relay datagrams to HOST:PORT and its replies back to the last sender")
-    p.add_argument("--dialect", action="append", default=[], metavar="XML",
-                   help="load another dialect XML (repeatable; dissectors/*.xml load automatically)")
+    add_dialect_option(p)
     add_filter_option(p)
     add_key_options(p)
     p.add_argument("-V", dest="verbose", action="store_true", help="print the detail tree of every frame")
@@ -123,7 +130,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     except BaseException:
         source.close()
         raise
-    printer = FramePrinter(env, dialect, args.format, verbose=args.verbose, hex=args.hex, quiet=args.quiet)
+    printer = FramePrinter(env.stdout, env.stdout_bytes, dialect, args.format, verbose=args.verbose, hex=args.hex,
+                           quiet=args.quiet)
     writer: LivePcapWriter | None = None
     restore: list[tuple[signal.Signals, object]] = []
     timer: threading.Timer | None = None
@@ -142,7 +150,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         def records() -> Iterator[Record]:
             for rec in source.records(on_idle=idle):
                 if printer.t0 is None:
-                    printer.t0 = rec[1]
+                    printer.t0 = rec.time
                 if writer is not None:
                     writer.write(rec)
                 yield rec
@@ -164,7 +172,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         if timer is not None:
             timer.start()
         try:
-            for item in build_pipeline(args, env, dialect, records()):
+            for item in build_pipeline(pipeline_options(args, env), dialect, records(), warn=warner(env)):
                 if type(item) is Anomaly:
                     report_anomaly(env, "live", item)
                     continue

@@ -9,9 +9,10 @@ import json
 from mavscope.analysis.mission import reconstruct, to_plan, transfer_json
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, read_frames
+from mavscope.commands.common import console, write_json
 from mavscope.errors import UsageError
 from mavscope.mavlink.frame import Frame, decode_payload
-from mavscope.output.tables import console, fmt, iso, write_json
+from mavscope.output.tables import fmt, iso
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -14,10 +14,10 @@ from mavscope.commands.common import (
     progress,
     report_anomaly,
 )
-from mavscope.dissect import Anomaly
 from mavscope.errors import UsageError
-from mavscope.export import FrameWriter, write_records
+from mavscope.output.capture_out import FrameWriter, write_records
 from mavscope.output.printer import FramePrinter
+from mavscope.pipeline.dissect import Anomaly
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -48,12 +48,12 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         path, dialect = session.path, session.dialect
         frame_writer = _open_writer(args.write, path, session.reader.kind) if args.write else None
         update, stop = progress(env, session.reader)
-        printer = FramePrinter(env, dialect, args.format, verbose=args.verbose, hex=args.hex, quiet=args.quiet,
-                               t0=t0)
+        printer = FramePrinter(env.stdout, out_b, dialect, args.format, verbose=args.verbose, hex=args.hex,
+                               quiet=args.quiet, t0=t0)
         show = printer.frame
         try:
             printer.begin()
-            for n, item in enumerate(session.items):
+            for n, item in enumerate(session.shown()):
                 if not n & 0x3FFF:
                     update()
                 if type(item) is Anomaly:

@@ -9,7 +9,10 @@ from mavscope.analysis.expert import expert_findings
 from mavscope.analysis.stats import compute_stats
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, read_frames
-from mavscope.output.tables import console, fmt, iso, sparkline, write_json
+from mavscope.commands.common import console, write_json
+from mavscope.output.tables import fmt, iso, sparkline
+
+SPARK_WIDTH = 40
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -31,7 +34,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         doc = stats.to_json()
         doc["findings"] = [f.to_json() for f in findings]
         doc["file"] = path
-        doc["filter"] = getattr(args, "display_filter", None)
+        doc["filter"] = args.display_filter
         write_json(env, doc)
         return ExitStatus.OK
     from rich.table import Table
@@ -45,7 +48,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         t.add_column(col, justify=just)  # type: ignore[arg-type]
     for m in stats.messages_json():
         key = (m["sysid"], m["compid"], m["msgname"])
-        line = sparkline(stats.per_second(key)) if key in spark else ""
+        line = sparkline(stats.rate_series(key, SPARK_WIDTH)) if key in spark else ""
         t.add_row(f"{m['sysid']}/{m['compid']}", str(m["msgname"]), str(m["count"]), fmt(m["rate_hz"], 2),
                   str(m["bytes"]), line)
     con.print(t)

@@ -7,7 +7,8 @@ import argparse
 from mavscope.analysis.timeline import reconstruct
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, read_frames
-from mavscope.output.tables import console, fmt, iso, write_json
+from mavscope.commands.common import console, write_json
+from mavscope.output.tables import fmt, iso
 
 
 def register(sub: argparse._SubParsersAction) -> None:

@@ -21,11 +21,11 @@ import select
 import socket
 import struct
 import time
-from dataclasses import dataclass
 from typing import Any
 
 from mavscope.capture.base import LINKTYPE_ETHERNET, Record
 from mavscope.capture.writer import synth_udp_ipv4
+from mavscope.endpoint import Endpoint
 from mavscope.errors import MavscopeError, UsageError
 from mavscope.live.drops import proc_udp_drops, socket_inode
 from mavscope.live.source import (
@@ -47,16 +47,6 @@ _IPPROTO_IPV6 = socket.IPPROTO_IPV6
 _TIMESPEC = struct.Struct("=qq")
 _BURST = 1024  # datagrams taken from one socket before looking at the others and at stop()
 _FINAL_DRAIN_S = 1.0  # at most this long to empty the kernel's buffer after stop()
-
-
-@dataclass(frozen=True)
-class Endpoint:
-    host: str  # a numeric address
-    port: int
-    family: int
-
-    def __str__(self) -> str:
-        return f"[{self.host}]:{self.port}" if self.family == socket.AF_INET6 else f"{self.host}:{self.port}"
 
 
 def parse_endpoint(text: str, *, what: str, default_host: str | None = "0.0.0.0") -> Endpoint:

@@ -34,9 +34,6 @@ _STRUCT_CODE = {
     "uint64_t": "Q",
 }
 
-# Commands whose param1..7 meanings come from the MAV_CMD enum's <param label=...> entries.
-COMMAND_MESSAGES = frozenset({"COMMAND_LONG", "COMMAND_INT", "MISSION_ITEM", "MISSION_ITEM_INT"})
-
 Decoded = dict[str, object]
 
 

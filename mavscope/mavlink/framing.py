@@ -22,6 +22,7 @@ from collections.abc import Hashable
 
 from fastcrc import crc16
 
+from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import MessageDef
 from mavscope.mavlink.frame import (
     HEADER_V1,
@@ -35,6 +36,7 @@ from mavscope.mavlink.frame import (
     CrcStatus,
     Frame,
     Signature,
+    new_frame,
 )
 from mavscope.notes import Note, note
 
@@ -43,7 +45,6 @@ unpack_v2 = struct.Struct("<BBBBBBBHB").unpack_from
 _V1 = struct.Struct("<BBBBBB").unpack_from
 _CRC = struct.Struct("<H").unpack_from
 unpack_signature = struct.Struct("<B6s6s").unpack_from
-_new = tuple.__new__
 
 OK = CrcStatus.OK
 BAD = CrcStatus.BAD
@@ -241,8 +242,8 @@ def build_frame(
     index: int,
     time: float | None,
     transport: str,
-    src: str | None,
-    dst: str | None,
+    src: Endpoint | None,
+    dst: Endpoint | None,
     offset: int | None,
     notes: tuple[Note, ...],
     span: tuple[int, ...] | None,
@@ -296,11 +297,8 @@ def build_frame(
             extra.append(note("length-mismatch", f"payload of {length} bytes, {md.name} has {md.length}", offset))
     if extra:
         notes = notes + tuple(extra)
-    return _new(
-        Frame,
-        (record, index, time, transport, src, dst, offset, raw, version, length, iflags, cflags, seq, sysid,
-         compid, msgid, crc, status, md, sig, notes, span, None),
-    )
+    return new_frame(record, index, time, transport, src, dst, offset, raw, version, length, iflags, cflags, seq,
+                     sysid, compid, msgid, crc, status, md, sig, notes, span)
 
 
 def announced_size(raw: bytes) -> int:

@@ -24,7 +24,6 @@ from mavscope.security.ciphers import hkdf_sha256
 from mavscope.security.keys import SigningKey
 
 KEY_EXCHANGE_MSGID = 65100
-KEY_EXCHANGE_NAME = "MAVSCOPE_KEY_EXCHANGE"
 KEX_SALT = b"mavscope-kex-v1"
 LABEL_SIGNING = b"mavscope signing key"
 LABEL_AES_GCM = b"mavscope aes-gcm key"

@@ -5,6 +5,7 @@ from __future__ import annotations
 import struct
 
 from mavscope.capture.base import LINKTYPE_ETHERNET, LINKTYPE_MAVLINK_RAW, LINKTYPE_MAVLINK_TLOG, Record
+from mavscope.endpoint import Endpoint
 from mavscope.notes import Note, note
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
 from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, Endpoints, parse_ipv4, parse_ipv6
@@ -38,7 +39,7 @@ class Decapsulator:
         self.endpoints = Endpoints()
         self.tcp = TcpReassembler(max_tcp_buffer)
         self._unknown_seen: set[int] = set()
-        self._flows: dict[bytes, tuple[str, str]] = {}
+        self._flows: dict[bytes, tuple[Endpoint, Endpoint]] = {}
 
     def feed(self, rec: Record) -> list[Payload]:
         """The Payloads that `rec` yields now (possibly none)."""
@@ -57,8 +58,8 @@ class Decapsulator:
                                              number, offset + 42, ()))]
         return self._slow(rec)
 
-    def _flow_names(self, flow: bytes) -> tuple[str, str]:
-        """("ip:port", "ip:port") of the 12 bytes source address, destination address, ports."""
+    def _flow_names(self, flow: bytes) -> tuple[Endpoint, Endpoint]:
+        """The source and destination Endpoints of the 12 bytes source address, destination address, ports."""
         src, dst, sport, dport = _FLOW.unpack(flow)
         names = (self.endpoints.v4(src, sport), self.endpoints.v4(dst, dport))
         if len(self._flows) >= FLOW_CACHE:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import heapq
 from collections.abc import Hashable
 
+from mavscope.endpoint import Endpoint
 from mavscope.notes import Note, note
 from mavscope.transport.base import TRANSPORT_TCP, Payload
 
@@ -23,7 +24,7 @@ class _Direction:
 
     __slots__ = ("src", "dst", "isn", "next", "gen", "key", "pending", "buffered", "counter")
 
-    def __init__(self, src: str, dst: str, isn: int, nxt: int, gen: int) -> None:
+    def __init__(self, src: Endpoint, dst: Endpoint, isn: int, nxt: int, gen: int) -> None:
         self.src = src
         self.dst = dst
         self.isn = isn
@@ -49,11 +50,11 @@ class TcpReassembler:
 
     def __init__(self, max_buffered: int = MAX_BUFFERED) -> None:
         self.max_buffered = max_buffered
-        self._dirs: dict[tuple[str, str], _Direction] = {}
-        self._gens: dict[tuple[str, str], int] = {}
+        self._dirs: dict[tuple[Endpoint, Endpoint], _Direction] = {}
+        self._gens: dict[tuple[Endpoint, Endpoint], int] = {}
 
     def segment(
-        self, src: str, dst: str, seq: int, flags: int, data: bytes, record: int, offset: int | None
+        self, src: Endpoint, dst: Endpoint, seq: int, flags: int, data: bytes, record: int, offset: int | None
     ) -> list[Payload]:
         """Take one segment (payload `data` at file `offset`) and return the bytes now in order."""
         out: list[Payload] = []

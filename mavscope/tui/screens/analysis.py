@@ -18,7 +18,7 @@ from textual.screen import Screen
 from textual.widgets import Footer, Static
 from textual.worker import get_current_worker
 
-from mavscope.index import FrameIndex, FrameSequence
+from mavscope.browse.index import FrameIndex, FrameSequence
 
 
 class _Cancelled(Exception):

@@ -7,9 +7,8 @@ from textual.app import ComposeResult
 from textual.widgets import DataTable, Label
 
 from mavscope.analysis.expert import expert_findings
-from mavscope.analysis.findings import Finding
-from mavscope.index import FrameSequence
-from mavscope.notes import Severity
+from mavscope.browse.index import FrameSequence
+from mavscope.notes import Finding, Severity
 from mavscope.tui.screens.analysis import AnalysisScreen
 from mavscope.tui.verdicts import BLUE, DIM, ORANGE, RED
 

@@ -15,14 +15,14 @@ from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Label
 
 from mavscope.analysis.mission import MISSION_MESSAGES, Transfer, reconstruct
-from mavscope.index import FrameSequence
+from mavscope.browse.index import FrameSequence
 from mavscope.mavlink.frame import decode_payload
+from mavscope.mavlink.semantics import is_global
 from mavscope.tui.screens.analysis import AnalysisScreen
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
 from mavscope.tui.widgets.track_plot import TrackPlot
 
 MAX_TRACK_POINTS = 4000
-GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})
 
 
 @dataclass
@@ -127,7 +127,7 @@ class MissionScreen(AnalysisScreen):
                     params.append(f"{label} {_fmt(v)}{' ' + units if units else ''}")
                 elif v and not (isinstance(v, float) and math.isnan(v)):
                     params.append(f"param{n} {_fmt(v)}")
-            glob = it.frame in GLOBAL_FRAMES
+            glob = is_global(it.frame)
             lat = f"{it.x:.7f}°" if glob else _fmt(it.x)
             lon = f"{it.y:.7f}°" if glob else _fmt(it.y)
             z_label = labels.get(7, ("Altitude", "m"))

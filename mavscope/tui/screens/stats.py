@@ -7,23 +7,12 @@ from textual.app import ComposeResult
 from textual.widgets import DataTable, Label
 
 from mavscope.analysis.stats import Stats, compute_stats
-from mavscope.index import FrameSequence
+from mavscope.browse.index import FrameSequence
+from mavscope.output.tables import sparkline
 from mavscope.tui.screens.analysis import AnalysisScreen
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
 
-SPARK = "▁▂▃▄▅▆▇█"
 SPARK_WIDTH = 30
-
-
-def sparkline(values: list[int], width: int = SPARK_WIDTH) -> str:
-    """`values` (frames per second) squeezed into `width` cells, each the busiest second of its slice."""
-    if not values:
-        return ""
-    if len(values) > width:
-        step = len(values) / width
-        values = [max(values[int(i * step) : max(int(i * step) + 1, int((i + 1) * step))]) for i in range(width)]
-    top = max(values) or 1
-    return "".join(" " if v == 0 else SPARK[min(len(SPARK) - 1, (v * len(SPARK) - 1) // top)] for v in values)
 
 
 def _pct(v: float) -> Text:
@@ -70,7 +59,7 @@ class StatsScreen(AnalysisScreen):
             rates.add_row(f"{m['sysid']}/{m['compid']}", m["msgname"], Text(f"{m['count']:,}", justify="right"),
                           Text("-" if rate is None else f"{rate:.2f} Hz", justify="right"),
                           Text(f"{m['bytes']:,}", justify="right"),
-                          Text(sparkline(stats.per_second(key)), style="cyan"))  # type: ignore[arg-type]
+                          Text(sparkline(stats.rate_series(key, SPARK_WIDTH)), style="cyan"))  # type: ignore[arg-type]
         t = stats.totals_json()
         self.query_one("#rates-title", Label).update(
             f"Message rates: {t['frames']:,} frames, {t['bytes']:,} bytes over {duration or 0:.1f} s, "

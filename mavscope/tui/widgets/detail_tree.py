@@ -12,8 +12,8 @@ from textual.message import Message
 from textual.widgets import Tree
 from textual.widgets.tree import TreeNode
 
-from mavscope.index import Detail
-from mavscope.mavlink.items import Item
+from mavscope.browse.rows import Detail
+from mavscope.fields.tree import Item
 from mavscope.notes import Severity
 from mavscope.tui.verdicts import BLUE, DIM, GREEN, ORANGE, RED
 

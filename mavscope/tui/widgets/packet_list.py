@@ -22,7 +22,8 @@ from textual.reactive import reactive
 from textual.scroll_view import ScrollView
 from textual.strip import Strip
 
-from mavscope.index import FrameIndex, Row
+from mavscope.browse.index import FrameIndex
+from mavscope.browse.rows import Row
 from mavscope.mavlink.frame import CrcStatus
 from mavscope.tui.verdicts import (
     CRC_GLYPHS,
@@ -298,7 +299,7 @@ class PacketList(ScrollView, can_focus=True):
                 "packet-list--cursor" if state == 2 else "packet-list--cursor-blurred")
         t0 = self.index.time_base
         t = "-" if r.time is None or t0 is None else f"{r.time - t0:.6f}"
-        src = r.src or r.transport
+        src = str(r.src or r.transport)
         segs = [
             Segment(_cell(r.number, COLUMNS[0][1], True), base),
             Segment(_cell(t, COLUMNS[1][1], True), base),
