@@ -28,8 +28,7 @@ import os
 import threading
 from array import array
 from bisect import bisect_left
-from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
-from typing import overload
+from collections.abc import Callable, Collection, Iterable, Iterator
 
 from mavscope.browse.rows import LRU, Detail, Progress, Row
 from mavscope.capture.reader import close_mapped, open_mapped
@@ -382,41 +381,3 @@ class FrameIndex:
         buf, self._buf = self._buf, b""
         file, self._file = self._file, None
         close_mapped(file, buf)
-
-
-class FrameSequence(Sequence[Frame]):
-    """A read-only sequence of the frames of some rows, rebuilt on each access (nothing held).
-
-    For analyses that take a `Sequence[Frame]` (expert findings): a list of a million Frames would
-    take gigabytes; this takes the rows' numbers. Iterating twice rebuilds twice. Iteration skips rows
-    that a bounded live index dropped after the rows were taken.
-    """
-
-    index: FrameIndex  # type: ignore[assignment]  # shadows Sequence.index (public attribute, kept)
-
-    def __init__(self, index: FrameIndex, rows: Sequence[int] | None = None,
-                 on_frame: Callable[[int], None] | None = None) -> None:
-        self.index = index
-        self.rows = rows if rows is not None else index.rows()
-        self.on_frame = on_frame
-
-    def __len__(self) -> int:
-        return len(self.rows)
-
-    @overload
-    def __getitem__(self, i: int) -> Frame: ...
-
-    @overload
-    def __getitem__(self, i: slice) -> FrameSequence: ...
-
-    def __getitem__(self, i: int | slice) -> Frame | FrameSequence:
-        if isinstance(i, slice):
-            return FrameSequence(self.index, self.rows[i])
-        return self.index.frame(self.rows[i])
-
-    def __iter__(self) -> Iterator[Frame]:
-        tick = self.on_frame
-        for n, f in enumerate(self.index.frames(self.rows)):  # skips rows dropped since they were taken
-            if tick is not None and not n & 0x3FFF:
-                tick(n)
-            yield f

@@ -11,7 +11,7 @@ from weakref import WeakKeyDictionary
 
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, IFLAG_SIGNED, CrcStatus, Frame, decode_payload
-from mavscope.mavlink.semantics import DEGE7, INT_COORDINATE_MESSAGES
+from mavscope.mavlink.semantics import DEGE7, INT_COORDINATE_MESSAGES, message_label
 
 # The fields a summary line shows per message (default: the first few scalar fields).
 SUMMARY_FIELDS: dict[str, tuple[str, ...]] = {
@@ -92,7 +92,7 @@ def summary_info(frame: Frame, dialect: Dialect, fields: dict[str, object] | Non
     md = frame.msgdef
     parts: list[str] = []
     if md is None:
-        parts.append(f"UNKNOWN msgid={frame.msgid}")
+        parts.append(message_label(frame.msgid, None))
     else:
         parts.append(md.name)
         if fields is None:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-from mavscope.mavlink.dialect import Dialect
+from mavscope.mavlink.dialect import Dialect, MessageDef
 
 # MAV_FRAME values whose x/y are latitude/longitude: the MAV_FRAME_GLOBAL* entries of common.xml
 # (a test checks this against the dialect's enum).
@@ -35,6 +35,11 @@ def int_coordinate(value: int, frame: int | None) -> float:
 def degrees_text(value: int) -> str:
     """A degE7 value as the tree shows it: "47.3977419° (473977419)"."""
     return f"{value / DEGE7:.7f}° ({value})"
+
+
+def message_label(msgid: int, msgdef: MessageDef | None) -> str:
+    """A message's name, or UNKNOWN_<id> for an id in no loaded dialect: the one spelling everywhere."""
+    return msgdef.name if msgdef is not None else f"UNKNOWN_{msgid}"
 
 
 def finite(v: object) -> object:

@@ -45,7 +45,17 @@ def test_filter_and_text(cli: Cli) -> None:
     assert status == 0 and "DENIED" in out and "UNANSWERED" in out and "8 commands, 2 unanswered" in out
 
 
-def test_a_capture_without_commands_says_so_instead_of_an_empty_table(cli: Cli) -> None:
-    status, out, _ = cli("commands", CMDS, "-Y", "COMMAND_ACK")  # only the ACKs: none has its command
-    assert status == 0 and out.startswith("No COMMAND_LONG or COMMAND_INT in ")
-    assert "0 commands, 0 unanswered, " in out and "ACK MAV_CMD_" in out and "┏" not in out
+def test_no_command_matching_says_so_instead_of_an_empty_table(cli: Cli) -> None:
+    status, out, _ = cli("commands", CMDS, "-Y", "COMMAND_ACK")  # the ACKs still answer their commands
+    assert status == 0 and out.startswith("No command in ") and "matches the display filter" in out
+    assert "0 commands, 0 unanswered, 0 ACKs" in out and "┏" not in out
+
+
+def test_a_filter_selects_rows_but_every_frame_is_analysed(cli: Cli) -> None:
+    """Issue: `commands -Y '<the command>'` showed it UNANSWERED (its ACK had been filtered away)."""
+    t = truth("commands_ack.pcap")
+    doc = cli.json("commands", CMDS, "-Y", "COMMAND_LONG.command == MAV_CMD_COMPONENT_ARM_DISARM")
+    answered = [c for c in doc["commands"] if c["answered"]]
+    first = t["commands"][0]  # the generator's first command: an arm (400), accepted (0), 12.345 ms
+    assert answered and answered[0]["command_id"] == first["command"] == 400
+    assert answered[0]["result_id"] == first["result"] and answered[0]["latency_ms"] == first["latency_ms"]

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 from tests.conftest import CAPTURES, Cli
+from tests.support import flows
 from tests.support.captures import truth
 
 SKEW = str(CAPTURES / "clock_skew.pcap")
@@ -25,6 +28,7 @@ def test_vehicle_offset_and_drift(cli: Cli) -> None:
     assert unix["offset_s"] == pytest.approx(t["vehicle_utc_offset_s"] + first * t["vehicle_drift_ppm"] / 1e6,
                                              abs=1e-5)
     assert unix["drift_ppm"] == pytest.approx(t["vehicle_drift_ppm"], abs=0.5)
+    assert unix["drift_err_ppm"] is not None and unix["drift_err_ppm"] < 0.5
     sig = v["signature link 0"]
     assert sig["offset_s"] == pytest.approx(t["vehicle_utc_offset_s"], abs=1e-4)
     assert sig["drift_ppm"] == pytest.approx(t["vehicle_drift_ppm"], abs=1)
@@ -58,3 +62,20 @@ def test_px4_session_clock(cli: Cli) -> None:
     # the generator's vehicle UTC clock runs 2150 µs ahead of the capture clock
     v = clocks(cli.json("timeline", str(CAPTURES / "px4_sitl_udp.pcap")), 1)
     assert v["SYSTEM_TIME.time_unix_usec"]["offset_s"] == pytest.approx(0.00215, abs=2e-6)
+
+
+def test_no_drift_from_four_samples_in_half_a_second(cli: Cli, tmp_path: Path) -> None:
+    """Issue: a drift of -9105.9 ppm from 4 samples over 0.5 s. Built here: SYSTEM_TIME 4 times in 0.5 s,
+    the clock 1 s ahead of the capture with 5 ms of jitter."""
+    v = flows.Sender(1, 1)
+    entries = []
+    for i, jitter in enumerate((0.0, 0.005, -0.004, 0.003)):
+        t = flows.T0 + i * 0.16
+        unix_us = round((t + 1.0 + jitter) * 1e6)
+        entries.append((t, v.pack(flows.v2.MAVLink_system_time_message(unix_us, 1000 + i * 160))))
+    doc = cli.json("timeline", flows.write_tlog(tmp_path, entries))
+    clock = clocks(doc, 1)["SYSTEM_TIME.time_unix_usec"]
+    assert clock["samples"] == 4 and clock["drift_ppm"] is None and clock["drift_err_ppm"] is None
+    assert clock["offset_s"] == pytest.approx(1.0, abs=0.01)
+    status, out, _ = cli("timeline", flows.write_tlog(tmp_path, entries, "b.tlog"))
+    assert status == 0 and "-9105" not in out

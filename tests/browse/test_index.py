@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from mavscope.browse.index import FrameIndex, FrameSequence
+from mavscope.browse.index import FrameIndex
 from mavscope.capture.detect import open_capture
 from mavscope.commands.tui import parse_options
 from mavscope.mavlink.frame import SignatureStatus
@@ -37,7 +37,7 @@ def test_frames_rebuilt_from_the_index_equal_the_pipelines(path: Path, dialect) 
         progress = index.build(items, position=lambda: reader.position, total=reader.size)
     assert progress.done and progress.frames == len(expected) == len(index)
     assert [index.frame(i) for i in range(len(index))] == expected
-    assert list(FrameSequence(index)) == expected
+    assert list(index.frames()) == expected
     for i in (0, len(index) // 2, len(index) - 1):
         row = index.row(i)
         f = expected[i]
@@ -85,7 +85,7 @@ def test_a_bounded_index_drops_rows_without_renumbering_the_rest(dialect) -> Non
         assert index.row(n).row == n
     assert index.find_record(expected[250].record) == 250
     assert index.find_record(expected[10].record) is None
-    assert list(FrameSequence(index, range(0, 300))) == expected[index.first:300]  # dropped rows skipped
+    assert list(index.frames(range(0, 300))) == expected[index.first:300]  # dropped rows skipped
     assert index.column("seq", [5, 250, 299]) == [None, expected[250].seq, expected[299].seq]
 
 

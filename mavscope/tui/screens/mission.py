@@ -7,6 +7,7 @@ messages and of GLOBAL_POSITION_INT are rebuilt from the index (picked by messag
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 from rich.text import Text
@@ -15,8 +16,8 @@ from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Label
 
 from mavscope.analysis.mission import MISSION_MESSAGES, Transfer, reconstruct
-from mavscope.browse.index import FrameSequence
-from mavscope.mavlink.frame import decode_payload
+from mavscope.analysis.selection import Selection
+from mavscope.mavlink.frame import Frame, decode_payload
 from mavscope.mavlink.semantics import is_global
 from mavscope.tui.screens.analysis import AnalysisScreen
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
@@ -56,20 +57,27 @@ class MissionScreen(AnalysisScreen):
                 yield Label("Track (blue: GLOBAL_POSITION_INT; orange: waypoints in order)")
                 yield TrackPlot(id="plot")
 
-    def analyse(self, frames: FrameSequence) -> MissionResult:
-        index = frames.index
+    def analyse(self, frames: Iterator[Frame], selection: Selection) -> MissionResult:
+        """Over the mission frames of the whole index (picked by the msgid column, without rebuilding the
+        other frames); under a filter, the transfers with a frame in the view."""
+        index = self.index
         dialect = index.dialect
         ids = {md.id for name, md in dialect.by_name.items() if name in MISSION_MESSAGES}
         gpi = dialect.by_name.get("GLOBAL_POSITION_INT")
         gpi_id = gpi.id if gpi is not None else -1
+        rows = index.rows()
         mission_rows = []
         track_rows = []
-        for r, m in zip(frames.rows, index.column("msgid", frames.rows)):
+        for r, m in zip(rows, index.column("msgid", rows)):
             if m in ids:
                 mission_rows.append(r)
             elif m == gpi_id:
                 track_rows.append(r)
-        transfers = reconstruct(FrameSequence(index, mission_rows, frames.on_frame), dialect)
+        transfers = reconstruct(index.frames(mission_rows), dialect)
+        if self.rows is not None:
+            view = set(self.rows).intersection(mission_rows)
+            shown = {rec for rec in index.column("record", sorted(view)) if rec is not None}
+            transfers = [t for t in transfers if any(r in shown for r in t.frames)]
         step = max(1, len(track_rows) // MAX_TRACK_POINTS)
         track = []
         for frame in index.frames(track_rows[::step]):

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.widgets import DataTable, Label
 
+from mavscope.analysis.selection import Selection
 from mavscope.analysis.stats import Stats, compute_stats
-from mavscope.browse.index import FrameSequence
+from mavscope.mavlink.frame import Frame
 from mavscope.output.tables import sparkline
 from mavscope.tui.screens.analysis import AnalysisScreen
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
@@ -34,15 +37,16 @@ class StatsScreen(AnalysisScreen):
         yield Label("Message rates", id="rates-title")
         yield DataTable(id="rates", zebra_stripes=True, cursor_type="row")
 
-    def analyse(self, frames: FrameSequence) -> Stats:
+    def analyse(self, frames: Iterator[Frame], selection: Selection) -> Stats:
         return compute_stats(frames)
 
     def show(self, result: object) -> None:
         stats: Stats = result  # type: ignore[assignment]
+        selection = self.selection
         links = self.query_one("#links", DataTable)
         links.add_columns("Sys/Comp", "Received", "Lost", "Loss", "Duplicates", "Reordered", "CRC", "Signature",
                           "Endpoints")
-        for lk in stats.links_json():
+        for lk in stats.links_json(selection):
             crc = ", ".join(f"{k} {v}" for k, v in lk["crc"].items())  # type: ignore[attr-defined]
             sig = ", ".join(f"{k} {v}" for k, v in lk["signature"].items())  # type: ignore[attr-defined]
             links.add_row(f"{lk['sysid']}/{lk['compid']}", Text(f"{lk['received']:,}", justify="right"),
@@ -53,11 +57,11 @@ class StatsScreen(AnalysisScreen):
         duration = stats.duration
         rates.add_columns("Sys/Comp", "Message", "Count", "Rate", "Bytes",
                           f"Frames per second over {duration or 0:.0f} s")
-        for m in stats.messages_json():
+        for m in stats.messages_json(selection):
             key = (m["sysid"], m["compid"], m["msgname"])
-            rate = m["rate_hz"]
+            rate = "burst" if m["burst"] else ("-" if m["rate_hz"] is None else f"{m['rate_hz']:.2f} Hz")
             rates.add_row(f"{m['sysid']}/{m['compid']}", m["msgname"], Text(f"{m['count']:,}", justify="right"),
-                          Text("-" if rate is None else f"{rate:.2f} Hz", justify="right"),
+                          Text(rate, justify="right"),
                           Text(f"{m['bytes']:,}", justify="right"),
                           Text(sparkline(stats.rate_series(key, SPARK_WIDTH)), style="cyan"))  # type: ignore[arg-type]
         t = stats.totals_json()

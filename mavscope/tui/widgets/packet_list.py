@@ -25,6 +25,7 @@ from textual.strip import Strip
 from mavscope.browse.index import FrameIndex
 from mavscope.browse.rows import Row
 from mavscope.mavlink.frame import CrcStatus
+from mavscope.mavlink.semantics import message_label
 from mavscope.tui.verdicts import (
     CRC_GLYPHS,
     ENCRYPTION_GLYPHS,
@@ -300,13 +301,14 @@ class PacketList(ScrollView, can_focus=True):
         t0 = self.index.time_base
         t = "-" if r.time is None or t0 is None else f"{r.time - t0:.6f}"
         src = str(r.src or r.transport)
+        label = r.msgname or message_label(r.msgid, None)
         segs = [
             Segment(_cell(r.number, COLUMNS[0][1], True), base),
             Segment(_cell(t, COLUMNS[1][1], True), base),
             Segment(_cell(src, COLUMNS[2][1]), base),
             Segment(_cell(f"{r.sysid}/{r.compid}", COLUMNS[3][1]), base),
             Segment(_cell(str(r.seq), COLUMNS[4][1], True), base),
-            Segment(_cell(r.msgname or f"#{r.msgid}", COLUMNS[5][1]), base),
+            Segment(_cell(label, COLUMNS[5][1]), base),
         ]
         glyph, style, _ = CRC_GLYPHS[r.crc_status]
         segs.append(Segment(glyph, base + Style.parse(style)))
@@ -324,8 +326,8 @@ class PacketList(ScrollView, can_focus=True):
             segs.append(Segment(glyph, base + Style.parse(style)))
         segs.append(Segment(" ", base))
         info = self.index.summary(row)
-        if r.msgname and info.startswith(r.msgname):
-            info = info[len(r.msgname) :].lstrip()  # the Message column has it
+        if info.startswith(label):
+            info = info[len(label) :].lstrip()  # the Message column has it
         bad = r.crc_status in (CrcStatus.BAD, CrcStatus.TRUNCATED) or sk in ("invalid",)
         segs.append(Segment(info, base + Style.parse(RED) if bad else base))
         return Strip(segs).crop_extend(0, width, base)
