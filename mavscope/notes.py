@@ -112,6 +112,10 @@ CODES: dict[str, Code] = {
         Code("unsigned-in-signed-stream", _WARN, Group.SECURITY, _B,
              "unsigned frame from a sender that signs its frames",
              "unsigned frames from senders that sign their frames (a downgrade or an injection)"),
+        Code("v1-in-signed-stream", _WARN, Group.SECURITY, _B,
+             "MAVLink v1 frame from a sender that signs its frames (v1 cannot carry a signature)",
+             "MAVLink v1 frames from senders that sign: the link takes frames that cannot be signed, so signing "
+             "is not in force (a downgrade-capable link)"),
         Code("key-leak", _ERROR, Group.SECURITY, _B, "SETUP_SIGNING carries a signing key in clear",
              "SETUP_SIGNING sends the signing key in clear: whoever captured the link can sign frames "
              "(--use-leaked-keys verifies with it)"),
@@ -143,6 +147,7 @@ CODES: dict[str, Code] = {
              "signed frames that no supplied key verifies: forged, modified or signed with another key"),
         Code("decryption-failed", _WARN, Group.SECURITY, _C, "encrypted frames that did not decrypt"),
         Code("encrypted-no-key", _NOTE, Group.SECURITY, _C, "encrypted frames without a cipher for their method"),
+        Code("default-key", _ERROR, Group.SECURITY, _C, "frames signed with a well-known key (all zeros, ...)"),
         Code("weak-passphrase", _ERROR, Group.SECURITY, _C, "the signing passphrase is in the wordlist"),
         Code("passphrase-not-found", _NOTE, Group.SECURITY, _C, "no word of the wordlist derives the signing key"),
         Code("keystream-reuse", _ERROR, Group.SECURITY, _C,

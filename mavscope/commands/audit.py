@@ -10,7 +10,7 @@ from mavscope.commands.common import add_capture_options, add_key_options, captu
 from mavscope.errors import UsageError
 from mavscope.mavlink.dialect import load_dialect
 from mavscope.notes import Severity
-from mavscope.security.audit import audit
+from mavscope.security.audit import Audit
 from mavscope.security.keystream import parse_known_plaintext
 from mavscope.security.passphrase import read_wordlist
 
@@ -41,12 +41,16 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     words = None
     if args.wordlist:
         try:
-            words = read_wordlist(args.wordlist)
+            with open(args.wordlist, "rb"):
+                pass  # refuse an unreadable wordlist before reading the capture
         except OSError as exc:
             raise UsageError(f"audit: --wordlist {args.wordlist}: {exc.strerror or exc}") from None
+        words = read_wordlist(args.wordlist)
+    audit = Audit()
     with capture_session(args, env, dialect) as session:
-        frames = list(session.frames())
-    findings, recoveries = audit(frames, words=words, qgc=args.qgc, known=known)
+        for frame in session.frames():
+            audit.add(frame)
+    findings, recoveries = audit.result(words=words, qgc=args.qgc, known=known)
     status = ExitStatus.FINDINGS if any(f.severity >= Severity.WARN for f in findings) else ExitStatus.OK
     if args.json:
         doc: dict[str, object] = {"findings": [f.to_json() for f in findings]}

@@ -16,6 +16,7 @@ from mavscope.commands.common import (
     write_json,
 )
 from mavscope.errors import UsageError
+from mavscope.mavlink.frame import frame_number
 from mavscope.security.verify import StreamRow, VerifyReport
 
 SHOWN = 20
@@ -44,9 +45,10 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         path = session.path
     status = ExitStatus.FINDINGS if report.failed else ExitStatus.OK
     if args.json:
-        write_json(env, {"file": path, "ok": not report.failed,
+        write_json(env, {"file": path, "ok": not report.failed, "signing_in_force": not report.v1_frames,
                          "streams": [report.rows[k].to_json(*k) for k in sorted(report.rows)],
-                         "problems": [{"frame": r, "message": m} for r, m in report.problems]})
+                         "problems": [{"frame": r, "index": i, "message": m} for r, i, m in report.problems],
+                         "problem_count": report.problem_count})
     else:
         _render(env, path, report)
     return status
@@ -64,17 +66,20 @@ def _render(env: Env, path: str, report: VerifyReport) -> None:
     con = console(env)
     t = Table(title=f"Signatures ({path})", title_justify="left")
     for col in ("sysid/compid", "links", "frames", "signed", "valid", "invalid", "replay", "no-key", "unsigned",
-                "injected", "keys", "skew s"):
+                "injected", "v1", "keys", "skew s"):
         t.add_column(col, justify="left" if col in ("links", "keys") else "right")
     for (sysid, compid), r in sorted(report.rows.items()):
         t.add_row(f"{sysid}/{compid}", ",".join(map(str, sorted(r.links))) or "-", str(r.frames), str(r.signed),
                   str(r.valid), str(r.invalid), str(r.replay), str(r.no_key), str(r.unsigned), str(r.injected),
-                  ",".join(sorted(r.keys)) or "-", _skew_text(r))
+                  str(r.v1), ",".join(sorted(r.keys)) or "-", _skew_text(r))
     con.print(t)
-    for record, message in report.problems[:SHOWN]:
-        con.print(f"frame {record}: {message}", highlight=False)
-    if len(report.problems) > SHOWN:
-        con.print(f"... and {len(report.problems) - SHOWN} more", highlight=False)
+    for record, index, message in report.problems[:SHOWN]:
+        con.print(f"frame {frame_number(record, index)}: {message}", highlight=False)
+    if report.problem_count > SHOWN:
+        con.print(f"... and {report.problem_count - SHOWN} more", highlight=False)
+    if report.v1_frames:
+        con.print(f"WARNING: signing is not in force: {report.v1_frames} MAVLink v1 frame(s) from senders that sign "
+                  "(v1 cannot carry a signature: a downgrade-capable link)", highlight=False)
     if report.failed:
         verdict = "FAIL: invalid, replayed or injected frames"
     elif report.all_checked:

@@ -50,7 +50,8 @@ class SignatureReason(str, Enum):
     NOT_NEWER = "timestamp not newer than the last accepted one of its stream"
     NO_KEY = "no key supplied"
     TRUNCATED = "signature block truncated"
-    UNSIGNED_IN_SIGNED_STREAM = "unsigned frame in a signed stream"  # an unsigned frame: no status
+    UNSIGNED_IN_SIGNED_STREAM = "unsigned frame in a signed stream"  # an unsigned v2 frame: no status
+    V1_IN_SIGNED_STREAM = "MAVLink v1 frame from a signing sender"  # v1 cannot be signed: no status
 
 
 class EncryptionStatus(str, Enum):
@@ -88,7 +89,13 @@ class Security(NamedTuple):
 
     @property
     def unsigned_in_signed_stream(self) -> bool:
+        """An unsigned v2 frame from a sender that signs (a downgrade or an injection)."""
         return self.reason is SignatureReason.UNSIGNED_IN_SIGNED_STREAM
+
+    @property
+    def v1_in_signed_stream(self) -> bool:
+        """A v1 frame (it cannot carry a signature) from a sender that signs: signing is not in force."""
+        return self.reason is SignatureReason.V1_IN_SIGNED_STREAM
 
 
 def signature_status(incompat_flags: int, security: Security | None) -> SignatureStatus | None:

@@ -57,6 +57,7 @@ class Dissector:
         self.mavlink_endpoints: set[Endpoint] = set()
         self._record = 0
         self._index = 0
+        self._raw_frames = 0  # frames of a raw byte stream so far (they are numbered 1..N)
         self._time: float | None = None
 
     def run(self, records: Iterable[Record]) -> Iterator[Frame | Anomaly]:
@@ -172,14 +173,22 @@ class Dissector:
     def _emit(self, sf: StreamFramer, p_transport: str, src: Endpoint | None, dst: Endpoint | None,
               final: bool) -> Iterator[Frame | Anomaly]:
         found, orphans = sf.take(final)
+        raw = p_transport == TRANSPORT_RAW
         for buf, pos, size, status, crc, off, span, notes in found:
-            self._index += 1
+            if raw:
+                # A raw stream has no records of its own (its chunks are the reader's), so its frames are
+                # numbered 1..N and each is its own "record": frame 999 is 999, not 1.999.
+                self._raw_frames += 1
+                record, index, span = self._raw_frames, 1, None
+            else:
+                self._index += 1
+                record, index = self._record, self._index
             yield build_frame(
-                buf, pos, size, status, crc, self.messages, self._record, self._index, self._time,
+                buf, pos, size, status, crc, self.messages, record, index, self._time,
                 p_transport, src, dst, off, notes, span,
             )
         if orphans:
-            yield Anomaly(self._record, tuple(orphans))
+            yield Anomaly(self._raw_frames if raw else self._record, tuple(orphans))
 
     def _stream(self, p: Payload) -> Iterator[Frame | Anomaly]:
         sf = self.streams.get(p.stream)

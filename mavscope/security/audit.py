@@ -1,62 +1,104 @@
 """`mavscope audit`: summaries of the security stage's verdicts, with the keystream and passphrase audits.
 
 Everything here returns `Finding`s from the one registry (`mavscope.notes`), whose explanations are the
-sentences the summaries are built around; presentation is the command's job.
+sentences the summaries are built around; presentation is the command's job. `Audit` takes the frames
+one at a time and keeps bounded state (frame numbers listed up to a cap, all counted), so a capture of
+any length is audited without holding its frames.
 """
 
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Iterable
 
 from mavscope.mavlink.frame import EncryptionStatus, Frame, SignatureStatus
 from mavscope.notes import Finding, explanation, finding, sort_findings
-from mavscope.security.keystream import Recovery, frames_text, keystream_audit
-from mavscope.security.passphrase import passphrase_findings
+from mavscope.security.keystream import Collector, Recovery, frames_text, keystream_audit
+from mavscope.security.passphrase import Targets, default_key_findings, passphrase_findings
 
 # The notes of the security stage that the audit sums up, in the order it reports them first.
-_NOTE_CODES = ("key-leak", "unsigned-in-signed-stream", "nonce-reuse", "signature-skew")
+_NOTE_CODES = ("key-leak", "unsigned-in-signed-stream", "v1-in-signed-stream", "nonce-reuse", "signature-skew")
+RECORDS_LISTED = 10_000  # frame numbers kept per kind of verdict (all of them are counted)
 
 
-def verdict_findings(frames: list[Frame]) -> list[Finding]:
-    """One finding per kind of verdict the security stage gave (with every frame that got it)."""
-    by: dict[str, list[int]] = defaultdict(list)
-    no_cipher: list[int] = []
-    failed: list[int] = []
-    for f in frames:
+class _Records:
+    """Frame numbers of one kind of verdict: the first RECORDS_LISTED, and the count."""
+
+    __slots__ = ("nums", "count")
+
+    def __init__(self) -> None:
+        self.nums: list[int] = []
+        self.count = 0
+
+    def add(self, record: int) -> None:
+        self.count += 1
+        if len(self.nums) < RECORDS_LISTED:
+            self.nums.append(record)
+
+    def text(self) -> str:
+        more = self.count - len(self.nums)
+        return frames_text(self.nums) + (f" (and {more} not listed)" if more > 0 else "")
+
+
+class Audit:
+    """`audit` in one pass: `add(frame)` per frame in capture order (bounded state), then `result()`."""
+
+    def __init__(self) -> None:
+        self.by: dict[str, _Records] = defaultdict(_Records)
+        self.no_cipher = _Records()
+        self.failed = _Records()
+        self.keystreams = Collector()
+        self.targets = Targets()
+
+    def add(self, f: Frame) -> None:
         for n in f.notes:
             if n.code in _NOTE_CODES:
-                by[n.code].append(f.record)
+                self.by[n.code].add(f.record)
+        self.keystreams.add(f)
+        self.targets.add(f)
         sec = f.security
         if sec is None:
-            continue
+            return
         if sec.signature_status is SignatureStatus.REPLAY:
-            by["replay"].append(f.record)
+            self.by["replay"].add(f.record)
         elif sec.signature_status is SignatureStatus.INVALID:
-            by["sig-invalid"].append(f.record)
+            self.by["sig-invalid"].add(f.record)
         enc = sec.encryption
         if enc is not None and enc.status is EncryptionStatus.NO_KEY:
-            no_cipher.append(f.record)
+            self.no_cipher.add(f.record)
         elif enc is not None and enc.status is EncryptionStatus.FAILED:
-            failed.append(f.record)
-    findings = [finding(code, f"{len(records)} frame(s): {explanation(code)} (frames {frames_text(records)})",
-                        records) for code, records in by.items()]
-    if failed:
-        findings.append(finding("decryption-failed",
-                                f"{len(failed)} encrypted frame(s) did not decrypt with the configured cipher "
-                                f"(frames {frames_text(failed)})", failed))
-    if no_cipher:
-        findings.append(finding("encrypted-no-key",
-                                f"{len(no_cipher)} encrypted frame(s) without a cipher for their method "
-                                f"(frames {frames_text(no_cipher)})", no_cipher))
-    return findings
+            self.failed.add(f.record)
+
+    def verdict_findings(self) -> list[Finding]:
+        """One finding per kind of verdict the security stage gave (with the frames that got it)."""
+        findings = [finding(code, f"{r.count} frame(s): {explanation(code)} (frames {r.text()})", r.nums)
+                    for code, r in self.by.items()]
+        if self.failed.count:
+            findings.append(finding("decryption-failed",
+                                    f"{self.failed.count} encrypted frame(s) did not decrypt with the configured "
+                                    f"cipher (frames {self.failed.text()})", self.failed.nums))
+        if self.no_cipher.count:
+            findings.append(finding("encrypted-no-key",
+                                    f"{self.no_cipher.count} encrypted frame(s) without a cipher for their method "
+                                    f"(frames {self.no_cipher.text()})", self.no_cipher.nums))
+        return findings
+
+    def result(self, *, words: Iterable[bytes] | None = None, qgc: bool = False,
+               known: Iterable[tuple[int, bytes]] = ()) -> tuple[list[Finding], list[Recovery]]:
+        """Every security finding, most severe first, and the payloads recovered without a key."""
+        findings = self.verdict_findings()
+        ks = keystream_audit(self.keystreams, known)
+        findings += ks.findings
+        findings += default_key_findings(self.targets.frames)
+        if words is not None:
+            findings += passphrase_findings(self.targets.frames, words, qgc)
+        return sort_findings(findings), ks.recoveries
 
 
-def audit(frames: list[Frame], *, words: list[bytes] | None = None, qgc: bool = False,
-          known: tuple[tuple[int, bytes], ...] = ()) -> tuple[list[Finding], list[Recovery]]:
-    """Every security finding of the capture, most severe first, and the payloads recovered without a key."""
-    findings = verdict_findings(frames)
-    ks = keystream_audit(frames, list(known))
-    findings += ks.findings
-    if words is not None:
-        findings += passphrase_findings(frames, words, qgc)
-    return sort_findings(findings), ks.recoveries
+def audit(frames: Iterable[Frame], *, words: Iterable[bytes] | None = None, qgc: bool = False,
+          known: Iterable[tuple[int, bytes]] = ()) -> tuple[list[Finding], list[Recovery]]:
+    """Every security finding of `frames`, most severe first, and the payloads recovered without a key."""
+    a = Audit()
+    for f in frames:
+        a.add(f)
+    return a.result(words=words, qgc=qgc, known=known)

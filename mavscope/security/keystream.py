@@ -5,6 +5,7 @@ frame's payload recovered without the key (`audit`, `--known-plaintext`)."""
 from __future__ import annotations
 
 from collections import defaultdict
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from mavscope.mavlink.dialect import Dialect
@@ -13,6 +14,7 @@ from mavscope.notes import Finding, finding
 from mavscope.security.ciphers import xor_bytes
 
 SHOWN = 8  # frames listed by number in a message
+ENCRYPTED_KEPT = 20_000  # encrypted frames per method the audit looks at (the first ones)
 
 
 def frames_text(records: list[int]) -> str:
@@ -56,22 +58,30 @@ def parse_known_plaintext(spec: str, dialect: Dialect) -> tuple[int, bytes]:
 Plaintexts = dict[tuple[int, int], tuple[int, bytes]]  # (sysid, msgid) -> (record, zero-padded plaintext)
 
 
-def _groups(frames: list[Frame]) -> tuple[dict[int, list[Frame]], Plaintexts]:
-    """Encrypted frames per method (aes-gcm aside: its nonces never repeat a keystream) and the first
-    plaintext frame of each message per system (the known plaintexts a capture gives away)."""
-    encrypted: dict[int, list[Frame]] = defaultdict(list)
-    plain: Plaintexts = {}
-    for f in frames:
+class Collector:
+    """What the keystream audit needs, gathered one frame at a time: encrypted frames per method (aes-gcm
+    aside: its nonces never repeat a keystream), at most ENCRYPTED_KEPT of each, and the first plaintext
+    frame of each message per system (the known plaintexts a capture gives away)."""
+
+    def __init__(self) -> None:
+        self.encrypted: dict[int, list[Frame]] = defaultdict(list)
+        self.skipped: dict[int, int] = defaultdict(int)  # encrypted frames past ENCRYPTED_KEPT, per method
+        self.plain: Plaintexts = {}
+
+    def add(self, f: Frame) -> None:
         if f.crc_status is CrcStatus.TRUNCATED or f.version != 2:
-            continue
+            return
         method = f.encryption_method
         if method:
             enc = f.security.encryption if f.security is not None else None
             if enc is None or enc.scheme != "aes-gcm":
-                encrypted[method].append(f)
+                group = self.encrypted[method]
+                if len(group) < ENCRYPTED_KEPT:
+                    group.append(f)
+                else:
+                    self.skipped[method] += 1
         elif f.msgdef is not None and not f.incompat_flags & ~1 and f.crc_status is CrcStatus.OK:
-            plain.setdefault((f.sysid, f.msgid), (f.record, f.payload.ljust(f.msgdef.length, b"\x00")))
-    return encrypted, plain
+            self.plain.setdefault((f.sysid, f.msgid), (f.record, f.payload.ljust(f.msgdef.length, b"\x00")))
 
 
 def _repeats(method: int, group: list[Frame]) -> Finding | None:
@@ -142,13 +152,19 @@ def _recover(group: list[Frame], ks: bytes, source_frame: Frame) -> list[Recover
     return out
 
 
-def keystream_audit(frames: list[Frame], known: list[tuple[int, bytes]] | None = None) -> KeystreamAudit:
+def keystream_audit(frames: Iterable[Frame] | Collector, known: Iterable[tuple[int, bytes]] = ()) -> KeystreamAudit:
     """Encrypted frames whose ciphertexts repeat (a keystream that does not change between frames),
     and, given a known plaintext, the keystream prefix and every other frame's recovered bytes."""
+    if isinstance(frames, Collector):
+        collected = frames
+    else:
+        collected = Collector()
+        for f in frames:
+            collected.add(f)
     out = KeystreamAudit()
-    encrypted, plain = _groups(frames)
-    guesses = dict(known or ())
-    for method, group in sorted(encrypted.items()):
+    plain = collected.plain
+    guesses = dict(known)
+    for method, group in sorted(collected.encrypted.items()):
         repeated = _repeats(method, group)
         if repeated is not None:
             out.findings.append(repeated)

@@ -8,7 +8,8 @@ pass through untouched on a fast path.
 Rules (docs/security.md):
 - Signed frames: `valid` / `invalid` / `replay` / `no-key` from `SignatureVerifier`, checked over
   the frame as sent (ciphertext included), before any decryption.
-- `unsigned-in-signed-stream`: an unsigned frame (not RADIO_STATUS) from a (sysid, compid) that has
+- `unsigned-in-signed-stream` (a v2 frame) or `v1-in-signed-stream` (a MAVLink v1 frame, which cannot
+  carry a signature): an unsigned frame (not RADIO_STATUS) from a (sysid, compid) that has
   sent a validly signed frame; without any signing key material, one that has sent a signed frame
   with a good CRC.
 - `key-leak`: SETUP_SIGNING (its key travels in clear); with `use_leaked_keys` that key verifies the
@@ -55,7 +56,8 @@ RADIO_STATUS = 109
 _TRUNCATED = CrcStatus.TRUNCATED
 _OK = CrcStatus.OK
 _SPECIAL = frozenset({SETUP_SIGNING, KEY_EXCHANGE_MSGID})
-NOTE_CODES = frozenset({"signature-skew", "unsigned-in-signed-stream", "key-leak", "key-exchange", "nonce-reuse"})
+NOTE_CODES = frozenset({"signature-skew", "unsigned-in-signed-stream", "v1-in-signed-stream", "key-leak",
+                        "key-exchange", "nonce-reuse"})
 
 
 class SecurityStage:
@@ -160,10 +162,13 @@ class SecurityStage:
             elif frame.crc_status is _OK:
                 self.signed_senders.add(sender)
         elif sender in self.signed_senders and frame.msgid != RADIO_STATUS:
-            reason = SignatureReason.UNSIGNED_IN_SIGNED_STREAM
-            notes.append(note("unsigned-in-signed-stream",
-                              f"unsigned {frame.msgname or frame.msgid} from {sender[0]}/{sender[1]}, "
-                              "which sends signed frames", frame.offset))
+            what = f"{frame.msgname or frame.msgid} from {sender[0]}/{sender[1]}, which sends signed frames"
+            if frame.version == 1:
+                reason = SignatureReason.V1_IN_SIGNED_STREAM
+                notes.append(note("v1-in-signed-stream", f"MAVLink v1 {what}", frame.offset))
+            else:
+                reason = SignatureReason.UNSIGNED_IN_SIGNED_STREAM
+                notes.append(note("unsigned-in-signed-stream", f"unsigned {what}", frame.offset))
         enc: Encryption | None = None
         if frame.version == 2 and iflags & 0xE0:
             enc = self.decrypt(frame, notes)

@@ -179,5 +179,5 @@ def test_note_codes_lists_every_note_the_security_layer_adds() -> None:
     from mavscope.security.stage import NOTE_CODES
 
     root = ROOT / "mavscope" / "security"
-    codes = {m for p in root.glob("*.py") for m in re.findall(r'\bnote\(\s*"([a-z-]+)"', p.read_text())}
+    codes = {m for p in root.glob("*.py") for m in re.findall(r'\bnote\(\s*"([a-z0-9-]+)"', p.read_text())}
     assert codes == NOTE_CODES

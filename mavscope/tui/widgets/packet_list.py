@@ -33,7 +33,6 @@ from mavscope.tui.verdicts import (
     SIGNATURE_GLYPHS,
     encryption_key,
     signature_key,
-    unsigned_in_signed,
 )
 
 # (title, width); the last column takes the rest of the line
@@ -312,7 +311,7 @@ class PacketList(ScrollView, can_focus=True):
         ]
         glyph, style, _ = CRC_GLYPHS[r.crc_status]
         segs.append(Segment(glyph, base + Style.parse(style)))
-        sk = signature_key(r.incompat_flags, r.signature_status, unsigned_in_signed(r.security))
+        sk = signature_key(r.incompat_flags, r.security)
         if sk is None:
             segs.append(Segment(" ", base))
         else:
