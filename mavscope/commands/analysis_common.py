@@ -20,6 +20,7 @@ from mavscope.commands.common import (
     add_key_options,
     capture_session,
     report_anomaly,
+    report_capture_notes,
 )
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
@@ -47,8 +48,10 @@ class Pass:
         see = self.selection.see
         for item in self.session.items:
             if type(item) is Anomaly:
-                report_anomaly(self.env, self.session.path, item)
+                report_anomaly(self.env, self.session.name, item)
                 continue
+            if item.notes:
+                report_capture_notes(self.env, self.session.name, item)
             see(item)
             yield item
 
@@ -64,4 +67,4 @@ def read_frames(args: argparse.Namespace, env: Env) -> tuple[list[Frame], Dialec
     """Every frame the session shows (after -Y), in a list: for `mission` until it streams."""
     with analysis_pass(args, env) as frames:
         shown = [f for f in frames if frames.selection.any_record((f.record,))]
-        return shown, frames.session.dialect, frames.session.path
+        return shown, frames.session.dialect, frames.session.name

@@ -21,7 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     with analysis_pass(args, env) as frames:
-        dialect, path, select = frames.session.dialect, frames.session.path, frames.selection
+        dialect, path, select = frames.session.dialect, frames.session.name, frames.selection
         commands, orphans = reconstruct(frames, dialect)
     commands = [c for c in commands if select.any_record(c.frames)]  # a row is its command (and retries)
     orphans = [o for o in orphans if select.any_record((int(o["frame"]),))]  # type: ignore[call-overload]

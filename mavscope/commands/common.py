@@ -14,6 +14,8 @@ from mavscope.capture.reader import CaptureReader
 from mavscope.cli import Env
 from mavscope.errors import UsageError
 from mavscope.mavlink.dialect import Dialect
+from mavscope.mavlink.frame import Frame
+from mavscope.notes import CODES, Group, Note
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.pipeline.options import PipelineOptions
 from mavscope.pipeline.session import Session, open_session
@@ -105,13 +107,28 @@ def capture_session(args: argparse.Namespace, env: Env, dialect: Dialect | None 
     with open_session(capture_path(args), pipeline_options(args, env), dialect=dialect,
                       warn=warner(env)) as session:
         yield session
+        if session.frame_count == 0 and session.reader.position >= session.reader.size:
+            env.stderr.write(f"mavscope: no MAVLink frames found in {session.name} ({session.reader.size} bytes, "
+                             f"detected as {session.reader.kind})\n")
+
+
+def report_capture_notes(env: Env, path: str, frame: Frame) -> None:
+    """Damage to the capture file itself (a cut record, garbage skipped) goes to stderr even when a
+    frame carries the note, as `read` reports anomalies: a cut pcapng must not pass in silence."""
+    for note in frame.notes:
+        if CODES[note.code].group is Group.CAPTURE:
+            env.stderr.write(f"mavscope: {path}: frame {frame.number}: {_where(note)}{note.message}\n")
 
 
 def report_anomaly(env: Env, path: str, item: Anomaly) -> None:
     """Problems that belong to no frame go to stderr, one line each, with the file offset where known."""
     for note in item.notes:
-        where = f"offset {note.offset}: " if note.offset is not None and str(note.offset) not in note.message else ""
-        env.stderr.write(f"mavscope: {path}: record {item.record}: {where}{note.message}\n")
+        env.stderr.write(f"mavscope: {path}: record {item.record}: {_where(note)}{note.message}\n")
+
+
+def _where(note: Note) -> str:
+    """"offset N: " before a note's message, unless the message says where already."""
+    return f"offset {note.offset}: " if note.offset is not None and str(note.offset) not in note.message else ""
 
 
 def progress(env: Env, reader: CaptureReader) -> tuple[Callable[[], None], Callable[[], None]]:

@@ -26,6 +26,7 @@ from mavscope.commands.common import (
     report_anomaly,
     warner,
 )
+from mavscope.commands.read import frame_count
 from mavscope.errors import MavscopeError, UsageError
 from mavscope.live.sink import LivePcapWriter
 from mavscope.live.source import DEFAULT_QUEUE_ITEMS, LiveSource
@@ -57,7 +58,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-T", dest="format", choices=("text", "jsonl"), default="text",
                    help="output format (default text)")
     p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w)")
-    p.add_argument("-c", dest="count", type=int, metavar="N", help="stop after N frames")
+    p.add_argument("-c", dest="count", type=frame_count, metavar="N", help="stop after N frames")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     p.add_argument("-w", dest="write", metavar="OUT.pcap",
                    help="write every packet received to a pcap as it goes (flushed at least every second)")
@@ -72,8 +73,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _check(args: argparse.Namespace) -> None:
-    if args.count is not None and args.count < 1:
-        raise UsageError("live: -c needs a positive number of frames")
     if args.duration is not None and args.duration <= 0:
         raise UsageError("live: --duration needs a positive number of seconds")
     if args.bpf and not args.sniff:

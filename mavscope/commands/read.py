@@ -13,6 +13,7 @@ from mavscope.commands.common import (
     capture_session,
     progress,
     report_anomaly,
+    report_capture_notes,
 )
 from mavscope.errors import UsageError
 from mavscope.output.capture_out import FrameWriter, write_records
@@ -30,22 +31,27 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-x", dest="hex", action="store_true", help="print a hex dump of every frame")
     p.add_argument("-T", dest="format", choices=("text", "json", "jsonl"), default="text",
                    help="output format (default text)")
-    p.add_argument("-c", dest="count", type=int, metavar="N", help="stop after N frames")
+    p.add_argument("-c", dest="count", type=frame_count, metavar="N", help="stop after N frames")
     p.add_argument("-w", dest="write", metavar="OUT", help="write the capture records holding the shown frames")
     p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w)")
     p.set_defaults(run=run)
 
 
+def frame_count(text: str) -> int:
+    """-c N: a whole, positive number of frames."""
+    if not text.strip().isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"a whole positive number of frames, not {text!r}")
+    return int(text)
+
+
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
-    if args.count is not None and args.count < 1:
-        raise UsageError("read: -c needs a positive number of frames")
     out_b = env.stdout_bytes
     limit = args.count if args.count is not None else -1
     shown_records: set[int] = set()
     shown = 0
     with capture_session(args, env) as session:
         t0 = session.t0
-        path, dialect = session.path, session.dialect
+        path, name, dialect = session.path, session.name, session.dialect
         frame_writer = _open_writer(args.write, path, session.reader.kind) if args.write else None
         update, stop = progress(env, session.reader)
         printer = FramePrinter(env.stdout, out_b, dialect, args.format, verbose=args.verbose, hex=args.hex,
@@ -57,9 +63,11 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                 if not n & 0x3FFF:
                     update()
                 if type(item) is Anomaly:
-                    report_anomaly(env, path, item)
+                    report_anomaly(env, name, item)
                     continue
                 frame = item
+                if frame.notes:
+                    report_capture_notes(env, name, frame)
                 shown += 1
                 if frame_writer is not None:
                     frame_writer.write(frame)

@@ -33,7 +33,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         for frame in frames:
             builder.add(frame)
             expert.add(frame)
-        path, select = frames.session.path, frames.selection
+        path, select = frames.session.name, frames.selection
     stats = builder.result()
     findings = [f for f in expert.findings() if select.any_record(f.frames)]
     doc = stats.to_json(select)

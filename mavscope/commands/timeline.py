@@ -29,7 +29,7 @@ def _drift(clock: dict) -> str:
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     with analysis_pass(args, env) as frames:
-        path, select = frames.session.path, frames.selection
+        path, select = frames.session.name, frames.selection
         timeline = reconstruct(frames)
     doc = timeline.to_json(select)
     if args.json:

@@ -42,7 +42,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     with capture_session(args, env) as session:
         for f in session.frames():
             report.add(f)
-        path = session.path
+        path = session.name
     status = ExitStatus.FINDINGS if report.failed else ExitStatus.OK
     if args.json:
         write_json(env, {"file": path, "ok": not report.failed, "signing_in_force": not report.v1_frames,

@@ -10,11 +10,14 @@ from __future__ import annotations
 
 import difflib
 import ipaddress
+import math
 import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from typing import cast
+
+import re2
 
 from mavscope.fields.registry import (
     BYTES,
@@ -40,17 +43,37 @@ Pred = Callable[[Frame, "dict[str, object] | None"], bool]
 Getter = Callable[[Frame, "dict[str, object] | None"], object]
 
 
+MAX_DIGITS = 40  # a number literal longer than this is no field's value (uint64 has 20 digits)
+
+
 def _number(v: Value) -> int | float:
+    """The number a literal spells; ValueError for one too long or not finite (no field holds it)."""
     t = v.text
     neg = t.startswith("-")
     body = t[1:] if neg else t
+    if len(body) > MAX_DIGITS:
+        raise ValueError(f"a number of {len(body)} characters")
     if body[:2].lower() == "0x":
         n: int | float = int(body, 16)
     elif any(c in body for c in ".eE"):
         n = float(body)
+        if not math.isfinite(n):
+            raise ValueError("a number too large for a float")
     else:
         n = int(body)
     return -n if neg else n
+
+
+def _regex(text: str) -> object:
+    """`text` compiled by RE2: matching takes time linear in the text, whatever the pattern, so a
+    sender's STATUSTEXT cannot make a filter run for minutes (no catastrophic backtracking)."""
+    options = re2.Options()
+    options.log_errors = False  # the error comes back as an exception, not as a line on stderr
+    options.max_mem = REGEX_MEMORY
+    return re2.compile(text, options)
+
+
+REGEX_MEMORY = 8 << 20  # bytes RE2 may use for one pattern
 
 
 def _field_kind(fd: FieldDef) -> str:
@@ -117,7 +140,10 @@ class Compiler:
         """A literal as a value comparable with a field of `kind` (FilterError if it cannot be)."""
         if kind in (INT, FLOAT, "array"):
             if v.kind == "number":
-                return _number(v)
+                n = self.number(v)
+                if op == "&" and not isinstance(n, int):
+                    raise self.error(f'"&" needs an integer, not {v.text}', v)
+                return n
             if kind == INT or kind == "array":
                 if msgid_field:
                     md = self.dialect.by_name.get(v.text)
@@ -136,9 +162,11 @@ class Compiler:
         if kind == STR:
             if op == "matches":
                 try:
-                    return re.compile(v.text)
-                except Exception as exc:  # re.error, OverflowError, RecursionError on hostile patterns
-                    raise self.error(f"bad regular expression: {exc}", v) from None
+                    return _regex(v.text)
+                except re2.error as exc:
+                    why = exc.args[0].decode("utf-8", "replace") if exc.args and isinstance(exc.args[0], bytes) else exc
+                    raise self.error(f"bad regular expression (RE2 syntax: no backreferences or lookaround): {why}",
+                                     v) from None
             if choices and op in ("==", "!=", "in") and v.text not in choices:
                 raise self.error(f'"{v.text}" is not one of {", ".join(choices)}', v)
             return v.text
@@ -155,9 +183,20 @@ class Compiler:
             return v.text.encode("utf-8", "surrogatepass")
         raise self.error("cannot compare this field", v)
 
+    def number(self, v: Value) -> int | float:
+        try:
+            return _number(v)
+        except ValueError as exc:
+            raise self.error(f'"{v.text[:20]}{"…" if len(v.text) > 20 else ""}" is not a usable number ({exc})',
+                             v) from None
+
     def convert_time(self, v: Value) -> float:
         if v.kind == "number":
-            return float(_number(v))
+            n = self.number(v)
+            try:
+                return float(n)
+            except OverflowError:
+                raise self.error("a time too large", v) from None
         try:
             dt = datetime.fromisoformat(v.text.replace("Z", "+00:00"))
         except ValueError:
@@ -171,6 +210,8 @@ class Compiler:
             raise self.error(f'"{ff.name}" only tells whether a frame has it: use it alone, without a comparison',
                              v)
         if ff.name in ("frame.time", "signature.time"):
+            if op in ("matches", "contains", "&"):
+                raise self.error(f'"{op}" cannot be used on the time field "{ff.name}"', v)
             return self.convert_time(v)
         kind = ff.type
         if op == "matches" and kind != STR:

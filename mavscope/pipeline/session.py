@@ -13,6 +13,7 @@ the rest of `mavscope.pipeline` sits below them.
 from __future__ import annotations
 
 import itertools
+import os
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -86,6 +87,19 @@ class Session:
     security: SecurityStage
     display_filter: DisplayFilter | None
     t0: float | None  # time of the capture's first record: relative times count from it (as tshark's)
+    frame_count: int = 0  # frames that came out of the security stage so far (before the filter)
+
+    def _counted(self, items: Iterator[Frame | Anomaly]) -> Iterator[Frame | Anomaly]:
+        for item in items:
+            if type(item) is not Anomaly:
+                self.frame_count += 1
+            yield item
+
+    @property
+    def name(self) -> str:
+        """The path as printable text: bytes that are not UTF-8 (a Latin-1 file name) as \\xNN escapes, so
+        that JSON and a UTF-8 terminal can carry it."""
+        return os.fsencode(self.path).decode("utf-8", "backslashreplace")
 
     def shown(self) -> Iterator[Frame | Anomaly]:
         """The items after the display filter (all of them without one)."""
@@ -115,5 +129,6 @@ def open_session(path: str, options: PipelineOptions, *, dialect: Dialect | None
         t0, records = peek_time(iter(reader))
         security = make_security_stage(options, warn)
         flt = make_filter(options, dialect)
-        items = security.run(Dissector(dialect).run(records))
-        yield Session(path, reader, dialect, items, security, flt, t0)
+        session = Session(path, reader, dialect, iter(()), security, flt, t0)
+        session.items = session._counted(security.run(Dissector(dialect).run(records)))
+        yield session
