@@ -76,6 +76,7 @@ class Field:
     v2: tuple[int, int] | None = None  # (offset, size) in a v2 frame's header
     span: Span | None = None  # (offset, size) in the frame of a field after the header (CRC, signature)
     choices: tuple[str, ...] = ()  # the values a STR field can take (checked when a filter compiles)
+    values: tuple[tuple[int, str], ...] = ()  # names of an INT field's values (Wireshark's value_string)
     multi: bool = False  # the value is a tuple of values (ip.addr): a comparison holds if one does
     description: str = ""
 
