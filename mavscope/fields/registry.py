@@ -8,7 +8,9 @@ filters (`mavscope.filter`), the JSON export (`output.jsonout`) and hex highligh
 tree's byte ranges) all iterate `FIELDS`, so a name means one thing everywhere.
 
 Payload fields come from the loaded dialect (`MSG.field`, alias `mavlink_proto.MSG_field`);
-`FieldRegistry(dialect)` resolves any name to a `Field`, a `PayloadField` or a message.
+`FieldRegistry(dialect)` resolves any name to a `Field`, a `PayloadField` or a message. The fields of
+the protocols inside byte arrays (`ftp.opcode`, `log.data`...) are declared by `fields.containers`
+and registered here with the others.
 
 A field a frame does not have (the signature of an unsigned frame, `udp.port` of a tlog entry,
 `COMMAND_LONG.command` of a HEARTBEAT) yields `MISSING`.
@@ -20,6 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from operator import attrgetter
 
+from mavscope.fields import containers
 from mavscope.mavlink.dialect import Dialect, FieldDef, MessageDef
 from mavscope.mavlink.frame import (
     HEADER_V1,
@@ -76,6 +79,7 @@ class Field:
     v2: tuple[int, int] | None = None  # (offset, size) in a v2 frame's header
     span: Span | None = None  # (offset, size) in the frame of a field after the header (CRC, signature)
     choices: tuple[str, ...] = ()  # the values a STR field can take (checked when a filter compiles)
+    values: tuple[tuple[int, str], ...] = ()  # names of an INT field's values (Wireshark's value_string)
     multi: bool = False  # the value is a tuple of values (ip.addr): a comparison holds if one does
     description: str = ""
 
@@ -315,6 +319,13 @@ def _build() -> tuple[Field, ...]:
         Field("tcp.dstport", "TCP destination port", INT, _port("tcp", "dst"), description="TCP destination port"),
         Field("tcp.port", "TCP port", INT, _port_any("tcp"), multi=True, description="either TCP port"),
     ]
+    # the protocols inside byte arrays (FTP, LOG_DATA, TUNNEL, SERIAL_CONTROL, ENCAPSULATED_DATA): the
+    # tree nests them under their array; not exported to JSON
+    for spec in containers.SPECS:
+        assert spec.type in (INT, STR, BYTES, NONE), spec
+        fields.append(Field(spec.name, spec.label, spec.type, _or_missing(spec.get), span=spec.span,
+                            choices=spec.choices, values=spec.values, multi=spec.multi,
+                            description=spec.description))
     # expert info: one field per note code a frame can carry (its value is the note's message)
     fields += [Field(f"note.{code}", code, STR, _note(code), description=f"note: {CODES[code].summary}")
                for code in frame_codes()]

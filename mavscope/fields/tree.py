@@ -5,7 +5,8 @@ its display text, so the tree, the hex view (which highlights an item's bytes), 
 Header, CRC and signature items come from `registry.FIELDS` (label, byte position, value); payload
 items from the dialect's field definitions, with enum names, bitmask flags, degE7 as degrees, units,
 and for command-carrying messages the parameter labels of the command (Hold, Accept Radius, ... for
-NAV_WAYPOINT).
+NAV_WAYPOINT). A container array (FILE_TRANSFER_PROTOCOL.payload, LOG_DATA.data...) shows a summary and
+nests the fields `fields.containers` finds in it.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from mavscope.fields import containers
 from mavscope.fields.registry import FIELDS, HEADER, Field, field, payload_position
 from mavscope.mavlink.dialect import Dialect, FieldDef, MessageDef
 from mavscope.mavlink.frame import HEADER_V1, HEADER_V2, SIGNATURE_LEN, CrcStatus, Frame, decode_payload
@@ -83,21 +85,33 @@ def _payload_value_text(
     return f"{fd.name}: {format_value(fd, value, dialect)}"
 
 
+def _container_item(node: containers.Node) -> Item:
+    return Item(node.label, node.name, node.offset, node.length, node.value,
+                tuple(_container_item(n) for n in node.children), node.generated)
+
+
 def payload_items(frame: Frame, dialect: Dialect, fields: dict[str, object]) -> tuple[Item, ...]:
-    """One item per payload field, in wire order; fields beyond a truncated (v2) payload are marked."""
+    """One item per payload field, in wire order; fields beyond a truncated (v2) payload are marked. A
+    container (FILE_TRANSFER_PROTOCOL.payload, LOG_DATA.data...) shows a summary, its fields nested."""
     md = frame.msgdef
     assert md is not None
     items = []
     for fd in md.fields:
         value = fields.get(fd.name)
-        text = _payload_value_text(md, fd, value, fields, dialect)
+        sub = containers.subtree(frame, fd) if fd.array_length else None
+        if sub is None:
+            text = _payload_value_text(md, fd, value, fields, dialect)
+            children: tuple[Item, ...] = ()
+        else:
+            text = f"{fd.name}: {sub[0]}"
+            children = tuple(_container_item(n) for n in sub[1])
         offset, present = payload_position(frame, fd)
         if present < fd.size:
             # MAVLink 2 senders trim trailing zero bytes; the receiver restores them.
             text += " [trimmed: zero-filled]" if present == 0 else " [partly trimmed: zero-filled]"
         if fd.extension:
             text += " [extension]"
-        items.append(Item(text, fd.filter_name, offset, present, value))
+        items.append(Item(text, fd.filter_name, offset, present, value, children))
     return tuple(items)
 
 

@@ -222,7 +222,19 @@ class Compiler:
             raise self.error(f'"&" needs an integer field; "{ff.name}" is not one', v)
         if kind == IP and op in ("<", "<=", ">", ">="):
             raise self.error("addresses compare with ==, != and in only", v)
+        if ff.values and v.kind != "number":
+            return self.value_name(ff, v)
         return self.convert(kind, v, enum=ff.enum, choices=ff.choices, msgid_field=ff.name == "mavlink.msgid", op=op)
+
+    def value_name(self, ff: Field, v: Value) -> int:
+        """The number a name of `ff`'s values stands for (`ftp.opcode == OpenFileRO`)."""
+        for number, name in ff.values:
+            if name == v.text:
+                return number
+        names = list(dict.fromkeys(name for _, name in ff.values))
+        close = difflib.get_close_matches(v.text, names, n=1, cutoff=0.75)
+        hint = f'; did you mean "{close[0]}"?' if close else f" (one of {', '.join(names)})"
+        raise self.error(f'"{v.text}" is not a number nor a name of {ff.name} values{hint}', v)
 
     # tests --------------------------------------------------------------------------------------
 
@@ -277,7 +289,7 @@ class Compiler:
         if v.text.lower() in KEYWORDS:
             return False
         ff = lhs.frame_field
-        if ff is not None and (v.text in ff.choices or ff.type == IP):
+        if ff is not None and (v.text in ff.choices or ff.type == IP or any(v.text == n for _, n in ff.values)):
             return False
         if self.dialect.enum_value(v.text) is not None or v.text in self.dialect.by_name:
             return False
