@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from weakref import WeakKeyDictionary
 
+from mavscope.fields.containers import info as container_info
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, IFLAG_SIGNED, CrcStatus, Frame, decode_payload
 from mavscope.mavlink.semantics import DEGE7, INT_COORDINATE_MESSAGES, message_label
@@ -35,6 +36,7 @@ SUMMARY_FIELDS: dict[str, tuple[str, ...]] = {
     "SETUP_SIGNING": ("target_system", "initial_timestamp"),
 }
 _MAX_DEFAULT = 4
+CONTAINER_MESSAGES = frozenset({"FILE_TRANSFER_PROTOCOL"})  # their Info is the inner protocol's
 
 
 # How a summary shows one field: by its name, an enum's names, degE7 as degrees, or by the value's type.
@@ -97,7 +99,10 @@ def summary_info(frame: Frame, dialect: Dialect, fields: dict[str, object] | Non
         parts.append(md.name)
         if fields is None:
             fields = decode_payload(frame)
-        if fields is not None:
+        inner = container_info(frame) if md.name in CONTAINER_MESSAGES else None
+        if inner is not None:
+            parts.append(inner)
+        elif fields is not None:
             parts.extend(_short(name, how, names, fields.get(name)) for name, how, names in _summary_plan(md, dialect))
         elif frame.encryption_method:
             parts.append(f"[encrypted, method {frame.encryption_method}]")

@@ -107,7 +107,8 @@ def test_empty_capture(cli: Cli, tmp_path: Path) -> None:
         (("read",), "capture file is required"),
         (("read", "/nonexistent/capture.pcap"), "/nonexistent/capture.pcap"),
         (("read", "x.pcap", "-T", "xml"), "invalid choice"),
-        (("read", "x.pcap", "-c", "0"), "-c needs a positive number"),
+        (("read", "x.pcap", "-c", "0"), "argument -c: a whole positive number of frames, not '0'"),
+        (("read", "x.pcap", "-c", "1e3"), "argument -c: a whole positive number of frames, not '1e3'"),
         (("frobnicate",), "invalid choice"),
     ],
 )

@@ -296,7 +296,7 @@ def test_usage_errors() -> None:
         (["--udp", "70000"], "not a UDP port"),
         (["--udp", "::1:14550"], "brackets"),
         (["--udp", "14550", "--forward", "14551"], "expected HOST:PORT"),
-        (["--udp", "14550", "-c", "0"], "-c needs a positive"),
+        (["--udp", "14550", "-c", "0"], "argument -c: a whole positive number"),
     ]:
         status, _, err = _run_cli("live", *argv)
         assert status == ExitStatus.ERROR and msg in err, (argv, err)

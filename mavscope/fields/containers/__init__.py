@@ -33,4 +33,13 @@ def subtree(frame: Frame, fd: FieldDef) -> tuple[str, tuple[Node, ...]] | None:
     return None if dissect is None else dissect(frame)
 
 
-__all__ = ["SPECS", "Node", "Spec", "subtree"]
+def info(frame: Frame) -> str | None:
+    """What the Info column says of a container message instead of its first fields (FTP: the packet
+    itself, "OpenFileRO @PARAM/param.pck"), or None."""
+    if frame.msgdef is not None and frame.msgdef.name == ftp.MESSAGE:
+        p = ftp.ftp(frame)
+        return None if p is None else ftp.summary(p)
+    return None
+
+
+__all__ = ["SPECS", "Node", "Spec", "info", "subtree"]
