@@ -15,7 +15,14 @@ from dataclasses import dataclass, field
 
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
-from mavscope.mavlink.semantics import INT_COORDINATE_MESSAGES, enum_name, finite, int_coordinate
+from mavscope.mavlink.semantics import (
+    COMMAND_PARAM_INDEX,
+    INT_COORDINATE_MESSAGES,
+    command_param_name,
+    enum_name,
+    finite,
+    int_coordinate,
+)
 
 MAV_RESULT_IN_PROGRESS = 5
 
@@ -108,6 +115,17 @@ def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> tuple[list[Command
     return commands, orphans
 
 
+def _param_names(c: Command, dialect: Dialect) -> dict[str, str]:
+    """The names of the parameter values the XML names (an enum entry, a message id's message)."""
+    out = {}
+    for key, index in COMMAND_PARAM_INDEX.items():
+        if key in c.params and not (c.message == "COMMAND_INT" and key.startswith("param") and index > 4):
+            name = command_param_name(dialect, c.command, index, c.params[key])
+            if name is not None:
+                out[key] = name
+    return out
+
+
 def command_json(c: Command, dialect: Dialect) -> dict[str, object]:
     labels = {f"param{i}": label for i, label, _ in dialect.command_params(c.command)}
     if c.message == "COMMAND_INT":
@@ -120,5 +138,6 @@ def command_json(c: Command, dialect: Dialect) -> dict[str, object]:
         "answered": c.result is not None, "latency_ms": c.latency_ms, "retries": c.retries,
         "progress": c.progress, "params": c.params,
         "param_labels": {k: v for k, v in labels.items() if k in c.params},
+        "param_names": _param_names(c, dialect),
         "frames": c.frames, "ack_frame": c.ack_frame,
     }

@@ -6,18 +6,24 @@ frames one per line use this one text.
 
 from __future__ import annotations
 
-import math
 from weakref import WeakKeyDictionary
 
 from mavscope.fields.containers import info as container_info
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, IFLAG_SIGNED, CrcStatus, Frame, decode_payload
-from mavscope.mavlink.semantics import DEGE7, INT_COORDINATE_MESSAGES, message_label
+from mavscope.mavlink.semantics import (
+    COMMAND_MESSAGES,
+    DEGE7,
+    INT_COORDINATE_MESSAGES,
+    command_param_name,
+    float_text,
+    message_label,
+)
 
 # The fields a summary line shows per message (default: the first few scalar fields).
 SUMMARY_FIELDS: dict[str, tuple[str, ...]] = {
     "HEARTBEAT": ("type", "autopilot", "base_mode", "system_status"),
-    "COMMAND_LONG": ("command", "target_system", "target_component", "confirmation"),
+    "COMMAND_LONG": ("command", "param1", "target_system", "target_component", "confirmation"),
     "COMMAND_INT": ("command", "target_system", "target_component", "frame", "x", "y", "z"),
     "COMMAND_ACK": ("command", "result"),
     "MISSION_ITEM_INT": ("seq", "command", "frame", "x", "y", "z"),
@@ -81,7 +87,7 @@ def _short(name: str, how: int, names: dict[int, str], value: object) -> str:
     elif how == _DEGREES and isinstance(value, int):
         return f"{name}={value / DEGE7:.7f}"
     if isinstance(value, float):
-        return f"{name}={'nan' if math.isnan(value) else f'{value:.4g}'}"
+        return f"{name}={float_text(value, '.4g')}"
     if isinstance(value, str):
         return f"{name}={value!r}"
     if isinstance(value, list):
@@ -104,6 +110,10 @@ def summary_info(frame: Frame, dialect: Dialect, fields: dict[str, object] | Non
             parts.append(inner)
         elif fields is not None:
             parts.extend(_short(name, how, names, fields.get(name)) for name, how, names in _summary_plan(md, dialect))
+            if md.name in COMMAND_MESSAGES and "param1" in fields:  # the value's name where the XML gives one
+                named = command_param_name(dialect, fields.get("command"), 1, fields["param1"])  # type: ignore[arg-type]
+                if named is not None:
+                    parts = [f"param1={named}" if p.startswith("param1=") else p for p in parts]
         elif frame.encryption_method:
             parts.append(f"[encrypted, method {frame.encryption_method}]")
     if frame.crc_status is not CrcStatus.OK:

@@ -20,7 +20,15 @@ from mavscope.fields.registry import FIELDS, HEADER, Field, field, payload_posit
 from mavscope.mavlink.dialect import Dialect, FieldDef, MessageDef
 from mavscope.mavlink.frame import HEADER_V1, HEADER_V2, SIGNATURE_LEN, CrcStatus, Frame, decode_payload
 from mavscope.mavlink.framing import mcrf4xx
-from mavscope.mavlink.semantics import INT_COORDINATE_MESSAGES, command_param, degrees_text, is_global
+from mavscope.mavlink.semantics import (
+    COMMAND_PARAM_INDEX,
+    INT_COORDINATE_MESSAGES,
+    command_param,
+    command_param_name,
+    degrees_text,
+    float_text,
+    is_global,
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -37,9 +45,9 @@ class Item:
 
 
 def _fmt_float(v: float) -> str:
-    if math.isnan(v) or math.isinf(v):
+    if math.isinf(v):
         return str(v)
-    return f"{v:.7g}"
+    return float_text(v, ".7g")
 
 
 def format_value(fd: FieldDef, value: object, dialect: Dialect) -> str:
@@ -64,7 +72,7 @@ def format_value(fd: FieldDef, value: object, dialect: Dialect) -> str:
     if fd.display == "bitmask" and isinstance(value, int):
         return f"0x{value:x}"
     text = _fmt_float(value) if isinstance(value, float) else str(value)
-    return f"{text} {units}" if units else text
+    return f"{text} {units}" if units and not (isinstance(value, float) and math.isnan(value)) else text
 
 
 def _payload_value_text(
@@ -79,7 +87,11 @@ def _payload_value_text(
             text = degrees_text(value)
         else:
             text = format_value(fd, value, dialect)
-            if punits and not fd.units and isinstance(value, float):
+            index = COMMAND_PARAM_INDEX.get(fd.name, 0)
+            name = command_param_name(dialect, fields.get("command"), index, value)  # type: ignore[arg-type]
+            if name is not None:
+                text = f"{name} ({text})"
+            elif punits and not fd.units and isinstance(value, float) and not math.isnan(value):
                 text = f"{text} {punits}"
         return f"{plabel} ({fd.name}): {text}"
     return f"{fd.name}: {format_value(fd, value, dialect)}"
@@ -97,6 +109,8 @@ def payload_items(frame: Frame, dialect: Dialect, fields: dict[str, object]) -> 
     assert md is not None
     items = []
     for fd in md.fields:
+        if fd.extension and frame.version == 1:
+            continue  # a MAVLink 1 frame has no extension fields: they are not on the wire, not trimmed
         value = fields.get(fd.name)
         sub = containers.subtree(frame, fd) if fd.array_length else None
         if sub is None:

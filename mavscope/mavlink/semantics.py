@@ -42,6 +42,14 @@ def message_label(msgid: int, msgdef: MessageDef | None) -> str:
     return msgdef.name if msgdef is not None else f"UNKNOWN_{msgid}"
 
 
+NAN_TEXT = "NaN"  # how a NaN reads everywhere (PX4 and QGroundControl send it for "unset" / "unchanged")
+
+
+def float_text(v: float, spec: str) -> str:
+    """A float with format `spec`, or NAN_TEXT: one spelling of NaN in the tree, summaries and tables."""
+    return NAN_TEXT if math.isnan(v) else format(v, spec)
+
+
 def finite(v: object) -> object:
     """`v`, or None for a NaN or infinite float (PX4 and QGroundControl send NaN for "unchanged")."""
     return None if isinstance(v, float) and (math.isnan(v) or math.isinf(v)) else v
@@ -52,6 +60,31 @@ def enum_name(dialect: Dialect, enum: str, value: int) -> str:
     e = dialect.enums.get(enum)
     name = e.name_of(value) if e is not None else None
     return name or str(value)
+
+
+MESSAGE_ID_LABELS = frozenset({"Message ID"})  # params whose value is a message id (REQUEST_MESSAGE, intervals)
+
+
+def command_param_name(dialect: Dialect, command: int, index: int, value: object) -> str | None:
+    """The name of a command parameter's value where the XML says what names it: an entry of the enum
+    the <param> gives (MAV_BOOL_TRUE), or the message of a "Message ID" (REQUEST_MESSAGE 148 ->
+    AUTOPILOT_VERSION); None otherwise (or for a value that is not a whole number)."""
+    if not isinstance(value, (int, float)) or value != value or value != int(value):
+        return None
+    n = int(value)
+    enum = dialect.command_param_enum(command, index)
+    if enum:
+        e = dialect.enums.get(enum)
+        if e is None:
+            return None
+        if e.bitmask:
+            return " | ".join(e.flags_of(n)) or None
+        return e.name_of(n)
+    for i, label, _ in dialect.command_params(command):
+        if i == index and label in MESSAGE_ID_LABELS:
+            md = dialect.messages.get(n)
+            return md.name if md is not None else None
+    return None
 
 
 def command_param(dialect: Dialect, message: str, field: str, command: object) -> tuple[str, str] | None:
