@@ -76,7 +76,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
             labels = it["param_labels"]
             params = ", ".join(f"{labels[i] or f'param{i + 1}'} {fmt(v, 2)}" for i, v in enumerate(it["params"])
                                if labels[i] or (v not in (0, 0.0, None)))
-            unit = "°" if it["units"] == "deg" else " m"
+            unit = {"deg": "°", "m": " m"}.get(it["units"], "")
             t.add_row(str(it["seq"]), it["command"].removeprefix("MAV_CMD_"), it["frame"].removeprefix("MAV_FRAME_"),
                       params, _coord(it["x"], unit), _coord(it["y"], unit), fmt(it["z"], 2),
                       ", ".join(map(str, it["frames"])))
@@ -90,4 +90,6 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
 
 
 def _coord(v: float | None, unit: str) -> str:
-    return "-" if v is None else f"{v:.7f}{unit}"
+    if v is None:
+        return "-"
+    return f"{v:.7f}{unit}" if unit else fmt(v, 2)

@@ -4,6 +4,7 @@ capture. The state machine that fills them is `reconstruct.py`; the JSON and the
 
 from __future__ import annotations
 
+import struct
 from dataclasses import dataclass, field
 
 from mavscope.mavlink.semantics import finite
@@ -50,7 +51,9 @@ class Item:
         return [finite(p) for p in self.params] + [finite(self.x), finite(self.y), finite(self.z)]
 
     def content(self) -> tuple[object, ...]:
-        return (self.command, self.frame, self.params, self.x, self.y, self.z, self.autocontinue)
+        """What the item says, comparable between copies (NaN, "unchanged" in PX4 and QGC, equals itself)."""
+        return (self.command, self.frame, self.autocontinue,
+                struct.pack("<7d", *self.params, self.x, self.y, self.z))
 
 
 @dataclass
