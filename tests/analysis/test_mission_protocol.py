@@ -296,3 +296,32 @@ def test_plan_of_an_incomplete_transfer_warns(cli: Cli, tmp_path: Path) -> None:
     mission = json.loads(out.read_text())["mission"]
     assert (mission["firmwareType"], mission["vehicleType"]) == (12, 1)
     assert [i["doJumpId"] for i in mission["items"]] == [1, 2]  # PX4: no home item, seq + 1
+
+
+def test_the_copy_the_receiver_asked_for_is_the_item_and_late_frames_stay_late(cli: Cli, tmp_path: Path) -> None:
+    # The vehicle asks for item 0 twice (the first copy did not reach it); the GCS answers the second request
+    # with an edited item 0; a third copy of item 0 arrives after the vehicle asked for item 1 (it answers
+    # nothing). After the ACK the GCS sends item 1 again and PX4, idle, ACKs it again: frames of the ended
+    # transfer, not a new one.
+    x = Exchange()
+    x.heartbeats()
+    edited = (WAYPOINTS[0][0] + 0.001, WAYPOINTS[0][1], WAYPOINTS[0][2])
+    x.send("gcs", "MISSION_COUNT", *VEH, 2, 0)
+    x.send("veh", "MISSION_REQUEST_INT", *GCS, 0, 0)
+    item_int(x, "gcs", VEH, 0, 16, *WAYPOINTS[0])
+    x.send("veh", "MISSION_REQUEST_INT", *GCS, 0, 0, dt=1.5)
+    asked = item_int(x, "gcs", VEH, 0, 16, *edited)
+    x.send("veh", "MISSION_REQUEST_INT", *GCS, 1, 0)
+    stray = item_int(x, "gcs", VEH, 0, 16, *WAYPOINTS[0])
+    item_int(x, "gcs", VEH, 1, 16, *WAYPOINTS[1])
+    x.send("veh", "MISSION_ACK", *GCS, ACCEPTED, 0)
+    x.wait(0.5)
+    again = item_int(x, "gcs", VEH, 1, 16, *WAYPOINTS[1])
+    reack = x.send("veh", "MISSION_ACK", *GCS, ACCEPTED, 0)
+    doc = cli.json("mission", x.tlog(tmp_path / "copies.tlog"))
+    (t,) = doc["transfers"]
+    assert t["complete"] and doc["events"] == []
+    zero = t["items"][0]
+    assert zero["x"] == pytest.approx(edited[0], abs=1e-7) and zero["frames"][1:] == [asked, stray]
+    assert (t["resent_items"], t["resent_changed"]) == ([0], [0])
+    assert t["late_frames"] == [again, reack] and [a["role"] for a in t["acks"]] == ["final", "late"]

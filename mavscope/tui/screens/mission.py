@@ -17,6 +17,7 @@ from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Label
 
 from mavscope.analysis.mission import TRACKED_MESSAGES, Event, Transfer, analyse, event_text, pick
+from mavscope.analysis.mission.describe import ranges
 from mavscope.browse.index import FrameSequence
 from mavscope.mavlink.frame import decode_payload
 from mavscope.mavlink.semantics import is_global
@@ -151,6 +152,7 @@ class MissionScreen(AnalysisScreen):
         title = f"Items of transfer {i + 1}: {t.direction} {t.sender[0]}/{t.sender[1]} → " \
                 f"{t.receiver[0]}/{t.receiver[1]}, {len(t.items)} of {t.count}"
         if t.missing:
-            title += f", missing {', '.join(map(str, t.missing))}"
+            title += f", missing {ranges(t.missing)}"
+        title += f": {t.reason}"
         self.query_one("#items-title", Label).update(title)
         self.query_one(TrackPlot).set_data(res.track, waypoints)
