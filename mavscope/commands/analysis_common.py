@@ -22,7 +22,6 @@ from mavscope.commands.common import (
     report_anomaly,
     report_capture_notes,
 )
-from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.pipeline.session import Session
@@ -62,9 +61,3 @@ def analysis_pass(args: argparse.Namespace, env: Env) -> Iterator[Pass]:
     with capture_session(args, env) as session:
         yield Pass(session, env)
 
-
-def read_frames(args: argparse.Namespace, env: Env) -> tuple[list[Frame], Dialect, str]:
-    """Every frame the session shows (after -Y), in a list: for `mission` until it streams."""
-    with analysis_pass(args, env) as frames:
-        shown = [f for f in frames if frames.selection.any_record((f.record,))]
-        return shown, frames.session.dialect, frames.session.name

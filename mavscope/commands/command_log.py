@@ -9,8 +9,7 @@ from mavscope.analysis.command_log import command_json, reconstruct
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
 from mavscope.commands.common import console, write_json
-from mavscope.mavlink.semantics import NAN_TEXT
-from mavscope.output.tables import fmt, iso
+from mavscope.output.tables import fmt, iso, param_text
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -18,13 +17,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Every COMMAND_LONG and COMMAND_INT with the COMMAND_ACK that answered it.")
     add_analysis_options(p)
     p.set_defaults(run=run)
-
-
-def _value(v: object) -> str:
-    """A parameter value: NaN (null in the JSON: PX4 and QGC send it for "unchanged") as NaN."""
-    if v is None:
-        return NAN_TEXT
-    return f"{v:.9g}" if isinstance(v, float) else str(v)  # 9 digits: degrees to the centimetre
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
@@ -49,7 +41,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         values = cast("dict[str, object]", d["params"])
         sender, target = cast("list[int]", d["from"]), cast("list[int]", d["to"])
         names = cast("dict[str, str]", d["param_names"])
-        params = ", ".join(f"{labels.get(k, k)} {names.get(k) or _value(v)}" for k, v in values.items()
+        params = ", ".join(f"{labels.get(k, k)} {names.get(k) or param_text(v)}" for k, v in values.items()
                            if k in labels or (v not in (0, 0.0, None) and k != "confirmation"))
         t.add_row(str(cast("list[int]", d["frames"])[0]), iso(cast("float | None", d["time"])),
                   "{}/{}".format(*sender), "{}/{}".format(*target),

@@ -10,6 +10,8 @@ from typing import IO
 
 import orjson
 
+from mavscope.mavlink.semantics import NAN_TEXT
+
 BARS = "▁▂▃▄▅▆▇█"
 
 
@@ -46,6 +48,14 @@ def fmt(value: object, digits: int = 3) -> str:
     if isinstance(value, float):
         return f"{value:.{digits}f}"
     return str(value)
+
+
+def param_text(v: object) -> str:
+    """A command or mission parameter: 9 significant digits (degrees to the centimetre), and None (a NaN
+    in the frame: JSON carries it as null; PX4 and QGC send NaN for "unchanged") as NaN."""
+    if v is None:
+        return NAN_TEXT
+    return f"{v:.9g}" if isinstance(v, float) else str(v)
 
 
 def iso(t: float | None) -> str:

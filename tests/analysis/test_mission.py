@@ -70,7 +70,7 @@ def test_plan_export(cli: Cli, tmp_path: Path) -> None:
 
 def test_plan_without_mission_is_an_error(cli: Cli, tmp_path: Path) -> None:
     status, _, err = cli("mission", str(CAPTURES / "clock_skew.pcap"), "--plan", str(tmp_path / "x.plan"))
-    assert status == 2 and "no mission items" in err
+    assert status == 2 and "no mission, fence or rally items" in err
 
 
 def test_text_table(cli: Cli) -> None:
