@@ -30,6 +30,7 @@ from mavscope.commands.read import frame_count
 from mavscope.errors import MavscopeError, UsageError
 from mavscope.live.sink import LivePcapWriter
 from mavscope.live.source import DEFAULT_QUEUE_ITEMS, LiveSource
+from mavscope.live.stop import Stopper
 from mavscope.live.udp import UdpSource, parse_endpoint
 from mavscope.mavlink.dialect import load_dialect
 from mavscope.output.printer import FramePrinter
@@ -113,11 +114,12 @@ def describe(source: LiveSource) -> str:
     return text + f" (receive buffer {getattr(source, 'rcvbuf', 0)} bytes granted)"
 
 
-def summary(source: LiveSource, frames: int) -> str:
+def summary(source: LiveSource, frames: int, undecoded: int = 0) -> str:
     st = source.stats()
     kernel = "unknown" if st.kernel_drops is None else str(st.kernel_drops)
+    late = f"; {undecoded} received after the stop written but not decoded" if undecoded else ""
     return (f"mavscope: live: {frames} frames, {st.bytes} bytes, {st.dropped} dropped "
-            f"({st.queue_drops} queue, {kernel} kernel)")
+            f"({st.queue_drops} queue, {kernel} kernel){late}")
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
@@ -134,6 +136,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     writer: LivePcapWriter | None = None
     restore: list[tuple[signal.Signals, object]] = []
     timer: threading.Timer | None = None
+    stopper = Stopper()
     shown = 0
     try:
         if args.write:
@@ -151,14 +154,13 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                 if printer.t0 is None:
                     printer.t0 = rec.time
                 if writer is not None:
-                    writer.write(rec)
-                yield rec
+                    writer.write(rec)  # every datagram received goes to the pcap, decoded or not
+                if stopper.decode():
+                    yield rec
 
         if threading.current_thread() is threading.main_thread():
             def on_signal(signum: int, frame: FrameType | None) -> None:
-                if source.stopping and signum == signal.SIGINT:
-                    raise KeyboardInterrupt  # a second Ctrl-C: stop waiting for the drain
-                source.stop()
+                source.stop(drain=stopper.signal())  # a second signal: stop draining too
 
             for sig in (signal.SIGINT, signal.SIGTERM):
                 restore.append((sig, signal.signal(sig, on_signal)))
@@ -198,6 +200,6 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
             if isinstance(source, UdpSource) and source.forward is not None:
                 env.stderr.write(f"mavscope: live: relayed {source.forwarded} datagrams "
                                  f"({source.forward_errors} could not be relayed)\n")
-            env.stderr.write(summary(source, shown) + "\n")
+            env.stderr.write(summary(source, shown, stopper.undecoded) + "\n")
             env.stderr.flush()
     return ExitStatus.OK

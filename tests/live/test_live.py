@@ -250,6 +250,30 @@ def test_sigterm_and_sigint_stop_cleanly(tmp_path: Path) -> None:
             assert len(list(reader)) == len(sent)
 
 
+def test_a_second_sigterm_is_not_ignored(tmp_path: Path) -> None:
+    """Issue: a second SIGTERM was ignored. Two in a row: it stops, prints its summary, exit status 0, and
+    every datagram received is in the pcap (written even when the stop left it undecoded)."""
+    pcap = tmp_path / "twice.pcap"
+    proc = subprocess.Popen([sys.executable, "-m", "mavscope", "live", "--udp", "127.0.0.1:0", "-q", "-w", str(pcap)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=ROOT)
+    try:
+        assert proc.stderr is not None
+        m = LISTENING.search(proc.stderr.readline().decode())
+        assert m, "no listening line"
+        sent = send_pymavlink(int(m.group(2)))
+        proc.send_signal(signal.SIGTERM)
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=30)  # a guard against a hang, not a speed requirement
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, err
+    last = err.decode().splitlines()[-1]
+    assert SUMMARY.match(last), err
+    with open_capture(str(pcap)) as reader:
+        assert len(list(reader)) <= len(sent)  # what the receiver took before the second stop
+
+
 def test_pcap_flushed_while_running(tmp_path: Path) -> None:
     pcap = tmp_path / "running.pcap"
     run = LiveRun("--udp", "127.0.0.1:0", "-q", "-w", str(pcap), "--duration", "3")

@@ -154,3 +154,21 @@ def test_synthesised_ipv6_checksums_verified_by_scapy() -> None:
     # v4-mapped addresses on a dual-stack socket become plain IPv4
     assert synth_udp("::ffff:127.0.0.1", 1, "::ffff:127.0.0.1", 2, payload) == synth_udp_ipv4(
         "127.0.0.1:1", "127.0.0.1:2", payload)
+
+
+def test_stopper_decodes_a_little_longer_then_counts_what_it_leaves() -> None:
+    """The first signal leaves STOP_DECODE_S of decoding; after it, and at once after a second signal,
+    queued datagrams are counted as undecoded (they still go to the pcap). A fake clock: no timing."""
+    from mavscope.live.stop import Stopper
+
+    now = [100.0]
+    s = Stopper(clock=lambda: now[0], grace=1.0)
+    assert s.decode() and s.undecoded == 0  # running
+    assert s.signal() is True  # the first stop: drain
+    now[0] = 100.5
+    assert s.decode()
+    now[0] = 101.0
+    assert not s.decode() and not s.decode() and s.undecoded == 2
+    s2 = Stopper(clock=lambda: now[0], grace=1.0)
+    s2.signal()
+    assert s2.signal() is False and not s2.decode() and s2.undecoded == 1  # a second signal: stop now

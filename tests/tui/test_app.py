@@ -304,6 +304,25 @@ def test_help_lists_every_binding_and_q_quits() -> None:
     run(scenario())
 
 
+def test_ctrl_c_quits_from_the_list_and_from_a_screen() -> None:
+    """Issue: Ctrl-C asked to press Ctrl-Q; it quits, as termshark does (the help lists it)."""
+    from mavscope.tui.bindings import KEYS
+
+    assert ("Ctrl+C", "quit", "everywhere") in KEYS
+    for opener in (None, "s"):
+        async def scenario() -> None:
+            app = create_app(PX4)
+            async with app.run_test(size=SIZE) as pilot:
+                await ready(pilot)
+                if opener:
+                    await pilot.press(opener)
+                await pilot.press("ctrl+c")
+                await pilot.pause()
+            assert app.return_code == 0 and not app.is_running
+
+        run(scenario())
+
+
 def test_damaged_capture_rows_carry_their_verdicts() -> None:
     async def scenario() -> None:
         app = create_app(CAPTURES / "damaged.pcap")
