@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
-.PHONY: demo test lint captures bench snapshots clean
+.PHONY: demo test lint captures bench snapshots fuzz clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -44,8 +44,13 @@ captures: $(TSTAMP)
 bench: $(TSTAMP)
 	$(BIN)/python benchmarks/bench_read.py
 
+# coverage-guided fuzzing (atheris) of the readers and pipeline, TCP reassembly, filters, key specs
+FUZZ_SECONDS ?= 60
+fuzz: $(TSTAMP)
+	$(BIN)/python -m tests.fuzz.run $(FUZZ_SECONDS)
+
 snapshots: $(TSTAMP)
-	$(BIN)/python -m pytest --snapshot-update tests/test_tui_snapshots.py
+	$(BIN)/python -m pytest --snapshot-update tests/tui/test_snapshots.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache .hypothesis

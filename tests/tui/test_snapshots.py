@@ -1,7 +1,7 @@
 """Snapshot tests of `mavscope tui` (pytest-textual-snapshot; Textual is pinned because these depend on it).
 
 Update after an intended change with `make snapshots`, and look at the SVGs in
-tests/__snapshots__/test_tui_snapshots/ before committing them.
+tests/tui/__snapshots__/test_snapshots/ before committing them.
 """
 
 from __future__ import annotations
