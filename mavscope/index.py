@@ -23,7 +23,6 @@ complete and never change. No Textual here: the TUI drives `build` from a worker
 
 from __future__ import annotations
 
-import mmap
 import os
 import threading
 from array import array
@@ -33,7 +32,7 @@ from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple, overload
 
-from mavscope.capture.reader import close_mapped, open_mapped
+from mavscope.capture.reader import FileBytes, open_file
 from mavscope.dissect import Anomaly
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import (
@@ -166,10 +165,9 @@ class FrameIndex:
                  cache_size: int = 2048) -> None:
         self.dialect = dialect
         self.path = os.fspath(path) if path is not None else None
-        self._file: object | None = None
-        self._buf: mmap.mmap | bytes = b""
+        self._bytes: FileBytes | None = None  # the capture's bytes, read (not mapped: the file may shrink)
         if self.path is not None:
-            _, self._file, self._buf, _ = open_mapped(self.path)
+            self._bytes = FileBytes(open_file(self.path)[1])
         # columns, one entry per frame
         self._record = array("I")
         self._index = array("H")
@@ -254,7 +252,7 @@ class FrameIndex:
         i = self._count
         raw = frame.raw
         off = frame.offset
-        if off is None or off < 0 or self._buf[off : off + len(raw)] != raw:
+        if off is None or off < 0 or self._bytes is None or self._bytes.get(off, len(raw)) != raw:
             self._raw[i] = raw  # not in the file as one piece: keep the bytes
         if off is None:
             off = NO_OFFSET
@@ -405,8 +403,8 @@ class FrameIndex:
         raw = self._raw.get(i)
         if raw is not None:
             return raw
-        off = self._offset[i]
-        return bytes(self._buf[off : off + self._rawlen[i]])
+        data = self._bytes  # IndexError, as for a dropped row, if the file shrank and the bytes are gone
+        return b"" if data is None else data.get(self._offset[i], self._rawlen[i], exact=True)
 
     def frame(self, n: int) -> Frame:
         """Frame `n` as the pipeline yielded it, rebuilt from its row and bytes."""
@@ -483,9 +481,9 @@ class FrameIndex:
         return total
 
     def close(self) -> None:
-        buf, self._buf = self._buf, b""
-        file, self._file = self._file, None
-        close_mapped(file, buf)
+        data, self._bytes = self._bytes, None
+        if data is not None:
+            data.close()
 
 
 class FrameSequence(Sequence[Frame]):
