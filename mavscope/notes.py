@@ -40,6 +40,7 @@ CODES: dict[str, NoteCode] = {
         NoteCode("ip-fragment", Severity.NOTE, "IP fragment: not reassembled"),
         NoteCode("tcp-gap", Severity.WARN, "bytes missing from a TCP stream"),
         NoteCode("tcp-retransmission", Severity.CHAT, "TCP retransmission dropped"),
+        NoteCode("tcp-suspicious-syn", Severity.WARN, "SYN with a new sequence number in an established TCP stream"),
         # framing
         NoteCode("skipped-bytes", Severity.WARN, "bytes that are not MAVLink were skipped"),
         NoteCode("truncated-frame", Severity.WARN, "frame cut short by the end of its packet or stream"),

@@ -1,8 +1,23 @@
-"""TCP stream reassembly: per-direction, in sequence order, with retransmissions trimmed and gaps noted."""
+"""TCP stream reassembly: per-direction, in sequence order, with retransmissions trimmed and gaps noted.
+
+A direction of a connection (a 4-tuple read one way) may hold several generations, each a stream of its
+own: a SYN with a new initial sequence number (ISN) starts one. After a FIN or RST (or on a direction
+that carried no data yet) that is a new connection reusing the 4-tuple. On an established direction it
+is what an attacker injects to desynchronise a passive observer: a real endpoint ignores such a SYN
+(RFC 5961 section 4: a challenge ACK, the connection unchanged). So the established generation is kept,
+the SYN is noted (`tcp-suspicious-syn`), and every segment goes to the generation whose next expected
+sequence number is nearest to its own: the established stream keeps every byte, and whatever follows
+the new ISN (the SYN's own data, a real new connection whose FIN we missed) is a stream of its own.
+
+At most GENERATIONS generations are kept per direction, and a direction idle for `idle_records`
+records is released (a SYN after that is a new connection); out-of-order bytes are bounded per direction
+(`max_buffered`).
+"""
 
 from __future__ import annotations
 
 import heapq
+from collections import OrderedDict
 from collections.abc import Hashable
 
 from mavscope.notes import Note, note
@@ -11,7 +26,11 @@ from mavscope.transport.base import TRANSPORT_TCP, Payload
 TCP_FIN = 0x01
 TCP_SYN = 0x02
 TCP_RST = 0x04
+TCP_ACK = 0x10
 MAX_BUFFERED = 1 << 20  # out-of-order bytes held per direction before the missing range is given up
+GENERATIONS = 2  # generations kept per direction of a 4-tuple: the established one and a newer one
+IDLE_RECORDS = 1_000_000  # a direction without a segment for this many records is released
+PENDING_NOTES = 16  # suspicious-SYN notes held for a direction before they go out on an empty payload
 _MOD = 1 << 32
 _HALF = 1 << 31
 
@@ -19,11 +38,12 @@ _tuple_new = tuple.__new__
 
 
 class _Direction:
-    """Reassembly state of one direction of one connection."""
+    """Reassembly state of one generation of one direction of one connection."""
 
-    __slots__ = ("src", "dst", "isn", "next", "gen", "key", "pending", "buffered", "counter")
+    __slots__ = ("src", "dst", "isn", "next", "gen", "key", "pending", "buffered", "counter", "syn", "data",
+                 "closed", "last")
 
-    def __init__(self, src: str, dst: str, isn: int, nxt: int, gen: int) -> None:
+    def __init__(self, src: str, dst: str, isn: int, nxt: int, gen: int, syn: bool, record: int) -> None:
         self.src = src
         self.dst = dst
         self.isn = isn
@@ -34,23 +54,34 @@ class _Direction:
         self.pending: list[tuple[int, int, bytes, int, int | None]] = []
         self.buffered = 0
         self.counter = 0
+        self.syn = syn  # started by a SYN (so `isn` is an initial sequence number)
+        self.data = False  # carried data: established
+        self.closed = False  # a FIN or RST with a plausible sequence number was seen
+        self.last = record  # the record of its latest segment
 
     def unwrap(self, seq: int) -> int:
         """The unwrapped position of 32-bit sequence number `seq`, taken as the one nearest `next`."""
         return self.next + (((seq - self.next) + _HALF) % _MOD - _HALF)
 
+    def distance(self, seq: int) -> int:
+        """How far 32-bit sequence number `seq` lies from the next expected one, either way."""
+        return abs(((seq - self.next) + _HALF) % _MOD - _HALF)
+
 
 class TcpReassembler:
     """Turns TCP segments into in-order stream Payloads, one reassembler per capture.
 
-    A stream key is ("tcp", src, dst, generation); the generation changes when a SYN with a new initial
-    sequence number reuses a 4-tuple, so downstream parsers start afresh.
+    A stream key is ("tcp", src, dst, generation); generations are numbered in the order directions are
+    first seen, over the whole capture, so a key never names two streams.
     """
 
-    def __init__(self, max_buffered: int = MAX_BUFFERED) -> None:
+    def __init__(self, max_buffered: int = MAX_BUFFERED, idle_records: int = IDLE_RECORDS) -> None:
         self.max_buffered = max_buffered
-        self._dirs: dict[tuple[str, str], _Direction] = {}
-        self._gens: dict[tuple[str, str], int] = {}
+        self.idle_records = idle_records
+        self._slots: dict[tuple[str, str], list[_Direction]] = {}  # (src, dst) -> generations, oldest first
+        self._lru: OrderedDict[Hashable, _Direction] = OrderedDict()  # every direction, least recently active first
+        self._notes: dict[tuple[str, str], list[Note]] = {}  # notes for the next payload of a (src, dst)
+        self._serial = 0
 
     def segment(
         self, src: str, dst: str, seq: int, flags: int, data: bytes, record: int, offset: int | None
@@ -58,31 +89,143 @@ class TcpReassembler:
         """Take one segment (payload `data` at file `offset`) and return the bytes now in order."""
         out: list[Payload] = []
         k = (src, dst)
-        d = self._dirs.get(k)
+        ds = self._slots.get(k)
         if flags & TCP_SYN:
-            if d is not None and d.isn == seq:
-                pass  # a retransmitted SYN
-            else:
-                if d is not None:
-                    self._drain(d, out, gaps=True)
-                gen = self._gens.get(k, -1) + 1
-                self._gens[k] = gen
-                d = self._dirs[k] = _Direction(src, dst, seq, seq + 1, gen)
+            d = self._syn(k, ds, seq, flags, record, offset, len(data), out)
             seq = (seq + 1) % _MOD
-        elif d is None:
-            gen = self._gens.get(k, -1) + 1
-            self._gens[k] = gen
-            d = self._dirs[k] = _Direction(src, dst, seq, seq, gen)
+        elif ds is None:
+            d = self._open(k, seq, seq, False, record, out)
+        elif len(ds) == 1:
+            d = ds[0]
+        else:  # the generation this segment continues
+            d = min(ds, key=lambda g: g.distance(seq))
+        if d.last != record:
+            d.last = record
+            self._lru.move_to_end(d.key)
         if data:
+            d.data = True
             start = d.unwrap(seq)
             if start == d.next and not d.pending:  # the common case: the next bytes, nothing buffered
                 d.next = start + len(data)
                 out.append(_tuple_new(Payload, (TRANSPORT_TCP, src, dst, data, d.key, record, offset, ())))
             else:
                 self._add(d, start, data, record, offset, out)
-        if flags & (TCP_FIN | TCP_RST) and d.pending:
-            self._drain(d, out, gaps=True)
+        if flags & (TCP_FIN | TCP_RST):
+            self._close(d, seq, flags, len(data), out)
+        if k in self._notes:
+            self._attach(k, out)
+        if record - next(iter(self._lru.values())).last > self.idle_records:
+            self._sweep(record, out)
         return out
+
+    def tracked(self) -> int:
+        """How many directions (of any generation) are tracked now."""
+        return len(self._lru)
+
+    def flush(self) -> list[Payload]:
+        """Deliver everything still buffered (end of capture), noting the gaps skipped."""
+        out: list[Payload] = []
+        for d in list(self._lru.values()):
+            if d.pending:
+                self._drain(d, out, gaps=True)
+        for k in list(self._notes):
+            ds = self._slots.get(k)
+            key = ds[-1].key if ds else (TRANSPORT_TCP, k[0], k[1], -1)
+            out.append(Payload(TRANSPORT_TCP, k[0], k[1], b"", key, self._notes_record(k), None,
+                               tuple(self._notes.pop(k))))
+        return out
+
+    # --- generations --------------------------------------------------------------------------
+
+    def _open(self, k: tuple[str, str], isn: int, nxt: int, syn: bool, record: int,
+              out: list[Payload]) -> _Direction:
+        d = _Direction(k[0], k[1], isn, nxt, self._serial, syn, record)
+        self._serial += 1
+        ds = self._slots.setdefault(k, [])
+        ds.append(d)
+        self._lru[d.key] = d
+        if len(ds) > GENERATIONS:
+            # give up the least useful: one that carried no data or has ended, else the least recently active
+            idle = [g for g in ds[:-1] if not g.data or g.closed]
+            self._release(idle[0] if idle else min(ds[:-1], key=lambda g: g.last), out)
+        return d
+
+    def _syn(self, k: tuple[str, str], ds: list[_Direction] | None, seq: int, flags: int, record: int,
+             offset: int | None, size: int, out: list[Payload]) -> _Direction:
+        """The generation a SYN belongs to: its own if retransmitted, else a new one (noted if suspicious)."""
+        if ds:
+            for g in ds:
+                if g.isn == seq:
+                    return g  # a retransmitted SYN
+        live = [g for g in ds or () if g.data and not g.closed and record - g.last <= self.idle_records]
+        if live and not (flags & TCP_ACK and self._answers(k, live)):
+            g = live[-1]
+            data = f", its {size} data bytes shown as a stream of their own" if size else ""
+            msg = (f"SYN with a new initial sequence number {seq} in the established TCP stream {g.src} -> {g.dst} "
+                   f"(record {record}): a receiver ignores it (RFC 5961), so the stream goes on{data}")
+            pending = self._notes.setdefault(k, [])
+            pending.append(note("tcp-suspicious-syn", msg, offset))
+        return self._open(k, seq, seq + 1, True, record, out)
+
+    def _answers(self, k: tuple[str, str], live: list[_Direction]) -> bool:
+        """Whether a SYN-ACK on `k` answers a SYN the other way that is newer than `k`'s live generations."""
+        newest = max(g.gen for g in live)
+        return any(g.syn and not g.data and g.gen > newest for g in self._slots.get((k[1], k[0]), ()))
+
+    def _close(self, d: _Direction, seq: int, flags: int, size: int, out: list[Payload]) -> None:
+        """A FIN or RST: what is buffered is delivered; with a plausible sequence number the stream ended
+        (an RST ends the other direction too)."""
+        if d.pending:
+            self._drain(d, out, gaps=True)
+        if d.closed or d.distance((seq + size) % _MOD) > max(self.max_buffered, 1 << 16):
+            return
+        d.closed = True
+        if flags & TCP_RST:
+            for g in self._slots.get((d.dst, d.src), ()):
+                if not g.closed:
+                    if g.pending:
+                        self._drain(g, out, gaps=True)
+                    g.closed = True
+
+    def _release(self, d: _Direction, out: list[Payload]) -> None:
+        """Forget direction `d`, delivering what it buffered."""
+        if d.pending:
+            self._drain(d, out, gaps=True)
+        del self._lru[d.key]
+        k = (d.src, d.dst)
+        ds = self._slots[k]
+        ds.remove(d)
+        if not ds:
+            del self._slots[k]
+            if k in self._notes:
+                out.append(Payload(TRANSPORT_TCP, d.src, d.dst, b"", d.key, self._notes_record(k), None,
+                                   tuple(self._notes.pop(k))))
+
+    def _sweep(self, record: int, out: list[Payload]) -> None:
+        """Release the directions idle for more than `idle_records` records."""
+        lru = self._lru
+        while len(lru) > 1:
+            d = next(iter(lru.values()))
+            if record - d.last <= self.idle_records:
+                break
+            self._release(d, out)
+
+    def _attach(self, k: tuple[str, str], out: list[Payload]) -> None:
+        """Put the notes waiting for `k` on its first payload in `out` (or on an empty one, when many wait)."""
+        for i, p in enumerate(out):
+            if p.src == k[0] and p.dst == k[1]:
+                out[i] = p._replace(notes=tuple(self._notes.pop(k)) + p.notes)
+                return
+        if len(self._notes[k]) >= PENDING_NOTES:
+            ds = self._slots[k]
+            out.append(Payload(TRANSPORT_TCP, k[0], k[1], b"", ds[-1].key, self._notes_record(k), None,
+                               tuple(self._notes.pop(k))))
+
+    def _notes_record(self, k: tuple[str, str]) -> int:
+        ds = self._slots.get(k)
+        return max(g.last for g in ds) if ds else 0
+
+    # --- bytes ----------------------------------------------------------------------------------
 
     def _add(
         self, d: _Direction, start: int, data: bytes, record: int, offset: int | None, out: list[Payload]
@@ -133,11 +276,3 @@ class TcpReassembler:
                     offset += cut
             d.next = end
             out.append(_tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, data, d.key, record, offset, notes)))
-
-    def flush(self) -> list[Payload]:
-        """Deliver everything still buffered (end of capture), noting the gaps skipped."""
-        out: list[Payload] = []
-        for d in self._dirs.values():
-            if d.pending:
-                self._drain(d, out, gaps=True)
-        return out
