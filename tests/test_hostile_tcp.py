@@ -1,14 +1,19 @@
-"""TCP reassembly against hostile input: injected SYNs (defect 8).
+"""TCP reassembly against hostile input: injected SYNs (defect 8) and memory bounds (defect 7).
 
 An injected SYN with a new sequence number used to restart an established stream, so the rest of it was
 dropped as "retransmission already delivered" (18 of 30 frames hidden). A real endpoint ignores such a
 SYN (RFC 5961); now every frame is shown and the SYN is noted. A new connection reusing the 4-tuple after
 a FIN, an RST or a long idle time still starts a new stream, without a note.
+
+Memory used to be bounded per direction only: a million streams, a million SYN generations or hundreds
+of streams buffering out-of-order bytes grew without limit. The bounds are checked on the reassembler's
+own accounting and with tracemalloc (never with wall-clock time).
 """
 
 from __future__ import annotations
 
 import struct
+import tracemalloc
 from pathlib import Path
 
 import pytest
@@ -108,6 +113,7 @@ def test_a_new_connection_on_the_same_4_tuple_is_a_new_stream(end: object) -> No
         r.segment(a, b, 104, end | TCP_ACK, b"", 4, 0)  # type: ignore[operator]
         if end == TCP_FIN:
             r.segment(b, a, 5001, TCP_FIN | TCP_ACK, b"", 5, 0)
+        assert ("tcp", a, b, 0) in r.pop_ended()
     second = r.segment(a, b, 900_000, TCP_SYN, b"", record + 1, 0)
     second += r.segment(b, a, 70_000, TCP_SYN | TCP_ACK, b"", record + 2, 0)
     second += r.segment(a, b, 900_001, PSH_ACK, b"new", record + 3, 0)
@@ -146,3 +152,80 @@ def test_many_injected_syns_keep_the_established_stream() -> None:
     assert legit == b"".join(b"%04d" % i for i in range(2000))
     assert r.tracked() <= 2
     assert sum(n.code == "tcp-suspicious-syn" for p in out + r.flush() for n in p.notes) == 2000
+
+
+# ---- memory bounds (defect 7) ---------------------------------------------------------------------------
+
+
+def test_buffered_bytes_are_bounded_over_all_directions() -> None:
+    r = TcpReassembler(max_buffered=1 << 20, max_total=1 << 16)
+    delivered = 0
+    sent = 0
+    for k in range(1000):  # 300 streams each buffering 1 MB was held whole; here 1000 streams, 10 KB each
+        src = f"10.1.{k // 256}.{k % 256}:40000"
+        delivered += sum(len(p.data) for p in r.segment(src, "10.0.0.2:5760", 0, PSH_ACK, b"a", 1, 0))
+        sent += 1
+        for j in range(10):
+            data = bytes(1000)
+            delivered += sum(len(p.data) for p in r.segment(src, "10.0.0.2:5760", 100 + 1000 * j, PSH_ACK, data,
+                                                            2, 0))
+            sent += len(data)
+            assert r.total <= (1 << 16)
+    out = r.flush()
+    delivered += sum(len(p.data) for p in out)
+    assert delivered == sent  # nothing vanishes: the bytes go out after a tcp-gap note
+
+
+def test_one_byte_segments_are_charged_their_overhead() -> None:
+    r = TcpReassembler(max_buffered=1 << 20, max_total=1 << 16)
+    r.segment("a:1", "b:2", 0, PSH_ACK, b"a", 1, 0)
+    for i in range(10_000):  # out of order, one byte each
+        r.segment("a:1", "b:2", 10 + 2 * i, PSH_ACK, b"x", 2 + i, 0)
+        assert r.total <= 1 << 16
+    assert r.buffered_segments() <= (1 << 16) // 200
+
+
+def test_directions_are_bounded_and_the_flood_is_noted_sparingly() -> None:
+    r = TcpReassembler(max_directions=100)
+    out = []
+    for k in range(10_000):
+        out += r.segment(f"10.2.{k // 256}.{k % 256}:40000", "10.0.0.2:5760", 7 * k, PSH_ACK, b"data", k + 1, 0)
+        assert r.tracked() <= 100
+    given_up = [n for p in out for n in p.notes if n.code == "tcp-gap"]
+    assert 5 <= len(given_up) <= 15 and "given up" in given_up[-1].message  # 1st, 2nd, 4th... of 9900
+    assert len(r.pop_ended()) >= 9900 - 100
+
+
+def test_idle_directions_are_released_with_their_bytes() -> None:
+    r = TcpReassembler(idle_records=50)
+    out = r.segment("a:1", "b:2", 0, PSH_ACK, b"abc", 1, 0) + r.segment("a:1", "b:2", 10, PSH_ACK, b"xyz", 2, 0)
+    for i in range(100):
+        out += r.segment("c:1", "d:2", 3 * i, PSH_ACK, b"123", 3 + i, 0)
+    assert r.tracked() == 1
+    assert b"".join(p.data for p in out if p.src == "a:1") == b"abcxyz"
+    assert [n.code for p in out for n in p.notes] == ["tcp-gap"]
+
+
+def _peak(segments: int, syns: bool) -> int:
+    """Peak bytes allocated (tracemalloc) while feeding `segments` segments of a flood."""
+    r = TcpReassembler()
+    r.max_directions = 200
+    ended = getattr(r, "ended", None)
+    tracemalloc.start()
+    try:
+        for k in range(segments):
+            if ended is not None:
+                ended.clear()  # as the dissector does: it lets the state of ended streams go
+            if syns:  # a SYN with a new sequence number each time, on one 4-tuple, with data
+                r.segment("10.3.0.1:40000", "10.0.0.2:5760", (k * 2_654_435_761) % (1 << 32), TCP_SYN, b"hb", k, 0)
+            else:  # a new stream each time
+                r.segment(f"10.3.{k // 65536}.{k % 256}:{k % 65536}", "10.0.0.2:5760", k, PSH_ACK, b"hb", k, 0)
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+@pytest.mark.parametrize("syns", [False, True], ids=["streams", "syn-generations"])
+def test_memory_does_not_grow_with_the_number_of_streams(syns: bool) -> None:
+    small, large = _peak(5_000, syns), _peak(20_000, syns)
+    assert large < small * 1.5, (small, large)

@@ -9,15 +9,17 @@ the SYN is noted (`tcp-suspicious-syn`), and every segment goes to the generatio
 sequence number is nearest to its own: the established stream keeps every byte, and whatever follows
 the new ISN (the SYN's own data, a real new connection whose FIN we missed) is a stream of its own.
 
-At most GENERATIONS generations are kept per direction, and a direction idle for `idle_records`
-records is released (a SYN after that is a new connection); out-of-order bytes are bounded per direction
-(`max_buffered`).
+Memory is bounded whatever the input: out-of-order bytes per direction (`max_buffered`) and over all
+directions (`max_total`, each buffered segment charged SEGMENT_COST for its bookkeeping), directions
+tracked at once (`max_directions`, the least recently active released first), generations per direction
+(GENERATIONS), and a direction idle for `idle_records` records is released. Buffered bytes given up to
+a bound are delivered after a `tcp-gap` note, as at the end of a stream.
 """
 
 from __future__ import annotations
 
 import heapq
-from collections import OrderedDict
+from collections import OrderedDict, deque
 from collections.abc import Hashable
 
 from mavscope.notes import Note, note
@@ -28,8 +30,12 @@ TCP_SYN = 0x02
 TCP_RST = 0x04
 TCP_ACK = 0x10
 MAX_BUFFERED = 1 << 20  # out-of-order bytes held per direction before the missing range is given up
+MAX_TOTAL_BUFFERED = 32 << 20  # ... and over all directions, counting SEGMENT_COST per buffered segment
+SEGMENT_COST = 200  # bytes a buffered segment costs beyond its data (its tuple, bytes header, heap slot)
+MAX_DIRECTIONS = 1 << 16  # directions (of any generation) tracked at once; about 0.5 KB each
 GENERATIONS = 2  # generations kept per direction of a 4-tuple: the established one and a newer one
 IDLE_RECORDS = 1_000_000  # a direction without a segment for this many records is released
+ENDED_KEPT = 1 << 16  # ended stream keys kept for pop_ended() (older ones are forgotten)
 PENDING_NOTES = 16  # suspicious-SYN notes held for a direction before they go out on an empty payload
 _MOD = 1 << 32
 _HALF = 1 << 31
@@ -72,16 +78,26 @@ class TcpReassembler:
     """Turns TCP segments into in-order stream Payloads, one reassembler per capture.
 
     A stream key is ("tcp", src, dst, generation); generations are numbered in the order directions are
-    first seen, over the whole capture, so a key never names two streams.
+    first seen, over the whole capture, so a key never names two streams. `pop_ended()` returns the keys
+    of streams that ended (FIN, RST) or were released, so a consumer can let their state go.
     """
 
-    def __init__(self, max_buffered: int = MAX_BUFFERED, idle_records: int = IDLE_RECORDS) -> None:
+    def __init__(self, max_buffered: int = MAX_BUFFERED, max_total: int = MAX_TOTAL_BUFFERED,
+                 max_directions: int = MAX_DIRECTIONS, idle_records: int = IDLE_RECORDS) -> None:
         self.max_buffered = max_buffered
+        self.max_total = max_total
+        self.max_directions = max_directions
         self.idle_records = idle_records
+        self.total = 0  # charged bytes buffered over all directions
+        self.given_up = 0  # directions released to the bound on directions while their stream went on
         self._slots: dict[tuple[str, str], list[_Direction]] = {}  # (src, dst) -> generations, oldest first
         self._lru: OrderedDict[Hashable, _Direction] = OrderedDict()  # every direction, least recently active first
+        self._buffering: OrderedDict[Hashable, _Direction] = OrderedDict()  # those holding bytes, oldest first
         self._notes: dict[tuple[str, str], list[Note]] = {}  # notes for the next payload of a (src, dst)
         self._serial = 0
+        # keys of streams that ended (FIN, RST) or were released, oldest first, for a consumer to let their
+        # state go (popleft; or pop_ended()); only the latest ENDED_KEPT are kept
+        self.ended: deque[Hashable] = deque(maxlen=ENDED_KEPT)
 
     def segment(
         self, src: str, dst: str, seq: int, flags: int, data: bytes, record: int, offset: int | None
@@ -114,7 +130,8 @@ class TcpReassembler:
             self._close(d, seq, flags, len(data), out)
         if k in self._notes:
             self._attach(k, out)
-        if record - next(iter(self._lru.values())).last > self.idle_records:
+        if self.total > self.max_total or len(self._lru) > self.max_directions or \
+                record - next(iter(self._lru.values())).last > self.idle_records:
             self._sweep(record, out)
         return out
 
@@ -122,12 +139,21 @@ class TcpReassembler:
         """How many directions (of any generation) are tracked now."""
         return len(self._lru)
 
+    def buffered_segments(self) -> int:
+        """How many out-of-order segments are buffered now, over all directions."""
+        return sum(len(d.pending) for d in self._buffering.values())
+
+    def pop_ended(self) -> list[Hashable]:
+        """Keys of the streams that ended or were released since the last call (the latest ENDED_KEPT)."""
+        ended = list(self.ended)
+        self.ended.clear()
+        return ended
+
     def flush(self) -> list[Payload]:
         """Deliver everything still buffered (end of capture), noting the gaps skipped."""
         out: list[Payload] = []
-        for d in list(self._lru.values()):
-            if d.pending:
-                self._drain(d, out, gaps=True)
+        for d in list(self._buffering.values()):
+            self._drain(d, out, gaps=True)
         for k in list(self._notes):
             ds = self._slots.get(k)
             key = ds[-1].key if ds else (TRANSPORT_TCP, k[0], k[1], -1)
@@ -147,7 +173,7 @@ class TcpReassembler:
         if len(ds) > GENERATIONS:
             # give up the least useful: one that carried no data or has ended, else the least recently active
             idle = [g for g in ds[:-1] if not g.data or g.closed]
-            self._release(idle[0] if idle else min(ds[:-1], key=lambda g: g.last), out)
+            self._release(idle[0] if idle else min(ds[:-1], key=lambda g: g.last), out, "")
         return d
 
     def _syn(self, k: tuple[str, str], ds: list[_Direction] | None, seq: int, flags: int, record: int,
@@ -180,17 +206,25 @@ class TcpReassembler:
         if d.closed or d.distance((seq + size) % _MOD) > max(self.max_buffered, 1 << 16):
             return
         d.closed = True
+        self.ended.append(d.key)
         if flags & TCP_RST:
             for g in self._slots.get((d.dst, d.src), ()):
                 if not g.closed:
                     if g.pending:
                         self._drain(g, out, gaps=True)
                     g.closed = True
+                    self.ended.append(g.key)
 
-    def _release(self, d: _Direction, out: list[Payload]) -> None:
-        """Forget direction `d`, delivering what it buffered."""
+    def _release(self, d: _Direction, out: list[Payload], why: str) -> None:
+        """Forget direction `d`, delivering what it buffered; `why` (if given) is noted when it had data."""
         if d.pending:
-            self._drain(d, out, gaps=True)
+            self._drain(d, out, gaps=True, why=why)
+        elif why and d.data and not d.closed:
+            self.given_up += 1
+            if not self.given_up & (self.given_up - 1):  # the 1st, 2nd, 4th, 8th...: a flood is not noted one by one
+                msg = (f"TCP stream {d.src} -> {d.dst}: reassembly state given up ({why}; {self.given_up} so far); "
+                       "what follows starts a new stream")
+                out.append(Payload(TRANSPORT_TCP, d.src, d.dst, b"", d.key, d.last, None, (note("tcp-gap", msg),)))
         del self._lru[d.key]
         k = (d.src, d.dst)
         ds = self._slots[k]
@@ -200,15 +234,23 @@ class TcpReassembler:
             if k in self._notes:
                 out.append(Payload(TRANSPORT_TCP, d.src, d.dst, b"", d.key, self._notes_record(k), None,
                                    tuple(self._notes.pop(k))))
+        if not d.closed:
+            self.ended.append(d.key)
 
     def _sweep(self, record: int, out: list[Payload]) -> None:
-        """Release the directions idle for more than `idle_records` records."""
+        """Keep within the bounds: directions tracked, idle directions, bytes buffered overall."""
         lru = self._lru
         while len(lru) > 1:
             d = next(iter(lru.values()))
-            if record - d.last <= self.idle_records:
+            if len(lru) > self.max_directions:
+                self._release(d, out, f"more than {self.max_directions} TCP directions at once")
+            elif record - d.last > self.idle_records:
+                self._release(d, out, "")
+            else:
                 break
-            self._release(d, out)
+        while self.total > self.max_total and self._buffering:
+            d = next(iter(self._buffering.values()))
+            self._drain(d, out, gaps=True, why=f"more than {self.max_total} bytes buffered over all TCP streams")
 
     def _attach(self, k: tuple[str, str], out: list[Payload]) -> None:
         """Put the notes waiting for `k` on its first payload in `out` (or on an empty one, when many wait)."""
@@ -238,15 +280,18 @@ class TcpReassembler:
                                             (note("tcp-retransmission", msg, offset),))))
             return
         d.counter += 1
+        if not d.pending:
+            self._buffering[d.key] = d
         heapq.heappush(d.pending, (start, d.counter, data, record, offset))
         d.buffered += len(data)
+        self.total += len(data) + SEGMENT_COST
         self._drain(d, out, gaps=False)
 
-    def _drain(self, d: _Direction, out: list[Payload], gaps: bool) -> None:
+    def _drain(self, d: _Direction, out: list[Payload], gaps: bool, why: str = "") -> None:
         """Deliver buffered segments that are now in order.
 
         Missing ranges are skipped (with a tcp-gap note) when `gaps` is set, or while the buffer is over
-        its bound.
+        its bound. `why` says which bound forced the gap, if one did.
         """
         pending = d.pending
         while pending:
@@ -256,11 +301,15 @@ class TcpReassembler:
                 if not gaps and d.buffered <= self.max_buffered:
                     return
                 missing = start - d.next
-                notes = (note("tcp-gap", f"{missing} bytes missing from the TCP stream {d.src} -> {d.dst}",
+                because = f" (given up: {why})" if why else ""
+                notes = (note("tcp-gap", f"{missing} bytes missing from the TCP stream {d.src} -> {d.dst}{because}",
                               offset),)
                 d.next = start
             heapq.heappop(pending)
             d.buffered -= len(data)
+            self.total -= len(data) + SEGMENT_COST
+            if not pending:
+                del self._buffering[d.key]
             end = start + len(data)
             if end <= d.next:
                 msg = f"TCP retransmission of {len(data)} bytes already delivered"
