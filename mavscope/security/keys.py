@@ -30,14 +30,24 @@ SECUREMAV_TEST_XOR = b"\xab"
 AES_GCM_DEFAULT_METHOD = 6  # method used for keys from the key exchange unless --cipher says otherwise
 
 
+def passphrase_bytes(text: str) -> bytes:
+    """The bytes a passphrase was typed as: `os.fsencode`, so that a command-line argument that is not
+    UTF-8 (a Latin-1 terminal; Python hands it over with surrogate escapes) gives back its original
+    bytes, as the program the user typed it into would use them. Text that is UTF-8 gives its UTF-8."""
+    try:
+        return os.fsencode(text)
+    except UnicodeEncodeError:  # a lone surrogate that no byte decodes to (not from a command line)
+        raise UsageError("a passphrase holds a character that cannot be encoded") from None
+
+
 def passphrase_key(text: str) -> bytes:
-    """SHA-256 of the passphrase (MAVProxy, older QGroundControl)."""
-    return hashlib.sha256(text.encode("utf-8")).digest()
+    """SHA-256 of the passphrase's bytes (MAVProxy, older QGroundControl)."""
+    return hashlib.sha256(passphrase_bytes(text)).digest()
 
 
 def qgc_key(text: str) -> bytes:
     """PBKDF2-HMAC-SHA256, QGroundControl's salt, 600000 iterations (current QGroundControl)."""
-    return hashlib.pbkdf2_hmac("sha256", text.encode("utf-8"), QGC_SALT, QGC_ITERATIONS, KEY_LEN)
+    return hashlib.pbkdf2_hmac("sha256", passphrase_bytes(text), QGC_SALT, QGC_ITERATIONS, KEY_LEN)
 
 
 class SigningKey:
