@@ -93,6 +93,8 @@ CODES: dict[str, Code] = {
         # capture readers
         Code("record-truncated", _WARN, Group.CAPTURE, _F, "capture record shorter than its header says"),
         Code("record-snapped", _NOTE, Group.CAPTURE, _F, "record captured with fewer bytes than were on the wire"),
+        Code("time-out-of-range", _WARN, Group.CAPTURE, _F,
+             "record time before 1970 or after 9999 (as the file states it): reports show it as seconds"),
         Code("capture-garbage", _WARN, Group.CAPTURE, _F, "unparseable bytes in the capture file were skipped"),
         Code("unknown-linktype", _NOTE, Group.UNDECODED, _F, "link type mavscope does not decode"),
         # transport
@@ -100,6 +102,8 @@ CODES: dict[str, Code] = {
         Code("ip-fragment", _NOTE, Group.REASSEMBLY, _F, "IP fragment: not reassembled"),
         Code("tcp-gap", _WARN, Group.REASSEMBLY, _F, "bytes missing from a TCP stream"),
         Code("tcp-retransmission", _CHAT, Group.REASSEMBLY, _F, "TCP retransmission dropped"),
+        Code("tcp-suspicious-syn", _WARN, Group.SECURITY, _F,
+             "SYN with a new sequence number in an established TCP stream"),
         # framing
         Code("skipped-bytes", _WARN, Group.MALFORMED, _F, "bytes that are not MAVLink were skipped"),
         Code("truncated-frame", _WARN, Group.MALFORMED, _F, "frame cut short by the end of its packet or stream"),

@@ -8,7 +8,7 @@ of recently viewed frames are kept in an LRU, as toolong and termshark do.
 
 Where the bytes come from (measured on a 1.1M-frame pcap; see docs/tui.md):
 - A frame that lies contiguous in the capture file (every datagram frame of a pcap/pcapng, every tlog
-  entry, most TCP and raw-stream frames) is re-read from the memory-mapped file at `Frame.offset`: 10
+  entry, most TCP and raw-stream frames) is re-read from the file (`os.pread`) at `Frame.offset`: 10
   bytes of index (offset and length), no copy of the bytes. The build checks that the file holds exactly
   the frame's bytes there.
 - A frame whose bytes are split across records (TCP segments, raw-stream chunks) or that has no file
@@ -23,7 +23,6 @@ complete and never change. No Textual here: the TUI drives `build` from a worker
 
 from __future__ import annotations
 
-import mmap
 import os
 import threading
 from array import array
@@ -31,7 +30,7 @@ from bisect import bisect_left
 from collections.abc import Callable, Collection, Iterable, Iterator
 
 from mavscope.browse.rows import LRU, Detail, Progress, Row
-from mavscope.capture.reader import close_mapped, open_mapped
+from mavscope.capture.reader import FileBytes, open_file
 from mavscope.endpoint import Endpoint
 from mavscope.fields.summary import summary_info
 from mavscope.fields.tree import frame_items
@@ -61,10 +60,9 @@ class FrameIndex:
                  cache_size: int = 2048) -> None:
         self.dialect = dialect
         self.path = os.fspath(path) if path is not None else None
-        self._file: object | None = None
-        self._buf: mmap.mmap | bytes = b""
+        self._bytes: FileBytes | None = None  # the capture's bytes, read (not mapped: the file may shrink)
         if self.path is not None:
-            _, self._file, self._buf, _ = open_mapped(self.path)
+            self._bytes = FileBytes(open_file(self.path)[1])
         # columns, one entry per frame
         self._record = array("I")
         self._index = array("H")
@@ -149,7 +147,7 @@ class FrameIndex:
         i = self._count
         raw = frame.raw
         off = frame.offset
-        if off is None or off < 0 or self._buf[off : off + len(raw)] != raw:
+        if off is None or off < 0 or self._bytes is None or self._bytes.get(off, len(raw)) != raw:
             self._raw[i] = raw  # not in the file as one piece: keep the bytes
         if off is None:
             off = NO_OFFSET
@@ -300,8 +298,8 @@ class FrameIndex:
         raw = self._raw.get(i)
         if raw is not None:
             return raw
-        off = self._offset[i]
-        return bytes(self._buf[off : off + self._rawlen[i]])
+        data = self._bytes  # IndexError, as for a dropped row, if the file shrank and the bytes are gone
+        return b"" if data is None else data.get(self._offset[i], self._rawlen[i], exact=True)
 
     def frame(self, n: int) -> Frame:
         """Frame `n` as the pipeline yielded it, rebuilt from its row and bytes."""
@@ -378,6 +376,6 @@ class FrameIndex:
         return total
 
     def close(self) -> None:
-        buf, self._buf = self._buf, b""
-        file, self._file = self._file, None
-        close_mapped(file, buf)
+        data, self._bytes = self._bytes, None
+        if data is not None:
+            data.close()

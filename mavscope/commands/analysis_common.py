@@ -15,12 +15,11 @@ from contextlib import contextmanager
 from mavscope.analysis.selection import Selection
 from mavscope.cli import Env
 from mavscope.commands.common import (
+    Problems,
     add_capture_options,
     add_filter_option,
     add_key_options,
     capture_session,
-    report_anomaly,
-    report_capture_notes,
 )
 from mavscope.mavlink.frame import Frame
 from mavscope.pipeline.dissect import Anomaly
@@ -45,14 +44,18 @@ class Pass:
 
     def __iter__(self) -> Iterator[Frame]:
         see = self.selection.see
-        for item in self.session.items:
-            if type(item) is Anomaly:
-                report_anomaly(self.env, self.session.name, item)
-                continue
-            if item.notes:
-                report_capture_notes(self.env, self.session.name, item)
-            see(item)
-            yield item
+        problems = Problems(self.env, self.session.name)
+        try:
+            for item in self.session.items:
+                if type(item) is Anomaly:
+                    problems.anomaly(item)
+                    continue
+                if item.notes:
+                    problems.frame(item)
+                see(item)
+                yield item
+        finally:
+            problems.close()
 
 
 @contextmanager

@@ -112,18 +112,41 @@ def capture_session(args: argparse.Namespace, env: Env, dialect: Dialect | None 
                              f"detected as {session.reader.kind})\n")
 
 
-def report_capture_notes(env: Env, path: str, frame: Frame) -> None:
-    """Damage to the capture file itself (a cut record, garbage skipped) goes to stderr even when a
-    frame carries the note, as `read` reports anomalies: a cut pcapng must not pass in silence."""
-    for note in frame.notes:
-        if CODES[note.code].group is Group.CAPTURE:
-            env.stderr.write(f"mavscope: {path}: frame {frame.number}: {_where(note)}{note.message}\n")
+class Problems:
+    """Writes what went wrong with the capture to stderr, one line each: problems that belong to no frame
+    (anomalies) and damage to the capture file that a frame carries a note of (a cut pcapng must not pass
+    in silence). At most LIMIT lines per code, then one line with how many more (a hostile capture could
+    otherwise print a line per record); the frames' own notes (JSON, the tree) still hold every one."""
 
+    LIMIT = 20
 
-def report_anomaly(env: Env, path: str, item: Anomaly) -> None:
-    """Problems that belong to no frame go to stderr, one line each, with the file offset where known."""
-    for note in item.notes:
-        env.stderr.write(f"mavscope: {path}: record {item.record}: {_where(note)}{note.message}\n")
+    def __init__(self, env: Env, name: str) -> None:
+        self.env = env
+        self.name = name
+        self.counts: dict[str, int] = {}
+
+    def _line(self, code: str, where: str, note: Note) -> None:
+        n = self.counts.get(code, 0) + 1
+        self.counts[code] = n
+        if n <= self.LIMIT:
+            self.env.stderr.write(f"mavscope: {self.name}: {where}: {_where(note)}{note.message}\n")
+
+    def anomaly(self, item: Anomaly) -> None:
+        for note in item.notes:
+            self._line(note.code, f"record {item.record}", note)
+
+    def frame(self, frame: Frame) -> None:
+        for note in frame.notes:
+            if CODES[note.code].group is Group.CAPTURE:
+                self._line(note.code, f"frame {frame.number}", note)
+
+    def close(self) -> None:
+        """One line per code whose lines were cut short."""
+        for code, n in self.counts.items():
+            if n > self.LIMIT:
+                self.env.stderr.write(f"mavscope: {self.name}: {n - self.LIMIT} more {code} problems not shown "
+                                      f"({n} in all)\n")
+        self.counts.clear()
 
 
 def _where(note: Note) -> str:

@@ -19,11 +19,11 @@ from types import FrameType
 from mavscope.capture.base import Record
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.common import (
+    Problems,
     add_dialect_option,
     add_filter_option,
     add_key_options,
     pipeline_options,
-    report_anomaly,
     warner,
 )
 from mavscope.commands.read import frame_count
@@ -138,9 +138,17 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     timer: threading.Timer | None = None
     stopper = Stopper()
     shown = 0
+    problems = Problems(env, "live")
     try:
         if args.write:
             writer = LivePcapWriter(args.write, source.linktype, args.ring)
+        if threading.current_thread() is threading.main_thread():
+            def on_signal(signum: int, frame: FrameType | None) -> None:
+                source.stop(drain=stopper.signal())  # a second signal: stop draining too
+
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                restore.append((sig, signal.signal(sig, on_signal)))
+        # the handlers are in place before the line that tells a script it may signal
         env.stderr.write(f"mavscope: live: {describe(source)}\n")
         env.stderr.flush()
 
@@ -158,12 +166,6 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                 if stopper.decode():
                     yield rec
 
-        if threading.current_thread() is threading.main_thread():
-            def on_signal(signum: int, frame: FrameType | None) -> None:
-                source.stop(drain=stopper.signal())  # a second signal: stop draining too
-
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                restore.append((sig, signal.signal(sig, on_signal)))
         if args.duration is not None:
             timer = threading.Timer(args.duration, source.stop)
             timer.daemon = True
@@ -175,7 +177,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         try:
             for item in build_pipeline(pipeline_options(args, env), dialect, records(), warn=warner(env)):
                 if type(item) is Anomaly:
-                    report_anomaly(env, "live", item)
+                    problems.anomaly(item)
                     continue
                 show(item)
                 shown += 1
@@ -187,6 +189,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         except OSError as e:
             raise MavscopeError(f"live: receiving failed: {e.strerror or e}") from None
     finally:
+        problems.close()
         if timer is not None:
             timer.cancel()
         source.close()

@@ -3,20 +3,20 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.common import (
+    Problems,
     add_capture_options,
     add_filter_option,
     add_key_options,
     capture_session,
     progress,
-    report_anomaly,
-    report_capture_notes,
 )
 from mavscope.errors import UsageError
-from mavscope.output.capture_out import FrameWriter, write_records
+from mavscope.output.capture_out import FrameWriter, open_output, write_records
 from mavscope.output.printer import FramePrinter
 from mavscope.pipeline.dissect import Anomaly
 
@@ -49,25 +49,27 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     limit = args.count if args.count is not None else -1
     shown_records: set[int] = set()
     shown = 0
-    with capture_session(args, env) as session:
+    with capture_session(args, env) as session, contextlib.ExitStack() as files:
         t0 = session.t0
         path, name, dialect = session.path, session.name, session.dialect
         frame_writer = _open_writer(args.write, path, session.reader.kind) if args.write else None
+        out_file = files.enter_context(open_output(args.write)) if args.write and frame_writer is None else None
         update, stop = progress(env, session.reader)
         printer = FramePrinter(env.stdout, out_b, dialect, args.format, verbose=args.verbose, hex=args.hex,
                                quiet=args.quiet, t0=t0)
         show = printer.frame
+        problems = Problems(env, name)
         try:
             printer.begin()
             for n, item in enumerate(session.shown()):
                 if not n & 0x3FFF:
                     update()
                 if type(item) is Anomaly:
-                    report_anomaly(env, name, item)
+                    problems.anomaly(item)
                     continue
                 frame = item
                 if frame.notes:
-                    report_capture_notes(env, name, frame)
+                    problems.frame(frame)
                 shown += 1
                 if frame_writer is not None:
                     frame_writer.write(frame)
@@ -79,11 +81,13 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
             printer.end()
         finally:
             stop()
-            if frame_writer is not None:
-                frame_writer.close()
-    out_b.flush()
-    if args.write and frame_writer is None:
-        write_records(path, args.write, shown_records)
+            problems.close()
+            written = frame_writer.close() if frame_writer is not None else None
+        out_b.flush()
+        if out_file is not None:
+            written = write_records(path, args.write, shown_records, out_file)
+    if written is not None and written.warning:
+        env.stderr.write(f"mavscope: warning: -w {args.write}: {written.warning}\n")
     return ExitStatus.OK
 
 

@@ -59,9 +59,15 @@ def param_text(v: object) -> str:
 
 
 def iso(t: float | None) -> str:
+    """ISO-8601 UTC to the millisecond; a time the calendar cannot hold (a pcapng may state one before year 1
+    or after 9999) as its number of seconds since 1970; "-" for none."""
     if t is None:
         return "-"
-    return datetime.fromtimestamp(t, tz=timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+    try:
+        dt = datetime.fromtimestamp(t, tz=timezone.utc)
+    except (OverflowError, OSError, ValueError):
+        return f"{t:.6g}s-since-1970-01-01T00:00:00Z"
+    return dt.isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
 def write_json(out: IO[bytes], doc: object) -> None:

@@ -119,6 +119,13 @@ class Dissector:
             self._index = index
             yield from self._datagram(p, pos)
             index = self._index
+        ended = self.decap.tcp.ended
+        if ended:  # TCP streams that ended or were released: decide what their framers still hold
+            self._index = index
+            while ended:
+                key = ended.popleft()
+                if key in self.streams:
+                    yield from self._finish(key)
 
     def finish(self) -> Iterator[Frame | Anomaly]:
         """The end of the capture: what TCP reassembly and the stream framers still hold."""

@@ -18,7 +18,8 @@ from mavscope.capture.base import (
     Record,
 )
 from mavscope.capture.detect import open_capture
-from mavscope.capture.writer import PcapngWriter, PcapWriter, synth_udp_ipv4
+from mavscope.capture.synth import udp_packet
+from mavscope.capture.writer import PcapngWriter, PcapWriter
 from mavscope.notes import CODES
 from mavscope.transport.base import Payload
 from mavscope.transport.decap import Decapsulator
@@ -26,7 +27,7 @@ from mavscope.transport.decap import Decapsulator
 FUZZ = settings(max_examples=150, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 T0 = 1_700_000_000.0
-PACKETS = [synth_udp_ipv4("10.0.0.1:14550", "10.0.0.2:14540", bytes([0xFD, i]) * (i + 3)) for i in range(3)]
+PACKETS = [udp_packet("10.0.0.1", 14550, "10.0.0.2", 14540, bytes([0xFD, i]) * (i + 3)) for i in range(3)]
 FRAMES = [bytes([0xFD, 3, 0, 0, i, 1, 1, 0, 0, 0, 1, 2, 3, 0xAA, 0xBB]) for i in range(3)]
 
 

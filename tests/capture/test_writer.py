@@ -10,12 +10,13 @@ import pytest
 
 from mavscope.capture.base import LINKTYPE_ETHERNET, LINKTYPE_RAW
 from mavscope.capture.detect import open_capture
-from mavscope.capture.writer import PcapngWriter, PcapWriter, synth_udp_ipv4
+from mavscope.capture.synth import udp_packet
+from mavscope.capture.writer import PcapngWriter, PcapWriter
 from mavscope.errors import UsageError
 from mavscope.transport.decap import Decapsulator
 
 T0 = 1_700_000_000.125
-PACKETS = [synth_udp_ipv4("10.0.0.1:14550", "10.0.0.2:14540", bytes([i]) * (i + 1)) for i in range(5)]
+PACKETS = [udp_packet("10.0.0.1", 14550, "10.0.0.2", 14540, bytes([i]) * (i + 1)) for i in range(5)]
 
 
 @pytest.mark.parametrize("ns", [False, True])
@@ -83,7 +84,7 @@ def test_synth_udp_checksums_verified_by_scapy() -> None:
     from scapy.layers.inet import IP, UDP
     from scapy.layers.l2 import Ether
 
-    raw = synth_udp_ipv4("192.168.1.2:45815", "192.168.1.1:14550", b"\xfd\x09payload")
+    raw = udp_packet("192.168.1.2", 45815, "192.168.1.1", 14550, b"\xfd\x09payload")
     pkt = Ether(raw)
     assert pkt[IP].src == "192.168.1.2" and pkt[UDP].dport == 14550 and bytes(pkt[UDP].payload) == b"\xfd\x09payload"
     ip_sum, udp_sum = pkt[IP].chksum, pkt[UDP].chksum
@@ -91,4 +92,6 @@ def test_synth_udp_checksums_verified_by_scapy() -> None:
     rebuilt = Ether(bytes(pkt))
     assert (rebuilt[IP].chksum, rebuilt[UDP].chksum) == (ip_sum, udp_sum)
     with pytest.raises(UsageError):
-        synth_udp_ipv4("localhost", "1.2.3.4:5", b"")
+        udp_packet("localhost", 1, "1.2.3.4", 5, b"")
+    with pytest.raises(UsageError):
+        udp_packet("1.2.3.4", 1, "1.2.3.5", 5, bytes(0x10000))

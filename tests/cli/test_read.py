@@ -9,7 +9,8 @@ import jsonschema
 import pytest
 
 from mavscope.capture.base import LINKTYPE_ETHERNET
-from mavscope.capture.writer import PcapWriter, synth_udp_ipv4
+from mavscope.capture.synth import udp_packet
+from mavscope.capture.writer import PcapWriter
 from mavscope.cli import ExitStatus
 from tests.conftest import ROOT, Cli
 from tests.support import pmav
@@ -25,18 +26,18 @@ def sample(tmp_path: Path) -> Path:
     bad[-3] ^= 0x55
     nan_attitude = vehicle.attitude_encode(5, float("nan"), float("inf"), 0.5, 0, 0, 0).pack(vehicle)
     packets = [
-        ("127.0.0.1:14580", "127.0.0.1:14550", pmav.heartbeat(vehicle)),
-        ("127.0.0.1:14550", "127.0.0.1:14580", pmav.heartbeat(gcs)),
-        ("127.0.0.1:14550", "127.0.0.1:14580", pmav.command_long_rtl(gcs)),
-        ("127.0.0.1:14580", "127.0.0.1:14550", pmav.statustext(vehicle, "two") + nan_attitude),
-        ("127.0.0.1:14580", "127.0.0.1:14550", b"junk" + bytes(bad)),
-        ("127.0.0.1:14580", "127.0.0.1:14550", pmav.heartbeat(vehicle)[:15]),
-        ("10.0.0.1:53", "10.0.0.2:53", b"\xfd\x01not mavlink at all"),
+        (("127.0.0.1", 14580), ("127.0.0.1", 14550), pmav.heartbeat(vehicle)),
+        (("127.0.0.1", 14550), ("127.0.0.1", 14580), pmav.heartbeat(gcs)),
+        (("127.0.0.1", 14550), ("127.0.0.1", 14580), pmav.command_long_rtl(gcs)),
+        (("127.0.0.1", 14580), ("127.0.0.1", 14550), pmav.statustext(vehicle, "two") + nan_attitude),
+        (("127.0.0.1", 14580), ("127.0.0.1", 14550), b"junk" + bytes(bad)),
+        (("127.0.0.1", 14580), ("127.0.0.1", 14550), pmav.heartbeat(vehicle)[:15]),
+        (("10.0.0.1", 53), ("10.0.0.2", 53), b"\xfd\x01not mavlink at all"),
     ]
     path = tmp_path / "sample.pcap"
     with PcapWriter(path, LINKTYPE_ETHERNET) as w:
         for i, (src, dst, payload) in enumerate(packets):
-            w.write(1_700_000_000 + i * 0.25, synth_udp_ipv4(src, dst, payload))
+            w.write(1_700_000_000 + i * 0.25, udp_packet(*src, *dst, payload))
     return path
 
 
@@ -143,7 +144,7 @@ def test_dialect_option_adds_messages(cli: Cli, sample: Path, tmp_path: Path) ->
     frame += crc.to_bytes(2, "little")
     cap = tmp_path / "custom.pcap"
     with PcapWriter(cap, LINKTYPE_ETHERNET) as w:
-        w.write(1.0, synth_udp_ipv4("127.0.0.1:14580", "127.0.0.1:14550", bytes(frame) + pmav.heartbeat(mav)))
+        w.write(1.0, udp_packet("127.0.0.1", 14580, "127.0.0.1", 14550, bytes(frame) + pmav.heartbeat(mav)))
     _, without, _ = cli("read", str(cap), "-T", "jsonl")
     _, with_dialect, _ = cli("read", str(cap), "-T", "jsonl", "--dialect", str(xml))
     assert json.loads(without.splitlines()[0])["crc_status"] == "unchecked"

@@ -10,11 +10,10 @@ import pytest
 
 from mavscope.capture.base import LINKTYPE_ETHERNET, Record
 from mavscope.capture.detect import open_capture
-from mavscope.capture.writer import synth_udp_ipv4
+from mavscope.capture.synth import udp_packet
 from mavscope.errors import UsageError
 from mavscope.live import LivePcapWriter, UdpSource, parse_endpoint
 from mavscope.live.drops import proc_udp_drops, socket_inode
-from mavscope.live.udp import synth_udp, synth_udp_ipv6
 from tests.support import pmav
 
 
@@ -96,7 +95,7 @@ def test_records_are_numbered_with_pcap_offsets() -> None:
 def test_sink_flushes_on_tick(tmp_path: Path) -> None:
     out = tmp_path / "f.pcap"
     w = LivePcapWriter(str(out), LINKTYPE_ETHERNET, flush_interval=0.2)
-    pkt = synth_udp_ipv4("127.0.0.1:1", "127.0.0.1:14550", pmav.heartbeat(pmav.mav2()))
+    pkt = udp_packet("127.0.0.1", 1, "127.0.0.1", 14550, pmav.heartbeat(pmav.mav2()))
     w.write(Record(1, time.time(), LINKTYPE_ETHERNET, pkt, 40, len(pkt)))
     time.sleep(0.25)
     w.tick()
@@ -111,7 +110,7 @@ def test_sink_ring_alternates_two_files(tmp_path: Path) -> None:
     assert not (tmp_path / "r.pcap.1").exists()  # an earlier run's older half is not mixed in
     mav = pmav.mav2()
     for i in range(3000):
-        pkt = synth_udp_ipv4("127.0.0.1:1", "127.0.0.1:14550", pmav.statustext(mav, f"{i:05d}"))
+        pkt = udp_packet("127.0.0.1", 1, "127.0.0.1", 14550, pmav.statustext(mav, f"{i:05d}"))
         w.write(Record(i + 1, 1_700_000_000 + i, LINKTYPE_ETHERNET, pkt, 0, len(pkt)))
     w.close()
     assert w.rotations > 1 and w.files() == [str(out) + ".1", str(out)]
@@ -145,15 +144,18 @@ def test_synthesised_ipv6_checksums_verified_by_scapy() -> None:
     from scapy.layers.l2 import Ether
 
     payload = pmav.heartbeat(pmav.mav2())
-    pkt = Ether(synth_udp_ipv6(("::1", 40000), ("fe80::1", 14550), payload))
+    pkt = Ether(udp_packet("::1", 40000, "fe80::1", 14550, payload))
     udp = pkt[UDP]
     sent = udp.chksum
     del udp.chksum
     assert Ether(bytes(pkt))[UDP].chksum == sent
     assert pkt[IPv6].plen == 8 + len(payload) and bytes(udp.payload) == payload
     # v4-mapped addresses on a dual-stack socket become plain IPv4
-    assert synth_udp("::ffff:127.0.0.1", 1, "::ffff:127.0.0.1", 2, payload) == synth_udp_ipv4(
-        "127.0.0.1:1", "127.0.0.1:2", payload)
+    assert udp_packet("::ffff:127.0.0.1", 1, "::ffff:127.0.0.1", 2, payload) == udp_packet(
+        "127.0.0.1", 1, "127.0.0.1", 2, payload)
+    # one end IPv4, the other IPv6: IPv6 with the IPv4 end mapped
+    mixed = Ether(udp_packet("10.0.0.1", 1, "fe80::1", 2, payload))
+    assert mixed[IPv6].src == "::ffff:10.0.0.1"
 
 
 def test_stopper_decodes_a_little_longer_then_counts_what_it_leaves() -> None:
