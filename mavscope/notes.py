@@ -93,6 +93,8 @@ CODES: dict[str, Code] = {
         # capture readers
         Code("record-truncated", _WARN, Group.CAPTURE, _F, "capture record shorter than its header says"),
         Code("record-snapped", _NOTE, Group.CAPTURE, _F, "record captured with fewer bytes than were on the wire"),
+        Code("tlog-text", _NOTE, Group.UNDECODED, _F,
+             "tlog entries that hold no MAVLink (a logger's console text or bytes it could not parse)"),
         Code("time-out-of-range", _WARN, Group.CAPTURE, _F,
              "record time before 1970 or after 9999 (as the file states it): reports show it as seconds"),
         Code("capture-garbage", _WARN, Group.CAPTURE, _F, "unparseable bytes in the capture file were skipped"),

@@ -17,6 +17,10 @@ TS_MAX = 4_102_444_800 * 1_000_000  # 2100-01-01
 RESYNC_BEHIND = 3_600 * 1_000_000  # how far (µs) before the last good entry a resynchronised one may lie
 RESYNC_AHEAD = 86_400 * 1_000_000  # and how far after
 LOOKAHEAD = 2 * (8 + 12 + 255 + 2 + 13)  # two entries: what deciding on an entry may look at
+# Bytes a non-MAVLink entry may hold. MAVProxy logs what it could not parse (a SITL's console text, one byte
+# an entry; pymavlink's BAD_DATA) as entries of their own; such an entry ends where the next timestamp starts.
+TEXT_MAX = LOOKAHEAD - 16
+SNIFF_TEXT = 32768  # bytes of such entries a tlog may start with (a SITL's boot messages)
 
 _TS = struct.Struct(">Q")
 _STX = re.compile(rb"[\xfd\xfe]")
@@ -80,18 +84,54 @@ def find_entry(buf: bytes, size: int, start: int, last_ts: int = -1, limit: int 
         q += 1
 
 
+def near(ts: int, last_ts: int) -> bool:
+    """Whether `ts` (µs) is a plausible entry timestamp after one at `last_ts` (-1: the first entry)."""
+    if not TS_MIN <= ts < TS_MAX:
+        return False
+    return last_ts < 0 or last_ts - RESYNC_BEHIND <= ts <= last_ts + RESYNC_AHEAD
+
+
+def text_entry_end(buf: bytes, p: int, stop: int, final: bool) -> int:
+    """End of the entry at `p` whose bytes are not a MAVLink frame: the first offset after at least one byte
+    where an entry with a timestamp near this one's starts, or the end of the file (`final`: `stop` is the
+    end); within TEXT_MAX bytes and before `stop`; -1 if there is none."""
+    if p + 9 > stop:
+        return -1
+    ts = _TS.unpack_from(buf, p)[0]
+    ts_unpack = _TS.unpack_from
+    last = min(stop - 8, p + 8 + TEXT_MAX)
+    for q in range(p + 9, last + 1):
+        if near(ts_unpack(buf, q)[0], ts):
+            return q
+    if final and stop - p - 8 <= TEXT_MAX:
+        return stop
+    return -1
+
+
 def sniff_tlog(buf: bytes, size: int) -> bool:
     """Whether the file starts like a tlog: a plausible entry followed by another one (or the end).
 
-    A damaged second entry is tolerated when a consistent entry follows within the next 4 KiB.
+    The file may start with entries of bytes that are not MAVLink (console text) when a MAVLink entry
+    follows them within SNIFF_TEXT bytes. A damaged second entry is tolerated when a consistent entry
+    follows within the next 4 KiB.
     """
-    end = entry_end(buf, 0, size)
+    p = 0
+    last_ts = -1
+    while 0 <= p < SNIFF_TEXT and size - p >= 11 and buf[p + 8] not in (STX_V1, STX_V2):
+        ts = _TS.unpack_from(buf, p)[0]
+        if not near(ts, last_ts):
+            return False
+        last_ts = ts
+        p = text_entry_end(buf, p, min(size, len(buf)), False)
+    if not 0 <= p < SNIFF_TEXT:
+        return False
+    end = entry_end(buf, p, size)
     if end < 0:
         return False
     if _followed(buf, end, size, TS_MIN, TS_MAX):
         return True
     window = min(size, end + 4096)
-    return find_entry(buf, window, end, _TS.unpack_from(buf, 0)[0]) >= 0
+    return find_entry(buf, window, end, _TS.unpack_from(buf, p)[0]) >= 0
 
 
 class TlogReader(CaptureReader):
@@ -169,6 +209,18 @@ class TlogReader(CaptureReader):
                     buf, base = self.window_at(pos, 2 * LOOKAHEAD), pos
                     size = self.size
                     continue
+                if pos + 9 <= size and buf[p + 8] not in (STX_V1, STX_V2) and near(ts_unpack(buf, p)[0], last_ts):
+                    blen = len(buf)
+                    q = text_entry_end(buf, p, blen, base + blen >= size)
+                    if q >= 0:  # an entry of bytes that are not MAVLink: the dissector says what they are
+                        ts = ts_unpack(buf, p)[0]
+                        n += 1
+                        last_ts = ts
+                        yield tuple_new(R, (n, ts / 1e6, LT, buf[p + 8:q], base + p + 8, q - p - 8, pending))
+                        pending = ()
+                        pos = base + q
+                        self.position = pos
+                        continue
                 if pos + 11 <= size:
                     ts = ts_unpack(buf, p)[0]
                     stx = buf[p + 8]

@@ -27,6 +27,7 @@ from mavscope.mavlink.framing import (
     unpack_v2,
 )
 from mavscope.notes import Note
+from mavscope.pipeline.textrun import TextRun, is_text_entry
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, Payload
 from mavscope.transport.decap import Decapsulator
 
@@ -59,6 +60,7 @@ class Dissector:
         self._index = 0
         self._raw_frames = 0  # frames of a raw byte stream so far (they are numbered 1..N)
         self._time: float | None = None
+        self._text = TextRun()  # non-MAVLink tlog entries, reported as one anomaly per run
 
     def run(self, records: Iterable[Record]) -> Iterator[Frame | Anomaly]:
         """Every frame and anomaly of the capture, in order."""
@@ -69,6 +71,16 @@ class Dissector:
 
     def feed(self, rec: Record) -> Iterator[Frame | Anomaly]:
         """The frames and anomalies that record `rec` completes (a stream may hold bytes for later)."""
+        text = self._text
+        if text:
+            if is_text_entry(rec):
+                if text.add(rec):
+                    yield self._take_text()
+                return
+            yield self._take_text()
+        elif is_text_entry(rec):
+            text.add(rec)
+            return
         number = rec.number
         time = rec.time
         self._record = number
@@ -129,10 +141,16 @@ class Dissector:
 
     def finish(self) -> Iterator[Frame | Anomaly]:
         """The end of the capture: what TCP reassembly and the stream framers still hold."""
+        if self._text:
+            yield self._take_text()
         for p in self.decap.flush():
             yield from self._stream(p) if p.stream is not None else self._datagram(p, 0)
         for key in list(self.streams):
             yield from self._finish(key)
+
+    def _take_text(self) -> Anomaly:
+        record, text_note = self._text.take()
+        return Anomaly(record, (text_note,))
 
     def _trusted(self, p: Payload) -> bool:
         if p.transport == TRANSPORT_TLOG:

@@ -248,9 +248,17 @@ def test_tlog_resync_and_truncation(tmp_path: Path) -> None:
     content[entry + 8] = 0x00  # the second entry loses its STX
     content = bytes(content[:-3])  # and the last entry is cut
     recs = read_all(write(tmp_path, "r.tlog", content))
+    # the second entry still has a plausible timestamp, and the third one starts where its frame ended: it is
+    # an entry of bytes that are not MAVLink (as MAVProxy logs data it could not parse), delivered as it is
+    assert [r.data for r in recs[:3]] == [frames[0], b"\x00" + frames[1][1:], frames[2]]
+    assert not any(r.notes for r in recs[:3]) and recs[1].offset == entry + 8
+    assert recs[3].data == frames[3][:-3] and recs[3].notes[0].code == "record-truncated"
+    # a broken timestamp as well: no entry there, the bytes up to the next entry are skipped and noted
+    broken = bytearray(content)
+    broken[entry:entry + 2] = b"\xff\xff"
+    recs = read_all(write(tmp_path, "b.tlog", bytes(broken)))
     assert [r.data for r in recs[:2]] == [frames[0], frames[2]]
     assert recs[1].notes[0].code == "capture-garbage" and recs[1].notes[0].offset == entry
-    assert recs[2].data == frames[3][:-3] and recs[2].notes[0].code == "record-truncated"
 
 
 def test_raw_chunks(tmp_path: Path) -> None:
