@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
-.PHONY: demo test lint captures bench fuzz-native snapshots clean
+.PHONY: demo test lint captures bench snapshots fuzz fuzz-native clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -47,11 +47,18 @@ captures: $(TSTAMP)
 bench: $(TSTAMP)
 	$(BIN)/python benchmarks/bench_read.py
 
+# coverage-guided fuzzing (atheris) of the readers and pipeline, TCP reassembly, filters, key specs
+FUZZ_SECONDS ?= 60
+fuzz: $(TSTAMP)
+	$(BIN)/python -m tests.fuzz.run $(FUZZ_SECONDS)
+
+# libFuzzer with ASan/UBSan over the C core of the native engine (needs clang; docs/native.md)
+FUZZ_NATIVE_SECONDS ?= 600
 fuzz-native: $(TSTAMP)
-	scripts/fuzz-native.sh $(or $(SECONDS),600)
+	scripts/fuzz-native.sh $(FUZZ_NATIVE_SECONDS)
 
 snapshots: $(TSTAMP)
-	$(BIN)/python -m pytest --snapshot-update tests/test_tui_snapshots.py
+	$(BIN)/python -m pytest --snapshot-update tests/tui/test_snapshots.py
 
 clean:
 	rm -rf $(VENV) .pytest_cache .hypothesis build fuzz/build mavscope/_native*.so

@@ -230,16 +230,15 @@ def step(start: int, step_by: int, seconds: float, extra: list[str], tmp: Path, 
 
 def breakdown(n: int = 100_000) -> list[str]:
     """Per-datagram cost of each step of the live path, cumulative, measured in this process."""
-    import argparse as _ap
 
     sys.path.insert(0, str(ROOT))
-    from mavscope.cli import Env
-    from mavscope.commands.common import build_pipeline
-    from mavscope.dissect import Dissector
     from mavscope.live.udp import UdpSource, parse_endpoint
     from mavscope.mavlink.dialect import load_dialect
     from mavscope.output.jsonout import jsonl_bytes
     from mavscope.output.text import summary_line
+    from mavscope.pipeline.dissect import Dissector
+    from mavscope.pipeline.options import PipelineOptions
+    from mavscope.pipeline.session import build_pipeline
 
     frames = encode_frames()
     src = UdpSource(parse_endpoint("127.0.0.1:0", what="--udp"), rcvbuf=256 << 20)
@@ -261,10 +260,8 @@ def breakdown(n: int = 100_000) -> list[str]:
     t = time.perf_counter()
     out = list(Dissector(dialect).run(records))
     t_dis = (time.perf_counter() - t) / len(items)
-    env = Env(stdout=open(os.devnull, "w"), stderr=sys.stderr)  # noqa: SIM115
-    opts = _ap.Namespace(display_filter=None)
     t = time.perf_counter()
-    out = list(build_pipeline(opts, env, dialect, records))
+    out = list(build_pipeline(PipelineOptions(), dialect, records))
     t_pipe = (time.perf_counter() - t) / len(items)
     t = time.perf_counter()
     for f in out:

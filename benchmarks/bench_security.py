@@ -22,8 +22,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from pymavlink.dialects.v20 import common as v2  # noqa: E402
 
-from mavscope.security.audit import crack_qgc, crack_sha256  # noqa: E402
 from mavscope.security.keys import SigningKey  # noqa: E402
+from mavscope.security.passphrase import crack_qgc, crack_sha256  # noqa: E402
 from mavscope.security.signing import SignatureVerifier  # noqa: E402
 
 

@@ -20,13 +20,14 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from mavscope.browse.index import FrameIndex  # noqa: E402
 from mavscope.capture.detect import open_capture  # noqa: E402
-from mavscope.dissect import Dissector  # noqa: E402
-from mavscope.index import FrameIndex  # noqa: E402
 from mavscope.mavlink.dialect import load_dialect  # noqa: E402
-from mavscope.security.keys import build_material  # noqa: E402
-from mavscope.security.stage import NOTE_CODES, SecurityStage  # noqa: E402
-from tests.tui_helpers import write_big_capture  # noqa: E402
+from mavscope.pipeline.dissect import Dissector  # noqa: E402
+from mavscope.pipeline.options import PipelineOptions  # noqa: E402
+from mavscope.pipeline.session import make_security_stage  # noqa: E402
+from mavscope.security.stage import NOTE_CODES  # noqa: E402
+from tests.support.tui import write_big_capture  # noqa: E402
 
 
 def rss_anon_mb() -> float:
@@ -55,7 +56,7 @@ def bench_index(path: Path) -> None:
     for i in range(0, n, max(1, n // 1000)):
         index.detail(i)
     print(f"detail (frame + decode + tree + summary), 1000 random rows: {(time.perf_counter() - t):.3f} s")
-    stage = SecurityStage(build_material(["passphrase:mavscope-demo"]))
+    stage = make_security_stage(PipelineOptions(keys=("passphrase:mavscope-demo",)))
     t = time.perf_counter()
     judged = index.rejudge(stage.run, NOTE_CODES)
     took = time.perf_counter() - t

@@ -3,12 +3,16 @@
  *
  * Input: one selector byte, then the file. Selector bits 0-1: the format (pcap, pcapng, tlog, raw);
  * bit 2: signed frames written natively (no key) or handed back; bit 3: every CRC taken for good (so
- * that mutated payloads reach the decoder and the JSON writer past the CRC check); bits 4-7: a sender
- * preset as seen signing. The batch limit is small so batches end mid-capture. Every JSON line written
- * is checked to be well-formed JSON; handed-back records are read whole (data and notes) so the
- * sanitizers see every byte the Python glue would. The number and string writers also run directly on
- * the input's bytes, into buffers of exactly the room they claim (MS_DOUBLE_MAX, ms_text_max), so a
- * write past it is a heap overflow for ASan.
+ * that mutated payloads reach the decoder and the JSON writer past the CRC check); bits 4-6: a sender
+ * preset as seen signing; bit 7: a hostile file: a control byte follows the selector, giving the read
+ * window (64 << (c & 7) bytes, so records and resynchronisation scans cross window boundaries) and, in
+ * bits 3-5, a file that shrinks after k reads to k/7 of its size (k = 1..6) or whose second read fails
+ * (7). The file is read through a memory source, in windows, as the extension reads a file with pread.
+ * The batch limit is small so batches end mid-capture. Every JSON line written is checked to be
+ * well-formed JSON; every record handed back must hold exactly the file's bytes at its offset (nothing
+ * made up), and its notes are read whole, so the sanitizers see every byte the Python glue would. The
+ * number and string writers also run directly on the input's bytes, into buffers of exactly the room
+ * they claim (MS_DOUBLE_MAX, ms_text_max), so a write past it is a heap overflow for ASan.
  *
  * Build and run: scripts/fuzz-native.sh SECONDS (docs/native.md). The message table comes from
  * mavscope's default dialect, written by the script to the file named in $MAVSCOPE_FUZZ_TABLE. */
@@ -24,203 +28,47 @@
 static ms_table table;
 
 int LLVMFuzzerInitialize(int *argc, char ***argv);
-int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
-
-int LLVMFuzzerInitialize(int *argc, char ***argv) {
-    (void)argc;
-    (void)argv;
-    const char *path = getenv("MAVSCOPE_FUZZ_TABLE");
-    if (path == NULL) {
-        fprintf(stderr, "fuzz_native: set MAVSCOPE_FUZZ_TABLE to the table blob (scripts/fuzz-native.sh)\n");
-        abort();
-    }
-    FILE *f = fopen(path, "rb");
-    if (f == NULL) {
-        perror(path);
-        abort();
-    }
-    static uint8_t blob[1 << 20];
-    size_t n = fread(blob, 1, sizeof blob, f);
-    fclose(f);
-    if (ms_table_parse(&table, blob, n) != 0) {
-        fprintf(stderr, "fuzz_native: %s is not a table blob\n", path);
-        abort();
-    }
-    return 0;
-}
-
-/* A JSON value at *p (end e); depth-limited recursive descent, returns 0 when malformed. */
-static int json_value(const char **p, const char *e, int depth);
-
-static int json_string(const char **p, const char *e) {
-    const char *s = *p;
-    if (s >= e || *s != '"')
-        return 0;
-    s++;
-    while (s < e && *s != '"') {
-        unsigned char c = (unsigned char)*s;
-        if (c < 0x20)
-            return 0;
-        if (c == '\\') {
-            s++;
-            if (s >= e)
-                return 0;
-            if (*s == 'u') {
-                if (e - s < 5)
-                    return 0;
-                for (int i = 1; i <= 4; i++)
-                    if (!strchr("0123456789abcdef", s[i]) || s[i] == '\0')
-                        return 0;
-                s += 4;
-            } else if (!strchr("\"\\/bfnrt", *s) || *s == '\0') {
-                return 0;
-            }
-        }
-        s++;
-    }
-    if (s >= e)
-        return 0;
-    *p = s + 1;
-    return 1;
-}
-
-static int json_number(const char **p, const char *e) {
-    const char *s = *p;
-    if (s < e && *s == '-')
-        s++;
-    const char *d = s;
-    while (s < e && *s >= '0' && *s <= '9')
-        s++;
-    if (s == d || (s - d > 1 && *d == '0'))
-        return 0;
-    if (s < e && *s == '.') {
-        s++;
-        d = s;
-        while (s < e && *s >= '0' && *s <= '9')
-            s++;
-        if (s == d)
-            return 0;
-    }
-    if (s < e && (*s == 'e' || *s == 'E')) {
-        s++;
-        if (s < e && (*s == '+' || *s == '-'))
-            s++;
-        d = s;
-        while (s < e && *s >= '0' && *s <= '9')
-            s++;
-        if (s == d)
-            return 0;
-    }
-    *p = s;
-    return 1;
-}
-
-static int json_value(const char **p, const char *e, int depth) {
-    const char *s = *p;
-    if (s >= e || depth > 8)
-        return 0;
-    if (*s == '{' || *s == '[') {
-        const char close = *s == '{' ? '}' : ']';
-        s++;
-        if (s < e && *s == close) {
-            *p = s + 1;
-            return 1;
-        }
-        for (;;) {
-            if (close == '}') {
-                if (!json_string(&s, e) || s >= e || *s != ':')
-                    return 0;
-                s++;
-            }
-            if (!json_value(&s, e, depth + 1) || s >= e)
-                return 0;
-            if (*s == close) {
-                *p = s + 1;
-                return 1;
-            }
-            if (*s != ',')
-                return 0;
-            s++;
-        }
-    }
-    if (*s == '"')
-        return json_string(p, e);
-    if ((size_t)(e - s) >= 4 && memcmp(s, "null", 4) == 0) {
-        *p = s + 4;
-        return 1;
-    }
-    return json_number(p, e);
-}
-
-static void check_lines(const char *text, size_t len) {
-    if (len == 0)
-        return;
-    const char *p = text, *e = text + len;
-    while (p < e) {
-        const char *nl = memchr(p, '\n', (size_t)(e - p));
-        if (nl == NULL || *p != '{')
-            abort();
-        const char *q = p;
-        if (!json_value(&q, nl, 0) || q != nl)
-            abort(); /* a malformed JSON line */
-        p = nl + 1;
-    }
-}
-
-/* ms_w_double on doubles and widened floats from the input, ms_w_text on a piece of it, each into a
- * heap buffer of exactly the room it claims */
-static void check_writers(const uint8_t *data, size_t size) {
-    char *room = malloc(MS_DOUBLE_MAX);
-    if (room == NULL)
-        return;
-    for (size_t i = 0; i + 8 <= size && i < 512; i += 8) {
-        uint64_t bits;
-        memcpy(&bits, data + i, 8);
-        double d;
-        memcpy(&d, &bits, 8);
-        char *end = ms_w_double(room, d);
-        if (end <= room || end > room + 24)
-            abort(); /* no double text is longer than 24 bytes */
-        float f;
-        memcpy(&f, data + i, 4);
-        end = ms_w_double(room, (double)f);
-        if (end <= room || end > room + 24)
-            abort();
-    }
-    free(room);
-    size_t n = size < 256 ? size : 256;
-    char *text = malloc(ms_text_max(n));
-    if (text == NULL)
-        return;
-    char *end = ms_w_text(text, data, n);
-    if (end - text < 2 || text[0] != '"' || end[-1] != '"')
-        abort();
-    const char *q = text;
-    if (!json_value(&q, end, 0) || q != end)
-        abort();
-    free(text);
-}
-
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     if (size < 1)
         return 0;
-    check_writers(data + 1, size - 1);
     const unsigned sel = data[0];
+    size_t head = 1;
+    unsigned control = 0;
+    if (sel & 0x80) {
+        if (size < 2)
+            return 0;
+        control = data[1];
+        head = 2;
+    }
+    check_writers(data + head, size - head);
     /* an exactly sized copy: a read past the end of the file is a heap overflow for ASan */
-    size_t n = size - 1;
+    size_t n = size - head;
     uint8_t *file = malloc(n ? n : 1);
     if (file == NULL)
         return 0;
-    memcpy(file, data + 1, n);
+    memcpy(file, data + head, n);
+    ms_memory_file mf = {file, n, 0, 0, 0, 0};
+    if (sel & 0x80) {
+        unsigned k = (control >> 3) & 7;
+        if (k == 7) {
+            mf.fail_at = 2;
+        } else if (k) {
+            mf.shrink_after = k;
+            mf.shrink_to = n * k / 7;
+        }
+    }
     ms_walker w;
-    ms_walker_init(&w, file, n, MS_KIND_PCAP + (int)(sel & 3), &table);
+    ms_walker_init(&w, ms_memory_source(&mf), n, MS_KIND_PCAP + (int)(sel & 3), &table);
+    if (sel & 0x80)
+        w.reader.window = (size_t)64 << (control & 7);
     w.sign_mode = (sel & 4) ? MS_SIGNED_NOKEY : MS_SIGNED_HANDBACK;
     w.fuzz_any_crc = (sel & 8) != 0;
+    const unsigned preset = (sel >> 4) & 7;
     ms_buf out;
     ms_buf_init(&out);
     for (;;) {
-        if (sel >> 4)
-            ms_signer_set(&w, ((sel >> 4) << 8) | 1u); /* a sender seen signing, as Python may add */
+        if (preset)
+            ms_signer_set(&w, (preset << 8) | 1u); /* a sender seen signing, as Python may add */
         out.len = 0;
         ms_record rec;
         int r = ms_walk(&w, &out, 4096, &rec);
@@ -228,13 +76,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
             break;
         check_lines(out.data, out.len);
         if (r == MS_WALK_HANDBACK) {
-            /* what the glue reads of a handed-back record */
-            volatile unsigned sum = 0;
-            const uint8_t *d = file + rec.start;
-            if (rec.start > n || rec.len > n - rec.start)
+            /* what the glue reads of a handed-back record: its bytes are the file's at its offset */
+            if (rec.len && (rec.offset > n || rec.len > n - rec.offset || memcmp(rec.data, file + rec.offset, rec.len)))
                 abort();
-            for (size_t i = 0; i < rec.len; i++)
-                sum += d[i];
+            volatile unsigned sum = 0;
             for (size_t i = 0; i < rec.notes->n; i++) {
                 const ms_note *note = &rec.notes->v[i];
                 if (note->msg_off + note->msg_len > rec.notes->text.len)

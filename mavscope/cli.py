@@ -71,7 +71,8 @@ class ArgParser(argparse.ArgumentParser):
     """argparse that raises UsageError instead of exiting, so main() reports it in one line."""
 
     def error(self, message: str) -> None:  # type: ignore[override]
-        raise UsageError(f"{self.prog}: {message}" if self.prog != "mavscope" else message)
+        prog = self.prog.removeprefix("mavscope").strip()
+        raise UsageError(f"{prog}: {message}" if prog else message)
 
 
 def build_parser(environ: dict[str, str] | None = None) -> argparse.ArgumentParser:

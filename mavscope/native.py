@@ -1,16 +1,20 @@
-"""The native fast path: the optional C extension `mavscope._native` and its Python side.
+"""The native engine of `read -T jsonl`: the optional C extension `mavscope._native` and its Python side.
 
-The C walker reads a capture's records and writes the JSON Lines of every record whose frames are
-all clean (docs/native.md says exactly which); every other record is handed back, in capture order,
-to the Python pipeline (`Dissector.feed`, then the security stage), whose output is the reference.
-The two paths share their state explicitly: the dissector's `mavlink_endpoints` and the security
-stage's `signed_senders` are the very sets the walker reads before each batch and adds to after it.
+The C walker reads a capture's records (with pread, never a memory mapping) and writes the JSON Lines of
+every record whose frames are all clean (docs/native.md says exactly which); every other record is
+handed back, in capture order, to the Python pipeline (`Dissector.feed`, then the security stage), whose
+output is the reference. The two paths share their state explicitly: the dissector's
+`mavlink_endpoints` and the security stage's `signed_senders` are the very sets the walker reads before
+each batch and adds to after it, and `Dissector.passed` is told of the records each batch walked.
 
 - `engine(environ)`: "native" or "pure-python" (MAVSCOPE_PURE=1, or no compiled extension: pure).
 - `build_table(dialect)`: the message layouts as the byte string `_native.Table` takes, compiled from
   mavscope's MessageDef/FieldDef (so from pymavlink's parser), never written by hand.
-- `NativeWalk`: the batch walker over an open capture: bytes (finished JSON lines) or Records.
+- `NativeWalk`: the batch walker over a capture file: `Batch`es of JSON text and handed-back Records.
 - `write_jsonl(...)`: the whole `read -T jsonl` output of a capture, both paths interleaved.
+
+In the layering this module sits with the front ends (output, commands): like `pipeline.session` it
+composes the dissector and the security stage, and it writes the JSON Lines of `output.jsonout`.
 """
 
 from __future__ import annotations
@@ -21,17 +25,19 @@ import struct
 import threading
 from collections.abc import Callable, Iterator, Mapping
 from types import ModuleType, TracebackType
-from typing import IO
+from typing import IO, NamedTuple, Protocol
 
 import orjson
 
 from mavscope.capture.base import Record
 from mavscope.capture.detect import detect_kind
-from mavscope.capture.reader import close_mapped, make_record, open_mapped
-from mavscope.dissect import Anomaly, Dissector
+from mavscope.capture.reader import WINDOW, make_record, open_file
+from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect, MessageDef
+from mavscope.mavlink.frame import Frame
 from mavscope.notes import note
 from mavscope.output.jsonout import jsonl_bytes
+from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.security.stage import SecurityStage
 
 _native: ModuleType | None
@@ -114,23 +120,23 @@ def build_table(dialect: Dialect) -> bytes:
     return TABLE_MAGIC + struct.pack("<II", TABLE_VERSION, len(entries)) + b"".join(entries)
 
 
-_tables: dict[int, tuple[Dialect, object]] = {}
+_table: list[tuple[Dialect, object]] = []  # the last Dialect compiled and its table (a command loads one)
 
 
 def table_for(dialect: Dialect) -> object:
-    """The compiled `_native.Table` of `dialect`, built once per Dialect object."""
+    """The compiled `_native.Table` of `dialect`, built once for the Dialect object last asked for."""
     if _native is None:
         raise RuntimeError("mavscope._native is not built")
-    cached = _tables.get(id(dialect))
-    if cached is None or cached[0] is not dialect:
-        cached = (dialect, _native.Table(build_table(dialect)))
-        _tables[id(dialect)] = cached
-    return cached[1]
+    if not _table or _table[0][0] is not dialect:
+        _table[:] = [(dialect, _native.Table(build_table(dialect)))]
+    return _table[0][1]
 
 
 # what _native.Walker.next hands back for a record: (number, time, linktype, data, offset, orig_len,
 # notes as (code, message, offset))
 HandedBack = tuple[int, float | None, int, bytes, int, int, tuple[tuple[str, str, int], ...]]
+# (number, time, index) of the last record a batch walked natively: what Dissector.passed is told
+Walked = tuple[int, float | None, int | None]
 
 
 def _record(seg: HandedBack) -> Record:
@@ -140,9 +146,20 @@ def _record(seg: HandedBack) -> Record:
                        tuple(note(code, message, off) for code, message, off in notes))
 
 
-class NativeWalk:
-    """A capture walked in C: yields finished JSON Lines (bytes) and the Records handed back for Python.
+class Batch(NamedTuple):
+    """One step of the walk, in capture order: records walked natively (the last of them `walked`, their
+    JSON Lines `text`), then at most one record handed back to the Python pipeline."""
 
+    walked: Walked | None
+    text: bytes | bytearray | None
+    record: Record | None
+
+
+class NativeWalk:
+    """A capture file walked in C: `Batch`es of finished JSON Lines and Records handed back for Python.
+
+    The file is opened here (CaptureError as the readers raise it) and read by the walker with pread, a
+    `window` of bytes at a time as the Python readers read it (the tests make it small).
     `endpoints` and `signed_senders` are the Python sets both paths share (the dissector's
     `mavlink_endpoints` and the security stage's `signed_senders`). `signed_nokey()` is asked before
     each batch whether signed frames may be written natively (no signing key configured: `no-key`).
@@ -150,57 +167,64 @@ class NativeWalk:
     seen signing) holds for the records after it.
     """
 
-    def __init__(self, path: str | os.PathLike[str], dialect: Dialect, endpoints: set[str],
-                 signed_senders: set[tuple[int, int]], kind: str | None = None) -> None:
+    def __init__(self, path: str | os.PathLike[str], dialect: Dialect, endpoints: set[Endpoint],
+                 signed_senders: set[tuple[int, int]], kind: str | None = None, window: int = WINDOW) -> None:
         if _native is None:
             raise RuntimeError("mavscope._native is not built")
         self.kind = kind or detect_kind(path)
-        self.path, self._file, self._buf, self.size = open_mapped(path)
+        self.path, self._file, self.opened_size = open_file(path)
         try:
-            self.walker = _native.Walker(self._buf, _KINDS[self.kind], table_for(dialect), endpoints,
-                                         signed_senders)
+            self.walker = _native.Walker(self._file.fileno(), self.opened_size, _KINDS[self.kind],
+                                         table_for(dialect), endpoints, Endpoint.from_packed, signed_senders,
+                                         window)
         except BaseException:
-            close_mapped(self._file, self._buf)
+            self._file.close()
             raise
 
-    def segments(self, signed_nokey: Callable[[], bool] = lambda: False, limit: int = BATCH_BYTES,
-                 buffers: Callable[[], bytearray | None] | None = None) -> Iterator[bytes | bytearray | Record]:
-        """Finished JSON text and handed-back Records, in capture order.
+    def batches(self, signed_nokey: Callable[[], bool] = lambda: False, limit: int = BATCH_BYTES,
+                buffers: Callable[[], bytearray | None] | None = None) -> Iterator[Batch]:
+        """The walk, batch by batch.
 
         The text comes as bytes, or, with `buffers`, in the bytearray it returns for each batch (the
         caller recycles them once written: their memory stays mapped, where a new 1 MiB bytes object
         costs fresh pages every batch).
         """
         walk = self.walker.next
+        walked = self.walker.walked
         spare: bytearray | None = None  # a buffer a batch without text did not use: the next one takes it
         while True:
             buf = spare if spare is not None else (buffers() if buffers is not None else None)
             segs = walk(signed_nokey(), limit, buf)
             if segs is None:
                 return
-            spare = buf if buf is not None and not any(seg is buf for seg in segs) else None
+            text: bytes | bytearray | None = None
+            record: Record | None = None
             for seg in segs:
-                yield _record(seg) if type(seg) is tuple else seg
+                if type(seg) is tuple:
+                    record = _record(seg)
+                else:
+                    text = seg
+            spare = buf if buf is not None and text is not buf else None
+            yield Batch(walked(), text, record)
 
     @property
     def position(self) -> int:
         """The file offset the walk has reached (for a progress bar)."""
         return int(self.walker.stats()["position"])
 
-    def last_record(self) -> tuple[int, float | None, int | None] | None:
-        """(number, time, index) of the last record walked, for `Dissector.passed`."""
-        last: tuple[int, float | None, int | None] | None = self.walker.last_record()
-        return last
+    @property
+    def size(self) -> int:
+        """The file size: smaller than when opened if the file shrank while it was read."""
+        return int(self.walker.stats()["size"])
 
     def stats(self) -> dict[str, int]:
-        """Records written natively, records handed back, frames written natively, file position."""
+        """Records written natively, records handed back, frames written natively, file position and size."""
         out: dict[str, int] = self.walker.stats()
         return out
 
     def close(self) -> None:
         self.walker.close()
-        buf, self._buf = self._buf, b""
-        close_mapped(self._file, buf)
+        self._file.close()
 
     def __enter__(self) -> NativeWalk:
         return self
@@ -264,14 +288,23 @@ class _Writer:
             raise self.error
 
 
+class Reporter(Protocol):
+    """Where problems go (commands.common.Problems): anomalies, and frames whose notes tell of damage."""
+
+    def anomaly(self, item: Anomaly) -> None: ...
+
+    def frame(self, frame: Frame) -> None: ...
+
+
 def write_jsonl(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityStage, out: IO[bytes],
-                anomaly: Callable[[Anomaly], None], threaded: bool = True,
-                progress: Callable[[int], None] | None = None) -> dict[str, int]:
+                problems: Reporter, threaded: bool = True, progress: Callable[[int], None] | None = None,
+                kind: str | None = None, window: int = WINDOW) -> dict[str, int]:
     """`read -T jsonl` of a whole capture: native JSON text and, for handed-back records, the Python
-    pipeline (dissector, security stage, jsonl_bytes) in between, in capture order. Anomalies go to
-    `anomaly`. With `threaded` the writing to `out` happens on a thread of its own (_Writer);
-    `progress` is called with the file offset reached after each native batch.
-    Returns the walk's counters."""
+    pipeline (dissector, security stage, jsonl_bytes) in between, in capture order. Anomalies and the
+    frames with notes go to `problems`, as the pure path reports them. With `threaded` the writing to
+    `out` happens on a thread of its own (_Writer); `progress` is called with the file offset reached
+    after each native batch; `window` is the walker's read size. Returns the walk's counters, `frames`
+    (every frame written) and `size`."""
     dissector = Dissector(dialect)
     writer = _Writer(out) if threaded else None
     put = writer.put if writer is not None else out.write
@@ -282,35 +315,40 @@ def write_jsonl(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityS
         buffers = lambda: only  # noqa: E731
     nokey: Callable[[], bool] = lambda: not stage.check_signatures  # noqa: E731 - asked per batch
     run = stage.run
+    passed = dissector.passed
+    frames = 0
+
+    def python(items: Iterator[Frame | Anomaly] | list[Frame | Anomaly] | list[Anomaly]) -> None:
+        nonlocal frames
+        lines: list[bytes] = []
+        for item in run(items):
+            if type(item) is Anomaly:
+                problems.anomaly(item)
+                continue
+            if item.notes:
+                problems.frame(item)
+            lines.append(jsonl_bytes(item))
+        if lines:
+            frames += len(lines)
+            put(b"".join(lines))
+
     try:
-        with NativeWalk(path, dialect, dissector.mavlink_endpoints, stage.signed_senders) as walk:
-            for seg in walk.segments(nokey, buffers=buffers):
-                if type(seg) is not Record:
-                    put(seg)  # type: ignore[arg-type]
+        with NativeWalk(path, dialect, dissector.mavlink_endpoints, stage.signed_senders, kind, window) as walk:
+            for walked, text, record in walk.batches(nokey, buffers=buffers):
+                if walked is not None:
+                    held = passed(*walked)  # a run of tlog text entries ends before these records
+                    if held:
+                        python(held)
+                if text is not None:
+                    put(text)
                     if progress is not None:
                         progress(walk.position)
-                    continue
-                lines: list[bytes] = []
-                for item in run(dissector.feed(seg)):
-                    if type(item) is Anomaly:
-                        anomaly(item)
-                    else:
-                        lines.append(jsonl_bytes(item))
-                if lines:
-                    put(b"".join(lines))
-            last = walk.last_record()
+                if record is not None:
+                    python(dissector.feed(record))
             stats = walk.stats()
-        if last is not None:
-            dissector.passed(*last)
-        tail: list[bytes] = []
-        for item in run(dissector.finish()):
-            if type(item) is Anomaly:
-                anomaly(item)
-            else:
-                tail.append(jsonl_bytes(item))
-        if tail:
-            put(b"".join(tail))
+        python(dissector.finish())
     finally:
         if writer is not None:
             writer.close()
+    stats["frames"] = frames + stats["frames_native"]
     return stats

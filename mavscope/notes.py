@@ -1,67 +1,175 @@
-"""Annotations ("expert info") attached to frames: registered codes with a severity.
+"""The one registry of expert information: every note (on a frame) and finding (on a capture).
 
-Bad input never vanishes: whatever the readers, the transport layer or the framer could not use
-becomes a Note with a code from this registry, a severity and, where known, a file offset.
+Wireshark registers its expert info once per dissector (`ei_register_info`: a filter name, a group, a
+severity and a summary); mavscope does the same here for everything it reports. A `Note` is attached
+to one frame or record by the readers, the transport layer, the framer or the security stage; a
+`Finding` is what an analysis concluded about a whole capture (statistics, missions, audits). Both
+take their severity from the registered code, so one code means one severity everywhere, and codes
+are a closed set: `note()` and `finding()` refuse an unregistered one. Codes are stable: they appear
+in JSON output and in display filters (`note.bad-crc`).
 """
 
 from __future__ import annotations
 
+import operator
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from enum import Enum
 
 
+def _by_rank(op: Callable[[int, int], bool]) -> Callable[[Severity, object], bool]:
+    def compare(self: Severity, other: object) -> bool:
+        if not isinstance(other, Severity):
+            return NotImplemented
+        return op(_RANK[self], _RANK[other])
+    return compare
+
+
 class Severity(str, Enum):
-    """Wireshark's expert-info severities, lowest first."""
+    """Wireshark's expert-info severities. They order by weight (CHAT < NOTE < WARN < ERROR), not by name."""
 
     CHAT = "chat"
     NOTE = "note"
     WARN = "warn"
     ERROR = "error"
 
+    @property
+    def rank(self) -> int:
+        return _RANK[self]
+
+    # str's comparisons would order the names; these order the weights
+    __lt__ = _by_rank(operator.lt)
+    __le__ = _by_rank(operator.le)
+    __gt__ = _by_rank(operator.gt)
+    __ge__ = _by_rank(operator.ge)
+
+
+_RANK = {Severity.CHAT: 0, Severity.NOTE: 1, Severity.WARN: 2, Severity.ERROR: 3}
+
+
+class Group(str, Enum):
+    """What part of the data a code is about (Wireshark's expert groups)."""
+
+    CAPTURE = "capture"  # the capture file itself
+    MALFORMED = "malformed"  # a header or frame that does not parse
+    REASSEMBLY = "reassembly"  # IP fragments, TCP streams
+    CHECKSUM = "checksum"
+    SEQUENCE = "sequence"  # MAVLink sequence numbers: loss, duplicates, reordering
+    PROTOCOL = "protocol"  # a protocol exchange that is unusual (commands, missions)
+    SECURITY = "security"  # signing, encryption, keys, injection, replay
+    UNDECODED = "undecoded"  # what mavscope cannot decode (unknown link types, message ids)
+
+
+class Scope(str, Enum):
+    FRAME = "frame"  # a Note on one frame or record
+    CAPTURE = "capture"  # a Finding about the capture
+    BOTH = "both"
+
 
 @dataclass(frozen=True, slots=True)
-class NoteCode:
+class Code:
+    """One registered code: its severity and group, a one-line summary, and for findings an explanation
+    of what it means to the analyst (the sentence a finding message is built around)."""
+
     code: str
     severity: Severity
+    group: Group
+    scope: Scope
     summary: str
+    explanation: str = ""
+
+    @property
+    def on_frames(self) -> bool:
+        return self.scope is not Scope.CAPTURE
 
 
-# The registry of every note code mavscope emits. Codes are stable: they appear in JSON output and filters.
-CODES: dict[str, NoteCode] = {
+_F, _C, _B = Scope.FRAME, Scope.CAPTURE, Scope.BOTH
+_CHAT, _NOTE, _WARN, _ERROR = Severity.CHAT, Severity.NOTE, Severity.WARN, Severity.ERROR
+
+# Every code mavscope emits, grouped by the layer that emits it.
+CODES: dict[str, Code] = {
     c.code: c
     for c in (
         # capture readers
-        NoteCode("record-truncated", Severity.WARN, "capture record shorter than its header says"),
-        NoteCode("record-snapped", Severity.NOTE, "record captured with fewer bytes than were on the wire"),
-        NoteCode("capture-garbage", Severity.WARN, "unparseable bytes in the capture file were skipped"),
-        NoteCode("unknown-linktype", Severity.NOTE, "link type mavscope does not decode"),
+        Code("record-truncated", _WARN, Group.CAPTURE, _F, "capture record shorter than its header says"),
+        Code("record-snapped", _NOTE, Group.CAPTURE, _F, "record captured with fewer bytes than were on the wire"),
+        Code("tlog-text", _NOTE, Group.UNDECODED, _F,
+             "tlog entries that hold no MAVLink (a logger's console text or bytes it could not parse)"),
+        Code("time-out-of-range", _WARN, Group.CAPTURE, _F,
+             "record time before 1970 or after 9999 (as the file states it): reports show it as seconds"),
+        Code("capture-garbage", _WARN, Group.CAPTURE, _F, "unparseable bytes in the capture file were skipped"),
+        Code("unknown-linktype", _NOTE, Group.UNDECODED, _F, "link type mavscope does not decode"),
         # transport
-        NoteCode("malformed-packet", Severity.WARN, "link, IP, UDP or TCP header is malformed"),
-        NoteCode("ip-fragment", Severity.NOTE, "IP fragment: not reassembled"),
-        NoteCode("tcp-gap", Severity.WARN, "bytes missing from a TCP stream"),
-        NoteCode("tcp-retransmission", Severity.CHAT, "TCP retransmission dropped"),
+        Code("malformed-packet", _WARN, Group.MALFORMED, _F, "link, IP, UDP or TCP header is malformed"),
+        Code("ip-fragment", _NOTE, Group.REASSEMBLY, _F, "IP fragment: not reassembled"),
+        Code("tcp-gap", _WARN, Group.REASSEMBLY, _F, "bytes missing from a TCP stream"),
+        Code("tcp-retransmission", _CHAT, Group.REASSEMBLY, _F, "TCP retransmission dropped"),
+        Code("tcp-suspicious-syn", _WARN, Group.SECURITY, _F,
+             "SYN with a new sequence number in an established TCP stream"),
         # framing
-        NoteCode("skipped-bytes", Severity.WARN, "bytes that are not MAVLink were skipped"),
-        NoteCode("truncated-frame", Severity.WARN, "frame cut short by the end of its packet or stream"),
-        NoteCode("bad-crc", Severity.ERROR, "CRC does not match"),
-        NoteCode("unknown-msgid", Severity.NOTE, "message id not in the loaded dialects: CRC unchecked"),
-        NoteCode("length-mismatch", Severity.WARN, "payload length does not fit the message definition"),
-        NoteCode("unknown-incompat-flags", Severity.WARN, "incompatibility flags mavscope does not know"),
-        NoteCode("encrypted-payload", Severity.NOTE, "payload encrypted (incompat flag bits 5-7)"),
-        NoteCode("v1-nonzero-padding", Severity.CHAT, "trailing zero bytes present in a v2 payload"),
-        # security (mavscope.security)
-        NoteCode("unsigned-in-signed-stream", Severity.WARN, "unsigned frame from a sender that signs its frames"),
-        NoteCode("key-leak", Severity.ERROR, "SETUP_SIGNING carries a signing key in clear"),
-        NoteCode("signature-skew", Severity.NOTE, "new signing stream more than a minute from capture time"),
-        NoteCode("key-exchange", Severity.NOTE, "MAVSCOPE_KEY_EXCHANGE public key (ECDH epoch)"),
-        NoteCode("nonce-reuse", Severity.ERROR, "aes-gcm nonce used twice under one key"),
+        Code("skipped-bytes", _WARN, Group.MALFORMED, _F, "bytes that are not MAVLink were skipped"),
+        Code("truncated-frame", _WARN, Group.MALFORMED, _F, "frame cut short by the end of its packet or stream"),
+        Code("bad-crc", _ERROR, Group.CHECKSUM, _F, "CRC does not match"),
+        Code("unknown-msgid", _NOTE, Group.UNDECODED, _F, "message id not in the loaded dialects: CRC unchecked"),
+        Code("length-mismatch", _WARN, Group.MALFORMED, _F, "payload length does not fit the message definition"),
+        Code("unknown-incompat-flags", _WARN, Group.PROTOCOL, _F, "incompatibility flags mavscope does not know"),
+        Code("encrypted-payload", _NOTE, Group.SECURITY, _F, "payload encrypted (incompat flag bits 5-7)"),
+        # security stage (notes), and the audit's summaries of them (findings)
+        Code("unsigned-in-signed-stream", _WARN, Group.SECURITY, _B,
+             "unsigned frame from a sender that signs its frames",
+             "unsigned frames from senders that sign their frames (a downgrade or an injection)"),
+        Code("v1-in-signed-stream", _WARN, Group.SECURITY, _B,
+             "MAVLink v1 frame from a sender that signs its frames (v1 cannot carry a signature)",
+             "MAVLink v1 frames from senders that sign: the link takes frames that cannot be signed, so signing "
+             "is not in force (a downgrade-capable link)"),
+        Code("key-leak", _ERROR, Group.SECURITY, _B, "SETUP_SIGNING carries a signing key in clear",
+             "SETUP_SIGNING sends the signing key in clear: whoever captured the link can sign frames "
+             "(--use-leaked-keys verifies with it)"),
+        Code("signature-skew", _NOTE, Group.SECURITY, _B, "new signing stream more than a minute from capture time",
+             "signing streams that start more than a minute from capture time (a receiver's new-stream check "
+             "would refuse them)"),
+        Code("key-exchange", _NOTE, Group.SECURITY, _F, "MAVSCOPE_KEY_EXCHANGE public key (ECDH epoch)"),
+        Code("nonce-reuse", _ERROR, Group.SECURITY, _B, "aes-gcm nonce used twice under one key",
+             "aes-gcm nonces used twice under one key"),
+        # expert findings over the frames (mavscope.analysis.expert)
+        Code("bad-crc-burst", _WARN, Group.CHECKSUM, _C, "frames with a bad CRC close together"),
+        Code("seq-gap", _WARN, Group.SEQUENCE, _C, "a large jump in a sender's sequence numbers: frames lost"),
+        Code("seq-duplicate", _NOTE, Group.SEQUENCE, _C, "frames repeating a sequence number already seen"),
+        Code("seq-reordered", _NOTE, Group.SEQUENCE, _C, "frames that arrived after later ones"),
+        Code("seq-interleaved", _WARN, Group.SEQUENCE, _C,
+             "many backward sequence steps: two senders may share a system/component id"),
+        Code("new-commander", _WARN, Group.SECURITY, _C, "a second system commands a vehicle"),
+        Code("unexpected-command-source", _WARN, Group.SECURITY, _C,
+             "commands from a known sender arrive from another network endpoint"),
+        Code("command-without-heartbeat", _NOTE, Group.PROTOCOL, _C, "commands from a system that sent no HEARTBEAT"),
+        Code("replayed-command", _WARN, Group.SECURITY, _C,
+             "a commanding frame repeats an earlier one byte for byte, out of its sender's sequence"),
+        Code("unsigned-command", _WARN, Group.SECURITY, _C, "unsigned command where signed traffic is seen"),
+        # security audit (mavscope.security.audit)
+        Code("replay", _ERROR, Group.SECURITY, _C, "signature replayed (timestamp not newer than its stream's)",
+             "frames whose MAC verifies but whose timestamp is not newer than the last accepted one of their "
+             "stream: replayed"),
+        Code("sig-invalid", _ERROR, Group.SECURITY, _C, "signed frames that no supplied key verifies",
+             "signed frames that no supplied key verifies: forged, modified or signed with another key"),
+        Code("decryption-failed", _WARN, Group.SECURITY, _C, "encrypted frames that did not decrypt"),
+        Code("encrypted-no-key", _NOTE, Group.SECURITY, _C, "encrypted frames without a cipher for their method"),
+        Code("default-key", _ERROR, Group.SECURITY, _C, "frames signed with a well-known key (all zeros, ...)"),
+        Code("weak-passphrase", _ERROR, Group.SECURITY, _C, "the signing passphrase is in the wordlist"),
+        Code("passphrase-not-found", _NOTE, Group.SECURITY, _C, "no word of the wordlist derives the signing key"),
+        Code("keystream-reuse", _ERROR, Group.SECURITY, _C,
+             "payload encryption reuses its keystream: payloads readable without the key"),
     )
 }
 
 
+def frame_codes() -> list[str]:
+    """The codes a frame can carry as notes (the `note.*` filter fields)."""
+    return [c.code for c in CODES.values() if c.on_frames]
+
+
 @dataclass(frozen=True, slots=True)
 class Note:
-    """One annotation: a registered code, its severity, a human message and the file offset if known."""
+    """One annotation on a frame or record: a registered code, its severity, a message and the file offset."""
 
     code: str
     severity: Severity
@@ -76,6 +184,36 @@ class Note:
 
 
 def note(code: str, message: str | None = None, offset: int | None = None) -> Note:
-    """Build a Note for a registered code (KeyError for an unregistered one: codes are a closed set)."""
-    nc = CODES[code]
-    return Note(code, nc.severity, message if message is not None else nc.summary, offset)
+    """A Note for a registered code (KeyError for an unregistered one: codes are a closed set)."""
+    c = CODES[code]
+    return Note(code, c.severity, message if message is not None else c.summary, offset)
+
+
+@dataclass(frozen=True, slots=True)
+class Finding:
+    """What an analysis concluded about a capture, with the frames involved (Wireshark's frame numbers)."""
+
+    code: str
+    severity: Severity
+    message: str
+    frames: tuple[int, ...] = ()
+
+    def to_json(self) -> dict[str, object]:
+        return {"code": self.code, "severity": self.severity.value, "frames": list(self.frames),
+                "message": self.message}
+
+
+def finding(code: str, message: str, frames: Iterable[int] = ()) -> Finding:
+    """A Finding for a registered code, with the code's severity (KeyError for an unregistered one)."""
+    return Finding(code, CODES[code].severity, message, tuple(frames))
+
+
+def explanation(code: str) -> str:
+    """What a code means to the analyst (its summary where no longer explanation is registered)."""
+    c = CODES[code]
+    return c.explanation or c.summary
+
+
+def sort_findings(findings: Iterable[Finding]) -> list[Finding]:
+    """Most severe first, then by first frame, then by code."""
+    return sorted(findings, key=lambda f: (-f.severity.rank, f.frames[:1], f.code))

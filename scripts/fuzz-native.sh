@@ -35,8 +35,8 @@ SRC=src/mavscope_native
     -o "$OUT/fuzz_native"
 
 # Seeds: every bundled capture under the selector of its own format (0 pcap, 1 pcapng, 2 tlog, 3 raw),
-# with and without native signed frames (bit 2) and with every CRC taken (bit 3). libFuzzer's -max_len
-# bounds the size.
+# with and without native signed frames (bit 2), with every CRC taken (bit 3), and as hostile files
+# (bit 7: small read windows, shrinking, a failed read). libFuzzer's -max_len bounds the size.
 "$PY" - "$OUT/corpus" <<'PYEOF'
 import hashlib, pathlib, sys
 from mavscope.capture.detect import detect_kind
@@ -51,6 +51,10 @@ for path in sorted(pathlib.Path("captures").glob("*")):
         for piece in (data[:4096], data[:65536]):
             blob = bytes([base | extra]) + piece
             (corpus / hashlib.sha1(blob).hexdigest()).write_bytes(blob)
+    # hostile files (bit 7): a 64-byte read window; a file that shrinks after 2 reads to 2/7; a failed read
+    for control in (0x00, 0x10, 0x38):
+        blob = bytes([base | 0x80, control]) + data[:16384]
+        (corpus / hashlib.sha1(blob).hexdigest()).write_bytes(blob)
 PYEOF
 
 export MAVSCOPE_FUZZ_TABLE="$PWD/$OUT/table.bin"

@@ -2,7 +2,7 @@
 # Install the optional command-line tools the test suite cross-checks against.
 #
 # Today that is tshark (Wireshark's command-line analyser), used by
-# tests/test_tshark_crosscheck.py together with pymavlink's generated Lua dissector.
+# tests/crosscheck/test_tshark.py together with pymavlink's generated Lua dissector.
 #
 # - Idempotent and quick: does nothing when `tshark` is already on PATH.
 # - Non-interactive: DEBIAN_FRONTEND=noninteractive, and the wireshark-common debconf

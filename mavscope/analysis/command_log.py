@@ -10,15 +10,21 @@ unanswered; ACKs that match no command are listed apart.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
+from mavscope.mavlink.semantics import (
+    COMMAND_PARAM_INDEX,
+    INT_COORDINATE_MESSAGES,
+    command_param_name,
+    enum_name,
+    finite,
+    int_coordinate,
+)
 
 MAV_RESULT_IN_PROGRESS = 5
-GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})  # MAV_FRAMEs whose x/y are latitude/longitude
 
 
 @dataclass
@@ -45,15 +51,7 @@ class Command:
 
 
 def _name(dialect: Dialect, enum: str, value: int | None) -> str | None:
-    if value is None:
-        return None
-    e = dialect.enums.get(enum)
-    n = e.name_of(value) if e is not None else None
-    return n or str(value)
-
-
-def _clean(v: object) -> object:
-    return None if isinstance(v, float) and (math.isnan(v) or math.isinf(v)) else v
+    return None if value is None else enum_name(dialect, enum, value)
 
 
 def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> tuple[list[Command], list[dict[str, object]]]:
@@ -80,11 +78,13 @@ def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> tuple[list[Command
                 continue
             names = [n for n in ("param1", "param2", "param3", "param4", "param5", "param6", "param7", "x", "y", "z",
                                  "frame", "confirmation") if n in fields]
-            params: dict[str, object] = {n: _clean(fields[n]) for n in names}
-            if md.name == "COMMAND_INT" and params.get("frame") in GLOBAL_FRAMES:
-                params["x"] = int(params["x"]) / 1e7  # type: ignore[call-overload]  # degrees
-                params["y"] = int(params["y"]) / 1e7  # type: ignore[call-overload]
-            c = Command(md.name, cmd_id, me, target, params, f.time, [f.record], src=f.src)
+            params: dict[str, object] = {n: finite(fields[n]) for n in names}
+            if md.name in INT_COORDINATE_MESSAGES:  # degrees in a global frame, metres in a local one
+                frame = params.get("frame")
+                params["x"] = int_coordinate(int(params["x"]), frame)  # type: ignore[call-overload, arg-type]
+                params["y"] = int_coordinate(int(params["y"]), frame)  # type: ignore[call-overload, arg-type]
+            src = None if f.src is None else f.src.text
+            c = Command(md.name, cmd_id, me, target, params, f.time, [f.record], src=src)
             commands.append(c)
             pending.append(c)
             continue
@@ -115,6 +115,17 @@ def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> tuple[list[Command
     return commands, orphans
 
 
+def _param_names(c: Command, dialect: Dialect) -> dict[str, str]:
+    """The names of the parameter values the XML names (an enum entry, a message id's message)."""
+    out = {}
+    for key, index in COMMAND_PARAM_INDEX.items():
+        if key in c.params and not (c.message == "COMMAND_INT" and key.startswith("param") and index > 4):
+            name = command_param_name(dialect, c.command, index, c.params[key])
+            if name is not None:
+                out[key] = name
+    return out
+
+
 def command_json(c: Command, dialect: Dialect) -> dict[str, object]:
     labels = {f"param{i}": label for i, label, _ in dialect.command_params(c.command)}
     if c.message == "COMMAND_INT":
@@ -127,5 +138,6 @@ def command_json(c: Command, dialect: Dialect) -> dict[str, object]:
         "answered": c.result is not None, "latency_ms": c.latency_ms, "retries": c.retries,
         "progress": c.progress, "params": c.params,
         "param_labels": {k: v for k, v in labels.items() if k in c.params},
+        "param_names": _param_names(c, dialect),
         "frames": c.frames, "ack_frame": c.ack_frame,
     }

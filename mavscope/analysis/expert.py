@@ -1,20 +1,24 @@
 """Expert findings built from the frames of a capture (Wireshark's expert info, one level up).
 
-`expert_findings(frames, dialect)` runs every detector in `DETECTORS` and returns their findings, most
-severe first. Each detector is a plain function `(frames, dialect) -> list[Finding]`, so other layers
-(the security audit, the TUI) can call one alone or add their own to the list. Finding codes are stable
-(they appear in JSON); frame numbers are capture record numbers.
+Each detector is an accumulator: `add(frame, fields)` once per frame in capture order (`fields` is the
+decoded payload of a commanding or HEARTBEAT frame, else None), then `findings()`. Detectors keep
+bounded state, so a capture of any length is analysed in one pass without holding its frames.
+`Expert` runs a set of them (`DETECTORS` by default; the TUI and the audit may pick their own), and
+`expert_findings(frames, dialect)` is the one-call form. Codes and severities come from the registry in
+`mavscope.notes`; frame numbers are capture record numbers.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections import Counter, OrderedDict
+from collections.abc import Callable, Iterable, Sequence
+from typing import Protocol
 
-from mavscope.analysis.findings import Finding, sort_findings
-from mavscope.analysis.stats import SeqTracker
+from mavscope.analysis.sequence import GAP_MIN, SeqTracker
+from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, SignatureStatus, decode_payload
-from mavscope.notes import Severity
+from mavscope.notes import Finding, finding, sort_findings
 
 # Messages that tell a vehicle what to do (their target_system is the vehicle commanded).
 COMMANDING = frozenset({
@@ -26,217 +30,328 @@ COMMANDING = frozenset({
 MAV_TYPE_GCS = 6
 BURST_MIN = 3  # bad-CRC frames...
 BURST_WINDOW_S = 1.0  # ...each within this long of the previous one make a burst
-GAP_MIN = 10  # a single sequence gap this large is reported
 MAX_FRAMES = 50  # frame numbers listed per finding
+COPIES_KEPT = 65_536  # commanding frames remembered for replay detection (the oldest go first)
 
-Detector = Callable[[Sequence[Frame], Dialect], list[Finding]]
-
-
-def _frames(nums: Sequence[int]) -> tuple[int, ...]:
-    return tuple(dict.fromkeys(nums))[:MAX_FRAMES]
+Link = tuple[int, int]
+Fields = dict[str, object]
 
 
 def _link(f: Frame) -> str:
     return f"{f.sysid}/{f.compid}"
 
 
-def bad_crc_bursts(frames: Sequence[Frame], dialect: Dialect) -> list[Finding]:
+class _Frames:
+    """Frame numbers for a finding: the first MAX_FRAMES kept, all of them counted."""
+
+    __slots__ = ("nums", "count")
+
+    def __init__(self) -> None:
+        self.nums: list[int] = []
+        self.count = 0
+
+    def add(self, record: int) -> None:
+        self.count += 1
+        if len(self.nums) < MAX_FRAMES and (not self.nums or self.nums[-1] != record):
+            self.nums.append(record)
+
+
+class BadCrcBursts:
     """Runs of bad-CRC frames close together: interference, a failing link, or injection attempts."""
-    out: list[Finding] = []
-    run: list[Frame] = []
 
-    def close() -> None:
-        if len(run) >= BURST_MIN:
-            span = (run[-1].time - run[0].time) if run[0].time is not None and run[-1].time is not None else None
+    def __init__(self) -> None:
+        self.out: list[Finding] = []
+        self.run = _Frames()
+        self.first: float | None = None
+        self.last: float | None = None
+        self.links: set[str] = set()
+
+    def _close(self) -> None:
+        if self.run.count >= BURST_MIN:
+            span = (self.last - self.first) if self.first is not None and self.last is not None else None
             when = f" within {span:.3f} s" if span is not None else ""
-            links = ", ".join(sorted({_link(f) for f in run}))
-            out.append(Finding("bad-crc-burst", Severity.WARN,
-                               f"{len(run)} frames with a bad CRC{when} (links {links})",
-                               _frames([f.record for f in run])))
+            self.out.append(finding("bad-crc-burst", f"{self.run.count} frames with a bad CRC{when} "
+                                                     f"(links {', '.join(sorted(self.links))})", self.run.nums))
+        self.run, self.first, self.last, self.links = _Frames(), None, None, set()
 
-    for f in frames:
+    def add(self, f: Frame, fields: Fields | None) -> None:
         if f.crc_status is not CrcStatus.BAD:
-            continue
-        if run and not (f.time is not None and run[-1].time is not None and f.time - run[-1].time <= BURST_WINDOW_S):
-            close()
-            run = []
-        run.append(f)
-    close()
-    return out
+            return
+        t = f.time
+        if self.run.count and not (t is not None and self.last is not None and t - self.last <= BURST_WINDOW_S):
+            self._close()
+        if not self.run.count:
+            self.first = t
+        self.run.add(f.record)
+        self.last = t
+        self.links.add(_link(f))
+
+    def findings(self) -> list[Finding]:
+        self._close()
+        return self.out
 
 
-def sequence_anomalies(frames: Sequence[Frame], dialect: Dialect) -> list[Finding]:
-    """Per link: large sequence gaps, duplicates, frames arriving late; many backward steps suggest two
-    senders using the same system and component id."""
-    trackers: dict[tuple[int, int], SeqTracker] = {}
-    counts: dict[tuple[int, int], int] = {}
-    events: dict[tuple[tuple[int, int], str], list[int]] = {}
-    out: list[Finding] = []
-    for f in frames:
+class SequenceAnomalies:
+    """Per link: frames lost for good in large gaps (the same count as the Links table's), duplicates,
+    late frames, and many backward steps (two sequence counters under one system/component id)."""
+
+    def __init__(self) -> None:
+        self.trackers: dict[Link, SeqTracker] = {}
+        self.counts: Counter[Link] = Counter()
+        self.events: dict[tuple[Link, str], _Frames] = {}
+
+    def add(self, f: Frame, fields: Fields | None) -> None:
         key = (f.sysid, f.compid)
-        tr = trackers.get(key)
+        tr = self.trackers.get(key)
         if tr is None:
-            tr = trackers[key] = SeqTracker()
-        counts[key] = counts.get(key, 0) + 1
-        prev = tr.last
-        what, n = tr.feed(f.seq)
-        if what == "gap" and n >= GAP_MIN:
-            out.append(Finding("seq-gap", Severity.WARN,
-                               f"link {f.sysid}/{f.compid}: {n} frames lost (seq {prev} -> {f.seq})", (f.record,)))
-        elif what in ("duplicate", "late"):
-            events.setdefault((key, what), []).append(f.record)
-    for (key, what), nums in events.items():
-        sysid, compid = key
-        if what == "duplicate":
-            out.append(Finding("seq-duplicate", Severity.NOTE,
-                               f"link {sysid}/{compid}: {len(nums)} frames repeat a sequence number already seen",
-                               _frames(nums)))
-        else:
-            out.append(Finding("seq-reordered", Severity.NOTE,
-                               f"link {sysid}/{compid}: {len(nums)} frames arrived after later ones", _frames(nums)))
-    for key, total in counts.items():
-        back = len(events.get((key, "duplicate"), ())) + len(events.get((key, "late"), ()))
-        if back >= 5 and back * 20 >= total:
-            out.append(Finding("seq-interleaved", Severity.WARN,
-                               f"link {key[0]}/{key[1]}: {back} of {total} frames step back in sequence: two senders "
-                               "may share this system/component id",
-                               _frames(events.get((key, "duplicate"), []) + events.get((key, "late"), []))))
-    return out
+            tr = self.trackers[key] = SeqTracker()
+        self.counts[key] += 1
+        what, _ = tr.feed(f.seq, f.record)
+        if what in ("duplicate", "late"):
+            ev = self.events.get((key, what))
+            if ev is None:
+                ev = self.events[(key, what)] = _Frames()
+            ev.add(f.record)
+
+    def findings(self) -> list[Finding]:
+        out: list[Finding] = []
+        for (sysid, compid), tr in self.trackers.items():
+            gaps = [g for g in tr.gaps if g.remaining >= GAP_MIN]
+            if not gaps:
+                continue
+            largest = max(gaps, key=lambda g: g.remaining)
+            more = f" (and {tr.large_gaps - len(tr.gaps)} more not listed)" if tr.large_gaps > len(tr.gaps) else ""
+            out.append(finding("seq-gap",
+                               f"link {sysid}/{compid}: {sum(g.remaining for g in gaps)} frames lost in "
+                               f"{len(gaps)} gap(s) of {GAP_MIN} or more{more}, the largest {largest.remaining} "
+                               f"(seq {largest.before} -> {largest.after}); {tr.lost} lost in all, as in the Links "
+                               "table", [g.record for g in gaps]))
+        for (key, what), ev in self.events.items():
+            sysid, compid = key
+            tr = self.trackers[key]
+            if what == "duplicate" and tr.duplicates:
+                out.append(finding("seq-duplicate", f"link {sysid}/{compid}: {tr.duplicates} frames repeat a "
+                                                    "sequence number already seen", ev.nums))
+            elif what == "late":
+                out.append(finding("seq-reordered", f"link {sysid}/{compid}: {ev.count} frames arrived after later "
+                                                    "ones", ev.nums))
+        for key, total in self.counts.items():
+            tr = self.trackers[key]
+            back = tr.reordered + tr.duplicates - tr.repeats  # steps back (not the same number again)
+            if back >= 5 and back * 20 >= total:
+                dup, late = self.events.get((key, "duplicate")), self.events.get((key, "late"))
+                nums = sorted((dup.nums if dup else []) + (late.nums if late else []))[:MAX_FRAMES]
+                out.append(finding("seq-interleaved",
+                                   f"link {key[0]}/{key[1]}: {back} of {total} frames step back in sequence: two "
+                                   "sequence counters under one system/component id (two senders, or one sender "
+                                   "with two MAVLink channels)", nums))
+        return out
 
 
-def _command_frames(frames: Sequence[Frame]) -> list[tuple[Frame, dict[str, object]]]:
-    out = []
-    for f in frames:
-        md = f.msgdef
-        if md is None or md.name not in COMMANDING or f.crc_status is CrcStatus.BAD:
-            continue
-        fields = decode_payload(f)
-        if fields is not None:
-            out.append((f, fields))
-    return out
-
-
-def _gcs_systems(frames: Sequence[Frame]) -> set[int]:
-    gcs = set()
-    for f in frames:
-        if f.msgid == 0 and f.msgdef is not None and f.msgdef.name == "HEARTBEAT":
-            fields = decode_payload(f)
-            if fields is not None and fields.get("type") == MAV_TYPE_GCS:
-                gcs.add(f.sysid)
-    return gcs
-
-
-def command_sources(frames: Sequence[Frame], dialect: Dialect) -> list[Finding]:
+class CommandSources:
     """Who commands each vehicle: a second system id commanding it (after the first), the same id
-    commanding from another network endpoint, commands from a system that never sent a HEARTBEAT."""
-    gcs = _gcs_systems(frames)
-    heartbeat_seen: set[tuple[int, int]] = set()
-    first_commander: dict[int, tuple[int, int]] = {}
-    reported: set[tuple[str, object]] = set()
-    endpoints: dict[tuple[int, int], str] = {}
-    cmds = {id(f): fields for f, fields in _command_frames(frames)}
-    out: list[Finding] = []
-    for f in frames:
+    commanding from another network endpoint, commands from a system that never sent a HEARTBEAT.
+    Commands to a ground station (HEARTBEAT type GCS) are not about a vehicle: they are set aside until
+    the end, when every HEARTBEAT has been seen."""
+
+    def __init__(self) -> None:
+        self.gcs: set[int] = set()
+        self.heartbeat_seen: set[Link] = set()
+        self.first_commander: dict[int, Link] = {}
+        self.reported: set[tuple[str, object]] = set()
+        self.endpoints: dict[Link, Endpoint] = {}
+        self.out: list[tuple[int, Finding]] = []  # (target system, finding)
+
+    def add(self, f: Frame, fields: Fields | None) -> None:
         if f.msgid == 0:
-            heartbeat_seen.add((f.sysid, f.compid))
-        fields = cmds.get(id(f))
-        if fields is None:
-            continue
+            self.heartbeat_seen.add((f.sysid, f.compid))
+            if fields is not None and fields.get("type") == MAV_TYPE_GCS:
+                self.gcs.add(f.sysid)
+            return
+        if fields is None or f.msgdef is None or f.msgdef.name not in COMMANDING:
+            return
         target = fields.get("target_system")
-        if not isinstance(target, int) or target in gcs or target == f.sysid:
-            continue
+        if not isinstance(target, int) or target in self.gcs or target == f.sysid:
+            return
         sender = (f.sysid, f.compid)
-        name = f.msgdef.name if f.msgdef else "?"
-        est = first_commander.setdefault(target, sender)
-        if est[0] != sender[0] and ("new", (target, sender)) not in reported:
-            reported.add(("new", (target, sender)))
-            out.append(Finding("new-commander", Severity.WARN,
-                               f"system {sender[0]}/{sender[1]} commands system {target} ({name}), which "
-                               f"{est[0]}/{est[1]} commanded until then", (f.record,)))
-        if f.src:
-            known = endpoints.setdefault(sender, f.src)
-            if known != f.src and ("src", (sender, f.src)) not in reported:
-                reported.add(("src", (sender, f.src)))
-                out.append(Finding("unexpected-command-source", Severity.WARN,
-                                   f"{name} from {sender[0]}/{sender[1]} arrives from {f.src}; its commands came "
-                                   f"from {known} until then", (f.record,)))
-        if sender not in heartbeat_seen and ("hb", sender) not in reported:
-            reported.add(("hb", sender))
-            out.append(Finding("command-without-heartbeat", Severity.NOTE,
-                               f"{sender[0]}/{sender[1]} sends {name} to system {target} before any HEARTBEAT "
-                               "of its own", (f.record,)))
-    return out
+        name = f.msgdef.name
+        est = self.first_commander.setdefault(target, sender)
+        if est[0] != sender[0] and ("new", (target, sender)) not in self.reported:
+            self.reported.add(("new", (target, sender)))
+            self.out.append((target, finding(
+                "new-commander", f"system {sender[0]}/{sender[1]} commands system {target} ({name}), which "
+                                 f"{est[0]}/{est[1]} commanded until then", (f.record,))))
+        if f.src is not None:
+            known = self.endpoints.setdefault(sender, f.src)
+            if known != f.src and ("src", (sender, f.src)) not in self.reported:
+                self.reported.add(("src", (sender, f.src)))
+                self.out.append((target, finding(
+                    "unexpected-command-source", f"{name} from {sender[0]}/{sender[1]} arrives from {f.src}; its "
+                                                 f"commands came from {known} until then", (f.record,))))
+        if sender not in self.heartbeat_seen and ("hb", sender) not in self.reported:
+            self.reported.add(("hb", sender))
+            self.out.append((target, finding(
+                "command-without-heartbeat", f"{sender[0]}/{sender[1]} sends {name} to system {target} before "
+                                             "any HEARTBEAT of its own", (f.record,))))
+
+    def findings(self) -> list[Finding]:
+        return [fd for target, fd in self.out if target not in self.gcs]
 
 
-def replayed_commands(frames: Sequence[Frame], dialect: Dialect) -> list[Finding]:
-    """Commanding frames identical, byte for byte, to an earlier one and out of their sender's sequence
-    (a retry has a new sequence number; a replay repeats an old one, where the same bytes coming back
-    in sequence after the counter wrapped are not suspicious), and frames the security layer marked as
-    replays."""
-    seen: dict[bytes, Frame] = {}
-    trackers: dict[tuple[int, int], SeqTracker] = {}
-    out: list[Finding] = []
-    for f in frames:
-        tr = trackers.get((f.sysid, f.compid))
+class ReplayedCommands:
+    """Commanding frames repeated byte for byte (sequence number included) where the sender's sequence
+    cannot explain it, aggregated per link; and frames the security layer judged signature replays.
+
+    A copy is explained by the 8-bit counter when the sender has moved on by whole cycles since the
+    original: a neutral-stick MANUAL_CONTROL repeats itself exactly every 256 frames, in sequence. It is
+    reported when the counter has not wrapped since the original (the copy takes the original's place in
+    the sequence, within 128 frames of it: a replay or a duplicated packet), or when it steps back in the
+    sequence without filling a gap (a copy of an old frame injected out of turn)."""
+
+    def __init__(self) -> None:
+        self.trackers: dict[Link, SeqTracker] = {}
+        self.seen: OrderedDict[bytes, tuple[int, int]] = OrderedDict()  # raw -> (record, position)
+        self.copies: dict[Link, tuple[_Frames, Counter[str]]] = {}
+        self.replays: dict[Link, tuple[_Frames, Counter[str]]] = {}
+
+    def add(self, f: Frame, fields: Fields | None) -> None:
+        link = (f.sysid, f.compid)
+        tr = self.trackers.get(link)
         if tr is None:
-            tr = trackers[(f.sysid, f.compid)] = SeqTracker()
-        step, _ = tr.feed(f.seq)
+            tr = self.trackers[link] = SeqTracker()
+        step, _ = tr.feed(f.seq, f.record)
+        name = f.msgname or str(f.msgid)
         sec = f.security
         if sec is not None and sec.signature_status is SignatureStatus.REPLAY:
-            out.append(Finding("replayed-command", Severity.ERROR,
-                               f"{f.msgname or f.msgid} from {_link(f)}: "
-                               f"signature replay ({sec.reason or 'old timestamp'})",
-                               (f.record,)))
-            continue
+            self._count(self.replays, link, (f.record,), name)
+            return
         md = f.msgdef
         if md is None or md.name not in COMMANDING or f.crc_status is not CrcStatus.OK:
-            continue
-        prev = seen.get(f.raw)
-        if prev is None or step not in ("duplicate", "late"):
-            seen[f.raw] = f
-            continue
-        gap = f" {f.time - prev.time:.3f} s later" if f.time is not None and prev.time is not None else ""
-        out.append(Finding("replayed-command", Severity.WARN,
-                           f"{md.name} from {_link(f)} is a byte-for-byte copy of frame {prev.record}{gap} "
-                           "(same sequence number: a replay or a duplicated packet)", (prev.record, f.record)))
-    return out
+            return
+        prev = self.seen.get(f.raw)
+        if prev is not None and (tr.position - prev[1] < 256 or step == "duplicate"):
+            self._count(self.copies, link, (prev[0], f.record), name)
+            return
+        self.seen[f.raw] = (f.record, tr.position)
+        self.seen.move_to_end(f.raw)
+        if len(self.seen) > COPIES_KEPT:
+            self.seen.popitem(last=False)
+
+    @staticmethod
+    def _count(table: dict[Link, tuple[_Frames, Counter[str]]], link: Link, records: tuple[int, ...],
+               name: str) -> None:
+        """Count one frame of message `name` (listing `records`: the copy, and its original if known)."""
+        entry = table.get(link)
+        if entry is None:
+            entry = table[link] = (_Frames(), Counter())
+        for r in records:
+            entry[0].add(r)
+        entry[1][name] += 1
+
+    def findings(self) -> list[Finding]:
+        out = []
+        for (sysid, compid), (frames, names) in self.copies.items():
+            kinds = ", ".join(f"{n} {c}" for n, c in names.most_common())
+            out.append(finding("replayed-command",
+                               f"link {sysid}/{compid}: {sum(names.values())} commanding frame(s) repeat an earlier "
+                               f"one byte for byte out of the sender's sequence ({kinds}): replays or duplicated "
+                               "packets", frames.nums))
+        for (sysid, compid), (frames, names) in self.replays.items():
+            kinds = ", ".join(f"{n} {c}" for n, c in names.most_common())
+            out.append(finding("replay", f"link {sysid}/{compid}: {frames.count} frame(s) whose signature verifies "
+                                         f"with a timestamp not newer than its stream's ({kinds})", frames.nums))
+        return out
 
 
-def unsigned_commands(frames: Sequence[Frame], dialect: Dialect) -> list[Finding]:
-    """Unsigned commanding frames on a capture where the sender or its target signs: a downgrade."""
-    signing: set[int] = {f.sysid for f in frames if f.signature is not None}
-    if not signing:
-        return []
-    out: list[Finding] = []
-    for f, fields in _command_frames(frames):
+class UnsignedCommands:
+    """Unsigned commanding frames where the sender or its target signs: a downgrade. Signing senders are
+    known only once their signed frames are seen, so candidates wait for the end (bounded: MAX_FRAMES
+    listed, all counted per sender)."""
+
+    def __init__(self) -> None:
+        self.signing: set[int] = set()
+        self.candidates: dict[tuple[int, int, int], _Frames] = {}  # (sysid, compid, target) -> frames
+        self.names: dict[tuple[int, int, int], Counter[str]] = {}
+
+    def add(self, f: Frame, fields: Fields | None) -> None:
         if f.signature is not None:
-            continue
+            self.signing.add(f.sysid)
+            return
+        md = f.msgdef
+        if fields is None or md is None or md.name not in COMMANDING:
+            return
         target = fields.get("target_system")
-        if f.sysid in signing or target in signing:
-            out.append(Finding("unsigned-command", Severity.WARN,
-                               f"unsigned {f.msgname} from {_link(f)} to system {target}, where signed traffic is seen",
-                               (f.record,)))
-    return out
+        key = (f.sysid, f.compid, target if isinstance(target, int) else -1)
+        if key not in self.candidates:
+            self.candidates[key] = _Frames()
+            self.names[key] = Counter()
+        self.candidates[key].add(f.record)
+        self.names[key][md.name] += 1
+
+    def findings(self) -> list[Finding]:
+        out = []
+        for (sysid, compid, target), frames in self.candidates.items():
+            if sysid in self.signing or target in self.signing:
+                kinds = ", ".join(f"{n} {c}" for n, c in self.names[(sysid, compid, target)].most_common())
+                out.append(finding("unsigned-command", f"{frames.count} unsigned commanding frame(s) from "
+                                                       f"{sysid}/{compid} to system {target}, where signed traffic "
+                                                       f"is seen ({kinds})", frames.nums))
+        return out
 
 
-def key_leaks(frames: Sequence[Frame], dialect: Dialect) -> list[Finding]:
+class KeyLeaks:
     """SETUP_SIGNING carries the secret key in clear: whoever holds the capture holds the key."""
-    nums = [f.record for f in frames if f.msgdef is not None and f.msgdef.name == "SETUP_SIGNING"]
-    if not nums:
-        return []
-    return [Finding("key-leak", Severity.ERROR,
-                    f"{len(nums)} SETUP_SIGNING frame(s): the signing key travels in clear in this capture",
-                    _frames(nums))]
+
+    def __init__(self) -> None:
+        self.frames = _Frames()
+
+    def add(self, f: Frame, fields: Fields | None) -> None:
+        if f.msgdef is not None and f.msgdef.name == "SETUP_SIGNING":
+            self.frames.add(f.record)
+
+    def findings(self) -> list[Finding]:
+        if not self.frames.count:
+            return []
+        return [finding("key-leak", f"{self.frames.count} SETUP_SIGNING frame(s): the signing key travels in "
+                                    "clear in this capture", self.frames.nums)]
 
 
-DETECTORS: list[Detector] = [bad_crc_bursts, sequence_anomalies, command_sources, replayed_commands,
-                             unsigned_commands, key_leaks]
+class Detector(Protocol):
+    def add(self, f: Frame, fields: Fields | None) -> None: ...
+
+    def findings(self) -> list[Finding]: ...
 
 
-def expert_findings(frames: Sequence[Frame], dialect: Dialect,
-                    detectors: Sequence[Detector] | None = None) -> list[Finding]:
-    """Every detector's findings, most severe first."""
-    out: list[Finding] = []
-    for detect in DETECTORS if detectors is None else detectors:
-        out.extend(detect(frames, dialect))
-    return sort_findings(out)
+DETECTORS: list[Callable[[], Detector]] = [BadCrcBursts, SequenceAnomalies, CommandSources, ReplayedCommands,
+                                           UnsignedCommands, KeyLeaks]
+
+
+class Expert:
+    """Every detector in one pass: `add(frame)` per frame in capture order, then `findings()`."""
+
+    def __init__(self, dialect: Dialect, detectors: Sequence[Callable[[], Detector]] | None = None) -> None:
+        self.dialect = dialect
+        self.detectors = [d() for d in (DETECTORS if detectors is None else detectors)]
+
+    def add(self, f: Frame) -> None:
+        fields = None
+        md = f.msgdef
+        if md is not None and (md.name in COMMANDING or f.msgid == 0) and f.crc_status is not CrcStatus.BAD:
+            fields = decode_payload(f)
+        for d in self.detectors:
+            d.add(f, fields)
+
+    def findings(self) -> list[Finding]:
+        out: list[Finding] = []
+        for d in self.detectors:
+            out.extend(d.findings())
+        return sort_findings(out)
+
+
+def expert_findings(frames: Iterable[Frame], dialect: Dialect,
+                    detectors: Sequence[Callable[[], Detector]] | None = None) -> list[Finding]:
+    """Every detector's findings over `frames`, most severe first."""
+    expert = Expert(dialect, detectors)
+    for f in frames:
+        expert.add(f)
+    return expert.findings()

@@ -1,8 +1,9 @@
 """Link statistics: per message stream, per link (sysid, compid), per conversation, and totals.
 
-`compute_stats(frames)` takes frames in capture order (after any display filter) and returns a
-`Stats` whose `to_json()` is the `mavscope stats --json` document (docs/analysis.md). No presentation
-here: the command renders the tables and sparklines.
+`StatsBuilder.add(frame)` takes every frame in capture order (`compute_stats(frames)` in one call) and
+`result()` gives a `Stats` whose `to_json(selection)` is the `mavscope stats --json` document
+(docs/analysis.md): under a display filter, the rows with a matched frame, computed over every frame.
+No presentation here: the command renders the tables and sparklines.
 
 Loss comes from sequence gaps per (sysid, compid), modulo 256 (`SeqTracker`): a frame whose sequence
 number is ahead of the last one by d counts d - 1 lost; the same number again is a duplicate; a number
@@ -16,59 +17,14 @@ from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
-from mavscope.mavlink.frame import Frame, SignatureStatus
+from mavscope.analysis.selection import Selection
+from mavscope.analysis.sequence import SeqTracker
+from mavscope.mavlink.frame import Frame, signature_status
+from mavscope.mavlink.semantics import message_label
 
-LATE_WINDOW = 128
-
-
-@dataclass
-class SeqTracker:
-    """Sequence-number bookkeeping for one sender. `feed(seq)` returns what the number was."""
-
-    last: int | None = None
-    lost: int = 0
-    duplicates: int = 0
-    reordered: int = 0
-    missing: dict[int, int] = field(default_factory=dict)  # seq -> how far back it went missing (ordered)
-
-    def feed(self, seq: int) -> tuple[str, int]:
-        """("first" | "next" | "gap" | "duplicate" | "late", frames lost by this step)."""
-        if self.last is None:
-            self.last = seq
-            return "first", 0
-        d = (seq - self.last) % 256
-        if d == 1:
-            self.last = seq
-            self._expire()
-            return "next", 0
-        if d == 0:
-            self.duplicates += 1
-            return "duplicate", 0
-        if d < LATE_WINDOW:
-            for k in range(1, d):
-                s = (self.last + k) % 256
-                self.missing.pop(s, None)
-                self.missing[s] = 0
-            self.lost += d - 1
-            self.last = seq
-            self._expire()
-            return "gap", d - 1
-        if seq in self.missing:
-            del self.missing[seq]
-            self.lost -= 1
-            self.reordered += 1
-            return "late", -1
-        self.duplicates += 1
-        return "duplicate", 0
-
-    def _expire(self) -> None:
-        last = self.last
-        assert last is not None
-        while self.missing:
-            s = next(iter(self.missing))
-            if (last - s) % 256 < LATE_WINDOW:
-                break
-            del self.missing[s]
+RATE_BINS = 256  # a stream's frame times are counted in at most this many bins (bounded whatever the span)
+RATE_MIN_FRAMES = 3  # a rate needs this many frames...
+RATE_MIN_SPAN = 1.0  # ...over at least this many seconds; fewer seconds make a burst
 
 
 @dataclass(kw_only=True)
@@ -85,11 +41,49 @@ class _Timed:
             self.last = t
 
 
+class RateHistogram:
+    """Frames counted in time bins from `origin`: at most RATE_BINS bins, whose width (1 s at first)
+    doubles whenever a frame falls beyond them, so memory stays bounded whatever the capture's span (two
+    records 56 years apart make 35 doublings, not 1.8e9 seconds)."""
+
+    __slots__ = ("origin", "width", "bins")
+
+    def __init__(self, origin: float) -> None:
+        self.origin = origin
+        self.width = 1.0
+        self.bins: list[int] = []
+
+    def add(self, t: float) -> None:
+        i = int((t - self.origin) / self.width) if t > self.origin else 0
+        while i >= RATE_BINS:
+            self.width *= 2
+            self.bins = [sum(self.bins[k : k + 2]) for k in range(0, len(self.bins), 2)]
+            i //= 2
+        bins = self.bins
+        if i >= len(bins):
+            bins.extend([0] * (i + 1 - len(bins)))
+        bins[i] += 1
+
+    def series(self, span: float, buckets: int) -> list[float]:
+        """Frames per second in at most `buckets` equal slices of `span` seconds from the origin, each slice
+        the average of the bins it holds (fewer slices when the span holds fewer bins)."""
+        nbins = max(1, min(RATE_BINS, int(span / self.width) + 1))
+        n = max(1, min(buckets, nbins))
+        counts = [0] * n
+        widths = [0] * n
+        for i in range(nbins):
+            k = i * n // nbins
+            widths[k] += 1
+            if i < len(self.bins):
+                counts[k] += self.bins[i]
+        return [c / (w * self.width) for c, w in zip(counts, widths)]
+
+
 @dataclass
 class _Stream(_Timed):
     count: int = 0
     bytes: int = 0
-    per_second: Counter[int] = field(default_factory=Counter)
+    rates: RateHistogram | None = None
 
 
 @dataclass
@@ -120,18 +114,23 @@ def _span(first: float | None, last: float | None) -> float | None:
     return None if first is None or last is None else last - first
 
 
-def message_name(frame: Frame) -> str:
-    return frame.msgdef.name if frame.msgdef is not None else f"UNKNOWN_{frame.msgid}"
+def _rate(s: _Stream) -> tuple[float | None, bool]:
+    """(frames per second, burst): no rate from fewer than RATE_MIN_FRAMES frames; frames that all came
+    within RATE_MIN_SPAN seconds are a burst, not a rate (3 MISSION_CLEAR_ALL in 1 ms are not 2000 Hz)."""
+    span = _span(s.first, s.last)
+    if s.count < 2 or span is None:
+        return None, False
+    if span < RATE_MIN_SPAN:
+        return None, True
+    if s.count < RATE_MIN_FRAMES:
+        return None, False
+    return (s.count - 1) / span, False
 
 
 def signature_verdict(frame: Frame) -> str:
     """`unsigned`, or the signature status (no-key without key material)."""
-    sec = frame.security
-    if sec is not None and sec.signature_status is not None:
-        return sec.signature_status.value
-    if frame.signature is None and not frame.incompat_flags & 1:
-        return "unsigned"
-    return SignatureStatus.NO_KEY.value
+    status = signature_status(frame.incompat_flags, frame.security)
+    return "unsigned" if status is None else status.value
 
 
 @dataclass
@@ -151,19 +150,22 @@ class Stats:
     def duration(self) -> float | None:
         return _span(self.first, self.last)
 
-    def messages_json(self) -> list[dict[str, object]]:
+    def messages_json(self, select: Selection | None = None) -> list[dict[str, object]]:
         out = []
         for (sysid, compid, name), s in sorted(self.streams.items()):
-            span = _span(s.first, s.last)
-            rate = (s.count - 1) / span if span and s.count > 1 else None
+            if select is not None and not select.stream((sysid, compid, name)):
+                continue
+            rate, burst = _rate(s)
             out.append({"sysid": sysid, "compid": compid, "msgname": name, "count": s.count,
-                        "rate_hz": None if rate is None else round(rate, 4), "bytes": s.bytes,
+                        "rate_hz": None if rate is None else round(rate, 4), "burst": burst, "bytes": s.bytes,
                         "first": s.first, "last": s.last})
         return out
 
-    def links_json(self) -> list[dict[str, object]]:
+    def links_json(self, select: Selection | None = None) -> list[dict[str, object]]:
         out = []
         for (sysid, compid), lk in sorted(self.links.items()):
+            if select is not None and not select.link((sysid, compid)):
+                continue
             expected = lk.received - lk.seq.duplicates + lk.seq.lost
             out.append({
                 "sysid": sysid, "compid": compid, "received": lk.received, "lost": lk.seq.lost,
@@ -175,9 +177,11 @@ class Stats:
             })
         return out
 
-    def conversations_json(self) -> list[dict[str, object]]:
+    def conversations_json(self, select: Selection | None = None) -> list[dict[str, object]]:
         out = []
         for c in sorted(self.conversations.values(), key=lambda c: (c.first or 0.0, c.a, c.b)):
+            if select is not None and not any(select.link(s) for s in c.systems):
+                continue
             out.append({
                 "transport": c.transport, "a": c.a, "b": c.b, "frames": c.frames_ab + c.frames_ba,
                 "bytes": c.bytes_ab + c.bytes_ba, "frames_a_to_b": c.frames_ab, "frames_b_to_a": c.frames_ba,
@@ -196,51 +200,62 @@ class Stats:
             "crc": dict(sorted(self.crc.items())), "signature": dict(sorted(self.signature.items())),
         }
 
-    def to_json(self) -> dict[str, object]:
-        return {"messages": self.messages_json(), "links": self.links_json(),
-                "conversations": self.conversations_json(), "totals": self.totals_json()}
+    def to_json(self, select: Selection | None = None) -> dict[str, object]:
+        """The `stats --json` document: the rows `select` selects (all without it), totals of every frame."""
+        totals = self.totals_json()
+        if select is not None and select.active:
+            totals["matched"] = select.matched
+        return {"messages": self.messages_json(select), "links": self.links_json(select),
+                "conversations": self.conversations_json(select), "totals": totals}
 
-    def per_second(self, key: tuple[int, int, str]) -> list[int]:
-        """Frames of one stream in each second of the capture (for a rate sparkline)."""
-        if self.first is None or self.last is None:
+    def rate_series(self, key: tuple[int, int, str], buckets: int) -> list[float]:
+        """Frames per second of one stream in at most `buckets` equal slices of the capture (a sparkline)."""
+        rates = self.streams[key].rates
+        if self.first is None or self.last is None or rates is None:
             return []
-        n = int(self.last - self.first) + 1
-        counts = self.streams[key].per_second
-        return [counts.get(i, 0) for i in range(n)]
+        return rates.series(self.last - self.first, buckets)
 
 
-def compute_stats(frames: Iterable[Frame]) -> Stats:
-    streams: dict[tuple[int, int, str], _Stream] = {}
-    links: dict[tuple[int, int], _Link] = {}
-    convs: dict[tuple[str, str, str], _Conversation] = {}
-    crc: Counter[str] = Counter()
-    versions: Counter[int] = Counter()
-    sigs: Counter[str] = Counter()
-    total = nbytes = 0
-    first: float | None = None
-    last: float | None = None
-    for f in frames:
-        total += 1
+class StatsBuilder:
+    """Statistics accumulated one frame at a time (`add`), in bounded state per stream, link and
+    conversation; `result()` gives the `Stats`."""
+
+    def __init__(self) -> None:
+        self.streams: dict[tuple[int, int, str], _Stream] = {}
+        self.links: dict[tuple[int, int], _Link] = {}
+        self.convs: dict[tuple[str, str, str], _Conversation] = {}
+        self.crc: Counter[str] = Counter()
+        self.versions: Counter[int] = Counter()
+        self.sigs: Counter[str] = Counter()
+        self.total = 0
+        self.nbytes = 0
+        self.first: float | None = None
+        self.last: float | None = None
+
+    def add(self, f: Frame) -> None:
+        self.total += 1
         size = len(f.raw)
-        nbytes += size
+        self.nbytes += size
         t = f.time
         if t is not None:
-            if first is None:
-                first = t
-            last = t
-        name = message_name(f)
+            if self.first is None:
+                self.first = t
+            self.last = t
+        name = message_label(f.msgid, f.msgdef)
         key = (f.sysid, f.compid, name)
-        s = streams.get(key)
+        s = self.streams.get(key)
         if s is None:
-            s = streams[key] = _Stream()
+            s = self.streams[key] = _Stream()
         s.count += 1
         s.bytes += size
         s.see(t)
         if t is not None:
-            s.per_second[int(t - first)] += 1  # type: ignore[operator]
-        lk = links.get(key[:2])
+            if s.rates is None:
+                s.rates = RateHistogram(self.first)  # type: ignore[arg-type]  # set with the first time
+            s.rates.add(t)
+        lk = self.links.get(key[:2])
         if lk is None:
-            lk = links[key[:2]] = _Link()
+            lk = self.links[key[:2]] = _Link()
         lk.received += 1
         lk.bytes += size
         if f.version == 1:
@@ -249,20 +264,20 @@ def compute_stats(frames: Iterable[Frame]) -> Stats:
             lk.v2 += 1
         status = f.crc_status.value
         lk.crc[status] += 1
-        crc[status] += 1
-        versions[f.version] += 1
+        self.crc[status] += 1
+        self.versions[f.version] += 1
         verdict = signature_verdict(f)
         lk.signature[verdict] += 1
-        sigs[verdict] += 1
-        lk.seq.feed(f.seq)
+        self.sigs[verdict] += 1
+        lk.seq.feed(f.seq, f.record)
         lk.see(t)
-        if f.src:
-            lk.endpoints.add(f.src)
-        a, b = f.src or f.transport, f.dst or ""
+        if f.src is not None:
+            lk.endpoints.add(f.src.text)
+        a, b = str(f.src or f.transport), str(f.dst or "")
         ck = (f.transport, a, b) if a <= b else (f.transport, b, a)
-        c = convs.get(ck)
+        c = self.convs.get(ck)
         if c is None:
-            c = convs[ck] = _Conversation(ck[1], ck[2], f.transport)
+            c = self.convs[ck] = _Conversation(ck[1], ck[2], f.transport)
         if a == c.a:
             c.frames_ab += 1
             c.bytes_ab += size
@@ -271,4 +286,15 @@ def compute_stats(frames: Iterable[Frame]) -> Stats:
             c.bytes_ba += size
         c.see(t)
         c.systems.add(key[:2])
-    return Stats(streams, links, convs, total, nbytes, first, last, crc, versions, sigs)
+
+    def result(self) -> Stats:
+        return Stats(self.streams, self.links, self.convs, self.total, self.nbytes, self.first, self.last, self.crc,
+                     self.versions, self.sigs)
+
+
+def compute_stats(frames: Iterable[Frame]) -> Stats:
+    """The statistics of `frames` (in capture order)."""
+    builder = StatsBuilder()
+    for f in frames:
+        builder.add(f)
+    return builder.result()

@@ -3,49 +3,85 @@ fields, TIMESYNC and PING, with offset and drift estimates and round-trip times.
 
 Each clock a frame reveals becomes a sample (capture time, clock reading). Per (system, component,
 source) a least-squares line through (capture time, reading - capture time) gives the offset (at the
-capture's first frame) and the drift (its slope, in parts per million). Readings after 2001 in Unix
-seconds are wall clocks (`unix`); smaller ones count from the sender's boot (`boot`), whose zero is given
-as a capture time. A TIMESYNC answer (tc1 != 0) is dated at the middle of its round trip, since the
-responder read its clock between request and answer. Capture time is the reference: the tool never
-compares with the analyst's own clock.
+capture's first frame) and the drift (its slope, in parts per million) with its standard error. The
+fit is accumulated online (Welford's sums), so a clock costs the same memory whatever the capture's
+length. A drift is given only from enough samples over enough time (DRIFT_MIN_SAMPLES over
+DRIFT_MIN_SPAN seconds): four samples in half a second do not measure a drift of -9105.9 ppm.
+
+Readings after 2001 in Unix seconds are wall clocks (`unix`); smaller ones count from the sender's boot
+(`boot`), whose zero is given as a capture time. A TIMESYNC answer (tc1 != 0) is dated at the middle of
+its round trip, since the responder read its clock between request and answer. Capture time is the
+reference: the tool never compares with the analyst's own clock.
 """
 
 from __future__ import annotations
 
+import math
+from collections import OrderedDict
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import TypedDict
 
+from mavscope.analysis.selection import Selection
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
 
 UNIX_MIN = 1e9  # seconds: readings above this are wall-clock times (after 2001-09-09)
+DRIFT_MIN_SAMPLES = 10
+DRIFT_MIN_SPAN = 10.0  # seconds
+ROUND_TRIPS_LISTED = 1000  # round-trip times listed per pair (all of them are counted)
+PENDING_REQUESTS = 4096  # TIMESYNC/PING requests waiting for their answer (the oldest go first)
 
 
 @dataclass
 class Clock:
+    """One clock's samples, as running sums of the least-squares fit (x: capture time from the first
+    sample, y: reading - capture time)."""
+
     sysid: int
     compid: int
     source: str
-    samples: list[tuple[float, float]] = field(default_factory=list)  # (capture time, reading in seconds)
+    n: int = 0
+    x0: float = 0.0
+    first: float = 0.0
+    last: float = 0.0
+    first_reading: float = 0.0
+    mean_x: float = 0.0
+    mean_y: float = 0.0
+    sxx: float = 0.0  # sum of squared deviations of x
+    syy: float = 0.0
+    sxy: float = 0.0
+
+    def add(self, t: float, reading: float) -> None:
+        if self.n == 0:
+            self.x0, self.first, self.first_reading = t, t, reading
+        self.last = t
+        x, y = t - self.x0, reading - t
+        self.n += 1
+        dx = x - self.mean_x
+        dy = y - self.mean_y
+        self.mean_x += dx / self.n
+        self.mean_y += dy / self.n
+        self.sxx += dx * (x - self.mean_x)
+        self.syy += dy * (y - self.mean_y)
+        self.sxy += dx * (y - self.mean_y)
 
     @property
     def kind(self) -> str:
-        return "unix" if self.samples and self.samples[0][1] > UNIX_MIN else "boot"
+        return "unix" if self.n and self.first_reading > UNIX_MIN else "boot"
 
-    def fit(self, at: float) -> tuple[float, float, float]:
-        """(offset at capture time `at` in s, drift in ppm, RMS residual in ms)."""
-        xs = [t for t, _ in self.samples]
-        ys = [v - t for t, v in self.samples]
-        n = len(xs)
-        x0 = xs[0]
-        mx = sum(x - x0 for x in xs) / n
-        my = sum(ys) / n
-        sxx = sum((x - x0 - mx) ** 2 for x in xs)
-        slope = sum((x - x0 - mx) * (y - my) for x, y in zip(xs, ys)) / sxx if sxx > 0 else 0.0
-        intercept = my - slope * mx
-        resid = [y - (intercept + slope * (x - x0)) for x, y in zip(xs, ys)]
-        rms = (sum(r * r for r in resid) / n) ** 0.5
-        return intercept + slope * (at - x0), slope * 1e6, rms * 1000
+    def fit(self, at: float) -> tuple[float, float, float, float | None]:
+        """(offset at capture time `at` in s, drift in ppm, RMS residual in ms, drift standard error in ppm
+        or None with fewer than three samples)."""
+        slope = self.sxy / self.sxx if self.sxx > 0 else 0.0
+        intercept = self.mean_y - slope * self.mean_x
+        resid = max(0.0, self.syy - slope * self.sxy)  # sum of squared residuals
+        rms = math.sqrt(resid / self.n) if self.n else 0.0
+        err = math.sqrt(resid / (self.n - 2) / self.sxx) * 1e6 if self.n > 2 and self.sxx > 0 else None
+        return intercept + slope * (at - self.x0), slope * 1e6, rms * 1000, err
+
+    @property
+    def measures_drift(self) -> bool:
+        return self.n >= DRIFT_MIN_SAMPLES and self.last - self.first >= DRIFT_MIN_SPAN
 
 
 @dataclass
@@ -53,8 +89,21 @@ class RoundTrips:
     requester: int
     responder: int
     kind: str  # "TIMESYNC" or "PING"
-    rtt_ms: list[float] = field(default_factory=list)
+    count: int = 0
+    total_ms: float = 0.0
+    min_ms: float = math.inf
+    max_ms: float = -math.inf
+    rtt_ms: list[float] = field(default_factory=list)  # the first ROUND_TRIPS_LISTED
     frames: list[tuple[int, int]] = field(default_factory=list)
+
+    def add(self, rtt_ms: float, request: int, answer: int) -> None:
+        self.count += 1
+        self.total_ms += rtt_ms
+        self.min_ms = min(self.min_ms, rtt_ms)
+        self.max_ms = max(self.max_ms, rtt_ms)
+        if len(self.rtt_ms) < ROUND_TRIPS_LISTED:
+            self.rtt_ms.append(rtt_ms)
+            self.frames.append((request, answer))
 
 
 class _System(TypedDict):
@@ -72,40 +121,52 @@ class Timeline:
     clocks: dict[tuple[int, int, str], Clock]
     round_trips: dict[tuple[str, int, int], RoundTrips]
 
-    def to_json(self) -> dict[str, object]:
+    def to_json(self, select: Selection | None = None) -> dict[str, object]:
+        """The `timeline --json` document (the systems `select` selects; all without it)."""
         systems: dict[int, _System] = {}
         at = self.start or 0.0
         for (sysid, compid, source), c in sorted(self.clocks.items()):
-            if not c.samples:
+            if not c.n or (select is not None and not select.system(sysid)):
                 continue
-            offset, drift, jitter = c.fit(at)
+            offset, drift, jitter, err = c.fit(at)
+            measured = c.measures_drift
             entry: dict[str, object] = {
-                "component": compid, "source": source, "kind": c.kind, "samples": len(c.samples),
-                "offset_s": round(offset, 6), "drift_ppm": round(drift, 2), "jitter_ms": round(jitter, 3),
-                "first": c.samples[0][0], "last": c.samples[-1][0],
+                "component": compid, "source": source, "kind": c.kind, "samples": c.n,
+                "offset_s": round(offset, 6), "drift_ppm": round(drift, 2) if measured else None,
+                "drift_err_ppm": round(err, 2) if measured and err is not None else None,
+                "jitter_ms": round(jitter, 3), "first": c.first, "last": c.last,
             }
             if c.kind == "boot":
                 entry["zero_at"] = round(-offset, 6)  # capture time at which this clock read zero
             systems.setdefault(sysid, {"sysid": sysid, "clocks": [], "round_trips": []})["clocks"].append(entry)
         for (kind, req, resp), rt in sorted(self.round_trips.items()):
-            if not rt.rtt_ms:
+            if not rt.count or (select is not None and not (select.system(req) or select.system(resp))):
                 continue
-            r = rt.rtt_ms
             systems.setdefault(req, {"sysid": req, "clocks": [], "round_trips": []})["round_trips"].append({
-                "kind": kind, "peer": resp, "count": len(r), "min_ms": round(min(r), 3),
-                "mean_ms": round(sum(r) / len(r), 3), "max_ms": round(max(r), 3),
-                "rtt_ms": [round(x, 3) for x in r], "frames": [list(p) for p in rt.frames],
+                "kind": kind, "peer": resp, "count": rt.count, "min_ms": round(rt.min_ms, 3),
+                "mean_ms": round(rt.total_ms / rt.count, 3), "max_ms": round(rt.max_ms, 3),
+                "rtt_ms": [round(x, 3) for x in rt.rtt_ms], "frames": [list(p) for p in rt.frames],
             })
         return {"start": self.start, "end": self.end,
                 "duration": None if self.start is None or self.end is None else self.end - self.start,
                 "systems": [systems[k] for k in sorted(systems)]}
 
 
+class _Pending(OrderedDict[object, tuple[int, float, int]]):
+    """Requests waiting for their answer, at most PENDING_REQUESTS (the oldest dropped first)."""
+
+    def put(self, key: object, value: tuple[int, float, int]) -> None:
+        self[key] = value
+        if len(self) > PENDING_REQUESTS:
+            self.popitem(last=False)
+
+
 def reconstruct(frames: Iterable[Frame]) -> Timeline:
+    """The clocks and round trips of `frames` (in capture order), in one pass and bounded state."""
     clocks: dict[tuple[int, int, str], Clock] = {}
     trips: dict[tuple[str, int, int], RoundTrips] = {}
-    ts_requests: dict[int, tuple[int, float, int]] = {}  # ts1 -> (requester sysid, time, record)
-    ping_requests: dict[tuple[int, int, int], tuple[float, int]] = {}  # (sysid, seq, time_usec) -> (time, record)
+    ts_requests = _Pending()  # ts1 -> (requester sysid, time, record)
+    ping_requests = _Pending()  # (sysid, seq, time_usec) -> (sysid, time, record)
     start = end = None
 
     def sample(f: Frame, source: str, t: float, value: float) -> None:
@@ -113,11 +174,17 @@ def reconstruct(frames: Iterable[Frame]) -> Timeline:
         c = clocks.get(key)
         if c is None:
             c = clocks[key] = Clock(f.sysid, f.compid, source)
-        c.samples.append((t, value))
+        c.add(t, value)
+
+    def trip(kind: str, requester: int, responder: int) -> RoundTrips:
+        rt = trips.get((kind, requester, responder))
+        if rt is None:
+            rt = trips[(kind, requester, responder)] = RoundTrips(requester, responder, kind)
+        return rt
 
     for f in frames:
         t = f.time
-        if t is None:
+        if t is None or not math.isfinite(t):
             continue
         if start is None:
             start = t
@@ -144,24 +211,20 @@ def reconstruct(frames: Iterable[Frame]) -> Timeline:
         elif name == "TIMESYNC":
             tc1, ts1 = int(fields["tc1"]), int(fields["ts1"])  # type: ignore[call-overload]
             if tc1 == 0:
-                ts_requests[ts1] = (f.sysid, t, f.record)
+                ts_requests.put(ts1, (f.sysid, t, f.record))
                 sample(f, "TIMESYNC.ts1", t, ts1 / 1e9)
             else:
                 req = ts_requests.pop(ts1, None)
                 if req is not None and req[0] != f.sysid:
-                    rt = trips.setdefault(("TIMESYNC", req[0], f.sysid), RoundTrips(req[0], f.sysid, "TIMESYNC"))
-                    rt.rtt_ms.append((t - req[1]) * 1000)
-                    rt.frames.append((req[2], f.record))
+                    trip("TIMESYNC", req[0], f.sysid).add((t - req[1]) * 1000, req[2], f.record)
                     sample(f, "TIMESYNC.tc1", (t + req[1]) / 2, tc1 / 1e9)
         elif name == "PING":
             tu, seq, target = int(fields["time_usec"]), int(fields["seq"]), int(fields["target_system"])  # type: ignore[call-overload]
             if target == 0:
-                ping_requests[(f.sysid, seq, tu)] = (t, f.record)
+                ping_requests.put((f.sysid, seq, tu), (f.sysid, t, f.record))
                 sample(f, "PING.time_usec", t, tu / 1e6)
             else:
                 req2 = ping_requests.get((target, seq, tu))
                 if req2 is not None:
-                    rt = trips.setdefault(("PING", target, f.sysid), RoundTrips(target, f.sysid, "PING"))
-                    rt.rtt_ms.append((t - req2[0]) * 1000)
-                    rt.frames.append((req2[1], f.record))
+                    trip("PING", target, f.sysid).add((t - req2[1]) * 1000, req2[2], f.record)
     return Timeline(start, end, clocks, trips)

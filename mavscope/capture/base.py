@@ -29,7 +29,12 @@ class Record(NamedTuple):
     """One capture record: a packet from pcap/pcapng, an entry of a tlog, or a chunk of a raw stream."""
 
     number: int  # 1-based position in the capture
-    time: float | None  # seconds since the Unix epoch; None where the input has no timestamps
+    # Seconds since the Unix epoch as the file states it; None where the input has no timestamp. Always finite,
+    # but not always a real time: a pcap gives 0 .. 2**32 + 4295 s, a pcapng anything in about -9.3e18 ..
+    # 2.8e19 s (if_tsoffset, if_tsresol and 64-bit timestamps as the file sets them: negative, or past the
+    # year 9999 that datetime holds), a tlog 2000 .. 2100. Readers never raise or note such a time; the
+    # writers clamp it to their format (PcapWriter.clamped) and whoever formats it must cope.
+    time: float | None
     linktype: int  # LINKTYPE_* above (or any other pcap link type, which the transport layer notes)
     data: bytes  # the captured bytes
     offset: int  # file offset of data[0]

@@ -7,28 +7,33 @@ import os
 from mavscope.capture.pcap import PcapReader, sniff_pcap
 from mavscope.capture.pcapng import PcapngReader, sniff_pcapng
 from mavscope.capture.raw import RawReader
-from mavscope.capture.reader import CaptureReader, open_mapped
+from mavscope.capture.reader import CaptureReader, open_file, pread
 from mavscope.capture.tlog import TlogReader, sniff_tlog
+from mavscope.errors import CaptureError
 
 __all__ = ["CaptureReader", "detect_kind", "open_capture"]
+
+# Bytes read to recognise a format: sniff_tlog looks at two entries and at most 4 KiB beyond the first.
+SNIFF = 65536
 
 
 def detect_kind(path: str | os.PathLike[str]) -> str:
     """The format of a capture file: "pcap", "pcapng", "tlog" or "raw" (CaptureError if unreadable)."""
-    _, f, buf, size = open_mapped(path)
+    spath, f, size = open_file(path)
     try:
-        head = bytes(buf[:16])
-        if sniff_pcapng(head):
+        try:
+            head = pread(f, min(size, SNIFF), 0)
+        except OSError as e:
+            raise CaptureError(f"cannot read: {e.strerror or e}", path=spath) from None
+        if sniff_pcapng(head[:16]):
             return "pcapng"
-        if sniff_pcap(head):
+        if sniff_pcap(head[:16]):
             return "pcap"
-        if sniff_tlog(buf, size):
+        if sniff_tlog(head, len(head)):
             return "tlog"
         return "raw"
     finally:
-        if not isinstance(buf, bytes):
-            buf.close()
-        f.close()  # type: ignore[attr-defined]
+        f.close()
 
 
 _READERS: dict[str, type[CaptureReader]] = {

@@ -22,6 +22,7 @@ BYTE_ORDER_MAGIC = 0x1A2B3C4D
 OPT_ENDOFOPT = 0
 OPT_IF_TSRESOL = 9
 OPT_IF_TSOFFSET = 14
+CALENDAR_END = 253_402_300_800.0  # 10000-01-01: the first time a calendar date (datetime) cannot show
 MAX_BLOCK = 16 * 1024 * 1024  # a longer block is taken as a corrupt length (libpcap uses the same bound)
 _KNOWN = frozenset((BT_SHB, BT_IDB, BT_OPB, BT_SPB, BT_NRB, BT_ISB, BT_EPB, BT_DSB, 0x80000001, 7, 8, 9, 0xB, 0xC))
 
@@ -29,6 +30,7 @@ _U32 = {e: struct.Struct(e + "I") for e in "<>"}
 _BLOCK = {e: struct.Struct(e + "II") for e in "<>"}
 _IDB = {e: struct.Struct(e + "HHI") for e in "<>"}
 _EPB = {e: struct.Struct(e + "IIIII") for e in "<>"}
+_FAST = {e: struct.Struct(e + "IIIIIII") for e in "<>"}  # block type and length, then the EPB fields
 _OPB = {e: struct.Struct(e + "HHIIII") for e in "<>"}
 _OPT = {e: struct.Struct(e + "HH") for e in "<>"}
 _I64 = {e: struct.Struct(e + "q") for e in "<>"}
@@ -59,8 +61,18 @@ class Interface:
         return f"Interface(linktype={self.linktype}, snaplen={self.snaplen}, units={self.units})"
 
 
+def _time_note(t: float, iface: int, ifc: Interface, offset: int) -> Note:
+    return note("time-out-of-range", f"packet time {t:.6g} s since 1970 (interface {iface}: if_tsoffset "
+                f"{ifc.tsoffset} s, {ifc.units} ticks/s)", offset)
+
+
 class PcapngReader(CaptureReader):
-    """Reads a pcapng file block by block from a memory mapping."""
+    """Reads a pcapng file block by block, a window of the file at a time.
+
+    Record times are `ticks / units + if_tsoffset` as the interface says: finite, but anywhere in about
+    [-2**63, 2**64 + 2**63] seconds for a hostile file (a negative or huge offset, a 1 s resolution);
+    SPB records have none (None).
+    """
 
     kind = "pcapng"
 
@@ -69,73 +81,131 @@ class PcapngReader(CaptureReader):
         self.interfaces: list[Interface] = []
         self._linktype = 1
 
-    def _header(self, p: int, endian: str) -> tuple[int, int, str] | None:
-        """(type, total length, byte order) of a block header at `p` with a sane length, or None.
-
-        The block itself may run past the end of the file.
+    def _header(self, buf: bytes, base: int, q: int, endian: str) -> tuple[int, int, str] | None:
+        """(type, total length, byte order) of a block header at buf[q] (file offset base + q) with a sane
+        length, or None. The block itself may run past the end of the file or of `buf`.
         """
-        buf = self._buf
-        if p + 12 > self.size:
+        if base + q + 12 > self.size or q + 12 > len(buf):
             return None
-        if buf[p:p + 4] == b"\x0a\x0d\x0d\x0a":
-            e = sniff_pcapng(bytes(buf[p:p + 12]))
+        if buf[q:q + 4] == b"\x0a\x0d\x0d\x0a":
+            e = sniff_pcapng(buf[q:q + 12])
             if e is None:
                 return None
             endian = e
-        btype, blen = _BLOCK[endian].unpack_from(buf, p)
+        btype, blen = _BLOCK[endian].unpack_from(buf, q)
         if blen < 12 or blen & 3 or blen > MAX_BLOCK or (btype == BT_SHB and blen < 28):
             return None
         return btype, blen, endian
 
-    def _block_at(self, p: int, endian: str) -> tuple[int, int, str] | None:
-        """(type, total length, byte order) of a complete block at `p` whose trailer matches, or None."""
-        found = self._header(p, endian)
+    def _block_at(self, buf: bytes, base: int, q: int, endian: str) -> tuple[int, int, str] | None:
+        """(type, total length, byte order) of a complete block at buf[q] whose trailer matches, or None.
+
+        The trailer is read from the file when it lies past the end of `buf`.
+        """
+        found = self._header(buf, base, q, endian)
         if found is None:
             return None
         btype, blen, endian = found
-        if p + blen > self.size or _U32[endian].unpack_from(self._buf, p + blen - 4)[0] != blen:
+        if base + q + blen > self.size:
             return None
-        return found
+        t = q + blen - 4
+        if t + 4 <= len(buf):
+            trailer = _U32[endian].unpack_from(buf, t)[0]
+        else:
+            tail = self.read_at(base + t, 4)
+            if len(tail) < 4:
+                return None
+            trailer = _U32[endian].unpack_from(tail)[0]
+        return found if trailer == blen else None
 
     def _resync(self, p: int, endian: str) -> int:
-        """Offset of the next sane block of a known type after `p`, or -1."""
-        for q in range(p + 1, self.size - 11):
-            found = self._block_at(q, endian)
-            if found is not None and found[0] in _KNOWN:
-                return q
+        """Offset of the next sane block of a known type after `p`, or -1 (the file a window at a time)."""
+        q = p + 1
+        while q < self.size - 11:
+            buf = self.window_at(q)
+            stop = min(len(buf), self.size - q) - 11  # offsets q + rel whose 12-byte header is in the window
+            for rel in range(stop):
+                found = self._block_at(buf, q, rel, endian)
+                if found is not None and found[0] in _KNOWN:
+                    return q + rel
+            q += max(stop, 1)
         return -1
 
     def _records(self) -> Iterator[Record]:
-        buf, size = self._buf, self.size
-        e = sniff_pcapng(bytes(buf[:12])) or "<"
         ifaces = self.interfaces
         tuple_new = tuple.__new__
         R = Record
         n = 0
-        pos = 0
+        pos = base = 0
+        buf = b""
         pending: tuple[Note, ...] = ()
-        epb = _EPB[e].unpack_from
+        e = "<"
         try:
+            buf = self.window_at(0)
+            size = self.size
+            e = sniff_pcapng(buf[:12]) or "<"
+            fast = _FAST[e].unpack_from
+            u32 = _U32[e].unpack_from
             while pos < size:
+                # the common case, kept tight: an Enhanced Packet Block in the window, of a known interface
+                rel = pos - base
+                if rel + 28 <= len(buf):
+                    btype, blen, iface, hi, lo, caplen, orig = fast(buf, rel)
+                    if (btype == BT_EPB and iface < len(ifaces) and caplen <= blen - 32 and blen <= MAX_BLOCK
+                            and not blen & 3 and rel + blen <= len(buf) and u32(buf, rel + blen - 4)[0] == blen):
+                        start = rel + 28
+                        ifc = ifaces[iface]
+                        n += 1
+                        notes = pending
+                        if orig < caplen:
+                            orig = caplen
+                        elif orig > caplen:
+                            notes += (note("record-snapped", f"{caplen} of {orig} bytes captured", base + start),)
+                        t = ((hi << 32) | lo) / ifc.units + ifc.tsoffset
+                        if not 0.0 <= t < CALENDAR_END:
+                            notes += (_time_note(t, iface, ifc, base + rel),)
+                        yield tuple_new(R, (n, t, ifc.linktype, buf[start:start + caplen], base + start, orig, notes))
+                        pending = ()
+                        pos += blen
+                        if not n & 1023:
+                            self.position = pos
+                        continue
                 self.position = pos
+                have = base + len(buf)  # the window holds the file's bytes up to here
                 if pos + 12 > size:
                     pending += (note("record-truncated", f"file ends {size - pos} bytes into a block header", pos),)
                     break
-                found = self._block_at(pos, e)
+                if pos + 12 > have:
+                    buf, base = self.window_at(pos), pos
+                    size = self.size
+                    continue
+                rel = pos - base
+                head = self._header(buf, base, rel, e)
+                if head is not None:
+                    need = max(head[1], 28)  # a short packet block is still read as one (its fields run on)
+                    if pos + need > have and have < size and pos + head[1] <= size:
+                        buf, base = self.window_at(pos, need), pos  # read the whole block
+                        size = self.size
+                        continue
+                found = self._block_at(buf, base, rel, e)
                 if found is None:
                     q = self._resync(pos, e)
+                    size = self.size
                     if q >= 0:
                         pending += (note("capture-garbage", f"corrupt block at offset {pos}: {q - pos} bytes skipped",
                                          pos),)
                         pos = q
                         continue
-                    head = self._header(pos, e)
                     if head is not None and pos + head[1] > size:
                         # a sane header whose block runs past the end, and nothing after: the file was cut short
                         btype, blen = head[0], head[1]
                         cut = note("record-truncated",
                                    f"block at offset {pos} has {size - pos} of {blen} bytes: file cut short", pos)
-                        rec = self._packet(btype, pos, blen, e, n + 1) if btype in (BT_EPB, BT_OPB, BT_SPB) else None
+                        rec = None
+                        if btype in (BT_EPB, BT_OPB, BT_SPB):
+                            buf, base = self.window_at(pos, size - pos), pos
+                            size = self.size
+                            rec = self._packet(buf, base, 0, btype, blen, e, n + 1)
                         if rec is not None:
                             n += 1
                             self.position = size
@@ -149,24 +219,8 @@ class PcapngReader(CaptureReader):
                     pos = size
                     break
                 btype, blen, e2 = found
-                if btype == BT_EPB:
-                    iface, hi, lo, caplen, orig = epb(buf, pos + 8)
-                    if iface < len(ifaces) and caplen <= blen - 32:  # the common case, inline
-                        start = pos + 28
-                        ifc = ifaces[iface]
-                        n += 1
-                        notes = pending
-                        if orig < caplen:
-                            orig = caplen
-                        elif orig > caplen:
-                            notes += (note("record-snapped", f"{caplen} of {orig} bytes captured", start),)
-                        t = ((hi << 32) | lo) / ifc.units + ifc.tsoffset
-                        yield tuple_new(R, (n, t, ifc.linktype, buf[start:start + caplen], start, orig, notes))
-                        pending = ()
-                        pos += blen
-                        continue
                 if btype in (BT_EPB, BT_OPB, BT_SPB):
-                    rec = self._packet(btype, pos, blen, e, n + 1)
+                    rec = self._packet(buf, base, rel, btype, blen, e, n + 1)
                     if rec is None:
                         pending += (note("capture-garbage",
                                          f"packet block at offset {pos} refers to an undefined interface", pos),)
@@ -177,12 +231,14 @@ class PcapngReader(CaptureReader):
                 elif btype == BT_SHB:
                     if e2 != e:
                         e = e2
-                        epb = _EPB[e].unpack_from
+                        fast = _FAST[e].unpack_from
+                        u32 = _U32[e].unpack_from
                     ifaces.clear()
                 elif btype == BT_IDB:
-                    ifaces.append(self._interface(pos, blen, e))
+                    ifaces.append(self._interface(buf, rel, blen, e))
                 pos += blen
-            self.position = size
+            pending += self.shrink_notes()
+            self.position = size = self.size
             if pending:
                 n += 1
                 lt = ifaces[0].linktype if ifaces else 1
@@ -190,12 +246,12 @@ class PcapngReader(CaptureReader):
         except READER_BUGS as exc:
             yield self.failure(n + 1, pos, exc, pending)
 
-    def _packet(self, btype: int, pos: int, blen: int, e: str, number: int) -> Record | None:
-        """The Record of a packet block (possibly cut short by the end of the file); None without interface."""
-        buf = self._buf
+    def _packet(self, buf: bytes, base: int, pos: int, btype: int, blen: int, e: str, number: int) -> Record | None:
+        """The Record of a packet block at buf[pos] (possibly cut short by the end of the file); None without
+        interface. `buf` holds the block, or the file's bytes to its end."""
         ifaces = self.interfaces
         notes: tuple[Note, ...] = ()
-        size = self.size
+        size = self.size - base  # where the file ends, as an index into buf
         if btype == BT_SPB:
             if not ifaces or pos + 12 > size:
                 return None
@@ -221,20 +277,21 @@ class PcapngReader(CaptureReader):
             room = min(blen - 32, size - start)
             if caplen > room:
                 if pos + blen <= size:
-                    notes += (note("record-truncated",
-                                   f"packet block at offset {pos} claims {caplen} captured bytes, holds {room}", pos),)
+                    notes += (note("record-truncated", f"packet block at offset {base + pos} claims {caplen} "
+                                   f"captured bytes, holds {room}", base + pos),)
                 caplen = max(room, 0)
             t = ((hi << 32) | lo) / ifc.units + ifc.tsoffset
+            if not 0.0 <= t < CALENDAR_END:
+                notes += (_time_note(t, iface, ifc, base + pos),)
         data = buf[start:start + caplen]
         if orig < caplen:
             orig = caplen
         elif orig > caplen:
-            notes += (note("record-snapped", f"{caplen} of {orig} bytes captured", start),)
-        return make_record(number, t, ifc.linktype, data, start, orig, notes)
+            notes += (note("record-snapped", f"{caplen} of {orig} bytes captured", base + start),)
+        return make_record(number, t, ifc.linktype, data, base + start, orig, notes)
 
-    def _interface(self, pos: int, blen: int, e: str) -> Interface:
-        """Decode an Interface Description Block and its timestamp options."""
-        buf = self._buf
+    def _interface(self, buf: bytes, pos: int, blen: int, e: str) -> Interface:
+        """Decode an Interface Description Block at buf[pos] and its timestamp options."""
         linktype, _reserved, snaplen = _IDB[e].unpack_from(buf, pos + 8) if blen >= 20 else (1, 0, 0)
         ifc = Interface(linktype, snaplen)
         p, end = pos + 16, pos + blen - 4

@@ -6,7 +6,7 @@ import os
 from collections.abc import Iterator
 
 from mavscope.capture.base import LINKTYPE_MAVLINK_RAW, Record
-from mavscope.capture.reader import CaptureReader, make_record
+from mavscope.capture.reader import READER_BUGS, CaptureReader, make_record
 
 CHUNK = 65536
 
@@ -22,10 +22,21 @@ class RawReader(CaptureReader):
         self.chunk = chunk
 
     def _records(self) -> Iterator[Record]:
-        buf, size, chunk = self._buf, self.size, self.chunk
+        chunk = self.chunk
         n = 0
-        for pos in range(0, size, chunk):
-            data = buf[pos:pos + chunk]
-            n += 1
-            self.position = pos + len(data)
-            yield make_record(n, None, LINKTYPE_MAVLINK_RAW, data, pos, len(data))
+        pos = 0
+        try:
+            while pos < self.size:
+                data = self.read_at(pos, chunk)
+                if not data:
+                    break
+                n += 1
+                self.position = pos + len(data)
+                yield make_record(n, None, LINKTYPE_MAVLINK_RAW, data, pos, len(data))
+                pos += len(data)
+            shrunk = self.shrink_notes()
+            if shrunk:
+                n += 1
+                yield make_record(n, None, LINKTYPE_MAVLINK_RAW, b"", pos, 0, shrunk)
+        except READER_BUGS as exc:
+            yield self.failure(n + 1, pos, exc)

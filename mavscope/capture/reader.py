@@ -1,13 +1,19 @@
-"""The base class every capture reader derives from: an open, memory-mapped file yielding Records."""
+"""The base class every capture reader derives from: an open file read in windows, yielding Records.
+
+Files are read with `os.pread` into windows of `WINDOW` bytes, never memory-mapped: a mapped file that
+shrinks while it is read (log rotation, a restarted writer truncating it) kills the process with SIGBUS,
+which Python cannot catch. A read cannot fault; a short read tells the reader the file shrank, and the
+reader ends there with a `record-truncated` note saying so.
+"""
 
 from __future__ import annotations
 
-import mmap
 import os
 import stat
 import struct
 from collections.abc import Iterator
 from types import TracebackType
+from typing import BinaryIO
 
 from mavscope.capture.base import Record
 from mavscope.errors import CaptureError
@@ -17,6 +23,10 @@ _tuple_new = tuple.__new__
 
 # What a reader catches around its loop as a last resort (struct.error derives from Exception only)
 READER_BUGS: tuple[type[BaseException], ...] = (ValueError, IndexError, OSError, struct.error, OverflowError)
+
+# Bytes read at a time. 1 MiB: a few thousand records per read(2), small enough to stay in cache; a
+# record or block longer than this is read whole (their lengths are bounded by each format's reader).
+WINDOW = 1 << 20
 
 
 def make_record(
@@ -32,14 +42,14 @@ def make_record(
     return _tuple_new(Record, (number, time, linktype, data, offset, orig_len, notes))
 
 
-def open_mapped(path: str | os.PathLike[str]) -> tuple[str, object, mmap.mmap | bytes, int]:
-    """Open `path` for reading: (path as str, file object, mapping or b"" when empty, size).
+def open_file(path: str | os.PathLike[str]) -> tuple[str, BinaryIO, int]:
+    """Open `path` for reading: (path as str, unbuffered file object, size).
 
     Raises CaptureError for a missing, unreadable or non-regular file.
     """
     spath = os.fspath(path)
     try:
-        f = open(spath, "rb")  # noqa: SIM115 - owned by the reader, closed in close()
+        f = open(spath, "rb", buffering=0)  # noqa: SIM115 - owned by the caller, closed by it
     except FileNotFoundError:
         raise CaptureError("no such file", path=spath) from None
     except IsADirectoryError:
@@ -50,47 +60,105 @@ def open_mapped(path: str | os.PathLike[str]) -> tuple[str, object, mmap.mmap | 
         raise CaptureError(f"cannot open: {e.strerror or e}", path=spath) from None
     try:
         st = os.fstat(f.fileno())
-        if not _is_regular(st.st_mode):
+        if not stat.S_ISREG(st.st_mode):
             raise CaptureError("not a regular file", path=spath)
-        size = st.st_size
-        data: mmap.mmap | bytes = b""
-        if size:
-            data = mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ)
     except CaptureError:
         f.close()
         raise
-    except (OSError, ValueError) as e:
+    except OSError as e:
         f.close()
-        raise CaptureError(f"cannot read: {e}", path=spath) from None
-    return spath, f, data, size
+        raise CaptureError(f"cannot read: {e.strerror or e}", path=spath) from None
+    return spath, f, st.st_size
 
 
-def close_mapped(file: object | None, buf: mmap.mmap | bytes) -> None:
-    """Close what `open_mapped` opened (the mapping first; idempotent on a closed file)."""
-    if isinstance(buf, mmap.mmap):
-        try:
-            buf.close()
-        except BufferError:  # a memoryview still exported: let the GC release it
-            pass
-    if file is not None:
-        file.close()  # type: ignore[attr-defined]
+def pread(f: BinaryIO, n: int, offset: int) -> bytes:
+    """Up to `n` bytes of `f` from `offset`: fewer only at the end of the file. Never moves a file position
+    that another thread might use (os.pread where the platform has it)."""
+    if n <= 0:
+        return b""
+    if _PREAD is not None:
+        fd = f.fileno()
+        data = _PREAD(fd, n, offset)
+        if len(data) < n and data:  # a regular file returns short only at its end; make sure
+            parts = [data]
+            got = len(data)
+            while got < n:
+                more = _PREAD(fd, n - got, offset + got)
+                if not more:
+                    break
+                parts.append(more)
+                got += len(more)
+            data = b"".join(parts)
+        return data
+    f.seek(offset)
+    return f.read(n) or b""
 
 
-def _is_regular(mode: int) -> bool:
-    return stat.S_ISREG(mode)
+_PREAD = getattr(os, "pread", None)
+
+
+class FileBytes:
+    """Random access to the bytes of an open file (owned: `close` closes it), without a memory mapping.
+
+    Requests that move forward are served from a window of `window` bytes read ahead, so a sequential
+    walk costs one read(2) per window; a request behind the window is read on its own (the window only
+    moves forward, so the bytes read in windows never exceed the file size plus one window). Thread-safe:
+    the window is one tuple, replaced whole.
+    """
+
+    __slots__ = ("_f", "_win", "window")
+
+    def __init__(self, f: BinaryIO, window: int = WINDOW) -> None:
+        self._f = f
+        self.window = window
+        self._win: tuple[int, bytes] = (0, b"")
+
+    def get(self, offset: int, n: int, exact: bool = False) -> bytes:
+        """The `n` bytes at `offset`: fewer where the file ends (b"" past it or for a negative offset), or
+        with `exact` an IndexError saying the file shrank."""
+        base, buf = self._win
+        rel = offset - base
+        if 0 <= rel and rel + n <= len(buf) and n > 0:  # the common case: in the window
+            return buf[rel:rel + n]
+        data = self._get(offset, n)
+        if exact and len(data) < n:
+            raise IndexError(f"the file shrank: the {n} bytes at offset {offset} are no longer there")
+        return data
+
+    def _get(self, offset: int, n: int) -> bytes:
+        if offset < 0 or n <= 0:
+            return b""
+        base, buf = self._win
+        rel = offset - base
+        if 0 <= rel and rel + n <= len(buf):
+            return buf[rel:rel + n]
+        if offset >= base + len(buf) and n <= self.window:
+            buf = pread(self._f, self.window, offset)
+            self._win = (offset, buf)
+            return buf[:n]
+        return pread(self._f, n, offset)
+
+    def close(self) -> None:
+        """Close the file (idempotent)."""
+        self._win = (0, b"")
+        self._f.close()
 
 
 class CaptureReader:
     """An open capture file: a context manager and an iterator of Records.
 
-    `kind` names the format, `size` is the file size and `position` the file offset reached so far.
-    Iteration never raises on damaged content: problems become notes on the records.
+    `kind` names the format, `size` is the file size and `position` the file offset reached so far. If
+    the file shrinks while it is read, `size` becomes the offset where its bytes ran out (and
+    `opened_size` keeps the size it had when opened). Iteration never raises on damaged content:
+    problems become notes on the records.
     """
 
     kind: str = ""
+    window: int = WINDOW  # bytes read at a time (tests make it small to cross many window boundaries)
 
     def __init__(self, path: str | os.PathLike[str]) -> None:
-        self.path, self._file, self._buf, self.size = open_mapped(path)
+        self.path, self._file, self.size = open_file(path)
+        self.opened_size = self.size
         self.position = 0
         self._linktype = -2  # the link type of a record the reader makes up (set by subclasses)
         self._iter: Iterator[Record] = self._records()
@@ -99,9 +167,32 @@ class CaptureReader:
         """Yield the file's records, keeping `position` current (subclasses implement).
 
         Implementations catch READER_BUGS around their loop and end with `failure(...)`, so that not even
-        a reader bug escapes iteration.
+        a reader bug escapes iteration; they add `shrink_notes()` to their last record.
         """
         raise NotImplementedError
+
+    def read_at(self, offset: int, n: int) -> bytes:
+        """Up to `n` bytes from `offset`, never past `size`. A short read before `size` means the file
+        shrank: `size` drops to where its bytes ended."""
+        want = min(n, self.size - offset)
+        if want <= 0:
+            return b""
+        data = pread(self._file, want, offset)
+        if len(data) < want:
+            self.size = offset + len(data)
+        return data
+
+    def window_at(self, offset: int, need: int = 0) -> bytes:
+        """The bytes from `offset`: at least `need` of them (a whole record) and a window, where the file
+        has them."""
+        return self.read_at(offset, max(need, self.window))
+
+    def shrink_notes(self) -> tuple[Note, ...]:
+        """A note saying the file shrank while it was read, if it did (for the reader's last record)."""
+        if self.size >= self.opened_size:
+            return ()
+        return (note("record-truncated", f"the file shrank while it was read: its bytes ended at offset {self.size} "
+                     f"of the {self.opened_size} it had when opened; the rest is lost", self.size),)
 
     def failure(self, number: int, offset: int, exc: BaseException, notes: tuple[Note, ...] = ()) -> Record:
         """The last Record of a reader that hit an unexpected error: empty, with a note saying so."""
@@ -117,9 +208,8 @@ class CaptureReader:
         return next(self._iter)
 
     def close(self) -> None:
-        """Release the mapping and the file (idempotent)."""
-        buf, self._buf = self._buf, b""
-        close_mapped(self._file, buf)
+        """Close the file (idempotent)."""
+        self._file.close()
 
     def __enter__(self) -> CaptureReader:
         return self

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import mmap
 import re
 import struct
 from collections.abc import Iterator
@@ -17,12 +16,17 @@ TS_MIN = 946_684_800 * 1_000_000  # 2000-01-01 in microseconds since the Unix ep
 TS_MAX = 4_102_444_800 * 1_000_000  # 2100-01-01
 RESYNC_BEHIND = 3_600 * 1_000_000  # how far (µs) before the last good entry a resynchronised one may lie
 RESYNC_AHEAD = 86_400 * 1_000_000  # and how far after
+LOOKAHEAD = 2 * (8 + 12 + 255 + 2 + 13)  # two entries: what deciding on an entry may look at
+# Bytes a non-MAVLink entry may hold. MAVProxy logs what it could not parse (a SITL's console text, one byte
+# an entry; pymavlink's BAD_DATA) as entries of their own; such an entry ends where the next timestamp starts.
+TEXT_MAX = LOOKAHEAD - 16
+SNIFF_TEXT = 32768  # bytes of such entries a tlog may start with (a SITL's boot messages)
 
 _TS = struct.Struct(">Q")
 _STX = re.compile(rb"[\xfd\xfe]")
 
 
-def frame_length(buf: mmap.mmap | bytes, p: int, size: int) -> int:
+def frame_length(buf: bytes, p: int, size: int) -> int:
     """Length of the MAVLink frame whose STX is at `p` (from its header), or -1 if not a frame start or cut."""
     if p + 3 > size:
         return -1
@@ -34,7 +38,7 @@ def frame_length(buf: mmap.mmap | bytes, p: int, size: int) -> int:
     return -1
 
 
-def entry_end(buf: mmap.mmap | bytes, p: int, size: int, lo: int = TS_MIN, hi: int = TS_MAX) -> int:
+def entry_end(buf: bytes, p: int, size: int, lo: int = TS_MIN, hi: int = TS_MAX) -> int:
     """End offset of a plausible, complete tlog entry at `p` (timestamp in [lo, hi)), or -1."""
     if p < 0 or p + 11 > size:
         return -1
@@ -46,7 +50,7 @@ def entry_end(buf: mmap.mmap | bytes, p: int, size: int, lo: int = TS_MIN, hi: i
     return p + 8 + flen
 
 
-def _followed(buf: mmap.mmap | bytes, p: int, size: int, lo: int, hi: int) -> bool:
+def _followed(buf: bytes, p: int, size: int, lo: int, hi: int) -> bool:
     """Whether an entry ending at `p` is followed by a plausible entry, a cut one at the end, or the end."""
     if size - p < 11:  # the end, or an entry cut inside its header
         return True
@@ -55,18 +59,21 @@ def _followed(buf: mmap.mmap | bytes, p: int, size: int, lo: int, hi: int) -> bo
     return entry_end(buf, p, size, lo, hi) >= 0 or p + 8 + frame_length(buf, p + 8, size) > size
 
 
-def find_entry(buf: mmap.mmap | bytes, size: int, start: int, last_ts: int = -1) -> int:
+def find_entry(buf: bytes, size: int, start: int, last_ts: int = -1, limit: int | None = None) -> int:
     """Offset of the next plausible entry at or after `start`, followed by another one (or the end); or -1.
 
-    With `last_ts` (µs) the entry's timestamp must lie near it.
+    With `last_ts` (µs) the entry's timestamp must lie near it. With `limit`, only entries that start
+    before it are considered (a window of a longer file: the bytes from `limit` on are looked at only as
+    the lookahead of an earlier entry).
     """
     lo, hi = TS_MIN, TS_MAX
     if last_ts >= 0:
         lo, hi = max(lo, last_ts - RESYNC_BEHIND), min(hi, last_ts + RESYNC_AHEAD)
     search = _STX.search
     q = start + 8
+    stop = len(buf) if limit is None else limit + 8
     while True:
-        m = search(buf, q)
+        m = search(buf, q, stop)
         if m is None:
             return -1
         q = m.start()
@@ -77,22 +84,61 @@ def find_entry(buf: mmap.mmap | bytes, size: int, start: int, last_ts: int = -1)
         q += 1
 
 
-def sniff_tlog(buf: mmap.mmap | bytes, size: int) -> bool:
+def near(ts: int, last_ts: int) -> bool:
+    """Whether `ts` (µs) is a plausible entry timestamp after one at `last_ts` (-1: the first entry)."""
+    if not TS_MIN <= ts < TS_MAX:
+        return False
+    return last_ts < 0 or last_ts - RESYNC_BEHIND <= ts <= last_ts + RESYNC_AHEAD
+
+
+def text_entry_end(buf: bytes, p: int, stop: int, final: bool) -> int:
+    """End of the entry at `p` whose bytes are not a MAVLink frame: the first offset after at least one byte
+    where an entry with a timestamp near this one's starts, or the end of the file (`final`: `stop` is the
+    end); within TEXT_MAX bytes and before `stop`; -1 if there is none."""
+    if p + 9 > stop:
+        return -1
+    ts = _TS.unpack_from(buf, p)[0]
+    ts_unpack = _TS.unpack_from
+    last = min(stop - 8, p + 8 + TEXT_MAX)
+    for q in range(p + 9, last + 1):
+        if near(ts_unpack(buf, q)[0], ts):
+            return q
+    if final and stop - p - 8 <= TEXT_MAX:
+        return stop
+    return -1
+
+
+def sniff_tlog(buf: bytes, size: int) -> bool:
     """Whether the file starts like a tlog: a plausible entry followed by another one (or the end).
 
-    A damaged second entry is tolerated when a consistent entry follows within the next 4 KiB.
+    The file may start with entries of bytes that are not MAVLink (console text) when a MAVLink entry
+    follows them within SNIFF_TEXT bytes. A damaged second entry is tolerated when a consistent entry
+    follows within the next 4 KiB.
     """
-    end = entry_end(buf, 0, size)
+    p = 0
+    last_ts = -1
+    while 0 <= p < SNIFF_TEXT and size - p >= 11 and buf[p + 8] not in (STX_V1, STX_V2):
+        ts = _TS.unpack_from(buf, p)[0]
+        if not near(ts, last_ts):
+            return False
+        last_ts = ts
+        p = text_entry_end(buf, p, min(size, len(buf)), False)
+    if not 0 <= p < SNIFF_TEXT:
+        return False
+    end = entry_end(buf, p, size)
     if end < 0:
         return False
     if _followed(buf, end, size, TS_MIN, TS_MAX):
         return True
     window = min(size, end + 4096)
-    return find_entry(buf, window, end, _TS.unpack_from(buf, 0)[0]) >= 0
+    return find_entry(buf, window, end, _TS.unpack_from(buf, p)[0]) >= 0
 
 
 class TlogReader(CaptureReader):
-    """Reads a telemetry log entry by entry; every record holds exactly one MAVLink frame."""
+    """Reads a telemetry log entry by entry, a window of the file at a time; every record holds exactly one
+    MAVLink frame. Record times lie in [2000, 2100) (entries with other timestamps are not entries), except
+    a cut last entry's, which is None when its timestamp is not plausible.
+    """
 
     kind = "tlog"
 
@@ -100,59 +146,129 @@ class TlogReader(CaptureReader):
         super().__init__(path)
         self._linktype = LINKTYPE_MAVLINK_TLOG
 
+    def _find(self, buf: bytes, base: int, start: int, last_ts: int) -> tuple[int, bytes, int]:
+        """find_entry over the file from offset `start`, a window at a time: (offset or -1, window, base).
+
+        An entry is looked for in a window only where the window also holds its lookahead (the entry and
+        the one after it), or where the window reaches the end of the file.
+        """
+        while True:
+            if start < base or start + LOOKAHEAD >= base + len(buf) < self.size:
+                buf, base = self.window_at(start, 2 * LOOKAHEAD), start
+            size = self.size
+            final = base + len(buf) >= size
+            limit = len(buf) if final else len(buf) - LOOKAHEAD
+            q = find_entry(buf, size - base if final else len(buf), start - base, last_ts, limit)
+            if q >= 0:
+                return base + q, buf, base
+            if final:
+                return -1, buf, base
+            start = base + limit
+
     def _records(self) -> Iterator[Record]:
-        buf, size = self._buf, self.size
         ts_unpack = _TS.unpack_from
         tuple_new = tuple.__new__
         R = Record
         LT = LINKTYPE_MAVLINK_TLOG
         n = 0
-        pos = 0
+        pos = base = 0
+        buf = b""
         last_ts = -1
         pending: tuple[Note, ...] = ()
         try:
+            buf = self.window_at(0, 2 * LOOKAHEAD)
+            size = self.size
             while pos < size:
-                if pos + 11 <= size:
-                    ts = ts_unpack(buf, pos)[0]
-                    stx = buf[pos + 8]
+                # the common case, kept tight: complete entries whose frames fit the window
+                p = pos - base
+                blen = len(buf)
+                last = blen - LOOKAHEAD if base + blen < size else blen - 11  # entries decidable in the window
+                while p <= last:
+                    ts = ts_unpack(buf, p)[0]
+                    stx = buf[p + 8]
                     if stx == 0xFD:
-                        end = pos + 20 + buf[pos + 9] + (13 if buf[pos + 10] & 1 else 0)
+                        end = p + 20 + buf[p + 9] + (13 if buf[p + 10] & 1 else 0)
                     elif stx == 0xFE:
-                        end = pos + 16 + buf[pos + 9]
+                        end = p + 16 + buf[p + 9]
+                    else:
+                        break
+                    if end > blen or not TS_MIN <= ts < TS_MAX:
+                        break
+                    n += 1
+                    last_ts = ts
+                    yield tuple_new(R, (n, ts / 1e6, LT, buf[p + 8:end], base + p + 8, end - p - 8, pending))
+                    pending = ()
+                    p = end
+                    if not n & 1023:
+                        self.position = base + p
+                pos = base + p
+                self.position = pos
+                if pos >= size:
+                    break
+                if p + LOOKAHEAD > len(buf) and base + len(buf) < size:  # near the window's end: read on
+                    buf, base = self.window_at(pos, 2 * LOOKAHEAD), pos
+                    size = self.size
+                    continue
+                if pos + 9 <= size and buf[p + 8] not in (STX_V1, STX_V2) and near(ts_unpack(buf, p)[0], last_ts):
+                    blen = len(buf)
+                    q = text_entry_end(buf, p, blen, base + blen >= size)
+                    if q >= 0:  # an entry of bytes that are not MAVLink: the dissector says what they are
+                        ts = ts_unpack(buf, p)[0]
+                        n += 1
+                        last_ts = ts
+                        yield tuple_new(R, (n, ts / 1e6, LT, buf[p + 8:q], base + p + 8, q - p - 8, pending))
+                        pending = ()
+                        pos = base + q
+                        self.position = pos
+                        continue
+                if pos + 11 <= size:
+                    ts = ts_unpack(buf, p)[0]
+                    stx = buf[p + 8]
+                    if stx == 0xFD:
+                        end = p + 20 + buf[p + 9] + (13 if buf[p + 10] & 1 else 0)
+                    elif stx == 0xFE:
+                        end = p + 16 + buf[p + 9]
                     else:
                         end = -1
                     if end >= 0 and TS_MIN <= ts < TS_MAX:
-                        if end <= size:
+                        if base + end <= size:
                             n += 1
                             last_ts = ts
-                            self.position = end
-                            yield tuple_new(R, (n, ts / 1e6, LT, buf[pos + 8:end], pos + 8, end - pos - 8, pending))
+                            self.position = base + end
+                            yield tuple_new(R, (n, ts / 1e6, LT, buf[p + 8:end], base + p + 8, end - p - 8, pending))
                             pending = ()
-                            pos = end
+                            pos = base + end
                             continue
-                        q = find_entry(buf, size, pos + 1, last_ts)
+                        flen = end - p - 8  # the frame length the entry announces
+                        q, buf, base = self._find(buf, base, pos + 1, last_ts)
+                        size = self.size
                         if q < 0:  # a cut last entry
                             n += 1
                             self.position = size
                             pending += (note("record-truncated",
-                                             f"tlog entry at offset {pos} has {size - pos - 8} of {end - pos - 8} "
+                                             f"tlog entry at offset {pos} has {size - pos - 8} of {flen} "
                                              "frame bytes: file cut short", pos),)
-                            yield make_record(n, ts / 1e6, LT, buf[pos + 8:size], pos + 8, end - pos - 8, pending)
+                            pending += self.shrink_notes()
+                            yield make_record(n, ts / 1e6, LT, self.read_at(pos + 8, size - pos - 8), pos + 8, flen,
+                                              pending)
                             return
                         pending += (note("capture-garbage",
                                          f"broken tlog entry at offset {pos}: {q - pos} bytes skipped", pos),)
                         pos = q
                         continue
-                q = find_entry(buf, size, pos + 1, last_ts)
+                q, buf, base = self._find(buf, base, pos + 1, last_ts)
+                size = self.size
                 if q < 0:
                     if size - pos < 11:  # too short for an entry header: a cut last entry
-                        ts = ts_unpack(buf, pos)[0] if pos + 8 <= size else -1
+                        stamp = self.read_at(pos, 8)
+                        ts = ts_unpack(stamp)[0] if len(stamp) == 8 else -1
                         n += 1
                         self.position = size
                         pending += (note("record-truncated", f"file ends {size - pos} bytes into a tlog entry", pos),)
+                        pending += self.shrink_notes()
                         start = min(pos + 8, size)
                         t = ts / 1e6 if TS_MIN <= ts < TS_MAX else None
-                        yield make_record(n, t, LT, buf[start:size], start, size - start, pending)
+                        yield make_record(n, t, LT, self.read_at(start, size - start), start, size - start, pending)
                         return
                     pending += (note("capture-garbage", f"broken tlog entry at offset {pos}; "
                                      f"no later entry found, {size - pos} bytes skipped", pos),)
@@ -160,10 +276,10 @@ class TlogReader(CaptureReader):
                 pending += (note("capture-garbage",
                                  f"broken tlog entry at offset {pos}: {q - pos} bytes skipped", pos),)
                 pos = q
-            self.position = size
+            pending += self.shrink_notes()
+            self.position = size = self.size
             if pending:
                 n += 1
                 yield make_record(n, None, LT, b"", min(pos + 8, size), 0, pending)
         except READER_BUGS as exc:
             yield self.failure(n + 1, pos, exc, pending)
-

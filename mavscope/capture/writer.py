@@ -1,9 +1,7 @@
-"""Writing captures: classic pcap (one link type) and pcapng (several), plus synthetic UDP framing."""
+"""Writing captures: classic pcap (one link type) and pcapng (several)."""
 
 from __future__ import annotations
 
-import functools
-import ipaddress
 import math
 import os
 import struct
@@ -20,17 +18,35 @@ DEFAULT_SNAPLEN = 262144
 _PCAP_GLOBAL = struct.Struct("<IHHiIII")
 _PCAP_RECORD = struct.Struct("<IIII")
 _EPB_HEAD = struct.Struct("<IIIIIII")
+_TLOG_TIME = struct.Struct(">Q")
 
 
-def _split_time(time: float | None, units: int) -> tuple[int, int]:
-    """(whole seconds, fraction in 1/units) of a timestamp; None and non-finite values become 0."""
-    if time is None or not math.isfinite(time) or time < 0:
-        return 0, 0
+def _split_time(time: float | None, units: int, max_ticks: int) -> tuple[int, int, bool]:
+    """(whole seconds, fraction in 1/units, clamped) of a timestamp for a format that holds 0 .. `max_ticks`
+    ticks of 1/units s.
+
+    None (no time) is written as 0 and is not a clamp. A time the format cannot hold is clamped and said
+    so: NaN and negative times become 0, +inf and times past the format's end its last tick.
+    """
+    if time is None:
+        return 0, 0, False
+    if time != time or time < 0:  # NaN, -inf, negative
+        return 0, 0, True
+    if time == math.inf or time * units > max_ticks + units:
+        sec, frac = divmod(max_ticks, units)
+        return sec, frac, True
     sec = math.floor(time)
     frac = round((time - sec) * units)
     if frac >= units:
         sec, frac = sec + 1, frac - units
-    return sec, frac
+    if sec * units + frac > max_ticks:
+        sec, frac = divmod(max_ticks, units)
+        return sec, frac, True
+    return sec, frac, False
+
+
+def _describe(t: float) -> str:
+    return f"{t!r} s" if t != t or abs(t) == math.inf else f"{t:.6g} s"
 
 
 class _Writer:
@@ -47,6 +63,23 @@ class _Writer:
             self._f = path_or_fileobj
             self._owned = False
         self.closed = False
+        self.clamped = 0  # records whose time the format cannot hold, written clamped (see clamp_message)
+        self._first_clamped: float | None = None
+        self._format = "pcap"
+        self._latest = "2106-02-07T06:28:15Z"  # the last time the format holds (subclasses set it)
+
+    def _clamp(self, time: float) -> None:
+        self.clamped += 1
+        if self._first_clamped is None:
+            self._first_clamped = time
+
+    def clamp_message(self) -> str | None:
+        """One line for the user if record times had to be clamped (None if not); names no path."""
+        if not self.clamped or self._first_clamped is None:
+            return None
+        what = "1 record time was" if self.clamped == 1 else f"{self.clamped} record times were"
+        return (f"{what} written clamped: {self._format} cannot hold a time that is negative, not a number or "
+                f"after {self._latest} (the first was {_describe(self._first_clamped)})")
 
     def flush(self) -> None:
         """Push everything written so far to the file (a live capture calls this periodically)."""
@@ -86,6 +119,7 @@ class PcapWriter(_Writer):
         self.linktype = linktype
         self.snaplen = snaplen
         self.units = 1_000_000_000 if nanosecond else 1_000_000
+        self._max_ticks = (1 << 32) * self.units - 1  # 32-bit seconds, then the fraction
         magic = MAGIC_NS if nanosecond else MAGIC_US
         self._f.write(_PCAP_GLOBAL.pack(magic, 2, 4, 0, 0, snaplen, linktype))
 
@@ -96,8 +130,10 @@ class PcapWriter(_Writer):
         orig = max(orig_len if orig_len is not None else len(data), len(data))
         if len(data) > self.snaplen:
             data = data[: self.snaplen]
-        sec, frac = _split_time(time, self.units)
-        self._f.write(_PCAP_RECORD.pack(sec & 0xFFFFFFFF, frac, len(data), orig & 0xFFFFFFFF))
+        sec, frac, clamped = _split_time(time, self.units, self._max_ticks)
+        if clamped and time is not None:
+            self._clamp(time)
+        self._f.write(_PCAP_RECORD.pack(sec, frac, len(data), min(orig, 0xFFFFFFFF)))
         self._f.write(data)
 
     def __enter__(self) -> PcapWriter:
@@ -120,6 +156,8 @@ class PcapngWriter(_Writer):
         self.nanosecond = nanosecond
         self.units = 1_000_000_000 if nanosecond else 1_000_000
         self._interfaces: dict[int, int] = {}  # link type -> interface id
+        self._format = "pcapng"
+        self._latest = "2554-07-21T23:34:33Z" if nanosecond else "the year 586524"  # 2**64 - 1 ticks
         body = struct.pack("<IHHq", BYTE_ORDER_MAGIC, 1, 0, -1)
         self._block(BT_SHB, body)
 
@@ -152,65 +190,39 @@ class PcapngWriter(_Writer):
         orig = max(orig_len if orig_len is not None else len(data), len(data))
         if len(data) > self.snaplen:
             data = data[: self.snaplen]
-        sec, frac = _split_time(time, self.units)
+        sec, frac, clamped = _split_time(time, self.units, (1 << 64) - 1)
+        if clamped and time is not None:
+            self._clamp(time)
         ts = sec * self.units + frac
         pad = -len(data) & 3
         blen = 32 + len(data) + pad
-        self._f.write(_EPB_HEAD.pack(BT_EPB, blen, iface, ts >> 32, ts & 0xFFFFFFFF, len(data), orig & 0xFFFFFFFF))
+        self._f.write(_EPB_HEAD.pack(BT_EPB, blen, iface, ts >> 32, ts & 0xFFFFFFFF, len(data),
+                                    min(orig, 0xFFFFFFFF)))
         self._f.write(data + b"\0" * pad + struct.pack("<I", blen))
 
     def __enter__(self) -> PcapngWriter:
         return self
 
 
-@functools.lru_cache(maxsize=4096)  # a live capture synthesises headers for the same few endpoints
-def _endpoint(text: str) -> tuple[bytes, int]:
-    """Parse "a.b.c.d:port" into 4 address bytes and a port (UsageError when malformed)."""
-    host, sep, port = text.rpartition(":")
-    try:
-        if not sep:
-            raise ValueError("no port")
-        p = int(port)
-        if not 0 <= p <= 0xFFFF:
-            raise ValueError("port out of range")
-        return ipaddress.IPv4Address(host).packed, p
-    except ValueError as e:
-        raise UsageError(f"expected an IPv4 'address:port', got {text!r} ({e})") from None
+class TlogWriter(_Writer):
+    """Writes a telemetry log: each entry an 8-byte big-endian time in microseconds, then MAVLink bytes."""
+
+    def __init__(self, path_or_fileobj: str | os.PathLike[str] | BinaryIO) -> None:
+        super().__init__(path_or_fileobj)
+        self._format = "a tlog"
+        self._latest = "the year 586524"  # 2**64 - 1 microseconds
+
+    def write(self, time: float | None, data: bytes) -> None:
+        """Append one entry (no time is written as 0)."""
+        if self.closed:
+            raise UsageError("write to a closed TlogWriter")
+        sec, frac, clamped = _split_time(time, 1_000_000, (1 << 64) - 1)
+        if clamped and time is not None:
+            self._clamp(time)
+        self._f.write(_TLOG_TIME.pack(sec * 1_000_000 + frac) + data)
+
+    def __enter__(self) -> TlogWriter:
+        return self
 
 
-def _checksum(data: bytes) -> int:
-    """The Internet checksum (RFC 1071) of `data`.
-
-    The one's-complement sum of 16-bit words is the data read as one big number modulo 0xFFFF
-    (2**16 = 1 mod 0xFFFF), with 0xFFFF rather than 0 for non-zero data: one C-level operation
-    instead of a Python loop over the words (live capture synthesises a header per datagram).
-    """
-    if len(data) & 1:
-        data += b"\0"
-    value = int.from_bytes(data, "big")
-    total = value % 0xFFFF
-    if total == 0 and value:
-        total = 0xFFFF
-    return ~total & 0xFFFF
-
-
-def synth_udp_ipv4(src: str, dst: str, payload: bytes) -> bytes:
-    """An Ethernet/IPv4/UDP packet carrying `payload` from `src` to `dst` ("ip:port"), checksums correct.
-
-    For inputs that have no link layer of their own (a live UDP socket, a tlog turned into a pcap).
-    """
-    saddr, sport = _endpoint(src)
-    daddr, dport = _endpoint(dst)
-    ulen = 8 + len(payload)
-    if 20 + ulen > 0xFFFF:
-        raise UsageError(f"UDP payload of {len(payload)} bytes does not fit one IPv4 packet")
-    pseudo = saddr + daddr + struct.pack("!BBH", 0, 17, ulen)
-    csum = _checksum(pseudo + struct.pack("!HHHH", sport, dport, ulen, 0) + payload) or 0xFFFF
-    udp = struct.pack("!HHHH", sport, dport, ulen, csum)
-    ip = bytearray(struct.pack("!BBHHHBBH4s4s", 0x45, 0, 20 + ulen, 0, 0x4000, 64, 17, 0, saddr, daddr))
-    ip[10:12] = struct.pack("!H", _checksum(bytes(ip)))
-    eth = b"\x02\x00\x00\x00\x00\x02" + b"\x02\x00\x00\x00\x00\x01" + b"\x08\x00"
-    return eth + bytes(ip) + udp + payload
-
-
-__all__ = ["DEFAULT_SNAPLEN", "LINKTYPE_ETHERNET", "PcapWriter", "PcapngWriter", "synth_udp_ipv4"]
+__all__ = ["DEFAULT_SNAPLEN", "LINKTYPE_ETHERNET", "PcapWriter", "PcapngWriter", "TlogWriter"]

@@ -1,21 +1,29 @@
-"""What the analysis commands (stats, mission, commands, timeline) share: their options and reading
-every frame of the capture through `capture_session` (so -Y and every other stage apply)."""
+"""What the analysis commands (stats, mission, commands, timeline) share: their options, and one pass
+over every frame of the capture.
+
+Every analysis runs over every frame; `-Y` only selects which rows are reported (`Selection`), as in
+Wireshark's sequence analysis: a filter must not turn a healthy link into a lossy one, or an answered
+command into an unanswered one.
+"""
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterator
+from contextlib import contextmanager
 
+from mavscope.analysis.selection import Selection
 from mavscope.cli import Env
 from mavscope.commands.common import (
+    Problems,
     add_capture_options,
     add_filter_option,
     add_key_options,
     capture_session,
-    report_anomaly,
 )
-from mavscope.dissect import Anomaly
-from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
+from mavscope.pipeline.dissect import Anomaly
+from mavscope.pipeline.session import Session
 
 
 def add_analysis_options(p: argparse.ArgumentParser) -> None:
@@ -25,13 +33,34 @@ def add_analysis_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="write one JSON document to stdout (docs/analysis.md)")
 
 
-def read_frames(args: argparse.Namespace, env: Env) -> tuple[list[Frame], Dialect, str]:
-    """Every frame the session yields, in capture order; anomalies go to stderr as `read` reports them."""
-    frames: list[Frame] = []
+class Pass:
+    """One pass over a session's frames: every frame (anomalies reported on stderr as `read` does), each
+    seen by the selection first."""
+
+    def __init__(self, session: Session, env: Env) -> None:
+        self.session = session
+        self.env = env
+        self.selection = Selection(session.display_filter)
+
+    def __iter__(self) -> Iterator[Frame]:
+        see = self.selection.see
+        problems = Problems(self.env, self.session.name)
+        try:
+            for item in self.session.items:
+                if type(item) is Anomaly:
+                    problems.anomaly(item)
+                    continue
+                if item.notes:
+                    problems.frame(item)
+                see(item)
+                yield item
+        finally:
+            problems.close()
+
+
+@contextmanager
+def analysis_pass(args: argparse.Namespace, env: Env) -> Iterator[Pass]:
+    """The capture named by `args`, ready for one pass over every frame."""
     with capture_session(args, env) as session:
-        for item in session.items:
-            if type(item) is Anomaly:
-                report_anomaly(env, session.path, item)
-            else:
-                frames.append(item)
-        return frames, session.dialect, session.path
+        yield Pass(session, env)
+

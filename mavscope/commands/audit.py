@@ -6,12 +6,13 @@ from __future__ import annotations
 import argparse
 
 from mavscope.cli import Env, ExitStatus
-from mavscope.commands.common import add_capture_options, add_key_options, capture_session
-from mavscope.dissect import Anomaly
+from mavscope.commands.common import add_capture_options, add_key_options, capture_session, write_json
 from mavscope.errors import UsageError
 from mavscope.mavlink.dialect import load_dialect
 from mavscope.notes import Severity
-from mavscope.security.audit import audit, parse_known_plaintext, read_wordlist
+from mavscope.security.audit import Audit
+from mavscope.security.keystream import parse_known_plaintext
+from mavscope.security.passphrase import read_wordlist
 
 RECOVERED_SHOWN = 10
 
@@ -36,21 +37,22 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     if args.qgc and not args.wordlist:
         raise UsageError("audit: --qgc needs --wordlist")
     dialect = load_dialect(args.dialect)
-    known = [parse_known_plaintext(s, dialect) for s in args.known_plaintext]
+    known = tuple(parse_known_plaintext(s, dialect) for s in args.known_plaintext)
     words = None
     if args.wordlist:
         try:
-            words = read_wordlist(args.wordlist)
+            with open(args.wordlist, "rb"):
+                pass  # refuse an unreadable wordlist before reading the capture
         except OSError as exc:
             raise UsageError(f"audit: --wordlist {args.wordlist}: {exc.strerror or exc}") from None
-    with capture_session(args, env) as session:
-        frames = [item for item in session.items if type(item) is not Anomaly]
-    findings, recoveries = audit(frames, words=words, qgc=args.qgc, known=known)
-    status = ExitStatus.FINDINGS if any(f.severity in (Severity.ERROR, Severity.WARN) for f in findings) \
-        else ExitStatus.OK
+        words = read_wordlist(args.wordlist)
+    audit = Audit()
+    with capture_session(args, env, dialect) as session:
+        for frame in session.frames():
+            audit.add(frame)
+    findings, recoveries = audit.result(words=words, qgc=args.qgc, known=known)
+    status = ExitStatus.FINDINGS if any(f.severity >= Severity.WARN for f in findings) else ExitStatus.OK
     if args.json:
-        from mavscope.output.tables import write_json
-
         doc: dict[str, object] = {"findings": [f.to_json() for f in findings]}
         if recoveries:
             doc["recovered"] = [{"frame": r.record, "msgname": r.msgname, "bytes": r.recovered.hex(),

@@ -7,8 +7,9 @@ from typing import cast
 
 from mavscope.analysis.command_log import command_json, reconstruct
 from mavscope.cli import Env, ExitStatus
-from mavscope.commands.analysis_common import add_analysis_options, read_frames
-from mavscope.output.tables import console, fmt, iso, write_json
+from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
+from mavscope.commands.common import console, write_json
+from mavscope.output.tables import fmt, iso, param_text
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -19,8 +20,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
-    frames, dialect, path = read_frames(args, env)
-    commands, orphans = reconstruct(frames, dialect)
+    with analysis_pass(args, env) as frames:
+        dialect, path, select = frames.session.dialect, frames.session.name, frames.selection
+        commands, orphans = reconstruct(frames, dialect)
+    commands = [c for c in commands if select.any_record(c.frames)]  # a row is its command (and retries)
+    orphans = [o for o in orphans if select.any_record((int(o["frame"]),))]  # type: ignore[call-overload]
     docs = [command_json(c, dialect) for c in commands]
     unanswered = sum(1 for d in docs if not d["answered"])
     if args.json:
@@ -36,7 +40,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         labels = cast("dict[str, str]", d["param_labels"])
         values = cast("dict[str, object]", d["params"])
         sender, target = cast("list[int]", d["from"]), cast("list[int]", d["to"])
-        params = ", ".join(f"{labels.get(k, k)} {fmt(v, 2)}" for k, v in values.items()
+        names = cast("dict[str, str]", d["param_names"])
+        params = ", ".join(f"{labels.get(k, k)} {names.get(k) or param_text(v)}" for k, v in values.items()
                            if k in labels or (v not in (0, 0.0, None) and k != "confirmation"))
         t.add_row(str(cast("list[int]", d["frames"])[0]), iso(cast("float | None", d["time"])),
                   "{}/{}".format(*sender), "{}/{}".format(*target),
@@ -46,7 +51,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     if docs:
         con.print(t)
     else:
-        con.print(f"No COMMAND_LONG or COMMAND_INT in {path}.")
+        con.print(f"No command in {path} matches the display filter." if select.active
+                  else f"No COMMAND_LONG or COMMAND_INT in {path}.")
     con.print(f"{len(docs)} commands, {unanswered} unanswered, {len(orphans)} ACKs matching no command")
     for o in orphans:
         con.print(f"  frame {o['frame']}: ACK {o['command']} {o['result']} from {o['from'][0]}/{o['from'][1]}")  # type: ignore[index]

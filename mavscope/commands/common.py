@@ -1,33 +1,35 @@
-"""What the capture-reading subcommands share: options, opening a capture, the frame pipeline.
+"""What the capture-reading subcommands share: their options, turned into `PipelineOptions` once.
 
-`capture_session(args, env)` is the one place where a command gets its frames: it loads the dialects,
-opens the capture, runs the dissector and then every later stage the options ask for (key material,
-display filters). A stage added here serves `read`, `stats`, `mission` and the rest at once.
+Nothing below the command line sees argparse: `pipeline_options(args, env)` is where parsed arguments
+become the frozen options every front end hands to `mavscope.pipeline.session`.
 """
 
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
 
-from mavscope.analysis.filter import DisplayFilter, compile_filter
-from mavscope.capture.base import Record
 from mavscope.capture.reader import CaptureReader
 from mavscope.cli import Env
-from mavscope.dissect import Anomaly, Dissector
 from mavscope.errors import UsageError
-from mavscope.mavlink.dialect import Dialect, load_dialect
+from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
-from mavscope.security.keys import build_material
-from mavscope.security.stage import SecurityStage
+from mavscope.notes import CODES, Group, Note
+from mavscope.pipeline.dissect import Anomaly
+from mavscope.pipeline.options import PipelineOptions
+from mavscope.pipeline.session import Session, open_session
+from mavscope.security.keys import KEYRING_ENV
 
 
 def add_capture_options(p: argparse.ArgumentParser) -> None:
     """FILE / -r FILE and --dialect."""
     p.add_argument("file", nargs="?", help="capture file: pcap, pcapng, tlog or raw bytes (detected by content)")
     p.add_argument("-r", dest="file_opt", metavar="FILE", help="capture file (tshark spelling)")
+    add_dialect_option(p)
+
+
+def add_dialect_option(p: argparse.ArgumentParser) -> None:
     p.add_argument("--dialect", action="append", default=[], metavar="XML",
                    help="load another dialect XML (repeatable; dissectors/*.xml load automatically)")
 
@@ -38,38 +40,7 @@ def capture_path(args: argparse.Namespace) -> str:
         raise UsageError(f"{args.command}: a capture file is required (mavscope {args.command} FILE)")
     if args.file_opt and args.file:
         raise UsageError(f"{args.command}: give the capture file once (either FILE or -r FILE)")
-    return path
-
-
-@dataclass
-class Session:
-    """An open capture and the frames it yields after every stage the options asked for."""
-
-    path: str
-    reader: CaptureReader
-    dialect: Dialect
-    items: Iterator[Frame | Anomaly]
-    t0: float | None = None  # time of the capture's first record: relative times count from it (as tshark's)
-
-
-def build_pipeline(
-    args: argparse.Namespace, env: Env, dialect: Dialect, records: Iterable[Record],
-    security: SecurityStage | None = None,
-) -> Iterator[Frame | Anomaly]:
-    """Frames and anomalies of `records` after every stage the options ask for.
-
-    Shared by offline commands (through `capture_session`) and live capture, which feeds records as
-    they arrive (and passes its own `security` stage, to hand it keys while it runs). Stages are
-    added here, in data-path order.
-    """
-    items: Iterator[Frame | Anomaly] = Dissector(dialect).run(records)
-    if security is None:
-        security = security_stage(args, env)
-    items = security.run(items)  # verdicts the later stages (filters) may test
-    display_filter = getattr(args, "display_filter", None)
-    if display_filter:  # the last stage: it may test the verdicts of every stage before it
-        items = filter_stage(compile_filter(display_filter, dialect), items)
-    return items
+    return str(path)
 
 
 def add_key_options(p: argparse.ArgumentParser) -> None:
@@ -87,15 +58,6 @@ def add_key_options(p: argparse.ArgumentParser) -> None:
                    help="verify the frames after a SETUP_SIGNING with the key it leaks")
 
 
-def security_stage(args: argparse.Namespace, env: Env) -> SecurityStage:
-    """The security stage for the key options in `args` (commands without them get the key-free checks)."""
-    material = build_material(getattr(args, "key", None) or (), getattr(args, "cipher", None) or (),
-                              getattr(args, "ecdh_private", None) or (),
-                              use_leaked_keys=bool(getattr(args, "use_leaked_keys", False)),
-                              environ=env.environ, warn=lambda m: env.stderr.write(f"mavscope: {m}\n"))
-    return SecurityStage(material)
-
-
 def add_filter_option(p: argparse.ArgumentParser) -> None:
     """-Y FILTER: keep only the MAVLink frames a display filter matches (docs/filters.md)."""
     p.add_argument("-Y", dest="display_filter", metavar="FILTER",
@@ -103,33 +65,93 @@ def add_filter_option(p: argparse.ArgumentParser) -> None:
                         "(docs/filters.md); applies per MAVLink frame")
 
 
-def filter_stage(flt: DisplayFilter, items: Iterable[Frame | Anomaly]) -> Iterator[Frame | Anomaly]:
-    """The frames `flt` matches; anomalies (which belong to no frame) pass through."""
-    matches = flt.matches
-    for item in items:
-        if type(item) is Anomaly or matches(item):
-            yield item
+def pipeline_options(args: argparse.Namespace, env: Env) -> PipelineOptions:
+    """The pipeline options a command's arguments ask for (options a command does not have stay default)."""
+    given = vars(args)
+    return PipelineOptions(
+        dialects=tuple(given.get("dialect") or ()),
+        keys=tuple(given.get("key") or ()),
+        ciphers=tuple(given.get("cipher") or ()),
+        ecdh_private=tuple(given.get("ecdh_private") or ()),
+        use_leaked_keys=bool(given.get("use_leaked_keys")),
+        keyring=env.environ.get(KEYRING_ENV) or None,
+        display_filter=given.get("display_filter") or None,
+    )
+
+
+def console(env: Env):  # type: ignore[no-untyped-def]
+    """A rich Console on the command's stdout."""
+    from mavscope.output.tables import console as make_console
+
+    return make_console(env.stdout, env.environ)
+
+
+def write_json(env: Env, doc: object) -> None:
+    """One JSON document on the command's stdout."""
+    from mavscope.output.tables import write_json as write
+
+    write(env.stdout_bytes, doc)
+    env.stdout_bytes.flush()
+
+
+def warner(env: Env) -> Callable[[str], None]:
+    """Where the pipeline's warnings go: one line each on stderr."""
+    def warn(message: str) -> None:
+        env.stderr.write(f"mavscope: {message}\n")
+    return warn
 
 
 @contextmanager
-def capture_session(args: argparse.Namespace, env: Env) -> Iterator[Session]:
-    """Open the capture named by `args` and build its frame pipeline."""
-    from mavscope.capture.detect import open_capture
-
-    path = capture_path(args)
-    dialect = load_dialect(args.dialect)
-    with open_capture(path) as first:
-        head = next(iter(first), None)
-        t0 = head.time if head is not None else None
-    with open_capture(path) as reader:
-        yield Session(path, reader, dialect, build_pipeline(args, env, dialect, reader), t0)
+def capture_session(args: argparse.Namespace, env: Env, dialect: Dialect | None = None) -> Iterator[Session]:
+    """The session of the capture named by `args`, with the pipeline its options ask for."""
+    with open_session(capture_path(args), pipeline_options(args, env), dialect=dialect,
+                      warn=warner(env)) as session:
+        yield session
+        if session.frame_count == 0 and session.reader.position >= session.reader.size:
+            env.stderr.write(f"mavscope: no MAVLink frames found in {session.name} ({session.reader.size} bytes, "
+                             f"detected as {session.reader.kind})\n")
 
 
-def report_anomaly(env: Env, path: str, item: Anomaly) -> None:
-    """Problems that belong to no frame go to stderr, one line each, with the file offset where known."""
-    for note in item.notes:
-        where = f"offset {note.offset}: " if note.offset is not None and str(note.offset) not in note.message else ""
-        env.stderr.write(f"mavscope: {path}: record {item.record}: {where}{note.message}\n")
+class Problems:
+    """Writes what went wrong with the capture to stderr, one line each: problems that belong to no frame
+    (anomalies) and damage to the capture file that a frame carries a note of (a cut pcapng must not pass
+    in silence). At most LIMIT lines per code, then one line with how many more (a hostile capture could
+    otherwise print a line per record); the frames' own notes (JSON, the tree) still hold every one."""
+
+    LIMIT = 20
+
+    def __init__(self, env: Env, name: str) -> None:
+        self.env = env
+        self.name = name
+        self.counts: dict[str, int] = {}
+
+    def _line(self, code: str, where: str, note: Note) -> None:
+        n = self.counts.get(code, 0) + 1
+        self.counts[code] = n
+        if n <= self.LIMIT:
+            self.env.stderr.write(f"mavscope: {self.name}: {where}: {_where(note)}{note.message}\n")
+
+    def anomaly(self, item: Anomaly) -> None:
+        for note in item.notes:
+            self._line(note.code, f"record {item.record}", note)
+
+    def frame(self, frame: Frame) -> None:
+        for note in frame.notes:
+            if CODES[note.code].group is Group.CAPTURE:
+                self._line(note.code, f"frame {frame.number}", note)
+
+    def close(self) -> None:
+        """One line per code whose lines were cut short."""
+        for code, n in self.counts.items():
+            if n > self.LIMIT:
+                self.env.stderr.write(f"mavscope: {self.name}: {n - self.LIMIT} more {code} problems not shown "
+                                      f"({n} in all)\n")
+        self.counts.clear()
+
+
+def _where(note: Note) -> str:
+    """"offset N: " before a note's message, unless the message says where already."""
+    return f"offset {note.offset}: " if note.offset is not None and str(note.offset) not in note.message else ""
 
 
 def progress(env: Env, reader: CaptureReader) -> tuple[Callable[[], None], Callable[[], None]]:

@@ -1,7 +1,7 @@
 """`mavscope live`: dissect MAVLink as it arrives on a UDP port (optionally relaying) or an interface.
 
 The records a live source yields go through the same pipeline as a capture file's
-(`build_pipeline`: dissector, security verdicts, display filter) and the same per-frame output as
+(`pipeline.session.build_pipeline`: dissector, security verdicts, display filter) and the same per-frame output as
 `read` (`FramePrinter`). Output is flushed whenever mavscope has caught up with the link, so
 `mavscope live ... -T jsonl | jq` sees each line as soon as it is decoded. SIGINT and SIGTERM stop
 cleanly: the receiver stops, what it already received is decoded, the pcap is flushed and closed, and a
@@ -18,14 +18,24 @@ from types import FrameType
 
 from mavscope.capture.base import Record
 from mavscope.cli import Env, ExitStatus
-from mavscope.commands.common import add_filter_option, add_key_options, build_pipeline, report_anomaly
-from mavscope.dissect import Anomaly
+from mavscope.commands.common import (
+    Problems,
+    add_dialect_option,
+    add_filter_option,
+    add_key_options,
+    pipeline_options,
+    warner,
+)
+from mavscope.commands.read import frame_count
 from mavscope.errors import MavscopeError, UsageError
 from mavscope.live.sink import LivePcapWriter
 from mavscope.live.source import DEFAULT_QUEUE_ITEMS, LiveSource
+from mavscope.live.stop import Stopper
 from mavscope.live.udp import UdpSource, parse_endpoint
 from mavscope.mavlink.dialect import load_dialect
 from mavscope.output.printer import FramePrinter
+from mavscope.pipeline.dissect import Anomaly
+from mavscope.pipeline.session import build_pipeline
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -41,8 +51,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--bpf", metavar="EXPR", help="with --sniff: a capture filter, e.g. 'udp port 14550'")
     p.add_argument("--forward", metavar="HOST:PORT",
                    help="with --udp: relay datagrams to HOST:PORT and its replies back to the last sender")
-    p.add_argument("--dialect", action="append", default=[], metavar="XML",
-                   help="load another dialect XML (repeatable; dissectors/*.xml load automatically)")
+    add_dialect_option(p)
     add_filter_option(p)
     add_key_options(p)
     p.add_argument("-V", dest="verbose", action="store_true", help="print the detail tree of every frame")
@@ -50,7 +59,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-T", dest="format", choices=("text", "jsonl"), default="text",
                    help="output format (default text)")
     p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w)")
-    p.add_argument("-c", dest="count", type=int, metavar="N", help="stop after N frames")
+    p.add_argument("-c", dest="count", type=frame_count, metavar="N", help="stop after N frames")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     p.add_argument("-w", dest="write", metavar="OUT.pcap",
                    help="write every packet received to a pcap as it goes (flushed at least every second)")
@@ -65,8 +74,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _check(args: argparse.Namespace) -> None:
-    if args.count is not None and args.count < 1:
-        raise UsageError("live: -c needs a positive number of frames")
     if args.duration is not None and args.duration <= 0:
         raise UsageError("live: --duration needs a positive number of seconds")
     if args.bpf and not args.sniff:
@@ -107,11 +114,12 @@ def describe(source: LiveSource) -> str:
     return text + f" (receive buffer {getattr(source, 'rcvbuf', 0)} bytes granted)"
 
 
-def summary(source: LiveSource, frames: int) -> str:
+def summary(source: LiveSource, frames: int, undecoded: int = 0) -> str:
     st = source.stats()
     kernel = "unknown" if st.kernel_drops is None else str(st.kernel_drops)
+    late = f"; {undecoded} received after the stop written but not decoded" if undecoded else ""
     return (f"mavscope: live: {frames} frames, {st.bytes} bytes, {st.dropped} dropped "
-            f"({st.queue_drops} queue, {kernel} kernel)")
+            f"({st.queue_drops} queue, {kernel} kernel){late}")
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
@@ -123,14 +131,24 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     except BaseException:
         source.close()
         raise
-    printer = FramePrinter(env, dialect, args.format, verbose=args.verbose, hex=args.hex, quiet=args.quiet)
+    printer = FramePrinter(env.stdout, env.stdout_bytes, dialect, args.format, verbose=args.verbose, hex=args.hex,
+                           quiet=args.quiet)
     writer: LivePcapWriter | None = None
     restore: list[tuple[signal.Signals, object]] = []
     timer: threading.Timer | None = None
+    stopper = Stopper()
     shown = 0
+    problems = Problems(env, "live")
     try:
         if args.write:
             writer = LivePcapWriter(args.write, source.linktype, args.ring)
+        if threading.current_thread() is threading.main_thread():
+            def on_signal(signum: int, frame: FrameType | None) -> None:
+                source.stop(drain=stopper.signal())  # a second signal: stop draining too
+
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                restore.append((sig, signal.signal(sig, on_signal)))
+        # the handlers are in place before the line that tells a script it may signal
         env.stderr.write(f"mavscope: live: {describe(source)}\n")
         env.stderr.flush()
 
@@ -142,19 +160,12 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         def records() -> Iterator[Record]:
             for rec in source.records(on_idle=idle):
                 if printer.t0 is None:
-                    printer.t0 = rec[1]
+                    printer.t0 = rec.time
                 if writer is not None:
-                    writer.write(rec)
-                yield rec
+                    writer.write(rec)  # every datagram received goes to the pcap, decoded or not
+                if stopper.decode():
+                    yield rec
 
-        if threading.current_thread() is threading.main_thread():
-            def on_signal(signum: int, frame: FrameType | None) -> None:
-                if source.stopping and signum == signal.SIGINT:
-                    raise KeyboardInterrupt  # a second Ctrl-C: stop waiting for the drain
-                source.stop()
-
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                restore.append((sig, signal.signal(sig, on_signal)))
         if args.duration is not None:
             timer = threading.Timer(args.duration, source.stop)
             timer.daemon = True
@@ -164,9 +175,9 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         if timer is not None:
             timer.start()
         try:
-            for item in build_pipeline(args, env, dialect, records()):
+            for item in build_pipeline(pipeline_options(args, env), dialect, records(), warn=warner(env)):
                 if type(item) is Anomaly:
-                    report_anomaly(env, "live", item)
+                    problems.anomaly(item)
                     continue
                 show(item)
                 shown += 1
@@ -178,6 +189,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         except OSError as e:
             raise MavscopeError(f"live: receiving failed: {e.strerror or e}") from None
     finally:
+        problems.close()
         if timer is not None:
             timer.cancel()
         source.close()
@@ -191,6 +203,6 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
             if isinstance(source, UdpSource) and source.forward is not None:
                 env.stderr.write(f"mavscope: live: relayed {source.forwarded} datagrams "
                                  f"({source.forward_errors} could not be relayed)\n")
-            env.stderr.write(summary(source, shown) + "\n")
+            env.stderr.write(summary(source, shown, stopper.undecoded) + "\n")
             env.stderr.flush()
     return ExitStatus.OK

@@ -3,23 +3,22 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.common import (
+    Problems,
     add_capture_options,
     add_filter_option,
     add_key_options,
-    capture_path,
     capture_session,
     progress,
-    report_anomaly,
-    security_stage,
 )
-from mavscope.dissect import Anomaly
 from mavscope.errors import UsageError
-from mavscope.export import FrameWriter, write_records
+from mavscope.output.capture_out import FrameWriter, open_output, write_records
 from mavscope.output.printer import FramePrinter
+from mavscope.pipeline.dissect import Anomaly
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,38 +31,47 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-x", dest="hex", action="store_true", help="print a hex dump of every frame")
     p.add_argument("-T", dest="format", choices=("text", "json", "jsonl"), default="text",
                    help="output format (default text)")
-    p.add_argument("-c", dest="count", type=int, metavar="N", help="stop after N frames")
+    p.add_argument("-c", dest="count", type=frame_count, metavar="N", help="stop after N frames")
     p.add_argument("-w", dest="write", metavar="OUT", help="write the capture records holding the shown frames")
     p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w)")
     p.set_defaults(run=run)
 
 
+def frame_count(text: str) -> int:
+    """-c N: a whole, positive number of frames."""
+    if not text.strip().isdigit() or int(text) < 1:
+        raise argparse.ArgumentTypeError(f"a whole positive number of frames, not {text!r}")
+    return int(text)
+
+
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
-    if args.count is not None and args.count < 1:
-        raise UsageError("read: -c needs a positive number of frames")
     out_b = env.stdout_bytes
     if _native_eligible(args, env):
         return _run_native(args, env)
     limit = args.count if args.count is not None else -1
     shown_records: set[int] = set()
     shown = 0
-    with capture_session(args, env) as session:
+    with capture_session(args, env) as session, contextlib.ExitStack() as files:
         t0 = session.t0
-        path, dialect = session.path, session.dialect
+        path, name, dialect = session.path, session.name, session.dialect
         frame_writer = _open_writer(args.write, path, session.reader.kind) if args.write else None
+        out_file = files.enter_context(open_output(args.write)) if args.write and frame_writer is None else None
         update, stop = progress(env, session.reader)
-        printer = FramePrinter(env, dialect, args.format, verbose=args.verbose, hex=args.hex, quiet=args.quiet,
-                               t0=t0)
+        printer = FramePrinter(env.stdout, out_b, dialect, args.format, verbose=args.verbose, hex=args.hex,
+                               quiet=args.quiet, t0=t0)
         show = printer.frame
+        problems = Problems(env, name)
         try:
             printer.begin()
-            for n, item in enumerate(session.items):
+            for n, item in enumerate(session.shown()):
                 if not n & 0x3FFF:
                     update()
                 if type(item) is Anomaly:
-                    report_anomaly(env, path, item)
+                    problems.anomaly(item)
                     continue
                 frame = item
+                if frame.notes:
+                    problems.frame(frame)
                 shown += 1
                 if frame_writer is not None:
                     frame_writer.write(frame)
@@ -75,45 +83,58 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
             printer.end()
         finally:
             stop()
-            if frame_writer is not None:
-                frame_writer.close()
-    out_b.flush()
-    if args.write and frame_writer is None:
-        write_records(path, args.write, shown_records)
+            problems.close()
+            written = frame_writer.close() if frame_writer is not None else None
+        out_b.flush()
+        if out_file is not None:
+            written = write_records(path, args.write, shown_records, out_file)
+    if written is not None and written.warning:
+        env.stderr.write(f"mavscope: warning: -w {args.write}: {written.warning}\n")
     return ExitStatus.OK
 
 
 def _native_eligible(args: argparse.Namespace, env: Env) -> bool:
-    """The native walker serves plain `read -T jsonl` (no filter, count, -w or -q) when it is built and
+    """The native engine serves plain `read -T jsonl` (no filter, count, -w or -q) when it is built and
     MAVSCOPE_PURE is not set; its output is byte-identical to the Python path's (docs/native.md)."""
+    if args.format != "jsonl" or args.display_filter or args.count is not None or args.write or args.quiet:
+        return False
     from mavscope.native import engine
 
-    return (args.format == "jsonl" and not args.display_filter and args.count is None and not args.write
-            and not args.quiet and engine(env.environ) == "native")
+    return engine(env.environ) == "native"
 
 
 def _run_native(args: argparse.Namespace, env: Env) -> ExitStatus:
+    """`read -T jsonl` through mavscope.native.write_jsonl: what capture_session and the loop of `run`
+    do, in the same order (dialect, capture file, key options; problems on stderr, then the summary)."""
     from mavscope.capture.detect import detect_kind
+    from mavscope.commands.common import capture_path, pipeline_options, warner
     from mavscope.mavlink.dialect import load_dialect
     from mavscope.native import write_jsonl
+    from mavscope.pipeline.session import make_security_stage
 
     path = capture_path(args)
-    dialect = load_dialect(args.dialect)
-    detect_kind(path)  # the capture's errors before the key options', as capture_session orders them
-    stage = security_stage(args, env)
+    options = pipeline_options(args, env)
+    dialect = load_dialect(options.dialects)
+    kind = detect_kind(path)  # the capture's errors before the key options', as open_session orders them
+    stage = make_security_stage(options, warner(env))
+    name = os.fsencode(path).decode("utf-8", "backslashreplace")  # Session.name
     out_b = env.stdout_bytes
     where = _Position(os.path.getsize(path))
     update, stop = progress(env, where)  # type: ignore[arg-type]  # it reads .size and .position only
+    problems = Problems(env, name)
 
     def advance(position: int) -> None:
         where.position = position
         update()
 
     try:
-        write_jsonl(path, dialect, stage, out_b, lambda item: report_anomaly(env, path, item), progress=advance)
+        stats = write_jsonl(path, dialect, stage, out_b, problems, progress=advance, kind=kind)
     finally:
         stop()
+        problems.close()
     out_b.flush()
+    if stats["frames"] == 0:
+        env.stderr.write(f"mavscope: no MAVLink frames found in {name} ({stats['size']} bytes, detected as {kind})\n")
     return ExitStatus.OK
 
 

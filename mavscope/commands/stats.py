@@ -5,11 +5,14 @@ from __future__ import annotations
 import argparse
 from typing import cast
 
-from mavscope.analysis.expert import expert_findings
-from mavscope.analysis.stats import compute_stats
+from mavscope.analysis.expert import Expert
+from mavscope.analysis.stats import StatsBuilder
 from mavscope.cli import Env, ExitStatus
-from mavscope.commands.analysis_common import add_analysis_options, read_frames
-from mavscope.output.tables import console, fmt, iso, sparkline, write_json
+from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
+from mavscope.commands.common import console, write_json
+from mavscope.output.tables import fmt, iso, sparkline
+
+SPARK_WIDTH = 40
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -24,14 +27,20 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
-    frames, dialect, path = read_frames(args, env)
-    stats = compute_stats(frames)
-    findings = expert_findings(frames, dialect)
+    builder = StatsBuilder()
+    with analysis_pass(args, env) as frames:
+        expert = Expert(frames.session.dialect)
+        for frame in frames:
+            builder.add(frame)
+            expert.add(frame)
+        path, select = frames.session.name, frames.selection
+    stats = builder.result()
+    findings = [f for f in expert.findings() if select.any_record(f.frames)]
+    doc = stats.to_json(select)
     if args.json:
-        doc = stats.to_json()
         doc["findings"] = [f.to_json() for f in findings]
         doc["file"] = path
-        doc["filter"] = getattr(args, "display_filter", None)
+        doc["filter"] = args.display_filter
         write_json(env, doc)
         return ExitStatus.OK
     from rich.table import Table
@@ -43,37 +52,38 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     for col, just in (("sysid/compid", "right"), ("message", "left"), ("count", "right"), ("rate Hz", "right"),
                       ("bytes", "right"), ("rate per second", "left")):
         t.add_column(col, justify=just)  # type: ignore[arg-type]
-    for m in stats.messages_json():
+    for m in cast("list[dict]", doc["messages"]):
         key = (m["sysid"], m["compid"], m["msgname"])
-        line = sparkline(stats.per_second(key)) if key in spark else ""
-        t.add_row(f"{m['sysid']}/{m['compid']}", str(m["msgname"]), str(m["count"]), fmt(m["rate_hz"], 2),
-                  str(m["bytes"]), line)
+        line = sparkline(stats.rate_series(key, SPARK_WIDTH)) if key in spark else ""
+        rate = "burst" if m["burst"] else fmt(m["rate_hz"], 2)
+        t.add_row(f"{m['sysid']}/{m['compid']}", str(m["msgname"]), str(m["count"]), rate, str(m["bytes"]), line)
     con.print(t)
 
     t = Table(title="Links (sysid, compid)", title_justify="left")
     for col in ("sysid/compid", "received", "lost", "loss %", "dup", "late", "v1", "v2", "CRC", "signature",
                 "endpoints"):
         t.add_column(col, justify="left" if col in ("CRC", "signature", "endpoints") else "right")
-    for lk in stats.links_json():
+    for lk in cast("list[dict]", doc["links"]):
         t.add_row(f"{lk['sysid']}/{lk['compid']}", str(lk["received"]), str(lk["lost"]), fmt(lk["loss_pct"], 2),
                   str(lk["duplicates"]), str(lk["reordered"]), str(lk["v1"]), str(lk["v2"]),
-                  _counts(lk["crc"]), _counts(lk["signature"]), ", ".join(lk["endpoints"]))  # type: ignore[arg-type]
+                  _counts(lk["crc"]), _counts(lk["signature"]), ", ".join(lk["endpoints"]))
     con.print(t)
 
     t = Table(title="Conversations", title_justify="left")
     for col in ("transport", "A", "B", "frames", "A→B", "B→A", "bytes", "start", "duration s", "systems"):
         t.add_column(col, justify="right" if col in ("frames", "A→B", "B→A", "bytes", "duration s") else "left")
-    for c in stats.conversations_json():
+    for c in cast("list[dict]", doc["conversations"]):
         t.add_row(str(c["transport"]), str(c["a"]), str(c["b"]) or "-", str(c["frames"]), str(c["frames_a_to_b"]),
-                  str(c["frames_b_to_a"]), str(c["bytes"]), iso(c["start"]), fmt(c["duration"]),  # type: ignore[arg-type]
+                  str(c["frames_b_to_a"]), str(c["bytes"]), iso(c["start"]), fmt(c["duration"]),
                   ", ".join(f"{s}/{k}" for s, k in cast("list[list[int]]", c["systems"])))
     con.print(t)
 
-    tot = stats.totals_json()
-    con.print(f"Totals: {tot['frames']} frames, {tot['bytes']} bytes, {fmt(tot['duration'])} s, "
+    tot = cast("dict", doc["totals"])
+    shown = f" (-Y matched {tot['matched']}; rows with a matched frame shown)" if "matched" in tot else ""
+    con.print(f"Totals{shown}: {tot['frames']} frames, {tot['bytes']} bytes, {fmt(tot['duration'])} s, "
               f"{tot['links']} links, {tot['messages']} message types, {tot['lost']} lost; "
-              f"v1 {tot['v1']}, v2 {tot['v2']}; CRC {_counts(tot['crc'])}; "  # type: ignore[arg-type]
-              f"signature {_counts(tot['signature'])}")  # type: ignore[arg-type]
+              f"v1 {tot['v1']}, v2 {tot['v2']}; CRC {_counts(tot['crc'])}; "
+              f"signature {_counts(tot['signature'])}")
     if findings:
         t = Table(title="Expert findings", title_justify="left")
         for col in ("severity", "code", "frames", "message"):

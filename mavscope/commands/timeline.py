@@ -6,8 +6,9 @@ import argparse
 
 from mavscope.analysis.timeline import reconstruct
 from mavscope.cli import Env, ExitStatus
-from mavscope.commands.analysis_common import add_analysis_options, read_frames
-from mavscope.output.tables import console, fmt, iso, write_json
+from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
+from mavscope.commands.common import console, write_json
+from mavscope.output.tables import fmt, iso
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -18,9 +19,19 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
+def _drift(clock: dict) -> str:
+    """"+250.0 ± 3.1", or "-" where the samples are too few or too close together to measure a drift."""
+    if clock["drift_ppm"] is None:
+        return "-"
+    err = clock["drift_err_ppm"]
+    return f"{clock['drift_ppm']:+.1f}" + (f" ± {err:.1f}" if err is not None else "")
+
+
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
-    frames, _, path = read_frames(args, env)
-    doc = reconstruct(frames).to_json()
+    with analysis_pass(args, env) as frames:
+        path, select = frames.session.name, frames.selection
+        timeline = reconstruct(frames)
+    doc = timeline.to_json(select)
     if args.json:
         doc["file"] = path
         write_json(env, doc)
@@ -37,7 +48,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         for c in s["clocks"]:
             t.add_row(str(c["component"]), c["source"], c["kind"], str(c["samples"]),
                       f"{c['offset_s']:+.6f}" if c["kind"] == "unix" else "-",
-                      f"{c['drift_ppm']:+.1f}", fmt(c["jitter_ms"]), iso(c.get("zero_at")))
+                      _drift(c), fmt(c["jitter_ms"]), iso(c.get("zero_at")))
         con.print(t)
         for r in s["round_trips"]:
             con.print(f"  {r['kind']} round trips to system {r['peer']}: {r['count']}, "

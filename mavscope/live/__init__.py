@@ -2,11 +2,11 @@
 
 No terminal UI here: `mavscope live` (mavscope/commands/live.py) and a TUI's follow mode both drive a
 `LiveSource` (open, start, iterate `records()`, stop, close) and feed its Records to the same pipeline
-as offline captures (`commands.common.build_pipeline`). See docs/live.md.
+as offline captures (`pipeline.session.build_pipeline`). See docs/live.md.
 """
 
 from mavscope.live.sink import LivePcapWriter
 from mavscope.live.source import LiveSource, LiveStats
-from mavscope.live.udp import Endpoint, UdpSource, parse_endpoint
+from mavscope.live.udp import UdpSource, parse_endpoint
 
-__all__ = ["Endpoint", "LivePcapWriter", "LiveSource", "LiveStats", "UdpSource", "parse_endpoint"]
+__all__ = ["LivePcapWriter", "LiveSource", "LiveStats", "UdpSource", "parse_endpoint"]

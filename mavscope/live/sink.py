@@ -47,10 +47,10 @@ class LivePcapWriter:
         self._last_flush = time.monotonic()
 
     def write(self, rec: Record) -> None:
-        size = _RECORD_HEADER + min(len(rec[3]), DEFAULT_SNAPLEN)
+        size = _RECORD_HEADER + min(len(rec.data), DEFAULT_SNAPLEN)
         if self.half is not None and self._count and self._size + size > self.half:
             self._rotate()
-        self._writer.write(rec[1], rec[3], rec[5])
+        self._writer.write(rec.time, rec.data, rec.orig_len)
         self._size += size
         self._count += 1
         self.records += 1

@@ -22,7 +22,6 @@ import queue
 import select
 import socket
 import threading
-import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -127,10 +126,6 @@ class LiveSource:
         """stop() was called."""
         return self._stopping.is_set()
 
-    @property
-    def running(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
-
     def stats(self) -> LiveStats:
         return LiveStats(self.received, self.received_bytes, self.delivered, self.queue_drops,
                          self.kernel_drops())
@@ -173,9 +168,9 @@ class LiveSource:
             self.delivered += 1
             self._delivered_bytes += item[-1]
             rec = record(self.delivered, self._next_offset + PCAP_RECORD_HEADER, item)
-            self._next_offset += PCAP_RECORD_HEADER + len(rec[3])
+            self._next_offset += PCAP_RECORD_HEADER + len(rec.data)
             if self.t0 is None:
-                self.t0 = rec[1]
+                self.t0 = rec.time
             yield rec
         if self.error is not None:
             raise self.error
@@ -245,7 +240,3 @@ def wait_readable(poller: select.poll, timeout_s: float) -> list[int]:
         return [fd for fd, _ in poller.poll(timeout_s * 1000)]
     except InterruptedError:
         return []
-
-
-def now() -> float:
-    return time.time()

@@ -1,7 +1,7 @@
 """`live --udp [HOST:]PORT` and `--forward HOST:PORT`: bind a UDP port, maybe relay, record every datagram.
 
 Each datagram becomes a Record holding a synthesised Ethernet/IPv4/UDP (or IPv6/UDP) packet with the
-real addresses and ports (`synth_udp_ipv4`), link type Ethernet, so the offline pipeline and the pcap
+real addresses and ports (`capture.synth.udp_packet`), link type Ethernet, so the offline pipeline and the pcap
 writer serve live capture unchanged. The capture time is the kernel's receive timestamp
 (SO_TIMESTAMPNS; `time.time()` at receipt where the kernel gives none), so it is not skewed by how long
 the datagram waited for the receiver thread. When bound to a wildcard address the destination address
@@ -16,16 +16,15 @@ datagram, so a slow decoder never delays the link. Each datagram is recorded onc
 
 from __future__ import annotations
 
-import ipaddress
 import select
 import socket
 import struct
 import time
-from dataclasses import dataclass
 from typing import Any
 
 from mavscope.capture.base import LINKTYPE_ETHERNET, Record
-from mavscope.capture.writer import synth_udp_ipv4
+from mavscope.capture.synth import udp_packet
+from mavscope.endpoint import Endpoint
 from mavscope.errors import MavscopeError, UsageError
 from mavscope.live.drops import proc_udp_drops, socket_inode
 from mavscope.live.source import (
@@ -47,16 +46,6 @@ _IPPROTO_IPV6 = socket.IPPROTO_IPV6
 _TIMESPEC = struct.Struct("=qq")
 _BURST = 1024  # datagrams taken from one socket before looking at the others and at stop()
 _FINAL_DRAIN_S = 1.0  # at most this long to empty the kernel's buffer after stop()
-
-
-@dataclass(frozen=True)
-class Endpoint:
-    host: str  # a numeric address
-    port: int
-    family: int
-
-    def __str__(self) -> str:
-        return f"[{self.host}]:{self.port}" if self.family == socket.AF_INET6 else f"{self.host}:{self.port}"
 
 
 def parse_endpoint(text: str, *, what: str, default_host: str | None = "0.0.0.0") -> Endpoint:
@@ -90,46 +79,6 @@ def parse_endpoint(text: str, *, what: str, default_host: str | None = "0.0.0.0"
     infos.sort(key=lambda i: i[0] != socket.AF_INET)  # prefer IPv4 for names that have both
     family, _, _, _, sockaddr = infos[0]
     return Endpoint(str(sockaddr[0]), port, family)
-
-
-def _v4(host: str) -> str | None:
-    """The IPv4 address of `host` when it is one (or an IPv4-mapped IPv6 address), else None."""
-    if ":" not in host:
-        return host
-    if host.startswith("::ffff:") and "." in host:
-        return host[7:]
-    return None
-
-
-def _sum16(data: bytes) -> int:
-    value = int.from_bytes(data + b"\0" * (len(data) & 1), "big")
-    total = value % 0xFFFF
-    return 0xFFFF if total == 0 and value else total
-
-
-def synth_udp_ipv6(src: tuple[str, int], dst: tuple[str, int], payload: bytes) -> bytes:
-    """Ethernet/IPv6/UDP carrying `payload` from `src` to `dst` ((address, port)), checksum right."""
-    saddr = ipaddress.IPv6Address(src[0].split("%")[0]).packed
-    daddr = ipaddress.IPv6Address(dst[0].split("%")[0]).packed
-    ulen = 8 + len(payload)
-    pseudo = saddr + daddr + struct.pack("!IxxxB", ulen, 17)
-    csum = (~_sum16(pseudo + struct.pack("!HHHH", src[1], dst[1], ulen, 0) + payload) & 0xFFFF) or 0xFFFF
-    udp = struct.pack("!HHHH", src[1], dst[1], ulen, csum)
-    ip = struct.pack("!IHBB", 6 << 28, ulen, 17, 64) + saddr + daddr
-    eth = b"\x02\x00\x00\x00\x00\x02" + b"\x02\x00\x00\x00\x00\x01" + b"\x86\xdd"
-    return eth + ip + udp + payload
-
-
-def synth_udp(sh: str, sp: int, dh: str, dp: int, payload: bytes) -> bytes:
-    """The Ethernet/IP/UDP packet of one received datagram (IPv4 when both ends are IPv4)."""
-    s4, d4 = _v4(sh), _v4(dh)
-    if s4 is not None and d4 is not None:
-        return synth_udp_ipv4(f"{s4}:{sp}", f"{d4}:{dp}", payload)
-    if s4 is not None:
-        sh = "::ffff:" + s4
-    if d4 is not None:
-        dh = "::ffff:" + d4
-    return synth_udp_ipv6((sh, sp), (dh, dp), payload)
 
 
 class UdpSource(LiveSource):
@@ -296,5 +245,5 @@ class UdpSource(LiveSource):
 
     def _record(self, number: int, offset: int, item: tuple[Any, ...]) -> Record:
         t, data, sh, sp, dh, dp, size = item
-        packet = synth_udp(sh, sp, dh, dp, data)
+        packet = udp_packet(sh, sp, dh, dp, data)
         return Record(number, t, LINKTYPE_ETHERNET, packet, offset, len(packet))

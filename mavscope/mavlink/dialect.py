@@ -34,9 +34,6 @@ _STRUCT_CODE = {
     "uint64_t": "Q",
 }
 
-# Commands whose param1..7 meanings come from the MAV_CMD enum's <param label=...> entries.
-COMMAND_MESSAGES = frozenset({"COMMAND_LONG", "COMMAND_INT", "MISSION_ITEM", "MISSION_ITEM_INT"})
-
 Decoded = dict[str, object]
 
 
@@ -47,6 +44,8 @@ class EnumEntry:
     description: str
     # For MAV_CMD entries: param index (1..7) -> (label, units); empty for other enums.
     params: tuple[tuple[int, str, str], ...] = ()
+    # For MAV_CMD entries: param index -> the enum that names its values (the XML's enum="...")
+    param_enums: tuple[tuple[int, str], ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -285,8 +284,12 @@ class Dialect:
                 for p in entry.param
                 if not getattr(p, "reserved", False) and (p.label or "").strip()
             )
+            param_enums = tuple(
+                (int(p.index), p.enum.strip()) for p in entry.param
+                if not getattr(p, "reserved", False) and (getattr(p, "enum", "") or "").strip()
+            )
             entries[entry.value] = EnumEntry(
-                entry.name, entry.value, " ".join((entry.description or "").split()), params
+                entry.name, entry.value, " ".join((entry.description or "").split()), params, param_enums
             )
         self.enums[e.name] = EnumDef(  # type: ignore[attr-defined]
             name=e.name,  # type: ignore[attr-defined]
@@ -303,6 +306,12 @@ class Dialect:
             if entry is not None:
                 return enum.name, entry.value
         return None
+
+    def command_param_enum(self, command: int, index: int) -> str:
+        """The enum naming the values of param `index` of MAV_CMD `command` ("" where the XML gives none)."""
+        enum = self.enums.get("MAV_CMD")
+        entry = enum.entries.get(command) if enum else None
+        return dict(entry.param_enums).get(index, "") if entry else ""
 
     def command_params(self, command: int) -> tuple[tuple[int, str, str], ...]:
         """(index, label, units) of the labelled params of MAV_CMD `command`."""

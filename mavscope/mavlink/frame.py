@@ -1,4 +1,4 @@
-"""The MAVLink frame record and its verdict enums."""
+"""The MAVLink frame record, its verdict enums, and the one reading of a frame's signature state."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from enum import Enum
 from functools import lru_cache
 from typing import NamedTuple
 
+from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import MessageDef
 from mavscope.notes import Note
 
@@ -40,6 +41,19 @@ class SignatureStatus(str, Enum):
     TRUNCATED = "truncated"
 
 
+class SignatureReason(str, Enum):
+    """Why a frame's signing got its verdict (the words are shown in the detail tree)."""
+
+    MAC_OK = "mac verifies"
+    NEW_STREAM = "first frame of its stream"
+    NO_KEY_MATCHES = "no supplied key verifies the MAC"
+    NOT_NEWER = "timestamp not newer than the last accepted one of its stream"
+    NO_KEY = "no key supplied"
+    TRUNCATED = "signature block truncated"
+    UNSIGNED_IN_SIGNED_STREAM = "unsigned frame in a signed stream"  # an unsigned v2 frame: no status
+    V1_IN_SIGNED_STREAM = "MAVLink v1 frame from a signing sender"  # v1 cannot be signed: no status
+
+
 class EncryptionStatus(str, Enum):
     DECRYPTED = "decrypted"
     NO_KEY = "no-key"
@@ -57,12 +71,44 @@ class Encryption(NamedTuple):
 
 
 class Security(NamedTuple):
-    """Verdicts of the security layer on one frame (None on a Frame that layer has not seen)."""
+    """Verdicts of the security layer on one frame (None on a Frame that layer has nothing to say about)."""
 
-    signature_status: SignatureStatus | None  # None for unsigned frames
+    signature_status: SignatureStatus | None  # None for unsigned frames (and signed ones it did not judge)
     key: str | None  # the NAME of the key whose MAC matched (valid or replay); never the key itself
     encryption: Encryption | None  # None for plaintext frames
-    reason: str = ""  # why the signature verdict is what it is (replay: last accepted timestamp...)
+    reason: SignatureReason | None = None
+    detail: str = ""  # numbers for the reason (timestamps, skew); never key material
+    skew: float | None = None  # a new signing stream: signature time - capture time, seconds
+
+    @property
+    def reason_text(self) -> str:
+        """The reason in words, with its numbers: "first frame of its stream (signature time +0.002 s ...)"."""
+        if self.reason is None:
+            return ""
+        return self.reason.value + (f" ({self.detail})" if self.detail else "")
+
+    @property
+    def unsigned_in_signed_stream(self) -> bool:
+        """An unsigned v2 frame from a sender that signs (a downgrade or an injection)."""
+        return self.reason is SignatureReason.UNSIGNED_IN_SIGNED_STREAM
+
+    @property
+    def v1_in_signed_stream(self) -> bool:
+        """A v1 frame (it cannot carry a signature) from a sender that signs: signing is not in force."""
+        return self.reason is SignatureReason.V1_IN_SIGNED_STREAM
+
+
+def signature_status(incompat_flags: int, security: Security | None) -> SignatureStatus | None:
+    """A frame's signature state, the one rule everything uses: the security stage's verdict; `no-key`
+    for a frame flagged signed that it did not judge (no key material); None for an unsigned frame."""
+    if security is not None and security.signature_status is not None:
+        return security.signature_status
+    return SignatureStatus.NO_KEY if incompat_flags & IFLAG_SIGNED else None
+
+
+def frame_number(record: int, index: int) -> str:
+    """Wireshark's frame number: the record, with the frame's index within it after a dot ("12", "12.2")."""
+    return str(record) if index == 1 else f"{record}.{index}"
 
 
 class Signature(NamedTuple):
@@ -94,7 +140,9 @@ class Frame(NamedTuple):
     """One MAVLink frame as found in a capture, with its header, CRC verdict and context.
 
     The payload is not decoded here: `decode_payload` does that on demand (the TUI decodes only the
-    rows it shows). Built with `tuple.__new__` on the hot path (see docs/performance.md).
+    rows it shows). A NamedTuple rather than a frozen dataclass: a million are built per capture and a
+    tuple is built several times faster (docs/performance.md). Build one with `new_frame`, the one
+    place that lays out its fields, and read it by attribute name.
     """
 
     record: int  # capture record number where the frame completed (1-based)
@@ -102,8 +150,8 @@ class Frame(NamedTuple):
     index: int  # type: ignore[assignment]
     time: float | None  # capture time of that record
     transport: str  # "udp" | "tcp" | "tlog" | "raw"
-    src: str | None
-    dst: str | None
+    src: Endpoint | None
+    dst: Endpoint | None
     offset: int | None  # file offset of the STX byte, where the frame lies contiguous in the file
     raw: bytes  # the frame as on the wire: header, payload, CRC, signature (truncated: what is there)
     version: int  # 1 or 2
@@ -121,6 +169,10 @@ class Frame(NamedTuple):
     notes: tuple[Note, ...]
     span: tuple[int, ...] | None  # records holding the frame's bytes when more than `record` alone
     security: Security | None = None  # set by the security layer (mavscope.security) when it runs
+
+    @property
+    def number(self) -> str:
+        return frame_number(self.record, self.index)
 
     @property
     def header_len(self) -> int:
@@ -144,6 +196,24 @@ class Frame(NamedTuple):
     def records(self) -> tuple[int, ...]:
         return self.span if self.span is not None else (self.record,)
 
+    @property
+    def signature_status(self) -> SignatureStatus | None:
+        return signature_status(self.incompat_flags, self.security)
+
+
+_new = tuple.__new__
+
+
+def new_frame(
+    record: int, index: int, time: float | None, transport: str, src: Endpoint | None, dst: Endpoint | None,
+    offset: int | None, raw: bytes, version: int, length: int, incompat_flags: int, compat_flags: int, seq: int,
+    sysid: int, compid: int, msgid: int, crc: int | None, crc_status: CrcStatus, msgdef: MessageDef | None,
+    signature: Signature | None, notes: tuple[Note, ...], span: tuple[int, ...] | None,
+) -> Frame:
+    """A Frame without the NamedTuple constructor's Python-level overhead (the security slot empty)."""
+    return _new(Frame, (record, index, time, transport, src, dst, offset, raw, version, length, incompat_flags,
+                        compat_flags, seq, sysid, compid, msgid, crc, crc_status, msgdef, signature, notes, span,
+                        None))
 
 
 def plaintext_payload(frame: Frame) -> bytes | None:

@@ -17,11 +17,13 @@ happens to start with 0xFD would become a "frame with a bad CRC".
 
 from __future__ import annotations
 
+import re
 import struct
 from collections.abc import Hashable
 
 from fastcrc import crc16
 
+from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import MessageDef
 from mavscope.mavlink.frame import (
     HEADER_V1,
@@ -35,6 +37,7 @@ from mavscope.mavlink.frame import (
     CrcStatus,
     Frame,
     Signature,
+    new_frame,
 )
 from mavscope.notes import Note, note
 
@@ -43,7 +46,6 @@ unpack_v2 = struct.Struct("<BBBBBBBHB").unpack_from
 _V1 = struct.Struct("<BBBBBB").unpack_from
 _CRC = struct.Struct("<H").unpack_from
 unpack_signature = struct.Struct("<B6s6s").unpack_from
-_new = tuple.__new__
 
 OK = CrcStatus.OK
 BAD = CrcStatus.BAD
@@ -62,13 +64,24 @@ def frame_size(buf: bytes, pos: int) -> int:
 
 
 def _next_stx(buf: bytes, start: int, end: int) -> int:
-    a = buf.find(b"\xfd", start, end)
-    b = buf.find(b"\xfe", start, end)
-    if a < 0:
-        return b if b >= 0 else end
-    if b < 0:
-        return a
-    return a if a < b else b
+    """Position of the first STX byte in buf[start:end], or `end`.
+
+    The work is proportional to the distance covered, not to what lies beyond: the two bytes are looked
+    for in windows that grow from STX_WINDOW (searching each to `end` cost a scan of the whole rest for
+    the byte that is absent, at every byte of a run of the other one: quadratic).
+    """
+    step = STX_WINDOW
+    while start < end:
+        stop = start + step if start + step < end else end
+        a = buf.find(b"\xfd", start, stop)
+        b = buf.find(b"\xfe", start, stop if a < 0 else a)
+        if b >= 0:
+            return b
+        if a >= 0:
+            return a
+        start = stop
+        step <<= 2
+    return end
 
 
 def _crc_status(buf: bytes, pos: int, hlen: int, length: int, md: MessageDef | None) -> tuple[CrcStatus, int]:
@@ -81,6 +94,8 @@ def _crc_status(buf: bytes, pos: int, hlen: int, length: int, md: MessageDef | N
 
 
 VALID, INVALID, NEED_MORE = 1, 0, -1
+STX_WINDOW = 16  # bytes _next_stx looks at first
+_RUNS = {STX_V2: re.compile(b"\xfd+").match, STX_V1: re.compile(b"\xfe+").match}  # a run of one STX byte
 
 
 def _check_at(buf: bytes, pos: int, end: int, messages: dict[int, MessageDef]) -> int:
@@ -170,6 +185,10 @@ class Framer:
         messages = self.messages
         pos = start
         skip_from = -1
+        # The first position >= valid_from where a CRC-valid frame starts (`end`: none), as far as known.
+        # It only moves forward with `pos`, so each position is checked once (not once per earlier STX).
+        valid_from = valid_at = end
+        run_to = -1  # where the run of one STX byte that `pos` lies in ends, once known
         while pos < end:
             b = buf[pos]
             if b != STX_V2 and b != STX_V1:
@@ -190,9 +209,12 @@ class Framer:
                     break  # wait for more bytes
                 # The rest of the data is shorter than this frame: a real truncated frame, unless a
                 # valid frame starts later (then this STX was a stray byte).
-                later = _next_stx(buf, pos + 1, end)
-                while later < end and _check_at(buf, later, end, messages) != VALID:
-                    later = _next_stx(buf, later + 1, end)
+                if not valid_from <= pos + 1 <= valid_at:
+                    valid_from = pos + 1
+                    valid_at = _next_stx(buf, pos + 1, end)
+                    while valid_at < end and _check_at(buf, valid_at, end, messages) != VALID:
+                        valid_at = _next_stx(buf, valid_at + 1, end)
+                later = valid_at
                 if later < end:
                     if skip_from < 0:
                         skip_from = pos
@@ -213,7 +235,14 @@ class Framer:
                 if verdict != VALID:
                     if skip_from < 0:
                         skip_from = pos
-                    pos = _next_stx(buf, pos + 1, end)
+                    if pos + 1 < end and buf[pos + 1] == b:  # in a run of one STX byte
+                        if pos >= run_to:
+                            run_to = _RUNS[b](buf, pos, end).end()  # type: ignore[union-attr]  # matches at pos
+                        # Every start up to run_to - 2 * size sees the same bytes as this one (the frame
+                        # and the one after it inside the run): the same verdict, skipped at once.
+                        pos = max(pos + 1, run_to - 2 * size + 1)
+                    else:
+                        pos = _next_stx(buf, pos + 1, end)
                     continue
                 if after == end and not final:
                     break  # a stream may still bring the proof (or the refutation)
@@ -241,8 +270,8 @@ def build_frame(
     index: int,
     time: float | None,
     transport: str,
-    src: str | None,
-    dst: str | None,
+    src: Endpoint | None,
+    dst: Endpoint | None,
     offset: int | None,
     notes: tuple[Note, ...],
     span: tuple[int, ...] | None,
@@ -296,11 +325,8 @@ def build_frame(
             extra.append(note("length-mismatch", f"payload of {length} bytes, {md.name} has {md.length}", offset))
     if extra:
         notes = notes + tuple(extra)
-    return _new(
-        Frame,
-        (record, index, time, transport, src, dst, offset, raw, version, length, iflags, cflags, seq, sysid,
-         compid, msgid, crc, status, md, sig, notes, span, None),
-    )
+    return new_frame(record, index, time, transport, src, dst, offset, raw, version, length, iflags, cflags, seq,
+                     sysid, compid, msgid, crc, status, md, sig, notes, span)
 
 
 def announced_size(raw: bytes) -> int:

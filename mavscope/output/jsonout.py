@@ -1,26 +1,67 @@
-"""The JSON Lines / JSON export (contract documented in docs/json-format.md and docs/frame.schema.json)."""
+"""The JSON Lines / JSON export (contract documented in docs/json-format.md and docs/frame.schema.json).
+
+The object of a frame is laid out by the field registry (`mavscope.fields.registry.FIELDS`): its
+top-level keys are the registered fields' JSON keys in registry order, `fields` holds the decoded
+payload (the dialect's field names), `signature` and `encryption` the fields registered in those
+blocks, and `notes` the frame's notes. The layout is compiled once into a plan; values the frame holds
+as they are exported (`Field.attr`) are read with one `itemgetter`.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable
+from operator import itemgetter
 
 import orjson
 
-from mavscope.mavlink.frame import (
-    IFLAG_SIGNED,
-    CrcStatus,
-    Encryption,
-    Frame,
-    Security,
-    Signature,
-    SignatureStatus,
-    decode_payload,
-)
+from mavscope.fields.registry import ENCRYPTION_BLOCK, FIELDS, MISSING, SIGNATURE_BLOCK, Field
+from mavscope.mavlink.frame import IFLAG_SIGNED, CrcStatus, Frame, decode_payload
 
 TRUNCATED = CrcStatus.TRUNCATED
 
 _dumps = orjson.dumps
 _NL = orjson.OPT_APPEND_NEWLINE
+
+# A run of top-level keys: (keys, getter, several): with `several`, the getter returns one value per key.
+Segment = tuple[tuple[str, ...], Callable[[Frame], object], bool]
+
+
+def _top_plan() -> tuple[Segment, ...]:
+    """The top-level keys in registry order, as segments: consecutive keys the frame holds as they are
+    exported (`Field.attr`) share one itemgetter; a computed key has its own getter."""
+    slots = {name: i for i, name in enumerate(Frame._fields)}
+    segments: list[Segment] = []
+    run: list[tuple[str, int]] = []
+
+    def close_run() -> None:
+        if run:
+            segments.append((tuple(k for k, _ in run), itemgetter(*(i for _, i in run)), len(run) > 1))
+            run.clear()
+
+    for f in FIELDS:
+        if f.json_key is None or f.json_block is not None:
+            continue
+        if f.attr is not None and f.json_get is None:
+            run.append((f.json_key, slots[f.attr]))
+        else:
+            close_run()
+            segments.append(((f.json_key,), f.json_get or f.get, False))
+    close_run()
+    return tuple(segments)
+
+
+_TOP = _top_plan()
+_SIGNATURE: tuple[Field, ...] = tuple(f for f in FIELDS if f.json_block == SIGNATURE_BLOCK)
+_ENCRYPTION: tuple[Field, ...] = tuple(f for f in FIELDS if f.json_block == ENCRYPTION_BLOCK)
+
+
+def _block(frame: Frame, fields: tuple[Field, ...]) -> dict[str, object]:
+    out: dict[str, object] = {}
+    for f in fields:
+        v = (f.json_get or f.get)(frame)
+        if v is not MISSING:
+            out[f.json_key] = v  # type: ignore[index]  # every field of a block has a JSON key
+    return out
 
 
 def frame_to_json(frame: Frame, fields: dict[str, object] | None = None, decode: bool = True) -> dict[str, object]:
@@ -28,74 +69,28 @@ def frame_to_json(frame: Frame, fields: dict[str, object] | None = None, decode:
 
     Float NaN and infinities become null when serialised with orjson (JSON cannot carry them).
     """
-    # One unpacking instead of 20 attribute look-ups: this runs once per frame of a 1M-frame export.
-    (record, index, time, transport, src, dst, _, raw, version, length, iflags, cflags, seq, sysid, compid,
-     msgid, crc, status, md, sig, notes, _, security) = frame
+    out: dict[str, object] = {}
+    for keys, get, several in _TOP:
+        if several:
+            out.update(zip(keys, get(frame)))  # type: ignore[call-overload]  # a tuple, one value per key
+        else:
+            out[keys[0]] = get(frame)
+    md = frame.msgdef
     if fields is None and decode and md is not None:
-        if not iflags & ~IFLAG_SIGNED:
-            if status is not TRUNCATED:
-                h = 10 if version == 2 else 6
-                fields = md.decode(raw[h : h + length])
+        if not frame.incompat_flags & ~IFLAG_SIGNED:
+            if frame.crc_status is not TRUNCATED:
+                h = 10 if frame.version == 2 else 6
+                fields = md.decode(frame.raw[h : h + frame.length])
         else:
             fields = decode_payload(frame)
-    return {
-        "frame": record,
-        "index": index,
-        "time": time,
-        "transport": transport,
-        "src": src,
-        "dst": dst,
-        "version": version,
-        "len": length,
-        "incompat_flags": iflags,
-        "compat_flags": cflags,
-        "seq": seq,
-        "sysid": sysid,
-        "compid": compid,
-        "msgid": msgid,
-        "msgname": md.name if md is not None else None,
-        "crc": crc,
-        "crc_status": status,  # a str Enum: orjson writes its value
-        "fields": fields,
-        "signature": None if sig is None else signature_json(sig, security, time),
-        "encryption": None if security is None or security.encryption is None else encryption_json(security.encryption),
-        "notes": [n.to_json() for n in notes] if notes else [],
-    }
-
-
-def signature_json(sig: Signature, security: Security | None = None, time: float | None = None) -> dict[str, object]:
-    out: dict[str, object] = {
-        "link_id": sig.link_id,
-        "timestamp": sig.timestamp,
-        "time": sig.iso_time(),
-        "value": sig.value.hex(),
-        "status": (security.signature_status if security is not None and security.signature_status is not None
-                   else SignatureStatus.NO_KEY).value,
-    }
-    if security is not None and security.key is not None:
-        out["key"] = security.key
-    if security is not None and time is not None:  # the security layer ran: signature time - capture time
-        out["skew"] = round(sig.unix_time - time, 6)
-    return out
-
-
-def encryption_json(enc: Encryption) -> dict[str, object]:
-    out: dict[str, object] = {"method": enc.method, "scheme": enc.scheme, "status": enc.status.value}
-    if enc.reason:
-        out["reason"] = enc.reason
+    out["fields"] = fields
+    out["signature"] = None if frame.signature is None else _block(frame, _SIGNATURE)
+    sec = frame.security
+    out["encryption"] = None if sec is None or sec.encryption is None else _block(frame, _ENCRYPTION)
+    out["notes"] = [n.to_json() for n in frame.notes] if frame.notes else []
     return out
 
 
 def jsonl_bytes(frame: Frame) -> bytes:
     """One JSON Lines line (with its newline) for `frame`."""
     return _dumps(frame_to_json(frame), option=_NL)
-
-
-def json_array_chunks(frames: Iterable[Frame]) -> Iterator[bytes]:
-    """`-T json`: the same objects as one JSON array, streamed."""
-    first = True
-    yield b"["
-    for frame in frames:
-        yield (b"\n" if first else b",\n") + _dumps(frame_to_json(frame))
-        first = False
-    yield b"\n]\n" if not first else b"]\n"

@@ -6,21 +6,22 @@ which frames are shown (filters, -c); the printer only decides how they look.
 
 from __future__ import annotations
 
-from mavscope.cli import Env
+from typing import IO
+
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
 from mavscope.output.jsonout import jsonl_bytes
 from mavscope.output.text import detail_text, hexdump, summary_line
 
-FORMATS = ("text", "json", "jsonl")
-
 
 class FramePrinter:
-    """Writes frames to `env`'s stdout in one of FORMATS (`quiet`: nothing per frame)."""
+    """Writes frames as text (`out`) or JSON (`out_b`, the same stream's bytes): "text", "json" or "jsonl"
+    (`quiet`: nothing per frame)."""
 
     def __init__(
         self,
-        env: Env,
+        out: IO[str],
+        out_b: IO[bytes],
         dialect: Dialect,
         fmt: str = "text",
         *,
@@ -29,8 +30,8 @@ class FramePrinter:
         quiet: bool = False,
         t0: float | None = None,
     ) -> None:
-        self.out = env.stdout
-        self.out_b = env.stdout_bytes
+        self.out = out
+        self.out_b = out_b
         self.dialect = dialect
         self.fmt = fmt
         self.verbose = verbose

@@ -3,43 +3,43 @@ number formats, and the JSON writer. The analysis core (mavscope.analysis) never
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import math
+from collections.abc import Mapping, Sequence
 from datetime import datetime, timezone
+from typing import IO
 
 import orjson
 
-from mavscope.cli import Env
+from mavscope.mavlink.semantics import NAN_TEXT
 
 BARS = "▁▂▃▄▅▆▇█"
 
 
-def console(env: Env):  # type: ignore[no-untyped-def]
-    """A rich Console writing to env.stdout: colour only on a terminal, wide tables when piped."""
+def console(out: IO[str], environ: Mapping[str, str]):  # type: ignore[no-untyped-def]
+    """A rich Console writing to `out`: colour only on a terminal, wide tables when piped ($COLUMNS)."""
     from rich.console import Console
 
     try:
-        tty = env.stdout.isatty()
+        tty = out.isatty()
     except (AttributeError, ValueError):
         tty = False
     if tty:
-        return Console(file=env.stdout)
-    width = env.environ.get("COLUMNS", "")
-    return Console(file=env.stdout, no_color=True, color_system=None, highlight=False, emoji=False,
+        return Console(file=out)
+    width = environ.get("COLUMNS", "")
+    return Console(file=out, no_color=True, color_system=None, highlight=False, emoji=False,
                    width=int(width) if width.isdigit() else 160)
 
 
-def sparkline(values: Sequence[int | float], width: int = 40) -> str:
-    """Values as a row of block characters (averaged into at most `width` buckets)."""
-    if not values:
-        return ""
-    if len(values) > width:
-        step = len(values) / width
-        values = [sum(values[int(i * step): max(int((i + 1) * step), int(i * step) + 1)]) /
-                  max(1, int((i + 1) * step) - int(i * step)) for i in range(width)]
-    top = max(values)
+def sparkline(values: Sequence[float]) -> str:
+    """Values as a row of block characters scaled to the largest (a zero as a space): one cell a value.
+
+    The values come already bucketed (`Stats.rate_series`), so the line is as long as asked whatever the
+    capture's span."""
+    top = max(values, default=0.0)
     if top <= 0:
-        return BARS[0] * len(values)
-    return "".join(BARS[min(len(BARS) - 1, int(v / top * (len(BARS) - 1) + 0.5))] for v in values)
+        return " " * len(values)
+    n = len(BARS)
+    return "".join(" " if v <= 0 else BARS[min(n - 1, max(0, math.ceil(v / top * n) - 1))] for v in values)
 
 
 def fmt(value: object, digits: int = 3) -> str:
@@ -50,14 +50,26 @@ def fmt(value: object, digits: int = 3) -> str:
     return str(value)
 
 
+def param_text(v: object) -> str:
+    """A command or mission parameter: 9 significant digits (degrees to the centimetre), and None (a NaN
+    in the frame: JSON carries it as null; PX4 and QGC send NaN for "unchanged") as NaN."""
+    if v is None:
+        return NAN_TEXT
+    return f"{v:.9g}" if isinstance(v, float) else str(v)
+
+
 def iso(t: float | None) -> str:
+    """ISO-8601 UTC to the millisecond; a time the calendar cannot hold (a pcapng may state one before year 1
+    or after 9999) as its number of seconds since 1970; "-" for none."""
     if t is None:
         return "-"
-    return datetime.fromtimestamp(t, tz=timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+    try:
+        dt = datetime.fromtimestamp(t, tz=timezone.utc)
+    except (OverflowError, OSError, ValueError):
+        return f"{t:.6g}s-since-1970-01-01T00:00:00Z"
+    return dt.isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
-def write_json(env: Env, doc: object) -> None:
-    """One JSON document on stdout (NaN and infinities as null)."""
-    out = env.stdout_bytes
+def write_json(out: IO[bytes], doc: object) -> None:
+    """One JSON document (NaN and infinities as null)."""
     out.write(orjson.dumps(doc, option=orjson.OPT_INDENT_2 | orjson.OPT_APPEND_NEWLINE | orjson.OPT_NON_STR_KEYS))
-    out.flush()

@@ -2,110 +2,10 @@
 
 from __future__ import annotations
 
-import math
-from weakref import WeakKeyDictionary
-
-from mavscope.mavlink.dialect import Dialect, MessageDef
-from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, IFLAG_SIGNED, CrcStatus, Frame, decode_payload
-from mavscope.mavlink.items import Item, frame_items
-
-# The fields a summary line shows per message (default: the first few scalar fields).
-SUMMARY_FIELDS: dict[str, tuple[str, ...]] = {
-    "HEARTBEAT": ("type", "autopilot", "base_mode", "system_status"),
-    "COMMAND_LONG": ("command", "target_system", "target_component", "confirmation"),
-    "COMMAND_INT": ("command", "target_system", "target_component", "frame", "x", "y", "z"),
-    "COMMAND_ACK": ("command", "result"),
-    "MISSION_ITEM_INT": ("seq", "command", "frame", "x", "y", "z"),
-    "MISSION_ITEM": ("seq", "command", "frame", "x", "y", "z"),
-    "MISSION_COUNT": ("count", "target_system", "mission_type"),
-    "MISSION_REQUEST_INT": ("seq", "target_system", "mission_type"),
-    "MISSION_REQUEST": ("seq", "target_system", "mission_type"),
-    "MISSION_ACK": ("type", "target_system", "mission_type"),
-    "STATUSTEXT": ("severity", "text"),
-    "GLOBAL_POSITION_INT": ("lat", "lon", "relative_alt"),
-    "GPS_RAW_INT": ("fix_type", "lat", "lon", "satellites_visible"),
-    "ATTITUDE": ("roll", "pitch", "yaw"),
-    "SYS_STATUS": ("voltage_battery", "battery_remaining", "drop_rate_comm"),
-    "PARAM_VALUE": ("param_id", "param_value", "param_index"),
-    "PARAM_SET": ("param_id", "param_value"),
-    "SETUP_SIGNING": ("target_system", "initial_timestamp"),
-}
-_MAX_DEFAULT = 4
-
-
-# How a summary shows one field: by its name, an enum's names, degE7 as degrees, or by the value's type.
-_PLAIN, _ENUM, _DEGREES = 0, 1, 2
-_Plan = tuple[tuple[str, int, dict[int, str]], ...]
-_PLANS: WeakKeyDictionary[Dialect, dict[int, tuple[MessageDef, _Plan]]] = WeakKeyDictionary()
-
-
-def _summary_plan(md: MessageDef, dialect: Dialect) -> _Plan:
-    """(name, how, enum names) for the fields the summary of `md` shows: worked out once per message."""
-    cache = _PLANS.get(dialect)
-    if cache is None:
-        cache = _PLANS[dialect] = {}
-    hit = cache.get(md.id)
-    if hit is not None and hit[0] is md:
-        return hit[1]
-    names = SUMMARY_FIELDS.get(md.name) or tuple(
-        f.name for f in md.fields if not f.array_length or f.type == "char"
-    )[:_MAX_DEFAULT]
-    plan = []
-    for name in names:
-        fd = md.field(name)
-        if fd is None:
-            continue
-        enum = dialect.enums.get(fd.enum) if fd.enum else None
-        if enum is not None and not (enum.bitmask or fd.display == "bitmask"):
-            plan.append((name, _ENUM, {v: e.name for v, e in enum.entries.items()}))
-        elif fd.units == "degE7" or (name in ("x", "y") and md.name in ("COMMAND_INT", "MISSION_ITEM_INT")):
-            plan.append((name, _DEGREES, {}))
-        else:
-            plan.append((name, _PLAIN, {}))
-    result = tuple(plan)
-    cache[md.id] = (md, result)
-    return result
-
-
-def _short(name: str, how: int, names: dict[int, str], value: object) -> str:
-    if how == _ENUM and isinstance(value, int):
-        text = names.get(value)
-        if text:
-            return f"{name}={text}"
-    elif how == _DEGREES and isinstance(value, int):
-        return f"{name}={value / 1e7:.7f}"
-    if isinstance(value, float):
-        return f"{name}={'nan' if math.isnan(value) else f'{value:.4g}'}"
-    if isinstance(value, str):
-        return f"{name}={value!r}"
-    if isinstance(value, list):
-        return f"{name}=[{len(value)}]"
-    return f"{name}={value}"
-
-
-def summary_info(frame: Frame, dialect: Dialect, fields: dict[str, object] | None = None) -> str:
-    """The "Info" column: message name and its key fields, plus the verdicts that are not ok."""
-    md = frame.msgdef
-    parts: list[str] = []
-    if md is None:
-        parts.append(f"UNKNOWN msgid={frame.msgid}")
-    else:
-        parts.append(md.name)
-        if fields is None:
-            fields = decode_payload(frame)
-        if fields is not None:
-            parts.extend(_short(name, how, names, fields.get(name)) for name, how, names in _summary_plan(md, dialect))
-        elif frame.encryption_method:
-            parts.append(f"[encrypted, method {frame.encryption_method}]")
-    if frame.crc_status is not CrcStatus.OK:
-        parts.append(f"[CRC {frame.crc_status.value}]")
-    if frame.incompat_flags & ~(IFLAG_SIGNED | IFLAG_ENCRYPTION_MASK):
-        parts.append(f"[unknown incompat flags 0x{frame.incompat_flags:02x}]")
-    if any(n.code == "skipped-bytes" for n in frame.notes):
-        parts.append("[after skipped bytes]")
-    if frame.signature is not None:
-        parts.append(f"[signed link {frame.signature.link_id}]")
-    return " ".join(parts)
+from mavscope.fields.summary import summary_info
+from mavscope.fields.tree import Item, frame_items
+from mavscope.mavlink.dialect import Dialect
+from mavscope.mavlink.frame import Frame
 
 
 def summary_line(frame: Frame, dialect: Dialect, t0: float | None, fields: dict[str, object] | None = None) -> str:
@@ -114,7 +14,7 @@ def summary_line(frame: Frame, dialect: Dialect, t0: float | None, fields: dict[
         t = f"{frame.time - t0:11.6f}"
     else:
         t = f"{'-':>11}"
-    num = f"{frame.record}" if frame.index == 1 else f"{frame.record}.{frame.index}"
+    num = frame.number
     route = f"{frame.src or frame.transport} → {frame.dst or ''}".rstrip(" →") if frame.src else frame.transport
     return (
         f"{num:>7} {t} {route:<34} {frame.sysid:>3}/{frame.compid:<3} "
@@ -133,8 +33,7 @@ def tree_lines(items: tuple[Item, ...], indent: int = 0) -> list[str]:
 
 def detail_text(frame: Frame, dialect: Dialect) -> str:
     """Everything -V shows for a frame."""
-    head = f"Frame {frame.record}" + (f".{frame.index}" if frame.index > 1 else "")
-    ctx = [f"{head}: {len(frame.raw)} bytes, {frame.transport}"]
+    ctx = [f"Frame {frame.number}: {len(frame.raw)} bytes, {frame.transport}"]
     if frame.src:
         ctx[0] += f" {frame.src} → {frame.dst}"
     if frame.offset is not None:

@@ -24,7 +24,6 @@ from mavscope.security.ciphers import hkdf_sha256
 from mavscope.security.keys import SigningKey
 
 KEY_EXCHANGE_MSGID = 65100
-KEY_EXCHANGE_NAME = "MAVSCOPE_KEY_EXCHANGE"
 KEX_SALT = b"mavscope-kex-v1"
 LABEL_SIGNING = b"mavscope signing key"
 LABEL_AES_GCM = b"mavscope aes-gcm key"
@@ -81,7 +80,11 @@ class KeyExchangeTracker:
         if key_id in self.epochs:
             return None, f"key exchange {key_id}: a second peer key for an existing key id (ignored)"
         own_pub, own_priv = next(iter(self.own.items()))
-        shared = shared_secret(own_priv, pub)
+        try:
+            shared = shared_secret(own_priv, pub)
+        except ValueError:  # an all-zero or other low-order point: X25519 gives the all-zero secret
+            return None, (f"key exchange {key_id}: peer public key is a low-order point (all-zero shared secret): "
+                          "no keys derived; a peer sending it forces a predictable key")
         signing, gcm = derive_epoch_keys(shared, key_id, own_pub, pub)
         epoch = Epoch(key_id, SigningKey(f"ecdh-{key_id}", signing), gcm, (sysid, compid), record)
         self.epochs[key_id] = epoch

@@ -1,7 +1,9 @@
 """Key material: `--key`, `--cipher`, `--ecdh-private` specs and TOML keyrings (docs/security.md).
 
 A secret is held by a `SigningKey` or `CipherKey` whose `repr` shows only its name; every error
-message names the option and what is wrong with its shape, never the value.
+message names the option and what is wrong with its shape, never the value: a refused spec is described
+by the length of its pieces (`_shape`), never by any character of what may be the key. A key's NAME is
+echoed only once it is known to be a NAME (followed by `=` and a spec of a known kind).
 """
 
 from __future__ import annotations
@@ -28,14 +30,24 @@ SECUREMAV_TEST_XOR = b"\xab"
 AES_GCM_DEFAULT_METHOD = 6  # method used for keys from the key exchange unless --cipher says otherwise
 
 
+def passphrase_bytes(text: str) -> bytes:
+    """The bytes a passphrase was typed as: `os.fsencode`, so that a command-line argument that is not
+    UTF-8 (a Latin-1 terminal; Python hands it over with surrogate escapes) gives back its original
+    bytes, as the program the user typed it into would use them. Text that is UTF-8 gives its UTF-8."""
+    try:
+        return os.fsencode(text)
+    except UnicodeEncodeError:  # a lone surrogate that no byte decodes to (not from a command line)
+        raise UsageError("a passphrase holds a character that cannot be encoded") from None
+
+
 def passphrase_key(text: str) -> bytes:
-    """SHA-256 of the passphrase (MAVProxy, older QGroundControl)."""
-    return hashlib.sha256(text.encode("utf-8")).digest()
+    """SHA-256 of the passphrase's bytes (MAVProxy, older QGroundControl)."""
+    return hashlib.sha256(passphrase_bytes(text)).digest()
 
 
 def qgc_key(text: str) -> bytes:
     """PBKDF2-HMAC-SHA256, QGroundControl's salt, 600000 iterations (current QGroundControl)."""
-    return hashlib.pbkdf2_hmac("sha256", text.encode("utf-8"), QGC_SALT, QGC_ITERATIONS, KEY_LEN)
+    return hashlib.pbkdf2_hmac("sha256", passphrase_bytes(text), QGC_SALT, QGC_ITERATIONS, KEY_LEN)
 
 
 class SigningKey:
@@ -100,20 +112,25 @@ class KeyMaterial:
     def has_signing_material(self) -> bool:
         return bool(self.signing or self.ecdh_private or self.use_leaked_keys)
 
-    def cipher_for(self, method: int) -> CipherKey | None:
-        c = self.ciphers.get(method)
-        if c is None and method == SECUREMAV_TEST_METHOD:
-            return CipherKey(SECUREMAV_TEST_METHOD, "xor", SECUREMAV_TEST_XOR)
-        return c
-
 
 _NAME = re.compile(r"^[A-Za-z0-9_.@-]{1,64}$")
+_KINDS = ("hex:", "base64:", "passphrase:", "qgc:", "file:")
+_EXPECTED = "expected hex:, base64:, passphrase:, qgc: or file: before the key"
+
+
+def _shape(text: str) -> str:
+    """What a refused piece of a key spec looks like, without any of its characters."""
+    return "nothing" if not text else "1 character" if len(text) == 1 else f"{len(text)} characters"
 
 
 def _split_name(spec: str) -> tuple[str | None, str]:
-    """`NAME=SPEC` -> (NAME, SPEC); a SPEC alone -> (None, SPEC). A NAME holds no ':'."""
+    """`NAME=SPEC` -> (NAME, SPEC); a SPEC alone -> (None, SPEC).
+
+    A NAME holds no ':' and is followed by a spec of a known kind: anything else may be a key written
+    without its kind (base64 ends in '='), so it stays the SPEC and is never shown as a NAME.
+    """
     head, sep, tail = spec.partition("=")
-    if sep and ":" not in head and head:
+    if sep and ":" not in head and head and tail.startswith(_KINDS):
         if not _NAME.match(head):
             raise UsageError("--key: a key NAME is 1-64 letters, digits, '_', '.', '@' or '-'")
         return head, tail
@@ -131,14 +148,14 @@ def _decode_bytes(kind: str, value: str, what: str) -> bytes:
             return base64.b64decode(value.strip(), validate=True)
         except (binascii.Error, ValueError):
             raise UsageError(f"{what}: base64: is not valid base64") from None
-    raise UsageError(f"{what}: unknown key kind {kind!r}")
+    raise UsageError(f"{what}: unknown key kind ({_shape(kind)} before ':')")
 
 
 def secret_from_spec(spec: str, what: str) -> bytes:
     """The 32-byte secret of `hex:`, `base64:`, `passphrase:` or `qgc:` (not `file:`)."""
     kind, sep, value = spec.partition(":")
     if not sep:
-        raise UsageError(f"{what}: expected hex:, base64:, passphrase:, qgc: or file: before the key")
+        raise UsageError(f"{what}: {_EXPECTED} (got {_shape(spec)} without ':')")
     if kind == "passphrase":
         return passphrase_key(value)
     if kind == "qgc":
@@ -149,7 +166,7 @@ def secret_from_spec(spec: str, what: str) -> bytes:
             digits = " (64 hex digits)" if kind == "hex" else ""
             raise UsageError(f"{what}: {kind}: a signing key is {KEY_LEN} bytes{digits}, got {len(secret)}")
         return secret
-    raise UsageError(f"{what}: unknown key kind {kind!r} (hex, base64, passphrase, qgc, file)")
+    raise UsageError(f"{what}: unknown key kind ({_shape(kind)} before ':'); {_EXPECTED}")
 
 
 def cipher_from_spec(spec: str, what: str = "--cipher") -> CipherKey:
@@ -159,7 +176,9 @@ def cipher_from_spec(spec: str, what: str = "--cipher") -> CipherKey:
         raise UsageError(f"{what}: expected METHOD=SCHEME:KEYSPEC, METHOD 1..7")
     method = int(method_text)
     if not 1 <= method <= 7:
-        raise UsageError(f"{what}: METHOD is 1..7 (incompat flag bits 5-7), not {method}")
+        digits = method_text.strip()
+        got = digits if len(digits) <= 3 else f"a number of {len(digits)} digits"
+        raise UsageError(f"{what}: METHOD is 1..7 (incompat flag bits 5-7), not {got}")
     iv = b"\x00" * 16
     m = re.search(r":iv=([0-9A-Fa-f]*)$", rest)
     if m:
@@ -169,7 +188,8 @@ def cipher_from_spec(spec: str, what: str = "--cipher") -> CipherKey:
         iv = bytes.fromhex(m.group(1))
     scheme, _, keyspec = rest.partition(":")
     if scheme not in SCHEMES:
-        raise UsageError(f"{what}: unknown scheme {scheme!r} (xor, aes-128-ctr, aes-gcm)")
+        raise UsageError(f"{what}: unknown scheme ({_shape(scheme)} after METHOD=); "
+                         "expected METHOD=SCHEME:KEYSPEC with SCHEME xor, aes-128-ctr or aes-gcm")
     if scheme == "aes-gcm" and keyspec == "ecdh":
         return CipherKey(method, scheme, b"", iv, from_ecdh=True)
     if not keyspec:
@@ -182,7 +202,8 @@ def cipher_from_spec(spec: str, what: str = "--cipher") -> CipherKey:
     elif kind in ("hex", "base64"):
         key = _decode_bytes(kind, value, f"{what}: method {method}")
     else:
-        raise UsageError(f"{what}: method {method}: unknown key kind {kind!r} (hex, base64, passphrase)")
+        raise UsageError(f"{what}: method {method}: unknown key kind ({_shape(kind)} after the scheme); "
+                         "expected hex:, base64: or passphrase: before the key")
     if scheme == "xor" and not key:
         raise UsageError(f"{what}: method {method}: xor needs at least one key byte")
     if scheme == "aes-128-ctr" and len(key) != 16:
@@ -218,10 +239,11 @@ def load_keyring(path: str, material: KeyMaterial, warn: Callable[[str], object]
     keys = data.get("keys", {})
     if not isinstance(keys, dict):
         raise UsageError(f"keyring {path}: [keys] must be a table of NAME = \"SPEC\"")
-    for name, spec in keys.items():
+    for i, (name, spec) in enumerate(keys.items(), 1):
         if not isinstance(spec, str) or not _NAME.match(name):
-            raise UsageError(f"keyring {path}: key {name!r}: "
-                             'expected NAME = "hex:..." (or base64:, passphrase:, qgc:)')
+            # the name is not shown: a key pasted where the name goes is still a key
+            raise UsageError(f"keyring {path}: entry {i} of [keys]: expected NAME = \"hex:...\" (or base64:, "
+                             "passphrase:, qgc:), NAME 1-64 letters, digits, '_', '.', '@' or '-'")
         material.signing.append(SigningKey(name, secret_from_spec(spec, f"keyring {path}: key {name}")))
     ciphers = data.get("ciphers", [])
     if not isinstance(ciphers, list) or not all(isinstance(c, str) for c in ciphers):

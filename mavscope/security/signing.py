@@ -13,11 +13,10 @@ receiver would have rejected the stream (docs/security.md, "Replay rules").
 
 from __future__ import annotations
 
-from enum import Enum
 from hmac import compare_digest
 from typing import NamedTuple
 
-from mavscope.mavlink.frame import SIGNATURE_LEN, SignatureStatus
+from mavscope.mavlink.frame import SIGNATURE_LEN, SignatureReason, SignatureStatus
 from mavscope.security.keys import SigningKey
 
 NEW_STREAM_WINDOW = 60.0  # seconds, as the C library's new-stream rule
@@ -25,15 +24,7 @@ NEW_STREAM_WINDOW = 60.0  # seconds, as the C library's new-stream rule
 Stream = tuple[int, int, int]  # (sysid, compid, link_id)
 
 
-class Reason(str, Enum):
-    """Why a signature got its verdict (shown in the tree; stable words for tests)."""
-
-    MAC_OK = "mac verifies"
-    NEW_STREAM = "first frame of its stream"
-    NO_KEY_MATCHES = "no supplied key verifies the MAC"
-    NOT_NEWER = "timestamp not newer than the last accepted one of its stream"
-    NO_KEY = "no key supplied"
-    TRUNCATED = "signature block truncated"
+Reason = SignatureReason
 
 
 class Verdict(NamedTuple):
@@ -41,7 +32,6 @@ class Verdict(NamedTuple):
     key: SigningKey | None
     reason: Reason
     detail: str  # numbers for the reason (timestamps, skew); never key material
-    new_stream: bool = False
     skew: float | None = None  # signature time - capture time, seconds, for a new stream
 
 
@@ -100,5 +90,5 @@ class SignatureVerifier:
         if last is None:
             skew = None if capture_time is None else sig_unix_time - capture_time
             detail = "" if skew is None else f"signature time {skew:+.6f} s from capture time"
-            return Verdict(SignatureStatus.VALID, key, Reason.NEW_STREAM, detail, True, skew)
+            return Verdict(SignatureStatus.VALID, key, Reason.NEW_STREAM, detail, skew)
         return Verdict(SignatureStatus.VALID, key, Reason.MAC_OK, "")

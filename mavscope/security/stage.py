@@ -8,7 +8,8 @@ pass through untouched on a fast path.
 Rules (docs/security.md):
 - Signed frames: `valid` / `invalid` / `replay` / `no-key` from `SignatureVerifier`, checked over
   the frame as sent (ciphertext included), before any decryption.
-- `unsigned-in-signed-stream`: an unsigned frame (not RADIO_STATUS) from a (sysid, compid) that has
+- `unsigned-in-signed-stream` (a v2 frame) or `v1-in-signed-stream` (a MAVLink v1 frame, which cannot
+  carry a signature): an unsigned frame (not RADIO_STATUS) from a (sysid, compid) that has
   sent a validly signed frame; without any signing key material, one that has sent a signed frame
   with a good CRC.
 - `key-leak`: SETUP_SIGNING (its key travels in clear); with `use_leaked_keys` that key verifies the
@@ -26,16 +27,18 @@ import threading
 from collections.abc import Callable, Iterable, Iterator
 from typing import cast
 
-from mavscope.dissect import Anomaly
 from mavscope.mavlink.frame import (
+    IFLAG_SIGNED,
     CrcStatus,
     Encryption,
     EncryptionStatus,
     Frame,
     Security,
+    SignatureReason,
     SignatureStatus,
 )
 from mavscope.notes import Note, note
+from mavscope.pipeline.dissect import Anomaly
 from mavscope.security.ciphers import CipherError, FixedKeystream, gcm_nonce, gcm_open, gcm_session_key
 from mavscope.security.kex import KEY_EXCHANGE_MSGID, KeyExchangeTracker
 from mavscope.security.keys import (
@@ -53,7 +56,8 @@ RADIO_STATUS = 109
 _TRUNCATED = CrcStatus.TRUNCATED
 _OK = CrcStatus.OK
 _SPECIAL = frozenset({SETUP_SIGNING, KEY_EXCHANGE_MSGID})
-NOTE_CODES = frozenset({"signature-skew", "unsigned-in-signed-stream", "key-leak", "key-exchange", "nonce-reuse"})
+NOTE_CODES = frozenset({"signature-skew", "unsigned-in-signed-stream", "v1-in-signed-stream", "key-leak",
+                        "key-exchange", "nonce-reuse"})
 
 
 class SecurityStage:
@@ -124,8 +128,8 @@ class SecurityStage:
             if self._incoming:
                 self.take_material()
             # fast path: a plaintext unsigned frame from a sender that never signed, not a key message
-            if type(item) is Anomaly or (not item[10] and item[15] not in special
-                                         and (item[13], item[14]) not in senders):
+            if type(item) is Anomaly or (not item.incompat_flags and item.msgid not in special
+                                         and (item.sysid, item.compid) not in senders):
                 yield item
                 continue
             yield process(item)
@@ -136,9 +140,11 @@ class SecurityStage:
         notes: list[Note] = []
         status: SignatureStatus | None = None
         key_name: str | None = None
-        reason = ""
+        reason: SignatureReason | None = None
+        detail = ""
+        skew: float | None = None
         sig = frame.signature
-        if frame.version == 2 and iflags & 1:
+        if frame.version == 2 and iflags & IFLAG_SIGNED:
             if sig is None or frame.crc_status is _TRUNCATED:
                 status = SignatureStatus.TRUNCATED
             elif self.check_signatures:
@@ -146,7 +152,7 @@ class SecurityStage:
                                          frame.time, sig.unix_time)
                 status = v.status
                 key_name = v.key.name if v.key is not None else None
-                reason = v.reason.value + (f" ({v.detail})" if v.detail else "")
+                reason, detail, skew = v.reason, v.detail, v.skew
                 if status is SignatureStatus.VALID:
                     self.signed_senders.add(sender)
                 if v.skew is not None and abs(v.skew) > NEW_STREAM_WINDOW:
@@ -156,10 +162,13 @@ class SecurityStage:
             elif frame.crc_status is _OK:
                 self.signed_senders.add(sender)
         elif sender in self.signed_senders and frame.msgid != RADIO_STATUS:
-            reason = "unsigned frame in a signed stream"
-            notes.append(note("unsigned-in-signed-stream",
-                              f"unsigned {frame.msgname or frame.msgid} from {sender[0]}/{sender[1]}, "
-                              "which sends signed frames", frame.offset))
+            what = f"{frame.msgname or frame.msgid} from {sender[0]}/{sender[1]}, which sends signed frames"
+            if frame.version == 1:
+                reason = SignatureReason.V1_IN_SIGNED_STREAM
+                notes.append(note("v1-in-signed-stream", f"MAVLink v1 {what}", frame.offset))
+            else:
+                reason = SignatureReason.UNSIGNED_IN_SIGNED_STREAM
+                notes.append(note("unsigned-in-signed-stream", f"unsigned {what}", frame.offset))
         enc: Encryption | None = None
         if frame.version == 2 and iflags & 0xE0:
             enc = self.decrypt(frame, notes)
@@ -167,9 +176,9 @@ class SecurityStage:
             plain = frame.payload if enc is None else enc.plaintext
             if plain is not None:
                 self.key_message(frame, frame.msgdef.decode(plain), notes)
-        if status is None and enc is None and not notes and not reason:
+        if status is None and enc is None and not notes and reason is None:
             return frame
-        security = Security(status, key_name, enc, reason)
+        security = Security(status, key_name, enc, reason, detail, skew)
         if notes:
             return frame._replace(security=security, notes=frame.notes + tuple(notes))
         return frame._replace(security=security)

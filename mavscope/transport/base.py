@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Hashable
 from typing import NamedTuple
 
+from mavscope.endpoint import Endpoint
 from mavscope.notes import Note
 
 TRANSPORT_UDP = "udp"
@@ -23,8 +24,8 @@ class Payload(NamedTuple):
     """
 
     transport: str  # TRANSPORT_*
-    src: str | None  # "ip:port" ("[v6]:port" for IPv6) or None
-    dst: str | None
+    src: Endpoint | None  # None for a tlog entry or a raw stream
+    dst: Endpoint | None
     data: bytes
     stream: Hashable | None
     record: int  # number of the Record these bytes arrived in

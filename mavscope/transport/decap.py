@@ -5,6 +5,7 @@ from __future__ import annotations
 import struct
 
 from mavscope.capture.base import LINKTYPE_ETHERNET, LINKTYPE_MAVLINK_RAW, LINKTYPE_MAVLINK_TLOG, Record
+from mavscope.endpoint import Endpoint
 from mavscope.notes import Note, note
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
 from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, Endpoints, parse_ipv4, parse_ipv6
@@ -38,7 +39,7 @@ class Decapsulator:
         self.endpoints = Endpoints()
         self.tcp = TcpReassembler(max_tcp_buffer)
         self._unknown_seen: set[int] = set()
-        self._flows: dict[bytes, tuple[str, str]] = {}
+        self._flows: dict[bytes, tuple[Endpoint, Endpoint]] = {}
 
     def feed(self, rec: Record) -> list[Payload]:
         """The Payloads that `rec` yields now (possibly none)."""
@@ -57,8 +58,8 @@ class Decapsulator:
                                              number, offset + 42, ()))]
         return self._slow(rec)
 
-    def _flow_names(self, flow: bytes) -> tuple[str, str]:
-        """("ip:port", "ip:port") of the 12 bytes source address, destination address, ports."""
+    def _flow_names(self, flow: bytes) -> tuple[Endpoint, Endpoint]:
+        """The source and destination Endpoints of the 12 bytes source address, destination address, ports."""
         src, dst, sport, dport = _FLOW.unpack(flow)
         names = (self.endpoints.v4(src, sport), self.endpoints.v4(dst, dport))
         if len(self._flows) >= FLOW_CACHE:
@@ -95,7 +96,7 @@ class Decapsulator:
             self._unknown_seen.add(linktype)
             return [], (note("unknown-linktype", f"link type {linktype} is not decoded", roff),)
         if isinstance(link, str):
-            return [], (note("malformed-packet", f"record {number}: {link}", roff),)
+            return [], (note("malformed-packet", f"{link}", roff),)
         et, off = link
         if et == ETHERTYPE_IPV4:
             ip = parse_ipv4(data, off)
@@ -104,20 +105,20 @@ class Decapsulator:
         else:
             return [], ()
         if isinstance(ip, str):
-            return [], (note("malformed-packet", f"record {number}: {ip} (packet byte {off})", roff + off),)
+            return [], (note("malformed-packet", f"{ip} (packet byte {off})", roff + off),)
         proto, src, dst, l4, end, fragment = ip
         if fragment is not None:
-            return [], (note("ip-fragment", f"record {number}: {fragment}", roff + off),)
+            return [], (note("ip-fragment", f"{fragment}", roff + off),)
         v4 = et == ETHERTYPE_IPV4
         ep = self.endpoints
         if proto == PROTO_UDP:
             if l4 + 8 > end:
-                return [], (note("malformed-packet", f"record {number}: UDP header cut short at byte {l4}",
+                return [], (note("malformed-packet", f"UDP header cut short at byte {l4}",
                                  roff + l4),)
             sport, dport, ulen = _UDP.unpack_from(data, l4)
             if ulen < 8:
                 if ulen or v4:
-                    return [], (note("malformed-packet", f"record {number}: UDP length {ulen} < 8 at byte {l4}",
+                    return [], (note("malformed-packet", f"UDP length {ulen} < 8 at byte {l4}",
                                      roff + l4),)
                 ulen = end - l4  # IPv6 jumbogram
             s = ep.v4_bytes(src, sport) if v4 else ep.v6(src, sport)
@@ -126,13 +127,13 @@ class Decapsulator:
             return [Payload(TRANSPORT_UDP, s, d, payload, None, number, roff + l4 + 8)], ()
         if proto == PROTO_TCP:
             if l4 + 20 > end:
-                return [], (note("malformed-packet", f"record {number}: TCP header cut short at byte {l4}",
+                return [], (note("malformed-packet", f"TCP header cut short at byte {l4}",
                                  roff + l4),)
             sport, dport, seq, doff, flags = _TCP.unpack_from(data, l4)
             hlen = (doff >> 4) * 4
             if hlen < 20 or l4 + hlen > end:
                 return [], (note("malformed-packet",
-                                 f"record {number}: TCP header length {hlen} does not fit at byte {l4}", roff + l4),)
+                                 f"TCP header length {hlen} does not fit at byte {l4}", roff + l4),)
             s = ep.v4_bytes(src, sport) if v4 else ep.v6(src, sport)
             d = ep.v4_bytes(dst, dport) if v4 else ep.v6(dst, dport)
             pieces = self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, roff + l4 + hlen)

@@ -1,9 +1,11 @@
-"""IPv4 and IPv6 headers: where the UDP or TCP header lies, and "ip:port" endpoint names."""
+"""IPv4 and IPv6 headers: where the UDP or TCP header lies, and the Endpoints of a packet."""
 
 from __future__ import annotations
 
 import socket
 import struct
+
+from mavscope.endpoint import Endpoint
 
 PROTO_TCP = 6
 PROTO_UDP = 17
@@ -89,35 +91,36 @@ def parse_ipv6(data: bytes, off: int) -> IpResult | str:
 
 
 class Endpoints:
-    """Formats "ip:port" / "[v6]:port" names, caching them so the hot path rarely builds a string."""
+    """Interns Endpoints by address and port, so the hot path rarely builds one (a capture has a handful)."""
 
     __slots__ = ("_v4", "_v6", "limit")
 
     def __init__(self, limit: int = 65536) -> None:
-        self._v4: dict[int, str] = {}
-        self._v6: dict[tuple[bytes, int], str] = {}
+        self._v4: dict[int, Endpoint] = {}
+        self._v6: dict[tuple[bytes, int], Endpoint] = {}
         self.limit = limit
 
-    def v4(self, addr: int, port: int) -> str:
-        """The name of IPv4 address `addr` (as a 32-bit integer) and `port`."""
+    def v4(self, addr: int, port: int) -> Endpoint:
+        """The Endpoint of IPv4 address `addr` (as a 32-bit integer) and `port`."""
         key = (addr << 16) | port
-        s = self._v4.get(key)
-        if s is None:
+        ep = self._v4.get(key)
+        if ep is None:
             if len(self._v4) >= self.limit:
                 self._v4.clear()
-            s = self._v4[key] = f"{addr >> 24}.{(addr >> 16) & 255}.{(addr >> 8) & 255}.{addr & 255}:{port}"
-        return s
+            host = f"{addr >> 24}.{(addr >> 16) & 255}.{(addr >> 8) & 255}.{addr & 255}"
+            ep = self._v4[key] = Endpoint(host, port, socket.AF_INET)
+        return ep
 
-    def v4_bytes(self, addr: bytes, port: int) -> str:
-        """The name of a 4-byte IPv4 address and `port`."""
+    def v4_bytes(self, addr: bytes, port: int) -> Endpoint:
+        """The Endpoint of a 4-byte IPv4 address and `port`."""
         return self.v4(int.from_bytes(addr, "big"), port)
 
-    def v6(self, addr: bytes, port: int) -> str:
-        """The name of a 16-byte IPv6 address and `port`."""
+    def v6(self, addr: bytes, port: int) -> Endpoint:
+        """The Endpoint of a 16-byte IPv6 address and `port`."""
         key = (addr, port)
-        s = self._v6.get(key)
-        if s is None:
+        ep = self._v6.get(key)
+        if ep is None:
             if len(self._v6) >= self.limit:
                 self._v6.clear()
-            s = self._v6[key] = f"[{socket.inet_ntop(socket.AF_INET6, addr)}]:{port}"
-        return s
+            ep = self._v6[key] = Endpoint(socket.inet_ntop(socket.AF_INET6, addr), port, socket.AF_INET6)
+        return ep

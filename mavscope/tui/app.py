@@ -1,209 +1,43 @@
 """The Textual app: packet list, detail tree and hex pane over a `FrameIndex`, with a filter bar.
 
 `create_app(path, options)` builds it; `mavscope tui` and the tests both call it. The index is filled
-by a thread worker that walks the pipeline once (`commands.common.build_pipeline`, so the security
-stage and every other stage the options ask for run as in `mavscope read`) and posts progress
-messages; rows show as soon as the first batch is in. Display filters run in another thread worker
-over the index, incrementally while the index is still growing. Adding a key re-runs the pipeline
-into a new index and swaps it in when complete (replay verdicts depend on every earlier frame).
+by a thread worker that walks the pipeline once (`tui.sessions`: the same stages as `mavscope read`)
+and posts progress messages (`tui.messages`); rows show as soon as the first batch is in. Display
+filters run in another thread worker over the index, incrementally while the index is still growing.
+Adding a key re-runs the pipeline into a new index and swaps it in when complete (replay verdicts
+depend on every earlier frame); in follow mode the running security stage takes the key instead.
 """
 
 from __future__ import annotations
 
-import argparse
-import copy
-import io
 import os
-import threading
 import time
 from array import array
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
+from dataclasses import replace
 
 from textual import events, work
 from textual.app import App, ComposeResult
 from textual.binding import Binding
 from textual.containers import VerticalScroll
-from textual.message import Message
 from textual.widgets import Footer
 from textual.worker import Worker, WorkerState, get_current_worker
 
-from mavscope.analysis.filter import DisplayFilter, FilterError, compile_filter
-from mavscope.cli import Env
+from mavscope.browse.index import FrameIndex
 from mavscope.errors import MavscopeError
-from mavscope.index import PROGRESS_EVERY, FrameIndex, Progress
-from mavscope.mavlink.dialect import Dialect, load_dialect
-from mavscope.security.stage import SecurityStage
+from mavscope.filter import DisplayFilter, FilterError, compile_filter
+from mavscope.mavlink.dialect import load_dialect
+from mavscope.tui.messages import FilterProgress, IndexProgress, Rejudged
+from mavscope.tui.sessions import FrameSource, LiveFrameSource, TuiOptions
 from mavscope.tui.widgets.detail_tree import DetailTree
 from mavscope.tui.widgets.filter_bar import FilterBar
 from mavscope.tui.widgets.hex_view import HexView
 from mavscope.tui.widgets.packet_list import PacketList
 from mavscope.tui.widgets.status_bar import StatusBar
+from mavscope.tui.workers import fill_index, scan_filter
 
 PANES = ("#packets", "#tree", "#hex")
 MAIN_SCREEN_ACTIONS = frozenset({"cycle", "filter", "stats", "mission", "expert", "keys", "help"})
-
-
-class IndexProgress(Message):
-    """The index worker got further (`index` tells which build: a key may have started another)."""
-
-    def __init__(self, index: FrameIndex, progress: Progress) -> None:
-        super().__init__()
-        self.index = index
-        self.progress = progress
-
-
-class FilterProgress(Message):
-    """The filter worker has looked at `done` of `total` rows; `rows` holds the matches so far."""
-
-    def __init__(self, flt: DisplayFilter, rows: array, done: int, total: int, finished: bool) -> None:
-        super().__init__()
-        self.flt = flt
-        self.rows = rows
-        self.done = done
-        self.total = total
-        self.finished = finished
-
-
-class Rejudged(Message):
-    """Live capture: the capture thread judged the `count` frames `index` held again with new keys."""
-
-    def __init__(self, index: FrameIndex, count: int) -> None:
-        super().__init__()
-        self.index = index
-        self.count = count
-
-
-class FrameSource:
-    """How the app gets its frames: the capture file and the command-line options (no Textual here).
-
-    `open()` gives the reader and the pipeline, built exactly as `mavscope read` builds it, minus the
-    display filter (the TUI applies that itself, so that it can be changed).
-    """
-
-    live = False
-
-    def __init__(self, path: str, options: argparse.Namespace, dialect: Dialect, env: Env | None = None) -> None:
-        self.path = path
-        self.options = options
-        self.dialect = dialect
-        # the stages' warnings must not go to the terminal the app draws on: the app shows them
-        base = env or Env()
-        self.env = Env(stdout=io.StringIO(), stderr=io.StringIO(), environ=base.environ)
-
-    def pipeline_options(self) -> argparse.Namespace:
-        opts = copy.copy(self.options)
-        opts.display_filter = None
-        return opts
-
-    def open(self):  # type: ignore[no-untyped-def]
-        """(reader, pipeline, time of the first record)."""
-        from mavscope.capture.detect import open_capture
-        from mavscope.commands.common import build_pipeline
-
-        with open_capture(self.path) as first:
-            head = next(iter(first), None)
-        reader = open_capture(self.path)
-        return reader, build_pipeline(self.pipeline_options(), self.env, self.dialect, reader), \
-            (head.time if head is not None else None)
-
-    def check(self) -> None:
-        """Build the pipeline over no records: the stages parse their options (MavscopeError if wrong)."""
-        from mavscope.commands.common import build_pipeline
-
-        for _ in build_pipeline(self.pipeline_options(), self.env, self.dialect, iter(())):
-            pass
-
-    def messages(self) -> str:
-        """What the stages wrote to stderr (warnings), taken once."""
-        err = self.env.stderr
-        text = err.getvalue() if isinstance(err, io.StringIO) else ""
-        if text:
-            err.seek(0)
-            err.truncate()
-        return text.strip()
-
-    def changed_options(self, **changes: object) -> argparse.Namespace:
-        """A copy of the options with `changes`."""
-        opts = copy.copy(self.options)
-        for k, v in changes.items():
-            setattr(opts, k, v)
-        return opts
-
-    def with_options(self, **changes: object) -> FrameSource:
-        return FrameSource(self.path, self.changed_options(**changes), self.dialect, Env(environ=self.env.environ))
-
-
-class _LiveReader:
-    """A live source where the index build expects a reader: context manager, `position`, `size`."""
-
-    size = 0
-    position = 0
-
-    def __init__(self, source) -> None:  # type: ignore[no-untyped-def]
-        self.source = source
-        self.on_idle: Callable[[], None] = lambda: None
-
-    def __enter__(self) -> _LiveReader:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.source.stop(drain=False)
-        self.source.close()
-
-
-class LiveFrameSource(FrameSource):
-    """Follow mode: the frames of a UDP port as they arrive (`--live --udp PORT`), through the same
-    pipeline. The index keeps the newest `keep` frames."""
-
-    live = True
-
-    def __init__(self, listen: str, options: argparse.Namespace, dialect: Dialect, env: Env | None = None) -> None:
-        super().__init__(f"udp {listen}", options, dialect, env)
-        self.listen = listen
-        self.udp = None
-        self.security: SecurityStage | None = None
-        self._keys_lock = threading.Lock()  # the options the stage was built from, and the stage
-
-    def open(self):  # type: ignore[no-untyped-def]
-        from mavscope.commands.common import build_pipeline, security_stage
-        from mavscope.live.udp import UdpSource, parse_endpoint
-
-        self.udp = src = UdpSource(parse_endpoint(self.listen, what="--udp"))
-        src.open()
-        src.start()
-        self.path = f"udp {src.bound}"
-        reader = _LiveReader(src)
-        records = src.records(on_idle=lambda: reader.on_idle())
-        with self._keys_lock:
-            opts = self.pipeline_options()
-            self.security = security_stage(opts, self.env)
-        return reader, build_pipeline(opts, self.env, self.dialect, records, self.security), None
-
-    def add_keys(self, index: FrameIndex, on_done: Callable[[int], object], **changes: object) -> None:
-        """Take the key options `changes` (the whole new --key / --cipher lists). The capture thread
-        hands them to the running security stage between two frames, judges the frames `index` holds
-        again, and calls `on_done(frames judged)`; the frames after are checked with them too.
-        MavscopeError (nothing changed) when a spec is wrong."""
-        from mavscope.commands.common import security_stage
-        from mavscope.security.stage import NOTE_CODES
-
-        opts = self.changed_options(**changes)
-        material = security_stage(opts, self.env).material  # parses every spec, raises if one is wrong
-        with self._keys_lock:
-            self.options = opts
-            if self.security is None:  # not capturing yet: open() builds the stage from these options
-                on_done(0)
-                return
-            self.security.replace_material(material, lambda stage: on_done(index.rejudge(stage.run, NOTE_CODES)))
-
-    def take_keys(self) -> None:
-        """On the capture thread while no frame comes: apply keys handed over meanwhile."""
-        if self.security is not None:
-            self.security.take_material()
-
-    def stop(self) -> None:
-        if self.udp is not None:
-            self.udp.stop(drain=False)
 
 
 class MavscopeApp(App[None]):
@@ -227,6 +61,7 @@ class MavscopeApp(App[None]):
         Binding("k", "keys", "Keys"),
         Binding("question_mark", "help", "Help"),
         Binding("q", "quit", "Quit"),
+        Binding("ctrl+c", "quit", "Quit", show=False, priority=True),  # as termshark and tshark do
         Binding("tab", "cycle(1)", "Next pane", show=False, priority=True),
         Binding("shift+tab", "cycle(-1)", "Previous pane", show=False, priority=True),
     ]
@@ -249,7 +84,7 @@ class MavscopeApp(App[None]):
     # --- layout -------------------------------------------------------------------------------
 
     def compose(self) -> ComposeResult:
-        initial = getattr(self.source.options, "display_filter", None) or ""
+        initial = self.source.options.display_filter or ""
         yield FilterBar(initial, id="filter")
         yield PacketList(self.index, id="packets")
         yield DetailTree(id="tree")
@@ -294,8 +129,8 @@ class MavscopeApp(App[None]):
 
     def on_unmount(self) -> None:
         self.workers.cancel_all()
-        if self.source.live:
-            self.source.stop()  # type: ignore[attr-defined]
+        if isinstance(self.source, LiveFrameSource):
+            self.source.stop()
 
     def on_worker_state_changed(self, event: Worker.StateChanged) -> None:
         if event.state is WorkerState.ERROR:
@@ -308,25 +143,12 @@ class MavscopeApp(App[None]):
     @work(thread=True, group="index", exit_on_error=False)
     def build_index(self, index: FrameIndex, source: FrameSource) -> None:
         worker = get_current_worker()
-        post = self.post_message
-        reader, items, index.t0 = source.open()
-        with reader:
-            if source.live:
-                last = [0.0]
+        fill_index(index, source, self.post_message, lambda: worker.is_cancelled)
 
-                def idle() -> None:  # no traffic: take new keys, show what came, stop when the app goes
-                    if worker.is_cancelled:
-                        source.stop()  # type: ignore[attr-defined]
-                    source.take_keys()  # type: ignore[attr-defined]
-                    now = time.monotonic()
-                    if now - last[0] > 0.2:
-                        last[0] = now
-                        post(IndexProgress(index, Progress(len(index), 0, 0, False)))
-
-                reader.on_idle = idle
-            index.build(items, position=lambda: reader.position, total=reader.size,
-                        on_progress=lambda p: post(IndexProgress(index, p)),
-                        cancelled=lambda: worker.is_cancelled, every=256 if source.live else PROGRESS_EVERY)
+    @work(thread=True, group="rebuild", exit_on_error=False)
+    def rebuild_index(self, index: FrameIndex, source: FrameSource) -> None:
+        worker = get_current_worker()
+        fill_index(index, source, self.post_message, lambda: worker.is_cancelled)
 
     def _torn_down(self) -> bool:
         """The main screen's widgets are gone (the app is exiting): late worker messages have nothing to
@@ -521,34 +343,7 @@ class MavscopeApp(App[None]):
     def run_filter(self, flt: DisplayFilter, index: FrameIndex, rows: array) -> None:
         """Fill `rows` with the rows `flt` matches (following a live index as it grows)."""
         worker = get_current_worker()
-        matches = flt.matches
-        frame = index.frame
-        start = done = index.first  # row numbers: a bounded live index drops rows but never renumbers
-        last_post = time.perf_counter()
-        while True:
-            complete = index.done or index.progress.cancelled
-            end = index.end
-            for i in range(max(done, index.first), end):
-                try:
-                    if matches(frame(i)):
-                        rows.append(i)
-                except IndexError:  # dropped meanwhile
-                    pass
-                if not i & 0x1FFF:
-                    if worker.is_cancelled:
-                        return
-                    now = time.perf_counter()
-                    if now - last_post > 0.1:
-                        last_post = now
-                        self.post_message(FilterProgress(flt, rows, i + 1 - start, max(end - start, 1), False))
-            done = end
-            if complete and done == index.end:
-                break
-            self.post_message(FilterProgress(flt, rows, done - start, max(end - start, 1), False))
-            time.sleep(0.05)
-            if worker.is_cancelled:
-                return
-        self.post_message(FilterProgress(flt, rows, done - start, done - start, True))
+        scan_filter(flt, index, rows, self.post_message, lambda: worker.is_cancelled)
 
     def on_filter_progress(self, msg: FilterProgress) -> None:
         if msg.flt is not self.display_filter or msg.rows is not self._filter_rows or self._torn_down():
@@ -610,8 +405,8 @@ class MavscopeApp(App[None]):
     # --- keys ---------------------------------------------------------------------------------
 
     def _keys_text(self) -> str:
-        n = len(getattr(self.source.options, "key", None) or ())
-        c = len(getattr(self.source.options, "cipher", None) or ())
+        n = len(self.source.options.keys)
+        c = len(self.source.options.ciphers)
         parts = []
         if n:
             parts.append(f"{n} signing key{'s' if n > 1 else ''}")
@@ -622,66 +417,50 @@ class MavscopeApp(App[None]):
     def add_key(self, kind: str, spec: str) -> str | None:
         """Add a signing key (`kind` "key") or cipher ("cipher") as the command line's --key/--cipher
         would, and re-check the capture with it. Returns an error message, or None when accepted."""
-        current = list(getattr(self.source.options, kind, None) or [])
+        opts = self.source.options
+        options = (replace(opts, keys=opts.keys + (spec,)) if kind == "key"
+                   else replace(opts, ciphers=opts.ciphers + (spec,)))
         if isinstance(self.source, LiveFrameSource):
             index = self.index
             try:
-                self.source.add_keys(index, lambda n: self.post_message(Rejudged(index, n)),
-                                     **{kind: current + [spec]})
+                self.source.add_keys(options, index, lambda n: self.post_message(Rejudged(index, n)))
             except MavscopeError as exc:
                 return str(exc)
-            self.keys_added.append(kind)
-            self.status.keys = self._keys_text()
-            self.status.activity = "re-checking with the new key"
-            self.status.update_status()
-            return None
-        source = self.source.with_options(**{kind: current + [spec]})
-        try:
-            source.check()
-        except MavscopeError as exc:
-            return str(exc)
-        self.source = source
+        else:
+            source = self.source.with_options(options)
+            try:
+                source.check()
+            except MavscopeError as exc:
+                return str(exc)
+            self.source = source
+            self.workers.cancel_group(self, "rebuild")
+            if self.pending is not None:
+                self.pending.close()
+            self.pending = FrameIndex(self.dialect, self.source.path)
+            self.rebuild_index(self.pending, source)
         self.keys_added.append(kind)
-        self.workers.cancel_group(self, "rebuild")
-        if self.pending is not None:
-            self.pending.close()
-        index = FrameIndex(self.dialect, self.source.path)
-        self.pending = index
+        self.status.keys = self._keys_text()
         self.status.activity = "re-checking with the new key"
         self.status.update_status()
-        self.rebuild_index(index, source)
         return None
 
-    @work(thread=True, group="rebuild", exit_on_error=False)
-    def rebuild_index(self, index: FrameIndex, source: FrameSource) -> None:
-        worker = get_current_worker()
-        reader, items, index.t0 = source.open()
-        with reader:
-            index.build(items, position=lambda: reader.position, total=reader.size,
-                        on_progress=lambda p: self.post_message(IndexProgress(index, p)),
-                        cancelled=lambda: worker.is_cancelled)
 
+def create_app(path: str | os.PathLike[str] | None, options: TuiOptions | None = None) -> MavscopeApp:
+    """The TUI over the capture `path` (None with `options.live`: follow the UDP port `options.udp`).
 
-def create_app(path: str | os.PathLike[str] | None, options: argparse.Namespace | None = None,
-               env: Env | None = None) -> MavscopeApp:
-    """The TUI over the capture `path` (None with `--live --udp PORT` in `options`: follow mode).
-    `options` are `mavscope tui`'s parsed arguments (None: defaults).
-
-    Raises CaptureError (missing, unreadable file) before anything is drawn.
+    Raises CaptureError (missing, unreadable file) or UsageError (bad options) before anything is drawn.
     """
-    from mavscope.commands.tui import parse_options
-
-    if options is None:
-        options = parse_options([os.fspath(path)] if path is not None else ["--live", "--udp", "14550"])
-    dialect = load_dialect(getattr(options, "dialect", None) or [])
-    if getattr(options, "live", False):
-        source: FrameSource = LiveFrameSource(options.udp, options, dialect, env)
+    options = options or TuiOptions()
+    dialect = load_dialect(options.pipeline.dialects)
+    if options.live:
+        source: FrameSource = LiveFrameSource(options.udp or "14550", options.pipeline, dialect)
         source.check()
         index = FrameIndex(dialect, None)
         index.limit = options.keep
         return MavscopeApp(source, index)
-    spath = os.fspath(path)  # type: ignore[arg-type]
-    source = FrameSource(spath, options, dialect, env)
+    if path is None:
+        raise MavscopeError("tui: a capture file or --live --udp PORT is needed")
+    spath = os.fspath(path)
+    source = FrameSource(spath, options.pipeline, dialect)
     source.check()
-    index = FrameIndex(dialect, spath)
-    return MavscopeApp(source, index)
+    return MavscopeApp(source, FrameIndex(dialect, spath))

@@ -21,5 +21,6 @@ KEYS: tuple[tuple[str, str, str], ...] = (
     ("?", "this help", "everywhere"),
     ("Escape / q", "close a screen or dialog", "screens"),
     ("q", "quit", "main screen"),
+    ("Ctrl+C", "quit", "everywhere"),
     ("Mouse", "click a frame, a tree node or a byte; wheel scrolls; double click opens the tree", "everywhere"),
 )

@@ -6,7 +6,14 @@ green; encrypted and decrypted payloads marked. Each glyph is one cell wide.
 
 from __future__ import annotations
 
-from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, IFLAG_SIGNED, CrcStatus, EncryptionStatus, SignatureStatus
+from mavscope.mavlink.frame import (
+    IFLAG_ENCRYPTION_MASK,
+    CrcStatus,
+    EncryptionStatus,
+    Security,
+    SignatureStatus,
+    signature_status,
+)
 
 RED = "bold #ff5f5f"
 ORANGE = "bold #ffaf00"
@@ -29,6 +36,7 @@ SIGNATURE_GLYPHS: dict[str, tuple[str, str, str]] = {
     SignatureStatus.NO_KEY.value: ("s", DIM, "signed, no key to check it (k adds one)"),
     SignatureStatus.TRUNCATED.value: ("s", RED, "signature truncated"),
     "unsigned": ("U", ORANGE, "unsigned frame in a signed stream"),
+    "v1": ("1", ORANGE, "MAVLink v1 frame from a signing sender (cannot be signed)"),
 }
 
 ENCRYPTION_GLYPHS: dict[str, tuple[str, str, str]] = {
@@ -38,22 +46,16 @@ ENCRYPTION_GLYPHS: dict[str, tuple[str, str, str]] = {
 }
 
 
-UNSIGNED_IN_SIGNED = "unsigned frame in a signed stream"  # the security stage's reason (no signature status)
-
-
-def unsigned_in_signed(security: object) -> bool:
-    """Whether the security stage flagged an unsigned frame from a sender that signs its frames."""
-    return (security is not None and getattr(security, "signature_status", None) is None
-            and getattr(security, "reason", "") == UNSIGNED_IN_SIGNED)
-
-
-def signature_key(iflags: int, status: object, unsigned_in_signed: bool = False) -> str | None:
+def signature_key(iflags: int, security: Security | None) -> str | None:
     """The SIGNATURE_GLYPHS key for a frame, or None (unsigned, nothing to say)."""
+    status = signature_status(iflags, security)
     if status is not None:
-        return getattr(status, "value", str(status))
-    if iflags & IFLAG_SIGNED:
-        return SignatureStatus.NO_KEY.value
-    return "unsigned" if unsigned_in_signed else None
+        return status.value
+    if security is not None and security.unsigned_in_signed_stream:
+        return "unsigned"
+    if security is not None and security.v1_in_signed_stream:
+        return "v1"
+    return None
 
 
 def encryption_key(iflags: int, status: object) -> str | None:

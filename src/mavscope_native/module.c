@@ -1,14 +1,19 @@
 /* mavscope._native: the CPython face of the native core (see mavscope/native.py for the Python side).
  *
  *   Table(blob: bytes)                  the message layouts, compiled by mavscope.native from a Dialect
- *   Walker(buffer, kind, table, endpoints: set[str], signed_senders: set[tuple[int, int]])
+ *   Walker(fd: int, size: int, kind: int, table, endpoints: set, endpoint: Callable[[bytes, int], object],
+ *          signed_senders: set[tuple[int, int]], window: int = 1 << 20)
  *     .next(signed_nokey: bool, limit: int = 1 << 20, into: bytearray | None = None)
  *         -> list[bytes | bytearray | tuple] | None
- *     .last_record() -> tuple[int, float | None, int | None] | None
+ *     .walked() -> tuple[int, float | None, int | None] | None
+ *     .stats() -> dict[str, int]
  *     .close()
  *   format_double(x) -> bytes, text_json(b) -> bytes   (the JSON formatting, for the tests)
  *
- * The walk itself runs without the GIL; the two Python sets are read before and updated after it. */
+ * The walker reads the file with pread(2) on `fd` (never a memory mapping: a file truncated while it is
+ * read ends with a note, see capture.h); the caller owns the descriptor and keeps it open while the
+ * walker lives. The walk itself runs without the GIL; the two Python sets are read before and updated
+ * after it (a new source of valid MAVLink goes into `endpoints` as endpoint(packed address, port)). */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
@@ -77,13 +82,13 @@ static PyTypeObject TableType = {
 typedef struct {
     PyObject_HEAD
     ms_walker walker;
-    Py_buffer view;
-    int have_view;
+    int fd;              /* the capture file, owned by the caller */
     int have_walker;
     int ended;
     int busy;
     PyObject *table;     /* TableObject, kept alive while the walker points into it */
-    PyObject *endpoints; /* set[str] */
+    PyObject *endpoints; /* the Dissector's mavlink_endpoints */
+    PyObject *endpoint;  /* endpoint(packed: bytes, port: int) -> an element of `endpoints` */
     PyObject *senders;   /* set[tuple[int, int]] */
     ms_buf out;
 } WalkerObject;
@@ -93,10 +98,6 @@ static void Walker_release(WalkerObject *self) {
         ms_walker_free(&self->walker);
         self->have_walker = 0;
     }
-    if (self->have_view) {
-        PyBuffer_Release(&self->view);
-        self->have_view = 0;
-    }
     ms_buf_free(&self->out);
     self->ended = 1;
 }
@@ -105,37 +106,53 @@ static void Walker_dealloc(WalkerObject *self) {
     Walker_release(self);
     Py_XDECREF(self->table);
     Py_XDECREF(self->endpoints);
+    Py_XDECREF(self->endpoint);
     Py_XDECREF(self->senders);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
 static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
-    static char *kwlist[] = {"buffer", "kind", "table", "endpoints", "signed_senders", NULL};
-    PyObject *buffer, *table, *endpoints, *senders;
-    int kind;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "OiO!O!O!", kwlist, &buffer, &kind, &TableType, &table,
-                                     &PySet_Type, &endpoints, &PySet_Type, &senders))
+    static char *kwlist[] = {"fd", "size", "kind", "table", "endpoints", "endpoint", "signed_senders", "window",
+                             NULL};
+    PyObject *table, *endpoints, *endpoint, *senders;
+    int fd, kind;
+    unsigned long long size;
+    Py_ssize_t window = MS_WINDOW;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|n", kwlist, &fd, &size, &kind, &TableType, &table,
+                                     &PySet_Type, &endpoints, &endpoint, &PySet_Type, &senders, &window))
         return -1;
+    if (window < 64) { /* a resynchronisation scan looks at whole headers within one window */
+        PyErr_SetString(PyExc_ValueError, "window must be at least 64 bytes");
+        return -1;
+    }
     if (kind < MS_KIND_PCAP || kind > MS_KIND_RAW) {
         PyErr_SetString(PyExc_ValueError, "unknown capture kind");
         return -1;
     }
-    if (self->have_view || self->have_walker) {
+    if (fd < 0) {
+        PyErr_SetString(PyExc_ValueError, "fd must be an open file descriptor");
+        return -1;
+    }
+    if (!PyCallable_Check(endpoint)) {
+        PyErr_SetString(PyExc_TypeError, "endpoint must be callable");
+        return -1;
+    }
+    if (self->have_walker) {
         PyErr_SetString(PyExc_RuntimeError, "Walker already initialised");
         return -1;
     }
-    if (PyObject_GetBuffer(buffer, &self->view, PyBUF_SIMPLE) != 0)
-        return -1;
-    self->have_view = 1;
+    self->fd = fd;
     Py_INCREF(table);
     self->table = table;
     Py_INCREF(endpoints);
     self->endpoints = endpoints;
+    Py_INCREF(endpoint);
+    self->endpoint = endpoint;
     Py_INCREF(senders);
     self->senders = senders;
     ms_buf_init(&self->out);
-    ms_walker_init(&self->walker, (const uint8_t *)self->view.buf, (size_t)self->view.len, kind,
-                   &((TableObject *)table)->table);
+    ms_walker_init(&self->walker, ms_fd_source(&self->fd), (uint64_t)size, kind, &((TableObject *)table)->table);
+    self->walker.reader.window = (size_t)window; /* bytes read at a time: the tests make it small */
     self->have_walker = 1;
     self->ended = 0;
     return 0;
@@ -167,35 +184,75 @@ static PyObject *record_time(const ms_record *rec) {
     return res;
 }
 
-static PyObject *handback_tuple(WalkerObject *self, const ms_record *rec) {
-    const ms_notes *ns = rec->notes;
-    PyObject *notes = PyTuple_New((Py_ssize_t)(ns ? ns->n : 0));
-    if (notes == NULL)
+#define CALENDAR_END 253402300800.0
+
+/* The time-out-of-range note of a record whose time C could not compute (MS_NOTE_TIME_CHECK): the text of
+ * capture/pcapng.py _time_note, or Py_None when the time is in range. */
+static PyObject *time_note(const ms_record *rec, PyObject *time, const char *iface, Py_ssize_t iface_len,
+                           int64_t offset) {
+    double t = PyFloat_AsDouble(time);
+    if (t == -1.0 && PyErr_Occurred())
         return NULL;
-    for (size_t i = 0; ns && i < ns->n; i++) {
-        const ms_note *n = &ns->v[i];
-        PyObject *item = Py_BuildValue("(ss#L)", ms_note_code_name(n->code), ns->text.data + n->msg_off,
-                                       (Py_ssize_t)n->msg_len, (long long)n->offset);
-        if (item == NULL) {
-            Py_DECREF(notes);
-            return NULL;
-        }
-        PyTuple_SET_ITEM(notes, (Py_ssize_t)i, item);
-    }
+    if (0.0 <= t && t < CALENDAR_END)
+        Py_RETURN_NONE;
+    PyObject *spec = PyUnicode_FromString(".6g");
+    PyObject *shown = spec ? PyObject_Format(time, spec) : NULL;
+    PyObject *base = PyLong_FromLong(rec->units_pow2 ? 2 : 10);
+    PyObject *exp = PyLong_FromLong(rec->units_exp);
+    PyObject *which = PyUnicode_FromStringAndSize(iface, iface_len);
+    PyObject *units = NULL, *text = NULL, *res = NULL;
+    if (shown && base && exp && which && (units = PyNumber_Power(base, exp, Py_None)) != NULL)
+        text = PyUnicode_FromFormat("packet time %U s since 1970 (interface %U: if_tsoffset %lld s, %S ticks/s)",
+                                    shown, which, (long long)rec->tsoffset, units);
+    if (text != NULL)
+        res = Py_BuildValue("(sNL)", "time-out-of-range", text, (long long)offset);
+    Py_XDECREF(shown);
+    Py_XDECREF(which);
+    Py_XDECREF(spec);
+    Py_XDECREF(base);
+    Py_XDECREF(exp);
+    Py_XDECREF(units);
+    return res;
+}
+
+static PyObject *handback_tuple(const ms_record *rec) {
     PyObject *time = record_time(rec);
-    if (time == NULL) {
-        Py_DECREF(notes);
+    if (time == NULL)
         return NULL;
-    }
-    const char *base = (const char *)self->view.buf;
-    PyObject *data = PyBytes_FromStringAndSize(base + rec->start, (Py_ssize_t)rec->len);
-    if (data == NULL) {
-        Py_DECREF(notes);
+    const ms_notes *ns = rec->notes;
+    PyObject *notes = PyList_New(0);
+    if (notes == NULL) {
         Py_DECREF(time);
         return NULL;
     }
-    return Py_BuildValue("(KNLNnKN)", (unsigned long long)rec->number, time, (long long)rec->linktype, data,
-                         (Py_ssize_t)rec->start, (unsigned long long)rec->orig_len, notes);
+    for (size_t i = 0; ns && i < ns->n; i++) {
+        const ms_note *n = &ns->v[i];
+        const char *msg = ns->text.data + n->msg_off;
+        PyObject *item;
+        if (n->code == MS_NOTE_TIME_CHECK)
+            item = time_note(rec, time, msg, (Py_ssize_t)n->msg_len, n->offset);
+        else
+            item = Py_BuildValue("(ss#L)", ms_note_code_name(n->code), msg, (Py_ssize_t)n->msg_len,
+                                 (long long)n->offset);
+        if (item == NULL || (item != Py_None && PyList_Append(notes, item) != 0)) {
+            Py_XDECREF(item);
+            Py_DECREF(notes);
+            Py_DECREF(time);
+            return NULL;
+        }
+        Py_DECREF(item);
+    }
+    PyObject *data = PyBytes_FromStringAndSize((const char *)rec->data, (Py_ssize_t)rec->len);
+    PyObject *tnotes = PyList_AsTuple(notes);
+    Py_DECREF(notes);
+    if (data == NULL || tnotes == NULL) {
+        Py_XDECREF(data);
+        Py_XDECREF(tnotes);
+        Py_DECREF(time);
+        return NULL;
+    }
+    return Py_BuildValue("(KNLNKKN)", (unsigned long long)rec->number, time, (long long)rec->linktype, data,
+                         (unsigned long long)rec->offset, (unsigned long long)rec->orig_len, tnotes);
 }
 
 /* Load the bitmap of senders seen signing from the Python set (items other than two ints 0..255 are
@@ -235,14 +292,13 @@ static int push_state(WalkerObject *self) {
     w->n_new_signers = 0;
     for (size_t i = 0; i < w->n_new_endpoints; i++) {
         const ms_endpoint *e = &w->new_endpoints[i];
-        char text[MS_ENDPOINT_MAX];
-        int len = ms_fmt_endpoint(e->v6, e->addr, e->port, text);
-        PyObject *s = PyUnicode_FromStringAndSize(text, len);
-        if (s == NULL || PySet_Add(self->endpoints, s) != 0) {
-            Py_XDECREF(s);
+        PyObject *ep = PyObject_CallFunction(self->endpoint, "y#i", (const char *)e->addr, (Py_ssize_t)(e->v6 ? 16 : 4),
+                                             (int)e->port);
+        if (ep == NULL || PySet_Add(self->endpoints, ep) != 0) {
+            Py_XDECREF(ep);
             return -1;
         }
-        Py_DECREF(s);
+        Py_DECREF(ep);
     }
     w->n_new_endpoints = 0;
     return 0;
@@ -311,7 +367,7 @@ static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds)
         Py_DECREF(chunk);
     }
     if (r == MS_WALK_HANDBACK) {
-        PyObject *t = handback_tuple(self, &rec);
+        PyObject *t = handback_tuple(&rec);
         if (t == NULL || PyList_Append(list, t) != 0) {
             Py_XDECREF(t);
             Py_DECREF(list);
@@ -330,15 +386,15 @@ static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds)
     return list;
 }
 
-static PyObject *Walker_last_record(WalkerObject *self, PyObject *Py_UNUSED(ignored)) {
-    if (!self->have_walker || !self->walker.have_last)
+static PyObject *Walker_walked(WalkerObject *self, PyObject *Py_UNUSED(ignored)) {
+    if (!self->have_walker || self->walker.n_walked == 0)
         Py_RETURN_NONE;
-    PyObject *time = record_time(&self->walker.last);
+    PyObject *time = record_time(&self->walker.walked);
     if (time == NULL)
         return NULL;
     if (self->walker.py_index < 0)
-        return Py_BuildValue("(KNO)", (unsigned long long)self->walker.last.number, time, Py_None);
-    return Py_BuildValue("(KNL)", (unsigned long long)self->walker.last.number, time,
+        return Py_BuildValue("(KNO)", (unsigned long long)self->walker.walked.number, time, Py_None);
+    return Py_BuildValue("(KNL)", (unsigned long long)self->walker.walked.number, time,
                          (long long)self->walker.py_index);
 }
 
@@ -353,20 +409,24 @@ static PyObject *Walker_close(WalkerObject *self, PyObject *Py_UNUSED(ignored)) 
 
 static PyObject *Walker_stats(WalkerObject *self, PyObject *Py_UNUSED(ignored)) {
     const ms_walker *w = &self->walker;
-    return Py_BuildValue("{sKsKsKsn}", "records_native", (unsigned long long)w->records_native,
+    return Py_BuildValue("{sKsKsKsKsK}", "records_native", (unsigned long long)w->records_native,
                          "records_handed_back", (unsigned long long)w->records_handed_back, "frames_native",
                          (unsigned long long)w->frames_native, "position",
-                         (Py_ssize_t)(self->have_walker ? w->reader.pos : 0));
+                         (unsigned long long)(self->have_walker ? w->reader.position : 0), "size",
+                         (unsigned long long)(self->have_walker ? w->reader.size : 0));
 }
 
 static PyMethodDef Walker_methods[] = {
     {"next", (PyCFunction)(void (*)(void))Walker_next, METH_VARARGS | METH_KEYWORDS,
      "next(signed_nokey=False, limit=1<<20, into=None): the next segments (JSON lines as bytes, or in "
      "the bytearray `into`; a handed-back record tuple, which always comes last), or None at the end"},
-    {"last_record", (PyCFunction)Walker_last_record, METH_NOARGS, "(number, time, index) of the last record walked; index: the frame count Python's dissector would "
-     "hold from the records walked natively since the last handback, or None"},
-    {"stats", (PyCFunction)Walker_stats, METH_NOARGS, "counters of the walk"},
-    {"close", (PyCFunction)Walker_close, METH_NOARGS, "release the buffer"},
+    {"walked", (PyCFunction)Walker_walked, METH_NOARGS,
+     "(number, time, index) of the last record the last next() walked natively (before a handed-back one), "
+     "or None when it walked none; index: the frame index Python's dissector would hold after them, or None "
+     "when they leave it unchanged"},
+    {"stats", (PyCFunction)Walker_stats, METH_NOARGS,
+     "counters of the walk, the file position reached and the file size (smaller if the file shrank)"},
+    {"close", (PyCFunction)Walker_close, METH_NOARGS, "release the walker's memory (the caller closes the file)"},
     {NULL, NULL, 0, NULL},
 };
 
@@ -376,7 +436,7 @@ static PyTypeObject WalkerType = {
     .tp_basicsize = sizeof(WalkerObject),
     .tp_dealloc = (destructor)Walker_dealloc,
     .tp_flags = Py_TPFLAGS_DEFAULT,
-    .tp_doc = "Walks a capture held in a buffer, writing JSON Lines and handing records back.",
+    .tp_doc = "Walks a capture file, writing JSON Lines and handing records back.",
     .tp_methods = Walker_methods,
     .tp_init = (initproc)Walker_init,
     .tp_new = PyType_GenericNew,

@@ -12,9 +12,9 @@
 #define KEY_EXCHANGE 65100
 #define SEEN_MAX 65536 /* endpoints remembered as reported; past that the memory starts over */
 
-int ms_walker_init(ms_walker *w, const uint8_t *buf, size_t size, int kind, const ms_table *table) {
+int ms_walker_init(ms_walker *w, ms_source src, uint64_t size, int kind, const ms_table *table) {
     memset(w, 0, sizeof *w);
-    ms_reader_init(&w->reader, buf, size, kind);
+    ms_reader_init(&w->reader, src, size, kind);
     w->table = table;
     w->sign_mode = MS_SIGNED_HANDBACK;
     w->py_index = -1;
@@ -278,7 +278,7 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
     int has_time = ms_record_time(rec, &t);
     if (has_time < 0)
         return MS_WALK_HANDBACK;
-    const uint8_t *data = w->reader.buf + rec->start;
+    const uint8_t *data = rec->data;
     const uint8_t *d;
     size_t n;
     ms_udp udp;
@@ -372,25 +372,27 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
 }
 
 int ms_walk(ms_walker *w, ms_buf *out, size_t limit, ms_record *rec) {
+    w->n_walked = 0;
+    w->py_index = -1;
     while (out->len < limit) {
         int got = ms_reader_next(&w->reader, rec);
         if (got < 0)
             return MS_WALK_NOMEM;
         if (got == 0)
             return MS_WALK_END;
-        w->last = *rec;
-        w->last.notes = NULL;
-        w->have_last = 1;
         int r = walk_record(w, rec, out);
         if (out->failed)
             return MS_WALK_NOMEM;
         if (r == MS_WALK_HANDBACK) {
             w->records_handed_back++;
-            w->py_index = -1;
             return MS_WALK_HANDBACK;
         }
         if (r != MS_WALK_FULL)
             return r;
+        w->walked = *rec;
+        w->walked.data = NULL;
+        w->walked.notes = NULL;
+        w->n_walked++;
         w->records_native++;
     }
     return MS_WALK_FULL;

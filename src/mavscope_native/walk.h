@@ -11,7 +11,9 @@
  * The state both paths share is explicit: `signers` (the security stage's signed_senders) and the
  * endpoints that carried valid MAVLink (the Dissector's mavlink_endpoints). The glue loads `signers`
  * from the Python set before each batch and pushes back what the batch added (`new_signers`,
- * `new_endpoints`); Python changes them only while handling a handed-back record, between batches. */
+ * `new_endpoints`); Python changes them only while handling a handed-back record, between batches. What
+ * else the Python dissector keeps from a record (its number and time, the frame index, the end of a run
+ * of tlog text entries) it learns from `Dissector.passed`, told of the records walked by each batch. */
 #ifndef MAVSCOPE_NATIVE_WALK_H
 #define MAVSCOPE_NATIVE_WALK_H
 
@@ -56,20 +58,22 @@ typedef struct {
     ms_endpoint text_key[2];    /* the last two endpoints formatted, and their text */
     char text[2][MS_ENDPOINT_TEXT];
     int text_len[2];
-    ms_record last;             /* the last record walked (for the Python pipeline's end of capture) */
-    int have_last;
-    int64_t py_index;           /* what Dissector._index would hold after the records walked here since
-                                   the last handback (Python's general scanner sets it: records with a
+    ms_record walked;           /* the last record walked natively by the current ms_walk call (what the
+                                   Python pipeline's Dissector.passed is told) */
+    uint64_t n_walked;          /* records walked natively by the current ms_walk call */
+    int64_t py_index;           /* what Dissector._index would hold after the records walked natively by
+                                   the current call (Python's general scanner sets it: records with a
                                    MAVLink 1 frame); -1: unchanged */
     uint64_t records_native, records_handed_back, frames_native; /* counters */
 } ms_walker;
 
-int ms_walker_init(ms_walker *w, const uint8_t *buf, size_t size, int kind, const ms_table *table);
+int ms_walker_init(ms_walker *w, ms_source src, uint64_t size, int kind, const ms_table *table);
 void ms_walker_free(ms_walker *w);
 
 /* Walk records, appending JSON lines to `out`, until `out` holds at least `limit` bytes (MS_WALK_FULL),
- * a record must be handed back (MS_WALK_HANDBACK, *rec is that record; its notes stay valid until the
- * next call), or the capture ends (MS_WALK_END). MS_WALK_NOMEM when memory ran out. */
+ * a record must be handed back (MS_WALK_HANDBACK, *rec is that record; its data and notes stay valid
+ * until the next call), or the capture ends (MS_WALK_END). MS_WALK_NOMEM when memory ran out. The
+ * records walked natively before a handed-back one: `n_walked`, the last of them `walked`. */
 int ms_walk(ms_walker *w, ms_buf *out, size_t limit, ms_record *rec);
 
 static inline int ms_signer_has(const ms_walker *w, unsigned sender) {

@@ -1,13 +1,14 @@
 """What the statistics, mission and expert screens share: run an analysis over the frames in a
 thread worker (with progress and cancellation on close), then show the result.
 
-The frames are the rows of the packet list's current view (a display filter applies, as it does to
-`mavscope stats -Y`), rebuilt from the index one by one, never all held at once.
+The analysis runs over every frame of the index (rebuilt one by one, never all held at once); under a
+display filter the rows of the packet list's view are the selection, as `mavscope stats -Y` reports
+the rows with a matched frame (`mavscope.analysis.selection`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 from textual import work
 from textual.app import ComposeResult
@@ -18,7 +19,9 @@ from textual.screen import Screen
 from textual.widgets import Footer, Static
 from textual.worker import get_current_worker
 
-from mavscope.index import FrameIndex, FrameSequence
+from mavscope.analysis.selection import Selection
+from mavscope.browse.index import FrameIndex
+from mavscope.mavlink.frame import Frame
 
 
 class _Cancelled(Exception):
@@ -54,6 +57,7 @@ class AnalysisScreen(Screen[None]):
         self.index = index
         self.rows = rows
         self.result: object = None
+        self.selection = Selection()  # what the analysis marked as shown (set by run_analysis)
 
     def compose(self) -> ComposeResult:
         yield Static(self._scope() + "  analysing…", id="analysis-status")
@@ -65,8 +69,8 @@ class AnalysisScreen(Screen[None]):
         yield from ()
 
     def _scope(self) -> str:
-        n = len(self.index) if self.rows is None else len(self.rows)
-        what = "all frames" if self.rows is None else "the frames the display filter shows"
+        n = len(self.index)
+        what = "all frames" if self.rows is None else f"rows with one of the {len(self.rows):,} frames the filter shows"
         partial = "" if self.index.done else " (the index is still being built: frames so far)"
         return f"{self.TITLE_TEXT}: {n:,} frames, {what}{partial}"
 
@@ -77,22 +81,38 @@ class AnalysisScreen(Screen[None]):
     @work(thread=True, exclusive=True, group="analysis", exit_on_error=False)
     def run_analysis(self) -> None:
         worker = get_current_worker()
-        rows = self.rows if self.rows is not None else self.index.rows()
+        rows = self.index.rows()
         total = len(rows)
+        selection = self.selection = Selection(active=self.rows is not None)
 
-        def tick(n: int) -> None:
-            if worker.is_cancelled:
-                raise _Cancelled
-            self.post_message(self.Step(n, total))
+        def frames() -> Iterator[Frame]:
+            """Every frame held, marking those in the view (both row lists ascend: one walk)."""
+            view = self.rows if self.rows is not None else ()
+            v = 0
+            for i, n in enumerate(rows):
+                if not i & 0x3FFF:
+                    if worker.is_cancelled:
+                        raise _Cancelled
+                    self.post_message(self.Step(i, total))
+                try:
+                    f = self.index.frame(n)
+                except IndexError:  # dropped by a bounded live index meanwhile
+                    continue
+                while v < len(view) and view[v] < n:
+                    v += 1
+                if v < len(view) and view[v] == n:
+                    selection.mark(f)
+                yield f
 
         try:
-            result = self.analyse(FrameSequence(self.index, rows, tick))
+            result = self.analyse(frames(), selection)
         except _Cancelled:
             return
         if not worker.is_cancelled:
             self.post_message(self.Done(result))
 
-    def analyse(self, frames: FrameSequence) -> object:
+    def analyse(self, frames: Iterator[Frame], selection: Selection) -> object:
+        """The screen's analysis over every frame; `selection` tells which rows to show."""
         raise NotImplementedError
 
     def on_analysis_screen_step(self, msg: Step) -> None:

@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.widgets import DataTable, Label
 
 from mavscope.analysis.expert import expert_findings
-from mavscope.analysis.findings import Finding
-from mavscope.index import FrameSequence
-from mavscope.notes import Severity
+from mavscope.analysis.selection import Selection
+from mavscope.mavlink.frame import Frame
+from mavscope.notes import Finding, Severity
 from mavscope.tui.screens.analysis import AnalysisScreen
 from mavscope.tui.verdicts import BLUE, DIM, ORANGE, RED
 
@@ -27,8 +29,8 @@ class ExpertScreen(AnalysisScreen):
         yield Label("Enter: go to the finding's first frame", id="expert-title")
         yield DataTable(id="findings", cursor_type="row", zebra_stripes=True)
 
-    def analyse(self, frames: FrameSequence) -> list[Finding]:
-        return expert_findings(frames, frames.index.dialect)
+    def analyse(self, frames: Iterator[Frame], selection: Selection) -> list[Finding]:
+        return [f for f in expert_findings(frames, self.index.dialect) if selection.any_record(f.frames)]
 
     def show(self, result: object) -> None:
         findings: list[Finding] = result  # type: ignore[assignment]

@@ -2,10 +2,14 @@
 
 The dialog builds what `--key` / `--cipher` take on the command line (docs/security.md) and the app
 passes it through the same option parsing, so a key that the command line refuses is refused here,
-with the same message.
+with the same message. What is typed is masked (someone may be watching the screen, or recording it),
+and the error line never shows it: the parser's messages describe a refused spec by its shape only, and
+any piece of the typed text is blanked out of the message besides.
 """
 
 from __future__ import annotations
+
+import re
 
 from textual.app import ComposeResult
 from textual.binding import Binding
@@ -13,9 +17,12 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
 from textual.widgets import Button, Input, Label, RadioButton, RadioSet, Static
 
+# words of the spec syntax, left in an error message even when they were typed
+_SYNTAX = frozenset(("hex", "base64", "passphrase", "qgc", "file", "xor", "aes-128-ctr", "aes-gcm", "ecdh", "iv"))
+
 # (option the text goes to, prefix added to it, radio label, hint under the radios)
 KINDS = (
-    ("key", "passphrase:", "Signing passphrase (SHA-256, as MAVProxy)", "the passphrase, e.g. mavscope-demo"),
+    ("key", "passphrase:", "Signing passphrase (SHA-256, as MAVProxy)", "the passphrase as given to MAVProxy"),
     ("key", "qgc:", "QGroundControl passphrase (PBKDF2)", "the passphrase as typed in QGroundControl"),
     ("key", "hex:", "Signing key in hex", "64 hex digits"),
     ("key", "", "Key spec (as --key)", "[NAME=]hex:… | base64:… | passphrase:… | qgc:… | file:KEYRING.toml"),
@@ -43,7 +50,7 @@ class KeyDialog(ModalScreen[None]):
                 for i, kind in enumerate(KINDS):
                     yield RadioButton(kind[2], value=i == 0, id=f"kind-{i}")
             yield Label(KINDS[0][3], id="key-help")
-            yield Input(placeholder="key", id="key-input")
+            yield Input(placeholder="key", id="key-input", password=True)
             yield Static("", id="key-error")
             with Horizontal():
                 yield Button("Cancel", id="key-cancel")
@@ -79,6 +86,15 @@ class KeyDialog(ModalScreen[None]):
         option, prefix, _, _ = self.kind
         problem = self.app.add_key(option, prefix + text)  # type: ignore[attr-defined]
         if problem:
-            error.update(problem)
+            error.update(redact(problem, text))
             return
         self.dismiss(None)
+
+
+def redact(message: str, typed: str) -> str:
+    """`message` without the typed text or any piece of it (split at ':' and '=') that may be a secret."""
+    pieces = {typed} | {p for p in re.split(r"[:=]", typed) if len(p) >= 3 and p.lower() not in _SYNTAX}
+    for piece in sorted(pieces, key=len, reverse=True):
+        if piece:
+            message = message.replace(piece, "•••")
+    return message

@@ -1,12 +1,15 @@
-"""`m`: mission transfers, the waypoint table of the chosen one, and a plot of the track.
+"""`m`: mission, fence and rally transfers and the other mission operations, the waypoint table of the
+chosen transfer, and a plot of the track.
 
-The reconstruction is mavscope.analysis.mission's (`mavscope mission`); only the frames of mission
-messages and of GLOBAL_POSITION_INT are rebuilt from the index (picked by message id from its columns).
+The reconstruction is mavscope.analysis.mission's (`mavscope mission`); only the frames it reads (mission
+messages, MISSION_CURRENT, HEARTBEAT, HOME_POSITION) and GLOBAL_POSITION_INT are rebuilt from the index
+(picked by message id from its columns).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 from rich.text import Text
@@ -14,25 +17,27 @@ from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Label
 
-from mavscope.analysis.mission import MISSION_MESSAGES, Transfer, reconstruct
-from mavscope.index import FrameSequence
-from mavscope.mavlink.frame import decode_payload
+from mavscope.analysis.mission import TRACKED_MESSAGES, Event, Transfer, analyse, event_text, pick
+from mavscope.analysis.mission.describe import ranges
+from mavscope.analysis.selection import Selection
+from mavscope.mavlink.frame import Frame, decode_payload
+from mavscope.mavlink.semantics import float_text, is_global
 from mavscope.tui.screens.analysis import AnalysisScreen
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
 from mavscope.tui.widgets.track_plot import TrackPlot
 
 MAX_TRACK_POINTS = 4000
-GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})
 
 
 @dataclass
 class MissionResult:
     transfers: list[Transfer]
+    events: list[Event]
     track: list[tuple[float, float]]
 
 
 def _fmt(v: float) -> str:
-    return "nan" if isinstance(v, float) and math.isnan(v) else f"{v:.7g}"
+    return float_text(v, ".7g") if isinstance(v, float) else f"{v:.7g}"
 
 
 class MissionScreen(AnalysisScreen):
@@ -48,7 +53,7 @@ class MissionScreen(AnalysisScreen):
     def compose_body(self) -> ComposeResult:
         with Horizontal():
             with Vertical(id="mission-left"):
-                yield Label("Transfers (Enter: show its items)")
+                yield Label("Transfers and operations (Enter: show a transfer's items)")
                 yield DataTable(id="transfers", cursor_type="row", zebra_stripes=True)
                 yield Label("Items", id="items-title")
                 yield DataTable(id="items", cursor_type="row", zebra_stripes=True)
@@ -56,27 +61,36 @@ class MissionScreen(AnalysisScreen):
                 yield Label("Track (blue: GLOBAL_POSITION_INT; orange: waypoints in order)")
                 yield TrackPlot(id="plot")
 
-    def analyse(self, frames: FrameSequence) -> MissionResult:
-        index = frames.index
+    def analyse(self, frames: Iterator[Frame], selection: Selection) -> MissionResult:
+        """Over the mission frames of the whole index (picked by the msgid column, without rebuilding the
+        other frames); under a filter, the transfers with a frame in the view."""
+        index = self.index
         dialect = index.dialect
-        ids = {md.id for name, md in dialect.by_name.items() if name in MISSION_MESSAGES}
+        ids = {md.id for name, md in dialect.by_name.items() if name in TRACKED_MESSAGES}
         gpi = dialect.by_name.get("GLOBAL_POSITION_INT")
         gpi_id = gpi.id if gpi is not None else -1
+        rows = index.rows()
         mission_rows = []
         track_rows = []
-        for r, m in zip(frames.rows, index.column("msgid", frames.rows)):
+        for r, m in zip(rows, index.column("msgid", rows)):
             if m in ids:
                 mission_rows.append(r)
             elif m == gpi_id:
                 track_rows.append(r)
-        transfers = reconstruct(FrameSequence(index, mission_rows, frames.on_frame), dialect)
+        log = analyse(index.frames(mission_rows), dialect)
+        transfers, events = log.transfers, log.events
+        if self.rows is not None:
+            view = set(self.rows).intersection(mission_rows)
+            shown = {rec for rec in index.column("record", sorted(view)) if rec is not None}
+            transfers = [t for t in transfers if any(r in shown for r in t.frames)]
+            events = [e for e in events if any(r in shown for r in e.frames)]
         step = max(1, len(track_rows) // MAX_TRACK_POINTS)
         track = []
         for frame in index.frames(track_rows[::step]):
             fields = decode_payload(frame)
             if fields and (fields.get("lat") or fields.get("lon")):
                 track.append((int(fields["lat"]) / 1e7, int(fields["lon"]) / 1e7))  # type: ignore[call-overload]
-        return MissionResult(transfers, track)
+        return MissionResult(transfers, events, track)
 
     def show(self, result: object) -> None:
         res: MissionResult = result  # type: ignore[assignment]
@@ -85,16 +99,23 @@ class MissionScreen(AnalysisScreen):
         dialect = self.index.dialect
         mtypes = dialect.enums.get("MAV_MISSION_TYPE")
         for i, t in enumerate(res.transfers):
-            style = GREEN if t.complete else (ORANGE if t.closed in ("end", "abandoned") else RED)
+            style = GREEN if t.complete else (ORANGE if t.outcome in ("unacknowledged", "abandoned") else RED)
             mtype = (mtypes.name_of(t.mission_type) if mtypes else None) or str(t.mission_type)
             table.add_row(str(i + 1), t.direction, f"{t.sender[0]}/{t.sender[1]}",
                           f"{t.receiver[0]}/{t.receiver[1]}", mtype.replace("MAV_MISSION_TYPE_", ""),
                           f"{len(t.items)}/{t.count}", Text(t.reason, style=style),
                           f"{t.frames[0]}…{t.frames[-1]}" if t.frames else "", key=str(i))
+        for i, ev in enumerate(res.events):
+            mtype = (mtypes.name_of(ev.mission_type) if mtypes else None) or str(ev.mission_type)
+            ok = ev.confirmed or (ev.ack is not None and ev.ack.result == 0)
+            table.add_row("", ev.kind, f"{ev.sender[0]}/{ev.sender[1]}", f"{ev.target[0]}/{ev.target[1]}",
+                          mtype.replace("MAV_MISSION_TYPE_", ""), "", Text(event_text(ev, dialect),
+                                                                           style=GREEN if ok else ORANGE),
+                          f"{ev.frames[0]}…{ev.frames[-1]}", key=f"e{i}")
         if not res.transfers:
             self.query_one("#items-title", Label).update("Items: no mission transfer in these frames")
-        best = next((i for i in range(len(res.transfers) - 1, -1, -1)
-                     if res.transfers[i].direction == "upload" and res.transfers[i].items), len(res.transfers) - 1)
+        chosen = [i for i in (pick(res.transfers, 0), pick(res.transfers, 1), pick(res.transfers, 2)) if i is not None]
+        best = chosen[0] if chosen else len(res.transfers) - 1
         if best >= 0:
             table.move_cursor(row=best)
             self.show_transfer(best)
@@ -103,8 +124,9 @@ class MissionScreen(AnalysisScreen):
         self.query_one("#items", DataTable).focus()
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
-        if event.data_table.id == "transfers" and event.row_key.value is not None:
-            self.show_transfer(int(event.row_key.value))
+        key = event.row_key.value
+        if event.data_table.id == "transfers" and key is not None and not key.startswith("e"):
+            self.show_transfer(int(key))
 
     def show_transfer(self, i: int) -> None:
         res: MissionResult = self.result  # type: ignore[assignment]
@@ -127,7 +149,7 @@ class MissionScreen(AnalysisScreen):
                     params.append(f"{label} {_fmt(v)}{' ' + units if units else ''}")
                 elif v and not (isinstance(v, float) and math.isnan(v)):
                     params.append(f"param{n} {_fmt(v)}")
-            glob = it.frame in GLOBAL_FRAMES
+            glob = is_global(it.frame)
             lat = f"{it.x:.7f}°" if glob else _fmt(it.x)
             lon = f"{it.y:.7f}°" if glob else _fmt(it.y)
             z_label = labels.get(7, ("Altitude", "m"))
@@ -140,6 +162,7 @@ class MissionScreen(AnalysisScreen):
         title = f"Items of transfer {i + 1}: {t.direction} {t.sender[0]}/{t.sender[1]} → " \
                 f"{t.receiver[0]}/{t.receiver[1]}, {len(t.items)} of {t.count}"
         if t.missing:
-            title += f", missing {', '.join(map(str, t.missing))}"
+            title += f", missing {ranges(t.missing)}"
+        title += f": {t.reason}"
         self.query_one("#items-title", Label).update(title)
         self.query_one(TrackPlot).set_data(res.track, waypoints)

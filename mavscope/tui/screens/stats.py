@@ -2,28 +2,20 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 from rich.text import Text
 from textual.app import ComposeResult
 from textual.widgets import DataTable, Label
 
+from mavscope.analysis.selection import Selection
 from mavscope.analysis.stats import Stats, compute_stats
-from mavscope.index import FrameSequence
+from mavscope.mavlink.frame import Frame
+from mavscope.output.tables import sparkline
 from mavscope.tui.screens.analysis import AnalysisScreen
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
 
-SPARK = "▁▂▃▄▅▆▇█"
 SPARK_WIDTH = 30
-
-
-def sparkline(values: list[int], width: int = SPARK_WIDTH) -> str:
-    """`values` (frames per second) squeezed into `width` cells, each the busiest second of its slice."""
-    if not values:
-        return ""
-    if len(values) > width:
-        step = len(values) / width
-        values = [max(values[int(i * step) : max(int(i * step) + 1, int((i + 1) * step))]) for i in range(width)]
-    top = max(values) or 1
-    return "".join(" " if v == 0 else SPARK[min(len(SPARK) - 1, (v * len(SPARK) - 1) // top)] for v in values)
 
 
 def _pct(v: float) -> Text:
@@ -45,15 +37,16 @@ class StatsScreen(AnalysisScreen):
         yield Label("Message rates", id="rates-title")
         yield DataTable(id="rates", zebra_stripes=True, cursor_type="row")
 
-    def analyse(self, frames: FrameSequence) -> Stats:
+    def analyse(self, frames: Iterator[Frame], selection: Selection) -> Stats:
         return compute_stats(frames)
 
     def show(self, result: object) -> None:
         stats: Stats = result  # type: ignore[assignment]
+        selection = self.selection
         links = self.query_one("#links", DataTable)
         links.add_columns("Sys/Comp", "Received", "Lost", "Loss", "Duplicates", "Reordered", "CRC", "Signature",
                           "Endpoints")
-        for lk in stats.links_json():
+        for lk in stats.links_json(selection):
             crc = ", ".join(f"{k} {v}" for k, v in lk["crc"].items())  # type: ignore[attr-defined]
             sig = ", ".join(f"{k} {v}" for k, v in lk["signature"].items())  # type: ignore[attr-defined]
             links.add_row(f"{lk['sysid']}/{lk['compid']}", Text(f"{lk['received']:,}", justify="right"),
@@ -64,13 +57,13 @@ class StatsScreen(AnalysisScreen):
         duration = stats.duration
         rates.add_columns("Sys/Comp", "Message", "Count", "Rate", "Bytes",
                           f"Frames per second over {duration or 0:.0f} s")
-        for m in stats.messages_json():
+        for m in stats.messages_json(selection):
             key = (m["sysid"], m["compid"], m["msgname"])
-            rate = m["rate_hz"]
+            rate = "burst" if m["burst"] else ("-" if m["rate_hz"] is None else f"{m['rate_hz']:.2f} Hz")
             rates.add_row(f"{m['sysid']}/{m['compid']}", m["msgname"], Text(f"{m['count']:,}", justify="right"),
-                          Text("-" if rate is None else f"{rate:.2f} Hz", justify="right"),
+                          Text(rate, justify="right"),
                           Text(f"{m['bytes']:,}", justify="right"),
-                          Text(sparkline(stats.per_second(key)), style="cyan"))  # type: ignore[arg-type]
+                          Text(sparkline(stats.rate_series(key, SPARK_WIDTH)), style="cyan"))  # type: ignore[arg-type]
         t = stats.totals_json()
         self.query_one("#rates-title", Label).update(
             f"Message rates: {t['frames']:,} frames, {t['bytes']:,} bytes over {duration or 0:.1f} s, "

@@ -12,8 +12,8 @@ from textual.message import Message
 from textual.widgets import Tree
 from textual.widgets.tree import TreeNode
 
-from mavscope.index import Detail
-from mavscope.mavlink.items import Item
+from mavscope.browse.rows import Detail
+from mavscope.fields.tree import Item
 from mavscope.notes import Severity
 from mavscope.tui.verdicts import BLUE, DIM, GREEN, ORANGE, RED
 
@@ -23,7 +23,9 @@ _STATUS_STYLE = {
 }
 _SEVERITY_STYLE = {Severity.ERROR.value: RED, Severity.WARN.value: ORANGE, Severity.NOTE.value: BLUE,
                    Severity.CHAT.value: DIM}
-EXPANDED = ("mavlink.header", "mavlink.payload", "signature")
+# open from the start: the header, the payload, the signature, and a container's inner protocol
+EXPANDED = ("mavlink.header", "mavlink.payload", "signature", "FILE_TRANSFER_PROTOCOL.payload", "LOG_DATA.data",
+            "TUNNEL.payload", "SERIAL_CONTROL.data", "ENCAPSULATED_DATA.data")
 
 
 def frame_item(detail: Detail) -> Item:

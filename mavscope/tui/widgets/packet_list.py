@@ -22,8 +22,10 @@ from textual.reactive import reactive
 from textual.scroll_view import ScrollView
 from textual.strip import Strip
 
-from mavscope.index import FrameIndex, Row
+from mavscope.browse.index import FrameIndex
+from mavscope.browse.rows import Row
 from mavscope.mavlink.frame import CrcStatus
+from mavscope.mavlink.semantics import message_label
 from mavscope.tui.verdicts import (
     CRC_GLYPHS,
     ENCRYPTION_GLYPHS,
@@ -31,7 +33,6 @@ from mavscope.tui.verdicts import (
     SIGNATURE_GLYPHS,
     encryption_key,
     signature_key,
-    unsigned_in_signed,
 )
 
 # (title, width); the last column takes the rest of the line
@@ -298,18 +299,19 @@ class PacketList(ScrollView, can_focus=True):
                 "packet-list--cursor" if state == 2 else "packet-list--cursor-blurred")
         t0 = self.index.time_base
         t = "-" if r.time is None or t0 is None else f"{r.time - t0:.6f}"
-        src = r.src or r.transport
+        src = str(r.src or r.transport)
+        label = r.msgname or message_label(r.msgid, None)
         segs = [
             Segment(_cell(r.number, COLUMNS[0][1], True), base),
             Segment(_cell(t, COLUMNS[1][1], True), base),
             Segment(_cell(src, COLUMNS[2][1]), base),
             Segment(_cell(f"{r.sysid}/{r.compid}", COLUMNS[3][1]), base),
             Segment(_cell(str(r.seq), COLUMNS[4][1], True), base),
-            Segment(_cell(r.msgname or f"#{r.msgid}", COLUMNS[5][1]), base),
+            Segment(_cell(label, COLUMNS[5][1]), base),
         ]
         glyph, style, _ = CRC_GLYPHS[r.crc_status]
         segs.append(Segment(glyph, base + Style.parse(style)))
-        sk = signature_key(r.incompat_flags, r.signature_status, unsigned_in_signed(r.security))
+        sk = signature_key(r.incompat_flags, r.security)
         if sk is None:
             segs.append(Segment(" ", base))
         else:
@@ -323,8 +325,8 @@ class PacketList(ScrollView, can_focus=True):
             segs.append(Segment(glyph, base + Style.parse(style)))
         segs.append(Segment(" ", base))
         info = self.index.summary(row)
-        if r.msgname and info.startswith(r.msgname):
-            info = info[len(r.msgname) :].lstrip()  # the Message column has it
+        if info.startswith(label):
+            info = info[len(label) :].lstrip()  # the Message column has it
         bad = r.crc_status in (CrcStatus.BAD, CrcStatus.TRUNCATED) or sk in ("invalid",)
         segs.append(Segment(info, base + Style.parse(RED) if bad else base))
         return Strip(segs).crop_extend(0, width, base)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from rich.text import Text
 from textual.widgets import Static
 
-from mavscope.index import Progress
+from mavscope.browse.rows import Progress
 
 
 def _bar(fraction: float, width: int = 12) -> str:

@@ -1,0 +1,434 @@
+"""The mission protocol state machine: frames in capture order in, a MissionLog out, in bounded state (the
+open exchanges, the last HEARTBEAT and HOME_POSITION of each system, a few recent frames per sender).
+
+A transfer opens with a MISSION_COUNT from the system holding the items to the one that will request
+them, per mission type (0 mission, 1 fence, 2 rally). MISSION_REQUEST(_INT), MISSION_ITEM(_INT) and
+MISSION_ACK join it when both ends and the mission type match (component 0 matches any component) and
+it has not been silent for TRANSFER_TIMEOUT. A MISSION_ACK ACCEPTED from the receiver closes it. Any
+other ACK is a NACK that decides the outcome only if nothing of the transfer follows it: ArduPilot
+answers an item out of sequence with MAV_MISSION_INVALID_SEQUENCE and requests again, PX4 answers a
+GCS that cannot do MISSION_ITEM_INT with MAV_MISSION_UNSUPPORTED and switches. A new MISSION_COUNT (or
+MISSION_REQUEST_LIST) between the same two systems for the same type restarts the exchange.
+
+The direction is `download` when the receiver asked for the items with MISSION_REQUEST_LIST, otherwise it
+comes from the HEARTBEATs (a vehicle sending the items: download; a GCS: upload), else from component ids
+(the autopilot is component 1). Byte copies of a frame (same MAVLink sequence number, a few frames apart)
+are link or capture duplicates: they are counted, never taken for a new transfer.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Iterable
+from typing import cast
+
+from mavscope.analysis.mission.describe import reason
+from mavscope.analysis.mission.model import (
+    MAV_MISSION_ACCEPTED,
+    MAV_MISSION_TYPE_ALL,
+    TRANSFER_TIMEOUT,
+    Ack,
+    Addr,
+    Event,
+    Item,
+    MissionLog,
+    Transfer,
+    heartbeat_of,
+    role,
+    same,
+)
+from mavscope.mavlink.dialect import Dialect
+from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
+from mavscope.mavlink.semantics import int_coordinate
+
+MISSION_MESSAGES = frozenset({"MISSION_COUNT", "MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ITEM",
+                              "MISSION_ITEM_INT", "MISSION_ACK", "MISSION_REQUEST_LIST", "MISSION_CLEAR_ALL",
+                              "MISSION_SET_CURRENT"})
+# Every message the reconstruction reads: the mission protocol, MISSION_CURRENT (the answer to
+# MISSION_SET_CURRENT), HEARTBEAT (who is a vehicle), HOME_POSITION (the plan's home).
+TRACKED_MESSAGES = MISSION_MESSAGES | {"MISSION_CURRENT", "HEARTBEAT", "HOME_POSITION"}
+DUPLICATE_WINDOW = 2.0  # seconds: a byte copy later than this is a new transmission (the seq wrapped)
+DUPLICATE_FRAMES = 64  # frames of the sender: a byte copy further back is a new transmission
+RECENT = 8  # mission frames remembered per sender for duplicate detection
+RECENTLY_CLOSED = 16  # closed transfers kept for late frames when the capture has no times
+MAV_FRAME_MISSION = 2  # "not a frame": x and y are plain parameters, never scaled (mission protocol spec)
+
+
+def _num(fields: dict[str, object], name: str, default: int = 0) -> int:
+    value = fields.get(name, default)
+    return int(value) if isinstance(value, (int, float)) else default
+
+
+def _item(name: str, fields: dict[str, object], record: int) -> Item:
+    num = cast("dict[str, float]", fields)  # every MISSION_ITEM(_INT) field is a number (int or float)
+    frame = int(num.get("frame", 0))
+    x, y = num.get("x", 0), num.get("y", 0)
+    if name == "MISSION_ITEM_INT" and frame != MAV_FRAME_MISSION:  # MAV_FRAME_MISSION: param5/6 as they are
+        x, y = int_coordinate(int(x), frame), int_coordinate(int(y), frame)
+    return Item(int(num["seq"]), int(num["command"]), frame,
+                (float(num["param1"]), float(num["param2"]), float(num["param3"]), float(num["param4"])),
+                float(x), float(y), float(num.get("z", 0.0)),
+                int(num.get("current", 0)), int(num.get("autocontinue", 1)), name, [record])
+
+
+class MissionTracker:
+    """Feed frames in capture order (`feed`), then `finish()` for the MissionLog."""
+
+    def __init__(self, dialect: Dialect) -> None:
+        self.dialect = dialect
+        self.transfers: list[Transfer] = []
+        self.events: list[Event] = []
+        self.open: list[Transfer] = []
+        self.closed: deque[Transfer] = deque(maxlen=RECENTLY_CLOSED)
+        self.lists: dict[tuple[Addr, int, int], Event] = {}  # (asker, target sysid, type) -> REQUEST_LIST
+        self.clears: list[Event] = []
+        self.set_current: dict[int, Event] = {}  # target sysid -> MISSION_SET_CURRENT awaiting MISSION_CURRENT
+        self.orphans: dict[tuple[Addr, Addr, int], Event] = {}
+        self.heartbeats: dict[Addr, tuple[int, int]] = {}
+        self.homes: dict[int, tuple[float, float, float]] = {}
+        self.counts: dict[Addr, int] = {}  # frames per sender (all messages)
+        self.recent: dict[Addr, deque[tuple[bytes, int, float | None, object]]] = {}
+        self.duplicates = 0
+        self.now: float | None = None
+        self.order = 0
+
+    # -- input ---------------------------------------------------------------------------------------
+
+    def feed(self, f: Frame) -> None:
+        md = f.msgdef
+        if md is None or f.crc_status is not CrcStatus.OK:
+            return
+        me = (f.sysid, f.compid)
+        n = self.counts[me] = self.counts.get(me, 0) + 1
+        if f.time is not None:
+            self.now = f.time
+        name = md.name
+        if name not in TRACKED_MESSAGES:
+            return
+        fields = decode_payload(f)
+        if fields is None:
+            return
+        if name == "HEARTBEAT":
+            self.heartbeats[me] = (_num(fields, "type"), _num(fields, "autopilot"))
+            return
+        if name == "HOME_POSITION":
+            self.homes[f.sysid] = (_num(fields, "latitude") / 1e7, _num(fields, "longitude") / 1e7,
+                                   _num(fields, "altitude") / 1000)
+            return
+        self._expire(f.time)
+        if name == "MISSION_CURRENT":
+            self._mission_current(f, _num(fields, "seq"))
+            return
+        recent = self.recent.setdefault(me, deque(maxlen=RECENT))
+        for raw, n0, t0, owner in recent:
+            if raw == f.raw and n - n0 <= DUPLICATE_FRAMES and (t0 is None or f.time is None
+                                                                  or f.time - t0 <= DUPLICATE_WINDOW):
+                self.duplicates += 1
+                if isinstance(owner, Transfer):
+                    owner.duplicates.append(f.record)
+                elif isinstance(owner, Event):
+                    owner.frames.append(f.record)
+                return
+        tgt = (_num(fields, "target_system"), _num(fields, "target_component"))
+        mtype = _num(fields, "mission_type")
+        owner = self._dispatch(f, name, fields, me, tgt, mtype)
+        recent.append((f.raw, n, f.time, owner))
+
+    def _dispatch(self, f: Frame, name: str, fields: dict[str, object], me: Addr, tgt: Addr,
+                  mtype: int) -> object:
+        if name == "MISSION_COUNT":
+            return self._count(f, me, tgt, mtype, _num(fields, "count"))
+        if name == "MISSION_REQUEST_LIST":
+            return self._request_list(f, me, tgt, mtype)
+        if name in ("MISSION_REQUEST", "MISSION_REQUEST_INT"):
+            return self._request(f, name, me, tgt, mtype, _num(fields, "seq"))
+        if name in ("MISSION_ITEM", "MISSION_ITEM_INT"):
+            return self._item(f, name, fields, me, tgt, mtype)
+        if name == "MISSION_ACK":
+            return self._ack(f, me, tgt, mtype, _num(fields, "type"))
+        if name == "MISSION_CLEAR_ALL":
+            return self._clear_all(f, me, tgt, mtype)
+        return self._set_current(f, me, tgt, _num(fields, "seq"))  # MISSION_SET_CURRENT
+
+    # -- time ----------------------------------------------------------------------------------------
+
+    def _stale(self, last: float | None, now: float | None) -> bool:
+        return last is not None and now is not None and now - last > TRANSFER_TIMEOUT
+
+    def _expire(self, now: float | None) -> None:
+        """Close what has been silent for longer than TRANSFER_TIMEOUT."""
+        if now is None:
+            return
+        for t in [t for t in self.open if self._stale(t.last, now)]:
+            self._close(t, "timeout")
+        for key, ev in list(self.lists.items()):
+            if self._stale(ev.last, now):
+                self._event(self.lists.pop(key))
+        self.clears = [ev for ev in self.clears if not self._stale(ev.last, now)]
+        for sysid, ev in list(self.set_current.items()):
+            if self._stale(ev.last, now):
+                self._settle(self.set_current.pop(sysid))
+        self.orphans = {k: ev for k, ev in self.orphans.items() if not self._stale(ev.last, now)}
+
+    def _close(self, t: Transfer, how: str) -> None:
+        t.close(how)
+        if t in self.open:
+            self.open.remove(t)
+        self.closed.append(t)
+
+    def _event(self, ev: Event) -> Event:
+        self.events.append(ev)
+        return ev
+
+    def _new_event(self, kind: str, f: Frame, me: Addr, tgt: Addr, mtype: int) -> Event:
+        self.order += 1
+        return Event(kind, me, tgt, mtype, f.time, self.order, [f.record], last=f.time)
+
+    # -- transfers -----------------------------------------------------------------------------------
+
+    def _find(self, mtype: int, sender: Addr, receiver: Addr) -> Transfer | None:
+        """The latest open transfer of `mtype` from `sender` to `receiver`."""
+        for t in reversed(self.open):
+            if t.mission_type == mtype and same(t.sender, sender) and same(t.receiver, receiver):
+                return t
+        return None
+
+    def _late(self, f: Frame, mtype: int, a: Addr, b: Addr) -> Transfer | None:
+        """A transfer between `a` and `b` that ended shortly before `f` (its frames may still trickle in)."""
+        for t in reversed(self.closed):
+            if t.mission_type == mtype and ((same(t.sender, a) and same(t.receiver, b))
+                                            or (same(t.sender, b) and same(t.receiver, a))):
+                if (t.last is None and f.time is None) or (t.last is not None and f.time is not None
+                                                           and f.time - t.last <= TRANSFER_TIMEOUT):
+                    return t
+                return None
+        return None
+
+    def _count(self, f: Frame, me: Addr, tgt: Addr, mtype: int, count: int) -> Transfer:
+        t = self._find(mtype, me, tgt)
+        if t is not None and t.count == count and not t.requests and not t.items and not t.acks:
+            t.count_resent += 1  # the same COUNT again: the receiver did not answer yet
+            t.touch(f.record, f.time)
+            return t
+        for old in [o for o in self.open if o.mission_type == mtype and (
+                (same(o.sender, me) and same(o.receiver, tgt)) or (same(o.sender, tgt) and same(o.receiver, me)))]:
+            self._close(old, "restarted")
+        self.order += 1
+        t = Transfer(me, tgt, mtype, count, f.time, self.order)
+        asked = next((k for k in self.lists if k[1] == me[0] and k[2] == mtype and same(k[0], tgt)), None)
+        if asked is not None:
+            ev = self.lists.pop(asked)
+            t.direction, t.direction_basis, t.receiver = "download", "request-list", ev.sender
+            t.frames.extend(ev.frames)
+        t.touch(f.record, f.time)
+        self.transfers.append(t)
+        self.open.append(t)
+        return t
+
+    def _request_list(self, f: Frame, me: Addr, tgt: Addr, mtype: int) -> object:
+        for old in [o for o in self.open if o.mission_type == mtype and same(o.receiver, me) and same(o.sender, tgt)]:
+            if not old.requests and not old.items and not old.acks:
+                old.touch(f.record, f.time)  # asked again before requesting anything: the COUNT was lost
+                return old
+            self._close(old, "restarted")  # asking again restarts the download
+        key = (me, tgt[0], mtype)
+        ev = self.lists.get(key)
+        if ev is None:
+            ev = self.lists[key] = self._new_event("request-list", f, me, tgt, mtype)
+        else:
+            ev.frames.append(f.record)
+            ev.last = f.time
+        return ev
+
+    def _continue(self, t: Transfer, f: Frame) -> None:
+        """A frame of the transfer after a NACK: the parties went on, so the NACK was not the end."""
+        if t.pending is not None:
+            t.pending.role = "continued"
+            t.pending = None
+        t.touch(f.record, f.time)
+
+    def _request(self, f: Frame, name: str, me: Addr, tgt: Addr, mtype: int, seq: int) -> object:
+        t = self._find(mtype, tgt, me)
+        if t is None:
+            return self._stray(f, name, me, tgt, mtype, seq)
+        if t.receiver[1] == 0:
+            t.receiver = me  # the COUNT went to component 0: the component that answers is the receiver
+        self._continue(t, f)
+        t.requests.append(seq)
+        t.max_request = max(t.max_request, seq)
+        return t
+
+    def _item(self, f: Frame, name: str, fields: dict[str, object], me: Addr, tgt: Addr, mtype: int) -> object:
+        t = self._find(mtype, me, tgt)
+        seq = _num(fields, "seq")
+        if t is None:
+            return self._stray(f, name, me, tgt, mtype, seq)
+        if t.receiver[1] == 0 and tgt[1] != 0:
+            t.receiver = tgt
+        self._continue(t, f)
+        item = _item(name, fields, f.record)
+        old = t.items.get(seq)
+        if old is None:
+            t.items[seq] = item
+            return t
+        t.resent[seq] = t.resent.get(seq, 0) + 1
+        if old.content() != item.content():
+            t.resent_changed.add(seq)
+        if t.max_request > seq:  # the receiver had moved on: this copy answers nothing, the earlier one stays
+            old.frames.append(f.record)
+        else:  # a copy the receiver asked for again: it replaces the earlier one
+            item.frames = old.frames + item.frames
+            t.items[seq] = item
+        return t
+
+    def _stray(self, f: Frame, name: str, me: Addr, tgt: Addr, mtype: int, seq: int) -> object:
+        late = self._late(f, mtype, me, tgt)
+        if late is not None:
+            late.late_frames.append(f.record)
+            return late
+        key = (me, tgt, mtype)
+        ev = self.orphans.get(key)
+        if ev is None:
+            ev = self.orphans[key] = self._event(self._new_event("orphan", f, me, tgt, mtype))
+        else:
+            ev.frames.append(f.record)
+            ev.last = f.time
+        ev.messages[name] = ev.messages.get(name, 0) + 1
+        if len(ev.seqs) < 1000:
+            ev.seqs.append(seq)
+        return ev
+
+    def _ack(self, f: Frame, me: Addr, tgt: Addr, mtype: int, result: int) -> object:
+        ack = Ack(me, result, f.record, f.time)
+        # The operations this ACK can answer, between exactly these two systems, for this mission type;
+        # the latest one started wins.
+        cands: list[tuple[int, object]] = []
+        for t in self.open:
+            if t.mission_type == mtype and ((same(me, t.receiver) and same(tgt, t.sender))
+                                            or (same(me, t.sender) and same(tgt, t.receiver))):
+                cands.append((t.order, t))
+        for ev in self.clears:
+            if same(me, ev.target) and same(tgt, ev.sender) and ev.mission_type in (mtype, MAV_MISSION_TYPE_ALL):
+                cands.append((ev.order, ev))
+        for key, ev in self.lists.items():
+            if same(me, ev.target) and same(tgt, ev.sender) and key[2] == mtype:
+                cands.append((ev.order, ev))
+        if not cands:
+            late = self._late(f, mtype, me, tgt)
+            if late is not None:
+                ack.role = "late"
+                late.acks.append(ack)
+                late.late_frames.append(f.record)
+                return late
+            ev = self._new_event("unmatched-ack", f, me, tgt, mtype)
+            ev.ack = ack
+            return self._event(ev)
+        target = max(cands, key=lambda c: c[0])[1]
+        if isinstance(target, Event):
+            target.ack = ack
+            target.frames.append(f.record)
+            if target.kind == "clear-all":
+                self.clears.remove(target)
+                return target
+            # a MISSION_REQUEST_LIST answered with an ACK instead of a COUNT (refused)
+            self.lists = {k: v for k, v in self.lists.items() if v is not target}
+            return self._event(target)
+        t = cast("Transfer", target)
+        from_receiver = same(me, t.receiver) and me != t.sender
+        if from_receiver and t.receiver[1] == 0:
+            t.receiver = me
+        t.acks.append(ack)
+        t.touch(f.record, f.time)
+        if result == MAV_MISSION_ACCEPTED and from_receiver:
+            t.result = result
+            if t.pending is not None:
+                t.pending.role = "continued"
+            t.pending = None
+            self._close(t, "ack")
+        else:
+            if t.pending is not None:
+                t.pending.role = "repeated"
+            t.pending = ack
+        return t
+
+    # -- other operations ----------------------------------------------------------------------------
+
+    def _clear_all(self, f: Frame, me: Addr, tgt: Addr, mtype: int) -> Event:
+        for ev in self.clears:
+            if ev.sender == me and same(ev.target, tgt) and ev.mission_type == mtype:
+                ev.frames.append(f.record)  # sent again: no answer yet
+                ev.last = f.time
+                return ev
+        ev = self._event(self._new_event("clear-all", f, me, tgt, mtype))
+        self.clears.append(ev)
+        return ev
+
+    def _set_current(self, f: Frame, me: Addr, tgt: Addr, seq: int) -> Event:
+        previous = self.set_current.pop(tgt[0], None)
+        if previous is not None:
+            self._settle(previous)
+        ev = self._event(self._new_event("set-current", f, me, tgt, 0))
+        ev.seq = seq
+        self.set_current[tgt[0]] = ev
+        return ev
+
+    def _mission_current(self, f: Frame, seq: int) -> None:
+        ev = self.set_current.get(f.sysid)
+        if ev is None:
+            return
+        ev.reported, ev.reply_frame = seq, f.record
+        if seq == ev.seq:
+            ev.confirmed = True
+            del self.set_current[f.sysid]
+
+    def _settle(self, ev: Event) -> None:
+        if ev.confirmed is None and ev.reported is not None:
+            ev.confirmed = False
+
+    # -- output --------------------------------------------------------------------------------------
+
+    def finish(self) -> MissionLog:
+        for t in list(self.open):
+            self._close(t, "timeout" if self._stale(t.last, self.now) else "end")
+        for ev in self.lists.values():
+            self._event(ev)
+        self.lists.clear()
+        for ev in self.set_current.values():
+            self._settle(ev)
+        self.set_current.clear()
+        self.events.sort(key=lambda ev: ev.order)
+        for t in self.transfers:
+            t.receiver_silent = not any(same(a, t.receiver) for a in self.counts)
+            if not t.direction:
+                t.direction, t.direction_basis = self._direction(t)
+            t.reason = reason(t, self.dialect)
+        return MissionLog(self.transfers, self.events, dict(self.heartbeats), dict(self.homes), self.duplicates)
+
+    def _direction(self, t: Transfer) -> tuple[str, str]:
+        """Upload or download from who is a vehicle: the sender's HEARTBEAT, else the receiver's."""
+        for addr, if_vehicle, if_gcs in ((t.sender, "download", "upload"), (t.receiver, "upload", "download")):
+            hb = self.heartbeats.get(addr)
+            if hb is not None and role(hb) in ("vehicle", "gcs"):
+                return (if_vehicle if role(hb) == "vehicle" else if_gcs), "heartbeat"
+        for addr, if_vehicle in ((t.sender, "download"), (t.receiver, "upload")):
+            hb = heartbeat_of(self.heartbeats, addr)
+            if hb is not None and role(hb) == "vehicle" and addr[1] in (0, 1):
+                return if_vehicle, "heartbeat"
+        if t.sender[1] == 1:
+            return "download", "component-id"  # MAV_COMP_ID_AUTOPILOT1 holds the items
+        if t.receiver[1] == 1:
+            return "upload", "component-id"
+        return "unknown", "none"
+
+
+def analyse(frames: Iterable[Frame], dialect: Dialect) -> MissionLog:
+    """Every mission transfer and operation of `frames` (all frames of a capture, in capture order)."""
+    tracker = MissionTracker(dialect)
+    for f in frames:
+        tracker.feed(f)
+    return tracker.finish()
+
+
+def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> list[Transfer]:
+    """Every mission transfer of the capture, in the order they started."""
+    return analyse(frames, dialect).transfers

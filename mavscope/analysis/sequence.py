@@ -1,0 +1,123 @@
+"""MAVLink sequence numbers of one sender: loss, duplicates, reordering, and each frame's position.
+
+SEQ is an 8-bit counter per sender. `SeqTracker.feed(seq)` classifies each frame's step from the last
+one: `next` (+1), `gap` (ahead by d < 128: d - 1 frames missing), `late` (behind, filling a slot still
+missing: one frame less lost), `duplicate` (behind or equal, filling nothing). Gaps of more than 127
+cannot be told from late frames and count as late. Loss is what stays missing: a frame that comes late
+or from a second counter of the same sender (Mission Planner sends REQUEST_DATA_STREAM on its own) is
+not lost, so the Links table and the `seq-gap` findings tell the same story.
+
+`position` is the frame's place in the sender's unwrapped sequence (it never wraps): a late frame is
+placed behind the newest one, not after it. Replay detection compares positions, so a frame repeated
+byte for byte 256 frames later (a neutral-stick MANUAL_CONTROL after the counter wrapped) is told from a
+copy of a frame the counter has not yet left behind.
+
+A sender that reboots restarts its counter: its frames then step back without filling a gap. When
+RESET_RUN such frames in a row each continue the previous one (+1), the counter restarted (or moved to
+another channel): they were not duplicates, the counter is followed from there, and `resets` counts it.
+
+State is bounded: at most 127 missing slots, and the large gaps remembered for findings are capped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+LATE_WINDOW = 128
+GAP_MIN = 10  # a gap of this many frames or more is listed in the `seq-gap` finding
+GAPS_KEPT = 50  # large gaps remembered per sender (their count is kept beyond that)
+RESET_RUN = 10  # backward frames in a row, each one after the other, that make a restarted counter
+
+
+@dataclass
+class Gap:
+    """A run of missing sequence numbers, found when the frame after it arrived."""
+
+    record: int  # the frame that revealed it
+    before: int  # seq before the gap
+    after: int  # seq after it
+    size: int
+    remaining: int  # still missing (late frames fill it)
+
+
+@dataclass
+class SeqTracker:
+    """Sequence-number bookkeeping for one sender. `feed(seq, record)` returns what the number was."""
+
+    last: int | None = None
+    lost: int = 0
+    duplicates: int = 0  # frames that repeat a sequence number already seen (`repeats` of them: the last one)
+    repeats: int = 0
+    reordered: int = 0
+    resets: int = 0  # the counter restarted (a reboot) or moved to another channel
+    position: int = 0  # of the frame fed last
+    newest: int = 0  # position of the newest frame (the one `last` belongs to)
+    missing: dict[int, Gap | None] = field(default_factory=dict)  # seq -> its large gap (None: a small one)
+    gaps: list[Gap] = field(default_factory=list)  # large gaps, the first GAPS_KEPT
+    large_gaps: int = 0  # how many large gaps in all
+    run: int = 0  # backward frames in a row, each following the previous one
+    run_seq: int = 0  # the seq of the last of them
+
+    def feed(self, seq: int, record: int = 0) -> tuple[str, int]:
+        """("first" | "next" | "gap" | "duplicate" | "late" | "reset", frames lost by this step)."""
+        if self.last is None:
+            self.last = seq
+            return "first", 0
+        d = (seq - self.last) % 256
+        behind_run, self.run = self.run, 0
+        if d == 1:
+            self._advance(seq, 1)
+            return "next", 0
+        if d == 0:
+            self.duplicates += 1
+            self.repeats += 1
+            self.position = self.newest
+            return "duplicate", 0
+        if d < LATE_WINDOW:
+            gap = None
+            if d - 1 >= GAP_MIN:
+                self.large_gaps += 1
+                gap = Gap(record, self.last, seq, d - 1, d - 1)
+                if len(self.gaps) < GAPS_KEPT:
+                    self.gaps.append(gap)
+            for k in range(1, d):
+                s = (self.last + k) % 256
+                self.missing.pop(s, None)
+                self.missing[s] = gap
+            self.lost += d - 1
+            self._advance(seq, d)
+            return "gap", d - 1
+        self.position = self.newest - (256 - d)
+        if seq in self.missing:
+            gap = self.missing.pop(seq)
+            if gap is not None:
+                gap.remaining -= 1
+            self.lost -= 1
+            self.reordered += 1
+            return "late", -1
+        self.duplicates += 1
+        self.run = behind_run + 1 if behind_run and seq == (self.run_seq + 1) % 256 else 1
+        self.run_seq = seq
+        if self.run >= RESET_RUN:  # a restarted counter, not duplicates: follow it from here
+            self.duplicates -= self.run
+            self.resets += 1
+            self.run = 0
+            self.missing.clear()  # the old counter's missing frames stay lost
+            self._advance(seq, 256)
+            return "reset", 0
+        return "duplicate", 0
+
+    def _advance(self, seq: int, d: int) -> None:
+        self.last = seq
+        self.newest += d
+        self.position = self.newest
+        last = seq
+        while self.missing:
+            s = next(iter(self.missing))
+            if (last - s) % 256 < LATE_WINDOW:
+                break
+            del self.missing[s]
+
+    @property
+    def lost_in_large_gaps(self) -> int:
+        return sum(g.remaining for g in self.gaps)

@@ -1,0 +1,127 @@
+"""The Info column of a frame: its message name, key fields and the verdicts that are not ok.
+
+The packet list of the TUI, the summary lines of `read` and `live`, and anything else that lists
+frames one per line use this one text.
+"""
+
+from __future__ import annotations
+
+from weakref import WeakKeyDictionary
+
+from mavscope.fields.containers import info as container_info
+from mavscope.mavlink.dialect import Dialect, MessageDef
+from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, IFLAG_SIGNED, CrcStatus, Frame, decode_payload
+from mavscope.mavlink.semantics import (
+    COMMAND_MESSAGES,
+    DEGE7,
+    INT_COORDINATE_MESSAGES,
+    command_param_name,
+    float_text,
+    message_label,
+)
+
+# The fields a summary line shows per message (default: the first few scalar fields).
+SUMMARY_FIELDS: dict[str, tuple[str, ...]] = {
+    "HEARTBEAT": ("type", "autopilot", "base_mode", "system_status"),
+    "COMMAND_LONG": ("command", "param1", "target_system", "target_component", "confirmation"),
+    "COMMAND_INT": ("command", "target_system", "target_component", "frame", "x", "y", "z"),
+    "COMMAND_ACK": ("command", "result"),
+    "MISSION_ITEM_INT": ("seq", "command", "frame", "x", "y", "z"),
+    "MISSION_ITEM": ("seq", "command", "frame", "x", "y", "z"),
+    "MISSION_COUNT": ("count", "target_system", "mission_type"),
+    "MISSION_REQUEST_INT": ("seq", "target_system", "mission_type"),
+    "MISSION_REQUEST": ("seq", "target_system", "mission_type"),
+    "MISSION_ACK": ("type", "target_system", "mission_type"),
+    "STATUSTEXT": ("severity", "text"),
+    "GLOBAL_POSITION_INT": ("lat", "lon", "relative_alt"),
+    "GPS_RAW_INT": ("fix_type", "lat", "lon", "satellites_visible"),
+    "ATTITUDE": ("roll", "pitch", "yaw"),
+    "SYS_STATUS": ("voltage_battery", "battery_remaining", "drop_rate_comm"),
+    "PARAM_VALUE": ("param_id", "param_value", "param_index"),
+    "PARAM_SET": ("param_id", "param_value"),
+    "SETUP_SIGNING": ("target_system", "initial_timestamp"),
+}
+_MAX_DEFAULT = 4
+CONTAINER_MESSAGES = frozenset({"FILE_TRANSFER_PROTOCOL"})  # their Info is the inner protocol's
+
+
+# How a summary shows one field: by its name, an enum's names, degE7 as degrees, or by the value's type.
+_PLAIN, _ENUM, _DEGREES = 0, 1, 2
+_Plan = tuple[tuple[str, int, dict[int, str]], ...]
+_PLANS: WeakKeyDictionary[Dialect, dict[int, tuple[MessageDef, _Plan]]] = WeakKeyDictionary()
+
+
+def _summary_plan(md: MessageDef, dialect: Dialect) -> _Plan:
+    """(name, how, enum names) for the fields the summary of `md` shows: worked out once per message."""
+    cache = _PLANS.get(dialect)
+    if cache is None:
+        cache = _PLANS[dialect] = {}
+    hit = cache.get(md.id)
+    if hit is not None and hit[0] is md:
+        return hit[1]
+    names = SUMMARY_FIELDS.get(md.name) or tuple(
+        f.name for f in md.fields if not f.array_length or f.type == "char"
+    )[:_MAX_DEFAULT]
+    plan = []
+    for name in names:
+        fd = md.field(name)
+        if fd is None:
+            continue
+        enum = dialect.enums.get(fd.enum) if fd.enum else None
+        if enum is not None and not (enum.bitmask or fd.display == "bitmask"):
+            plan.append((name, _ENUM, {v: e.name for v, e in enum.entries.items()}))
+        elif fd.units == "degE7" or (name in ("x", "y") and md.name in INT_COORDINATE_MESSAGES):
+            plan.append((name, _DEGREES, {}))
+        else:
+            plan.append((name, _PLAIN, {}))
+    result = tuple(plan)
+    cache[md.id] = (md, result)
+    return result
+
+
+def _short(name: str, how: int, names: dict[int, str], value: object) -> str:
+    if how == _ENUM and isinstance(value, int):
+        text = names.get(value)
+        if text:
+            return f"{name}={text}"
+    elif how == _DEGREES and isinstance(value, int):
+        return f"{name}={value / DEGE7:.7f}"
+    if isinstance(value, float):
+        return f"{name}={float_text(value, '.4g')}"
+    if isinstance(value, str):
+        return f"{name}={value!r}"
+    if isinstance(value, list):
+        return f"{name}=[{len(value)}]"
+    return f"{name}={value}"
+
+
+def summary_info(frame: Frame, dialect: Dialect, fields: dict[str, object] | None = None) -> str:
+    """The "Info" column: message name and its key fields, plus the verdicts that are not ok."""
+    md = frame.msgdef
+    parts: list[str] = []
+    if md is None:
+        parts.append(message_label(frame.msgid, None))
+    else:
+        parts.append(md.name)
+        if fields is None:
+            fields = decode_payload(frame)
+        inner = container_info(frame) if md.name in CONTAINER_MESSAGES else None
+        if inner is not None:
+            parts.append(inner)
+        elif fields is not None:
+            parts.extend(_short(name, how, names, fields.get(name)) for name, how, names in _summary_plan(md, dialect))
+            if md.name in COMMAND_MESSAGES and "param1" in fields:  # the value's name where the XML gives one
+                named = command_param_name(dialect, fields.get("command"), 1, fields["param1"])  # type: ignore[arg-type]
+                if named is not None:
+                    parts = [f"param1={named}" if p.startswith("param1=") else p for p in parts]
+        elif frame.encryption_method:
+            parts.append(f"[encrypted, method {frame.encryption_method}]")
+    if frame.crc_status is not CrcStatus.OK:
+        parts.append(f"[CRC {frame.crc_status.value}]")
+    if frame.incompat_flags & ~(IFLAG_SIGNED | IFLAG_ENCRYPTION_MASK):
+        parts.append(f"[unknown incompat flags 0x{frame.incompat_flags:02x}]")
+    if any(n.code == "skipped-bytes" for n in frame.notes):
+        parts.append("[after skipped bytes]")
+    if frame.signature is not None:
+        parts.append(f"[signed link {frame.signature.link_id}]")
+    return " ".join(parts)

@@ -1,0 +1,101 @@
+"""What MAVLink values mean, written once: coordinate frames, scaled coordinates, enum and command names.
+
+The detail tree, the summaries, missions, commands and the TUI all ask these questions; each answer
+lives here so that they cannot drift apart (they once disagreed on which frames are in degrees).
+"""
+
+from __future__ import annotations
+
+import math
+
+from mavscope.mavlink.dialect import Dialect, MessageDef
+
+# MAV_FRAME values whose x/y are latitude/longitude: the MAV_FRAME_GLOBAL* entries of common.xml
+# (a test checks this against the dialect's enum).
+GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})
+# Messages whose x/y are int32 (degrees * 1e7 in a global frame, metres * 1e4 in a local one).
+INT_COORDINATE_MESSAGES = frozenset({"COMMAND_INT", "MISSION_ITEM_INT"})
+# Messages whose param1..7 (x/y/z as 5..7) take their meaning from the command (MAV_CMD's <param>s).
+COMMAND_MESSAGES = frozenset({"COMMAND_LONG", "COMMAND_INT", "MISSION_ITEM", "MISSION_ITEM_INT"})
+COMMAND_PARAM_INDEX = {"param1": 1, "param2": 2, "param3": 3, "param4": 4, "param5": 5, "param6": 6, "param7": 7,
+                       "x": 5, "y": 6, "z": 7}
+DEGE7 = 1e7  # degrees * 1e7 on the wire
+LOCAL_INT_SCALE = 1e4  # metres * 1e4 in the *_INT messages' local frames
+
+
+def is_global(frame: int | None) -> bool:
+    return frame in GLOBAL_FRAMES
+
+
+def int_coordinate(value: int, frame: int | None) -> float:
+    """An int32 x/y of COMMAND_INT or MISSION_ITEM_INT in its unit: degrees in a global frame, else metres."""
+    return value / (DEGE7 if frame in GLOBAL_FRAMES else LOCAL_INT_SCALE)
+
+
+def degrees_text(value: int) -> str:
+    """A degE7 value as the tree shows it: "47.3977419° (473977419)"."""
+    return f"{value / DEGE7:.7f}° ({value})"
+
+
+def message_label(msgid: int, msgdef: MessageDef | None) -> str:
+    """A message's name, or UNKNOWN_<id> for an id in no loaded dialect: the one spelling everywhere."""
+    return msgdef.name if msgdef is not None else f"UNKNOWN_{msgid}"
+
+
+NAN_TEXT = "NaN"  # how a NaN reads everywhere (PX4 and QGroundControl send it for "unset" / "unchanged")
+
+
+def float_text(v: float, spec: str) -> str:
+    """A float with format `spec`, or NAN_TEXT: one spelling of NaN in the tree, summaries and tables."""
+    return NAN_TEXT if math.isnan(v) else format(v, spec)
+
+
+def finite(v: object) -> object:
+    """`v`, or None for a NaN or infinite float (PX4 and QGroundControl send NaN for "unchanged")."""
+    return None if isinstance(v, float) and (math.isnan(v) or math.isinf(v)) else v
+
+
+def enum_name(dialect: Dialect, enum: str, value: int) -> str:
+    """The entry name of `value` in `enum`, or the number as text where the dialect has none."""
+    e = dialect.enums.get(enum)
+    name = e.name_of(value) if e is not None else None
+    return name or str(value)
+
+
+MESSAGE_ID_LABELS = frozenset({"Message ID"})  # params whose value is a message id (REQUEST_MESSAGE, intervals)
+
+
+def command_param_name(dialect: Dialect, command: int, index: int, value: object) -> str | None:
+    """The name of a command parameter's value where the XML says what names it: an entry of the enum
+    the <param> gives (MAV_BOOL_TRUE), or the message of a "Message ID" (REQUEST_MESSAGE 148 ->
+    AUTOPILOT_VERSION); None otherwise (or for a value that is not a whole number)."""
+    if not isinstance(value, (int, float)) or value != value or value != int(value):
+        return None
+    n = int(value)
+    enum = dialect.command_param_enum(command, index)
+    if enum:
+        e = dialect.enums.get(enum)
+        if e is None:
+            return None
+        if e.bitmask:
+            return " | ".join(e.flags_of(n)) or None
+        return e.name_of(n)
+    for i, label, _ in dialect.command_params(command):
+        if i == index and label in MESSAGE_ID_LABELS:
+            md = dialect.messages.get(n)
+            return md.name if md is not None else None
+    return None
+
+
+def command_param(dialect: Dialect, message: str, field: str, command: object) -> tuple[str, str] | None:
+    """(label, units) that MAV_CMD `command` gives field `field` (param1..7, x, y, z) of a command-carrying
+    message, or None."""
+    if message not in COMMAND_MESSAGES or not isinstance(command, int):
+        return None
+    index = COMMAND_PARAM_INDEX.get(field)
+    if index is None:
+        return None
+    for i, label, units in dialect.command_params(command):
+        if i == index:
+            return label, units
+    return None

@@ -1,0 +1,247 @@
+"""The first stage of the pipeline: capture records -> transport payloads -> MAVLink frames.
+
+`Dissector.run(records)` yields, in capture order, every MAVLink frame found (`Frame`) and every
+problem that could not be attached to a frame (`Anomaly`), so nothing the input holds is lost.
+`feed(record)` and `finish()` do the same one record at a time (live capture, the native fast path
+handing records back); `passed(number, time, index)` is told of records dissected elsewhere (the
+native engine, mavscope/native.py), so that what follows them comes out as if they had been fed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Hashable, Iterable, Iterator
+from dataclasses import dataclass
+from typing import final
+
+from mavscope.capture.base import Record
+from mavscope.endpoint import Endpoint
+from mavscope.mavlink.dialect import Dialect
+from mavscope.mavlink.frame import SIGNATURE_LEN, STX_V2, Frame, Signature, new_frame
+from mavscope.mavlink.framing import (
+    OK,
+    Framer,
+    StreamFramer,
+    build_frame,
+    mcrf4xx,
+    skipped_note,
+    unpack_signature,
+    unpack_v2,
+)
+from mavscope.notes import Note
+from mavscope.pipeline.textrun import TextRun, is_text_entry
+from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, Payload
+from mavscope.transport.decap import Decapsulator
+
+# Ports MAVLink uses by convention (DOMAIN.md). Datagrams on them are taken for MAVLink even when no
+# frame in them has a valid CRC; on any other port, a valid frame must have been seen first.
+MAVLINK_PORTS = frozenset({14550, 14540, 14555, 14557, 14560, 14580, 18570, 5760, 5761, 5762, 5763})
+
+
+@final  # never subclassed: consumers tell it from a Frame with `type(item) is Anomaly`
+@dataclass(frozen=True, slots=True)
+class Anomaly:
+    """Notes that belong to no MAVLink frame (a malformed packet, garbage at the end of a stream)."""
+
+    record: int
+    notes: tuple[Note, ...]
+
+
+class Dissector:
+    """Finds and checks the MAVLink frames of a capture. One instance per capture (it keeps stream state)."""
+
+    def __init__(self, dialect: Dialect) -> None:
+        self.dialect = dialect
+        self.messages = dialect.messages
+        self.framer = Framer(dialect.messages)
+        self.decap = Decapsulator()
+        self.streams: dict[Hashable, StreamFramer] = {}
+        # endpoints that have carried a CRC-valid frame: their datagrams are MAVLink even when damaged
+        self.mavlink_endpoints: set[Endpoint] = set()
+        self._record = 0
+        self._index = 0
+        self._raw_frames = 0  # frames of a raw byte stream so far (they are numbered 1..N)
+        self._time: float | None = None
+        self._text = TextRun()  # non-MAVLink tlog entries, reported as one anomaly per run
+
+    def run(self, records: Iterable[Record]) -> Iterator[Frame | Anomaly]:
+        """Every frame and anomaly of the capture, in order."""
+        feed = self.feed
+        for rec in records:
+            yield from feed(rec)
+        yield from self.finish()
+
+    def feed(self, rec: Record) -> Iterator[Frame | Anomaly]:
+        """The frames and anomalies that record `rec` completes (a stream may hold bytes for later)."""
+        text = self._text
+        if text:
+            if is_text_entry(rec):
+                if text.add(rec):
+                    yield self._take_text()
+                return
+            yield self._take_text()
+        elif is_text_entry(rec):
+            text.add(rec)
+            return
+        number = rec.number
+        time = rec.time
+        self._record = number
+        self._time = time
+        messages = self.messages
+        endpoints = self.mavlink_endpoints
+        index = 0
+        for p in self.decap.feed(rec):
+            if p.stream is not None:
+                self._index = index
+                yield from self._stream(p)
+                index = self._index
+                continue
+            # Fast path: a datagram that is a run of clean v2 frames (known message, good CRC,
+            # no unknown flags). Anything else goes to the general scanner from where it stops.
+            data = p.data
+            n = len(data)
+            pos = 0
+            if not p.notes:
+                src = p.src
+                base = p.offset
+                while pos + 12 <= n and data[pos] == STX_V2:
+                    stx, length, iflags, cflags, seq, sysid, compid, lo, hi = unpack_v2(data, pos)
+                    end = pos + 10 + length
+                    size = length + (25 if iflags & 1 else 12)
+                    if iflags > 1 or pos + size > n:
+                        break
+                    md = messages.get(lo | (hi << 16))
+                    if md is None or length > md.length:
+                        break
+                    crc = data[end] | (data[end + 1] << 8)
+                    if mcrf4xx(md.crc_extra_byte, mcrf4xx(data[pos + 1 : end])) != crc:
+                        break
+                    raw = data[pos : pos + size] if size != n else data
+                    sig = None
+                    if iflags:
+                        link_id, ts, value = unpack_signature(raw, size - SIGNATURE_LEN)
+                        sig = Signature(link_id, int.from_bytes(ts, "little"), value)
+                    index += 1
+                    yield new_frame(number, index, time, p.transport, src, p.dst, None if base is None else base + pos,
+                                    raw, 2, length, iflags, cflags, seq, sysid, compid, md.id, crc, OK, md, sig, (),
+                                    None)
+                    pos += size
+                if pos and src is not None and src not in endpoints:
+                    endpoints.add(src)
+                if pos == n:
+                    continue
+            self._index = index
+            yield from self._datagram(p, pos)
+            index = self._index
+        ended = self.decap.tcp.ended
+        if ended:  # TCP streams that ended or were released: decide what their framers still hold
+            self._index = index
+            while ended:
+                key = ended.popleft()
+                if key in self.streams:
+                    yield from self._finish(key)
+
+    def finish(self) -> Iterator[Frame | Anomaly]:
+        """The end of the capture: what TCP reassembly and the stream framers still hold."""
+        if self._text:
+            yield self._take_text()
+        for p in self.decap.flush():
+            yield from self._stream(p) if p.stream is not None else self._datagram(p, 0)
+        for key in list(self.streams):
+            yield from self._finish(key)
+
+    def passed(self, number: int, time: float | None, index: int | None = None) -> list[Anomaly]:
+        """Records up to `number` were dissected elsewhere (the native engine: clean datagrams and tlog
+        entries, mavscope/native.py): keep the state `feed` would have kept from them. Returns what `feed`
+        would have reported first: a run of tlog text entries held from before them ends here. Frames
+        completed at the end of the capture belong to record `number` and its `time`; `index`, when not
+        None, is the frame index the general scanner would have left (records with a MAVLink 1 frame)."""
+        out = [self._take_text()] if self._text else []
+        self._record = number
+        self._time = time
+        if index is not None:
+            self._index = index
+        return out
+
+    def _take_text(self) -> Anomaly:
+        record, text_note = self._text.take()
+        return Anomaly(record, (text_note,))
+
+    def _trusted(self, p: Payload) -> bool:
+        if p.transport == TRANSPORT_TLOG:
+            return True
+        if p.src in self.mavlink_endpoints or p.dst in self.mavlink_endpoints:
+            return True
+        return any(ep is not None and ep.port in MAVLINK_PORTS for ep in (p.src, p.dst))
+
+    def _datagram(self, p: Payload, start: int) -> Iterator[Frame | Anomaly]:
+        """The general path: scan a datagram from `start` (the frames before it were clean)."""
+        data = p.data
+        if not data:
+            if p.notes:
+                yield Anomaly(p.record, p.notes)
+            return
+        found, skipped, _ = self.framer.scan(data, start, len(data), True)
+        if not start and not any(f[2] is OK for f in found) and not self._trusted(p):
+            # No valid frame and no reason to expect MAVLink here: some other protocol.
+            if p.notes:
+                yield Anomaly(p.record, p.notes)
+            return
+        if p.src is not None and found and found[0][2] is OK:
+            self.mavlink_endpoints.add(p.src)
+        base = p.offset
+        pending: list[Note] = list(p.notes)
+        sk = 0
+        messages = self.messages
+        for pos, size, status, crc in found:
+            while sk < len(skipped) and skipped[sk][0] < pos:
+                s_pos, s_count = skipped[sk]
+                sk += 1
+                pending.append(skipped_note(s_count, None if base is None else base + s_pos))
+            self._index += 1
+            frame = build_frame(
+                data, pos, size, status, crc, messages, self._record, self._index, self._time, p.transport,
+                p.src, p.dst, None if base is None else base + pos, tuple(pending) if pending else (), None,
+            )
+            pending = []
+            yield frame
+        # what no frame carried: the record's notes when no frame came, skipped bytes after the last frame
+        pending.extend(skipped_note(c, None if base is None else base + s) for s, c in skipped[sk:])
+        if pending:
+            yield Anomaly(p.record, tuple(pending))
+
+    def _emit(self, sf: StreamFramer, p_transport: str, src: Endpoint | None, dst: Endpoint | None,
+              final: bool) -> Iterator[Frame | Anomaly]:
+        found, orphans = sf.take(final)
+        raw = p_transport == TRANSPORT_RAW
+        for buf, pos, size, status, crc, off, span, notes in found:
+            if raw:
+                # A raw stream has no records of its own (its chunks are the reader's), so its frames are
+                # numbered 1..N and each is its own "record": frame 999 is 999, not 1.999.
+                self._raw_frames += 1
+                record, index, span = self._raw_frames, 1, None
+            else:
+                self._index += 1
+                record, index = self._record, self._index
+            yield build_frame(
+                buf, pos, size, status, crc, self.messages, record, index, self._time,
+                p_transport, src, dst, off, notes, span,
+            )
+        if orphans:
+            yield Anomaly(self._raw_frames if raw else self._record, tuple(orphans))
+
+    def _stream(self, p: Payload) -> Iterator[Frame | Anomaly]:
+        sf = self.streams.get(p.stream)
+        if sf is None:
+            sf = self.streams[p.stream] = StreamFramer(self.framer, (p.stream, p.transport, p.src, p.dst))
+            # A raw file is MAVLink by the user's word; a TCP stream proves it with a valid frame.
+            sf.trusted = p.transport == TRANSPORT_RAW
+        sf.feed(p.data, p.record, p.offset, p.notes)
+        yield from self._emit(sf, p.transport, p.src, p.dst, False)
+
+    def _finish(self, key: Hashable) -> Iterator[Frame | Anomaly]:
+        sf = self.streams.pop(key)
+        transport: str
+        src: Endpoint | None
+        dst: Endpoint | None
+        _, transport, src, dst = sf.key  # type: ignore[misc]  # the key _stream made: (stream, transport, src, dst)
+        yield from self._emit(sf, transport, src, dst, True)

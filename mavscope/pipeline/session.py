@@ -1,0 +1,134 @@
+"""The assembled pipeline: the one place where the stages after the dissector are put together.
+
+Every front end gets its frames here: `read`, the analysis commands, `verify` and `audit` through
+`open_session(path, options)`; live capture and the TUI's follow mode through `build_pipeline`, which
+takes records as they arrive. Stages are added in data-path order: the dissector (records -> frames),
+the security stage (signature verdicts, decryption, key-free notes: it always runs), then the display
+filter, which comes last so that it can test every verdict.
+
+This module sits above `mavscope.security` and `mavscope.filter` in the layering (it composes them);
+the rest of `mavscope.pipeline` sits below them.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+from mavscope.capture.base import Record
+from mavscope.capture.detect import open_capture
+from mavscope.capture.reader import CaptureReader
+from mavscope.filter import DisplayFilter, compile_filter
+from mavscope.mavlink.dialect import Dialect, load_dialect
+from mavscope.mavlink.frame import Frame
+from mavscope.pipeline.dissect import Anomaly, Dissector
+from mavscope.pipeline.options import PipelineOptions
+from mavscope.security.keys import KEYRING_ENV, build_material
+from mavscope.security.stage import SecurityStage
+
+Warn = Callable[[str], object]
+
+
+def _quiet(_message: str) -> None:
+    return None
+
+
+def make_security_stage(options: PipelineOptions, warn: Warn = _quiet) -> SecurityStage:
+    """The security stage for the key material in `options` (UsageError if a spec is wrong).
+
+    Without key material it still gives the key-free verdicts (unsigned frames in signed streams,
+    leaked keys, SecureMAV's test cipher)."""
+    environ = {KEYRING_ENV: options.keyring} if options.keyring else {}
+    material = build_material(options.keys, options.ciphers, options.ecdh_private,
+                              use_leaked_keys=options.use_leaked_keys, environ=environ, warn=warn)
+    return SecurityStage(material)
+
+
+def make_filter(options: PipelineOptions, dialect: Dialect) -> DisplayFilter | None:
+    """The compiled display filter of `options` (FilterError if it does not compile), None without one."""
+    return compile_filter(options.display_filter, dialect) if options.display_filter else None
+
+
+def filter_stage(flt: DisplayFilter, items: Iterable[Frame | Anomaly]) -> Iterator[Frame | Anomaly]:
+    """The frames `flt` matches; anomalies (which belong to no frame) pass through."""
+    matches = flt.matches
+    for item in items:
+        if type(item) is Anomaly or matches(item):
+            yield item
+
+
+def build_pipeline(options: PipelineOptions, dialect: Dialect, records: Iterable[Record], *,
+                   security: SecurityStage | None = None, warn: Warn = _quiet) -> Iterator[Frame | Anomaly]:
+    """Frames and anomalies of `records` after every stage `options` asks for, display filter included.
+
+    Live capture passes its own `security` stage, to hand it keys while it runs."""
+    if security is None:
+        security = make_security_stage(options, warn)
+    flt = make_filter(options, dialect)
+    items = security.run(Dissector(dialect).run(records))
+    return filter_stage(flt, items) if flt is not None else items
+
+
+@dataclass
+class Session:
+    """An open capture and its pipeline.
+
+    `items` are every frame and anomaly after the security stage; `shown()` applies the display filter
+    on top. Analyses that must see every frame (sequence numbers, request/answer pairs) read `items`
+    and ask `display_filter` which rows to report."""
+
+    path: str
+    reader: CaptureReader
+    dialect: Dialect
+    items: Iterator[Frame | Anomaly]
+    security: SecurityStage
+    display_filter: DisplayFilter | None
+    t0: float | None  # time of the capture's first record: relative times count from it (as tshark's)
+    frame_count: int = 0  # frames that came out of the security stage so far (before the filter)
+
+    def _counted(self, items: Iterator[Frame | Anomaly]) -> Iterator[Frame | Anomaly]:
+        for item in items:
+            if type(item) is not Anomaly:
+                self.frame_count += 1
+            yield item
+
+    @property
+    def name(self) -> str:
+        """The path as printable text: bytes that are not UTF-8 (a Latin-1 file name) as \\xNN escapes, so
+        that JSON and a UTF-8 terminal can carry it."""
+        return os.fsencode(self.path).decode("utf-8", "backslashreplace")
+
+    def shown(self) -> Iterator[Frame | Anomaly]:
+        """The items after the display filter (all of them without one)."""
+        return self.items if self.display_filter is None else filter_stage(self.display_filter, self.items)
+
+    def frames(self) -> Iterator[Frame]:
+        """Every frame (no anomalies, no filter)."""
+        return (item for item in self.items if type(item) is not Anomaly)
+
+
+def peek_time(records: Iterator[Record]) -> tuple[float | None, Iterator[Record]]:
+    """The time of the first record, and the records with that one put back."""
+    head = next(records, None)
+    if head is None:
+        return None, iter(())
+    return head.time, itertools.chain((head,), records)
+
+
+@contextmanager
+def open_session(path: str, options: PipelineOptions, *, dialect: Dialect | None = None,
+                 warn: Warn = _quiet) -> Iterator[Session]:
+    """Open the capture at `path` and build its pipeline (CaptureError, UsageError, FilterError when the
+    file or the options are wrong; `warn` receives warnings such as a keyring readable by others)."""
+    if dialect is None:
+        dialect = load_dialect(options.dialects)
+    with open_capture(path) as reader:
+        t0, records = peek_time(iter(reader))
+        security = make_security_stage(options, warn)
+        flt = make_filter(options, dialect)
+        session = Session(path, reader, dialect, iter(()), security, flt, t0)
+        session.items = session._counted(security.run(Dissector(dialect).run(records)))
+        yield session

@@ -1,0 +1,118 @@
+"""Expert findings on captures with known events, and on flows built here with pymavlink."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from mavscope.analysis.expert import DETECTORS, KeyLeaks, expert_findings
+from mavscope.mavlink.dialect import Dialect
+from tests.conftest import Cli
+from tests.support import flows
+from tests.support.captures import frames, truth
+
+
+def codes(findings) -> dict[str, list]:  # type: ignore[no-untyped-def]
+    out: dict[str, list] = {}
+    for f in findings:
+        out.setdefault(f.code, []).append(f)
+    return out
+
+
+def test_commands_capture(dialect: Dialect) -> None:
+    t = truth("commands_ack.pcap")
+    found = codes(expert_findings(frames("commands_ack.pcap", dialect), dialect))
+    (leak,) = found["key-leak"]
+    assert leak.severity.value == "error" and leak.frames == (t["setup_signing_record"],)
+    (replay,) = found["replayed-command"]
+    assert replay.frames == (t["commands"][-1]["replay_of_record"], t["replay_record"])
+    (new,) = found["new-commander"]
+    assert "66/190" in new.message
+    assert "seq-gap" not in found and "bad-crc-burst" not in found
+
+
+def test_loss_capture(dialect: Dialect) -> None:
+    found = codes(expert_findings(frames("stats_loss.pcap", dialect), dialect))
+    (burst,) = found["bad-crc-burst"]
+    assert len(burst.frames) == truth("stats_loss.pcap")["links"]["1/1"]["crc_bad"]
+    (gap,) = found["seq-gap"]
+    # the generator removed a run of 40 vehicle frames and 4 single ones (captures/README.md): 44 in all
+    assert "40 frames lost in 1 gap" in gap.message and "44 lost in all" in gap.message
+    assert len(found["seq-duplicate"]) == 1
+
+
+def test_clean_captures_have_no_findings(dialect: Dialect) -> None:
+    for name in ("px4_sitl_udp.pcap", "mission_resend.pcap", "clock_skew.pcap"):
+        assert expert_findings(frames(name, dialect), dialect) == [], name
+
+
+def test_detectors_are_an_open_list(dialect: Dialect) -> None:
+    fs = frames("commands_ack.pcap", dialect)
+    assert KeyLeaks in DETECTORS
+    assert [f.code for f in expert_findings(fs, dialect, [KeyLeaks])] == ["key-leak"]
+
+
+def _findings(cli: Cli, path: str) -> dict[str, list[dict]]:
+    doc = cli.json("stats", path)
+    out: dict[str, list[dict]] = {}
+    for f in doc["findings"]:
+        out.setdefault(f["code"], []).append(f)
+    return out
+
+
+def _gcs_flow(lose: set[int] = frozenset(), frames_: int = 700) -> list[tuple[float, bytes]]:  # type: ignore[assignment]
+    """A GCS (255/190) sending a neutral-stick MANUAL_CONTROL at 20 Hz and a HEARTBEAT every 20th frame:
+    after 256 frames the counter wraps and the same MANUAL_CONTROL bytes come back, in sequence."""
+    gcs = flows.Sender(255, 190)
+    out = []
+    for i in range(frames_):
+        msg = flows.heartbeat(gcs=True) if i % 20 == 0 else flows.manual_control()
+        frame = gcs.pack(msg)
+        if i not in lose:
+            out.append((flows.T0 + i * 0.05, frame))
+    return out
+
+
+def test_manual_control_repeating_after_the_wrap_is_not_a_replay(cli: Cli, tmp_path: Path) -> None:
+    found = _findings(cli, flows.write_tlog(tmp_path, _gcs_flow()))
+    assert "replayed-command" not in found and "seq-gap" not in found
+
+
+def test_wrap_repeats_with_loss_are_not_replays(cli: Cli, tmp_path: Path) -> None:
+    # 30 frames lost in one run and 5 single ones: copies still come after whole counter cycles
+    lose = set(range(300, 330)) | {50, 260, 400, 512, 640}
+    found = _findings(cli, flows.write_tlog(tmp_path, _gcs_flow(lose)))
+    assert "replayed-command" not in found
+    (gap,) = found["seq-gap"]
+    assert "30 frames lost in 1 gap" in gap["message"] and "35 lost in all" in gap["message"]
+
+
+def test_a_copy_within_the_counter_cycle_is_a_replay(cli: Cli, tmp_path: Path) -> None:
+    """An arm command copied byte for byte and sent again 5 frames later, out of the sender's sequence."""
+    gcs = flows.Sender(255, 190)
+    entries = [(flows.T0 + i * 0.05, gcs.pack(flows.heartbeat(gcs=True))) for i in range(10)]
+    arm = gcs.pack(flows.command_long(400, 1.0))
+    entries.append((flows.T0 + 0.5, arm))
+    entries += [(flows.T0 + 0.55 + i * 0.05, gcs.pack(flows.heartbeat(gcs=True))) for i in range(5)]
+    entries.append((flows.T0 + 0.9, arm))  # the replay: record 17
+    entries += [(flows.T0 + 1.0 + i * 0.05, gcs.pack(flows.heartbeat(gcs=True))) for i in range(5)]
+    found = _findings(cli, flows.write_tlog(tmp_path, entries))
+    (replay,) = found["replayed-command"]
+    assert replay["frames"] == [11, 17] and "COMMAND_LONG 1" in replay["message"]
+
+
+def test_a_second_counter_is_interleaving_not_loss(cli: Cli, tmp_path: Path) -> None:
+    """Mission Planner's pattern: the main counter, and REQUEST_DATA_STREAM on a counter of its own."""
+    main, streams = flows.Sender(255, 190, seq=0), flows.Sender(255, 190, seq=98)
+    entries = []
+    for i in range(400):
+        t = flows.T0 + i * 0.05
+        entries.append((t, main.pack(flows.heartbeat(gcs=True) if i % 10 == 0 else flows.manual_control(x=i))))
+        if i % 40 == 5:
+            entries.append((t + 0.01, streams.pack(
+                flows.v2.MAVLink_request_data_stream_message(1, 1, 0, 4, 1))))
+    path = flows.write_tlog(tmp_path, entries)
+    doc = cli.json("stats", path)
+    (link,) = [lk for lk in doc["links"] if (lk["sysid"], lk["compid"]) == (255, 190)]
+    assert link["lost"] == 0  # every frame of both counters is in the file
+    found = {f["code"] for f in doc["findings"]}
+    assert "seq-gap" not in found and "replayed-command" not in found

@@ -1,0 +1,228 @@
+"""`mavscope mission` on real ArduPilot, PX4, Mission Planner and QGroundControl traffic
+(../shared/real-captures, PROVENANCE.md there), against answers derived without mavscope.
+
+Two independent sources:
+- EXPECTED below is hard-coded from /work/research/real-truth/truth.json ("missions"), which
+  derive.py's mission_transfers() computed with pymavlink 2.4.50 alone (a state machine over the decoded
+  frames: a transfer opens at MISSION_COUNT, is a download when the receiver sent MISSION_REQUEST_LIST or
+  the sender is a vehicle by HEARTBEAT, and closes at MISSION_ACK ACCEPTED from the receiver or any ACK from
+  the sender). Where mavscope's grouping deliberately differs, the comment says why.
+- Items, coordinates, resent items, MISSION_SET_CURRENT answers and the .plan's HEARTBEAT numbers and home
+  are derived at test time from the frames pymavlink decodes (tests/support/pymavlink_reader.py).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tests.conftest import ROOT, Cli
+from tests.support.pymavlink_reader import Msg, read
+
+# (mission_type, direction, from, to, count, outcome, final MISSION_ACK result or None)
+# outcome: "complete" = truth's final_ack type 0 from the requester with no missing item; "unacknowledged"
+# = truth's final_ack None with every item received; "cancelled" = truth's acks_from_supplier.
+G250, G255, V = [250, 250], [255, 190], [1, 1]
+OK = "MAV_MISSION_ACCEPTED"
+EXPECTED: dict[str, list[tuple[int, str, list[int], list[int], int, str, str | None]]] = {
+    # Mission Planner downloads mission (4 items), fence and rally (0), each closed by MP's ACK; later MP
+    # uploads count 0 for all three types (a clear), ACKed by ArduPlane.
+    "ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog": [
+        (0, "download", V, G255, 4, "complete", OK), (1, "download", V, G255, 0, "complete", OK),
+        (2, "download", V, G255, 0, "complete", OK), (0, "upload", G255, V, 0, "complete", OK),
+        (1, "upload", G255, V, 0, "complete", OK), (2, "upload", G255, V, 0, "complete", OK)],
+    # ArduPilot autotest GCS 250/250 and ArduRover: empty fence/mission/rally uploads, a 4-item upload and
+    # its download, empty uploads, a 19-item upload and its download, empty uploads. The autotest GCS sends
+    # no MISSION_ACK after a download: all items arrive, nothing acknowledges them.
+    "ap_rover_mission_fence_rally_params.tlog": [
+        (1, "upload", G250, V, 0, "complete", OK), (0, "upload", G250, V, 0, "complete", OK),
+        (2, "upload", G250, V, 0, "complete", OK), (0, "upload", G250, V, 4, "complete", OK),
+        (0, "download", V, G250, 4, "unacknowledged", None), (1, "upload", G250, V, 0, "complete", OK),
+        (0, "upload", G250, V, 0, "complete", OK), (2, "upload", G250, V, 0, "complete", OK),
+        (0, "upload", G250, V, 19, "complete", OK), (0, "download", V, G250, 19, "unacknowledged", None),
+        (1, "upload", G250, V, 0, "complete", OK), (0, "upload", G250, V, 0, "complete", OK),
+        (2, "upload", G250, V, 0, "complete", OK)],
+    # QGroundControl downloads mission and fence from ArduSub, both empty.
+    "ardusub_log_tools_small.tlog": [
+        (0, "download", V, G255, 0, "complete", OK), (1, "download", V, G255, 0, "complete", OK)],
+    # PX4 (a vehicle by HEARTBEAT) sends MISSION_COUNT 0 to 1/240 twice; 1/240 sends nothing in the capture.
+    # truth.json lists one transfer with the second COUNT as a retry (derive.py has no time limit); the two
+    # COUNTs are 237.23 s apart (its count_frames times 1497166782.0072 and 1497167019.238484), far beyond
+    # any party's protocol timeout (PX4 5 s, ArduPilot 8 s), so mavscope reports two downloads.
+    "px4_2018_params_offboard.tlog": [
+        (0, "download", V, [1, 240], 0, "unacknowledged", None),
+        (0, "download", V, [1, 240], 0, "unacknowledged", None)],
+    # One direction of a PX4 fixed-wing download: MISSION_COUNT 125 to 1/2, 145 MISSION_ITEM_INT covering
+    # items 0..92, then the vehicle's own MISSION_ACK MAV_MISSION_ERROR (truth: acks_from_supplier).
+    "px4_fw_mission_download_raw.bin": [
+        (0, "download", V, [1, 2], 125, "cancelled", "MAV_MISSION_ERROR")],
+}
+MISSING = {("px4_fw_mission_download_raw.bin", 0): list(range(93, 125))}  # truth: missing_item_seqs
+
+
+@pytest.fixture(scope="module")
+def docs(real_captures: Path) -> dict[str, dict[str, Any]]:
+    cli = Cli()
+    return {name: cli.json("mission", str(real_captures / name)) for name in EXPECTED}
+
+
+@pytest.fixture(scope="module")
+def frames(real_captures: Path) -> dict[str, list[Msg]]:
+    return {name: read(real_captures / name) for name in EXPECTED}
+
+
+def segments(msgs: list[Msg]) -> list[dict[str, Any]]:
+    """The MISSION_COUNTs in order, each with the MISSION_ITEM_INT copies its sender sent to its target for
+    that mission type until the next MISSION_COUNT between them."""
+    out: list[dict[str, Any]] = []
+    current: dict[tuple[tuple[int, int], tuple[int, int], int], dict[str, Any]] = {}
+    for m in msgs:
+        if m.name not in ("MISSION_COUNT", "MISSION_ITEM_INT"):
+            continue
+        key = (m.src, (m.msg.target_system, m.msg.target_component), m.msg.mission_type)
+        if m.name == "MISSION_COUNT":
+            current[key] = {"key": key, "count": m.msg.count, "items": defaultdict(list)}
+            out.append(current[key])
+        elif key in current:
+            current[key]["items"][m.msg.seq].append(m.msg)
+    return out
+
+
+def degrees(msg: Any) -> tuple[float, float]:
+    """MISSION_ITEM_INT x/y in degrees (global frames) or as sent (MAV_FRAME_MISSION, 2)."""
+    return (msg.x, msg.y) if msg.frame == 2 else (msg.x / 1e7, msg.y / 1e7)
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_transfers_match_the_independent_derivation(name: str, docs: dict[str, dict[str, Any]]) -> None:
+    got = docs[name]["transfers"]
+    want = EXPECTED[name]
+    assert [(t["mission_type_id"], t["direction"], t["from"], t["to"], t["count"], t["outcome"], t["result"])
+            for t in got] == want
+    for i, t in enumerate(got):
+        assert t["missing"] == MISSING.get((name, i), [])
+        assert t["complete"] is (t["outcome"] == "complete")
+    # no false alarm: no duplicate, no ACK without its exchange, no frame outside a transfer
+    assert docs[name]["duplicates"] == 0
+    assert [e for e in docs[name]["events"] if e["kind"] in ("unmatched-ack", "orphan", "request-list")] == []
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_items_and_coordinates_match_pymavlink(name: str, docs: dict[str, dict[str, Any]],
+                                               frames: dict[str, list[Msg]]) -> None:
+    segs = segments(frames[name])
+    got = docs[name]["transfers"]
+    assert len(segs) == len(got)
+    for t, seg in zip(got, segs):
+        src, tgt, mtype = seg["key"]
+        assert (t["from"], t["to"], t["mission_type_id"], t["count"]) == (list(src), list(tgt), mtype, seg["count"])
+        assert [i["seq"] for i in t["items"]] == sorted(seg["items"])
+        assert t["resent_items"] == sorted(s for s, copies in seg["items"].items() if len(copies) > 1)
+        assert t["resent_changed"] == []  # truth.json: every resend has same_item_content
+        assert sum(len(i["frames"]) for i in t["items"]) == sum(len(c) for c in seg["items"].values())
+        for item in t["items"]:
+            copies = seg["items"][item["seq"]]
+            first = copies[0]
+            # every copy of an item carries the same content in these captures, so any copy is the item
+            assert all((c.command, c.frame, c.x, c.y, c.z) == (first.command, first.frame, first.x, first.y, first.z)
+                       for c in copies)
+            assert (item["command_id"], item["frame_id"]) == (first.command, first.frame)
+            lat, lon = degrees(first)
+            assert item["x"] == pytest.approx(lat, abs=1e-9) and item["y"] == pytest.approx(lon, abs=1e-9)
+            assert item["z"] is None if math.isnan(first.z) else item["z"] == pytest.approx(first.z)  # NaN: null
+
+
+def test_rover_item_0_is_home_as_the_vehicle_reports_it(docs: dict[str, dict[str, Any]]) -> None:
+    # truth.json home.mission_item0: the vehicle replaces the uploaded item 0 with its home.
+    got = docs["ap_rover_mission_fence_rally_params.tlog"]["transfers"]
+    home = [(t["direction"], t["items"][0]["x"], t["items"][0]["y"]) for t in got if t["items"]]
+    assert home == [("upload", 40.071377, -105.22979), ("download", 40.0714771, -105.229489),
+                    ("upload", 40.071289, -105.230057), ("download", 40.0714469, -105.2294918)]
+
+
+def test_rover_set_current_answered_by_mission_current(docs: dict[str, dict[str, Any]],
+                                                      frames: dict[str, list[Msg]]) -> None:
+    # truth.json set_current_and_clear_all: 6 MISSION_SET_CURRENT seq 0 from 250/250 to 1/1, no
+    # MISSION_CLEAR_ALL. Whether MISSION_CURRENT from system 1 then reported the seq asked for (before the
+    # next MISSION_SET_CURRENT) is read from pymavlink's frames here.
+    msgs = frames["ap_rover_mission_fence_rally_params.tlog"]
+    asked = [i for i, m in enumerate(msgs) if m.name == "MISSION_SET_CURRENT"]
+    want = []
+    for n, i in enumerate(asked):
+        stop = asked[n + 1] if n + 1 < len(asked) else len(msgs)
+        reports = [m.msg.seq for m in msgs[i:stop] if m.name == "MISSION_CURRENT" and m.src[0] == 1]
+        seq = msgs[i].msg.seq
+        want.append((seq, True if seq in reports else (False if reports else None)))
+    assert want == [(0, True), (0, True), (0, False), (0, False), (0, True), (0, None)]  # as derived, for reading
+    events = docs["ap_rover_mission_fence_rally_params.tlog"]["events"]
+    assert [(e["kind"], e["from"], e["to"]) for e in events] == [("set-current", G250, V)] * 6
+    assert [(e["seq"], e["confirmed"]) for e in events] == want
+
+
+def _heartbeat(msgs: list[Msg], src: tuple[int, int]) -> tuple[int, int]:
+    last = [m.msg for m in msgs if m.name == "HEARTBEAT" and m.src == src][-1]
+    return last.autopilot, last.type
+
+
+@pytest.mark.parametrize(("name", "exported"), [
+    ("ap_rover_mission_fence_rally_params.tlog", 9),  # the last complete transfer with items: the 19-item upload
+    ("ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog", 1),  # the only one with items: the 4-item download
+])
+def test_plan_of_an_ardupilot_capture(name: str, exported: int, real_captures: Path, tmp_path: Path,
+                                      frames: dict[str, list[Msg]], cli: Cli) -> None:
+    out = tmp_path / "real.plan"
+    doc = cli.json("mission", str(real_captures / name), "--plan", str(out))
+    plan = json.loads(out.read_text())
+    msgs = frames[name]
+    seg = segments(msgs)[exported - 1]
+    assert doc["plan"]["mission_transfer"] == exported
+    assert set(doc["plan"]) == {"file", "mission_transfer", "fence_transfer", "rally_transfer", "firmwareType",
+                                "vehicleType", "home_source", "warnings"}  # as docs/analysis.md lists them
+    mission = plan["mission"]
+    # the vehicle's last HEARTBEAT: ArduPilot (MAV_AUTOPILOT_ARDUPILOTMEGA 3), its MAV_TYPE
+    assert (mission["firmwareType"], mission["vehicleType"]) == _heartbeat(msgs, (1, 1))
+    assert mission["firmwareType"] == 3
+    zero = seg["items"][0][0]
+    if zero.x or zero.y:  # item 0 is home
+        assert mission["plannedHomePosition"] == [zero.x / 1e7, zero.y / 1e7, pytest.approx(zero.z)]
+        assert doc["plan"]["home_source"] == "mission item 0 (ArduPilot home)"
+    else:  # home was not set when the mission was read: the capture's last HOME_POSITION
+        hp = [m.msg for m in msgs if m.name == "HOME_POSITION" and m.src[0] == 1][-1]
+        assert mission["plannedHomePosition"] == [hp.latitude / 1e7, hp.longitude / 1e7, hp.altitude / 1000]
+        assert any("item 0" in w for w in doc["plan"]["warnings"])
+    items = mission["items"]
+    assert [i["doJumpId"] for i in items] == list(range(1, seg["count"]))
+    for item, seq in zip(items, range(1, seg["count"])):
+        m = seg["items"][seq][0]
+        assert item["command"] == m.command and item["autoContinue"] == bool(m.autocontinue)
+        lat, lon = degrees(m)
+        assert item["params"][4:6] == [pytest.approx(lat, abs=1e-9), pytest.approx(lon, abs=1e-9)]
+        assert item["params"][6] == pytest.approx(m.z)
+    assert plan["geoFence"] == {"circles": [], "polygons": [], "version": 2}  # every fence transfer is empty
+    assert plan["rallyPoints"] == {"points": [], "version": 2}
+
+
+def test_plan_of_an_incomplete_px4_download_warns(real_captures: Path, tmp_path: Path, cli: Cli,
+                                                  frames: dict[str, list[Msg]]) -> None:
+    out = tmp_path / "px4.plan"
+    status, _, err = cli("mission", str(real_captures / "px4_fw_mission_download_raw.bin"), "--plan", str(out))
+    assert status == 0 and "the exported mission (transfer 1) is incomplete: cancelled by the sender 1/1" in err
+    mission = json.loads(out.read_text())["mission"]
+    assert (mission["firmwareType"], mission["vehicleType"]) == _heartbeat(frames["px4_fw_mission_download_raw.bin"],
+                                                                           (1, 1)) == (12, 1)
+    assert [i["doJumpId"] for i in mission["items"]] == list(range(1, 94))  # items 0..92, no home item on PX4
+
+
+def test_json_keys_are_documented(docs: dict[str, dict[str, Any]]) -> None:
+    text = (ROOT / "docs" / "analysis.md").read_text()
+    section = text[text.index("## `mavscope mission"):text.index("## `mavscope commands")]
+    doc = docs["ap_rover_mission_fence_rally_params.tlog"]
+    objects = [doc, doc["transfers"][3], doc["transfers"][3]["items"][0], doc["transfers"][3]["acks"][0],
+               doc["events"][0]]
+    keys = {k for o in objects for k in o}
+    assert {k for k in keys if f"`{k}`" not in section} == set()

@@ -1,0 +1,81 @@
+"""Clock offsets, drift and round-trip times recovered from a capture with a known skew."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import CAPTURES, Cli
+from tests.support import flows
+from tests.support.captures import truth
+
+SKEW = str(CAPTURES / "clock_skew.pcap")
+
+
+def clocks(doc: dict, sysid: int) -> dict[str, dict]:
+    (system,) = [s for s in doc["systems"] if s["sysid"] == sysid]
+    return {c["source"]: c for c in system["clocks"]}
+
+
+def test_vehicle_offset_and_drift(cli: Cli) -> None:
+    t = truth("clock_skew.pcap")
+    doc = cli.json("timeline", SKEW)
+    v = clocks(doc, 1)
+    first = doc["start"] - 1_773_482_400  # capture start is 10:00:00Z; the first frame comes a little later
+    unix = v["SYSTEM_TIME.time_unix_usec"]
+    assert unix["kind"] == "unix"
+    assert unix["offset_s"] == pytest.approx(t["vehicle_utc_offset_s"] + first * t["vehicle_drift_ppm"] / 1e6,
+                                             abs=1e-5)
+    assert unix["drift_ppm"] == pytest.approx(t["vehicle_drift_ppm"], abs=0.5)
+    assert unix["drift_err_ppm"] is not None and unix["drift_err_ppm"] < 0.5
+    sig = v["signature link 0"]
+    assert sig["offset_s"] == pytest.approx(t["vehicle_utc_offset_s"], abs=1e-4)
+    assert sig["drift_ppm"] == pytest.approx(t["vehicle_drift_ppm"], abs=1)
+    tc1 = v["TIMESYNC.tc1"]
+    assert tc1["kind"] == "boot" and tc1["drift_ppm"] == pytest.approx(t["vehicle_drift_ppm"], abs=1)
+    # the boot clock read zero this long (capture time) before the capture started
+    assert 1_773_482_400 - tc1["zero_at"] == pytest.approx(t["vehicle_boot_before_capture_s"], abs=1e-3)
+    assert v["time_boot_ms"]["drift_ppm"] == pytest.approx(t["vehicle_drift_ppm"], abs=10)
+
+
+def test_gcs_clock_is_the_capture_clock_and_round_trips(cli: Cli) -> None:
+    t = truth("clock_skew.pcap")
+    doc = cli.json("timeline", SKEW)
+    g = clocks(doc, 255)
+    assert g["TIMESYNC.ts1"]["offset_s"] == pytest.approx(0, abs=1e-6)
+    assert g["PING.time_usec"]["drift_ppm"] == pytest.approx(0, abs=0.1)
+    (system,) = [s for s in doc["systems"] if s["sysid"] == 255]
+    trips = {r["kind"]: r for r in system["round_trips"]}
+    assert trips["TIMESYNC"]["rtt_ms"] == pytest.approx(t["timesync_rtt_ms"], abs=0.002)
+    assert trips["PING"]["rtt_ms"] == pytest.approx(t["ping_rtt_ms"], abs=0.002)
+    assert trips["TIMESYNC"]["peer"] == 1
+
+
+def test_text_output(cli: Cli) -> None:
+    status, out, _ = cli("timeline", SKEW)
+    assert status == 0 and "System 1" in out and "SYSTEM_TIME.time_unix_usec" in out and "+250.0" in out
+    assert "TIMESYNC round trips to system 1: 30" in out
+
+
+def test_px4_session_clock(cli: Cli) -> None:
+    # the generator's vehicle UTC clock runs 2150 µs ahead of the capture clock
+    v = clocks(cli.json("timeline", str(CAPTURES / "px4_sitl_udp.pcap")), 1)
+    assert v["SYSTEM_TIME.time_unix_usec"]["offset_s"] == pytest.approx(0.00215, abs=2e-6)
+
+
+def test_no_drift_from_four_samples_in_half_a_second(cli: Cli, tmp_path: Path) -> None:
+    """Issue: a drift of -9105.9 ppm from 4 samples over 0.5 s. Built here: SYSTEM_TIME 4 times in 0.5 s,
+    the clock 1 s ahead of the capture with 5 ms of jitter."""
+    v = flows.Sender(1, 1)
+    entries = []
+    for i, jitter in enumerate((0.0, 0.005, -0.004, 0.003)):
+        t = flows.T0 + i * 0.16
+        unix_us = round((t + 1.0 + jitter) * 1e6)
+        entries.append((t, v.pack(flows.v2.MAVLink_system_time_message(unix_us, 1000 + i * 160))))
+    doc = cli.json("timeline", flows.write_tlog(tmp_path, entries))
+    clock = clocks(doc, 1)["SYSTEM_TIME.time_unix_usec"]
+    assert clock["samples"] == 4 and clock["drift_ppm"] is None and clock["drift_err_ppm"] is None
+    assert clock["offset_s"] == pytest.approx(1.0, abs=0.01)
+    status, out, _ = cli("timeline", flows.write_tlog(tmp_path, entries, "b.tlog"))
+    assert status == 0 and "-9105" not in out

@@ -1,0 +1,48 @@
+"""Seed corpora for the fuzz targets: the bundled captures (made by scripts/make_captures.py), and
+examples of filters, key specs and TCP segment sequences."""
+
+from __future__ import annotations
+
+import shutil
+import struct
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+FILTERS = (
+    "mavlink_proto.msgid == 73", "COMMAND_LONG.command == MAV_CMD_NAV_RETURN_TO_LAUNCH", "HEARTBEAT",
+    'STATUSTEXT.text matches "^(a+)+$"', "ip.addr == 127.0.0.0/8 && !signature", "mavlink.seq in {1..10 20}",
+    "signature.status == invalid || note.bad-crc", 'frame.time >= "2026-03-14T10:00:00Z"',
+    "ftp.opcode == OpenFileRO", "mavlink.sysid & 0x80", "(((HEARTBEAT)))", "not not HEARTBEAT.type eq 2",
+)
+KEY_SPECS = (
+    "hex:" + "4f" * 32, "passphrase:secret", "qgc:x", "base64:AAAA", "NAME=hex:00", "2=aes-128-ctr:hex:00#",
+    "7=xor", "6=aes-gcm:ecdh", "2=xor:passphrase:#", "file:/nonexistent.toml", "hex:#", "#=", "1=aes-gcm:base64:#",
+)
+
+
+def tcp_seeds() -> list[bytes]:
+    """A handshake, data in order, a retransmission, a gap, a FIN."""
+    seg = struct.Struct("<BBIH")
+    out = []
+    data = b"\xfd\x09\x00\x00\x00\x01\x01\x00\x00\x00" + bytes(9) + b"\x00\x00"
+    one = seg.pack(1, 0x02, 1000, 0) + seg.pack(1, 0x10, 1001, len(data)) + data
+    one += seg.pack(1, 0x10, 1001, len(data)) + data + seg.pack(1, 0x10, 2000, 4) + b"abcd" + seg.pack(1, 0x01, 3000, 0)
+    out.append(one)
+    out.append(seg.pack(0, 0x02, 5, 0) + seg.pack(0, 0x02, 99, 0) + seg.pack(0, 0x10, 100, 3) + b"xyz")
+    return out
+
+
+def write(corpus: Path) -> None:
+    """Fill corpus/<target>/ with the seeds of each target."""
+    cap = corpus / "capture"
+    cap.mkdir(parents=True, exist_ok=True)
+    for p in (ROOT / "captures").iterdir():
+        if p.suffix in (".pcap", ".pcapng", ".tlog", ".raw"):
+            shutil.copyfile(p, cap / p.name)
+    for target, seeds in (("filter", [f.encode() for f in FILTERS]), ("keys", [k.encode() for k in KEY_SPECS]),
+                          ("tcp", tcp_seeds())):
+        d = corpus / target
+        d.mkdir(parents=True, exist_ok=True)
+        for i, s in enumerate(seeds):
+            (d / f"seed{i:03d}").write_bytes(s)

@@ -1,0 +1,118 @@
+"""The fuzz targets: one function per layer, each taking arbitrary bytes (see tests/fuzz/__init__.py)."""
+
+from __future__ import annotations
+
+import os
+import struct
+import sys
+import tempfile
+from collections.abc import Callable
+
+import atheris
+
+with atheris.instrument_imports():
+    from mavscope.capture.detect import open_capture
+    from mavscope.endpoint import Endpoint
+    from mavscope.errors import MavscopeError
+    from mavscope.fields.summary import summary_info
+    from mavscope.fields.tree import frame_items
+    from mavscope.filter import compile_filter
+    from mavscope.mavlink.dialect import load_dialect
+    from mavscope.output.jsonout import jsonl_bytes
+    from mavscope.pipeline.dissect import Anomaly, Dissector
+    from mavscope.pipeline.options import PipelineOptions
+    from mavscope.pipeline.session import make_security_stage
+    from mavscope.transport.tcp import TcpReassembler
+
+DIALECT = load_dialect()
+SECURITY = PipelineOptions(keys=("passphrase:mavscope-demo",), ciphers=("2=aes-128-ctr:hex:" + "00" * 16,),
+                           ecdh_private=("hex:" + "11" * 32,))
+SUFFIXES = (".pcap", ".pcapng", ".tlog", ".raw")  # content decides the reader; the name does not
+
+
+def capture(data: bytes) -> None:
+    """A capture file of any content, through the whole pipeline and every rendering of every frame."""
+    fd, path = tempfile.mkstemp(suffix=SUFFIXES[len(data) % 4])
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        with open_capture(path) as reader:
+            stage = make_security_stage(SECURITY)
+            for item in stage.run(Dissector(DIALECT).run(reader)):
+                if type(item) is Anomaly:
+                    continue
+                jsonl_bytes(item)
+                summary_info(item, DIALECT)
+                frame_items(item, DIALECT)
+    finally:
+        os.unlink(path)
+
+
+A, B = Endpoint("10.0.0.1", 5760), Endpoint("10.0.0.2", 40000)
+
+
+def tcp(data: bytes) -> None:
+    """Segments (direction, flags, sequence number, length-prefixed payload) into the reassembler."""
+    r = TcpReassembler(max_buffered=1 << 16)
+    pos, record = 0, 0
+    while pos + 8 <= len(data):
+        direction, flags, seq, n = struct.unpack_from("<BBIH", data, pos)
+        pos += 8
+        payload = data[pos : pos + n]
+        pos += n
+        record += 1
+        src, dst = (A, B) if direction & 1 else (B, A)
+        r.segment(src, dst, seq, flags, payload, record, pos)
+    r.flush()
+
+
+SAMPLE = []
+
+
+def _sample_frames() -> list:
+    if not SAMPLE:
+        root = os.path.join(os.path.dirname(__file__), "..", "..", "captures")
+        for name in ("px4_sitl_udp.pcap", "signed_udp.pcap", "damaged.pcap"):
+            with open_capture(os.path.join(root, name)) as reader:
+                SAMPLE.extend(f for f in Dissector(DIALECT).run(reader) if type(f) is not Anomaly)
+    return SAMPLE[::23]
+
+
+def display_filter(data: bytes) -> None:
+    """Filter text of any content: it compiles or is a FilterError (a MavscopeError); what compiles runs."""
+    text = data.decode("utf-8", "replace")
+    try:
+        flt = compile_filter(text, DIALECT)
+    except MavscopeError:
+        return
+    for f in _sample_frames():
+        flt.matches(f)
+
+
+SECRET = "Zq7secretQ"
+
+
+def key_spec(data: bytes) -> None:
+    """A key spec of any shape around a known secret: accepted, or refused without a trace of the secret."""
+    text = data.decode("utf-8", "replace")
+    for spec in (text, text + SECRET, SECRET + text, text.replace("#", SECRET)):
+        for option in ("keys", "ciphers", "ecdh_private"):
+            try:
+                make_security_stage(PipelineOptions(**{option: (spec,)}))
+            except MavscopeError as exc:
+                assert SECRET not in str(exc), f"{option} {spec!r}: {exc}"
+
+
+TARGETS: dict[str, Callable[[bytes], None]] = {
+    "capture": capture, "tcp": tcp, "filter": display_filter, "keys": key_spec,
+}
+
+
+def main() -> None:
+    name = sys.argv.pop(1)
+    atheris.Setup(sys.argv, TARGETS[name])
+    atheris.Fuzz()
+
+
+if __name__ == "__main__":
+    main()

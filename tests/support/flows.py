@@ -1,0 +1,55 @@
+"""Small MAVLink flows built with pymavlink for the analysis tests, written as a tlog.
+
+Each test states what it built; the expected answers come from that construction, never from mavscope.
+A tlog entry is an 8-byte big-endian timestamp in microseconds, then one frame (captures/README.md).
+"""
+
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+from pymavlink.dialects.v20 import ardupilotmega as v2
+
+T0 = 1_773_482_400.0  # 2026-03-14T10:00:00Z
+
+
+class Sender:
+    """One MAVLink sender with its own sequence counter (a second Sender with the same ids is a second
+    counter, as Mission Planner's REQUEST_DATA_STREAM channel)."""
+
+    def __init__(self, sysid: int, compid: int, seq: int = 0) -> None:
+        self.mav = v2.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+        self.mav.seq = seq
+
+    def pack(self, msg: object) -> bytes:
+        """The next frame of this sender (pymavlink's pack does not advance the counter; send would)."""
+        frame = bytes(msg.pack(self.mav))  # type: ignore[attr-defined]
+        self.mav.seq = (self.mav.seq + 1) % 256
+        return frame
+
+    def skip(self, n: int = 1) -> None:
+        """Lose the next `n` frames (their sequence numbers are used, the frames never arrive)."""
+        self.mav.seq = (self.mav.seq + n) % 256
+
+
+def heartbeat(gcs: bool = False) -> object:
+    return v2.MAVLink_heartbeat_message(6 if gcs else 10, 8 if gcs else 3, 0, 0, 4, 3)
+
+
+def manual_control(x: int = 0, y: int = 0, z: int = 500, r: int = 0) -> object:
+    return v2.MAVLink_manual_control_message(1, x, y, z, r, 0)
+
+
+def command_long(command: int = 400, p1: float = 1.0, target: int = 1) -> object:
+    return v2.MAVLink_command_long_message(target, 1, command, 0, p1, 0, 0, 0, 0, 0, 0)
+
+
+def tlog(entries: list[tuple[float, bytes]]) -> bytes:
+    return b"".join(struct.pack(">Q", round(t * 1e6)) + frame for t, frame in entries)
+
+
+def write_tlog(tmp: Path, entries: list[tuple[float, bytes]], name: str = "flow.tlog") -> str:
+    path = tmp / name
+    path.write_bytes(tlog(entries))
+    return str(path)
