@@ -203,6 +203,26 @@ class Finding:
                 "message": self.message}
 
 
+class FrameNumbers:
+    """The frames behind a finding as it accumulates: every one counted, the first `limit` kept (with
+    `repeats=False`, a number added twice in a row kept once), so a finding over millions of frames stays
+    small."""
+
+    __slots__ = ("nums", "count", "limit", "repeats")
+
+    def __init__(self, limit: int, repeats: bool = False) -> None:
+        self.nums: list[int] = []
+        self.count = 0
+        self.limit = limit
+        self.repeats = repeats
+
+    def add(self, number: int) -> None:
+        self.count += 1
+        nums = self.nums
+        if len(nums) < self.limit and (self.repeats or not nums or nums[-1] != number):
+            nums.append(number)
+
+
 def finding(code: str, message: str, frames: Iterable[int] = ()) -> Finding:
     """A Finding for a registered code, with the code's severity (KeyError for an unregistered one)."""
     return Finding(code, CODES[code].severity, message, tuple(frames))

@@ -28,7 +28,6 @@ from collections.abc import Callable, Iterable, Iterator
 from typing import cast
 
 from mavscope.mavlink.frame import (
-    IFLAG_SIGNED,
     CrcStatus,
     Encryption,
     EncryptionStatus,
@@ -50,6 +49,7 @@ from mavscope.security.keys import (
     SigningKey,
 )
 from mavscope.security.signing import NEW_STREAM_WINDOW, SignatureVerifier
+from mavscope.wire import IFLAG_SIGNED
 
 SETUP_SIGNING = 256
 RADIO_STATUS = 109
