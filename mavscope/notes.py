@@ -135,6 +135,8 @@ CODES: dict[str, Code] = {
         Code("bad-crc-burst", _WARN, Group.CHECKSUM, _C, "frames with a bad CRC close together"),
         Code("seq-gap", _WARN, Group.SEQUENCE, _C, "a large jump in a sender's sequence numbers: frames lost"),
         Code("seq-duplicate", _NOTE, Group.SEQUENCE, _C, "frames repeating a sequence number already seen"),
+        Code("seq-unchanged", _NOTE, Group.SEQUENCE, _C,
+             "frames with the previous frame's sequence number and other contents: not counted by their sender"),
         Code("seq-reordered", _NOTE, Group.SEQUENCE, _C, "frames that arrived after later ones"),
         Code("seq-interleaved", _WARN, Group.SEQUENCE, _C,
              "many backward sequence steps: two senders may share a system/component id"),

@@ -96,8 +96,8 @@ class SequenceAnomalies:
         if tr is None:
             tr = self.trackers[key] = SeqTracker()
         self.counts[key] += 1
-        what, _ = tr.feed(f.seq, f.record)
-        if what in ("duplicate", "late"):
+        what, _ = tr.feed(f.seq, f.record, f.raw)
+        if what in ("duplicate", "late", "unchanged"):
             ev = self.events.get((key, what))
             if ev is None:
                 ev = self.events[(key, what)] = _frames()
@@ -122,6 +122,11 @@ class SequenceAnomalies:
             if what == "duplicate" and tr.duplicates:
                 out.append(finding("seq-duplicate", f"link {sysid}/{compid}: {tr.duplicates} frames repeat a "
                                                     "sequence number already seen", ev.nums))
+            elif what == "unchanged":
+                out.append(finding("seq-unchanged", f"link {sysid}/{compid}: {ev.count} frames carry the sequence "
+                                                    "number of the frame before them with other contents: the "
+                                                    "sender does not count them (MAVProxy writes parameters it "
+                                                    "fetched over FTP into its tlog this way)", ev.nums))
             elif what == "late":
                 out.append(finding("seq-reordered", f"link {sysid}/{compid}: {ev.count} frames arrived after later "
                                                     "ones", ev.nums))
