@@ -37,6 +37,11 @@ Link = tuple[int, int]
 Fields = dict[str, object]
 
 
+def _target(fields: Fields) -> object:
+    """The system a commanding message addresses: `target_system`, or MANUAL_CONTROL's `target`."""
+    return fields.get("target_system", fields.get("target"))
+
+
 def _link(f: Frame) -> str:
     return f"{f.sysid}/{f.compid}"
 
@@ -165,7 +170,7 @@ class CommandSources:
             return
         if fields is None or f.msgdef is None or f.msgdef.name not in COMMANDING:
             return
-        target = fields.get("target_system")
+        target = _target(fields)
         if not isinstance(target, int) or target in self.gcs or target == f.sysid:
             return
         sender = (f.sysid, f.compid)
@@ -275,7 +280,7 @@ class UnsignedCommands:
         md = f.msgdef
         if fields is None or md is None or md.name not in COMMANDING:
             return
-        target = fields.get("target_system")
+        target = _target(fields)
         key = (f.sysid, f.compid, target if isinstance(target, int) else -1)
         if key not in self.candidates:
             self.candidates[key] = _frames()
