@@ -135,6 +135,8 @@ CODES: dict[str, Code] = {
         Code("bad-crc-burst", _WARN, Group.CHECKSUM, _C, "frames with a bad CRC close together"),
         Code("seq-gap", _WARN, Group.SEQUENCE, _C, "a large jump in a sender's sequence numbers: frames lost"),
         Code("seq-duplicate", _NOTE, Group.SEQUENCE, _C, "frames repeating a sequence number already seen"),
+        Code("seq-unchanged", _NOTE, Group.SEQUENCE, _C,
+             "frames with the previous frame's sequence number and other contents: not counted by their sender"),
         Code("seq-reordered", _NOTE, Group.SEQUENCE, _C, "frames that arrived after later ones"),
         Code("seq-interleaved", _WARN, Group.SEQUENCE, _C,
              "many backward sequence steps: two senders may share a system/component id"),
@@ -201,6 +203,26 @@ class Finding:
     def to_json(self) -> dict[str, object]:
         return {"code": self.code, "severity": self.severity.value, "frames": list(self.frames),
                 "message": self.message}
+
+
+class FrameNumbers:
+    """The frames behind a finding as it accumulates: every one counted, the first `limit` kept (with
+    `repeats=False`, a number added twice in a row kept once), so a finding over millions of frames stays
+    small."""
+
+    __slots__ = ("nums", "count", "limit", "repeats")
+
+    def __init__(self, limit: int, repeats: bool = False) -> None:
+        self.nums: list[int] = []
+        self.count = 0
+        self.limit = limit
+        self.repeats = repeats
+
+    def add(self, number: int) -> None:
+        self.count += 1
+        nums = self.nums
+        if len(nums) < self.limit and (self.repeats or not nums or nums[-1] != number):
+            nums.append(number)
 
 
 def finding(code: str, message: str, frames: Iterable[int] = ()) -> Finding:
