@@ -22,7 +22,7 @@ from mavscope.pipeline.dissect import Anomaly
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("read", help="dissect a capture (pcap, pcapng, tlog, raw) like tshark -r",
+    p = sub.add_parser("read",
                        description="Dissect every MAVLink frame of a capture.")
     add_capture_options(p)
     add_filter_option(p)
