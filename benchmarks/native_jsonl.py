@@ -11,7 +11,7 @@ Captures (generated once and cached in DIR, default benchmarks/out/, git-ignored
 Every figure is a fresh process (`mavscope read FILE -T jsonl`, start-up and dialect load included),
 stdout to /dev/null and to a real file in DIR (deleted before each run), best of --repeat for the native
 engine (the pure path: one run). Frames are counted from the output. The pymavlink baseline is
-bench_read.py's (mmap+struct pcap loop, parse_buffer, json.dumps(to_dict())), one run.
+benchmarks/baselines.py's `struct` (mmap+struct pcap loop, parse_buffer, json.dumps(to_dict())), one run.
 The machine's load average is printed with the results: other processes share it.
 """
 
@@ -28,7 +28,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-import bench_read  # noqa: E402 - the capture generator and the pymavlink baseline live there
+from bench_capture import capture  # noqa: E402 - the bench capture's generator (bench_read.py uses it too)
 
 MAVSCOPE = str(Path(sys.executable).with_name("mavscope"))
 REAL_TLOG = ROOT.parent / "shared" / "real-captures" / "ardusub_log_tools_small.tlog"
@@ -85,7 +85,7 @@ def main() -> int:
     ap.add_argument("--tlog-copies", type=int, default=28)
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
-    bench, truth = bench_read.capture(args.out, 1_000_000)
+    bench, truth = capture(args.out, 1_000_000)
     captures = [("bench pcap (1M frames, 25% signed)", bench)]
     tlog = tlog_capture(args.out, args.tlog_copies)
     if tlog is not None:
@@ -114,8 +114,8 @@ def main() -> int:
             os.unlink(target_file)
     if not args.skip_baseline:
         t0 = time.perf_counter()
-        subprocess.run([sys.executable, str(ROOT / "benchmarks" / "bench_read.py"), "--baseline", "struct",
-                        str(bench)], stdout=subprocess.DEVNULL, env=CHILD_ENV, check=True)
+        subprocess.run([sys.executable, str(ROOT / "benchmarks" / "baselines.py"), "struct", str(bench)],
+                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=CHILD_ENV, check=True)
         base = time.perf_counter() - t0
         frames = truth["frames"]
         print()
