@@ -161,6 +161,16 @@ CODES: dict[str, Code] = {
         Code("object-limit", _WARN, Group.UNDECODED, _C, "a limit of the object reconstruction cut data",
              "the object reconstruction reached one of its limits (object size, memory, transfers at once, "
              "objects): what it gave up is listed"),
+        # parameters (mavscope.analysis.params)
+        Code("param-security-change", _WARN, Group.SECURITY, _C,
+             "a security-relevant parameter (signing, system id checks, failsafes, fences, arming checks, "
+             "scripting) was set or changed",
+             "a parameter that guards the vehicle (MAVLink signing and system id checks, failsafes, fences, "
+             "arming checks, scripting) was set or changed"),
+        Code("param-protection-disabled", _ERROR, Group.SECURITY, _C,
+             "a parameter change that turns a protection off",
+             "a parameter change that turns a protection off (arming checks, a fence, a failsafe, system id "
+             "enforcement) or makes a link accept unsigned frames"),
         # security audit (mavscope.security.audit)
         Code("replay", _ERROR, Group.SECURITY, _C, "signature replayed (timestamp not newer than its stream's)",
              "frames whose MAC verifies but whose timestamp is not newer than the last accepted one of their "
