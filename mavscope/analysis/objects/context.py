@@ -83,6 +83,8 @@ class Context:
             t.problem(f"its end ({size:,} bytes) is past the {limit:,}-byte object limit: cut there")
             self.given_up[f"objects cut at the {limit:,}-byte object limit"] += 1
             size, complete = limit, False
+            if data is not None:
+                data = data[:size]
         if data is None:
             held = len(content.buf)
             extra = size - held

@@ -52,7 +52,7 @@ from mavscope.mavlink.frame import Frame, plaintext_payload
 
 EOF = 6
 PENDING = 64  # requests awaiting an answer, per (client, server)
-PAIRS = 1024  # (client, server) pairs with pending requests
+PAIRS = 256  # (client, server) pairs with pending requests (each request keeps its frame until answered)
 REQUESTED_OFFSETS = 256  # read offsets remembered per session (to count retried requests)
 ERROR_NAMES = dict(reversed(_ERRORS))
 OPENS = (OPEN_RO, CREATE, OPEN_WO)
