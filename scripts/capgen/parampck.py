@@ -22,18 +22,23 @@ MAV_PARAM_TYPES = {1: 2, 2: 4, 3: 6, 4: 9}  # AP type -> MAV_PARAM_TYPE (INT8, I
 Param = tuple[str, int, float]  # name, AP type, value
 
 
+def _name(raw: bytes, last: bytes) -> tuple[int, bytes]:
+    """(bytes shared with the previous name, the bytes sent): at least one byte is sent."""
+    common = 0
+    while common < min(len(raw), len(last)) and raw[common] == last[common]:
+        common += 1
+    if common == len(raw):  # AP_Filesystem_Param::pack_param
+        common -= 1
+    return common, raw[common:]
+
+
 def pack(params: Sequence[Param], read_size: int) -> bytes:
     """The param.pck a server sends to a client reading `read_size` bytes at a time."""
     out = bytearray(struct.pack("<HHH", MAGIC, len(params), len(params)))
     last = b""
     for name, ptype, value in params:
         raw = name.encode("ascii")
-        common = 0
-        while common < min(len(raw), len(last)) and raw[common] == last[common]:
-            common += 1
-        if common == len(raw):  # at least one name byte is sent (AP_Filesystem_Param::pack_param)
-            common -= 1
-        rest = raw[common:]
+        common, rest = _name(raw, last)
         size = struct.calcsize(FORMATS[ptype])
         packed = 2 + len(rest) + size
         if size > 1:
@@ -53,12 +58,7 @@ def pack_upload(params: Sequence[Param]) -> bytes:
     last = b""
     for name, ptype, value in params:
         raw = name.encode("ascii")
-        common = 0
-        while common < min(len(raw), len(last)) and raw[common] == last[common]:
-            common += 1
-        if common == len(raw):
-            common -= 1
-        rest = raw[common:]
+        common, rest = _name(raw, last)
         body += bytes([ptype, common | (len(rest) - 1) << 4]) + rest
         body += struct.pack(FORMATS[ptype], int(value) if ptype != 4 else value)
         last = raw

@@ -14,6 +14,7 @@ from collections.abc import Callable
 
 from mavscope.analysis.objects.context import Context
 from mavscope.analysis.objects.model import DOWNLOAD, IMAGE, Addr, Transfer
+from mavscope.analysis.runs import runs
 from mavscope.fields.containers.others import ENCAP
 from mavscope.mavlink.frame import Frame
 
@@ -26,17 +27,6 @@ MAX_SENDERS = 256
 def _int(fields: dict[str, object], name: str) -> int:
     v = fields.get(name, 0)
     return v if isinstance(v, int) else 0
-
-
-def ranges_of(numbers: list[int]) -> list[list[int]]:
-    """[[first, last], ...] runs of sorted integers."""
-    out: list[list[int]] = []
-    for n in numbers:
-        if out and out[-1][1] == n - 1:
-            out[-1][1] = n
-        else:
-            out.append([n, n])
-    return out
 
 
 class ImageTracker:
@@ -112,7 +102,7 @@ class ImageTracker:
         d = t.details
         seen: set[int] = d.pop("_seen", set())
         missing = [n for n in range(d["packets"]) if n not in seen]
-        d["missing_packets"] = ranges_of(missing[:4096])
+        d["missing_packets"] = runs(missing[:4096])
         size = t.end_at or 0
         gaps = t.content.gaps(size)
         self.ctx.finish(t, size=size, gaps=gaps, end_known=True, complete=not gaps, received=t.content.received,
