@@ -13,7 +13,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from mavscope.analysis.objects.context import Context
-from mavscope.analysis.objects.model import DOWNLOAD, IMAGE, Addr, Transfer
+from mavscope.analysis.objects.model import DOWNLOAD, IMAGE, Addr, Transfer, int_field
 from mavscope.analysis.runs import runs
 from mavscope.fields.containers.others import ENCAP
 from mavscope.mavlink.frame import Frame
@@ -23,10 +23,6 @@ CHUNK = 253  # ENCAPSULATED_DATA.data
 EXTENSIONS = {0: ".jpg", 1: ".bmp", 2: ".raw8u", 3: ".raw32u", 4: ".pgm", 5: ".png"}
 MAX_SENDERS = 256
 
-
-def _int(fields: dict[str, object], name: str) -> int:
-    v = fields.get(name, 0)
-    return v if isinstance(v, int) else 0
 
 
 class ImageTracker:
@@ -45,7 +41,7 @@ class ImageTracker:
             if old is not None:
                 old.closed = True
                 self._finish(old)
-            size, packets = _int(fields, "size"), _int(fields, "packets")
+            size, packets = int_field(fields, "size"), int_field(fields, "packets")
             if size <= 0 or packets <= 0:  # a request (or an empty answer): it names who wants the image
                 if len(self.requesters) < MAX_SENDERS:
                     self.requesters[f.sysid] = me
@@ -55,11 +51,11 @@ class ImageTracker:
             t.name = f"image {t.order}"
             t.announced = size
             t.end_at = size
-            kind = _int(fields, "type")
-            payload = _int(fields, "payload") or CHUNK
+            kind = int_field(fields, "type")
+            payload = int_field(fields, "payload") or CHUNK
             t.details.update({"type": kind, "type_name": self.type_names.get(kind, str(kind)),
-                              "width": _int(fields, "width"), "height": _int(fields, "height"),
-                              "packets": packets, "payload": payload, "jpg_quality": _int(fields, "jpg_quality"),
+                              "width": int_field(fields, "width"), "height": int_field(fields, "height"),
+                              "packets": packets, "payload": payload, "jpg_quality": int_field(fields, "jpg_quality"),
                               "packets_received": 0, "duplicate_packets": 0, "out_of_range_packets": 0,
                               "_seen": set()})
             t.see(f, self.ctx.tick)
@@ -76,7 +72,7 @@ class ImageTracker:
             image.see(f, self.ctx.tick)
             d = image.details
             size = image.end_at or 0
-            seq = _int(fields, "seqnr")
+            seq = int_field(fields, "seqnr")
             offset = seq * d["payload"]
             if seq >= d["packets"] or offset >= size:
                 d["out_of_range_packets"] += 1

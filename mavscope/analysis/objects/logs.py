@@ -15,7 +15,7 @@ from collections import OrderedDict
 from collections.abc import Callable
 
 from mavscope.analysis.objects.context import Context
-from mavscope.analysis.objects.model import DOWNLOAD, Addr, Transfer
+from mavscope.analysis.objects.model import DOWNLOAD, Addr, Transfer, int_field
 from mavscope.analysis.objects.model import LOG as KIND
 from mavscope.fields.containers.others import LOG
 from mavscope.mavlink.frame import Frame
@@ -23,10 +23,6 @@ from mavscope.mavlink.frame import Frame
 LOG_DATA_LEN = 90
 SIZES_KEPT = 4096  # LOG_ENTRY sizes remembered (per vehicle system and log id)
 
-
-def _int(fields: dict[str, object], name: str) -> int:
-    v = fields.get(name, 0)
-    return v if isinstance(v, int) else 0
 
 
 class LogTracker:
@@ -37,8 +33,8 @@ class LogTracker:
 
     def feed(self, f: Frame, name: str, fields: dict[str, object]) -> None:
         if name == "LOG_ENTRY":
-            key = (f.sysid, _int(fields, "id"))
-            self.sizes[key] = _int(fields, "size")
+            key = (f.sysid, int_field(fields, "id"))
+            self.sizes[key] = int_field(fields, "size")
             self.sizes.move_to_end(key)
             if len(self.sizes) > SIZES_KEPT:
                 self.sizes.popitem(last=False)
@@ -47,7 +43,7 @@ class LogTracker:
         elif name == "LOG_DATA":
             self._data(f, fields)
         elif name == "LOG_REQUEST_END":
-            vehicle = _int(fields, "target_system")
+            vehicle = int_field(fields, "target_system")
             for key in [k for k in self.downloads if k[0] == vehicle]:
                 t = self.downloads[key]
                 if t.receiver is None or t.receiver == (f.sysid, f.compid):
@@ -64,27 +60,27 @@ class LogTracker:
         return t
 
     def _request(self, f: Frame, fields: dict[str, object]) -> None:
-        key = (_int(fields, "target_system"), _int(fields, "id"))
+        key = (int_field(fields, "target_system"), int_field(fields, "id"))
         t = self.downloads.get(key)
         if t is not None and self._complete(t):
             self._finish(key)
             t = None
         if t is None:
-            t = self._start(key, (key[0], _int(fields, "target_component")), (f.sysid, f.compid))
+            t = self._start(key, (key[0], int_field(fields, "target_component")), (f.sysid, f.compid))
         t.see(f, self.ctx.tick)
         t.details["requests"] = t.details.get("requests", 0) + 1
         if t.announced is None:
             t.announced = self.sizes.get(key)
 
     def _data(self, f: Frame, fields: dict[str, object]) -> None:
-        key = (f.sysid, _int(fields, "id"))
+        key = (f.sysid, int_field(fields, "id"))
         t = self.downloads.get(key)
         if t is None:
             t = self._start(key, (f.sysid, f.compid), None)
             t.problem("its LOG_REQUEST_DATA is not in the capture")
         t.sender = (f.sysid, f.compid)
         t.see(f, self.ctx.tick)
-        ofs, count = _int(fields, "ofs"), _int(fields, "count")
+        ofs, count = int_field(fields, "ofs"), int_field(fields, "count")
         valid = LOG(f)
         data = valid.data if valid is not None else b""
         if valid is not None and valid.problem is not None:

@@ -41,6 +41,12 @@ class Limits:
     max_operations: int = 10_000  # FTP operations listed
 
 
+def int_field(fields: dict[str, object], name: str) -> int:
+    """An integer field of a decoded payload (0 where it is missing or not an integer: another dialect)."""
+    v = fields.get(name, 0)
+    return v if isinstance(v, int) else 0
+
+
 def party(addr: Addr | None) -> str:
     return "-" if addr is None else f"{addr[0]}/{addr[1]}"
 

@@ -20,6 +20,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from mavscope.analysis.objects import FTP_READ, FTP_WRITE, Limits, ObjectRecord, ObjectTracker
+from mavscope.analysis.objects.model import int_field
 from mavscope.analysis.params import pck
 from mavscope.analysis.params.export import param_findings
 from mavscope.analysis.params.model import Addr, Component, Param, ParamChange, ParamLog
@@ -93,10 +94,6 @@ def _list(a: Addr | None) -> list[int] | None:
     return None if a is None else [a[0], a[1]]
 
 
-def _int(fields: dict[str, object], name: str) -> int:
-    v = fields.get(name, 0)
-    return v if isinstance(v, int) else 0
-
 
 def _name(fields: dict[str, object]) -> str:
     v = fields.get("param_id", "")
@@ -139,13 +136,13 @@ class ParamTracker:
         if fields is None:
             return
         if name == "HEARTBEAT":
-            autopilot, mav_type = _int(fields, "autopilot"), _int(fields, "type")
+            autopilot, mav_type = int_field(fields, "autopilot"), int_field(fields, "type")
             if autopilot != MAV_AUTOPILOT_INVALID and mav_type != MAV_TYPE_GCS and \
                     self.encodings.get(f.sysid, ("", ""))[1] != "AUTOPILOT_VERSION":
                 enc = BYTEWISE if autopilot == MAV_AUTOPILOT_PX4 else C_CAST
                 self.encodings[f.sysid] = (enc, "HEARTBEAT")
         elif name == "AUTOPILOT_VERSION":
-            caps = _int(fields, "capabilities")
+            caps = int_field(fields, "capabilities")
             if caps & CAP_BYTEWISE:
                 self.encodings[f.sysid] = (BYTEWISE, "AUTOPILOT_VERSION")
             elif caps & CAP_C_CAST:
@@ -153,27 +150,27 @@ class ParamTracker:
         elif name == "PARAM_VALUE":
             raw = field_bytes(f, "param_value")
             if raw is not None:
-                ptype = _int(fields, "param_type")
+                ptype = int_field(fields, "param_type")
                 value, basis = self._decode(f.sysid, raw, ptype)
                 comp = self._component((f.sysid, f.compid))
                 if comp is not None:
-                    comp.announced = _int(fields, "param_count")
+                    comp.announced = int_field(fields, "param_count")
                     if comp.encoding is None or basis != "values":
                         comp.encoding, comp.encoding_basis = self._encoding(f.sysid, raw, ptype)
                 self._report_frame(f, _name(fields), value, ptype, "PARAM_VALUE")
         elif name == "PARAM_EXT_VALUE":
             raw = field_bytes(f, "param_value")
             if raw is not None:
-                ptype = _int(fields, "param_type")
+                ptype = int_field(fields, "param_type")
                 comp = self._component((f.sysid, f.compid))
                 if comp is not None:
-                    comp.announced = _int(fields, "param_count")
+                    comp.announced = int_field(fields, "param_count")
                 self._report_frame(f, _name(fields), from_ext_field(raw, ptype), ptype, "PARAM_EXT_VALUE")
         elif name in ("PARAM_SET", "PARAM_EXT_SET"):
             raw = field_bytes(f, "param_value")
             if raw is not None:
-                ptype = _int(fields, "param_type")
-                target = (_int(fields, "target_system"), _int(fields, "target_component"))
+                ptype = int_field(fields, "param_type")
+                target = (int_field(fields, "target_system"), int_field(fields, "target_component"))
                 value = (self._decode(target[0], raw, ptype)[0] if name == "PARAM_SET"
                          else from_ext_field(raw, ptype))
                 self._set(f, target, _name(fields), value, ptype, name)
@@ -288,8 +285,8 @@ class ParamTracker:
 
     def _ext_ack(self, f: Frame, fields: dict[str, object]) -> None:
         name = _name(fields)
-        ptype = _int(fields, "param_type")
-        result = _int(fields, "param_result")
+        ptype = int_field(fields, "param_type")
+        result = int_field(fields, "param_result")
         raw = field_bytes(f, "param_value")
         value = from_ext_field(raw, ptype) if raw is not None else None
         s = self.pending.get((f.sysid, name))
