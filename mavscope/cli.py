@@ -32,6 +32,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "mission": ("mission", "rebuild mission, fence and rally transfers; export a QGroundControl .plan"),
     "commands": ("command_log", "commands sent (COMMAND_LONG/INT) with their ACK, latency and retries"),
     "timeline": ("timeline", "clocks per system: capture time vs signatures, SYSTEM_TIME, TIMESYNC, PING"),
+    "objects": ("objects", "rebuild files (MAVLink FTP), logs and images moved over the link"),
+    "params": ("params", "parameters: timeline of sets and changes, final values, .param/.params export"),
     "tui": ("tui", "browse a capture in a terminal UI (list, detail tree, hex)"),
     "verify": ("verify", "verify the signatures of a capture; exit 1 on invalid, replayed or injected frames"),
     "audit": ("audit", "security audit: key leaks, replays, forgeries, weak passphrases, fixed keystreams"),
