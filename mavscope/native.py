@@ -192,10 +192,17 @@ class NativeWalk:
         walk = self.walker.next
         walked = self.walker.walked
         spare: bytearray | None = None  # a buffer a batch without text did not use: the next one takes it
+        told: Walked | None = None
         while True:
             buf = spare if spare is not None else (buffers() if buffers is not None else None)
             segs = walk(signed_nokey(), limit, buf)
             if segs is None:
+                # records at the end that gave no text (a UDP datagram without payload): the
+                # dissector must still hear of them, as stream frames the capture's end completes
+                # belong to its last record
+                last = walked()
+                if last is not None and last != told:
+                    yield Batch(last, None, None)
                 return
             text: bytes | bytearray | None = None
             record: Record | None = None
@@ -205,7 +212,8 @@ class NativeWalk:
                 else:
                     text = seg
             spare = buf if buf is not None and text is not buf else None
-            yield Batch(walked(), text, record)
+            told = walked()
+            yield Batch(told, text, record)
 
     @property
     def position(self) -> int:
