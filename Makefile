@@ -5,17 +5,20 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
-.PHONY: demo test lint captures bench snapshots fuzz clean
+.PHONY: demo test lint captures bench snapshots fuzz fuzz-native clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
-$(STAMP): pyproject.toml | $(BIN)/python
+# The C extension is compiled by the install: a change to its sources installs again.
+NATIVE_SRC := setup.py $(wildcard src/mavscope_native/*.c src/mavscope_native/*.h)
+
+$(STAMP): pyproject.toml $(NATIVE_SRC) | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e .
 	touch $@
 
-$(TSTAMP): pyproject.toml | $(BIN)/python
+$(TSTAMP): pyproject.toml $(NATIVE_SRC) | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	touch $(STAMP) $@
 
@@ -49,8 +52,13 @@ FUZZ_SECONDS ?= 60
 fuzz: $(TSTAMP)
 	$(BIN)/python -m tests.fuzz.run $(FUZZ_SECONDS)
 
+# libFuzzer with ASan/UBSan over the C core of the native engine (needs clang; docs/native.md)
+FUZZ_NATIVE_SECONDS ?= 600
+fuzz-native: $(TSTAMP)
+	scripts/fuzz-native.sh $(FUZZ_NATIVE_SECONDS)
+
 snapshots: $(TSTAMP)
 	$(BIN)/python -m pytest --snapshot-update tests/tui/test_snapshots.py
 
 clean:
-	rm -rf $(VENV) .pytest_cache .hypothesis
+	rm -rf $(VENV) .pytest_cache .hypothesis build fuzz/build mavscope/_native*.so

@@ -3,6 +3,10 @@
 `main(argv, env)` takes its streams from an `Env`, so tests run the real entry point with fake
 streams and read stdout, stderr and the exit status. Each subcommand lives in its own module under
 `mavscope/commands/` and registers itself through `register(subparsers)`.
+
+Only the module of the command being run is imported (its register() builds its parser): the others,
+and every command for `mavscope --help`, are listed from COMMANDS alone, so start-up does not pay for
+the imports of nine commands (pipeline, filters, security, rich tables) to run one.
 """
 
 from __future__ import annotations
@@ -19,10 +23,22 @@ from typing import IO
 from mavscope import __version__
 from mavscope.errors import MavscopeError, UsageError
 
-# Subcommand modules, in the order `mavscope --help` lists them.
-COMMAND_MODULES: tuple[str, ...] = (
-    "read", "live", "stats", "mission", "command_log", "timeline", "objects", "params", "tui", "verify", "audit",
-)
+# Subcommands, in the order `mavscope --help` lists them: name -> (module in mavscope/commands/, one-line
+# help). The help is given here, once: the module's register() leaves it out (_Commands adds it).
+COMMANDS: dict[str, tuple[str, str]] = {
+    "read": ("read", "dissect a capture (pcap, pcapng, tlog, raw) like tshark -r"),
+    "live": ("live", "dissect MAVLink live from a UDP port (optionally relaying) or a network interface"),
+    "stats": ("stats", "message rates, loss per link, conversations, expert findings"),
+    "mission": ("mission", "rebuild mission, fence and rally transfers; export a QGroundControl .plan"),
+    "commands": ("command_log", "commands sent (COMMAND_LONG/INT) with their ACK, latency and retries"),
+    "timeline": ("timeline", "clocks per system: capture time vs signatures, SYSTEM_TIME, TIMESYNC, PING"),
+    "objects": ("objects", "rebuild files (MAVLink FTP), logs and images moved over the link"),
+    "params": ("params", "parameters: timeline of sets and changes, final values, .param/.params export"),
+    "tui": ("tui", "browse a capture in a terminal UI (list, detail tree, hex)"),
+    "verify": ("verify", "verify the signatures of a capture; exit 1 on invalid, replayed or injected frames"),
+    "audit": ("audit", "security audit: key leaks, replays, forgeries, weak passphrases, fixed keystreams"),
+}
+COMMAND_MODULES: tuple[str, ...] = tuple(module for module, _ in COMMANDS.values())
 
 
 class ExitStatus(IntEnum):
@@ -75,21 +91,60 @@ class ArgParser(argparse.ArgumentParser):
         raise UsageError(f"{prog}: {message}" if prog else message)
 
 
-def build_parser() -> argparse.ArgumentParser:
+class _Commands(argparse._SubParsersAction):
+    """The subcommands: each parser gets its one-line help from COMMANDS."""
+
+    def add_parser(self, name: str, **kwargs: object) -> argparse.ArgumentParser:
+        kwargs.setdefault("help", COMMANDS[name][1])
+        return super().add_parser(name, **kwargs)  # type: ignore[arg-type]
+
+
+class _Version(argparse.Action):
+    """--version: the version and the engine `read -T jsonl` runs (mavscope.native, imported only here)."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, environ: dict[str, str] | None = None,
+                 **kwargs: object) -> None:
+        super().__init__(option_strings, dest, nargs=0, help="show the version and the engine, and exit")
+        self.environ = environ
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: object,
+                 option_string: str | None = None) -> None:
+        from mavscope.native import engine
+
+        sys.stdout.write(f"mavscope {__version__} (engine: {engine(self.environ)})\n")  # as argparse's version
+        parser.exit()
+
+
+def command_of(argv: Sequence[str]) -> str | None:
+    """The subcommand `argv` runs: its first argument that is not an option, if it names one."""
+    for arg in argv:
+        if not arg.startswith("-"):
+            return arg if arg in COMMANDS else None
+    return None
+
+
+def build_parser(environ: dict[str, str] | None = None, argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The command line's parser. With `argv`, only the parser of the command it runs is built (its module
+    imported); the others are listed with their help only. Without, every command's parser is built."""
     p = ArgParser(prog="mavscope", description="MAVLink packet analysis and forensics.")
-    p.add_argument("--version", action="version", version=f"mavscope {__version__}")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=ArgParser)
-    for name in COMMAND_MODULES:
-        importlib.import_module(f"mavscope.commands.{name}").register(sub)
+    p.add_argument("--version", action=_Version, environ=environ)
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=ArgParser, action=_Commands)
+    wanted = command_of(argv) if argv is not None else None
+    for name, (module, _) in COMMANDS.items():
+        if argv is None or name == wanted:
+            importlib.import_module(f"mavscope.commands.{module}").register(sub)
+        else:
+            sub.add_parser(name)  # listed by --help; never parsed (argv runs another command)
     return p
 
 
 def main(argv: Sequence[str] | None = None, env: Env | None = None) -> int:
     """Entry point of the `mavscope` console script."""
     env = env or Env()
-    parser = build_parser()
+    argv = list(argv) if argv is not None else sys.argv[1:]
+    parser = build_parser(env.environ, argv)
     try:
-        args = parser.parse_args(list(argv) if argv is not None else None)
+        args = parser.parse_args(argv)
         if args.command is None:
             parser.print_help(env.stdout)
             return ExitStatus.ERROR

@@ -18,8 +18,7 @@ RECOVERED_SHOWN = 10
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("audit", help="security audit: key leaks, replays, forgeries, weak passphrases, "
-                                     "fixed keystreams",
+    p = sub.add_parser("audit",
                        description="Security findings of a capture (docs/security.md). Exit status 1 when a "
                                    "finding of severity warn or error is reported, 0 otherwise, 2 on bad usage.")
     add_capture_options(p)

@@ -13,7 +13,7 @@ from mavscope.output.tables import fmt, iso, param_text
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("commands", help="commands sent (COMMAND_LONG/INT) with their ACK, latency and retries",
+    p = sub.add_parser("commands",
                        description="Every COMMAND_LONG and COMMAND_INT with the COMMAND_ACK that answered it.")
     add_analysis_options(p)
     p.set_defaults(run=run)

@@ -40,7 +40,7 @@ from mavscope.pipeline.session import build_pipeline
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "live", help="dissect MAVLink live from a UDP port (optionally relaying) or a network interface",
+        "live",
         description="Capture and dissect MAVLink as it arrives. Stop with Ctrl-C (or -c / --duration); "
                     "a summary of frames, bytes and drops goes to stderr. See docs/live.md.")
     src = p.add_mutually_exclusive_group(required=True)

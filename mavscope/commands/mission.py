@@ -17,7 +17,7 @@ STATE = {"complete": "complete", "unacknowledged": "unacknowledged"}  # every ot
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("mission", help="rebuild mission, fence and rally transfers; export a QGroundControl .plan",
+    p = sub.add_parser("mission",
                        description="Rebuild every mission transfer (MISSION_COUNT, MISSION_REQUEST(_INT), "
                                    "MISSION_ITEM(_INT), MISSION_ACK) in both directions, for missions, geofences "
                                    "and rally points, and the MISSION_CLEAR_ALL / MISSION_SET_CURRENT operations.")

@@ -22,7 +22,7 @@ DEFAULTS = Limits()
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("objects", help="rebuild files (MAVLink FTP), logs and images moved over the link",
+    p = sub.add_parser("objects",
                        description="Rebuild every object a capture moved: files read and written over MAVLink "
                                    "FTP and directory listings, logs downloaded with LOG_REQUEST_DATA/LOG_DATA, "
                                    "images sent as ENCAPSULATED_DATA; offsets honoured, retries and NAKs "

@@ -31,7 +31,7 @@ MAX_TEXT_FILE = 16 * 1024 * 1024  # a parameter file larger than this is taken f
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("params", help="parameters: timeline of sets and changes, final values, .param/.params export",
+    p = sub.add_parser("params",
                        description="Every parameter a capture shows (PARAM_VALUE, PARAM_SET, PARAM_EXT_*, and "
                                    "@PARAM/param.pck read or written over MAVLink FTP) as a timeline: who set what, "
                                    "when, over which link, signed or not, and whether the vehicle confirmed it; "

@@ -22,7 +22,7 @@ from mavscope.pipeline.dissect import Anomaly
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("read", help="dissect a capture (pcap, pcapng, tlog, raw) like tshark -r",
+    p = sub.add_parser("read",
                        description="Dissect every MAVLink frame of a capture.")
     add_capture_options(p)
     add_filter_option(p)
@@ -46,6 +46,8 @@ def frame_count(text: str) -> int:
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     out_b = env.stdout_bytes
+    if _native_eligible(args, env):
+        return _run_native(args, env)
     limit = args.count if args.count is not None else -1
     shown_records: set[int] = set()
     shown = 0
@@ -89,6 +91,59 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     if written is not None and written.warning:
         env.stderr.write(f"mavscope: warning: -w {args.write}: {written.warning}\n")
     return ExitStatus.OK
+
+
+def _native_eligible(args: argparse.Namespace, env: Env) -> bool:
+    """The native engine serves plain `read -T jsonl` (no filter, count, -w or -q) when it is built and
+    MAVSCOPE_PURE is not set; its output is byte-identical to the Python path's (docs/native.md)."""
+    if args.format != "jsonl" or args.display_filter or args.count is not None or args.write or args.quiet:
+        return False
+    from mavscope.native import engine
+
+    return engine(env.environ) == "native"
+
+
+def _run_native(args: argparse.Namespace, env: Env) -> ExitStatus:
+    """`read -T jsonl` through mavscope.native.write_jsonl: what capture_session and the loop of `run`
+    do, in the same order (dialect, capture file, key options; problems on stderr, then the summary)."""
+    from mavscope.capture.detect import detect_kind
+    from mavscope.commands.common import capture_path, pipeline_options, warner
+    from mavscope.mavlink.dialect import load_dialect
+    from mavscope.native import write_jsonl
+    from mavscope.pipeline.session import make_security_stage
+
+    path = capture_path(args)
+    options = pipeline_options(args, env)
+    dialect = load_dialect(options.dialects)
+    kind = detect_kind(path)  # the capture's errors before the key options', as open_session orders them
+    stage = make_security_stage(options, warner(env))
+    name = os.fsencode(path).decode("utf-8", "backslashreplace")  # Session.name
+    out_b = env.stdout_bytes
+    where = _Position(os.path.getsize(path))
+    update, stop = progress(env, where)  # type: ignore[arg-type]  # it reads .size and .position only
+    problems = Problems(env, name)
+
+    def advance(position: int) -> None:
+        where.position = position
+        update()
+
+    try:
+        stats = write_jsonl(path, dialect, stage, out_b, problems, progress=advance, kind=kind)
+    finally:
+        stop()
+        problems.close()
+    out_b.flush()
+    if stats["frames"] == 0:
+        env.stderr.write(f"mavscope: no MAVLink frames found in {name} ({stats['size']} bytes, detected as {kind})\n")
+    return ExitStatus.OK
+
+
+class _Position:
+    """What the progress bar reads of a capture walked natively."""
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self.position = 0
 
 
 def _open_writer(out: str, source: str, kind: str) -> FrameWriter | None:

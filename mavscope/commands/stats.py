@@ -16,7 +16,7 @@ SPARK_WIDTH = 40
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("stats", help="message rates, loss per link, conversations, expert findings",
+    p = sub.add_parser("stats",
                        description="Statistics over the MAVLink frames of a capture (after -Y, if given). "
                                    "Loss is counted from sequence gaps per (sysid, compid): filter by link, "
                                    "not by message, when loss matters.")

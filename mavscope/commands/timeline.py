@@ -12,7 +12,7 @@ from mavscope.output.tables import fmt, iso
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("timeline", help="clocks per system: capture time vs signatures, SYSTEM_TIME, TIMESYNC, PING",
+    p = sub.add_parser("timeline",
                        description="Compare every clock a capture reveals with capture time: offset, drift and "
                                    "round-trip times.")
     add_analysis_options(p)

@@ -28,7 +28,7 @@ def add_options(p: argparse.ArgumentParser) -> None:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("tui", help="browse a capture in a terminal UI (list, detail tree, hex)",
+    p = sub.add_parser("tui",
                        description="Browse the MAVLink frames of a capture: packet list, detail tree and hex "
                                    "pane, display filter bar, statistics, mission, expert findings, keys. "
                                    "Press ? inside for every key.")

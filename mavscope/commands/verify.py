@@ -23,8 +23,7 @@ SHOWN = 20
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("verify", help="verify the signatures of a capture; exit 1 on invalid, replayed or "
-                                      "injected frames",
+    p = sub.add_parser("verify",
                        description="Check every signed frame against the supplied keys (docs/security.md). "
                                    "Exit status: 0 every check passed, 1 an invalid, replayed or injected "
                                    "unsigned frame, 2 bad usage or an unreadable file.")

@@ -3,7 +3,8 @@
 `Dissector.run(records)` yields, in capture order, every MAVLink frame found (`Frame`) and every
 problem that could not be attached to a frame (`Anomaly`), so nothing the input holds is lost.
 `feed(record)` and `finish()` do the same one record at a time (live capture, the native fast path
-handing records back).
+handing records back); `passed(number, time, index)` is told of records dissected elsewhere (the
+native engine, mavscope/native.py), so that what follows them comes out as if they had been fed.
 """
 
 from __future__ import annotations
@@ -148,6 +149,19 @@ class Dissector:
             yield from self._stream(p) if p.stream is not None else self._datagram(p, 0)
         for key in list(self.streams):
             yield from self._finish(key)
+
+    def passed(self, number: int, time: float | None, index: int | None = None) -> list[Anomaly]:
+        """Records up to `number` were dissected elsewhere (the native engine: clean datagrams and tlog
+        entries, mavscope/native.py): keep the state `feed` would have kept from them. Returns what `feed`
+        would have reported first: a run of tlog text entries held from before them ends here. Frames
+        completed at the end of the capture belong to record `number` and its `time`; `index`, when not
+        None, is the frame index the general scanner would have left (records with a MAVLink 1 frame)."""
+        out = [self._take_text()] if self._text else []
+        self._record = number
+        self._time = time
+        if index is not None:
+            self._index = index
+        return out
 
     def _take_text(self) -> Anomaly:
         record, text_note = self._text.take()

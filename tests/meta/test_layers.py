@@ -42,6 +42,11 @@ LAYERS: tuple[tuple[str, int], ...] = (
     ("mavscope.analysis", 8),
     ("mavscope.browse", 9),
     ("mavscope.output", 10),
+    # The native engine of `read -T jsonl` composes the dissector and the security stage (as
+    # pipeline.session does) and writes output.jsonout's JSON Lines, so it sits with the front ends; the C
+    # extension it wraps reads, dissects and writes in one, and is for the front ends only.
+    ("mavscope.native", 10),
+    ("mavscope._native", 10),
     ("mavscope.cli", 10),
     ("mavscope.commands", 10),
     ("mavscope.tui", 10),

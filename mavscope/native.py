@@ -1,0 +1,362 @@
+"""The native engine of `read -T jsonl`: the optional C extension `mavscope._native` and its Python side.
+
+The C walker reads a capture's records (with pread, never a memory mapping) and writes the JSON Lines of
+every record whose frames are all clean (docs/native.md says exactly which); every other record is
+handed back, in capture order, to the Python pipeline (`Dissector.feed`, then the security stage), whose
+output is the reference. The two paths share their state explicitly: the dissector's
+`mavlink_endpoints` and the security stage's `signed_senders` are the very sets the walker reads before
+each batch and adds to after it, and `Dissector.passed` is told of the records each batch walked.
+
+- `engine(environ)`: "native" or "pure-python" (MAVSCOPE_PURE=1, or no compiled extension: pure).
+- `build_table(dialect)`: the message layouts as the byte string `_native.Table` takes, compiled from
+  mavscope's MessageDef/FieldDef (so from pymavlink's parser), never written by hand.
+- `NativeWalk`: the batch walker over a capture file: `Batch`es of JSON text and handed-back Records.
+- `write_jsonl(...)`: the whole `read -T jsonl` output of a capture, both paths interleaved.
+
+In the layering this module sits with the front ends (output, commands): like `pipeline.session` it
+composes the dissector and the security stage, and it writes the JSON Lines of `output.jsonout`.
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import struct
+import threading
+from collections.abc import Callable, Iterator, Mapping
+from types import ModuleType, TracebackType
+from typing import IO, NamedTuple, Protocol
+
+import orjson
+
+from mavscope.capture.base import Record
+from mavscope.capture.detect import detect_kind
+from mavscope.capture.reader import WINDOW, make_record, open_file
+from mavscope.endpoint import Endpoint
+from mavscope.mavlink.dialect import Dialect, MessageDef
+from mavscope.mavlink.frame import Frame
+from mavscope.notes import note
+from mavscope.output.jsonout import jsonl_bytes
+from mavscope.pipeline.dissect import Anomaly, Dissector
+from mavscope.security.stage import SecurityStage
+
+_native: ModuleType | None
+try:
+    from mavscope import _native  # type: ignore[attr-defined,no-redef]
+except ImportError:  # built without a compiler: the pure-Python path serves
+    _native = None
+
+PURE_ENV = "MAVSCOPE_PURE"
+TABLE_MAGIC = b"MSNT"
+TABLE_VERSION = 1
+BATCH_BYTES = 1 << 20  # JSON text per batch handed to Python
+
+# MavLink wire type -> (native type code, bytes per element); the codes of src/mavscope_native/table.h
+_TYPES: dict[str, tuple[int, int]] = {
+    "uint8_t": (1, 1),
+    "uint8_t_mavlink_version": (1, 1),
+    "int8_t": (2, 1),
+    "uint16_t": (3, 2),
+    "int16_t": (4, 2),
+    "uint32_t": (5, 4),
+    "int32_t": (6, 4),
+    "uint64_t": (7, 8),
+    "int64_t": (8, 8),
+    "float": (9, 4),
+    "double": (10, 8),
+    "char": (11, 1),
+}
+_ARRAY = 0x80
+_KINDS = {"pcap": 1, "pcapng": 2, "tlog": 3, "raw": 4}
+
+
+def native_module() -> ModuleType | None:
+    """The compiled extension, or None when this install has none."""
+    return _native
+
+
+def engine(environ: Mapping[str, str] | None = None) -> str:
+    """Which engine `read -T jsonl` runs: "native", or "pure-python" (no extension, or MAVSCOPE_PURE set)."""
+    env = os.environ if environ is None else environ
+    if _native is None or env.get(PURE_ENV, "") not in ("", "0"):
+        return "pure-python"
+    return "native"
+
+
+def _message_entry(md: MessageDef) -> bytes:
+    """One message of the table: header, name, fields (see table.h for the layout)."""
+    fields: list[bytes] = []
+    offset = 0
+    python_only = False
+    names: set[str] = set()
+    for f in md.fields:
+        code, size = _TYPES[f.type]
+        if f.type == "char":
+            count = max(f.array_length, 1)
+        elif f.array_length:
+            count = f.array_length
+            code |= _ARRAY
+        else:
+            count = 1
+        key = orjson.dumps(f.name) + b":"
+        if count > 255 or offset > 255 or len(key) > 255 or f.name in names:
+            python_only = True  # cannot be described to C (never in a real dialect): Python decodes it
+        names.add(f.name)
+        fields.append(struct.pack("<BBBB", code, count & 0xFF, offset & 0xFF, len(key) & 0xFF) + key)
+        offset += size * count
+    if offset != md.length or md.length > 255:
+        python_only = True
+    if python_only:
+        fields = []
+    name = orjson.dumps(md.name)
+    head = struct.pack("<IBBBBHH", md.id, md.crc_extra, md.length & 0xFF, min(md.base_length, md.length) & 0xFF,
+                       int(python_only), len(fields), len(name))
+    return head + name + b"".join(fields)
+
+
+def build_table(dialect: Dialect) -> bytes:
+    """The layouts of every message of `dialect` as the native table blob (wire order, padded offsets)."""
+    entries = [_message_entry(md) for md in sorted(dialect.messages.values(), key=lambda m: m.id)]
+    return TABLE_MAGIC + struct.pack("<II", TABLE_VERSION, len(entries)) + b"".join(entries)
+
+
+_table: list[tuple[Dialect, object]] = []  # the last Dialect compiled and its table (a command loads one)
+
+
+def table_for(dialect: Dialect) -> object:
+    """The compiled `_native.Table` of `dialect`, built once for the Dialect object last asked for."""
+    if _native is None:
+        raise RuntimeError("mavscope._native is not built")
+    if not _table or _table[0][0] is not dialect:
+        _table[:] = [(dialect, _native.Table(build_table(dialect)))]
+    return _table[0][1]
+
+
+# what _native.Walker.next hands back for a record: (number, time, linktype, data, offset, orig_len,
+# notes as (code, message, offset))
+HandedBack = tuple[int, float | None, int, bytes, int, int, tuple[tuple[str, str, int], ...]]
+# (number, time, index) of the last record a batch walked natively: what Dissector.passed is told
+Walked = tuple[int, float | None, int | None]
+
+
+def _record(seg: HandedBack) -> Record:
+    """A handed-back record description as the Record the Python readers would have yielded."""
+    number, time, linktype, data, offset, orig_len, notes = seg
+    return make_record(number, time, linktype, data, offset, orig_len,
+                       tuple(note(code, message, off) for code, message, off in notes))
+
+
+class Batch(NamedTuple):
+    """One step of the walk, in capture order: records walked natively (the last of them `walked`, their
+    JSON Lines `text`), then at most one record handed back to the Python pipeline."""
+
+    walked: Walked | None
+    text: bytes | bytearray | None
+    record: Record | None
+
+
+class NativeWalk:
+    """A capture file walked in C: `Batch`es of finished JSON Lines and Records handed back for Python.
+
+    The file is opened here (CaptureError as the readers raise it) and read by the walker with pread, a
+    `window` of bytes at a time as the Python readers read it (the tests make it small).
+    `endpoints` and `signed_senders` are the Python sets both paths share (the dissector's
+    `mavlink_endpoints` and the security stage's `signed_senders`). `signed_nokey()` is asked before
+    each batch whether signed frames may be written natively (no signing key configured: `no-key`).
+    The walker stops after each handed-back record, so what Python does with it (keys learnt, senders
+    seen signing) holds for the records after it.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], dialect: Dialect, endpoints: set[Endpoint],
+                 signed_senders: set[tuple[int, int]], kind: str | None = None, window: int = WINDOW) -> None:
+        if _native is None:
+            raise RuntimeError("mavscope._native is not built")
+        self.kind = kind or detect_kind(path)
+        self.path, self._file, self.opened_size = open_file(path)
+        try:
+            self.walker = _native.Walker(self._file.fileno(), self.opened_size, _KINDS[self.kind],
+                                         table_for(dialect), endpoints, Endpoint.from_packed, signed_senders,
+                                         window)
+        except BaseException:
+            self._file.close()
+            raise
+
+    def batches(self, signed_nokey: Callable[[], bool] = lambda: False, limit: int = BATCH_BYTES,
+                buffers: Callable[[], bytearray | None] | None = None) -> Iterator[Batch]:
+        """The walk, batch by batch.
+
+        The text comes as bytes, or, with `buffers`, in the bytearray it returns for each batch (the
+        caller recycles them once written: their memory stays mapped, where a new 1 MiB bytes object
+        costs fresh pages every batch).
+        """
+        walk = self.walker.next
+        walked = self.walker.walked
+        spare: bytearray | None = None  # a buffer a batch without text did not use: the next one takes it
+        told: Walked | None = None
+        while True:
+            buf = spare if spare is not None else (buffers() if buffers is not None else None)
+            segs = walk(signed_nokey(), limit, buf)
+            if segs is None:
+                # records at the end that gave no text (a UDP datagram without payload): the
+                # dissector must still hear of them, as stream frames the capture's end completes
+                # belong to its last record
+                last = walked()
+                if last is not None and last != told:
+                    yield Batch(last, None, None)
+                return
+            text: bytes | bytearray | None = None
+            record: Record | None = None
+            for seg in segs:
+                if type(seg) is tuple:
+                    record = _record(seg)
+                else:
+                    text = seg
+            spare = buf if buf is not None and text is not buf else None
+            told = walked()
+            yield Batch(told, text, record)
+
+    @property
+    def position(self) -> int:
+        """The file offset the walk has reached (for a progress bar)."""
+        return int(self.walker.stats()["position"])
+
+    @property
+    def size(self) -> int:
+        """The file size: smaller than when opened if the file shrank while it was read."""
+        return int(self.walker.stats()["size"])
+
+    def stats(self) -> dict[str, int]:
+        """Records written natively, records handed back, frames written natively, file position and size."""
+        out: dict[str, int] = self.walker.stats()
+        return out
+
+    def close(self) -> None:
+        self.walker.close()
+        self._file.close()
+
+    def __enter__(self) -> NativeWalk:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+
+class _Writer:
+    """Writes byte chunks to `out` on a thread of its own, in the order they are put.
+
+    The walk runs in C without the GIL, and a write(2) to a file releases it too: with two cores the
+    JSON text of the next batch is made while the last one is copied to the file. The walker's batches
+    come in bytearrays of a small pool (`buffer()`), given back once written, so the process does not
+    map fresh memory for every batch; the pool's size bounds what waits to be written. An error of `out`
+    (a closed pipe) is raised again in the producing thread by `put`, `buffer` or `close`.
+    """
+
+    def __init__(self, out: IO[bytes], depth: int = 8) -> None:
+        self.out = out
+        self.queue: queue.Queue[bytes | bytearray | None] = queue.Queue()
+        self.free: queue.Queue[bytearray] = queue.Queue()
+        for _ in range(depth):
+            self.free.put(bytearray())
+        self.error: BaseException | None = None
+        self.thread = threading.Thread(target=self._run, name="mavscope-jsonl-writer", daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        write = self.out.write
+        get = self.queue.get
+        while True:
+            chunk = get()
+            if chunk is None:
+                return
+            if self.error is None:
+                try:
+                    write(chunk)
+                except BaseException as exc:  # noqa: BLE001 - handed to the producing thread
+                    self.error = exc
+            if type(chunk) is bytearray:
+                self.free.put(chunk)
+
+    def buffer(self) -> bytearray:
+        """A bytearray for the next batch (waits while every one is queued for writing)."""
+        if self.error is not None:
+            raise self.error
+        return self.free.get()
+
+    def put(self, chunk: bytes | bytearray) -> None:
+        if self.error is not None:
+            raise self.error
+        self.queue.put(chunk)
+
+    def close(self) -> None:
+        """Wait until everything put is written; raise the writing error if there was one."""
+        self.queue.put(None)
+        self.thread.join()
+        if self.error is not None:
+            raise self.error
+
+
+class Reporter(Protocol):
+    """Where problems go (commands.common.Problems): anomalies, and frames whose notes tell of damage."""
+
+    def anomaly(self, item: Anomaly) -> None: ...
+
+    def frame(self, frame: Frame) -> None: ...
+
+
+def write_jsonl(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityStage, out: IO[bytes],
+                problems: Reporter, threaded: bool = True, progress: Callable[[int], None] | None = None,
+                kind: str | None = None, window: int = WINDOW) -> dict[str, int]:
+    """`read -T jsonl` of a whole capture: native JSON text and, for handed-back records, the Python
+    pipeline (dissector, security stage, jsonl_bytes) in between, in capture order. Anomalies and the
+    frames with notes go to `problems`, as the pure path reports them. With `threaded` the writing to
+    `out` happens on a thread of its own (_Writer); `progress` is called with the file offset reached
+    after each native batch; `window` is the walker's read size. Returns the walk's counters, `frames`
+    (every frame written) and `size`."""
+    dissector = Dissector(dialect)
+    writer = _Writer(out) if threaded else None
+    put = writer.put if writer is not None else out.write
+    if writer is not None:
+        buffers = writer.buffer
+    else:
+        only = bytearray()  # written before the next batch: one serves
+        buffers = lambda: only  # noqa: E731
+    nokey: Callable[[], bool] = lambda: not stage.check_signatures  # noqa: E731 - asked per batch
+    run = stage.run
+    passed = dissector.passed
+    frames = 0
+
+    def python(items: Iterator[Frame | Anomaly] | list[Frame | Anomaly] | list[Anomaly]) -> None:
+        nonlocal frames
+        lines: list[bytes] = []
+        for item in run(items):
+            if type(item) is Anomaly:
+                problems.anomaly(item)
+                continue
+            if item.notes:
+                problems.frame(item)
+            lines.append(jsonl_bytes(item))
+        if lines:
+            frames += len(lines)
+            put(b"".join(lines))
+
+    try:
+        with NativeWalk(path, dialect, dissector.mavlink_endpoints, stage.signed_senders, kind, window) as walk:
+            for walked, text, record in walk.batches(nokey, buffers=buffers):
+                if walked is not None:
+                    held = passed(*walked)  # a run of tlog text entries ends before these records
+                    if held:
+                        python(held)
+                if text is not None:
+                    put(text)
+                    if progress is not None:
+                        progress(walk.position)
+                if record is not None:
+                    python(dissector.feed(record))
+            stats = walk.stats()
+        python(dissector.finish())
+    finally:
+        if writer is not None:
+            writer.close()
+    stats["frames"] = frames + stats["frames_native"]
+    return stats

@@ -1,0 +1,503 @@
+/* mavscope._native: the CPython face of the native core (see mavscope/native.py for the Python side).
+ *
+ *   Table(blob: bytes)                  the message layouts, compiled by mavscope.native from a Dialect
+ *   Walker(fd: int, size: int, kind: int, table, endpoints: set, endpoint: Callable[[bytes, int], object],
+ *          signed_senders: set[tuple[int, int]], window: int = 1 << 20)
+ *     .next(signed_nokey: bool, limit: int = 1 << 20, into: bytearray | None = None)
+ *         -> list[bytes | bytearray | tuple] | None
+ *     .walked() -> tuple[int, float | None, int | None] | None
+ *     .stats() -> dict[str, int]
+ *     .close()
+ *   format_double(x) -> bytes, text_json(b) -> bytes   (the JSON formatting, for the tests)
+ *
+ * The walker reads the file with pread(2) on `fd` (never a memory mapping: a file truncated while it is
+ * read ends with a note, see capture.h); the caller owns the descriptor and keeps it open while the
+ * walker lives. The walk itself runs without the GIL; the two Python sets are read before and updated
+ * after it (a new source of valid MAVLink goes into `endpoints` as endpoint(packed address, port)). */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+
+#include "buf.h"
+#include "capture.h"
+#include "fmt.h"
+#include "netlayers.h"
+#include "table.h"
+#include "walk.h"
+
+/* ---- Table -------------------------------------------------------------------------------- */
+
+typedef struct {
+    PyObject_HEAD
+    ms_table table;
+    int ok;
+} TableObject;
+
+static void Table_dealloc(TableObject *self) {
+    ms_table_free(&self->table);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static int Table_init(TableObject *self, PyObject *args, PyObject *kwds) {
+    static char *kwlist[] = {"blob", NULL};
+    Py_buffer blob;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "y*", kwlist, &blob))
+        return -1;
+    if (self->ok) {
+        ms_table_free(&self->table);
+        self->ok = 0;
+    }
+    int r = ms_table_parse(&self->table, (const uint8_t *)blob.buf, (size_t)blob.len);
+    PyBuffer_Release(&blob);
+    if (r != 0) {
+        PyErr_SetString(PyExc_ValueError, "malformed message table");
+        return -1;
+    }
+    self->ok = 1;
+    return 0;
+}
+
+static PyObject *Table_len(TableObject *self, PyObject *Py_UNUSED(ignored)) {
+    return PyLong_FromSize_t(self->table.count);
+}
+
+static PyMethodDef Table_methods[] = {
+    {"count", (PyCFunction)Table_len, METH_NOARGS, "number of messages in the table"},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject TableType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "mavscope._native.Table",
+    .tp_basicsize = sizeof(TableObject),
+    .tp_dealloc = (destructor)Table_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "Message layouts for the native walker (built by mavscope.native.build_table).",
+    .tp_methods = Table_methods,
+    .tp_init = (initproc)Table_init,
+    .tp_new = PyType_GenericNew,
+};
+
+/* ---- Walker ------------------------------------------------------------------------------- */
+
+typedef struct {
+    PyObject_HEAD
+    ms_walker walker;
+    int fd;              /* the capture file, owned by the caller */
+    int have_walker;
+    int ended;
+    int busy;
+    PyObject *table;     /* TableObject, kept alive while the walker points into it */
+    PyObject *endpoints; /* the Dissector's mavlink_endpoints */
+    PyObject *endpoint;  /* endpoint(packed: bytes, port: int) -> an element of `endpoints` */
+    PyObject *senders;   /* set[tuple[int, int]] */
+    ms_buf out;
+} WalkerObject;
+
+static void Walker_release(WalkerObject *self) {
+    if (self->have_walker) {
+        ms_walker_free(&self->walker);
+        self->have_walker = 0;
+    }
+    ms_buf_free(&self->out);
+    self->ended = 1;
+}
+
+static void Walker_dealloc(WalkerObject *self) {
+    Walker_release(self);
+    Py_XDECREF(self->table);
+    Py_XDECREF(self->endpoints);
+    Py_XDECREF(self->endpoint);
+    Py_XDECREF(self->senders);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
+    static char *kwlist[] = {"fd", "size", "kind", "table", "endpoints", "endpoint", "signed_senders", "window",
+                             NULL};
+    PyObject *table, *endpoints, *endpoint, *senders;
+    int fd, kind;
+    unsigned long long size;
+    Py_ssize_t window = MS_WINDOW;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|n", kwlist, &fd, &size, &kind, &TableType, &table,
+                                     &PySet_Type, &endpoints, &endpoint, &PySet_Type, &senders, &window))
+        return -1;
+    if (window < 64) { /* a resynchronisation scan looks at whole headers within one window */
+        PyErr_SetString(PyExc_ValueError, "window must be at least 64 bytes");
+        return -1;
+    }
+    if (kind < MS_KIND_PCAP || kind > MS_KIND_RAW) {
+        PyErr_SetString(PyExc_ValueError, "unknown capture kind");
+        return -1;
+    }
+    if (fd < 0) {
+        PyErr_SetString(PyExc_ValueError, "fd must be an open file descriptor");
+        return -1;
+    }
+    if (!PyCallable_Check(endpoint)) {
+        PyErr_SetString(PyExc_TypeError, "endpoint must be callable");
+        return -1;
+    }
+    if (self->have_walker) {
+        PyErr_SetString(PyExc_RuntimeError, "Walker already initialised");
+        return -1;
+    }
+    self->fd = fd;
+    Py_INCREF(table);
+    self->table = table;
+    Py_INCREF(endpoints);
+    self->endpoints = endpoints;
+    Py_INCREF(endpoint);
+    self->endpoint = endpoint;
+    Py_INCREF(senders);
+    self->senders = senders;
+    ms_buf_init(&self->out);
+    ms_walker_init(&self->walker, ms_fd_source(&self->fd), (uint64_t)size, kind, &((TableObject *)table)->table);
+    self->walker.reader.window = (size_t)window; /* bytes read at a time: the tests make it small */
+    self->have_walker = 1;
+    self->ended = 0;
+    return 0;
+}
+
+/* The record's time as a Python float (or None), exactly as the Python readers compute it. */
+static PyObject *record_time(const ms_record *rec) {
+    double t;
+    int r = ms_record_time(rec, &t);
+    if (r == 0)
+        Py_RETURN_NONE;
+    if (r > 0)
+        return PyFloat_FromDouble(t);
+    /* pcapng units beyond 2**64: ticks / (base ** exp) + tsoffset with Python ints */
+    PyObject *ticks = PyLong_FromUnsignedLongLong(rec->ticks);
+    PyObject *base = PyLong_FromLong(rec->units_pow2 ? 2 : 10);
+    PyObject *exp = PyLong_FromLong(rec->units_exp);
+    PyObject *off = PyLong_FromLongLong(rec->tsoffset);
+    PyObject *units = NULL, *q = NULL, *res = NULL;
+    if (ticks && base && exp && off && (units = PyNumber_Power(base, exp, Py_None)) != NULL &&
+        (q = PyNumber_TrueDivide(ticks, units)) != NULL)
+        res = PyNumber_Add(q, off);
+    Py_XDECREF(ticks);
+    Py_XDECREF(base);
+    Py_XDECREF(exp);
+    Py_XDECREF(off);
+    Py_XDECREF(units);
+    Py_XDECREF(q);
+    return res;
+}
+
+#define CALENDAR_END 253402300800.0
+
+/* The time-out-of-range note of a record whose time C could not compute (MS_NOTE_TIME_CHECK): the text of
+ * capture/pcapng.py _time_note, or Py_None when the time is in range. */
+static PyObject *time_note(const ms_record *rec, PyObject *time, const char *iface, Py_ssize_t iface_len,
+                           int64_t offset) {
+    double t = PyFloat_AsDouble(time);
+    if (t == -1.0 && PyErr_Occurred())
+        return NULL;
+    if (0.0 <= t && t < CALENDAR_END)
+        Py_RETURN_NONE;
+    PyObject *spec = PyUnicode_FromString(".6g");
+    PyObject *shown = spec ? PyObject_Format(time, spec) : NULL;
+    PyObject *base = PyLong_FromLong(rec->units_pow2 ? 2 : 10);
+    PyObject *exp = PyLong_FromLong(rec->units_exp);
+    PyObject *which = PyUnicode_FromStringAndSize(iface, iface_len);
+    PyObject *units = NULL, *text = NULL, *res = NULL;
+    if (shown && base && exp && which && (units = PyNumber_Power(base, exp, Py_None)) != NULL)
+        text = PyUnicode_FromFormat("packet time %U s since 1970 (interface %U: if_tsoffset %lld s, %S ticks/s)",
+                                    shown, which, (long long)rec->tsoffset, units);
+    if (text != NULL)
+        res = Py_BuildValue("(sNL)", "time-out-of-range", text, (long long)offset);
+    Py_XDECREF(shown);
+    Py_XDECREF(which);
+    Py_XDECREF(spec);
+    Py_XDECREF(base);
+    Py_XDECREF(exp);
+    Py_XDECREF(units);
+    return res;
+}
+
+static PyObject *handback_tuple(const ms_record *rec) {
+    PyObject *time = record_time(rec);
+    if (time == NULL)
+        return NULL;
+    const ms_notes *ns = rec->notes;
+    PyObject *notes = PyList_New(0);
+    if (notes == NULL) {
+        Py_DECREF(time);
+        return NULL;
+    }
+    for (size_t i = 0; ns && i < ns->n; i++) {
+        const ms_note *n = &ns->v[i];
+        const char *msg = ns->text.data + n->msg_off;
+        PyObject *item;
+        if (n->code == MS_NOTE_TIME_CHECK)
+            item = time_note(rec, time, msg, (Py_ssize_t)n->msg_len, n->offset);
+        else
+            item = Py_BuildValue("(ss#L)", ms_note_code_name(n->code), msg, (Py_ssize_t)n->msg_len,
+                                 (long long)n->offset);
+        if (item == NULL || (item != Py_None && PyList_Append(notes, item) != 0)) {
+            Py_XDECREF(item);
+            Py_DECREF(notes);
+            Py_DECREF(time);
+            return NULL;
+        }
+        Py_DECREF(item);
+    }
+    PyObject *data = PyBytes_FromStringAndSize((const char *)rec->data, (Py_ssize_t)rec->len);
+    PyObject *tnotes = PyList_AsTuple(notes);
+    Py_DECREF(notes);
+    if (data == NULL || tnotes == NULL) {
+        Py_XDECREF(data);
+        Py_XDECREF(tnotes);
+        Py_DECREF(time);
+        return NULL;
+    }
+    return Py_BuildValue("(KNLNKKN)", (unsigned long long)rec->number, time, (long long)rec->linktype, data,
+                         (unsigned long long)rec->offset, (unsigned long long)rec->orig_len, tnotes);
+}
+
+/* Load the bitmap of senders seen signing from the Python set (items other than two ints 0..255 are
+ * ignored: the security stage only stores (sysid, compid)). */
+static int load_signers(WalkerObject *self) {
+    memset(self->walker.signers, 0, sizeof self->walker.signers);
+    PyObject *it = PyObject_GetIter(self->senders);
+    if (it == NULL)
+        return -1;
+    PyObject *key;
+    while ((key = PyIter_Next(it)) != NULL) {
+        if (PyTuple_Check(key) && PyTuple_GET_SIZE(key) == 2) {
+            long a = PyLong_AsLong(PyTuple_GET_ITEM(key, 0));
+            long b = PyLong_AsLong(PyTuple_GET_ITEM(key, 1));
+            if (PyErr_Occurred())
+                PyErr_Clear();
+            else if (a >= 0 && a <= 255 && b >= 0 && b <= 255)
+                ms_signer_set(&self->walker, (unsigned)((a << 8) | b));
+        }
+        Py_DECREF(key);
+    }
+    Py_DECREF(it);
+    return PyErr_Occurred() ? -1 : 0;
+}
+
+/* Push what the batch added into the Python sets. */
+static int push_state(WalkerObject *self) {
+    ms_walker *w = &self->walker;
+    for (size_t i = 0; i < w->n_new_signers; i++) {
+        PyObject *t = Py_BuildValue("(ii)", w->new_signers[i] >> 8, w->new_signers[i] & 0xFF);
+        if (t == NULL || PySet_Add(self->senders, t) != 0) {
+            Py_XDECREF(t);
+            return -1;
+        }
+        Py_DECREF(t);
+    }
+    w->n_new_signers = 0;
+    for (size_t i = 0; i < w->n_new_endpoints; i++) {
+        const ms_endpoint *e = &w->new_endpoints[i];
+        PyObject *ep = PyObject_CallFunction(self->endpoint, "y#i", (const char *)e->addr, (Py_ssize_t)(e->v6 ? 16 : 4),
+                                             (int)e->port);
+        if (ep == NULL || PySet_Add(self->endpoints, ep) != 0) {
+            Py_XDECREF(ep);
+            return -1;
+        }
+        Py_DECREF(ep);
+    }
+    w->n_new_endpoints = 0;
+    return 0;
+}
+
+static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds) {
+    static char *kwlist[] = {"signed_nokey", "limit", "into", NULL};
+    int nokey = 0;
+    Py_ssize_t limit = 1 << 20;
+    PyObject *into = Py_None;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "|pnO", kwlist, &nokey, &limit, &into))
+        return NULL;
+    if (into != Py_None && !PyByteArray_CheckExact(into)) {
+        PyErr_SetString(PyExc_TypeError, "into must be a bytearray or None");
+        return NULL;
+    }
+    if (self->busy) {
+        PyErr_SetString(PyExc_RuntimeError, "Walker.next is already running");
+        return NULL;
+    }
+    if (self->ended || !self->have_walker)
+        Py_RETURN_NONE;
+    if (limit < 1)
+        limit = 1;
+    if (load_signers(self) != 0)
+        return NULL;
+    self->walker.sign_mode = nokey ? MS_SIGNED_NOKEY : MS_SIGNED_HANDBACK;
+    self->out.len = 0;
+    ms_record rec;
+    int r;
+    self->busy = 1;
+    Py_BEGIN_ALLOW_THREADS
+    r = ms_walk(&self->walker, &self->out, (size_t)limit, &rec);
+    Py_END_ALLOW_THREADS
+    self->busy = 0;
+    if (r == MS_WALK_NOMEM) {
+        Walker_release(self);
+        return PyErr_NoMemory();
+    }
+    if (push_state(self) != 0)
+        return NULL;
+    PyObject *list = PyList_New(0);
+    if (list == NULL)
+        return NULL;
+    if (self->out.len) {
+        /* into a bytearray the caller recycles (its memory stays mapped: no fresh pages per batch), or
+         * a new bytes object */
+        PyObject *chunk;
+        if (into != Py_None) {
+            chunk = into;
+            Py_INCREF(chunk);
+            if (PyByteArray_Resize(chunk, (Py_ssize_t)self->out.len) != 0) {
+                Py_DECREF(chunk);
+                Py_DECREF(list);
+                return NULL;
+            }
+            memcpy(PyByteArray_AS_STRING(chunk), self->out.data, self->out.len);
+        } else {
+            chunk = PyBytes_FromStringAndSize(self->out.data, (Py_ssize_t)self->out.len);
+        }
+        if (chunk == NULL || PyList_Append(list, chunk) != 0) {
+            Py_XDECREF(chunk);
+            Py_DECREF(list);
+            return NULL;
+        }
+        Py_DECREF(chunk);
+    }
+    if (r == MS_WALK_HANDBACK) {
+        PyObject *t = handback_tuple(&rec);
+        if (t == NULL || PyList_Append(list, t) != 0) {
+            Py_XDECREF(t);
+            Py_DECREF(list);
+            return NULL;
+        }
+        Py_DECREF(t);
+    } else if (r == MS_WALK_END) {
+        self->ended = 1;
+        if (PyList_GET_SIZE(list) == 0) {
+            Py_DECREF(list);
+            Py_RETURN_NONE;
+        }
+    }
+    if (self->out.cap > (8u << 20)) /* do not keep a huge buffer after one long line */
+        ms_buf_free(&self->out);
+    return list;
+}
+
+static PyObject *Walker_walked(WalkerObject *self, PyObject *Py_UNUSED(ignored)) {
+    if (!self->have_walker || self->walker.n_walked == 0)
+        Py_RETURN_NONE;
+    PyObject *time = record_time(&self->walker.walked);
+    if (time == NULL)
+        return NULL;
+    if (self->walker.py_index < 0)
+        return Py_BuildValue("(KNO)", (unsigned long long)self->walker.walked.number, time, Py_None);
+    return Py_BuildValue("(KNL)", (unsigned long long)self->walker.walked.number, time,
+                         (long long)self->walker.py_index);
+}
+
+static PyObject *Walker_close(WalkerObject *self, PyObject *Py_UNUSED(ignored)) {
+    if (self->busy) {
+        PyErr_SetString(PyExc_RuntimeError, "Walker.next is running");
+        return NULL;
+    }
+    Walker_release(self);
+    Py_RETURN_NONE;
+}
+
+static PyObject *Walker_stats(WalkerObject *self, PyObject *Py_UNUSED(ignored)) {
+    const ms_walker *w = &self->walker;
+    return Py_BuildValue("{sKsKsKsKsK}", "records_native", (unsigned long long)w->records_native,
+                         "records_handed_back", (unsigned long long)w->records_handed_back, "frames_native",
+                         (unsigned long long)w->frames_native, "position",
+                         (unsigned long long)(self->have_walker ? w->reader.position : 0), "size",
+                         (unsigned long long)(self->have_walker ? w->reader.size : 0));
+}
+
+static PyMethodDef Walker_methods[] = {
+    {"next", (PyCFunction)(void (*)(void))Walker_next, METH_VARARGS | METH_KEYWORDS,
+     "next(signed_nokey=False, limit=1<<20, into=None): the next segments (JSON lines as bytes, or in "
+     "the bytearray `into`; a handed-back record tuple, which always comes last), or None at the end"},
+    {"walked", (PyCFunction)Walker_walked, METH_NOARGS,
+     "(number, time, index) of the last record the last next() walked natively (before a handed-back one), "
+     "or None when it walked none; index: the frame index Python's dissector would hold after them, or None "
+     "when they leave it unchanged"},
+    {"stats", (PyCFunction)Walker_stats, METH_NOARGS,
+     "counters of the walk, the file position reached and the file size (smaller if the file shrank)"},
+    {"close", (PyCFunction)Walker_close, METH_NOARGS, "release the walker's memory (the caller closes the file)"},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject WalkerType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "mavscope._native.Walker",
+    .tp_basicsize = sizeof(WalkerObject),
+    .tp_dealloc = (destructor)Walker_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "Walks a capture file, writing JSON Lines and handing records back.",
+    .tp_methods = Walker_methods,
+    .tp_init = (initproc)Walker_init,
+    .tp_new = PyType_GenericNew,
+};
+
+/* ---- module functions (tests) ------------------------------------------------------------- */
+
+static PyObject *format_double(PyObject *Py_UNUSED(mod), PyObject *arg) {
+    double v = PyFloat_AsDouble(arg);
+    if (v == -1.0 && PyErr_Occurred())
+        return NULL;
+    char out[MS_DOUBLE_MAX];
+    int n = ms_fmt_double(v, out);
+    return PyBytes_FromStringAndSize(out, n);
+}
+
+static PyObject *text_json(PyObject *Py_UNUSED(mod), PyObject *arg) {
+    Py_buffer b;
+    if (PyObject_GetBuffer(arg, &b, PyBUF_SIMPLE) != 0)
+        return NULL;
+    ms_buf out;
+    ms_buf_init(&out);
+    ms_put_text(&out, (const uint8_t *)b.buf, (size_t)b.len);
+    PyBuffer_Release(&b);
+    if (out.failed) {
+        ms_buf_free(&out);
+        return PyErr_NoMemory();
+    }
+    PyObject *res = PyBytes_FromStringAndSize(out.data ? out.data : "", (Py_ssize_t)out.len);
+    ms_buf_free(&out);
+    return res;
+}
+
+static PyMethodDef module_methods[] = {
+    {"format_double", format_double, METH_O, "JSON text of a float, as the native writer makes it"},
+    {"text_json", text_json, METH_O, "JSON string of bytes decoded as UTF-8 with backslashreplace"},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef native_module = {
+    PyModuleDef_HEAD_INIT, "mavscope._native", "The native fast path of mavscope (docs/native.md).", -1,
+    module_methods, NULL, NULL, NULL, NULL,
+};
+
+PyMODINIT_FUNC PyInit__native(void) {
+    if (PyType_Ready(&TableType) < 0 || PyType_Ready(&WalkerType) < 0)
+        return NULL;
+    PyObject *m = PyModule_Create(&native_module);
+    if (m == NULL)
+        return NULL;
+    Py_INCREF(&TableType);
+    Py_INCREF(&WalkerType);
+    if (PyModule_AddObject(m, "Table", (PyObject *)&TableType) < 0 ||
+        PyModule_AddObject(m, "Walker", (PyObject *)&WalkerType) < 0 ||
+        PyModule_AddIntConstant(m, "KIND_PCAP", MS_KIND_PCAP) < 0 ||
+        PyModule_AddIntConstant(m, "KIND_PCAPNG", MS_KIND_PCAPNG) < 0 ||
+        PyModule_AddIntConstant(m, "KIND_TLOG", MS_KIND_TLOG) < 0 ||
+        PyModule_AddIntConstant(m, "KIND_RAW", MS_KIND_RAW) < 0 ||
+        PyModule_AddIntConstant(m, "TABLE_VERSION", 1) < 0) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    return m;
+}

@@ -1,0 +1,30 @@
+/* Link, IP and UDP headers, as mavscope/transport/{link,ip}.py and Decapsulator._decode read them.
+ *
+ * ms_net_decode tells, for one packet record without reader notes, what the Python transport layer
+ * would make of it: nothing at all (not IP, not UDP/TCP), one UDP payload with no note, or something
+ * only Python handles (TCP with its reassembly state, malformed headers and fragments with their
+ * notes, unknown link types): MS_NET_HANDBACK. */
+#ifndef MAVSCOPE_NATIVE_NETLAYERS_H
+#define MAVSCOPE_NATIVE_NETLAYERS_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+enum { MS_NET_SILENT = 0, MS_NET_UDP = 1, MS_NET_HANDBACK = 2 };
+
+typedef struct {
+    size_t start; /* payload: data[start .. start + len) */
+    size_t len;
+    int v6;
+    uint8_t src[16], dst[16]; /* IPv4 uses the first 4 bytes */
+    uint16_t sport, dport;
+} ms_udp;
+
+int ms_net_decode(int64_t linktype, const uint8_t *data, size_t n, ms_udp *out);
+
+/* "a.b.c.d:port" or "[v6]:port" as mavscope/transport/ip.py Endpoints names it; returns the length
+ * (room for MS_ENDPOINT_MAX bytes). */
+#define MS_ENDPOINT_MAX 64
+int ms_fmt_endpoint(int v6, const uint8_t *addr, uint16_t port, char *out);
+
+#endif

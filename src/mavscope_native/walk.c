@@ -1,0 +1,399 @@
+#include "walk.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "decode.h"
+#include "fmt.h"
+#include "mavlink.h"
+#include "netlayers.h"
+
+#define SETUP_SIGNING 256
+#define KEY_EXCHANGE 65100
+#define SEEN_MAX 65536 /* endpoints remembered as reported; past that the memory starts over */
+
+int ms_walker_init(ms_walker *w, ms_source src, uint64_t size, int kind, const ms_table *table) {
+    memset(w, 0, sizeof *w);
+    ms_reader_init(&w->reader, src, size, kind);
+    w->table = table;
+    w->sign_mode = MS_SIGNED_HANDBACK;
+    w->py_index = -1;
+    return 0;
+}
+
+void ms_walker_free(ms_walker *w) {
+    ms_reader_free(&w->reader);
+    free(w->new_signers);
+    free(w->new_endpoints);
+    free(w->seen);
+    free(w->seen_used);
+    free(w->frames);
+    free(w->tentative);
+    memset(w, 0, sizeof *w);
+}
+
+static int grow(void **v, size_t *cap, size_t need, size_t item) {
+    if (need <= *cap)
+        return 0;
+    size_t c = *cap ? *cap : 16;
+    while (c < need)
+        c *= 2;
+    void *p = realloc(*v, c * item);
+    if (p == NULL)
+        return -1;
+    *v = p;
+    *cap = c;
+    return 0;
+}
+
+static uint32_t endpoint_hash(const ms_endpoint *e) {
+    uint32_t h = 2166136261u;
+    for (int i = 0; i < 16; i++)
+        h = (h ^ e->addr[i]) * 16777619u;
+    h = (h ^ e->port) * 16777619u;
+    return (h ^ e->v6) * 16777619u;
+}
+
+/* Record `e` as a source of valid MAVLink unless it was reported already. */
+static int note_endpoint(ms_walker *w, const ms_endpoint *e) {
+    if (w->have_last_noted && memcmp(&w->last_noted, e, sizeof *e) == 0)
+        return 0;
+    w->last_noted = *e;
+    w->have_last_noted = 1;
+    if (w->capseen == 0 || w->nseen * 2 >= w->capseen) {
+        if (w->capseen >= 2 * SEEN_MAX) {
+            memset(w->seen_used, 0, w->capseen); /* start over: re-adding to a Python set is harmless */
+            w->nseen = 0;
+        } else {
+            size_t cap = w->capseen ? 2 * w->capseen : 256;
+            ms_endpoint *seen = calloc(cap, sizeof *seen);
+            uint8_t *used = calloc(cap, 1);
+            if (seen == NULL || used == NULL) {
+                free(seen);
+                free(used);
+                return -1;
+            }
+            for (size_t i = 0; i < w->capseen; i++) {
+                if (!w->seen_used[i])
+                    continue;
+                size_t j = endpoint_hash(&w->seen[i]) & (cap - 1);
+                while (used[j])
+                    j = (j + 1) & (cap - 1);
+                seen[j] = w->seen[i];
+                used[j] = 1;
+            }
+            free(w->seen);
+            free(w->seen_used);
+            w->seen = seen;
+            w->seen_used = used;
+            w->capseen = cap;
+        }
+    }
+    size_t j = endpoint_hash(e) & (w->capseen - 1);
+    while (w->seen_used[j]) {
+        if (memcmp(&w->seen[j], e, sizeof *e) == 0)
+            return 0;
+        j = (j + 1) & (w->capseen - 1);
+    }
+    if (grow((void **)&w->new_endpoints, &w->cap_new_endpoints, w->n_new_endpoints + 1, sizeof *e) != 0)
+        return -1;
+    w->seen[j] = *e;
+    w->seen_used[j] = 1;
+    w->nseen++;
+    w->new_endpoints[w->n_new_endpoints++] = *e;
+    return 0;
+}
+
+/* The "ip:port" text of an endpoint, from a two-entry cache (a flow and its reverse). */
+static const char *endpoint_text(ms_walker *w, int v6, const uint8_t *addr, uint16_t port, int *len) {
+    ms_endpoint e;
+    memset(&e, 0, sizeof e);
+    e.v6 = (uint8_t)v6;
+    memcpy(e.addr, addr, v6 ? 16 : 4);
+    e.port = port;
+    for (int i = 0; i < 2; i++) {
+        if (w->text_len[i] && memcmp(&w->text_key[i], &e, sizeof e) == 0) {
+            *len = w->text_len[i];
+            return w->text[i];
+        }
+    }
+    /* replace the older entry: keep [0] the most recent */
+    w->text_key[1] = w->text_key[0];
+    memcpy(w->text[1], w->text[0], sizeof w->text[0]);
+    w->text_len[1] = w->text_len[0];
+    w->text_key[0] = e;
+    w->text_len[0] = ms_fmt_endpoint(v6, addr, port, w->text[0]);
+    *len = w->text_len[0];
+    return w->text[0];
+}
+
+enum { CLEAN = 1, NOT_CLEAN = 0, NOMEM = -1 };
+
+/* Whether d[0..n) is a run of frames the native path writes; their (position, size) in w->frames. */
+static int scan_clean(ms_walker *w, const uint8_t *d, size_t n, size_t *count, size_t *nsigners) {
+    size_t k = 0, t = 0, pos = 0;
+    while (pos < n) {
+        const size_t left = n - pos;
+        const uint8_t *f = d + pos;
+        const ms_message *m;
+        size_t size, hlen, len;
+        unsigned sender;
+        int is_signed = 0;
+        if (f[0] == MS_STX_V2) {
+            if (left < 12)
+                return NOT_CLEAN;
+            len = f[1];
+            const unsigned iflags = f[2];
+            if (iflags & ~1u)
+                return NOT_CLEAN; /* encrypted or unknown flags: notes, Python */
+            is_signed = (int)iflags;
+            hlen = MS_HEADER_V2;
+            size = 12 + len + (is_signed ? MS_SIGNATURE_LEN : 0);
+            if (size > left)
+                return NOT_CLEAN;
+            const uint32_t msgid = (uint32_t)f[7] | ((uint32_t)f[8] << 8) | ((uint32_t)f[9] << 16);
+            m = ms_table_get(w->table, msgid);
+            if (m == NULL || len > m->length)
+                return NOT_CLEAN;
+            sender = ((unsigned)f[5] << 8) | f[6];
+        } else if (f[0] == MS_STX_V1) {
+            if (left < 8)
+                return NOT_CLEAN;
+            len = f[1];
+            hlen = MS_HEADER_V1;
+            size = 8 + len;
+            if (size > left)
+                return NOT_CLEAN;
+            m = ms_table_get(w->table, f[5]);
+            if (m == NULL || len != m->base_length)
+                return NOT_CLEAN;
+            sender = ((unsigned)f[3] << 8) | f[4];
+        } else {
+            return NOT_CLEAN;
+        }
+        if (m->python_only || m->msgid == SETUP_SIGNING || m->msgid == KEY_EXCHANGE)
+            return NOT_CLEAN;
+        uint16_t crc = ms_crc16(f + 1, hlen - 1 + len, 0xFFFF);
+        crc = ms_crc16(&m->crc_extra, 1, crc);
+        if (crc != ms_le16(f + hlen + len) && !w->fuzz_any_crc)
+            return NOT_CLEAN;
+        int known = ms_signer_has(w, sender);
+        for (size_t i = 0; i < t && !known; i++)
+            known = w->tentative[i] == sender;
+        if (is_signed) {
+            if (w->sign_mode != MS_SIGNED_NOKEY)
+                return NOT_CLEAN;
+            if (!known) {
+                if (grow((void **)&w->tentative, &w->cap_tentative, t + 1, sizeof *w->tentative) != 0)
+                    return NOMEM;
+                w->tentative[t++] = (uint16_t)sender;
+            }
+        } else if (known) {
+            return NOT_CLEAN; /* unsigned-in-signed-stream (or RADIO_STATUS): Python */
+        }
+        if (grow((void **)&w->frames, &w->cap_frames, 2 * k + 2, sizeof *w->frames) != 0)
+            return NOMEM;
+        w->frames[2 * k] = (uint32_t)pos;
+        w->frames[2 * k + 1] = (uint32_t)size;
+        k++;
+        pos += size;
+    }
+    *count = k;
+    *nsigners = t;
+    return CLEAN;
+}
+
+#define LINE_FIXED_MAX 512 /* the keys, header numbers and the signature object of one line */
+#define LINE_SLACK 128     /* fixed-size copies write up to this much past the text they copy */
+#define MID_MAX (64 + 2 * MS_ENDPOINT_MAX + MS_DOUBLE_MAX)
+#define LEAD_MAX 48
+#define LINE_ROOM (LEAD_MAX + MID_MAX + LINE_FIXED_MAX + LINE_SLACK) /* + name and fields of the message */
+
+/* One JSON line per frame of a clean datagram. `lead` is `{"frame":N,"index":`, `mid` everything from
+ * `,"time":` to `"version":`. Room is made once per line for the most it can hold. */
+static int write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t count, const char *lead,
+                        size_t lead_len, const char *mid, size_t mid_len) {
+    for (size_t i = 0; i < count; i++) {
+        const uint8_t *f = d + w->frames[2 * i];
+        const size_t size = w->frames[2 * i + 1];
+        const int v2 = f[0] == MS_STX_V2;
+        const size_t hlen = v2 ? MS_HEADER_V2 : MS_HEADER_V1;
+        const size_t len = f[1];
+        const uint32_t msgid = v2 ? (uint32_t)f[7] | ((uint32_t)f[8] << 8) | ((uint32_t)f[9] << 16) : f[5];
+        const ms_message *m = ms_table_get(w->table, msgid); /* found by scan_clean */
+        const size_t room = LINE_ROOM + m->name_len + m->json_max;
+        (void)lead_len;
+        char *const start = ms_buf_room(out, room);
+        if (start == NULL)
+            return -1;
+        char *p = start;
+        memcpy(p, lead, LEAD_MAX); /* fixed-size copies: the room has the slack */
+        p += lead_len;
+        p = ms_w_u64(p, i + 1);
+        if (mid_len <= LINE_SLACK)
+            memcpy(p, mid, LINE_SLACK);
+        else
+            memcpy(p, mid, mid_len);
+        p += mid_len;
+        *p++ = v2 ? '2' : '1';
+        p = MS_W_LIT(p, ",\"len\":");
+        p = ms_w_u8(p, (unsigned)len);
+        p = MS_W_LIT(p, ",\"incompat_flags\":");
+        p = ms_w_u8(p, v2 ? f[2] : 0);
+        p = MS_W_LIT(p, ",\"compat_flags\":");
+        p = ms_w_u8(p, v2 ? f[3] : 0);
+        p = MS_W_LIT(p, ",\"seq\":");
+        p = ms_w_u8(p, f[v2 ? 4 : 2]);
+        p = MS_W_LIT(p, ",\"sysid\":");
+        p = ms_w_u8(p, f[v2 ? 5 : 3]);
+        p = MS_W_LIT(p, ",\"compid\":");
+        p = ms_w_u8(p, f[v2 ? 6 : 4]);
+        p = MS_W_LIT(p, ",\"msgid\":");
+        p = ms_w_u32(p, msgid);
+        p = MS_W_LIT(p, ",\"msgname\":");
+        p = ms_w_padded(p, m->name, m->name_len);
+        p = MS_W_LIT(p, ",\"crc\":");
+        p = ms_w_u32(p, ms_le16(f + hlen + len));
+        p = MS_W_LIT(p, ",\"crc_status\":\"ok\",\"fields\":");
+        p = ms_w_fields(p, m, f + hlen, len);
+        if (v2 && (f[2] & 1)) {
+            p = MS_W_LIT(p, ",\"signature\":");
+            p = ms_w_signature_nokey(p, f + size - MS_SIGNATURE_LEN);
+            p = MS_W_LIT(p, ",\"encryption\":null,\"notes\":[]}\n");
+        } else {
+            p = MS_W_LIT(p, ",\"signature\":null,\"encryption\":null,\"notes\":[]}\n");
+        }
+        if ((size_t)(p - start) > room)
+            abort(); /* the bound above is wrong: memory is already corrupt, stop here */
+        out->len += (size_t)(p - start);
+    }
+    return 0;
+}
+
+/* MS_WALK_FULL when the record was written (or had nothing), MS_WALK_HANDBACK, or MS_WALK_NOMEM. */
+static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
+    if (rec->notes->n != 0 || w->reader.kind == MS_KIND_RAW)
+        return MS_WALK_HANDBACK;
+    double t = 0.0;
+    int has_time = ms_record_time(rec, &t);
+    if (has_time < 0)
+        return MS_WALK_HANDBACK;
+    const uint8_t *data = rec->data;
+    const uint8_t *d;
+    size_t n;
+    ms_udp udp;
+    int is_udp = 0;
+    if (rec->linktype == MS_LINKTYPE_TLOG) {
+        d = data;
+        n = rec->len;
+    } else {
+        int r = ms_net_decode(rec->linktype, data, rec->len, &udp);
+        if (r == MS_NET_SILENT)
+            return MS_WALK_FULL;
+        if (r == MS_NET_HANDBACK)
+            return MS_WALK_HANDBACK;
+        d = data + udp.start;
+        n = udp.len;
+        is_udp = 1;
+    }
+    if (n > UINT32_MAX)
+        return MS_WALK_HANDBACK;
+    size_t count = 0, nsigners = 0;
+    int clean = scan_clean(w, d, n, &count, &nsigners);
+    if (clean == NOMEM)
+        return MS_WALK_NOMEM;
+    if (clean != CLEAN)
+        return MS_WALK_HANDBACK;
+    if (count == 0)
+        return MS_WALK_FULL; /* an empty datagram */
+    /* commit what the Python path would have done to the shared state */
+    for (size_t i = 0; i < nsigners; i++) {
+        unsigned s = w->tentative[i];
+        if (ms_signer_has(w, s))
+            continue;
+        if (grow((void **)&w->new_signers, &w->cap_new_signers, w->n_new_signers + 1, sizeof *w->new_signers) != 0)
+            return MS_WALK_NOMEM;
+        ms_signer_set(w, s);
+        w->new_signers[w->n_new_signers++] = (uint16_t)s;
+    }
+    const char *src = NULL, *dst = NULL;
+    int src_len = 0, dst_len = 0;
+    if (is_udp) {
+        ms_endpoint e;
+        memset(&e, 0, sizeof e);
+        e.v6 = (uint8_t)udp.v6;
+        memcpy(e.addr, udp.src, udp.v6 ? 16 : 4);
+        e.port = udp.sport;
+        if (note_endpoint(w, &e) != 0)
+            return MS_WALK_NOMEM;
+        src = endpoint_text(w, udp.v6, udp.src, udp.sport, &src_len);
+        /* the cache may move the source's text: copy it into `mid` before asking for the destination */
+    }
+    char lead[LEAD_MAX] = {0};
+    memcpy(lead, "{\"frame\":", 9);
+    size_t lead_len = (size_t)(ms_w_u64(lead + 9, rec->number) - lead);
+    memcpy(lead + lead_len, ",\"index\":", 9);
+    lead_len += 9;
+    char mid[MID_MAX > LINE_SLACK ? MID_MAX : LINE_SLACK] = {0};
+    size_t mid_len = 0;
+#define MID(s)                                   \
+    do {                                         \
+        memcpy(mid + mid_len, s, sizeof(s) - 1); \
+        mid_len += sizeof(s) - 1;                \
+    } while (0)
+    MID(",\"time\":");
+    if (has_time)
+        mid_len = (size_t)(ms_w_double(mid + mid_len, t) - mid);
+    else
+        MID("null");
+    if (is_udp) {
+        MID(",\"transport\":\"udp\",\"src\":\"");
+        memcpy(mid + mid_len, src, (size_t)src_len);
+        mid_len += (size_t)src_len;
+        MID("\",\"dst\":\"");
+        dst = endpoint_text(w, udp.v6, udp.dst, udp.dport, &dst_len);
+        memcpy(mid + mid_len, dst, (size_t)dst_len);
+        mid_len += (size_t)dst_len;
+        MID("\",\"version\":");
+    } else {
+        MID(",\"transport\":\"tlog\",\"src\":null,\"dst\":null,\"version\":");
+    }
+#undef MID
+    if (write_frames(w, out, d, count, lead, lead_len, mid, mid_len) != 0)
+        return MS_WALK_NOMEM;
+    w->frames_native += count;
+    for (size_t i = 0; i < count; i++) {
+        if (d[w->frames[2 * i]] == MS_STX_V1) { /* Python's fast path stops there: its scanner counts them all */
+            w->py_index = (int64_t)count;
+            break;
+        }
+    }
+    return MS_WALK_FULL;
+}
+
+int ms_walk(ms_walker *w, ms_buf *out, size_t limit, ms_record *rec) {
+    w->n_walked = 0;
+    w->py_index = -1;
+    while (out->len < limit) {
+        int got = ms_reader_next(&w->reader, rec);
+        if (got < 0)
+            return MS_WALK_NOMEM;
+        if (got == 0)
+            return MS_WALK_END;
+        int r = walk_record(w, rec, out);
+        if (out->failed)
+            return MS_WALK_NOMEM;
+        if (r == MS_WALK_HANDBACK) {
+            w->records_handed_back++;
+            return MS_WALK_HANDBACK;
+        }
+        if (r != MS_WALK_FULL)
+            return r;
+        w->walked = *rec;
+        w->walked.data = NULL;
+        w->walked.notes = NULL;
+        w->n_walked++;
+        w->records_native++;
+    }
+    return MS_WALK_FULL;
+}

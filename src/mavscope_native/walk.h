@@ -1,0 +1,86 @@
+/* The native walk: capture records -> finished JSON Lines, or records handed back to Python.
+ *
+ * A record is written here only when the Python path would give it nothing but clean frames: no
+ * reader note, a UDP datagram (or a tlog entry) that is a run of frames with known message ids, good
+ * CRCs, no unknown or encryption flags, no length mismatch, not SETUP_SIGNING or
+ * MAVSCOPE_KEY_EXCHANGE, no unsigned frame from a sender seen signing, and signed frames only when no
+ * signing key is configured (the `no-key` verdict). Records with nothing for MAVLink (not IP, not
+ * UDP/TCP, an empty datagram) are consumed silently, as Python does. Everything else is handed back
+ * whole, in capture order, for the Python pipeline.
+ *
+ * The state both paths share is explicit: `signers` (the security stage's signed_senders) and the
+ * endpoints that carried valid MAVLink (the Dissector's mavlink_endpoints). The glue loads `signers`
+ * from the Python set before each batch and pushes back what the batch added (`new_signers`,
+ * `new_endpoints`); Python changes them only while handling a handed-back record, between batches. What
+ * else the Python dissector keeps from a record (its number and time, the frame index, the end of a run
+ * of tlog text entries) it learns from `Dissector.passed`, told of the records walked by each batch. */
+#ifndef MAVSCOPE_NATIVE_WALK_H
+#define MAVSCOPE_NATIVE_WALK_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "buf.h"
+#include "capture.h"
+#include "table.h"
+
+enum { MS_SIGNED_HANDBACK = 0, MS_SIGNED_NOKEY = 1 };
+enum { MS_WALK_NOMEM = -1, MS_WALK_END = 0, MS_WALK_FULL = 1, MS_WALK_HANDBACK = 2 };
+
+typedef struct {
+    uint8_t v6;
+    uint8_t addr[16];
+    uint16_t port;
+} ms_endpoint;
+
+#define MS_ENDPOINT_TEXT 64
+
+typedef struct {
+    ms_reader reader;
+    const ms_table *table;
+    int sign_mode;              /* MS_SIGNED_*, set by the glue before each batch */
+    int fuzz_any_crc;           /* the fuzz harness only: take every CRC for good, so that mutated
+                                   payloads reach the decoder and the JSON writer (never set by the glue) */
+    uint8_t signers[8192];      /* bit sysid << 8 | compid: senders seen signing */
+    uint16_t *new_signers;      /* added by this batch */
+    size_t n_new_signers, cap_new_signers;
+    ms_endpoint *new_endpoints; /* sources of valid MAVLink first seen by this batch */
+    size_t n_new_endpoints, cap_new_endpoints;
+    ms_endpoint *seen;          /* endpoints already reported (open addressing, `used` marks a slot) */
+    uint8_t *seen_used;
+    size_t nseen, capseen;
+    uint32_t *frames;           /* scratch: (position, size) of the frames of the current record */
+    size_t cap_frames;
+    uint16_t *tentative;        /* scratch: senders the current record would add */
+    size_t cap_tentative;
+    ms_endpoint last_noted;     /* the endpoint note_endpoint saw last (most records repeat it) */
+    int have_last_noted;
+    ms_endpoint text_key[2];    /* the last two endpoints formatted, and their text */
+    char text[2][MS_ENDPOINT_TEXT];
+    int text_len[2];
+    ms_record walked;           /* the last record walked natively by the current ms_walk call (what the
+                                   Python pipeline's Dissector.passed is told) */
+    uint64_t n_walked;          /* records walked natively by the current ms_walk call */
+    int64_t py_index;           /* what Dissector._index would hold after the records walked natively by
+                                   the current call (Python's general scanner sets it: records with a
+                                   MAVLink 1 frame); -1: unchanged */
+    uint64_t records_native, records_handed_back, frames_native; /* counters */
+} ms_walker;
+
+int ms_walker_init(ms_walker *w, ms_source src, uint64_t size, int kind, const ms_table *table);
+void ms_walker_free(ms_walker *w);
+
+/* Walk records, appending JSON lines to `out`, until `out` holds at least `limit` bytes (MS_WALK_FULL),
+ * a record must be handed back (MS_WALK_HANDBACK, *rec is that record; its data and notes stay valid
+ * until the next call), or the capture ends (MS_WALK_END). MS_WALK_NOMEM when memory ran out. The
+ * records walked natively before a handed-back one: `n_walked`, the last of them `walked`. */
+int ms_walk(ms_walker *w, ms_buf *out, size_t limit, ms_record *rec);
+
+static inline int ms_signer_has(const ms_walker *w, unsigned sender) {
+    return (w->signers[sender >> 3] >> (sender & 7)) & 1;
+}
+static inline void ms_signer_set(ms_walker *w, unsigned sender) {
+    w->signers[sender >> 3] |= (uint8_t)(1u << (sender & 7));
+}
+
+#endif
