@@ -4,7 +4,7 @@ included), the core never imports a front end, rich, Textual or argparse, and no
 The data path, from the bottom (docs/architecture.md):
 
     base (errors, notes, endpoint) -> capture, live -> transport -> mavlink -> pipeline (dissector,
-    options) -> security -> fields, filter -> pipeline.session -> analysis -> browse -> output, cli,
+    options) -> security -> fields, filter -> pipeline.session -> analysis -> browse, export -> output, cli,
     commands, tui
 
 A module may import from its own layer or any layer below it. `pipeline.session` is the assembly point
@@ -40,6 +40,7 @@ LAYERS: tuple[tuple[str, int], ...] = (
     ("mavscope.pipeline.session", 7),
     ("mavscope.analysis", 8),
     ("mavscope.browse", 9),
+    ("mavscope.export", 9),  # captures into a columnar dataset: builds on pipeline.session and the analyses
     ("mavscope.output", 10),
     ("mavscope.cli", 10),
     ("mavscope.commands", 10),
