@@ -22,7 +22,10 @@ from mavscope.errors import MavscopeError, UsageError
 # Subcommand modules, in the order `mavscope --help` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
     "read", "live", "stats", "mission", "command_log", "timeline", "tui", "verify", "audit", "export", "sql",
+    "batch",
 )
+# Commands that run another command: what follows `--` is theirs, untouched (`batch DIR -- verify --key K`).
+PASSTHROUGH: frozenset[str] = frozenset({"batch"})
 
 
 class ExitStatus(IntEnum):
@@ -88,8 +91,15 @@ def main(argv: Sequence[str] | None = None, env: Env | None = None) -> int:
     """Entry point of the `mavscope` console script."""
     env = env or Env()
     parser = build_parser()
+    words = list(argv) if argv is not None else sys.argv[1:]
+    rest: list[str] | None = None
+    if words and words[0] in PASSTHROUGH and "--" in words:
+        cut = words.index("--")
+        words, rest = words[:cut], words[cut + 1 :]
     try:
-        args = parser.parse_args(list(argv) if argv is not None else None)
+        args = parser.parse_args(words)
+        if rest is not None:
+            args.passthrough = rest
         if args.command is None:
             parser.print_help(env.stdout)
             return ExitStatus.ERROR
