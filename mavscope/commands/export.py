@@ -38,6 +38,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "-j workers)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address, e.g. tcp://10.0.0.5:8786")
     p.add_argument("--replace", action="store_true", help="export captures again that the dataset holds already")
+    p.add_argument("--no-fsync", dest="durable", action="store_false",
+                   help="do not sync each file to disk before its capture is committed (faster on slow disks; "
+                        "a power loss may then lose files of a committed capture, a process crash cannot)")
     p.add_argument("--json", action="store_true", help="print the result per capture as JSON")
     add_dialect_option(p)
     add_key_options(p)
@@ -131,11 +134,11 @@ def _parquet(args: argparse.Namespace, env: Env, captures: list[str], out: str, 
         from mavscope.export.distributed import export_dask
 
         results = export_dask(out, captures, options, scheduler=args.scheduler, workers=args.jobs,
-                              replace=args.replace, on_result=report)
+                              replace=args.replace, durable=args.durable, on_result=report)
     else:
         with bar(env, total, "exporting") as update:
-            results = export_local(out, captures, options, jobs=args.jobs, replace=args.replace, on_result=report,
-                                   on_bytes=update, warn=warner(env))
+            results = export_local(out, captures, options, jobs=args.jobs, replace=args.replace,
+                                   durable=args.durable, on_result=report, on_bytes=update, warn=warner(env))
     failed = [r for r in results if r.status == "failed"]
     if args.json:
         write_json(env, {"dataset": out, "captures": [r.to_json() for r in results],

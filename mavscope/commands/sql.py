@@ -60,7 +60,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
             elif args.csv:
                 _csv(env, schema.names, batches)
             else:
-                _text(env, schema.names, batches)
+                _text(env, schema, batches)
         finally:
             con.close()
     return ExitStatus.OK
@@ -145,19 +145,22 @@ def _csv(env: Env, names: list[str], batches: Iterator[pa.RecordBatch]) -> None:
         w.writerow([_cell(v) for v in row])
 
 
-def _text(env: Env, names: list[str], batches: Iterator[pa.RecordBatch]) -> None:
+def _text(env: Env, schema: pa.Schema, batches: Iterator[pa.RecordBatch]) -> None:
+    import pyarrow as pa
     from rich.table import Table
+    from rich.text import Text
 
     from mavscope.commands.common import console
 
     t = Table(show_edge=False)
-    for n in names:
-        t.add_column(n, overflow="fold")
+    for f in schema:
+        number = pa.types.is_integer(f.type) or pa.types.is_floating(f.type) or pa.types.is_decimal(f.type)
+        t.add_column(Text(f.name), overflow="fold", justify="right" if number else "left")
     shown = total = 0
     for row in _tuples(batches):
         total += 1
         if shown < TEXT_ROWS:
-            t.add_row(*("NULL" if v is None else _cell(v) for v in row))
+            t.add_row(*(Text("NULL" if v is None else _cell(v)) for v in row))
             shown += 1
     con = console(env)
     con.print(t)

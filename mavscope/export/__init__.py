@@ -1,7 +1,7 @@
 """Captures into one columnar dataset (Parquet, Hive-partitioned by capture) for DuckDB, Spark, Polars or
 pandas: docs/dataset.md. The modules that build Arrow data need pyarrow (`pip install 'mavscope[fleet]'`);
-`record_batches`, `ExportOptions`, `content_id`, `register_source` and `table_of` are imported from them
-on first use, so that `mavscope.export.inputs` (which captures a directory holds) works without it."""
+the public names (`record_batches`, `ExportOptions`, the schemas...) are imported from them on first
+use, so that `mavscope.export.inputs` (which files of a directory are captures) works without it."""
 
 from __future__ import annotations
 
@@ -13,6 +13,10 @@ _PUBLIC = {
     "record_batches": "mavscope.export.source",
     "register_source": "mavscope.export.source",
     "SCHEMA_VERSION": "mavscope.export.schema",
+    "frames_schema": "mavscope.export.schema",
+    "message_schema": "mavscope.export.schema",
+    "signed_batch": "mavscope.export.schema",
+    "signed_schema": "mavscope.export.schema",
     "table_of": "mavscope.export.schema",
 }
 __all__ = sorted(_PUBLIC)

@@ -131,11 +131,14 @@ class CaptureResult:
 
 
 class _Writers:
-    """One Parquet file per table of a capture in the staging folder, opened at its first batch."""
+    """One Parquet file per table of a capture in the staging folder (STAGE/TABLE/part-0.parquet: the
+    folder becomes the partition when renamed), opened at the table's first batch; `durable` syncs each
+    file to disk before it is renamed into place."""
 
-    def __init__(self, stage: Path, capture_id: str) -> None:
+    def __init__(self, stage: Path, capture_id: str, durable: bool = True) -> None:
         self.stage = stage
         self.capture_id = capture_id
+        self.durable = durable
         self.open: dict[str, pq.ParquetWriter] = {}
         self.frames = 0
 
@@ -146,8 +149,8 @@ class _Writers:
         body = batch.drop_columns([PARTITION])  # the directory name holds it (Hive partitioning)
         w = self.open.get(table)
         if w is None:
-            d = partition_dir(self.stage, table, self.capture_id)
-            d.mkdir(parents=True)
+            d = self.stage / table
+            d.mkdir()
             w = self.open[table] = pq.ParquetWriter(d / PART, body.schema, compression=COMPRESSION)
         w.write_batch(body)
         if table == "frames":
@@ -156,8 +159,10 @@ class _Writers:
     def close(self) -> None:
         for w in self.open.values():
             w.close()
+        if not self.durable:
+            return
         for table in self.open:
-            fd = os.open(partition_dir(self.stage, table, self.capture_id) / PART, os.O_RDONLY)
+            fd = os.open(self.stage / table / PART, os.O_RDONLY)
             try:
                 os.fsync(fd)
             finally:
@@ -187,16 +192,18 @@ def _commit(root: Path, stage: Path, capture_id: str, names: list[str]) -> bool:
         target.parent.mkdir(exist_ok=True)
         if target.exists():  # left by an unfinished export of the same capture
             shutil.rmtree(target)
-        os.replace(partition_dir(stage, table, capture_id), target)
+        os.replace(stage / table, target)
     return True
 
 
 def export_capture(dataset: str | os.PathLike[str], path: str, options: ExportOptions | None = None, *,
-                   replace: bool = False, progress: Progress | None = None,
+                   replace: bool = False, durable: bool = True, progress: Progress | None = None,
                    warn: Warn | None = None) -> CaptureResult:
     """Export one capture into the dataset at `dataset` (which must exist: `open_dataset`), atomically.
 
     Skipped when its content is there already, unless `replace` (which removes it, then exports it).
+    `durable` syncs every file to disk before the commit (a power loss cannot leave a committed capture
+    with a file missing; a process crash cannot either way).
     An unreadable capture or bad options give a "failed" result with the one-line error."""
     from mavscope.errors import MavscopeError
 
@@ -216,7 +223,7 @@ def export_capture(dataset: str | os.PathLike[str], path: str, options: ExportOp
     remove_capture(root, cid)
     stage = root / STAGING / f"{cid}.{uuid.uuid4().hex}"
     stage.mkdir(parents=True)
-    writers = _Writers(stage, cid)
+    writers = _Writers(stage, cid, durable)
     try:
         try:
             for batch in record_batches(path, dc_replace(options, capture_id=cid, tables=None), progress=progress,

@@ -27,7 +27,7 @@ def _hash(path: str) -> str | CaptureResult:
 
 
 def export_dask(dataset: str | os.PathLike[str], paths: Iterable[str], options: ExportOptions | None = None, *,
-                scheduler: str | None = None, workers: int = 2, replace: bool = False,
+                scheduler: str | None = None, workers: int = 2, replace: bool = False, durable: bool = True,
                 on_result: OnResult | None = None) -> list[CaptureResult]:
     """Export `paths` into the dataset at `dataset` on the Dask cluster at `scheduler` (a local cluster of
     `workers` processes without one). Paths are made absolute: the workers resolve them."""
@@ -57,7 +57,7 @@ def export_dask(dataset: str | os.PathLike[str], paths: Iterable[str], options: 
             if on_result is not None:
                 on_result(r)
         futures = [client.submit(export_capture, str(root), path, dc_replace(options, capture_id=cid),
-                                 replace=replace, pure=False) for path, cid in todo]
+                                 replace=replace, durable=durable, pure=False) for path, cid in todo]
         for fut in as_completed(futures):
             r = fut.result()
             results.append(r)

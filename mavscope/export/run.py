@@ -71,7 +71,7 @@ def _with_id(options: ExportOptions, cid: str) -> ExportOptions:
 
 
 def export_local(dataset: str | os.PathLike[str], paths: Iterable[str], options: ExportOptions | None = None, *,
-                 jobs: int = 1, replace: bool = False, on_result: OnResult | None = None,
+                 jobs: int = 1, replace: bool = False, durable: bool = True, on_result: OnResult | None = None,
                  on_bytes: OnBytes | None = None, warn: Warn | None = None) -> list[CaptureResult]:
     """Export `paths` into the dataset at `dataset` (created when absent), `jobs` captures at a time."""
     options = options or ExportOptions()
@@ -99,13 +99,13 @@ def export_local(dataset: str | os.PathLike[str], paths: Iterable[str], options:
         for path, cid in todo:
             base = done_bytes
             inner = (lambda pos, base=base: on_bytes(base + pos)) if on_bytes is not None else None
-            finished(export_capture(root, path, _with_id(options, cid), replace=replace,
+            finished(export_capture(root, path, _with_id(options, cid), replace=replace, durable=durable,
                                     progress=inner, warn=warn))
         return in_order(paths, results)
     pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"))
     try:
         pending: set[Future[CaptureResult]] = {
-            pool.submit(export_capture, str(root), path, _with_id(options, cid), replace=replace)
+            pool.submit(export_capture, str(root), path, _with_id(options, cid), replace=replace, durable=durable)
             for path, cid in todo}
         while pending:
             ready, pending = wait(pending, return_when=FIRST_COMPLETED)

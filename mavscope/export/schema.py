@@ -19,7 +19,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from enum import Enum
 from functools import lru_cache
 from operator import itemgetter
 
@@ -37,6 +36,9 @@ TABLE_KEY = b"mavscope.table"  # schema metadata: which table a record batch bel
 VERSION_KEY = b"mavscope.schema_version"
 
 Getter = Callable[[Frame], object]
+
+
+_ID = b"SHA-256 of the capture file's bytes, hex (the Hive partition)"
 
 
 def message_table(name: str) -> str:
@@ -88,8 +90,9 @@ def _signature_time(f: Frame) -> object:
 
 
 # Columns whose value is not the JSON's: a timestamp type instead of ISO text.
-_OVERRIDES: dict[str, tuple[pa.DataType, Getter]] = {
-    "signature_time": (pa.timestamp("us", tz="UTC"), _signature_time),
+_OVERRIDES: dict[str, tuple[pa.DataType, Getter, str]] = {
+    "signature_time": (pa.timestamp("us", tz="UTC"), _signature_time,
+                       "the signature timestamp (10 us resolution; ISO-8601 text in the JSON)"),
 }
 
 
@@ -99,21 +102,16 @@ def _column_name(f: Field) -> str:
 
 
 def _json_getter(f: Field) -> Getter:
-    """The field's JSON value, MISSING and absent blocks as None, enums as their value."""
-    get: Getter = (itemgetter(Frame._fields.index(f.attr)) if f.attr is not None and f.json_get is None
-                   else f.json_get or f.get)
-    enum_valued = f.attr == "crc_status"
+    """The field's JSON value, MISSING as None. A value the frame holds as exported is read with one C call
+    (`crc_status` is a `str` enum: Arrow takes it as its text)."""
+    if f.attr is not None and f.json_get is None:
+        return itemgetter(Frame._fields.index(f.attr))
+    get = f.json_get or f.get
 
     def value(frame: Frame) -> object:
         v = get(frame)
-        if v is MISSING:
-            return None
-        if enum_valued and isinstance(v, Enum):
-            return v.value
-        return v
+        return None if v is MISSING else v
 
-    if f.json_block is None and not enum_valued and f.json_get is None and f.attr is not None:
-        return get  # the frame holds it as exported: one C call per frame
     return value
 
 
@@ -141,10 +139,10 @@ def _registry_columns() -> tuple[Column, ...]:
             continue
         name = _column_name(f)
         if name in _OVERRIDES:
-            typ, get = _OVERRIDES[name]
+            typ, get, description = _OVERRIDES[name]
         else:
-            typ, get = _WIDTH.get(name) or _BY_TYPE[f.type], _json_getter(f)
-        cols.append(Column(name, typ, get, f.description or f.label, f.json_block))
+            typ, get, description = _WIDTH.get(name) or _BY_TYPE[f.type], _json_getter(f), f.description or f.label
+        cols.append(Column(name, typ, get, description, f.json_block))
     return tuple(cols)
 
 
@@ -159,7 +157,8 @@ FRAME_COLUMNS: tuple[Column, ...] = _registry_columns() + (
 
 def frames_schema() -> pa.Schema:
     """The frames table as record batches carry it (capture_id included)."""
-    fields = [pa.field(PARTITION, pa.string(), nullable=False), pa.field("capture_path", pa.string())]
+    fields = [pa.field(PARTITION, pa.string(), nullable=False, metadata={b"description": _ID}),
+              pa.field("capture_path", pa.string(), metadata={b"description": b"the path it was exported from"})]
     fields += [pa.field(c.name, c.type, metadata={b"description": c.description.encode()}) for c in FRAME_COLUMNS]
     return pa.schema(fields, metadata=_meta(FRAMES))
 
@@ -242,7 +241,7 @@ def message_columns(md: MessageDef, dialect: Dialect) -> MessageColumns:
                 name += "_"
             taken.add(name)
             names.append((name, fd))
-    arrow = [pa.field(PARTITION, pa.string(), nullable=False)]
+    arrow = [pa.field(PARTITION, pa.string(), nullable=False, metadata={b"description": _ID})]
     arrow += [pa.field(n, t, metadata={b"description": d.encode()}) for n, t, d in IDENTITY]
     arrow += [pa.field(col, field_type(fd), metadata=_field_meta(fd)) for col, fd in fields]
     arrow += [pa.field(n, pa.string(), metadata={b"enum": fd.enum.encode(), b"names": fd.name.encode()})
@@ -252,12 +251,17 @@ def message_columns(md: MessageDef, dialect: Dialect) -> MessageColumns:
     return MessageColumns(tuple(fields), tuple(names), pa.schema(arrow, metadata=meta))
 
 
+def message_schema(name: str, dialect: Dialect) -> pa.Schema:
+    """The schema of message `name`'s table (KeyError for a message the dialect does not have)."""
+    return message_columns(dialect.by_name[name], dialect).schema
+
+
 # --- findings, anomalies, captures ------------------------------------------------------------------
 
 
 def findings_schema() -> pa.Schema:
     return pa.schema([
-        pa.field(PARTITION, pa.string(), nullable=False),
+        pa.field(PARTITION, pa.string(), nullable=False, metadata={b"description": _ID}),
         pa.field("source", pa.string(), metadata={b"description": b"stats (expert findings) or audit"}),
         pa.field("code", pa.string()),
         pa.field("severity", pa.string()),
@@ -269,7 +273,7 @@ def findings_schema() -> pa.Schema:
 
 def anomalies_schema() -> pa.Schema:
     return pa.schema([
-        pa.field(PARTITION, pa.string(), nullable=False),
+        pa.field(PARTITION, pa.string(), nullable=False, metadata={b"description": _ID}),
         pa.field("record", pa.int64()),
         pa.field("code", pa.string()),
         pa.field("severity", pa.string()),
@@ -280,7 +284,7 @@ def anomalies_schema() -> pa.Schema:
 
 def captures_schema() -> pa.Schema:
     return pa.schema([
-        pa.field(PARTITION, pa.string(), nullable=False),
+        pa.field(PARTITION, pa.string(), nullable=False, metadata={b"description": _ID}),
         pa.field("path", pa.string(), metadata={b"description": b"the path the capture was exported from"}),
         pa.field("name", pa.string()),
         pa.field("size", pa.int64()),
@@ -304,3 +308,25 @@ FIXED_TABLES = (FRAMES, FINDINGS, ANOMALIES, CAPTURES)
 FIXED_SCHEMAS: dict[str, Callable[[], pa.Schema]] = {
     FRAMES: frames_schema, FINDINGS: findings_schema, ANOMALIES: anomalies_schema, CAPTURES: captures_schema,
 }
+
+
+# --- for readers without unsigned integers (Spark) --------------------------------------------------
+
+_SIGNED = {pa.uint8(): pa.int16(), pa.uint16(): pa.int32(), pa.uint32(): pa.int64(), pa.uint64(): pa.decimal128(20, 0)}
+
+
+def _signed_type(t: pa.DataType) -> pa.DataType:
+    if pa.types.is_list(t):
+        return pa.list_(_signed_type(t.value_type))
+    return _SIGNED.get(t, t)
+
+
+def signed_schema(schema: pa.Schema) -> pa.Schema:
+    """`schema` with every unsigned integer widened to a signed type that holds all its values (uint64 as
+    decimal(20, 0)): Spark has no unsigned types."""
+    return pa.schema([f.with_type(_signed_type(f.type)) for f in schema], metadata=schema.metadata)
+
+
+def signed_batch(batch: pa.RecordBatch) -> pa.RecordBatch:
+    """`batch` cast to `signed_schema` (values unchanged)."""
+    return batch.cast(signed_schema(batch.schema))

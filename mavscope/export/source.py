@@ -121,6 +121,8 @@ def record_batches(path: str | os.PathLike[str], options: ExportOptions | None =
     anomalies not yet given, and last one `captures` row. CaptureError, UsageError and FilterError
     as `mavscope read` raises them."""
     options = options or ExportOptions()
+    if options.batch_rows < 1:
+        raise UsageError(f"export: batch_rows must be at least 1, not {options.batch_rows}")
     source = SOURCES.get(options.source)
     if source is None:
         raise UsageError(f"export: no batch source {options.source!r} (available: {', '.join(sorted(SOURCES))})")

@@ -132,3 +132,16 @@ def test_other_versions_and_non_datasets_are_refused(cli: Cli, tmp_path: Path) -
     status, _, err = cli("export", str(A), "--parquet", str(other))
     assert status == 2 and "not a mavscope dataset" in err
     assert (other / "notes.txt").read_text() == "mine" and len(list(other.iterdir())) == 1
+
+
+def test_usage_errors(cli: Cli, tmp_path: Path) -> None:
+    for argv, message in (
+        (("export", str(A)), "no output"),
+        (("export", str(A), "-T", "csv", "--parquet", str(tmp_path / "x")), "with -T csv give -o DIR"),
+        (("export", str(A), "--parquet", str(tmp_path / "x"), "--scheduler", "tcp://h:1"), "needs --engine dask"),
+        (("export", str(tmp_path / "missing.pcap"), "--parquet", str(tmp_path / "x")), "no such file"),
+        (("export", str(A), "--parquet", str(tmp_path / "x"), "-j", "0"), "whole positive number"),
+    ):
+        status, out, err = cli(*argv)
+        assert status == 2 and message in err and err.count("\n") == 1, (argv, err)
+    assert not (tmp_path / "x").exists()

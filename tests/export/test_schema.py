@@ -13,8 +13,8 @@ import pyarrow as pa
 import pytest
 from pymavlink.dialects.v20 import all as v2
 
-from mavscope.export import ExportOptions, record_batches, table_of
-from mavscope.export.schema import frames_schema
+from mavscope.export import ExportOptions, record_batches, signed_batch, signed_schema, table_of
+from mavscope.export.schema import FIXED_SCHEMAS, frames_schema
 from tests.conftest import CAPTURES, ROOT, Cli
 from tests.support.dataset import arrow_table, sha256
 from tests.support.pmav import mav2
@@ -147,3 +147,23 @@ def test_dataset_row_for_each_capture(tmp_path: Path, cli: Cli) -> None:
     stats = cli.json("stats", str(CAPTURES / "stats_loss.pcap"))["findings"]
     assert sorted((f["code"], f["message"]) for f in findings if f["source"] == "stats") == sorted(
         (f["code"], f["message"]) for f in stats)
+
+
+def test_every_column_is_documented() -> None:
+    doc = (ROOT / "docs" / "dataset.md").read_text()
+    for table, schema in FIXED_SCHEMAS.items():
+        missing = [n for n in schema().names if f"`{n}`" not in doc]
+        assert not missing, (table, missing)
+    for name in ("_frame", "_index", "_time", "_sysid", "_compid", "_crc_status", "_signature_status"):
+        assert f"`{name}`" in doc
+
+
+def test_signed_types_for_spark_keep_every_value() -> None:
+    t = _tables(CAPTURES / "signed_udp.pcap")
+    for table in ("frames", "msg=HEARTBEAT", "msg=SYS_STATUS"):
+        for batch in t[table].to_batches():
+            signed = signed_batch(batch)
+            assert not any(pa.types.is_unsigned_integer(f.type) or (pa.types.is_list(f.type) and
+                           pa.types.is_unsigned_integer(f.type.value_type)) for f in signed.schema)
+            assert signed.schema == signed_schema(batch.schema)
+            assert signed.to_pylist() == batch.to_pylist()  # (no NaN in these tables)
