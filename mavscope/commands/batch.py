@@ -15,6 +15,7 @@ import orjson
 
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.common import console, write_json
+from mavscope.commands.export import jobs_count
 from mavscope.errors import UsageError
 
 COMMANDS = ("verify", "audit", "stats")
@@ -29,7 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "its options (keys...) follow `--`; each capture is given to it as its FILE. "
                                    "Exit status: the worst of the runs (2 an error > 1 findings > 0 ok).")
     p.add_argument("paths", nargs="+", metavar="FILE_OR_DIR", help="captures, or directories holding them")
-    p.add_argument("-j", dest="jobs", type=int, default=1, metavar="N", help="captures at a time (default 1)")
+    p.add_argument("-j", dest="jobs", type=jobs_count, default=1, metavar="N", help="captures at a time (default 1)")
     p.add_argument("--json", action="store_true", help="the summary and each run's JSON document as one JSON")
     p.set_defaults(run=run, passthrough=None)
 
@@ -93,8 +94,6 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     command, options = rest[0], list(rest[1:])
     if command not in COMMANDS:
         raise UsageError(f"batch: runs {', '.join(COMMANDS)}, not {command!r}")
-    if args.jobs < 1:
-        raise UsageError("batch: -j needs a whole positive number")
     from mavscope.commands.export import gather
 
     captures = gather(env, args.paths, ())

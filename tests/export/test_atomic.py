@@ -145,3 +145,8 @@ def test_usage_errors(cli: Cli, tmp_path: Path) -> None:
         status, out, err = cli(*argv)
         assert status == 2 and message in err and err.count("\n") == 1, (argv, err)
     assert not (tmp_path / "x").exists()
+    for bad in ("²", "0", "-1", "x"):  # '²'.isdigit() is True, int('²') fails
+        for argv in (("export", str(A), "--parquet", str(tmp_path / "x"), "-j", bad),
+                     ("batch", str(A), "-j", bad, "--", "stats")):
+            status, _, err = cli(*argv)
+            assert status == 2 and "whole positive number" in err, (argv, err)

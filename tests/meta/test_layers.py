@@ -4,7 +4,7 @@ included), the core never imports a front end, rich, Textual or argparse, and no
 The data path, from the bottom (docs/architecture.md):
 
     base (errors, notes, endpoint) -> capture, live -> transport -> mavlink -> pipeline (dissector,
-    options) -> security -> fields, filter -> pipeline.session -> analysis -> browse, export -> output, cli,
+    options) -> security -> fields, filter -> pipeline.session -> analysis -> browse -> output, cli,
     commands, tui
 
 A module may import from its own layer or any layer below it. `pipeline.session` is the assembly point
