@@ -58,10 +58,15 @@ def jobs_count(text: str) -> int:
 
 
 def needs_fleet(*modules: str) -> None:
-    """UsageError unless `modules` of the fleet extra (pyarrow, duckdb, dask) are installed."""
-    import importlib.util
+    """UsageError unless `modules` of the fleet extra (pyarrow, duckdb, dask) import."""
+    import importlib
 
-    missing = [m for m in modules if importlib.util.find_spec(m) is None]
+    missing = []
+    for m in modules:
+        try:
+            importlib.import_module(m)
+        except ImportError:
+            missing.append(m)
     if missing:
         raise UsageError(f"this command needs {', '.join(missing)}: pip install 'mavscope[fleet]'")
 
@@ -89,10 +94,9 @@ def gather(env: Env, paths: list[str], dialects: tuple[str, ...]) -> list[str]:
     """The captures among `paths` (UsageError when a path does not exist); files passed over in directories
     are counted on stderr."""
     from mavscope.export.inputs import find_captures
-    from mavscope.export.source import dialect_for
-    from mavscope.pipeline.options import PipelineOptions
+    from mavscope.mavlink.dialect import load_dialect
 
-    found = find_captures(paths, dialect_for(PipelineOptions(dialects=dialects)))
+    found = find_captures(paths, load_dialect(dialects))  # (batch needs no pyarrow: not export.source's cache)
     if found.missing:
         raise UsageError(f"no such file or directory: {found.missing[0]}")
     if found.passed_over:
