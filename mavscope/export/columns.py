@@ -1,10 +1,11 @@
 """Column builders: frames in, Arrow record batches out, a bounded number of rows at a time.
 
-`FrameColumns` keeps up to `rows` frames and turns them into one frames-table batch column by column
-(each column one pass over the chunk). `MessageColumns` keeps, per message type, the padded payloads
-of its decoded frames and their identity; at a flush it unpacks them all with one `struct.iter_unpack`
-(the dialect's wire format) and regroups arrays and strings. `MessageTables` bounds the rows held over
-every message type together, so a capture of any length and mix is exported in bounded memory.
+`FrameColumns` turns frames into frames-table batches column by column (each column one pass over a
+chunk of frames). `MessageTables` keeps, per message type, the padded payloads of its decoded frames
+and their identity; at a flush it unpacks them all with one `struct.iter_unpack` (the dialect's wire
+format) and regroups arrays and strings; it bounds the rows held over every message type together,
+so a capture of any length and mix is exported in bounded memory. `AnomalyColumns` does the same for
+the problems that belong to no frame.
 """
 
 from __future__ import annotations
