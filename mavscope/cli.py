@@ -21,8 +21,8 @@ from mavscope.errors import MavscopeError, UsageError
 
 # Subcommand modules, in the order `mavscope --help` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
-    "read", "live", "stats", "mission", "command_log", "timeline", "tui", "verify", "audit", "export", "sql",
-    "batch",
+    "read", "live", "stats", "mission", "command_log", "timeline", "objects", "params", "tui", "verify", "audit",
+    "export", "sql", "batch",
 )
 # Commands that run another command: what follows `--` is theirs, untouched (`batch DIR -- verify --key K`).
 PASSTHROUGH: frozenset[str] = frozenset({"batch"})

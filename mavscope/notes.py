@@ -135,6 +135,8 @@ CODES: dict[str, Code] = {
         Code("bad-crc-burst", _WARN, Group.CHECKSUM, _C, "frames with a bad CRC close together"),
         Code("seq-gap", _WARN, Group.SEQUENCE, _C, "a large jump in a sender's sequence numbers: frames lost"),
         Code("seq-duplicate", _NOTE, Group.SEQUENCE, _C, "frames repeating a sequence number already seen"),
+        Code("seq-unchanged", _NOTE, Group.SEQUENCE, _C,
+             "frames with the previous frame's sequence number and other contents: not counted by their sender"),
         Code("seq-reordered", _NOTE, Group.SEQUENCE, _C, "frames that arrived after later ones"),
         Code("seq-interleaved", _WARN, Group.SEQUENCE, _C,
              "many backward sequence steps: two senders may share a system/component id"),
@@ -145,6 +147,32 @@ CODES: dict[str, Code] = {
         Code("replayed-command", _WARN, Group.SECURITY, _C,
              "a commanding frame repeats an earlier one byte for byte, out of its sender's sequence"),
         Code("unsigned-command", _WARN, Group.SECURITY, _C, "unsigned command where signed traffic is seen"),
+        # objects moved over the link (mavscope.analysis.objects)
+        Code("ftp-upload", _NOTE, Group.SECURITY, _C, "files written to a vehicle over MAVLink FTP"),
+        Code("script-upload", _WARN, Group.SECURITY, _C, "a file the vehicle runs as code written over MAVLink FTP",
+             "a file written where the vehicle runs it as code (an ArduPilot Lua script in APM/scripts, a PX4 "
+             "etc/extras.txt or etc/rc.*): whoever can send FTP frames can run code on the vehicle"),
+        Code("object-conflict", _WARN, Group.SECURITY, _C,
+             "bytes of an object received twice with different values",
+             "an object's bytes arrived twice with different values: a second sender (an injection) or damaged "
+             "data; the first copy is kept"),
+        Code("object-unsafe-path", _WARN, Group.SECURITY, _C,
+             "a vehicle path that would leave the output directory, or holds NUL or control characters",
+             "vehicle paths with '..' components, NUL or control characters, or of absurd length: a server does "
+             "not send these by accident; the files are written under safe names"),
+        Code("object-limit", _WARN, Group.UNDECODED, _C, "a limit of the object reconstruction cut data",
+             "the object reconstruction reached one of its limits (object size, memory, transfers at once, "
+             "objects): what it gave up is listed"),
+        # parameters (mavscope.analysis.params)
+        Code("param-security-change", _WARN, Group.SECURITY, _C,
+             "a security-relevant parameter (signing, system id checks, failsafes, fences, arming checks, "
+             "scripting) was set or changed",
+             "a parameter that guards the vehicle (MAVLink signing and system id checks, failsafes, fences, "
+             "arming checks, scripting) was set or changed"),
+        Code("param-protection-disabled", _ERROR, Group.SECURITY, _C,
+             "a parameter change that turns a protection off",
+             "a parameter change that turns a protection off (arming checks, a fence, a failsafe, system id "
+             "enforcement) or makes a link accept unsigned frames"),
         # security audit (mavscope.security.audit)
         Code("replay", _ERROR, Group.SECURITY, _C, "signature replayed (timestamp not newer than its stream's)",
              "frames whose MAC verifies but whose timestamp is not newer than the last accepted one of their "
@@ -201,6 +229,26 @@ class Finding:
     def to_json(self) -> dict[str, object]:
         return {"code": self.code, "severity": self.severity.value, "frames": list(self.frames),
                 "message": self.message}
+
+
+class FrameNumbers:
+    """The frames behind a finding as it accumulates: every one counted, the first `limit` kept (with
+    `repeats=False`, a number added twice in a row kept once), so a finding over millions of frames stays
+    small."""
+
+    __slots__ = ("nums", "count", "limit", "repeats")
+
+    def __init__(self, limit: int, repeats: bool = False) -> None:
+        self.nums: list[int] = []
+        self.count = 0
+        self.limit = limit
+        self.repeats = repeats
+
+    def add(self, number: int) -> None:
+        self.count += 1
+        nums = self.nums
+        if len(nums) < self.limit and (self.repeats or not nums or nums[-1] != number):
+            nums.append(number)
 
 
 def finding(code: str, message: str, frames: Iterable[int] = ()) -> Finding:

@@ -18,7 +18,7 @@ from mavscope.analysis.sequence import GAP_MIN, SeqTracker
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, SignatureStatus, decode_payload
-from mavscope.notes import Finding, finding, sort_findings
+from mavscope.notes import Finding, FrameNumbers, finding, sort_findings
 
 # Messages that tell a vehicle what to do (their target_system is the vehicle commanded).
 COMMANDING = frozenset({
@@ -37,23 +37,18 @@ Link = tuple[int, int]
 Fields = dict[str, object]
 
 
+def _target(fields: Fields) -> object:
+    """The system a commanding message addresses: `target_system`, or MANUAL_CONTROL's `target`."""
+    return fields.get("target_system", fields.get("target"))
+
+
 def _link(f: Frame) -> str:
     return f"{f.sysid}/{f.compid}"
 
 
-class _Frames:
+def _frames() -> FrameNumbers:
     """Frame numbers for a finding: the first MAX_FRAMES kept, all of them counted."""
-
-    __slots__ = ("nums", "count")
-
-    def __init__(self) -> None:
-        self.nums: list[int] = []
-        self.count = 0
-
-    def add(self, record: int) -> None:
-        self.count += 1
-        if len(self.nums) < MAX_FRAMES and (not self.nums or self.nums[-1] != record):
-            self.nums.append(record)
+    return FrameNumbers(MAX_FRAMES)
 
 
 class BadCrcBursts:
@@ -61,7 +56,7 @@ class BadCrcBursts:
 
     def __init__(self) -> None:
         self.out: list[Finding] = []
-        self.run = _Frames()
+        self.run = _frames()
         self.first: float | None = None
         self.last: float | None = None
         self.links: set[str] = set()
@@ -72,7 +67,7 @@ class BadCrcBursts:
             when = f" within {span:.3f} s" if span is not None else ""
             self.out.append(finding("bad-crc-burst", f"{self.run.count} frames with a bad CRC{when} "
                                                      f"(links {', '.join(sorted(self.links))})", self.run.nums))
-        self.run, self.first, self.last, self.links = _Frames(), None, None, set()
+        self.run, self.first, self.last, self.links = _frames(), None, None, set()
 
     def add(self, f: Frame, fields: Fields | None) -> None:
         if f.crc_status is not CrcStatus.BAD:
@@ -98,7 +93,7 @@ class SequenceAnomalies:
     def __init__(self) -> None:
         self.trackers: dict[Link, SeqTracker] = {}
         self.counts: Counter[Link] = Counter()
-        self.events: dict[tuple[Link, str], _Frames] = {}
+        self.events: dict[tuple[Link, str], FrameNumbers] = {}
 
     def add(self, f: Frame, fields: Fields | None) -> None:
         key = (f.sysid, f.compid)
@@ -106,11 +101,11 @@ class SequenceAnomalies:
         if tr is None:
             tr = self.trackers[key] = SeqTracker()
         self.counts[key] += 1
-        what, _ = tr.feed(f.seq, f.record)
-        if what in ("duplicate", "late"):
+        what, _ = tr.feed(f.seq, f.record, f.raw)
+        if what in ("duplicate", "late", "unchanged"):
             ev = self.events.get((key, what))
             if ev is None:
-                ev = self.events[(key, what)] = _Frames()
+                ev = self.events[(key, what)] = _frames()
             ev.add(f.record)
 
     def findings(self) -> list[Finding]:
@@ -132,6 +127,11 @@ class SequenceAnomalies:
             if what == "duplicate" and tr.duplicates:
                 out.append(finding("seq-duplicate", f"link {sysid}/{compid}: {tr.duplicates} frames repeat a "
                                                     "sequence number already seen", ev.nums))
+            elif what == "unchanged":
+                out.append(finding("seq-unchanged", f"link {sysid}/{compid}: {ev.count} frames carry the sequence "
+                                                    "number of the frame before them with other contents: the "
+                                                    "sender does not count them (MAVProxy writes parameters it "
+                                                    "fetched over FTP into its tlog this way)", ev.nums))
             elif what == "late":
                 out.append(finding("seq-reordered", f"link {sysid}/{compid}: {ev.count} frames arrived after later "
                                                     "ones", ev.nums))
@@ -170,7 +170,7 @@ class CommandSources:
             return
         if fields is None or f.msgdef is None or f.msgdef.name not in COMMANDING:
             return
-        target = fields.get("target_system")
+        target = _target(fields)
         if not isinstance(target, int) or target in self.gcs or target == f.sysid:
             return
         sender = (f.sysid, f.compid)
@@ -211,8 +211,8 @@ class ReplayedCommands:
     def __init__(self) -> None:
         self.trackers: dict[Link, SeqTracker] = {}
         self.seen: OrderedDict[bytes, tuple[int, int]] = OrderedDict()  # raw -> (record, position)
-        self.copies: dict[Link, tuple[_Frames, Counter[str]]] = {}
-        self.replays: dict[Link, tuple[_Frames, Counter[str]]] = {}
+        self.copies: dict[Link, tuple[FrameNumbers, Counter[str]]] = {}
+        self.replays: dict[Link, tuple[FrameNumbers, Counter[str]]] = {}
 
     def add(self, f: Frame, fields: Fields | None) -> None:
         link = (f.sysid, f.compid)
@@ -238,12 +238,12 @@ class ReplayedCommands:
             self.seen.popitem(last=False)
 
     @staticmethod
-    def _count(table: dict[Link, tuple[_Frames, Counter[str]]], link: Link, records: tuple[int, ...],
+    def _count(table: dict[Link, tuple[FrameNumbers, Counter[str]]], link: Link, records: tuple[int, ...],
                name: str) -> None:
         """Count one frame of message `name` (listing `records`: the copy, and its original if known)."""
         entry = table.get(link)
         if entry is None:
-            entry = table[link] = (_Frames(), Counter())
+            entry = table[link] = (_frames(), Counter())
         for r in records:
             entry[0].add(r)
         entry[1][name] += 1
@@ -270,7 +270,7 @@ class UnsignedCommands:
 
     def __init__(self) -> None:
         self.signing: set[int] = set()
-        self.candidates: dict[tuple[int, int, int], _Frames] = {}  # (sysid, compid, target) -> frames
+        self.candidates: dict[tuple[int, int, int], FrameNumbers] = {}  # (sysid, compid, target) -> frames
         self.names: dict[tuple[int, int, int], Counter[str]] = {}
 
     def add(self, f: Frame, fields: Fields | None) -> None:
@@ -280,10 +280,10 @@ class UnsignedCommands:
         md = f.msgdef
         if fields is None or md is None or md.name not in COMMANDING:
             return
-        target = fields.get("target_system")
+        target = _target(fields)
         key = (f.sysid, f.compid, target if isinstance(target, int) else -1)
         if key not in self.candidates:
-            self.candidates[key] = _Frames()
+            self.candidates[key] = _frames()
             self.names[key] = Counter()
         self.candidates[key].add(f.record)
         self.names[key][md.name] += 1
@@ -303,7 +303,7 @@ class KeyLeaks:
     """SETUP_SIGNING carries the secret key in clear: whoever holds the capture holds the key."""
 
     def __init__(self) -> None:
-        self.frames = _Frames()
+        self.frames = _frames()
 
     def add(self, f: Frame, fields: Fields | None) -> None:
         if f.msgdef is not None and f.msgdef.name == "SETUP_SIGNING":

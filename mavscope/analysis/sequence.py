@@ -12,6 +12,11 @@ placed behind the newest one, not after it. Replay detection compares positions,
 byte for byte 256 frames later (a neutral-stick MANUAL_CONTROL after the counter wrapped) is told from a
 copy of a frame the counter has not yet left behind.
 
+A frame with the sequence number of the frame before it is a duplicate only when it is a copy of it. With
+other contents (`raw` given and different) the sender did not count it: MAVProxy writes the parameters it
+fetched over FTP into its tlog as PARAM_VALUE frames that all carry one number. Those are `unchanged`,
+neither duplicates nor losses.
+
 A sender that reboots restarts its counter: its frames then step back without filling a gap. When
 RESET_RUN such frames in a row each continue the previous one (+1), the counter restarted (or moved to
 another channel): they were not duplicates, the counter is followed from there, and `resets` counts it.
@@ -48,6 +53,7 @@ class SeqTracker:
     lost: int = 0
     duplicates: int = 0  # frames that repeat a sequence number already seen (`repeats` of them: the last one)
     repeats: int = 0
+    unchanged: int = 0  # frames with the previous frame's number and other contents: not counted by the sender
     reordered: int = 0
     resets: int = 0  # the counter restarted (a reboot) or moved to another channel
     position: int = 0  # of the frame fed last
@@ -57,9 +63,13 @@ class SeqTracker:
     large_gaps: int = 0  # how many large gaps in all
     run: int = 0  # backward frames in a row, each following the previous one
     run_seq: int = 0  # the seq of the last of them
+    last_raw: bytes | None = None  # the bytes of the frame fed last (when given)
 
-    def feed(self, seq: int, record: int = 0) -> tuple[str, int]:
-        """("first" | "next" | "gap" | "duplicate" | "late" | "reset", frames lost by this step)."""
+    def feed(self, seq: int, record: int = 0, raw: bytes | None = None) -> tuple[str, int]:
+        """("first" | "next" | "gap" | "duplicate" | "unchanged" | "late" | "reset", frames lost by this
+        step). `raw`, the frame's bytes, tells a copy of the frame before from a frame the sender did not
+        count."""
+        previous, self.last_raw = self.last_raw, raw
         if self.last is None:
             self.last = seq
             return "first", 0
@@ -69,6 +79,10 @@ class SeqTracker:
             self._advance(seq, 1)
             return "next", 0
         if d == 0:
+            if raw is not None and previous is not None and raw != previous:
+                self.unchanged += 1
+                self.position = self.newest
+                return "unchanged", 0
             self.duplicates += 1
             self.repeats += 1
             self.position = self.newest

@@ -166,11 +166,12 @@ class Stats:
         for (sysid, compid), lk in sorted(self.links.items()):
             if select is not None and not select.link((sysid, compid)):
                 continue
-            expected = lk.received - lk.seq.duplicates + lk.seq.lost
+            expected = lk.received - lk.seq.duplicates - lk.seq.unchanged + lk.seq.lost
             out.append({
                 "sysid": sysid, "compid": compid, "received": lk.received, "lost": lk.seq.lost,
                 "loss_pct": round(100.0 * lk.seq.lost / expected, 3) if expected > 0 else 0.0,
-                "duplicates": lk.seq.duplicates, "reordered": lk.seq.reordered, "bytes": lk.bytes,
+                "duplicates": lk.seq.duplicates, "unchanged_seq": lk.seq.unchanged, "reordered": lk.seq.reordered,
+                "bytes": lk.bytes,
                 "v1": lk.v1, "v2": lk.v2, "crc": dict(sorted(lk.crc.items())),
                 "signature": dict(sorted(lk.signature.items())), "first": lk.first, "last": lk.last,
                 "endpoints": sorted(lk.endpoints),
@@ -269,7 +270,7 @@ class StatsBuilder:
         verdict = signature_verdict(f)
         lk.signature[verdict] += 1
         self.sigs[verdict] += 1
-        lk.seq.feed(f.seq, f.record)
+        lk.seq.feed(f.seq, f.record, f.raw)
         lk.see(t)
         if f.src is not None:
             lk.endpoints.add(f.src.text)

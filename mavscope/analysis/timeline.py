@@ -8,6 +8,10 @@ fit is accumulated online (Welford's sums), so a clock costs the same memory wha
 length. A drift is given only from enough samples over enough time (DRIFT_MIN_SAMPLES over
 DRIFT_MIN_SPAN seconds): four samples in half a second do not measure a drift of -9105.9 ppm.
 
+A clock that steps back by more than RESTART_BACK seconds restarted (a reboot: `time_boot_ms` starts
+again from zero; or a wall clock set back): one line cannot go through both runs, so the fit starts over
+and the clock reports how often and when it restarted; offset, drift and zero describe its last run.
+
 Readings after 2001 in Unix seconds are wall clocks (`unix`); smaller ones count from the sender's boot
 (`boot`), whose zero is given as a capture time. A TIMESYNC answer (tc1 != 0) is dated at the middle of
 its round trip, since the responder read its clock between request and answer. Capture time is the
@@ -28,6 +32,8 @@ from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
 UNIX_MIN = 1e9  # seconds: readings above this are wall-clock times (after 2001-09-09)
 DRIFT_MIN_SAMPLES = 10
 DRIFT_MIN_SPAN = 10.0  # seconds
+RESTART_BACK = 1.0  # seconds a clock must step back to have restarted (less is jitter or a late frame)
+RESTARTS_LISTED = 20  # capture times of restarts listed per clock (all of them are counted)
 ROUND_TRIPS_LISTED = 1000  # round-trip times listed per pair (all of them are counted)
 PENDING_REQUESTS = 4096  # TIMESYNC/PING requests waiting for their answer (the oldest go first)
 
@@ -50,8 +56,18 @@ class Clock:
     sxx: float = 0.0  # sum of squared deviations of x
     syy: float = 0.0
     sxy: float = 0.0
+    reading: float = 0.0  # the last one
+    restarts: int = 0
+    restarted_at: list[float] = field(default_factory=list)  # capture times, the first RESTARTS_LISTED
 
     def add(self, t: float, reading: float) -> None:
+        if self.n and reading < self.reading - RESTART_BACK:
+            self.restarts += 1
+            if len(self.restarted_at) < RESTARTS_LISTED:
+                self.restarted_at.append(t)
+            self.n = 0
+            self.mean_x = self.mean_y = self.sxx = self.syy = self.sxy = 0.0
+        self.reading = reading
         if self.n == 0:
             self.x0, self.first, self.first_reading = t, t, reading
         self.last = t
@@ -135,6 +151,7 @@ class Timeline:
                 "offset_s": round(offset, 6), "drift_ppm": round(drift, 2) if measured else None,
                 "drift_err_ppm": round(err, 2) if measured and err is not None else None,
                 "jitter_ms": round(jitter, 3), "first": c.first, "last": c.last,
+                "restarts": c.restarts, "restarted_at": c.restarted_at,
             }
             if c.kind == "boot":
                 entry["zero_at"] = round(-offset, 6)  # capture time at which this clock read zero

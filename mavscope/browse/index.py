@@ -35,10 +35,11 @@ from mavscope.endpoint import Endpoint
 from mavscope.fields.summary import summary_info
 from mavscope.fields.tree import frame_items
 from mavscope.mavlink.dialect import Dialect
-from mavscope.mavlink.frame import HEADER_V1, HEADER_V2, STX_V2, CrcStatus, Frame, Security, decode_payload
+from mavscope.mavlink.frame import CrcStatus, Frame, Security, decode_payload
 from mavscope.mavlink.framing import build_frame
 from mavscope.notes import Note
 from mavscope.pipeline.dissect import Anomaly
+from mavscope.wire import HEADER_V1, HEADER_V2, STX_V2
 
 CRC_CODES: tuple[CrcStatus, ...] = (CrcStatus.OK, CrcStatus.BAD, CrcStatus.UNCHECKED, CrcStatus.TRUNCATED)
 _CRC_CODE = {s: i for i, s in enumerate(CRC_CODES)}

@@ -58,6 +58,8 @@ def open_file(path: str | os.PathLike[str]) -> tuple[str, BinaryIO, int]:
         raise CaptureError("permission denied", path=spath) from None
     except OSError as e:
         raise CaptureError(f"cannot open: {e.strerror or e}", path=spath) from None
+    except ValueError:  # a NUL byte in the name
+        raise CaptureError("not a usable file name", path=repr(spath)) from None
     try:
         st = os.fstat(f.fileno())
         if not stat.S_ISREG(st.st_mode):

@@ -9,9 +9,8 @@ from collections.abc import Iterator
 from mavscope.capture.base import LINKTYPE_MAVLINK_TLOG, Record
 from mavscope.capture.reader import READER_BUGS, CaptureReader, make_record
 from mavscope.notes import Note, note
+from mavscope.wire import STX_V1, STX_V2, frame_size
 
-STX_V1 = 0xFE
-STX_V2 = 0xFD
 TS_MIN = 946_684_800 * 1_000_000  # 2000-01-01 in microseconds since the Unix epoch
 TS_MAX = 4_102_444_800 * 1_000_000  # 2100-01-01
 RESYNC_BEHIND = 3_600 * 1_000_000  # how far (µs) before the last good entry a resynchronised one may lie
@@ -28,14 +27,7 @@ _STX = re.compile(rb"[\xfd\xfe]")
 
 def frame_length(buf: bytes, p: int, size: int) -> int:
     """Length of the MAVLink frame whose STX is at `p` (from its header), or -1 if not a frame start or cut."""
-    if p + 3 > size:
-        return -1
-    stx = buf[p]
-    if stx == STX_V2:
-        return 12 + buf[p + 1] + (13 if buf[p + 2] & 1 else 0)
-    if stx == STX_V1:
-        return 8 + buf[p + 1]
-    return -1
+    return frame_size(buf, p) if p + 3 <= size else -1
 
 
 def entry_end(buf: bytes, p: int, size: int, lo: int = TS_MIN, hi: int = TS_MAX) -> int:
@@ -167,6 +159,7 @@ class TlogReader(CaptureReader):
 
     def _records(self) -> Iterator[Record]:
         ts_unpack = _TS.unpack_from
+        size_of = frame_size
         tuple_new = tuple.__new__
         R = Record
         LT = LINKTYPE_MAVLINK_TLOG
@@ -185,13 +178,10 @@ class TlogReader(CaptureReader):
                 last = blen - LOOKAHEAD if base + blen < size else blen - 11  # entries decidable in the window
                 while p <= last:
                     ts = ts_unpack(buf, p)[0]
-                    stx = buf[p + 8]
-                    if stx == 0xFD:
-                        end = p + 20 + buf[p + 9] + (13 if buf[p + 10] & 1 else 0)
-                    elif stx == 0xFE:
-                        end = p + 16 + buf[p + 9]
-                    else:
+                    flen = size_of(buf, p + 8)
+                    if flen < 0:
                         break
+                    end = p + 8 + flen
                     if end > blen or not TS_MIN <= ts < TS_MAX:
                         break
                     n += 1
@@ -223,13 +213,8 @@ class TlogReader(CaptureReader):
                         continue
                 if pos + 11 <= size:
                     ts = ts_unpack(buf, p)[0]
-                    stx = buf[p + 8]
-                    if stx == 0xFD:
-                        end = p + 20 + buf[p + 9] + (13 if buf[p + 10] & 1 else 0)
-                    elif stx == 0xFE:
-                        end = p + 16 + buf[p + 9]
-                    else:
-                        end = -1
+                    flen = frame_size(buf, p + 8)
+                    end = p + 8 + flen if flen >= 0 else -1
                     if end >= 0 and TS_MIN <= ts < TS_MAX:
                         if base + end <= size:
                             n += 1
@@ -239,7 +224,6 @@ class TlogReader(CaptureReader):
                             pending = ()
                             pos = base + end
                             continue
-                        flen = end - p - 8  # the frame length the entry announces
                         q, buf, base = self._find(buf, base, pos + 1, last_ts)
                         size = self.size
                         if q < 0:  # a cut last entry

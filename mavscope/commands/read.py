@@ -39,7 +39,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def frame_count(text: str) -> int:
     """-c N: a whole, positive number of frames."""
-    if not text.strip().isdigit() or int(text) < 1:
+    if not (text.strip().isascii() and text.strip().isdigit()) or int(text) < 1:
         raise argparse.ArgumentTypeError(f"a whole positive number of frames, not {text!r}")
     return int(text)
 

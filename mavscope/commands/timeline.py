@@ -50,6 +50,11 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                       f"{c['offset_s']:+.6f}" if c["kind"] == "unix" else "-",
                       _drift(c), fmt(c["jitter_ms"]), iso(c.get("zero_at")))
         con.print(t)
+        for c in s["clocks"]:
+            if c["restarts"]:
+                at = ", ".join(iso(x) for x in c["restarted_at"][:3]) + (" ..." if c["restarts"] > 3 else "")
+                con.print(f"  {c['source']} of component {c['component']} restarted {c['restarts']} time(s) "
+                          f"(at {at}): offset, drift and zero are those of its last run", highlight=False)
         for r in s["round_trips"]:
             con.print(f"  {r['kind']} round trips to system {r['peer']}: {r['count']}, "
                       f"min {r['min_ms']:.3f} ms, mean {r['mean_ms']:.3f} ms, max {r['max_ms']:.3f} ms")

@@ -24,18 +24,9 @@ from operator import attrgetter
 
 from mavscope.fields import containers
 from mavscope.mavlink.dialect import Dialect, FieldDef, MessageDef
-from mavscope.mavlink.frame import (
-    HEADER_V1,
-    HEADER_V2,
-    IFLAG_ENCRYPTION_MASK,
-    IFLAG_SIGNED,
-    SIGNATURE_LEN,
-    EncryptionStatus,
-    Frame,
-    SignatureStatus,
-    signature_status,
-)
+from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, EncryptionStatus, Frame, SignatureStatus, signature_status
 from mavscope.notes import CODES, frame_codes
+from mavscope.wire import HEADER_V1, HEADER_V2, IFLAG_SIGNED, SIGNATURE_LEN
 
 
 class _Missing:

@@ -10,7 +10,7 @@ from weakref import WeakKeyDictionary
 
 from mavscope.fields.containers import info as container_info
 from mavscope.mavlink.dialect import Dialect, MessageDef
-from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, IFLAG_SIGNED, CrcStatus, Frame, decode_payload
+from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, CrcStatus, Frame, decode_payload
 from mavscope.mavlink.semantics import (
     COMMAND_MESSAGES,
     DEGE7,
@@ -19,6 +19,7 @@ from mavscope.mavlink.semantics import (
     float_text,
     message_label,
 )
+from mavscope.wire import IFLAG_SIGNED
 
 # The fields a summary line shows per message (default: the first few scalar fields).
 SUMMARY_FIELDS: dict[str, tuple[str, ...]] = {

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from mavscope.fields import containers
 from mavscope.fields.registry import FIELDS, HEADER, Field, field, payload_position
 from mavscope.mavlink.dialect import Dialect, FieldDef, MessageDef
-from mavscope.mavlink.frame import HEADER_V1, HEADER_V2, SIGNATURE_LEN, CrcStatus, Frame, decode_payload
+from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
 from mavscope.mavlink.framing import mcrf4xx
 from mavscope.mavlink.semantics import (
     COMMAND_PARAM_INDEX,
@@ -29,6 +29,7 @@ from mavscope.mavlink.semantics import (
     float_text,
     is_global,
 )
+from mavscope.wire import HEADER_V1, HEADER_V2, SIGNATURE_LEN
 
 
 @dataclass(frozen=True, slots=True)

@@ -2,20 +2,11 @@
 
     compile_filter('COMMAND_LONG.command == MAV_CMD_NAV_RETURN_TO_LAUNCH', dialect).matches(frame)
 
-A tokenizer, a recursive-descent parser to an AST, and a compiler that turns the AST into nested
-closures over the registry's accessors (mavscope.analysis.fields). No `eval`. Literals are converted
+A tokenizer (lexer.py), a recursive-descent parser to an AST (parser.py, which states the grammar), and a
+compiler (compiler.py) that turns the AST into nested closures over the field registry's accessors
+(mavscope.fields.registry). No `eval`. Literals are converted
 once at compile time (enum names to numbers through the dialect, addresses to networks, regexes
 compiled), and the payload is decoded per frame only when the filter names a payload field.
-
-Grammar (lowest precedence first):
-
-    expr    := and ( ("or" | "||") and )*
-    and     := not ( ("and" | "&&") not )*
-    not     := ("not" | "!") not | primary
-    primary := "(" expr ")" | NAME [ relop value | "&" value | "contains" value | "matches" value
-                                     | "in" "{" element ( [","] element )* "}" ]
-    relop   := "==" | "!=" | "<" | "<=" | ">" | ">=" | "eq" | "ne" | "lt" | "le" | "gt" | "ge"
-    element := value | NUMBER ".." NUMBER
 
 A NAME alone tests that the frame has the field (a bare message name: that the frame is that message).
 A comparison on a field the frame does not have is false, `!=` included (Wireshark semantics).

@@ -10,13 +10,8 @@ from typing import NamedTuple
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import MessageDef
 from mavscope.notes import Note
+from mavscope.wire import HEADER_V1, HEADER_V2, IFLAG_SIGNED
 
-STX_V1 = 0xFE
-STX_V2 = 0xFD
-HEADER_V1 = 6  # STX LEN SEQ SYS COMP MSGID
-HEADER_V2 = 10  # STX LEN INCOMPAT COMPAT SEQ SYS COMP MSGID(3)
-SIGNATURE_LEN = 13  # link id (1), timestamp (6), signature (6)
-IFLAG_SIGNED = 0x01
 IFLAG_ENCRYPTION_MASK = 0xE0  # SecureMAV: method = flags >> 5
 KNOWN_IFLAGS = IFLAG_SIGNED
 SIGNING_EPOCH = 1420070400  # 2015-01-01T00:00:00Z; signature timestamps count 10 us from here

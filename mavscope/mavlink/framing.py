@@ -25,21 +25,9 @@ from fastcrc import crc16
 
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import MessageDef
-from mavscope.mavlink.frame import (
-    HEADER_V1,
-    HEADER_V2,
-    IFLAG_ENCRYPTION_MASK,
-    IFLAG_SIGNED,
-    KNOWN_IFLAGS,
-    SIGNATURE_LEN,
-    STX_V1,
-    STX_V2,
-    CrcStatus,
-    Frame,
-    Signature,
-    new_frame,
-)
+from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, KNOWN_IFLAGS, CrcStatus, Frame, Signature, new_frame
 from mavscope.notes import Note, note
+from mavscope.wire import HEADER_V1, HEADER_V2, IFLAG_SIGNED, SIGNATURE_LEN, STX_V1, STX_V2, frame_size
 
 mcrf4xx = crc16.mcrf4xx
 unpack_v2 = struct.Struct("<BBBBBBBHB").unpack_from
@@ -54,13 +42,6 @@ TRUNCATED = CrcStatus.TRUNCATED
 
 # a frame StreamFramer.take found: (buf, pos, size, status, crc, offset, span, notes)
 StreamPiece = tuple[bytes, int, int, CrcStatus, int | None, int | None, tuple[int, ...] | None, tuple[Note, ...]]
-
-
-def frame_size(buf: bytes, pos: int) -> int:
-    """Total size of the frame whose STX is at `pos` (needs 3 bytes: STX, LEN, INCOMPAT)."""
-    if buf[pos] == STX_V2:
-        return HEADER_V2 + buf[pos + 1] + 2 + (SIGNATURE_LEN if buf[pos + 2] & IFLAG_SIGNED else 0)
-    return HEADER_V1 + buf[pos + 1] + 2
 
 
 def _next_stx(buf: bytes, start: int, end: int) -> int:

@@ -13,6 +13,7 @@ from mavscope.mavlink.dialect import Dialect, MessageDef
 # MAV_FRAME values whose x/y are latitude/longitude: the MAV_FRAME_GLOBAL* entries of common.xml
 # (a test checks this against the dialect's enum).
 GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})
+MAV_FRAME_MISSION = 2  # "not a frame": x and y are plain parameters (param5/6), never scaled
 # Messages whose x/y are int32 (degrees * 1e7 in a global frame, metres * 1e4 in a local one).
 INT_COORDINATE_MESSAGES = frozenset({"COMMAND_INT", "MISSION_ITEM_INT"})
 # Messages whose param1..7 (x/y/z as 5..7) take their meaning from the command (MAV_CMD's <param>s).
@@ -28,8 +29,16 @@ def is_global(frame: int | None) -> bool:
 
 
 def int_coordinate(value: int, frame: int | None) -> float:
-    """An int32 x/y of COMMAND_INT or MISSION_ITEM_INT in its unit: degrees in a global frame, else metres."""
+    """An int32 x/y of COMMAND_INT or MISSION_ITEM_INT in its unit: degrees in a global frame, the plain
+    parameter in MAV_FRAME_MISSION, else metres."""
+    if frame == MAV_FRAME_MISSION:
+        return float(value)
     return value / (DEGE7 if frame in GLOBAL_FRAMES else LOCAL_INT_SCALE)
+
+
+def coordinate_unit(frame: int | None) -> str:
+    """The unit of x/y in `frame`: "deg", "raw" (MAV_FRAME_MISSION: parameters) or "m"."""
+    return "deg" if frame in GLOBAL_FRAMES else "raw" if frame == MAV_FRAME_MISSION else "m"
 
 
 def degrees_text(value: int) -> str:

@@ -15,7 +15,8 @@ from operator import itemgetter
 import orjson
 
 from mavscope.fields.registry import ENCRYPTION_BLOCK, FIELDS, MISSING, SIGNATURE_BLOCK, Field
-from mavscope.mavlink.frame import IFLAG_SIGNED, CrcStatus, Frame, decode_payload
+from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
+from mavscope.wire import IFLAG_SIGNED
 
 TRUNCATED = CrcStatus.TRUNCATED
 

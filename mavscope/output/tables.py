@@ -27,7 +27,7 @@ def console(out: IO[str], environ: Mapping[str, str]):  # type: ignore[no-untype
         return Console(file=out)
     width = environ.get("COLUMNS", "")
     return Console(file=out, no_color=True, color_system=None, highlight=False, emoji=False,
-                   width=int(width) if width.isdigit() else 160)
+                   width=int(width) if width.isascii() and width.isdigit() else 160)
 
 
 def sparkline(values: Sequence[float]) -> str:

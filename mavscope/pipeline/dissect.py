@@ -15,7 +15,7 @@ from typing import final
 from mavscope.capture.base import Record
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
-from mavscope.mavlink.frame import SIGNATURE_LEN, STX_V2, Frame, Signature, new_frame
+from mavscope.mavlink.frame import Frame, Signature, new_frame
 from mavscope.mavlink.framing import (
     OK,
     Framer,
@@ -30,6 +30,7 @@ from mavscope.notes import Note
 from mavscope.pipeline.textrun import TextRun, is_text_entry
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, Payload
 from mavscope.transport.decap import Decapsulator
+from mavscope.wire import SIGNATURE_LEN, STX_V2
 
 # Ports MAVLink uses by convention (DOMAIN.md). Datagrams on them are taken for MAVLink even when no
 # frame in them has a valid CRC; on any other port, a valid frame must have been seen first.

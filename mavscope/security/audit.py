@@ -12,7 +12,7 @@ from collections import defaultdict
 from collections.abc import Iterable
 
 from mavscope.mavlink.frame import EncryptionStatus, Frame, SignatureStatus
-from mavscope.notes import Finding, explanation, finding, sort_findings
+from mavscope.notes import Finding, FrameNumbers, explanation, finding, sort_findings
 from mavscope.security.keystream import Collector, Recovery, frames_text, keystream_audit
 from mavscope.security.passphrase import Targets, default_key_findings, passphrase_findings
 
@@ -21,19 +21,14 @@ _NOTE_CODES = ("key-leak", "unsigned-in-signed-stream", "v1-in-signed-stream", "
 RECORDS_LISTED = 10_000  # frame numbers kept per kind of verdict (all of them are counted)
 
 
-class _Records:
+def _records() -> FrameNumbers:
     """Frame numbers of one kind of verdict: the first RECORDS_LISTED, and the count."""
+    return FrameNumbers(RECORDS_LISTED, repeats=True)
 
-    __slots__ = ("nums", "count")
 
-    def __init__(self) -> None:
-        self.nums: list[int] = []
-        self.count = 0
-
-    def add(self, record: int) -> None:
-        self.count += 1
-        if len(self.nums) < RECORDS_LISTED:
-            self.nums.append(record)
+def _text(r: FrameNumbers) -> str:
+    more = r.count - len(r.nums)
+    return frames_text(r.nums) + (f" (and {more} not listed)" if more > 0 else "")
 
     def text(self) -> str:
         more = self.count - len(self.nums)
@@ -44,9 +39,9 @@ class Audit:
     """`audit` in one pass: `add(frame)` per frame in capture order (bounded state), then `result()`."""
 
     def __init__(self) -> None:
-        self.by: dict[str, _Records] = defaultdict(_Records)
-        self.no_cipher = _Records()
-        self.failed = _Records()
+        self.by: dict[str, FrameNumbers] = defaultdict(_records)
+        self.no_cipher = _records()
+        self.failed = _records()
         self.keystreams = Collector()
         self.targets = Targets()
 
@@ -71,16 +66,16 @@ class Audit:
 
     def verdict_findings(self) -> list[Finding]:
         """One finding per kind of verdict the security stage gave (with the frames that got it)."""
-        findings = [finding(code, f"{r.count} frame(s): {explanation(code)} (frames {r.text()})", r.nums)
+        findings = [finding(code, f"{r.count} frame(s): {explanation(code)} (frames {_text(r)})", r.nums)
                     for code, r in self.by.items()]
         if self.failed.count:
             findings.append(finding("decryption-failed",
                                     f"{self.failed.count} encrypted frame(s) did not decrypt with the configured "
-                                    f"cipher (frames {self.failed.text()})", self.failed.nums))
+                                    f"cipher (frames {_text(self.failed)})", self.failed.nums))
         if self.no_cipher.count:
             findings.append(finding("encrypted-no-key",
                                     f"{self.no_cipher.count} encrypted frame(s) without a cipher for their method "
-                                    f"(frames {self.no_cipher.text()})", self.no_cipher.nums))
+                                    f"(frames {_text(self.no_cipher)})", self.no_cipher.nums))
         return findings
 
     def result(self, *, words: Iterable[bytes] | None = None, qgc: bool = False,

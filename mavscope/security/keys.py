@@ -172,11 +172,11 @@ def secret_from_spec(spec: str, what: str) -> bytes:
 def cipher_from_spec(spec: str, what: str = "--cipher") -> CipherKey:
     """`METHOD=SCHEME:KEYSPEC[:iv=HEX]`; for `xor` KEYSPEC may be omitted for method 7 (0xAB)."""
     method_text, sep, rest = spec.partition("=")
-    if not sep or not method_text.strip().isdigit():
+    digits = method_text.strip(" \t")
+    if not sep or not (digits.isascii() and digits.isdigit()):  # int() takes neither '²' nor '\x1d'
         raise UsageError(f"{what}: expected METHOD=SCHEME:KEYSPEC, METHOD 1..7")
-    method = int(method_text)
+    method = int(digits)
     if not 1 <= method <= 7:
-        digits = method_text.strip()
         got = digits if len(digits) <= 3 else f"a number of {len(digits)} digits"
         raise UsageError(f"{what}: METHOD is 1..7 (incompat flag bits 5-7), not {got}")
     iv = b"\x00" * 16
@@ -234,6 +234,8 @@ def load_keyring(path: str, material: KeyMaterial, warn: Callable[[str], object]
     except tomllib.TOMLDecodeError as exc:
         # the decoder's message gives line and column, never the line's text
         raise UsageError(f"keyring {path}: not valid TOML ({str(exc).split('(')[-1].rstrip(')')})") from None
+    except ValueError:  # a NUL byte in the path: os.stat refuses it
+        raise UsageError(f"keyring {path!r}: not a usable file name") from None
     if st.st_mode & (stat.S_IRWXG | stat.S_IRWXO):
         warn(f"warning: keyring {path} is readable by group or others (chmod 600 {path})")
     keys = data.get("keys", {})

@@ -45,7 +45,7 @@ def parse_known_plaintext(spec: str, dialect: Dialect) -> tuple[int, bytes]:
     name, sep, hexpart = spec.partition("=")
     if not sep:
         raise UsageError("--known-plaintext: expected MSG=HEX (a message name or id and its payload in hex)")
-    md = dialect.messages.get(int(name)) if name.isdigit() else dialect.by_name.get(name.upper())
+    md = dialect.messages.get(int(name)) if name.isascii() and name.isdigit() else dialect.by_name.get(name.upper())
     if md is None:
         raise UsageError(f"--known-plaintext: unknown message {name!r}")
     try:

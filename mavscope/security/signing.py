@@ -16,8 +16,9 @@ from __future__ import annotations
 from hmac import compare_digest
 from typing import NamedTuple
 
-from mavscope.mavlink.frame import SIGNATURE_LEN, SignatureReason, SignatureStatus
+from mavscope.mavlink.frame import SignatureReason, SignatureStatus
 from mavscope.security.keys import SigningKey
+from mavscope.wire import SIGNATURE_LEN
 
 NEW_STREAM_WINDOW = 60.0  # seconds, as the C library's new-stream rule
 

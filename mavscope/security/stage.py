@@ -28,7 +28,6 @@ from collections.abc import Callable, Iterable, Iterator
 from typing import cast
 
 from mavscope.mavlink.frame import (
-    IFLAG_SIGNED,
     CrcStatus,
     Encryption,
     EncryptionStatus,
@@ -50,6 +49,7 @@ from mavscope.security.keys import (
     SigningKey,
 )
 from mavscope.security.signing import NEW_STREAM_WINDOW, SignatureVerifier
+from mavscope.wire import IFLAG_SIGNED
 
 SETUP_SIGNING = 256
 RADIO_STATUS = 109
@@ -156,9 +156,7 @@ class SecurityStage:
                 if status is SignatureStatus.VALID:
                     self.signed_senders.add(sender)
                 if v.skew is not None and abs(v.skew) > NEW_STREAM_WINDOW:
-                    notes.append(note("signature-skew",
-                                      f"new signing stream (link {sig.link_id}) with a timestamp {v.skew:+.3f} s "
-                                      "from capture time: a receiver allows one minute", frame.offset))
+                    notes.append(note("signature-skew", _skew_text(sig.link_id, v.skew), frame.offset))
             elif frame.crc_status is _OK:
                 self.signed_senders.add(sender)
         elif sender in self.signed_senders and frame.msgid != RADIO_STATUS:
@@ -250,3 +248,13 @@ class SecurityStage:
             return Encryption(method, scheme, EncryptionStatus.FAILED, None,
                               f"decrypted payload of {len(plain)} bytes is longer than {md.name} ({md.length})")
         return Encryption(method, scheme, EncryptionStatus.DECRYPTED, plain)
+
+
+def _skew_text(link_id: int, skew: float) -> str:
+    """What a receiver whose signing clock is the capture's does with a new stream `skew` s off: the C
+    library refuses one more than a minute old, and takes one from the future, moving its clock forward."""
+    if skew < 0:
+        return (f"new signing stream (link {link_id}) with a timestamp {-skew:.3f} s before capture time: a "
+                "receiver refuses a new stream more than a minute old")
+    return (f"new signing stream (link {link_id}) with a timestamp {skew:.3f} s after capture time: a receiver "
+            "takes it and moves its signing clock forward, then refuses new streams with the true time")

@@ -16,6 +16,7 @@ KEYS: tuple[tuple[str, str, str], ...] = (
     ("Escape", "leave the filter bar (the filter stays applied)", "filter bar"),
     ("s", "statistics: message rates with sparklines, loss per link", "everywhere"),
     ("m", "mission: waypoint table and a plot of the track", "everywhere"),
+    ("o", "objects: files (MAVLink FTP), logs and images moved over the link", "everywhere"),
     ("e", "expert findings", "everywhere"),
     ("k", "add a signing key or a cipher key (verdicts update)", "everywhere"),
     ("?", "this help", "everywhere"),

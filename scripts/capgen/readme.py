@@ -56,6 +56,18 @@ CAPTURE_NOTES |= {
     "key_exchange_udp.pcap": "X25519 key exchange (MAVSCOPE_KEY_EXCHANGE) with re-keying: signed frames and aes-gcm "
                              "payloads (method 6) under three epochs' keys (keys below)",
 }
+CAPTURE_NOTES |= {
+    "ftp_params.pcap": "ArduPilot-like vehicle: @PARAM/param.pck read over MAVLink FTP (burst reads), parameter sets "
+                       "from the signed GCS and an unsigned second system, a PARAM_EXT_SET to a camera, a second "
+                       "param.pck read with a lost packet read again (truth: ftp_params.truth.json)",
+    "ftp_lua_upload.pcap": "a Lua script written to /APM/scripts over MAVLink FTP (a write retried after its ACK was "
+                           "lost), read back (a burst lost and retried, a packet read again), a read with a packet "
+                           "lost for good, listings, a removal through '..', parameters set by writing param.pck "
+                           "(truth: ftp_lua_upload.truth.json)",
+    "log_download.pcap": "LOG_REQUEST_LIST/LOG_ENTRY, a log downloaded with LOG_REQUEST_DATA/LOG_DATA (three packets "
+                         "lost and asked for again), a second one cancelled with LOG_REQUEST_END "
+                         "(truth: log_download.truth.json)",
+}
 LINKTYPE_NAMES = {LINKTYPE_ETHERNET: "Ethernet (1)", LINKTYPE_LINUX_SLL2: "Linux SLL2 (276)"}
 
 
@@ -260,4 +272,27 @@ GCS private key `{kx['gcs_private']}` (public `{kx['gcs_public']}`):
 | key id | exchange at s | vehicle private key | signing key (HKDF) | aes-gcm master key (HKDF) |
 |---|---|---|---|---|
 {epochs}
+"""
+
+
+def render_objects_truth(expected: dict[str, Any]) -> str:
+    """The README section on the object and parameter captures: where their truth is and what it holds."""
+    names = ("ftp_params.pcap", "ftp_lua_upload.pcap", "log_download.pcap")
+    rows = "\n".join(f"| `{n}` | `{expected[n]['truth']}` | {expected[n]['frames']} |" for n in names)
+    return f"""
+## Objects and parameters truth (`objects`, `params`)
+
+Each of these captures comes with a truth file written by the generator from what it sent (never by
+decoding): every object (FTP path, direction, sender, receiver, size, SHA-256 of the bytes as a correct tool
+rebuilds them, with zeros where a packet was lost for good, completeness and gaps), the FTP operations,
+and for the parameter captures the initial and final parameter values and the timeline of sets (value,
+previous value, sender, whether the vehicle confirmed it, retries, security category).
+
+| capture | truth | frames |
+|---|---|---|
+{rows}
+
+The param.pck files are packed as ArduPilot's AP_Filesystem_Param does (`scripts/capgen/parampck.py`: pad
+bytes keep each value inside one 239-byte read block); FTP packets are built with pymavlink's
+`mavftp_op.FTP_OP`. Frames "lost" were encoded (their sender's sequence number advances) but left out.
 """

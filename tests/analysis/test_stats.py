@@ -138,3 +138,27 @@ def test_seq_tracker_follows_a_restarted_counter() -> None:
     for s in list(range(50, 101)) + list(range(0, 40)):
         tr.feed(s)
     assert (tr.lost, tr.duplicates, tr.resets) == (0, 0, 1)
+
+
+def test_seq_tracker_tells_an_uncounted_frame_from_a_copy() -> None:
+    tr = SeqTracker()
+    assert tr.feed(14, 1, b"a")[0] == "first"
+    assert tr.feed(14, 2, b"b")[0] == "unchanged"  # same number, other bytes: the sender did not count it
+    assert tr.feed(14, 3, b"b")[0] == "duplicate"  # a copy of the frame before
+    assert tr.feed(14, 4)[0] == "duplicate"  # without the bytes nothing tells them apart
+    assert (tr.unchanged, tr.duplicates, tr.lost) == (1, 2, 0)
+
+
+def test_mavproxys_synthetic_param_values_are_neither_duplicates_nor_losses(cli: Cli, real_captures: Path) -> None:
+    """ArduPlane SITL tlog: after its FTP parameter download MAVProxy wrote 1,435 PARAM_VALUE frames into the
+    tlog under header 1/190, every one with seq 14 and its own parameter (MAVProxy's mavproxy_param.py
+    log_params(); counted by /work/research/real-truth with pymavlink: 1,435 frames, 1,434 naive repeats of
+    the same seq, 1,435 distinct param_ids). Mission Planner (255/190) has 28 frames behind its counter that
+    fill no gap (REQUEST_DATA_STREAM on a second counter) and 7 late ones: those stay duplicates/late."""
+    doc = cli.json("stats", real_captures / "ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog")
+    links = {(lk["sysid"], lk["compid"]): lk for lk in doc["links"]}
+    assert (links[(1, 190)]["received"], links[(1, 190)]["unchanged_seq"], links[(1, 190)]["duplicates"],
+            links[(1, 190)]["lost"]) == (1435, 1434, 0, 0)
+    assert (links[(255, 190)]["duplicates"], links[(255, 190)]["reordered"]) == (28, 7)
+    codes = {(f["code"], f["message"].split(":")[0]) for f in doc["findings"]}
+    assert ("seq-unchanged", "link 1/190") in codes and ("seq-duplicate", "link 1/190") not in codes

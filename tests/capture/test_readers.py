@@ -296,3 +296,11 @@ def test_real_tlogs_frame_counts(real_captures: Path, name: str, v2: int, v1: in
         records = list(r)
     assert not [n for rec in records for n in rec.notes]
     assert _crc_valid(records) == (v2, v1)
+
+
+def test_a_file_name_with_a_nul_byte_is_a_capture_error() -> None:
+    from mavscope.capture.reader import open_file
+    from mavscope.errors import CaptureError
+
+    with pytest.raises(CaptureError, match="not a usable file name"):
+        open_file("/tmp/a\0b.pcap")

@@ -12,6 +12,7 @@ import pytest
 
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus
+from tests.conftest import Cli
 from tests.crosscheck.test_pymavlink import dissect
 
 EXPECTED = {
@@ -77,3 +78,19 @@ def test_tlog_messages_match_pymavlink_record_by_record(name: str, real_captures
     got = Counter(((f.sysid, f.compid), f.msgname) for f in frames if f.crc_status is CrcStatus.OK)
     assert {f.transport for f in frames} == {"tlog"}
     assert got == expected
+
+
+def test_the_injected_command_verifies_with_the_known_key_from_a_day_ahead(cli: Cli, real_captures: Path) -> None:
+    """ap_sitl_attack1_signed_knownkey.pcap (PROVENANCE.md): one COMMAND_LONG from 255/230 injected into a
+    signed ArduPilot SITL link. Derived apart from mavscope (pymavlink decode, the spec's
+    sha256(key + frame[:-6])[:6] by hand): it is record 161 (index 160), link 1, and verifies with
+    SHA-256("key"); its signature time 1780984472.86799 lies 86,398.2 s after its capture time. The
+    vehicle's 272 frames verify with none of the candidate keys. A receiver keeps the newest timestamp it
+    accepted, so this frame would move its signing clock a day ahead."""
+    rows = cli.jsonl(real_captures / "ap_sitl_attack1_signed_knownkey.pcap", "--key", "passphrase:key")
+    valid = [r for r in rows if r["signature"] and r["signature"]["status"] == "valid"]
+    assert [(r["frame"], r["sysid"], r["compid"], r["msgname"], r["signature"]["link_id"]) for r in valid] == [
+        (161, 255, 230, "COMMAND_LONG", 1)]
+    assert valid[0]["signature"]["skew"] == pytest.approx(86398.2, abs=0.1)
+    assert any(n["code"] == "signature-skew" and "after capture time" in n["message"] for n in valid[0]["notes"])
+    assert sum(r["signature"]["status"] == "invalid" for r in rows if r["sysid"] == 1) == 272

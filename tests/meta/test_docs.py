@@ -3,6 +3,7 @@ docs/json-format.md (the `notes` of a frame), capture findings in docs/analysis.
 
 from __future__ import annotations
 
+from mavscope.fields.registry import FIELDS
 from mavscope.notes import CODES, Scope
 from tests.conftest import ROOT
 
@@ -21,3 +22,11 @@ def test_findings_are_in_the_analysis_or_security_docs() -> None:
     doc = _doc("analysis.md", "security.md")
     missing = [c for c, k in CODES.items() if k.scope is not Scope.FRAME and f"`{c}`" not in doc]
     assert not missing, f"finding codes in neither docs/analysis.md nor docs/security.md: {missing}"
+
+
+def test_every_registered_field_is_in_the_filter_docs() -> None:
+    """The field registry's header, frame, signature and encryption fields (note.<code> is documented as
+    one form, payload fields come from the dialects)."""
+    doc = _doc("filters.md")
+    missing = [f.name for f in FIELDS if not f.name.startswith("note.") and f"`{f.name}`" not in doc]
+    assert not missing, f"fields not in docs/filters.md: {missing}"

@@ -3,7 +3,7 @@ included), the core never imports a front end, rich, Textual or argparse, and no
 
 The data path, from the bottom (docs/architecture.md):
 
-    base (errors, notes, endpoint) -> capture, live -> transport -> mavlink -> pipeline (dissector,
+    base (errors, notes, endpoint, wire) -> capture, live -> transport -> mavlink -> pipeline (dissector,
     options) -> security -> fields, filter -> pipeline.session -> analysis -> browse -> output, cli,
     commands, tui
 
@@ -29,6 +29,7 @@ LAYERS: tuple[tuple[str, int], ...] = (
     ("mavscope.errors", 0),
     ("mavscope.notes", 0),
     ("mavscope.endpoint", 0),
+    ("mavscope.wire", 0),
     ("mavscope.capture", 1),
     ("mavscope.live", 1),
     ("mavscope.transport", 2),

@@ -136,3 +136,9 @@ def test_the_key_dialog_masks_what_is_typed_and_its_error() -> None:
             await pilot.press("escape")
 
     run(scenario())
+
+
+def test_a_keyring_path_with_a_nul_byte_is_a_usage_error() -> None:
+    """Found by `make fuzz` (keys target): os.stat raised ValueError on a NUL byte in a file: path."""
+    with pytest.raises(MavscopeError, match="not a usable file name"):
+        build_material(["file:/tmp/a\0b.toml"])

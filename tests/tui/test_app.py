@@ -269,6 +269,23 @@ def test_key_dialog_adds_a_passphrase_and_the_verdicts_update() -> None:
     run(scenario())
 
 
+def test_key_dialog_tab_from_the_key_lands_on_add() -> None:
+    """Issue 11 #10: Tab from the typed key went to Cancel, and Enter there lost the key without a word."""
+    async def scenario() -> None:
+        app = create_app(CAPTURES / "signed_udp.pcap")
+        async with app.run_test(size=SIZE) as pilot:
+            await ready(pilot)
+            await pilot.press("k")
+            await type_text(pilot, "mavscope-demo")
+            await pilot.press("tab")
+            assert app.focused is not None and app.focused.id == "key-add"
+            await pilot.press("enter")
+            await wait_for(pilot, lambda: app.pending is None and app.screen is app.screen_stack[0])
+            assert all(app.index.row(i).signature_status is SignatureStatus.VALID for i in range(len(app.index)))
+
+    run(scenario())
+
+
 def test_key_dialog_shows_the_command_lines_error_for_a_bad_key() -> None:
     async def scenario() -> None:
         app = create_app(CAPTURES / "signed_udp.pcap")

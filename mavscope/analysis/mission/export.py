@@ -22,10 +22,9 @@ from mavscope.analysis.mission.model import (
     role,
 )
 from mavscope.mavlink.dialect import Dialect
-from mavscope.mavlink.semantics import enum_name, finite, is_global
+from mavscope.mavlink.semantics import coordinate_unit, enum_name, finite, is_global
 
 MAV_AUTOPILOT_ARDUPILOTMEGA = 3
-MAV_FRAME_MISSION = 2
 # *_INT frame variants -> the frame QGroundControl writes in a .plan
 PLAN_FRAME = {5: 0, 6: 3, 11: 10}
 # QGroundControl's AltMode: 1 relative (GLOBAL_RELATIVE_ALT), 2 absolute (GLOBAL), 4 terrain frame
@@ -50,7 +49,7 @@ def item_json(item: Item, dialect: Dialect) -> dict[str, object]:
         "params": [finite(p) for p in item.params],
         "param_labels": [labels.get(i) for i in range(1, 8)],
         "x": finite(item.x), "y": finite(item.y), "z": finite(item.z),
-        "units": "deg" if is_global(item.frame) else "raw" if item.frame == MAV_FRAME_MISSION else "m",
+        "units": coordinate_unit(item.frame),
         "current": item.current, "autocontinue": item.autocontinue,
         "message": item.message, "frames": item.frames,
     }

@@ -51,7 +51,6 @@ DUPLICATE_WINDOW = 2.0  # seconds: a byte copy later than this is a new transmis
 DUPLICATE_FRAMES = 64  # frames of the sender: a byte copy further back is a new transmission
 RECENT = 8  # mission frames remembered per sender for duplicate detection
 RECENTLY_CLOSED = 16  # closed transfers kept for late frames when the capture has no times
-MAV_FRAME_MISSION = 2  # "not a frame": x and y are plain parameters, never scaled (mission protocol spec)
 
 
 def _num(fields: dict[str, object], name: str, default: int = 0) -> int:
@@ -63,7 +62,7 @@ def _item(name: str, fields: dict[str, object], record: int) -> Item:
     num = cast("dict[str, float]", fields)  # every MISSION_ITEM(_INT) field is a number (int or float)
     frame = int(num.get("frame", 0))
     x, y = num.get("x", 0), num.get("y", 0)
-    if name == "MISSION_ITEM_INT" and frame != MAV_FRAME_MISSION:  # MAV_FRAME_MISSION: param5/6 as they are
+    if name == "MISSION_ITEM_INT":
         x, y = int_coordinate(int(x), frame), int_coordinate(int(y), frame)
     return Item(int(num["seq"]), int(num["command"]), frame,
                 (float(num["param1"]), float(num["param2"]), float(num["param3"]), float(num["param4"])),

@@ -143,7 +143,7 @@ def _entries(data: bytes, problems: list[str]) -> tuple[Entry, ...]:
             size_raw = rest.partition(b"\t")[0]  # (a server may add a tab and more: only the size counts)
             size_start = pos + 1 + len(name_raw) + len(tab)
             if kind == "file":
-                if size_raw.isdigit():
+                if size_raw.isdigit():  # bytes: ASCII digits only
                     size = int(size_raw)
                 else:
                     problems.append(f"file entry {name!r} without a size")

@@ -52,9 +52,9 @@ class KeyDialog(ModalScreen[None]):
             yield Label(KINDS[0][3], id="key-help")
             yield Input(placeholder="key", id="key-input", password=True)
             yield Static("", id="key-error")
-            with Horizontal():
-                yield Button("Cancel", id="key-cancel")
+            with Horizontal():  # Add first: Tab from the input lands on it, not on Cancel (which loses the key)
                 yield Button("Add", variant="primary", id="key-add")
+                yield Button("Cancel", id="key-cancel")
 
     def on_mount(self) -> None:
         self.query_one("#key-input", Input).focus()
