@@ -262,7 +262,8 @@ def message_schema(name: str, dialect: Dialect) -> pa.Schema:
 def findings_schema() -> pa.Schema:
     return pa.schema([
         pa.field(PARTITION, pa.string(), nullable=False, metadata={b"description": _ID}),
-        pa.field("source", pa.string(), metadata={b"description": b"stats (expert findings) or audit"}),
+        pa.field("source", pa.string(),
+                 metadata={b"description": b"the command that reports it: stats, audit, objects, params"}),
         pa.field("code", pa.string()),
         pa.field("severity", pa.string()),
         pa.field("group", pa.string()),

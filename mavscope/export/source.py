@@ -6,8 +6,8 @@ belongs to in its schema metadata (`table_of(batch)`); `ExportOptions.tables` ke
 (Spark wants one schema per output).
 
 Where batches come from is a *batch source*, looked up by name in `SOURCES`: the pure-Python source
-here runs the session (dissector and security stage), the expert and audit analyses and the column
-builders in one pass. A faster source (the native decoder, when it lands) registers itself with
+here runs the session (dissector and security stage), the expert, audit, objects and params analyses and
+the column builders in one pass. A faster source (the native decoder, when it lands) registers itself with
 `register_source(name, source)` and must yield the same tables with the same schemas and rows; the
 test suite runs its contract over every registered source.
 """
@@ -27,6 +27,8 @@ import pyarrow as pa
 
 from mavscope import __version__
 from mavscope.analysis.expert import Expert
+from mavscope.analysis.objects import ObjectTracker
+from mavscope.analysis.params import ParamTracker
 from mavscope.capture.reader import open_file, pread
 from mavscope.errors import CaptureError, UsageError
 from mavscope.export.columns import DEFAULT_ROWS, AnomalyColumns, FrameColumns, MessageTables
@@ -155,7 +157,7 @@ class _Summary:
 
 def python_source(path: str, capture_id: str, options: ExportOptions, progress: Progress | None,
                   warn: Warn | None) -> Iterator[pa.RecordBatch]:
-    """The pure-Python batch source: session, expert and audit analyses, column builders, one pass."""
+    """The pure-Python batch source: session, the analyses with findings, column builders, one pass."""
     popts = replace(options.pipeline, display_filter=None)  # an export holds every frame
     dialect = dialect_for(popts)
     rows = options.batch_rows
@@ -167,7 +169,8 @@ def python_source(path: str, capture_id: str, options: ExportOptions, progress: 
         frames = FrameColumns(capture_id, name, rows)
         messages = MessageTables(capture_id, dialect, rows)
         anomalies = AnomalyColumns(capture_id, rows)
-        expert, audit = Expert(dialect), Audit()
+        expert, audit, objects, params = Expert(dialect), Audit(), ObjectTracker(), ParamTracker()
+        objects.use_dialect(dialect)
         summary = _Summary()
         reader = session.reader
         tick = 0
@@ -186,6 +189,10 @@ def python_source(path: str, capture_id: str, options: ExportOptions, progress: 
             if want_findings:
                 expert.add(item)
                 audit.add(item)
+                objects.feed(item)
+                if objects.finished_waiting:
+                    objects.take()  # the findings need no object's bytes: let them go
+                params.feed(item)
             if want_frames:
                 b = frames.add(item)
                 if b is not None:
@@ -202,7 +209,9 @@ def python_source(path: str, capture_id: str, options: ExportOptions, progress: 
         yield from messages.flush()
         found: list[tuple[str, Finding]] = []
         if want_findings:
-            found = [("stats", f) for f in expert.findings()] + [("audit", f) for f in audit.result()[0]]
+            found = ([("stats", f) for f in expert.findings()] + [("audit", f) for f in audit.result()[0]]
+                     + [("objects", f) for f in objects.finish().findings]
+                     + [("params", f) for f in params.finish().findings])
             yield _findings_batch(capture_id, found)
         b = anomalies.flush()
         if b is not None:

@@ -38,14 +38,14 @@ def test_views_over_a_dataset(cli: Cli, tmp_path: Path) -> None:
     got = {r["name"]: r["n"] for r in json.loads(cli("sql", q, str(root), "--json").out)}
     want = {p.name: sum(1 for r in cli.jsonl(str(p)) if r["msgname"] == "HEARTBEAT" and r["fields"]) for p in paths}
     assert got == want
-    # findings are the stats and audit commands' findings
+    # findings are the stats, audit, objects and params commands' findings
     q = "SELECT source, code FROM findings JOIN captures USING (capture_id) WHERE name = 'commands_ack.pcap'"
     rows = json.loads(cli("sql", q, str(root), "--json").out)
-    stats = cli.json("stats", str(paths[2]))["findings"]
-    status, audit_out, _ = cli("audit", str(paths[2]), "--json")
-    audit = json.loads(audit_out)["findings"]
-    assert sorted((r["source"], r["code"]) for r in rows) == sorted(
-        [("stats", f["code"]) for f in stats] + [("audit", f["code"]) for f in audit])
+    want = []
+    for command in ("stats", "audit", "objects", "params"):
+        _, out, _ = cli(command, str(paths[2]), "--json")
+        want += [(command, f["code"]) for f in json.loads(out)["findings"]]
+    assert sorted((r["source"], r["code"]) for r in rows) == sorted(want)
 
 
 def test_output_formats(cli: Cli) -> None:
