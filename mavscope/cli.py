@@ -37,8 +37,13 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "tui": ("tui", "browse a capture in a terminal UI (list, detail tree, hex)"),
     "verify": ("verify", "verify the signatures of a capture; exit 1 on invalid, replayed or injected frames"),
     "audit": ("audit", "security audit: key leaks, replays, forgeries, weak passphrases, fixed keystreams"),
+    "export": ("export", "captures into one Parquet dataset (DuckDB, Spark, Polars, pandas) or CSV"),
+    "sql": ("sql", "SQL (DuckDB) over export datasets or captures"),
+    "batch": ("batch", "run verify, audit or stats over many captures in parallel"),
 }
 COMMAND_MODULES: tuple[str, ...] = tuple(module for module, _ in COMMANDS.values())
+# Commands that run another command: what follows `--` is theirs, untouched (`batch DIR -- verify --key K`).
+PASSTHROUGH: frozenset[str] = frozenset({"batch"})
 
 
 class ExitStatus(IntEnum):
@@ -141,10 +146,16 @@ def build_parser(environ: dict[str, str] | None = None, argv: Sequence[str] | No
 def main(argv: Sequence[str] | None = None, env: Env | None = None) -> int:
     """Entry point of the `mavscope` console script."""
     env = env or Env()
-    argv = list(argv) if argv is not None else sys.argv[1:]
-    parser = build_parser(env.environ, argv)
+    words = list(argv) if argv is not None else sys.argv[1:]
+    rest: list[str] | None = None
+    if words and words[0] in PASSTHROUGH and "--" in words:
+        cut = words.index("--")
+        words, rest = words[:cut], words[cut + 1 :]
+    parser = build_parser(env.environ, words)
     try:
-        args = parser.parse_args(argv)
+        args = parser.parse_args(words)
+        if rest is not None:
+            args.passthrough = rest
         if args.command is None:
             parser.print_help(env.stdout)
             return ExitStatus.ERROR

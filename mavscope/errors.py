@@ -19,6 +19,10 @@ class DialectError(MavscopeError):
     """A MAVLink dialect XML file could not be loaded."""
 
 
+class DatasetError(MavscopeError):
+    """An export dataset directory cannot be used: not a mavscope dataset, or one of another schema version."""
+
+
 class CaptureError(MavscopeError):
     """A capture file cannot be read (at all, or from `offset` on)."""
 

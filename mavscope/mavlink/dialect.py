@@ -114,6 +114,7 @@ class MessageDef:
     source: str  # dialect file that defined it
     crc_extra_byte: bytes = field(repr=False, compare=False)
     decode: Callable[[bytes], Decoded] = field(repr=False, compare=False)
+    xml_order: tuple[str, ...] = ()  # field names in XML order (pymavlink's `fieldnames`; CSV columns)
 
     def field(self, name: str) -> FieldDef | None:
         for f in self.fields:
@@ -131,14 +132,20 @@ def _field_code(f: FieldDef) -> str:
     return code
 
 
-def _text(raw: bytes) -> str:
-    # Same rule as pymavlink: trailing NULs go, undecodable bytes are shown escaped.
+def wire_format(fields: Iterable[FieldDef]) -> str:
+    """The `struct` format of a payload with `fields` (wire order): a char array is one bytes item, any
+    other array one item per element."""
+    return "<" + "".join(_field_code(f) for f in fields)
+
+
+def char_text(raw: bytes) -> str:
+    """A char array's value. Same rule as pymavlink: trailing NULs go, undecodable bytes are shown escaped."""
     return raw.rstrip(b"\x00").decode("utf-8", errors="backslashreplace")
 
 
 def _make_decoder(fields: tuple[FieldDef, ...], length: int) -> Callable[[bytes], Decoded]:
     """Build the payload decoder: pad to `length`, unpack once, regroup arrays and strings."""
-    st = struct.Struct("<" + "".join(_field_code(f) for f in fields))
+    st = struct.Struct(wire_format(fields))
     assert st.size == length, (st.size, length)
     unpack = st.unpack_from
     names = tuple(f.name for f in fields)
@@ -177,7 +184,7 @@ def _make_decoder(fields: tuple[FieldDef, ...], length: int) -> Callable[[bytes]
             if kind == 0:
                 out[name] = flat[start]
             elif kind == 1:
-                out[name] = _text(flat[start])
+                out[name] = char_text(flat[start])
             else:
                 out[name] = list(flat[start : start + count])
         return out
@@ -218,6 +225,7 @@ def _compile_message(m: object, source: str) -> MessageDef:
         source=source,
         crc_extra_byte=bytes((m.crc_extra,)),  # type: ignore[attr-defined]
         decode=_make_decoder(ftuple, length),
+        xml_order=tuple(m.fieldnames),  # type: ignore[attr-defined]
     )
 
 

@@ -41,6 +41,7 @@ LAYERS: tuple[tuple[str, int], ...] = (
     ("mavscope.pipeline.session", 7),
     ("mavscope.analysis", 8),
     ("mavscope.browse", 9),
+    ("mavscope.export", 9),  # captures into a columnar dataset: builds on pipeline.session and the analyses
     ("mavscope.output", 10),
     # The native engine of `read -T jsonl` composes the dissector and the security stage (as
     # pipeline.session does) and writes output.jsonout's JSON Lines, so it sits with the front ends; the C

@@ -1,0 +1,146 @@
+"""`mavscope batch FILES_OR_DIRS... [-j N] -- verify|audit|stats [OPTIONS]`: a per-capture command over
+many captures, N at a time in worker processes, with one summary table (or JSON) and the worst exit
+status of them all (2 an error > 1 findings > 0 ok)."""
+
+from __future__ import annotations
+
+import argparse
+import io
+import multiprocessing
+from collections.abc import Callable, Mapping
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
+
+import orjson
+
+from mavscope.cli import Env, ExitStatus
+from mavscope.commands.common import console, write_json
+from mavscope.commands.export import jobs_count
+from mavscope.errors import UsageError
+
+COMMANDS = ("verify", "audit", "stats")
+Outcome = tuple[int, str, str]  # exit status, stdout, stderr of one run
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("batch",
+                       usage="mavscope batch FILES_OR_DIRS... [-j N] [--json] -- {verify,audit,stats} [OPTIONS]",
+                       description="Run a per-capture command over every capture named (directories are "
+                                   "walked), N at a time, and summarise: one row per capture. The command and "
+                                   "its options (keys...) follow `--`; each capture is given to it as its FILE. "
+                                   "Exit status: the worst of the runs (2 an error > 1 findings > 0 ok).")
+    p.add_argument("paths", nargs="+", metavar="FILE_OR_DIR", help="captures, or directories holding them")
+    p.add_argument("-j", dest="jobs", type=jobs_count, default=1, metavar="N", help="captures at a time (default 1)")
+    p.add_argument("--json", action="store_true", help="the summary and each run's JSON document as one JSON")
+    p.set_defaults(run=run, passthrough=None)
+
+
+def run_one(argv: list[str], environ: Mapping[str, str]) -> Outcome:
+    """`mavscope ARGV...` in this process, its output captured (the worker processes' task)."""
+    from mavscope.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    try:
+        status = main(argv, Env(stdout=out, stderr=err, environ=dict(environ)))
+    except Exception as e:  # a bug in one run must not lose the others' results
+        return int(ExitStatus.ERROR), out.getvalue(), err.getvalue() + f"mavscope: internal error: {e!r}\n"
+    return int(status), out.getvalue(), err.getvalue()
+
+
+def worst(statuses: list[int]) -> ExitStatus:
+    """ERROR over FINDINGS over OK (an interrupted run counts as an error)."""
+    if any(s not in (ExitStatus.OK, ExitStatus.FINDINGS) for s in statuses):
+        return ExitStatus.ERROR
+    return ExitStatus.FINDINGS if ExitStatus.FINDINGS in statuses else ExitStatus.OK
+
+
+def _summary(command: str, doc: dict[str, Any]) -> tuple[int | None, str]:
+    """(frames, one line) of a run's JSON document."""
+    if command == "verify":
+        frames = sum(int(s.get("frames", 0)) for s in doc.get("streams", []))
+        if doc.get("ok"):
+            return frames, "ok" + ("" if doc.get("signing_in_force", True) else "; signing not in force (v1 frames)")
+        return frames, f"FAIL: {doc.get('problem_count', 0)} problem(s)"
+    if command == "audit":
+        found = doc.get("findings", [])
+        counts: dict[str, int] = {}
+        for f in found:
+            counts[f["severity"]] = counts.get(f["severity"], 0) + 1
+        order = ("error", "warn", "note", "chat")
+        text = ", ".join(f"{counts[s]} {s}" for s in order if s in counts) or "no findings"
+        return None, text + "".join(f" [{f['code']}]" for f in found[:3])
+    totals = doc.get("totals", {})
+    found = doc.get("findings", [])
+    return totals.get("frames"), (f"{totals.get('links', 0)} link(s), {totals.get('lost', 0)} lost, "
+                                  f"{len(found)} finding(s)")
+
+
+def _runner(jobs: int, count: int) -> Callable[[list[list[str]], Mapping[str, str]], list[Outcome]]:
+    """Runs in this process (one job, or one capture), or in `jobs` worker processes."""
+    def sequential(argvs: list[list[str]], environ: Mapping[str, str]) -> list[Outcome]:
+        return [run_one(a, environ) for a in argvs]
+
+    def parallel(argvs: list[list[str]], environ: Mapping[str, str]) -> list[Outcome]:
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+            return list(pool.map(run_one, argvs, [environ] * len(argvs)))
+
+    return sequential if jobs <= 1 or count <= 1 else parallel
+
+
+def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    rest = args.passthrough
+    if not rest:
+        raise UsageError("batch: give the command after --, e.g. mavscope batch DIR -- verify --key ...")
+    command, options = rest[0], list(rest[1:])
+    if command not in COMMANDS:
+        raise UsageError(f"batch: runs {', '.join(COMMANDS)}, not {command!r}")
+    from mavscope.commands.export import gather
+
+    captures = gather(env, args.paths, ())
+    if not captures:
+        raise UsageError("batch: no captures among the paths given")
+    if "--json" not in options:
+        options.append("--json")
+    argvs = [[command, path, *options] for path in captures]
+    outcomes = _runner(args.jobs, len(argvs))(argvs, env.environ)
+    rows = []
+    for path, (status, out, err) in zip(captures, outcomes):
+        doc = None
+        if status in (ExitStatus.OK, ExitStatus.FINDINGS):
+            try:
+                doc = orjson.loads(out)
+            except orjson.JSONDecodeError:
+                doc = None
+        frames, text = _summary(command, doc) if isinstance(doc, dict) else (None, "")
+        error = " ".join(ln.removeprefix("mavscope: ") for ln in err.splitlines() if ln.strip())
+        rows.append({"file": path, "exit": status, "status": _status_name(status), "frames": frames,
+                     "summary": text or error, "result": doc, "stderr": err or None})
+    status = worst([r["exit"] for r in rows])  # type: ignore[misc]
+    if args.json:
+        write_json(env, {"command": command, "exit": int(status), "status": _status_name(status),
+                         "captures": rows})
+        return status
+    _render(env, command, rows, status)
+    return status
+
+
+def _status_name(status: int) -> str:
+    return {0: "ok", 1: "findings", 2: "error"}.get(status, "error")
+
+
+def _render(env: Env, command: str, rows: list[dict[str, object]], status: ExitStatus) -> None:
+    from rich.table import Table
+    from rich.text import Text
+
+    con = console(env)
+    t = Table(title=f"mavscope {command} over {len(rows)} capture(s)", title_justify="left")
+    for col, just in (("capture", "left"), ("status", "left"), ("frames", "right"), ("summary", "left")):
+        t.add_column(col, justify=just, overflow="fold")  # type: ignore[arg-type]
+    for r in rows:
+        frames = r["frames"]
+        t.add_row(Text(str(r["file"])), str(r["status"]), "-" if frames is None else str(frames),
+                  Text(str(r["summary"])))
+    con.print(t)
+    counts = {n: sum(r["status"] == n for r in rows) for n in ("ok", "findings", "error")}
+    con.print(f"{counts['ok']} ok, {counts['findings']} with findings, {counts['error']} error(s); exit status "
+              f"{int(status)} ({_status_name(status)})", highlight=False)

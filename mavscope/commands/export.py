@@ -1,0 +1,190 @@
+"""`mavscope export FILES_OR_DIRS... --parquet DIR`: captures into one Parquet dataset (docs/dataset.md);
+`-T csv -o DIR`: mavlogdump-style CSV per message type."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from mavscope.cli import Env, ExitStatus
+from mavscope.commands.common import add_dialect_option, add_key_options, pipeline_options, warner, write_json
+from mavscope.errors import UsageError
+
+if TYPE_CHECKING:
+    from mavscope.export.source import ExportOptions
+
+PROGRESS_BYTES = 8 * 1024 * 1024  # a progress bar for inputs at least this large, on a terminal
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("export",
+                       description="Export every capture named (directories are walked) into one dataset: a "
+                                   "frames table, a table per message type, findings, anomalies and captures, "
+                                   "Parquet partitioned by capture (docs/dataset.md). Captures already in the "
+                                   "dataset (same content) are skipped. Exit status 2 when a capture could "
+                                   "not be read.")
+    p.add_argument("paths", nargs="+", metavar="FILE_OR_DIR", help="captures, or directories holding them")
+    p.add_argument("--parquet", metavar="DIR", help="the dataset directory (created; added to when it exists)")
+    p.add_argument("-T", dest="format", choices=("parquet", "csv"), default="parquet",
+                   help="parquet (default) or csv (mavlogdump-style, one file per message type and capture)")
+    p.add_argument("-o", dest="out", metavar="DIR", help="output directory (the dataset with -T parquet)")
+    p.add_argument("-j", dest="jobs", type=jobs_count, default=1, metavar="N",
+                   help="captures exported at once, in N worker processes (default 1)")
+    p.add_argument("--engine", choices=("local", "dask"), default="local",
+                   help="local (default) or dask: tasks on a Dask cluster (--scheduler; else a local cluster of "
+                        "-j workers)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler address, e.g. tcp://10.0.0.5:8786")
+    p.add_argument("--replace", action="store_true", help="export captures again that the dataset holds already")
+    p.add_argument("--no-fsync", dest="durable", action="store_false",
+                   help="do not sync each file to disk before its capture is committed (faster on slow disks; "
+                        "a power loss may then lose files of a committed capture, a process crash cannot)")
+    p.add_argument("--json", action="store_true", help="print the result per capture as JSON")
+    add_dialect_option(p)
+    add_key_options(p)
+    p.set_defaults(run=run)
+
+
+def jobs_count(text: str) -> int:
+    try:
+        n = int(text)  # (not str.isdigit: it takes '²', which int() refuses)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"a whole positive number, not {text!r}")
+    return n
+
+
+def needs_fleet(*modules: str) -> None:
+    """UsageError unless `modules` of the fleet extra (pyarrow, duckdb, dask) import."""
+    import importlib
+
+    missing = []
+    for m in modules:
+        try:
+            importlib.import_module(m)
+        except ImportError:
+            missing.append(m)
+    if missing:
+        raise UsageError(f"this command needs {', '.join(missing)}: pip install 'mavscope[fleet]'")
+
+
+@contextmanager
+def bar(env: Env, total: int, what: str) -> Iterator[Callable[[int], None]]:
+    """A progress bar over `total` bytes on stderr (a terminal only, and long runs only)."""
+    if not env.stderr_is_terminal or total < PROGRESS_BYTES:
+        yield lambda _done: None
+        return
+    from rich.console import Console
+    from rich.progress import BarColumn, DownloadColumn, Progress, TimeRemainingColumn
+
+    progress = Progress("[progress.description]{task.description}", BarColumn(), DownloadColumn(),
+                        TimeRemainingColumn(), console=Console(file=env.stderr), transient=True)
+    task = progress.add_task(what, total=total)
+    progress.start()
+    try:
+        yield lambda done: progress.update(task, completed=done)
+    finally:
+        progress.stop()
+
+
+def gather(env: Env, paths: list[str], dialects: tuple[str, ...]) -> list[str]:
+    """The captures among `paths` (UsageError when a path does not exist); files passed over in directories
+    are counted on stderr."""
+    from mavscope.export.inputs import find_captures
+    from mavscope.mavlink.dialect import load_dialect
+
+    found = find_captures(paths, load_dialect(dialects))  # (batch needs no pyarrow: not export.source's cache)
+    if found.missing:
+        raise UsageError(f"no such file or directory: {found.missing[0]}")
+    if found.passed_over:
+        env.stderr.write(f"mavscope: {len(found.passed_over)} file(s) in the directories are not captures and were "
+                         f"passed over (e.g. {found.passed_over[0]})\n")
+    return found.captures
+
+
+def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    needs_fleet("pyarrow")
+    out = args.out or args.parquet
+    if args.parquet and args.out and args.parquet != args.out:
+        raise UsageError("export: give the output directory once (--parquet DIR or -o DIR)")
+    if args.parquet and args.format == "csv":
+        raise UsageError("export: --parquet writes Parquet; with -T csv give -o DIR")
+    if not out:
+        raise UsageError("export: no output: --parquet DIR (or -T csv -o DIR)")
+    if args.scheduler and args.engine != "dask":
+        raise UsageError("export: --scheduler needs --engine dask")
+    if args.engine == "dask" and args.format == "csv":
+        raise UsageError("export: -T csv runs locally (--engine dask writes Parquet)")
+    from mavscope.export.source import ExportOptions
+
+    options = ExportOptions(pipeline=pipeline_options(args, env))
+    captures = gather(env, args.paths, options.pipeline.dialects)
+    if args.format == "csv":
+        return _csv(args, env, captures, Path(out), options)
+    return _parquet(args, env, captures, out, options)
+
+
+def _parquet(args: argparse.Namespace, env: Env, captures: list[str], out: str, options: ExportOptions) -> ExitStatus:
+    import os
+
+    from mavscope.export.dataset import CaptureResult
+    from mavscope.export.run import export_local
+
+    def report(r: CaptureResult) -> None:
+        if r.status == "failed":
+            env.stderr.write(f"mavscope: {r.error}\n")
+
+    total = sum(os.path.getsize(p) for p in captures if os.path.isfile(p))
+    if args.engine == "dask":
+        from mavscope.export.distributed import export_dask
+
+        results = export_dask(out, captures, options, scheduler=args.scheduler, workers=args.jobs,
+                              replace=args.replace, durable=args.durable, on_result=report)
+    else:
+        with bar(env, total, "exporting") as update:
+            results = export_local(out, captures, options, jobs=args.jobs, replace=args.replace,
+                                   durable=args.durable, on_result=report, on_bytes=update, warn=warner(env))
+    failed = [r for r in results if r.status == "failed"]
+    if args.json:
+        write_json(env, {"dataset": out, "captures": [r.to_json() for r in results],
+                         "exported": sum(r.status == "exported" for r in results),
+                         "skipped": sum(r.status in ("skipped", "duplicate") for r in results),
+                         "failed": len(failed), "frames": sum(r.frames for r in results)})
+    else:
+        done = [r for r in results if r.status == "exported"]
+        skipped = sum(r.status in ("skipped", "duplicate") for r in results)
+        seconds = sum(r.seconds for r in done)
+        env.stdout.write(f"exported {len(done)} capture(s), {sum(r.frames for r in done):,} frames, to {out}"
+                         + (f" ({seconds:.1f} s of work)" if done else "")
+                         + (f"; {skipped} already there or repeated" if skipped else "")
+                         + (f"; {len(failed)} failed" if failed else "") + "\n")
+    return ExitStatus.ERROR if failed else ExitStatus.OK
+
+
+def _csv(args: argparse.Namespace, env: Env, captures: list[str], out: Path, options: ExportOptions) -> ExitStatus:
+    from mavscope.errors import MavscopeError
+    from mavscope.export.csvout import csv_folder, write_capture_csv
+
+    taken: set[str] = set()
+    failed = 0
+    written: list[tuple[str, Path, dict[str, int]]] = []
+    for path in captures:
+        folder = csv_folder(out, path, taken)
+        try:
+            counts = write_capture_csv(path, folder, options, warn=warner(env))
+        except MavscopeError as e:
+            env.stderr.write(f"mavscope: {e}\n")
+            failed += 1
+            continue
+        written.append((path, folder, counts))
+    if args.json:
+        write_json(env, {"out": str(out), "failed": failed, "captures": [
+            {"path": p, "folder": str(f), "messages": c} for p, f, c in written]})
+    else:
+        files = sum(len(c) for _, _, c in written)
+        env.stdout.write(f"wrote {files} CSV file(s) for {len(written)} capture(s) under {out}"
+                         + (f"; {failed} failed" if failed else "") + "\n")
+    return ExitStatus.ERROR if failed else ExitStatus.OK

@@ -1,0 +1,168 @@
+"""`mavscope sql 'SELECT ...' DATASET_OR_FILES...`: DuckDB over export datasets, with views named
+`frames`, `findings`, `anomalies`, `captures` and one per message type. Captures and directories that
+are not datasets are exported to a temporary dataset first (docs/dataset.md)."""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import datetime
+import decimal
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from mavscope.cli import Env, ExitStatus
+from mavscope.commands.common import add_dialect_option, add_key_options, pipeline_options, warner
+from mavscope.commands.export import bar, gather, needs_fleet
+from mavscope.errors import UsageError
+
+if TYPE_CHECKING:
+    import pyarrow as pa
+
+TEXT_ROWS = 10_000  # rows a text table shows at most (--json and --csv write every row)
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("sql",
+                       description="Run one SQL query (DuckDB) over datasets made by `mavscope export`, with views "
+                                   "frames, findings, anomalies, captures and one per message type (HEARTBEAT, "
+                                   "GLOBAL_POSITION_INT...). Captures and directories of captures are exported "
+                                   "to a temporary dataset first.")
+    p.add_argument("query", metavar="SQL", help="the query, e.g. \"SELECT sysid, count(*) FROM frames WHERE "
+                                                 "signature_status = 'invalid' GROUP BY 1\"")
+    p.add_argument("paths", nargs="+", metavar="DATASET_OR_FILE", help="export datasets, captures or directories")
+    out = p.add_mutually_exclusive_group()
+    out.add_argument("--json", action="store_true", help="the rows as a JSON array of objects")
+    out.add_argument("--csv", action="store_true", help="the rows as CSV with a header line")
+    add_dialect_option(p)
+    add_key_options(p)
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    needs_fleet("pyarrow", "duckdb")
+    from mavscope.export.dataset import is_dataset
+
+    datasets = [Path(p) for p in args.paths if is_dataset(p)]
+    raw = [p for p in args.paths if not is_dataset(p)]
+    with tempfile.TemporaryDirectory(prefix="mavscope-sql-") as tmp:
+        if raw:
+            datasets.append(_export(args, env, raw, Path(tmp) / "dataset"))
+        from mavscope.export.query import connect, query
+
+        con = connect(datasets)
+        try:
+            schema, batches = query(con, args.query)
+            if args.json:
+                _json(env, batches)
+            elif args.csv:
+                _csv(env, schema.names, batches)
+            else:
+                _text(env, schema, batches)
+        finally:
+            con.close()
+    return ExitStatus.OK
+
+
+def _export(args: argparse.Namespace, env: Env, paths: list[str], dataset: Path) -> Path:
+    import os
+
+    from mavscope.export.run import export_local
+    from mavscope.export.source import ExportOptions
+
+    captures = gather(env, paths, tuple(args.dialect or ()))
+    if not captures:
+        raise UsageError("sql: no captures and no dataset among the paths given")
+    options = ExportOptions(pipeline=pipeline_options(args, env))
+    failed: list[str] = []
+    with bar(env, sum(os.path.getsize(p) for p in captures), "exporting") as update:
+        results = export_local(dataset, captures, options, on_bytes=update, warn=warner(env))
+    failed = [r.error for r in results if r.status == "failed"]
+    if failed:
+        raise UsageError(failed[0])
+    return dataset
+
+
+def _plain(v: object) -> object:
+    """A value as JSON and CSV carry it: bytes as hex, decimals as floats, times as ISO-8601."""
+    if isinstance(v, (bytes, bytearray, memoryview)):
+        return bytes(v).hex()
+    if isinstance(v, decimal.Decimal):
+        return float(v)
+    if isinstance(v, (datetime.datetime, datetime.date, datetime.time)):
+        return v.isoformat()
+    if isinstance(v, datetime.timedelta):
+        return v.total_seconds()
+    return v
+
+
+def _default(v: object) -> object:
+    out = _plain(v)
+    return str(v) if out is v else out  # never raise on a type DuckDB may add
+
+
+def _rows(batches: Iterator[pa.RecordBatch]) -> Iterator[dict[str, object]]:
+    for b in batches:
+        yield from b.to_pylist()
+
+
+def _tuples(batches: Iterator[pa.RecordBatch]) -> Iterator[tuple[object, ...]]:
+    """Rows as tuples (a query may name two columns alike)."""
+    for b in batches:
+        yield from zip(*(c.to_pylist() for c in b.columns))
+
+
+def _json(env: Env, batches: Iterator[pa.RecordBatch]) -> None:
+    import orjson
+
+    out = env.stdout_bytes
+    out.write(b"[")
+    first = True
+    for row in _rows(batches):
+        out.write((b"\n" if first else b",\n") + orjson.dumps(row, default=_default,
+                                                               option=orjson.OPT_NON_STR_KEYS))
+        first = False
+    out.write(b"\n]\n" if not first else b"]\n")
+    out.flush()
+
+
+def _cell(v: object) -> str:
+    if v is None:
+        return ""
+    if isinstance(v, (list, dict)):
+        import orjson
+
+        return orjson.dumps(v, default=_default, option=orjson.OPT_NON_STR_KEYS).decode()
+    return str(_plain(v))
+
+
+def _csv(env: Env, names: list[str], batches: Iterator[pa.RecordBatch]) -> None:
+    w = csv.writer(env.stdout, lineterminator="\n")
+    w.writerow(names)
+    for row in _tuples(batches):
+        w.writerow([_cell(v) for v in row])
+
+
+def _text(env: Env, schema: pa.Schema, batches: Iterator[pa.RecordBatch]) -> None:
+    import pyarrow as pa
+    from rich.table import Table
+    from rich.text import Text
+
+    from mavscope.commands.common import console
+
+    t = Table(show_edge=False)
+    for f in schema:
+        number = pa.types.is_integer(f.type) or pa.types.is_floating(f.type) or pa.types.is_decimal(f.type)
+        t.add_column(Text(f.name), overflow="fold", justify="right" if number else "left")
+    shown = total = 0
+    for row in _tuples(batches):
+        total += 1
+        if shown < TEXT_ROWS:
+            t.add_row(*(Text("NULL" if v is None else _cell(v)) for v in row))
+            shown += 1
+    con = console(env)
+    con.print(t)
+    more = f" ({shown} shown: --csv or --json for all)" if total > shown else ""
+    con.print(f"{total} row(s){more}", highlight=False)

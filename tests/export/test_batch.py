@@ -1,0 +1,71 @@
+"""`mavscope batch`: each capture's result is the command's own (run alone through the CLI), the exit
+status the worst of them (2 > 1 > 0), in one process or in worker processes."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+import mavscope.commands.batch as batch_mod
+from tests.conftest import CAPTURES, Cli
+
+KEY = ("--key", "passphrase:mavscope-demo")  # signed_udp.pcap's (captures/README.md)
+SOME = [CAPTURES / n for n in ("signed_udp.pcap", "key_exchange_udp.pcap", "px4_sitl_udp.pcap")]
+
+
+def _alone(cli: Cli, command: str, path: Path, *args: str) -> tuple[int, dict]:
+    status, out, err = cli(command, str(path), *args, "--json")
+    assert status in (0, 1), err
+    return status, json.loads(out)
+
+
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_verify_over_captures_as_each_alone(cli: Cli, jobs: str) -> None:
+    status, out, err = cli("batch", *map(str, SOME), "-j", jobs, "--json", "--", "verify", *KEY)
+    assert err == ""
+    doc = json.loads(out)
+    alone = [_alone(cli, "verify", p, *KEY) for p in SOME]
+    assert [c["file"] for c in doc["captures"]] == [str(p) for p in SOME]
+    assert [(c["exit"], c["result"]) for c in doc["captures"]] == alone
+    # key_exchange_udp.pcap's frames are signed with keys this passphrase does not give: verify fails
+    assert [s for s, _ in alone] == [0, 1, 0]
+    assert status == doc["exit"] == 1 and doc["status"] == "findings"
+
+
+def test_a_directory_text_summary_and_stats(cli: Cli) -> None:
+    status, out, err = cli("batch", str(CAPTURES), "--", "stats")
+    assert status == 0
+    # by name: README.md, expected.json and the generator's *.truth.json are not captures (batch sniffs content)
+    files = [p for p in CAPTURES.iterdir() if p.is_file()]
+    captures = [p for p in files if p.suffix in (".pcap", ".pcapng", ".tlog", ".raw")]
+    assert f"{len(files) - len(captures)} file(s) in the directories are not captures" in err
+    stats = cli.json("stats", str(CAPTURES / "stats_loss.pcap"))["totals"]
+    line = next(ln for ln in out.splitlines() if "stats_loss.pcap" in ln)
+    assert f"{stats['links']} link(s), {stats['lost']} lost" in line and str(stats["frames"]) in line
+    assert f"{len(captures)} ok, 0 with findings, 0 error(s); exit status 0 (ok)" in out
+
+
+def test_worst_status_with_an_error(cli: Cli, monkeypatch: pytest.MonkeyPatch) -> None:
+    real = batch_mod.run_one
+
+    def one_fails(argv: list[str], environ: dict[str, str]) -> tuple[int, str, str]:
+        if argv[1].endswith("px4_sitl_udp.pcap"):
+            return 2, "", "mavscope: px4_sitl_udp.pcap: cannot read: Input/output error\n"
+        return real(argv, environ)
+
+    monkeypatch.setattr(batch_mod, "run_one", one_fails)
+    status, out, _ = cli("batch", *map(str, SOME), "--json", "--", "verify", *KEY)
+    doc = json.loads(out)
+    assert status == doc["exit"] == 2 and [c["status"] for c in doc["captures"]] == ["ok", "findings", "error"]
+    assert doc["captures"][2]["summary"] == "px4_sitl_udp.pcap: cannot read: Input/output error"
+
+
+def test_every_run_refused_and_usage(cli: Cli) -> None:
+    status, out, _ = cli("batch", str(SOME[0]), "--", "stats", "-Y", "mavlink.seq ==")
+    assert status == 2 and "error" in out
+    for argv, message in ((("batch", str(SOME[0])), "give the command after --"),
+                          (("batch", str(SOME[0]), "--", "read"), "runs verify, audit, stats")):
+        status, _, err = cli(*argv)
+        assert status == 2 and message in err
