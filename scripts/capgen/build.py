@@ -10,7 +10,8 @@ from typing import Any
 from .analysis import clock_skew, commands_ack, mission_resend, stats_loss
 from .basic import mavlink_v1_udp, px4_sitl_sll2, px4_sitl_tlog, px4_sitl_udp, serial_dump, signed_udp
 from .damaged import damaged
-from .readme import render_analysis_truth, render_readme, render_security_captures
+from .incidents import gcs_takeover, gps_spoof
+from .readme import render_analysis_truth, render_incidents, render_readme, render_security_captures
 from .security import key_exchange_udp, securemav_udp
 from .summary import dump_expected
 from .tcp import px4_sitl_tcp
@@ -35,7 +36,10 @@ def make_all(outdir: Path) -> dict[str, Any]:
     expected["clock_skew.pcap"] = clock_skew(outdir)
     expected["securemav_udp.pcap"] = securemav_udp(outdir)
     expected["key_exchange_udp.pcap"] = key_exchange_udp(outdir)
+    expected["gcs_takeover.pcap"] = gcs_takeover(outdir)
+    expected["gps_spoof.pcap"] = gps_spoof(outdir)
     (outdir / "expected.json").write_text(dump_expected(expected), encoding="utf-8")
     (outdir / "README.md").write_text(render_readme(expected, cases) + render_analysis_truth(expected)
-                                      + render_security_captures(expected), encoding="utf-8")
+                                      + render_security_captures(expected) + render_incidents(outdir),
+                                      encoding="utf-8")
     return expected
