@@ -17,6 +17,8 @@ KEYS: tuple[tuple[str, str, str], ...] = (
     ("s", "statistics: message rates with sparklines, loss per link", "everywhere"),
     ("m", "mission: waypoint table and a plot of the track", "everywhere"),
     ("e", "expert findings", "everywhere"),
+    ("v", "events: the flight's story; Enter jumps to the event's frame", "everywhere"),
+    ("p", "plot the field selected in the detail tree over time (min to max per interval)", "everywhere"),
     ("k", "add a signing key or a cipher key (verdicts update)", "everywhere"),
     ("?", "this help", "everywhere"),
     ("Escape / q", "close a screen or dialog", "screens"),
