@@ -3,8 +3,8 @@ ArduPilot (Rover/boat, Plane, Copter) SITL, ArduSub, PX4, Mission Planner, QGrou
 
 Independent sources:
 - /work/research/real-truth/truth.json (derive.py, pymavlink 2.4.50 alone): commands with their ACK,
-  parameter sets and their confirmation, MAVLink FTP file reads, signing streams. The values used are
-  copied into EXPECTED below where the file is not needed whole.
+  parameter sets and their confirmation, MAVLink FTP file reads, signing streams (the tests that need it
+  skip where it is absent).
 - pymavlink read here (tests/support/pymavlink_reader.py): the vehicle HEARTBEATs, from which the arming
   and custom-mode transitions are counted in the test, and the STATUSTEXT frames, whose chunks are joined
   by the protocol's rule (same id; a chunk shorter than 50 characters ends the text).
@@ -57,7 +57,7 @@ def _pymavlink(path: Path) -> list[Msg]:
 
 def _truth(name: str) -> dict:  # type: ignore[type-arg]
     if not TRUTH.is_file():
-        pytest.skip(f"{TRUTH} is absent")
+        pytest.skip(f"{TRUTH} (independent answers derived with pymavlink) is absent")
     return json.loads(TRUTH.read_text(encoding="utf-8"))["captures"][name]
 
 
