@@ -30,8 +30,7 @@ ALL = sorted(p for p in CAPTURES.iterdir() if p.suffix in (".pcap", ".pcapng", "
 COMMANDS = (
     ("read",), ("read", "-V", "-x"), ("read", "-T", "jsonl"), ("stats", "--json"), ("stats",),
     ("mission", "--json"), ("commands", "--json"), ("timeline", "--json"), ("verify", "--json"), ("verify",),
-    ("audit", "--json"), ("audit",), ("events", "--json"), ("events",), ("track", "--geojson", "-"), ("track", "--gpx", "-"),
-    ("plot", "mavlink.seq", "--json"),
+    ("audit", "--json"), ("audit",), ("events", "--json"), ("track", "--gpx", "-"), ("plot", "mavlink.seq", "--json"),
 )
 
 
