@@ -211,3 +211,16 @@ def test_sources_are_pluggable(dialect: Dialect) -> None:
     for f in frames("gcs_takeover.pcap", dialect):
         log.add(f)
     assert [e.frame for e in log.finish().events] == list(range(100, 701, 100))
+
+
+def test_command_texts_name_what_was_asked(tmp_path: Path, dialect: Dialect) -> None:
+    gcs, veh = Sender(255, 190), Sender(1, 1)
+    entries = [(T0, veh.pack(_hb())),
+               (T0 + 1, gcs.pack(flows.command_long(400, 2.0))),  # COMPONENT_ARM_DISARM with param1 2: neither
+               (T0 + 1.01, veh.pack(v2.MAVLink_command_ack_message(400, 4, 0, 0, 255, 190))),
+               (T0 + 2, gcs.pack(v2.MAVLink_command_long_message(1, 1, 176, 0, 1, 6, 0, 0, 0, 0, 0))),  # Copter RTL
+               (T0 + 3, gcs.pack(v2.MAVLink_set_mode_message(1, 1, 9)))]  # LAND
+    cmds = _of(_story(write_tlog(tmp_path, entries), dialect).events, "command")
+    assert [e.text for e in cmds] == ["255/190 -> 1/1 COMPONENT_ARM_DISARM (param1 2.0): FAILED in 10.0 ms",
+                                      "255/190 -> 1/1 DO_SET_MODE to RTL: no ACK in the capture",
+                                      "255/190 -> 1 SET_MODE LAND"]

@@ -4,7 +4,7 @@ changes size. Only the frames of the field's messages are rebuilt from the index
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 
 from rich.text import Text
 from textual.app import ComposeResult
@@ -12,6 +12,7 @@ from textual.widgets import Static
 
 from mavscope.analysis.selection import Selection
 from mavscope.analysis.series import Plotter
+from mavscope.browse.index import FrameIndex
 from mavscope.fields.registry import FieldRegistry, PayloadField
 from mavscope.mavlink.frame import Frame
 from mavscope.output.plotting import chart
@@ -24,7 +25,7 @@ class PlotScreen(AnalysisScreen):
     PlotScreen #plot { height: 1fr; padding: 0 1; }
     """
 
-    def __init__(self, index, rows, field: str) -> None:  # type: ignore[no-untyped-def]
+    def __init__(self, index: FrameIndex, rows: Sequence[int] | None, field: str) -> None:
         super().__init__(index, rows)
         self.field = field
         self.plotter = Plotter(FieldRegistry(index.dialect), [field])  # UsageError for a field that is no number
