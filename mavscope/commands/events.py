@@ -7,7 +7,7 @@ import argparse
 from mavscope.analysis.events import KINDS, MAX_PER_KIND, EventLog
 from mavscope.analysis.expert import Expert
 from mavscope.cli import Env, ExitStatus
-from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
+from mavscope.commands.analysis_common import add_analysis_options, analysis_pass, print_findings
 from mavscope.commands.common import console, write_json
 from mavscope.output.tables import iso
 
@@ -66,13 +66,6 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     con.print(f"{len(shown)} events listed; in the capture: {counts or 'none'}")  # type: ignore[arg-type]
     for kind, n in doc["dropped"].items():  # type: ignore[attr-defined]
         con.print(f"{n} more {kind} events not listed (at most {MAX_PER_KIND} per kind)")
-    if findings:
-        ft = Table(title="Expert findings", title_justify="left")
-        for col in ("severity", "code", "frames", "message"):
-            ft.add_column(col)
-        for f in findings:
-            nums = ", ".join(map(str, f.frames[:8])) + (" …" if len(f.frames) > 8 else "")
-            ft.add_row(f.severity.value, f.code, nums, Text(f.message))
-        con.print(ft)
+    print_findings(con, findings)
     return ExitStatus.OK
 
