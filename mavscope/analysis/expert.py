@@ -323,7 +323,7 @@ class Detector(Protocol):
     def findings(self) -> list[Finding]: ...
 
 
-# Each is built with no argument or with the dialect (`Expert` tries the dialect first for those that take it).
+# Factories: each is called with no argument, or with the dialect when it is in DIALECT_DETECTORS.
 DETECTORS: list[Callable[..., Detector]] = [BadCrcBursts, SequenceAnomalies, CommandSources, ReplayedCommands,
                                             UnsignedCommands, KeyLeaks, ControlSources, GnssAnomalies]
 DIALECT_DETECTORS: frozenset[Callable[..., Detector]] = frozenset({ControlSources, GnssAnomalies})
