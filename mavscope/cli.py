@@ -21,7 +21,8 @@ from mavscope.errors import MavscopeError, UsageError
 
 # Subcommand modules, in the order `mavscope --help` lists them.
 COMMAND_MODULES: tuple[str, ...] = (
-    "read", "live", "stats", "mission", "command_log", "timeline", "events", "track", "plot", "tui", "verify", "audit",
+    "read", "live", "stats", "mission", "command_log", "timeline", "objects", "params", "events", "track", "plot",
+    "tui", "verify", "audit",
 )
 
 

@@ -166,6 +166,32 @@ CODES: dict[str, Code] = {
              "the navigation filter reports a GPS glitch, lost position or failing innovation tests"),
         Code("gnss-time-jump", _WARN, Group.SECURITY, _C,
              "GNSS time stepping against the vehicle's boot clock or disagreeing with SYSTEM_TIME"),
+        # objects moved over the link (mavscope.analysis.objects)
+        Code("ftp-upload", _NOTE, Group.SECURITY, _C, "files written to a vehicle over MAVLink FTP"),
+        Code("script-upload", _WARN, Group.SECURITY, _C, "a file the vehicle runs as code written over MAVLink FTP",
+             "a file written where the vehicle runs it as code (an ArduPilot Lua script in APM/scripts, a PX4 "
+             "etc/extras.txt or etc/rc.*): whoever can send FTP frames can run code on the vehicle"),
+        Code("object-conflict", _WARN, Group.SECURITY, _C,
+             "bytes of an object received twice with different values",
+             "an object's bytes arrived twice with different values: a second sender (an injection) or damaged "
+             "data; the first copy is kept"),
+        Code("object-unsafe-path", _WARN, Group.SECURITY, _C,
+             "a vehicle path that would leave the output directory, or holds NUL or control characters",
+             "vehicle paths with '..' components, NUL or control characters, or of absurd length: a server does "
+             "not send these by accident; the files are written under safe names"),
+        Code("object-limit", _WARN, Group.UNDECODED, _C, "a limit of the object reconstruction cut data",
+             "the object reconstruction reached one of its limits (object size, memory, transfers at once, "
+             "objects): what it gave up is listed"),
+        # parameters (mavscope.analysis.params)
+        Code("param-security-change", _WARN, Group.SECURITY, _C,
+             "a security-relevant parameter (signing, system id checks, failsafes, fences, arming checks, "
+             "scripting) was set or changed",
+             "a parameter that guards the vehicle (MAVLink signing and system id checks, failsafes, fences, "
+             "arming checks, scripting) was set or changed"),
+        Code("param-protection-disabled", _ERROR, Group.SECURITY, _C,
+             "a parameter change that turns a protection off",
+             "a parameter change that turns a protection off (arming checks, a fence, a failsafe, system id "
+             "enforcement) or makes a link accept unsigned frames"),
         # security audit (mavscope.security.audit)
         Code("replay", _ERROR, Group.SECURITY, _C, "signature replayed (timestamp not newer than its stream's)",
              "frames whose MAC verifies but whose timestamp is not newer than the last accepted one of their "

@@ -37,7 +37,8 @@ from mavscope.tui.widgets.status_bar import StatusBar
 from mavscope.tui.workers import fill_index, scan_filter
 
 PANES = ("#packets", "#tree", "#hex")
-MAIN_SCREEN_ACTIONS = frozenset({"cycle", "filter", "stats", "mission", "expert", "events", "plot", "keys", "help"})
+MAIN_SCREEN_ACTIONS = frozenset({"cycle", "filter", "stats", "mission", "objects", "expert", "events", "plot", "keys",
+                                 "help"})
 
 
 class MavscopeApp(App[None]):
@@ -57,6 +58,7 @@ class MavscopeApp(App[None]):
         Binding("slash", "filter", "Filter"),
         Binding("s", "stats", "Statistics"),
         Binding("m", "mission", "Mission"),
+        Binding("o", "objects", "Objects"),
         Binding("e", "expert", "Expert"),
         Binding("v", "events", "Events"),
         Binding("p", "plot", "Plot"),
@@ -382,6 +384,11 @@ class MavscopeApp(App[None]):
 
         self.push_screen(MissionScreen(self.index, self._view()))
 
+    def action_objects(self) -> None:
+        from mavscope.tui.screens.objects import ObjectsScreen
+
+        self.push_screen(ObjectsScreen(self.index, self._view()))
+
     def action_expert(self) -> None:
         from mavscope.tui.screens.expert import ExpertScreen
 
@@ -415,7 +422,7 @@ class MavscopeApp(App[None]):
         return None if view is None else array("I", view)
 
     def goto_record(self, record: int) -> None:
-        """Select the first frame of capture record `record` (from the expert and mission screens)."""
+        """Select the first frame of capture record `record` (from the expert, mission and objects screens)."""
         row = self.index.find_record(record)
         if row is None:
             return

@@ -16,6 +16,7 @@ KEYS: tuple[tuple[str, str, str], ...] = (
     ("Escape", "leave the filter bar (the filter stays applied)", "filter bar"),
     ("s", "statistics: message rates with sparklines, loss per link", "everywhere"),
     ("m", "mission: waypoint table and a plot of the track", "everywhere"),
+    ("o", "objects: files (MAVLink FTP), logs and images moved over the link", "everywhere"),
     ("e", "expert findings", "everywhere"),
     ("v", "events: the flight's story; Enter jumps to the event's frame", "everywhere"),
     ("p", "plot the field selected in the detail tree over time (min to max per interval)", "everywhere"),

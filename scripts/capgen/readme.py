@@ -59,6 +59,16 @@ CAPTURE_NOTES |= {
                              "payloads (method 6) under three epochs' keys (keys below)",
 }
 CAPTURE_NOTES |= {
+    "ftp_params.pcap": "ArduPilot-like vehicle: @PARAM/param.pck read over MAVLink FTP (burst reads), parameter sets "
+                       "from the signed GCS and an unsigned second system, a PARAM_EXT_SET to a camera, a second "
+                       "param.pck read with a lost packet read again (truth: ftp_params.truth.json)",
+    "ftp_lua_upload.pcap": "a Lua script written to /APM/scripts over MAVLink FTP (a write retried after its ACK was "
+                           "lost), read back (a burst lost and retried, a packet read again), a read with a packet "
+                           "lost for good, listings, a removal through '..', parameters set by writing param.pck "
+                           "(truth: ftp_lua_upload.truth.json)",
+    "log_download.pcap": "LOG_REQUEST_LIST/LOG_ENTRY, a log downloaded with LOG_REQUEST_DATA/LOG_DATA (three packets "
+                         "lost and asked for again), a second one cancelled with LOG_REQUEST_END "
+                         "(truth: log_download.truth.json)",
     "gcs_takeover.pcap": "PX4 quadrotor flying a mission for its GCS (255/190); in flight a second GCS (sysid 42, "
                          "UDP port 14551) takes over: modes, MANUAL_CONTROL, mission clear, forced disarm at 25 m "
                          "(gcs_takeover.truth.json)",
@@ -303,4 +313,27 @@ record {spoof['time_jump']['record']}.
 | capture | finding | frames (each finding's list) |
 |---|---|---|
 {findings}
+"""
+
+
+def render_objects_truth(expected: dict[str, Any]) -> str:
+    """The README section on the object and parameter captures: where their truth is and what it holds."""
+    names = ("ftp_params.pcap", "ftp_lua_upload.pcap", "log_download.pcap")
+    rows = "\n".join(f"| `{n}` | `{expected[n]['truth']}` | {expected[n]['frames']} |" for n in names)
+    return f"""
+## Objects and parameters truth (`objects`, `params`)
+
+Each of these captures comes with a truth file written by the generator from what it sent (never by
+decoding): every object (FTP path, direction, sender, receiver, size, SHA-256 of the bytes as a correct tool
+rebuilds them, with zeros where a packet was lost for good, completeness and gaps), the FTP operations,
+and for the parameter captures the initial and final parameter values and the timeline of sets (value,
+previous value, sender, whether the vehicle confirmed it, retries, security category).
+
+| capture | truth | frames |
+|---|---|---|
+{rows}
+
+The param.pck files are packed as ArduPilot's AP_Filesystem_Param does (`scripts/capgen/parampck.py`: pad
+bytes keep each value inside one 239-byte read block); FTP packets are built with pymavlink's
+`mavftp_op.FTP_OP`. Frames "lost" were encoded (their sender's sequence number advances) but left out.
 """

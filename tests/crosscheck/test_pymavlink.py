@@ -35,6 +35,10 @@ def dissect(path: Path, dialect: Dialect) -> tuple[list[Frame], list[Anomaly]]:
 
 
 def _same(a: object, b: object) -> bool:
+    if isinstance(a, str) and isinstance(b, str) and "\x00" in a:
+        # pymavlink 2.4.50 cuts a char array at its first NUL (`value.split(b"\x00", 1)[0]` in each message's
+        # __init__); mavscope strips trailing NULs only, so binary PARAM_EXT_* values (a float's bytes) survive
+        return a.split("\x00", 1)[0] == b
     if isinstance(a, float) and isinstance(b, float):
         return a == b or (math.isnan(a) and math.isnan(b))
     if isinstance(a, list) and isinstance(b, list):

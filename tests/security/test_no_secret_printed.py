@@ -30,7 +30,8 @@ ALL = sorted(p for p in CAPTURES.iterdir() if p.suffix in (".pcap", ".pcapng", "
 COMMANDS = (
     ("read",), ("read", "-V", "-x"), ("read", "-T", "jsonl"), ("stats", "--json"), ("stats",),
     ("mission", "--json"), ("commands", "--json"), ("timeline", "--json"), ("verify", "--json"), ("verify",),
-    ("audit", "--json"), ("audit",), ("events", "--json"), ("track", "--gpx", "-"), ("plot", "mavlink.seq", "--json"),
+    ("audit", "--json"), ("audit",), ("params", "--json"), ("events", "--json"),
+    ("track", "--gpx", "-"), ("plot", "mavlink.seq", "--json"),
 )
 
 
@@ -55,6 +56,13 @@ def test_every_command_keeps_the_keys_to_itself(cli: Cli, path: Path, tmp_path: 
     assert status == 0, err
     _clean("-w output", out_file.read_bytes().hex())
     _clean("-w output", out_file.read_bytes().decode("latin-1"))
+    objects = tmp_path / "objects"
+    status, out, err = cli("objects", str(path), *KEYS, "--out", str(objects), "--json", environ=env)
+    assert status == 0, err
+    _clean("objects stdout", out)
+    _clean("objects stderr", err)
+    for written in objects.iterdir():
+        _clean(f"objects --out {written.name}", written.read_bytes().decode("latin-1"))
 
 
 def test_refused_specs_and_keyring_errors_do_not_echo_the_key(cli: Cli, tmp_path: Path) -> None:

@@ -72,3 +72,14 @@ def test_signed_capture_after_adding_the_key(snap_compare) -> None:  # type: ign
         await pilot.pause()
 
     assert snap_compare(create_app(CAPTURES / "signed_udp.pcap"), run_before=run_before, terminal_size=SIZE)
+
+
+def test_objects_screen(snap_compare) -> None:  # type: ignore[no-untyped-def]
+    async def run_before(pilot) -> None:  # type: ignore[no-untyped-def]
+        await ready(pilot)
+        await pilot.press("o")
+        await wait_for(pilot, lambda: pilot.app.screen.result is not None)
+        await pilot.press("down")  # the Lua script written to the vehicle: its text in the pane
+        await pilot.pause()
+
+    assert snap_compare(create_app(CAPTURES / "ftp_lua_upload.pcap"), run_before=run_before, terminal_size=SIZE)

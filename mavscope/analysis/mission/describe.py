@@ -13,6 +13,7 @@ from mavscope.analysis.mission.model import (
     Event,
     Transfer,
 )
+from mavscope.analysis.runs import runs
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.semantics import enum_name
 
@@ -27,13 +28,7 @@ def addr(a: Addr) -> str:
 
 def ranges(seqs: list[int]) -> str:
     """"0..92, 95" for [0, 1, ..., 92, 95]."""
-    runs: list[list[int]] = []
-    for s in seqs:
-        if runs and runs[-1][1] == s - 1:
-            runs[-1][1] = s
-        else:
-            runs.append([s, s])
-    return ", ".join(str(a) if a == b else f"{a}..{b}" for a, b in runs)
+    return ", ".join(str(a) if a == b else f"{a}..{b}" for a, b in runs(seqs))
 
 
 _WHY = {"restarted": "a new MISSION_COUNT or MISSION_REQUEST_LIST between the two systems followed",

@@ -1,0 +1,28 @@
+"""The command lines of `objects` and `params`: bad options and nothing to write are one line on stderr
+with exit status 2; a capture without objects or parameters says so."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from tests.conftest import CAPTURES, Cli
+
+
+def test_usage_errors(cli: Cli, tmp_path: Path) -> None:
+    status, _, err = cli("objects", CAPTURES / "ftp_params.pcap", "--max-object-mb", "0")
+    assert status == 2 and err.startswith("mavscope: objects: --max-object-mb") and err.count("\n") == 1
+    status, _, err = cli("params", CAPTURES / "px4_sitl_udp.pcap", "--out", tmp_path / "x.param")
+    assert status == 2 and "holds no parameter values to write" in err and not (tmp_path / "x.param").exists()
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    status, _, err = cli("objects", CAPTURES / "ftp_params.pcap", "--out", blocker / "sub")
+    assert status == 2 and err.startswith("mavscope: objects: --out") and err.count("\n") == 1
+    status, _, err = cli("params", CAPTURES / "ftp_params.pcap", "--diff", tmp_path / "missing.param")
+    assert status == 2 and "missing.param" in err
+
+
+def test_nothing_to_report(cli: Cli) -> None:
+    status, out, err = cli("objects", CAPTURES / "px4_sitl_udp.pcap")
+    assert status == 0 and "No object" in out, err
+    doc = cli.json("params", CAPTURES / "px4_sitl_udp.pcap")
+    assert (doc["final"], doc["timeline"], doc["main_component"]) == ({}, [], None)
