@@ -12,8 +12,13 @@ from .basic import mavlink_v1_udp, px4_sitl_sll2, px4_sitl_tlog, px4_sitl_udp, s
 from .damaged import damaged
 from .incidents import gcs_takeover, gps_spoof
 from .objects import ftp_lua_upload, ftp_params, log_download
-from .readme import (render_analysis_truth, render_incidents, render_objects_truth, render_readme,
-                     render_security_captures)
+from .readme import (
+    render_analysis_truth,
+    render_incidents,
+    render_objects_truth,
+    render_readme,
+    render_security_captures,
+)
 from .security import key_exchange_udp, securemav_udp
 from .summary import dump_expected
 from .tcp import px4_sitl_tcp
