@@ -125,12 +125,21 @@ def test_parameter_sets_confirmed_or_not(tmp_path: Path, dialect: Dialect) -> No
                (T0 + 1.01, veh.pack(v2.MAVLink_param_value_message(b"WP_SPEED", 5.0, f32, 10, 3))),
                (T0 + 2, gcs.pack(v2.MAVLink_param_set_message(1, 1, b"FENCE_ENABLE", 1.0, f32))),
                (T0 + 2.01, veh.pack(v2.MAVLink_param_value_message(b"FENCE_ENABLE", 0.0, f32, 10, 4))),
-               (T0 + 20, veh.pack(v2.MAVLink_param_value_message(b"OTHER", 0.0, f32, 10, 5)))]
+               (T0 + 20, veh.pack(v2.MAVLink_param_value_message(b"OTHER", 0.0, f32, 10, 5))),
+               (T0 + 21, veh.pack(v2.MAVLink_param_value_message(b"WP_SPEED", 7.0, f32, 10, 3)))]
     params = _of(_story(write_tlog(tmp_path, entries), dialect).events, "param")
-    assert [(e.frame, e.details["name"], e.details["value"], e.details["previous"], e.details["confirmed"])
-            for e in params] == [(2, "WP_SPEED", 5.0, 2.0, True), (4, "FENCE_ENABLE", 1.0, None, False)]
+    # the sets: WP_SPEED answered with the value set 10 ms later, FENCE_ENABLE answered with 0 (kept);
+    # WP_SPEED reported as 7 with no set before it; OTHER's first value is no change
+    assert [(e.frame, e.details["what"], e.details["name"], e.details["value"], e.details["previous"],
+             e.details["confirmed"], e.details["confirm_frame"], e.details["reported"]) for e in params] == [
+        (2, "set", "WP_SPEED", 5.0, 2.0, True, 3, 5.0), (4, "set", "FENCE_ENABLE", 1.0, None, False, 5, 0.0),
+        (7, "change", "WP_SPEED", 7.0, 5.0, None, None, None)]
     assert params[0].details["latency_ms"] == pytest.approx(10.0, abs=0.01)
-    assert "reports 0" in params[1].text
+    assert params[0].text == "255/190 sets 1/1 WP_SPEED = 5 (was 2): confirmed in 10.0 ms"
+    assert params[1].text.startswith("255/190 sets 1/1 FENCE_ENABLE = 1: not confirmed: 1/1 reports 0; "
+                                     "security-relevant (fence, unsigned)")
+    assert (params[1].details["security"], params[1].details["disables"]) == ("fence", None)  # 1 enables it
+    assert params[2].sender == (1, 1) and "no set to explain it" in params[2].text
 
 
 def _ftp(sender: Sender, target: tuple[int, int], seq: int, opcode: int, data: bytes = b"", session: int = 0,
@@ -150,9 +159,17 @@ def test_file_transfers_with_their_answer(tmp_path: Path, dialect: Dialect) -> N
                (T0 + 1.01, _ftp(veh, (255, 190), 4, nak, bytes([10]), req=remove)),
                (T0 + 2, _ftp(gcs, (1, 1), 5, open_ro, b"/nothing\0"))]
     files = _of(_story(write_tlog(tmp_path, entries), dialect).events, "file")
-    assert [(e.frame, e.details["opcode"], e.details["path"], e.details["answer"]) for e in files] == [
-        (1, "OpenFileRO", "@PARAM/param.pck", "ACK (session 3, size 17220)"),
-        (3, "RemoveFile", "/logs/1.bin", "NAK FileNotFound"), (5, "OpenFileRO", "/nothing", "no answer")]
+    # the open ACKed (session 3, 17,220 bytes announced) but no data read: an object with nothing received;
+    # the removal refused (error 10 is FileNotFound in the FTP spec); the last open never answered
+    (read, removal, unanswered) = files
+    assert (read.frame, read.details["what"], read.details["object"], read.details["path"], read.details["session"],
+            read.details["announced_size"], read.details["received"], read.details["complete"]) == \
+        (1, "object", "ftp-read", "@PARAM/param.pck", 3, 17220, 0, False)
+    assert (read.sender, read.target) == ((1, 1), (255, 190))
+    assert [(e.frame, e.details["opcode"], e.details["path"], e.details["result"]) for e in (removal, unanswered)] == [
+        (3, "RemoveFile", "/logs/1.bin", "NAK FileNotFound"), (5, "OpenFileRO", "/nothing", None)]
+    assert removal.text == "255/190 -> 1/1 RemoveFile /logs/1.bin: NAK FileNotFound"
+    assert unanswered.text.endswith("OpenFileRO /nothing: no answer")
 
 
 def test_signing_events(tmp_path: Path, dialect: Dialect) -> None:

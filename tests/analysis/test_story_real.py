@@ -6,8 +6,9 @@ Independent sources:
   parameter sets and their confirmation, MAVLink FTP file reads, signing streams (the tests that need it
   skip where it is absent).
 - pymavlink read here (tests/support/pymavlink_reader.py): the vehicle HEARTBEATs, from which the arming
-  and custom-mode transitions are counted in the test, and the STATUSTEXT frames, whose chunks are joined
-  by the protocol's rule (same id; a chunk shorter than 50 characters ends the text).
+  and custom-mode transitions are counted in the test, the STATUSTEXT frames, whose chunks are joined
+  by the protocol's rule (same id; a chunk shorter than 50 characters ends the text), and the PARAM_VALUE
+  frames, whose values changing with no set before them are listed in the test.
 
 No capture raises any of the control or GNSS findings: QGroundControl, Mission Planner and MAVProxy
 commanding one vehicle side by side (plane), the autotest GCS 250/250 (rover), ArduSub's MANUAL_CONTROL
@@ -18,6 +19,7 @@ origin is set (offsets from 0, 0), and the rover's 25x SITL speed-up are all nor
 from __future__ import annotations
 
 import json
+import struct
 from pathlib import Path
 
 import pytest
@@ -120,19 +122,57 @@ def test_parameter_sets_as_truth_json(real_captures: Path, dialect: Dialect) -> 
     name = "ap_rover_mission_fence_rally_params.tlog"
     result, _ = _analyse(real_captures / name, dialect)
     want = [(s["time"], s["name"], s["value"], s["confirmed"]) for s in _truth(name)["params"]["sets"]]
-    got = [(e.time, e.details["name"], e.details["value"], e.details["confirmed"]) for e in result.events
-           if e.kind == "param"]
+    sets = [e for e in result.events if e.kind == "param" and e.details["what"] == "set"]
+    got = [(e.time, e.details["name"], e.details["value"], e.details["confirmed"]) for e in sets]
     assert len(want) == 55 and got == [(pytest.approx(t), n, pytest.approx(v), c) for t, n, v, c in want]
+    # truth.json's latency_s: from the set to the PARAM_VALUE that confirmed it
+    assert [e.details["latency_ms"] for e in sets] == [pytest.approx(s["latency_s"] * 1000, abs=0.002)
+                                                       for s in _truth(name)["params"]["sets"]]
+
+
+def test_parameter_changes_no_set_explains(real_captures: Path, dialect: Dialect) -> None:
+    """A PARAM_VALUE whose value (as float32) differs from the component's last one for that name, and that
+    is not the first report of the name after a PARAM_SET of it: counted here from pymavlink's frames (the
+    rover changes some itself: STAT_BOOTCNT after its reboot, ground pressures and gyro offsets it
+    calibrates, MIS_TOTAL as missions are written, STAT_RUNTIME)."""
+    name = "ap_rover_mission_fence_rally_params.tlog"
+    result, _ = _analyse(real_captures / name, dialect)
+    last: dict[tuple[tuple[int, int], str], bytes] = {}
+    awaiting: set[tuple[int, str]] = set()
+    want = []
+    for m in _pymavlink(real_captures / name):
+        if m.name == "PARAM_SET":
+            awaiting.add((m.msg.target_system, m.msg.param_id))
+        elif m.name == "PARAM_VALUE":
+            pid, raw = m.msg.param_id, struct.pack("<f", m.msg.param_value)
+            answer = (m.src[0], pid) in awaiting
+            awaiting.discard((m.src[0], pid))
+            if (m.src, pid) in last and last[(m.src, pid)] != raw and not answer:
+                want.append((m.time, m.src, pid, m.msg.param_value))
+            last[(m.src, pid)] = raw
+    got = [(e.time, e.sender, e.details["name"], e.details["value"]) for e in result.events
+           if e.kind == "param" and e.details["what"] == "change"]
+    assert want and got == [(pytest.approx(t), s, n, pytest.approx(v)) for t, s, n, v in want]
 
 
 def test_ftp_opens_as_truth_json(real_captures: Path, dialect: Dialect) -> None:
+    """Each OpenFileRO of truth.json: an accepted one is a file event of the file read (session, size
+    announced), a refused one a file event of the operation with the server's NAK."""
     name = "ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog"
     result, _ = _analyse(real_captures / name, dialect)
-    want = [(r["open_time"], r["path"], r.get("session"), r.get("announced_size"), r.get("open_nak"))
-            for r in _truth(name)["ftp"]["file_reads"]]
-    got = [(e.time, e.details["path"], e.details.get("session"), e.details.get("size"), e.details.get("error"))
-           for e in result.events if e.kind == "file"]
+    reads = _truth(name)["ftp"]["file_reads"]
+    want = [(r["open_time"], r["path"], r.get("session"), r.get("announced_size"),
+             f"NAK {r['open_nak']}" if r.get("open_nak") else None) for r in reads]
+    files = [e for e in result.events if e.kind == "file"]
+    got = [(e.time, e.details["path"], e.details.get("session"), e.details.get("announced_size"),
+            e.details.get("result")) for e in files if e.details.get("object") == "ftp-read"
+           or e.details.get("opcode") == "OpenFileRO"]
     assert got == [(pytest.approx(t), p, s, z, n) for t, p, s, z, n in want]
+    objects = {e.details["session"]: e.details for e in files if e.details.get("object") == "ftp-read"}
+    for r in reads:
+        if r.get("session") is not None:
+            d = objects[r["session"]]
+            assert (d["size"], d["sha256"], d["gaps"], d["complete"]) == (r["length"], r["sha256"], r["gaps"], True)
 
 
 def test_signed_attack_story(real_captures: Path, dialect: Dialect) -> None:

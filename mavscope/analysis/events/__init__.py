@@ -3,7 +3,8 @@ commands with their ACK, parameter changes, file transfers, signing, link loss a
 
 `model.py` is the `Event` record and the `EventSource` protocol (an accumulator yielding events); the
 sources are `vehicle.py` (HEARTBEAT state, reboots, mission progress, STATUSTEXT), `traffic.py`
-(commands, missions, parameters, files) and `links.py` (signing, link loss); `log.py` runs them over a
+(commands, missions), `records.py` (the parameter timeline and the objects and FTP operations of
+`mavscope params` and `mavscope objects`) and `links.py` (signing, link loss); `log.py` runs them over a
 capture in one pass (`EventLog`, `story`). Plugging in another source: add its factory to
 `log.SOURCES` (or pass a list to `EventLog`).
 """

@@ -2,10 +2,10 @@
 
 `EventLog(dialect).add(frame)` for every frame in capture order, then `finish()`: the events sorted by
 the frame they are dated by (capture order; events of one frame in the order their sources made them).
-Each payload is decoded once, for the sources that want it; frames whose CRC is not good are left out
-(their content cannot be trusted). At most MAX_PER_KIND events of each kind are kept: the rest are
-counted in `dropped`, so a capture full of STATUSTEXT cannot crowd out the arming events or grow the
-log without bound.
+Each payload is decoded once, for the sources that want it (every source sees every frame); frames whose
+CRC is not good are left out, for every source (their content cannot be trusted). At most MAX_PER_KIND
+events of each kind are kept: the rest are counted in `dropped`, so a capture full of STATUSTEXT cannot
+crowd out the arming events or grow the log without bound.
 """
 
 from __future__ import annotations
@@ -16,7 +16,8 @@ from dataclasses import dataclass, field
 
 from mavscope.analysis.events.links import LinkHealth, Signing
 from mavscope.analysis.events.model import KINDS, Event, EventSource
-from mavscope.analysis.events.traffic import Commands, FileTransfers, Missions, ParamChanges
+from mavscope.analysis.events.records import FileEvents, ParamEvents
+from mavscope.analysis.events.traffic import Commands, Missions
 from mavscope.analysis.events.vehicle import MissionProgress, StatusTexts, VehicleStates
 from mavscope.analysis.selection import Selection
 from mavscope.analysis.vehicles import Systems
@@ -34,8 +35,8 @@ SOURCES: list[SourceFactory] = [
     lambda systems, dialect: StatusTexts(dialect),
     lambda systems, dialect: Commands(systems, dialect),
     lambda systems, dialect: Missions(dialect),
-    lambda systems, dialect: ParamChanges(dialect),  # replaceable by the parameter analysis's records
-    lambda systems, dialect: FileTransfers(),  # replaceable by the file-transfer analysis's records
+    lambda systems, dialect: ParamEvents(),  # the parameter analysis's timeline (`mavscope params`)
+    lambda systems, dialect: FileEvents(dialect),  # the object reconstruction's records (`mavscope objects`)
     lambda systems, dialect: Signing(),
     lambda systems, dialect: LinkHealth(),
 ]

@@ -1,8 +1,12 @@
 """What the flight's story is made of: `Event` records, and the `EventSource` protocol that yields them.
 
-An event source is a small accumulator: `add(frame, fields)` once per frame in capture order (`fields`:
-the decoded payload when the frame's message is in the source's `wants`, else None) returns the events
-that frame completed, `finish()` the ones still open at the end. A source keeps bounded state. Events
+An event source is a small accumulator: `add(frame, fields)` once per frame in capture order returns the
+events that frame completed, `finish()` the ones still open at the end. Every frame with a good CRC
+reaches every source; `wants` only names the messages whose payload the log decodes for it (`fields`,
+else None), once per frame for all the sources that want it. A source built on another analysis's
+tracker, which takes frames and decodes what it reads, lists those messages in `wants` and hands the
+tracker `fields` (`tracker.feed(frame, fields)`), so nothing is decoded twice; what a tracker reads from
+the bytes (MAVLink FTP) it does not want. A source keeps bounded state. Events
 may be completed later than the frame they are dated by (a command when its ACK comes, a link loss when
 the sender is heard again): the log sorts them by frame.
 """
@@ -27,8 +31,8 @@ REBOOT = "reboot"  # the boot clock went back
 MISSION = "mission"  # transfers, clear, set-current; MISSION_CURRENT changes, MISSION_ITEM_REACHED
 STATUSTEXT = "statustext"
 COMMAND = "command"  # COMMAND_LONG / COMMAND_INT with their ACK, SET_MODE
-PARAM = "param"  # PARAM_SET with the PARAM_VALUE that confirmed it
-FILE = "file"  # MAVLink FTP requests naming a file, with their answer
+PARAM = "param"  # the parameter timeline: sets with their answer, changes no set explains
+FILE = "file"  # objects moved (FTP files and listings, logs, images), FTP operations with their answer
 SIGNING = "signing"  # signing starts, a signer sends unsigned, SETUP_SIGNING, bad or replayed signatures
 LINK = "link"  # a sender falls silent, and is heard again
 KINDS = (VEHICLE, ARMING, MODE, FAILSAFE, REBOOT, MISSION, STATUSTEXT, COMMAND, PARAM, FILE, SIGNING, LINK)
@@ -56,7 +60,7 @@ class Event:
 class EventSource(Protocol):
     """An accumulator yielding events (see the module docstring)."""
 
-    wants: frozenset[str]  # message names whose payload `add` needs decoded
+    wants: frozenset[str]  # message names whose payload `add` gets decoded (it gets every frame)
 
     def add(self, f: Frame, fields: Fields | None) -> Iterable[Event]: ...
 

@@ -1,31 +1,21 @@
 """Event sources about what the systems asked of each other: commands with their ACK, SET_MODE, mission
-transfers and operations, parameter changes, MAVLink FTP file operations.
-
-`ParamChanges` and `FileTransfers` are deliberately small: they are the places where a fuller parameter
-and file-transfer analysis plugs in (an adapter yielding `Event`s from its records replaces them in
-`events.log.SOURCES`)."""
+transfers and operations. Parameter sets and file transfers are in `records.py` (built on the parameter
+and object analyses)."""
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Iterable
 
 from mavscope.analysis.command_log import Command, CommandMatcher, command_json
-from mavscope.analysis.events.model import COMMAND, FILE, MISSION, PARAM, Addr, Event, Fields, addr, at
+from mavscope.analysis.events.model import COMMAND, MISSION, Event, Fields, addr, at
 from mavscope.analysis.mission import TRACKED_MESSAGES, MissionTracker, event_text
 from mavscope.analysis.vehicles import Systems
-from mavscope.fields.containers.ftp import ACK, NAK, PATH_OPCODES, ftp, opcode_name
-from mavscope.fields.containers.ftp import ERRORS as FTP_ERRORS
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
 from mavscope.mavlink.semantics import enum_name
 
 MAV_CMD_DO_SET_MODE, MAV_CMD_COMPONENT_ARM_DISARM = 176, 400
 FORCE_ARM_MAGIC = 21196  # param2 of COMPONENT_ARM_DISARM: arm or disarm whatever the checks say
-PENDING_MAX = 4096  # parameter sets and file requests waiting for their answer (the oldest go first)
-PARAM_TIMEOUT = 10.0  # s: a PARAM_SET that no PARAM_VALUE confirmed by then is unconfirmed
-KNOWN_PARAMS = 65_536  # last values remembered (per system and name), to give a change its old value
-_FTP_ERROR = {v: n for v, n in reversed(FTP_ERRORS)}
 
 
 def _short(dialect: Dialect, enum: str, value: int | None, prefix: str) -> str:
@@ -104,7 +94,7 @@ class Missions:
     """Mission, fence and rally transfers and the other mission operations (MISSION_CLEAR_ALL,
     MISSION_SET_CURRENT...), as `mavscope mission` reconstructs them, each dated by its first frame."""
 
-    wants: frozenset[str] = frozenset()  # the tracker decodes what it reads
+    wants = TRACKED_MESSAGES  # what the tracker reads: decoded once by the log and handed on
 
     def __init__(self, dialect: Dialect) -> None:
         self.dialect = dialect
@@ -112,7 +102,7 @@ class Missions:
 
     def add(self, f: Frame, fields: Fields | None) -> Iterable[Event]:
         if f.msgdef is not None and f.msgdef.name in TRACKED_MESSAGES:
-            self.tracker.feed(f)
+            self.tracker.feed(f, fields)
         return ()
 
     def finish(self) -> Iterable[Event]:
@@ -140,146 +130,4 @@ class Missions:
                 details.update(seq=ev.seq, confirmed=ev.confirmed)
             out.append(Event(ev.time, ev.frames[0], MISSION, ev.sender, event_text(ev, self.dialect), ev.target,
                              details))
-        return out
-
-
-def _f32(value: object) -> bytes | None:
-    try:
-        return struct.pack("<f", value)
-    except (struct.error, TypeError, OverflowError):
-        return None
-
-
-class ParamChanges:
-    """PARAM_SET, confirmed by the first later PARAM_VALUE from the target system with the same name and the
-    same float32 bytes (within PARAM_TIMEOUT); the value before it where a PARAM_VALUE told it. The value is
-    shown as the float on the wire (how an autopilot packs integer types into it is the parameter
-    analysis's business)."""
-
-    wants = frozenset({"PARAM_SET", "PARAM_VALUE"})
-
-    def __init__(self, dialect: Dialect) -> None:
-        self.dialect = dialect
-        # (target, name) -> (the PARAM_SET, its value, its float32 bytes, the value before it, the value reported since)
-        self.pending: dict[tuple[int, str], tuple[Frame, float, bytes, object, object]] = {}
-        self.known: dict[tuple[int, str], object] = {}
-
-    def _event(self, f: Frame, target: int, name: str, value: float, previous: object, confirmed: bool,
-               latency_ms: float | None, reported: object = None) -> Event:
-        was = f" (was {previous:g})" if isinstance(previous, float) else ""
-        if confirmed:
-            how = "confirmed" + (f" in {latency_ms:.1f} ms" if latency_ms is not None else "")
-        elif reported is not None:
-            how = f"not confirmed: {target} reports {reported:g}" if isinstance(reported, float) else "not confirmed"
-        else:
-            how = "not confirmed: no PARAM_VALUE with that value"
-        return at(f, PARAM, f"{addr((f.sysid, f.compid))} sets {target} {name} = {value:g}{was}: {how}", (target, 0),
-                  name=name, value=value, previous=previous, confirmed=confirmed, latency_ms=latency_ms)
-
-    def add(self, f: Frame, fields: Fields | None) -> Iterable[Event]:
-        if fields is None:
-            return ()
-        name, value = fields.get("param_id"), fields.get("param_value")
-        if not isinstance(name, str) or not isinstance(value, float):
-            return ()
-        out: list[Event] = []
-        if f.msgdef is not None and f.msgdef.name == "PARAM_SET":
-            target = fields.get("target_system")
-            raw = _f32(value)
-            if not isinstance(target, int) or raw is None:
-                return ()
-            key = (target, name)
-            if key not in self.pending:
-                self.pending[key] = (f, value, raw, self.known.get(key), None)
-                if len(self.pending) > PENDING_MAX:
-                    old = next(iter(self.pending))
-                    out.extend(self._expire(old))
-            return out
-        key = (f.sysid, name)
-        entry = self.pending.get(key)
-        if entry is not None:
-            sent, set_value, raw, before, _ = entry
-            if _f32(value) == raw:
-                del self.pending[key]
-                latency = (f.time - sent.time) * 1000 if f.time is not None and sent.time is not None else None
-                out.append(self._event(sent, key[0], name, set_value, before, True, latency))
-            else:
-                self.pending[key] = (sent, set_value, raw, before, value)
-        if key in self.known or len(self.known) < KNOWN_PARAMS:
-            self.known[key] = value
-        while self.pending and f.time is not None:  # give up on sets no confirmation followed in time (oldest first)
-            k, (sent, *_) = next(iter(self.pending.items()))
-            if sent.time is None or f.time - sent.time <= PARAM_TIMEOUT:
-                break
-            out.extend(self._expire(k))
-        return out
-
-    def _expire(self, key: tuple[int, str]) -> list[Event]:
-        sent, value, _, before, reported = self.pending.pop(key)
-        return [self._event(sent, key[0], key[1], value, before, False, None, reported)]
-
-    def finish(self) -> Iterable[Event]:
-        out: list[Event] = []
-        for key in list(self.pending):
-            out.extend(self._expire(key))
-        return out
-
-
-class FileTransfers:
-    """MAVLink FTP requests that name a file or directory (OpenFileRO/WO, CreateFile, RemoveFile, ListDirectory,
-    Rename...), each with the ACK or NAK that answered it (session and size of an open, the error of a NAK)."""
-
-    wants = frozenset({"FILE_TRANSFER_PROTOCOL"})
-
-    def __init__(self) -> None:
-        self.pending: dict[tuple[Addr, int], tuple[Frame, int, str, int]] = {}  # (requester, server) -> request
-
-    def _event(self, f: Frame, server: int, opcode: int, path: str, answer: str, **details: object) -> Event:
-        op = opcode_name(opcode)
-        return at(f, FILE, f"{addr((f.sysid, f.compid))} -> {server} {op} {path}: {answer}", (server, 0),
-                  opcode=op, path=path, answer=answer, **details)
-
-    def add(self, f: Frame, fields: Fields | None) -> Iterable[Event]:
-        if fields is None:
-            return ()
-        p = ftp(f)
-        target, tcomp = fields.get("target_system"), fields.get("target_component")
-        if p is None or not isinstance(target, int) or not isinstance(tcomp, int):
-            return ()
-        out: list[Event] = []
-        if p.opcode in PATH_OPCODES and p.path is not None:
-            key = ((f.sysid, f.compid), target)
-            prev = self.pending.get(key)
-            if prev is not None and prev[1] == p.opcode and prev[2] == p.path:
-                return ()  # the same request again (a retry)
-            if prev is not None:
-                out.append(self._event(prev[0], target, prev[1], prev[2], "no answer"))
-            self.pending[key] = (f, p.opcode, p.path, p.seq)
-            if len(self.pending) > PENDING_MAX:
-                (req, server), (rf, op, path, _) = next(iter(self.pending.items()))
-                del self.pending[(req, server)]
-                out.append(self._event(rf, server, op, path, "no answer"))
-            return out
-        if p.opcode not in (ACK, NAK):
-            return ()
-        entry = self.pending.get(((target, tcomp), f.sysid))  # the server answers the requester's sysid/compid
-        if entry is None or entry[1] != p.req_opcode:
-            return ()
-        req_frame, opcode, path, _ = entry
-        del self.pending[((req_frame.sysid, req_frame.compid), f.sysid)]
-        if p.opcode == ACK:
-            details: dict[str, object] = {"session": p.session, "answer_frame": f.record}
-            answer = "ACK"
-            if p.file_size is not None:
-                details["size"] = p.file_size
-                answer += f" (session {p.session}, size {p.file_size})"
-            return (self._event(req_frame, f.sysid, opcode, path, answer, **details),)
-        err = _FTP_ERROR.get(p.error, str(p.error)) if p.error is not None else "?"
-        return (self._event(req_frame, f.sysid, opcode, path, f"NAK {err}", error=err, errno=p.errno,
-                            answer_frame=f.record),)
-
-    def finish(self) -> Iterable[Event]:
-        out = [self._event(rf, server, op, path, "no answer")
-               for (_, server), (rf, op, path, _) in self.pending.items()]
-        self.pending.clear()
         return out
