@@ -147,6 +147,25 @@ CODES: dict[str, Code] = {
         Code("replayed-command", _WARN, Group.SECURITY, _C,
              "a commanding frame repeats an earlier one byte for byte, out of its sender's sequence"),
         Code("unsigned-command", _WARN, Group.SECURITY, _C, "unsigned command where signed traffic is seen"),
+        # control of a vehicle (mavscope.analysis.control)
+        Code("second-gcs-control", _WARN, Group.SECURITY, _C,
+             "control of an armed vehicle from a system other than the one in control",
+             "a second ground station (or an attacker) sends manual control, modes or commands to an armed vehicle "
+             "that another system controls: a takeover"),
+        Code("unexpected-mode-change", _WARN, Group.SECURITY, _C,
+             "a vehicle changed mode on the request of a system not in control"),
+        Code("unexpected-mission-clear", _WARN, Group.SECURITY, _C,
+             "a system not in control cleared a vehicle's mission"),
+        Code("in-flight-disarm", _ERROR, Group.PROTOCOL, _C, "a vehicle disarmed while in the air"),
+        # GNSS (mavscope.analysis.gnss)
+        Code("gnss-position-jump", _WARN, Group.SECURITY, _C,
+             "a position jump the reported velocity cannot explain (GNSS spoofing or a glitch)"),
+        Code("gnss-fix-collapse", _WARN, Group.SECURITY, _C,
+             "a GNSS fix or satellite count collapsing within seconds (jamming or obstruction)"),
+        Code("ekf-gnss-alarm", _WARN, Group.SECURITY, _C,
+             "the navigation filter reports a GPS glitch, lost position or failing innovation tests"),
+        Code("gnss-time-jump", _WARN, Group.SECURITY, _C,
+             "GNSS time stepping against the vehicle's boot clock or disagreeing with SYSTEM_TIME"),
         # objects moved over the link (mavscope.analysis.objects)
         Code("ftp-upload", _NOTE, Group.SECURITY, _C, "files written to a vehicle over MAVLink FTP"),
         Code("script-upload", _WARN, Group.SECURITY, _C, "a file the vehicle runs as code written over MAVLink FTP",

@@ -25,6 +25,9 @@ from mavscope.mavlink.semantics import (
 )
 
 MAV_RESULT_IN_PROGRESS = 5
+COMMAND_MESSAGES = frozenset({"COMMAND_LONG", "COMMAND_INT", "COMMAND_ACK"})
+PENDING_MAX = 4096  # commands waiting for their ACK (the oldest is given up first)
+ORPHANS_KEPT = 10_000  # ACKs matching no command, listed (all are counted)
 
 
 @dataclass
@@ -54,45 +57,48 @@ def _name(dialect: Dialect, enum: str, value: int | None) -> str | None:
     return None if value is None else enum_name(dialect, enum, value)
 
 
-def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> tuple[list[Command], list[dict[str, object]]]:
-    """(commands in the order first sent, ACKs that answer no command)."""
-    commands: list[Command] = []
-    pending: list[Command] = []
-    orphans: list[dict[str, object]] = []
-    for f in frames:
-        md = f.msgdef
-        if md is None or md.name not in ("COMMAND_LONG", "COMMAND_INT", "COMMAND_ACK") or f.crc_status is CrcStatus.BAD:
-            continue
-        fields = decode_payload(f)
-        if fields is None:
-            continue
+class CommandMatcher:
+    """Commands and their ACKs in one pass: `add(frame, fields)` per COMMAND_LONG / COMMAND_INT /
+    COMMAND_ACK frame (decoded `fields`) in capture order returns the commands that frame completed (an
+    ACK answers at most one); `finish()` the ones still unanswered. At most PENDING_MAX commands wait for
+    their ACK (the oldest is given up as unanswered), so the state is bounded whatever the capture."""
+
+    def __init__(self, dialect: Dialect) -> None:
+        self.dialect = dialect
+        self.pending: list[Command] = []
+        self.orphans: list[dict[str, object]] = []  # ACKs that answer no command (the first ORPHANS_KEPT)
+        self.orphan_count = 0
+
+    def add(self, f: Frame, fields: dict[str, object]) -> tuple[Command | None, list[Command]]:
+        """(the new command this frame sent, or None; the commands it completed or pushed out unanswered)."""
+        name = f.msgdef.name if f.msgdef is not None else ""
         me = (f.sysid, f.compid)
-        if md.name != "COMMAND_ACK":
+        if name != "COMMAND_ACK":
             cmd_id = int(fields["command"])  # type: ignore[call-overload]
             target = (int(fields["target_system"]), int(fields["target_component"]))  # type: ignore[call-overload]
-            same = next((c for c in pending if c.message == md.name and c.command == cmd_id and c.sender == me
+            same = next((c for c in self.pending if c.message == name and c.command == cmd_id and c.sender == me
                          and c.target == target), None)
             if same is not None:
                 same.retries += 1
                 same.frames.append(f.record)
-                continue
+                return None, []
             names = [n for n in ("param1", "param2", "param3", "param4", "param5", "param6", "param7", "x", "y", "z",
                                  "frame", "confirmation") if n in fields]
             params: dict[str, object] = {n: finite(fields[n]) for n in names}
-            if md.name in INT_COORDINATE_MESSAGES:  # degrees in a global frame, metres in a local one
+            if name in INT_COORDINATE_MESSAGES:  # degrees in a global frame, metres in a local one
                 frame = params.get("frame")
                 params["x"] = int_coordinate(int(params["x"]), frame)  # type: ignore[call-overload, arg-type]
                 params["y"] = int_coordinate(int(params["y"]), frame)  # type: ignore[call-overload, arg-type]
             src = None if f.src is None else f.src.text
-            c = Command(md.name, cmd_id, me, target, params, f.time, [f.record], src=src)
-            commands.append(c)
-            pending.append(c)
-            continue
+            c = Command(name, cmd_id, me, target, params, f.time, [f.record], src=src)
+            self.pending.append(c)
+            dropped = [self.pending.pop(0)] if len(self.pending) > PENDING_MAX else []
+            return c, dropped
         cmd_id = int(fields["command"])  # type: ignore[call-overload]
         result = int(fields["result"])  # type: ignore[call-overload]
         to_sys, to_comp = fields.get("target_system", 0), fields.get("target_component", 0)
         match = None
-        for c in pending:
+        for c in self.pending:
             if c.command != cmd_id or c.target[0] not in (0, f.sysid) or c.target[1] not in (0, f.compid):
                 continue
             if to_sys and to_sys != c.sender[0]:
@@ -102,17 +108,41 @@ def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> tuple[list[Command
             match = c
             break
         if match is None:
-            orphans.append({"frame": f.record, "command": _name(dialect, "MAV_CMD", cmd_id),
-                            "result": _name(dialect, "MAV_RESULT", result), "from": [f.sysid, f.compid],
-                            "time": f.time})
-            continue
+            self.orphan_count += 1
+            if len(self.orphans) < ORPHANS_KEPT:
+                self.orphans.append({"frame": f.record, "command": _name(self.dialect, "MAV_CMD", cmd_id),
+                                     "result": _name(self.dialect, "MAV_RESULT", result), "from": [f.sysid, f.compid],
+                                     "time": f.time})
+            return None, []
         if result == MAV_RESULT_IN_PROGRESS:
             match.progress.append(int(fields.get("progress", 0) or 0))  # type: ignore[call-overload]
             match.frames.append(f.record)
-            continue
+            return None, []
         match.result, match.ack_frame, match.ack_time = result, f.record, f.time
-        pending.remove(match)
-    return commands, orphans
+        self.pending.remove(match)
+        return None, [match]
+
+    def finish(self) -> list[Command]:
+        """The commands no ACK answered."""
+        out, self.pending = self.pending, []
+        return out
+
+
+def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> tuple[list[Command], list[dict[str, object]]]:
+    """(commands in the order first sent, ACKs that answer no command)."""
+    commands: list[Command] = []
+    matcher = CommandMatcher(dialect)
+    for f in frames:
+        md = f.msgdef
+        if md is None or md.name not in COMMAND_MESSAGES or f.crc_status is CrcStatus.BAD:
+            continue
+        fields = decode_payload(f)
+        if fields is None:
+            continue
+        new, _ = matcher.add(f, fields)
+        if new is not None:
+            commands.append(new)
+    return commands, matcher.orphans
 
 
 def _param_names(c: Command, dialect: Dialect) -> dict[str, str]:

@@ -14,6 +14,10 @@ from collections import Counter, OrderedDict
 from collections.abc import Callable, Iterable, Sequence
 from typing import Protocol
 
+from mavscope.analysis.control import ControlSources
+from mavscope.analysis.framelist import MAX_FRAMES
+from mavscope.analysis.framelist import frame_numbers as _frames
+from mavscope.analysis.gnss import GnssAnomalies
 from mavscope.analysis.sequence import GAP_MIN, SeqTracker
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
@@ -30,7 +34,6 @@ COMMANDING = frozenset({
 MAV_TYPE_GCS = 6
 BURST_MIN = 3  # bad-CRC frames...
 BURST_WINDOW_S = 1.0  # ...each within this long of the previous one make a burst
-MAX_FRAMES = 50  # frame numbers listed per finding
 COPIES_KEPT = 65_536  # commanding frames remembered for replay detection (the oldest go first)
 
 Link = tuple[int, int]
@@ -44,11 +47,6 @@ def _target(fields: Fields) -> object:
 
 def _link(f: Frame) -> str:
     return f"{f.sysid}/{f.compid}"
-
-
-def _frames() -> FrameNumbers:
-    """Frame numbers for a finding: the first MAX_FRAMES kept, all of them counted."""
-    return FrameNumbers(MAX_FRAMES)
 
 
 class BadCrcBursts:
@@ -317,26 +315,33 @@ class KeyLeaks:
 
 
 class Detector(Protocol):
+    """`add` gets the decoded payload of commanding frames and HEARTBEATs, and of the messages named in the
+    detector's `wants` attribute where it has one."""
+
     def add(self, f: Frame, fields: Fields | None) -> None: ...
 
     def findings(self) -> list[Finding]: ...
 
 
-DETECTORS: list[Callable[[], Detector]] = [BadCrcBursts, SequenceAnomalies, CommandSources, ReplayedCommands,
-                                           UnsignedCommands, KeyLeaks]
+# Factories: each is called with no argument, or with the dialect when it is in DIALECT_DETECTORS.
+DETECTORS: list[Callable[..., Detector]] = [BadCrcBursts, SequenceAnomalies, CommandSources, ReplayedCommands,
+                                            UnsignedCommands, KeyLeaks, ControlSources, GnssAnomalies]
+DIALECT_DETECTORS: frozenset[Callable[..., Detector]] = frozenset({ControlSources, GnssAnomalies})
 
 
 class Expert:
     """Every detector in one pass: `add(frame)` per frame in capture order, then `findings()`."""
 
-    def __init__(self, dialect: Dialect, detectors: Sequence[Callable[[], Detector]] | None = None) -> None:
+    def __init__(self, dialect: Dialect, detectors: Sequence[Callable[..., Detector]] | None = None) -> None:
         self.dialect = dialect
-        self.detectors = [d() for d in (DETECTORS if detectors is None else detectors)]
+        self.detectors = [d(dialect) if d in DIALECT_DETECTORS else d()
+                          for d in (DETECTORS if detectors is None else detectors)]
+        self.decode = COMMANDING.union({"HEARTBEAT"}, *(getattr(d, "wants", ()) for d in self.detectors))
 
     def add(self, f: Frame) -> None:
         fields = None
         md = f.msgdef
-        if md is not None and (md.name in COMMANDING or f.msgid == 0) and f.crc_status is not CrcStatus.BAD:
+        if md is not None and md.name in self.decode and f.crc_status is not CrcStatus.BAD:
             fields = decode_payload(f)
         for d in self.detectors:
             d.add(f, fields)
@@ -349,7 +354,7 @@ class Expert:
 
 
 def expert_findings(frames: Iterable[Frame], dialect: Dialect,
-                    detectors: Sequence[Callable[[], Detector]] | None = None) -> list[Finding]:
+                    detectors: Sequence[Callable[..., Detector]] | None = None) -> list[Finding]:
     """Every detector's findings over `frames`, most severe first."""
     expert = Expert(dialect, detectors)
     for f in frames:

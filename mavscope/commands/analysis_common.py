@@ -9,7 +9,7 @@ command into an unanswered one.
 from __future__ import annotations
 
 import argparse
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 
 from mavscope.analysis.selection import Selection
@@ -22,6 +22,7 @@ from mavscope.commands.common import (
     capture_session,
 )
 from mavscope.mavlink.frame import Frame
+from mavscope.notes import Finding
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.pipeline.session import Session
 
@@ -56,6 +57,22 @@ class Pass:
                 yield item
         finally:
             problems.close()
+
+
+def print_findings(con, findings: Sequence[Finding]) -> None:  # type: ignore[no-untyped-def]
+    """The expert findings as a table on the rich console `con` (nothing when there are none)."""
+    if not findings:
+        return
+    from rich.table import Table
+    from rich.text import Text
+
+    t = Table(title="Expert findings", title_justify="left")
+    for col in ("severity", "code", "frames", "message"):
+        t.add_column(col)
+    for f in findings:
+        nums = ", ".join(map(str, f.frames[:8])) + (" …" if len(f.frames) > 8 else "")
+        t.add_row(f.severity.value, f.code, nums, Text(f.message))
+    con.print(t)
 
 
 @contextmanager

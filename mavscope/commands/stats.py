@@ -8,7 +8,7 @@ from typing import cast
 from mavscope.analysis.expert import Expert
 from mavscope.analysis.stats import StatsBuilder
 from mavscope.cli import Env, ExitStatus
-from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
+from mavscope.commands.analysis_common import add_analysis_options, analysis_pass, print_findings
 from mavscope.commands.common import console, write_json
 from mavscope.output.tables import fmt, iso, sparkline
 
@@ -84,14 +84,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
               f"{tot['links']} links, {tot['messages']} message types, {tot['lost']} lost; "
               f"v1 {tot['v1']}, v2 {tot['v2']}; CRC {_counts(tot['crc'])}; "
               f"signature {_counts(tot['signature'])}")
-    if findings:
-        t = Table(title="Expert findings", title_justify="left")
-        for col in ("severity", "code", "frames", "message"):
-            t.add_column(col)
-        for f in findings:
-            nums = ", ".join(map(str, f.frames[:8])) + (" …" if len(f.frames) > 8 else "")
-            t.add_row(f.severity.value, f.code, nums, f.message)
-        con.print(t)
+    print_findings(con, findings)
     return ExitStatus.OK
 
 

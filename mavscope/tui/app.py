@@ -37,7 +37,8 @@ from mavscope.tui.widgets.status_bar import StatusBar
 from mavscope.tui.workers import fill_index, scan_filter
 
 PANES = ("#packets", "#tree", "#hex")
-MAIN_SCREEN_ACTIONS = frozenset({"cycle", "filter", "stats", "mission", "objects", "expert", "keys", "help"})
+MAIN_SCREEN_ACTIONS = frozenset({"cycle", "filter", "stats", "mission", "objects", "expert", "events", "plot", "keys",
+                                 "help"})
 
 
 class MavscopeApp(App[None]):
@@ -59,6 +60,8 @@ class MavscopeApp(App[None]):
         Binding("m", "mission", "Mission"),
         Binding("o", "objects", "Objects"),
         Binding("e", "expert", "Expert"),
+        Binding("v", "events", "Events"),
+        Binding("p", "plot", "Plot"),
         Binding("k", "keys", "Keys"),
         Binding("question_mark", "help", "Help"),
         Binding("q", "quit", "Quit"),
@@ -390,6 +393,28 @@ class MavscopeApp(App[None]):
         from mavscope.tui.screens.expert import ExpertScreen
 
         self.push_screen(ExpertScreen(self.index, self._view()))
+
+    def action_events(self) -> None:
+        from mavscope.tui.screens.events import EventsScreen
+
+        self.push_screen(EventsScreen(self.index, self._view()))
+
+    def action_plot(self) -> None:
+        """Plot the field under the detail tree's cursor (a number field of the payload or the header)."""
+        from mavscope.tui.screens.plot import PlotScreen
+
+        node = self.tree.cursor_node
+        item = node.data if node is not None else None
+        if item is None or item.generated:
+            self.notify("select a field in the detail tree first (Enter on a frame, then move to the field)",
+                        title="plot", severity="warning")
+            return
+        try:
+            screen = PlotScreen(self.index, self._view(), item.name)
+        except MavscopeError as exc:
+            self.notify(str(exc).removeprefix("plot: "), title="plot", severity="warning")
+            return
+        self.push_screen(screen)
 
     def _view(self) -> Sequence[int] | None:
         """The rows the screens analyse: the filtered view, or every frame."""

@@ -18,6 +18,8 @@ KEYS: tuple[tuple[str, str, str], ...] = (
     ("m", "mission: waypoint table and a plot of the track", "everywhere"),
     ("o", "objects: files (MAVLink FTP), logs and images moved over the link", "everywhere"),
     ("e", "expert findings", "everywhere"),
+    ("v", "events: the flight's story; Enter jumps to the event's frame", "everywhere"),
+    ("p", "plot the field selected in the detail tree over time (min to max per interval)", "everywhere"),
     ("k", "add a signing key or a cipher key (verdicts update)", "everywhere"),
     ("?", "this help", "everywhere"),
     ("Escape / q", "close a screen or dialog", "screens"),

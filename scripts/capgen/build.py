@@ -10,8 +10,15 @@ from typing import Any
 from .analysis import clock_skew, commands_ack, mission_resend, stats_loss
 from .basic import mavlink_v1_udp, px4_sitl_sll2, px4_sitl_tlog, px4_sitl_udp, serial_dump, signed_udp
 from .damaged import damaged
+from .incidents import gcs_takeover, gps_spoof
 from .objects import ftp_lua_upload, ftp_params, log_download
-from .readme import render_analysis_truth, render_objects_truth, render_readme, render_security_captures
+from .readme import (
+    render_analysis_truth,
+    render_incidents,
+    render_objects_truth,
+    render_readme,
+    render_security_captures,
+)
 from .security import key_exchange_udp, securemav_udp
 from .summary import dump_expected
 from .tcp import px4_sitl_tcp
@@ -39,8 +46,11 @@ def make_all(outdir: Path) -> dict[str, Any]:
     expected["ftp_params.pcap"] = ftp_params(outdir)
     expected["ftp_lua_upload.pcap"] = ftp_lua_upload(outdir)
     expected["log_download.pcap"] = log_download(outdir)
+    expected["gcs_takeover.pcap"] = gcs_takeover(outdir)
+    expected["gps_spoof.pcap"] = gps_spoof(outdir)
     (outdir / "expected.json").write_text(dump_expected(expected), encoding="utf-8")
     (outdir / "README.md").write_text(render_readme(expected, cases) + render_analysis_truth(expected)
-                                      + render_security_captures(expected) + render_objects_truth(expected),
+                                      + render_security_captures(expected) + render_objects_truth(expected)
+                                      + render_incidents(outdir),
                                       encoding="utf-8")
     return expected

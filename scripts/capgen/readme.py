@@ -3,7 +3,9 @@ reports, rendered from expected.json so that prose and data cannot disagree."""
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 from .constants import (
@@ -67,6 +69,12 @@ CAPTURE_NOTES |= {
     "log_download.pcap": "LOG_REQUEST_LIST/LOG_ENTRY, a log downloaded with LOG_REQUEST_DATA/LOG_DATA (three packets "
                          "lost and asked for again), a second one cancelled with LOG_REQUEST_END "
                          "(truth: log_download.truth.json)",
+    "gcs_takeover.pcap": "PX4 quadrotor flying a mission for its GCS (255/190); in flight a second GCS (sysid 42, "
+                         "UDP port 14551) takes over: modes, MANUAL_CONTROL, mission clear, forced disarm at 25 m "
+                         "(gcs_takeover.truth.json)",
+    "gps_spoof.pcap": "ArduCopter flying north: GNSS jammed for 4 s, then spoofed 700 m east (GPS and then EKF "
+                      "position jump), EKF GPS glitch, EKF failsafe LAND, GNSS time one hour ahead "
+                      "(gps_spoof.truth.json)",
 }
 LINKTYPE_NAMES = {LINKTYPE_ETHERNET: "Ethernet (1)", LINKTYPE_LINUX_SLL2: "Linux SLL2 (276)"}
 
@@ -272,6 +280,39 @@ GCS private key `{kx['gcs_private']}` (public `{kx['gcs_public']}`):
 | key id | exchange at s | vehicle private key | signing key (HKDF) | aes-gcm master key (HKDF) |
 |---|---|---|---|---|
 {epochs}
+"""
+
+
+def render_incidents(outdir: Path) -> str:
+    """The README section on the incident captures, from their truth files."""
+    take = json.loads((outdir / "gcs_takeover.truth.json").read_text(encoding="utf-8"))
+    spoof = json.loads((outdir / "gps_spoof.truth.json").read_text(encoding="utf-8"))
+    modes = ", ".join(f"{m['from']} -> {m['to']} (record {m['record']})" for m in take["modes"])
+    findings = "\n".join(f"| `{name}` | {code} | {', '.join(' '.join(map(str, fr)) for fr in frames)} |"
+                         for name, t in (("gcs_takeover.pcap", take), ("gps_spoof.pcap", spoof))
+                         for code, frames in t["findings"].items())
+    return f"""
+## Incident captures (`mavscope events`, `track`, `plot`, expert findings)
+
+Each has a truth file written by the generator from what it sent (record numbers of the tagged messages,
+the states it put in the vehicle's HEARTBEATs); the tests compare mavscope's answers with it.
+
+`gcs_takeover.pcap` (PX4, custom modes as px4_custom_mode.h packs them): the vehicle's modes {modes}. The
+intruder ({take['intruder'][0]}/{take['intruder'][1]}, UDP port {take['intruder_udp_port']}) sends
+{len(take['intruder_control_records'])} control frames while the vehicle is armed, clears the mission (record
+{take['mission_clear_record']}) and force-disarms it at {take['disarm_in_air']['relative_alt_m']} m (command record
+{take['disarm_in_air']['command_record']}, disarmed HEARTBEAT record {take['disarm_in_air']['heartbeat_record']}).
+
+`gps_spoof.pcap` (ArduCopter, ardupilotmega dialect): jammed from {spoof['jamming']['from_s']} s to
+{spoof['jamming']['until_s']} s (satellites {spoof['jamming']['satellites'][0]} -> {spoof['jamming']['satellites'][1]},
+first record {spoof['jamming']['first_record']}); the GPS position jumps {spoof['spoof']['jump_east_m']} m east at
+record {spoof['spoof']['gps_record']} while the vehicle reports {spoof['spoof']['speed_mps']} m/s, the EKF output
+follows at record {spoof['spoof']['global_position_record']}; SYSTEM_TIME jumps {spoof['time_jump']['seconds']} s at
+record {spoof['time_jump']['record']}.
+
+| capture | finding | frames (each finding's list) |
+|---|---|---|
+{findings}
 """
 
 

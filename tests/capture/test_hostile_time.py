@@ -170,7 +170,9 @@ def test_read_w_refuses_an_unwritable_output_before_reading(cli: Cli, tmp_path: 
 
 @pytest.mark.parametrize("name", CASES)
 @pytest.mark.parametrize("command", [["stats"], ["timeline"], ["commands"], ["mission"], ["audit"],
-                                     ["verify", "--key", "passphrase:x"]])
+                                     ["verify", "--key", "passphrase:x"], ["events"],
+                                     ["track", "--gpx", "/dev/null", "--kml", "/dev/null", "--geojson", "/dev/null"],
+                                     ["plot", "mavlink.seq"]])
 def test_reports_print_any_time(cli: Cli, tmp_path: Path, name: str, command: list[str]) -> None:
     """Text reports format capture times as calendar dates; one outside the calendar must not crash them
     (stats and timeline raised OverflowError before)."""

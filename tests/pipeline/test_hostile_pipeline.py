@@ -33,7 +33,7 @@ def test_a_datagram_of_junk_on_a_mavlink_port(cli: Cli, tmp_path: Path) -> None:
     status, out, err = cli("read", path)
     assert status == 0 and out.count("HEARTBEAT") == 2
     assert "record 2" in err and "5 bytes that are not MAVLink skipped" in err
-    for command in ("stats", "mission", "commands", "timeline", "audit"):
+    for command in ("stats", "mission", "commands", "timeline", "audit", "events", "track"):
         status, _, err = cli(command, path, "--json")
         assert status in (0, 1) and "Traceback" not in err, command
 

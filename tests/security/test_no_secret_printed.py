@@ -30,7 +30,8 @@ ALL = sorted(p for p in CAPTURES.iterdir() if p.suffix in (".pcap", ".pcapng", "
 COMMANDS = (
     ("read",), ("read", "-V", "-x"), ("read", "-T", "jsonl"), ("stats", "--json"), ("stats",),
     ("mission", "--json"), ("commands", "--json"), ("timeline", "--json"), ("verify", "--json"), ("verify",),
-    ("audit", "--json"), ("audit",), ("params", "--json"),
+    ("audit", "--json"), ("audit",), ("params", "--json"), ("events", "--json"),
+    ("track", "--gpx", "-"), ("plot", "mavlink.seq", "--json"),
 )
 
 

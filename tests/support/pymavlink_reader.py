@@ -64,3 +64,21 @@ def _tlog(data: bytes) -> list[Msg]:
         last = ts
         o += 8 + size
     return out
+
+
+def read_pcap(path: Path) -> list[Msg]:
+    """The frames of a pcap of UDP datagrams, one datagram at a time through pymavlink's robust parser
+    (scapy reads the pcap); `index` is the record number (1-based), `time` the packet time."""
+    from scapy.layers.inet import UDP
+    from scapy.utils import rdpcap
+
+    out: list[Msg] = []
+    for number, pkt in enumerate(rdpcap(str(path)), start=1):
+        if UDP not in pkt:
+            continue
+        mav = mavlink.MAVLink(None)
+        mav.robust_parsing = True
+        for m in mav.parse_buffer(bytes(pkt[UDP].payload)) or []:
+            if not isinstance(m, mavlink.MAVLink_bad_data):
+                out.append(Msg(number, float(pkt.time), (m.get_srcSystem(), m.get_srcComponent()), m.get_type(), m))
+    return out

@@ -93,7 +93,8 @@ class MissionTracker:
 
     # -- input ---------------------------------------------------------------------------------------
 
-    def feed(self, f: Frame) -> None:
+    def feed(self, f: Frame, fields: dict[str, object] | None = None) -> None:
+        """`fields`: the frame's payload where the caller has decoded it already (so it is not decoded twice)."""
         md = f.msgdef
         if md is None or f.crc_status is not CrcStatus.OK:
             return
@@ -104,7 +105,8 @@ class MissionTracker:
         name = md.name
         if name not in TRACKED_MESSAGES:
             return
-        fields = decode_payload(f)
+        if fields is None:
+            fields = decode_payload(f)
         if fields is None:
             return
         if name == "HEARTBEAT":

@@ -53,7 +53,8 @@ class ObjectTracker:
         self.images = ImageTracker(self.ctx)
         self.ftp_only = ftp_only
 
-    def feed(self, f: Frame) -> None:
+    def feed(self, f: Frame, fields: dict[str, object] | None = None) -> None:
+        """`fields`: the frame's payload where the caller has decoded it already (so it is not decoded twice)."""
         self.ctx.tick += 1
         md = f.msgdef
         if md is None or f.crc_status is not CrcStatus.OK:
@@ -62,7 +63,8 @@ class ObjectTracker:
         if name == FTP_MESSAGE:
             self.ftp.feed(f)
         elif not self.ftp_only and (name in LOG_MESSAGES or name in IMAGE_MESSAGES):
-            fields = decode_payload(f)
+            if fields is None:
+                fields = decode_payload(f)
             if fields is None:
                 return
             if name in LOG_MESSAGES:

@@ -22,8 +22,8 @@ def change_json(e: ParamChange) -> dict[str, object]:
             "component": _addr(e.component), "name": e.name, "value": json_value(e.value),
             "previous": json_value(e.previous), "type": TYPE_NAMES.get(e.type or 0), "type_id": e.type,
             "link": e.link, "signature": e.signature, "confirmed": e.confirmed, "confirm_frame": e.confirm_frame,
-            "reported": json_value(e.reported), "retries": e.retries, "ack": e.ack, "security": e.security,
-            "disables": e.disables}
+            "confirm_time": e.confirm_time, "reported": json_value(e.reported), "retries": e.retries, "ack": e.ack,
+            "security": e.security, "disables": e.disables}
 
 
 def component_json(c: Component) -> dict[str, object]:

@@ -36,6 +36,7 @@ class ParamChange:
     security: str | None  # the parameter's security category (mavscope.analysis.params.security)
     disables: str | None  # what this value turns off, if anything
     ack: str | None = None  # PARAM_EXT_SET: the PARAM_EXT_ACK result name
+    confirm_time: float | None = None  # capture time of `confirm_frame`
 
 
 @dataclass

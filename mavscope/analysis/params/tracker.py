@@ -72,13 +72,14 @@ class _Entry:
     reported: Value | None = None
     retries: int = 0
     ack: str | None = None
+    confirm_time: float | None = None
     last: float | None = None  # time of the last transmission (sets)
 
     def freeze(self) -> ParamChange:
         return ParamChange(self.time, self.frame, self.kind, self.source, self.sender, self.component, self.name,
                            self.value, self.previous, self.type, self.link, self.signature, self.confirmed,
                            self.confirm_frame, self.reported, self.retries, category(self.name),
-                           disables(self.name, self.value), self.ack)
+                           disables(self.name, self.value), self.ack, self.confirm_time)
 
 
 def _link(f: Frame) -> str:
@@ -114,7 +115,8 @@ class ParamTracker:
 
     # -- frames --------------------------------------------------------------------------------------
 
-    def feed(self, f: Frame) -> None:
+    def feed(self, f: Frame, fields: dict[str, object] | None = None) -> None:
+        """`fields`: the frame's payload where the caller has decoded it already (so it is not decoded twice)."""
         md = f.msgdef
         if md is None or f.crc_status is not CrcStatus.OK:
             self.objects.feed(f)
@@ -132,7 +134,8 @@ class ParamTracker:
         self.objects.feed(f)
         if name not in MESSAGES:
             return
-        fields = decode_payload(f)
+        if fields is None:
+            fields = decode_payload(f)
         if fields is None:
             return
         if name == "HEARTBEAT":
@@ -231,7 +234,7 @@ class ParamTracker:
         s = self.pending.get((addr[0], name)) if answers else None
         if s is not None and (s.component[1] in (0, addr[1])) and s.ack is None:
             s.confirmed = same(s.value, value)
-            s.confirm_frame, s.reported = record, value
+            s.confirm_frame, s.confirm_time, s.reported = record, when, value
             del self.pending[(addr[0], name)]
             explained = True  # the answer to a set: its value (the one set, or the one the vehicle kept)
         comp = self._component(addr)
@@ -299,7 +302,7 @@ class ParamTracker:
                 self.pending.move_to_end((f.sysid, name))
                 return
             s.confirmed = result == PARAM_ACK_ACCEPTED
-            s.confirm_frame, s.reported = f.record, value
+            s.confirm_frame, s.confirm_time, s.reported = f.record, f.time, value
             del self.pending[(f.sysid, name)]
             answered = True
         if result == PARAM_ACK_ACCEPTED and value is not None:

@@ -1,0 +1,71 @@
+"""`mavscope events FILE`: the flight's story in one chronological list, and the expert findings."""
+
+from __future__ import annotations
+
+import argparse
+
+from mavscope.analysis.events import KINDS, MAX_PER_KIND, EventLog
+from mavscope.analysis.expert import Expert
+from mavscope.cli import Env, ExitStatus
+from mavscope.commands.analysis_common import add_analysis_options, analysis_pass, print_findings
+from mavscope.commands.common import console, write_json
+from mavscope.output.tables import iso
+
+KIND_STYLE = {"arming": "bold yellow", "mode": "cyan", "failsafe": "bold red", "reboot": "magenta",
+              "link": "red", "signing": "magenta", "command": "green", "statustext": "", "mission": "blue",
+              "param": "", "file": "", "vehicle": "bold"}
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("events",
+                       description="Every event of a capture in one chronological list: arming and disarming, mode "
+                                   "changes (decoded per autopilot), mission progress, STATUSTEXT, failsafes, "
+                                   "commands with their ACK, parameter changes, file transfers, signing, link loss "
+                                   "and recovery; and the expert findings (docs/analysis.md).")
+    add_analysis_options(p)
+    p.add_argument("--kind", action="append", default=[], metavar="KIND", choices=KINDS,
+                   help=f"only events of this kind (repeatable): {', '.join(KINDS)}")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    with analysis_pass(args, env) as frames:
+        dialect, path, select = frames.session.dialect, frames.session.name, frames.selection
+        log = EventLog(dialect)
+        expert = Expert(dialect)
+        for frame in frames:
+            log.add(frame)
+            expert.add(frame)
+    result = log.finish()
+    kinds = set(args.kind)
+    if kinds:
+        result.events = [e for e in result.events if e.kind in kinds]
+    findings = [f for f in expert.findings() if select.any_record(f.frames)]
+    doc = result.to_json(select if select.active else None)
+    if args.json:
+        write_json(env, {"file": path, "filter": args.display_filter, **doc,
+                         "findings": [f.to_json() for f in findings]})
+        return ExitStatus.OK
+    from rich.table import Table
+    from rich.text import Text
+
+    con = console(env)
+    t = Table(title=Text(f"Events ({path})"), title_justify="left")
+    for col, just in (("frame", "right"), ("time", "left"), ("kind", "left"), ("from", "left"), ("event", "left")):
+        t.add_column(col, justify=just)  # type: ignore[arg-type]
+    shown = doc["events"]
+    for e in shown:  # type: ignore[attr-defined]
+        sender = e["from"]
+        t.add_row(str(e["frame"]), iso(e["time"]), Text(e["kind"], style=KIND_STYLE.get(e["kind"], "")),
+                  f"{sender[0]}/{sender[1]}", Text(e["text"]))  # Text: the capture's words are no markup
+    if shown:
+        con.print(t)
+    else:
+        con.print(Text(f"No event in {path}" + (" matches the display filter." if select.active else ".")))
+    counts = ", ".join(f"{k} {n}" for k, n in doc["counts"].items())  # type: ignore[attr-defined]
+    con.print(f"{len(shown)} events listed; in the capture: {counts or 'none'}")  # type: ignore[arg-type]
+    for kind, n in doc["dropped"].items():  # type: ignore[attr-defined]
+        con.print(f"{n} more {kind} events not listed (at most {MAX_PER_KIND} per kind)")
+    print_findings(con, findings)
+    return ExitStatus.OK
+

@@ -1,0 +1,79 @@
+"""`mavscope track FILE --geojson|--kml|--gpx OUT`: each vehicle's track with its times, and the mission,
+fence and rally points beside it."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from mavscope.analysis.track import TrackBuilder
+from mavscope.cli import Env, ExitStatus
+from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
+from mavscope.commands.common import console, write_json
+from mavscope.errors import UsageError
+from mavscope.output.geo import geojson, gpx, kml, xsd_time
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("track",
+                       description="Write each system's positions (GLOBAL_POSITION_INT, else GPS_RAW_INT) with their "
+                                   "times, and the mission, fence and rally points the capture transferred, as "
+                                   "GeoJSON (RFC 7946), KML or GPX 1.1 (docs/analysis.md).")
+    add_analysis_options(p)
+    out = p.add_argument_group("output (one or more)")
+    out.add_argument("--geojson", metavar="OUT", help="write GeoJSON to OUT ('-': stdout)")
+    out.add_argument("--kml", metavar="OUT", help="write KML to OUT ('-': stdout)")
+    out.add_argument("--gpx", metavar="OUT", help="write GPX 1.1 to OUT ('-': stdout)")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    targets = [(fmt, path) for fmt, path in (("geojson", args.geojson), ("kml", args.kml), ("gpx", args.gpx)) if path]
+    if not targets and not args.json:
+        raise UsageError("track: say where to write: --geojson OUT, --kml OUT or --gpx OUT (or --json for a summary)")
+    if sum(1 for _, path in targets if path == "-") > 1 or (args.json and any(path == "-" for _, path in targets)):
+        raise UsageError("track: only one output can go to stdout")
+    with analysis_pass(args, env) as frames:
+        dialect, path = frames.session.dialect, frames.session.name
+        builder = TrackBuilder(dialect)
+        flt = frames.session.display_filter
+        for frame in frames:
+            if flt is None or flt.matches(frame) or frame.msgname not in ("GLOBAL_POSITION_INT", "GPS_RAW_INT"):
+                builder.add(frame)
+    result = builder.result()
+    for fmt, out in targets:
+        text = json.dumps(geojson(result, dialect), indent=1) + "\n" if fmt == "geojson" else \
+            kml(result, dialect) if fmt == "kml" else gpx(result, dialect)
+        if out == "-":
+            env.stdout.write(text)
+            continue
+        try:
+            with open(out, "w", encoding="utf-8") as fh:
+                fh.write(text)
+        except OSError as exc:
+            raise UsageError(f"track: --{fmt} {out}: {exc.strerror or exc}") from None
+    summary = [{"sysid": t.sysid, "compid": t.compid, "source": t.source, "positions": t.seen,
+                "points": len(t.points), "every": t.stride, "start": xsd_time(t.points[0].time),
+                "end": xsd_time(t.points[-1].time)} for t in result.tracks]
+    plan = result.plan
+    mission = {"mission_transfer": None, "fence_transfer": None, "rally_transfer": None} if plan is None else \
+        {k: v for k, v in plan.json().items() if k.endswith("_transfer")}
+    if args.json:
+        write_json(env, {"file": path, "tracks": summary, **mission,
+                         "written": [{"format": fmt, "file": out} for fmt, out in targets]})
+        return ExitStatus.OK
+    if any(out == "-" for _, out in targets):
+        return ExitStatus.OK
+    con = console(env)
+    if not result.tracks:
+        env.stderr.write(f"mavscope: track: no positions in {path} (GLOBAL_POSITION_INT or GPS_RAW_INT with a fix)\n")
+    for t in result.tracks:
+        thin = f" (every {t.stride}th of {t.seen})" if t.stride > 1 else ""
+        con.print(f"system {t.sysid}/{t.compid}: {len(t.points)} points{thin} from {t.source}, "
+                  f"{xsd_time(t.points[0].time) or '-'} to {xsd_time(t.points[-1].time) or '-'}", markup=False)
+    if plan is not None:
+        con.print("mission, fence and rally: transfers " + ", ".join(
+            f"{k.removesuffix('_transfer')} {v}" for k, v in mission.items() if v is not None), markup=False)
+    for fmt, out in targets:
+        con.print(f"wrote {fmt} to {out}", markup=False)
+    return ExitStatus.OK

@@ -1,0 +1,115 @@
+"""A series drawn in the terminal with braille dots (2 x 4 per character cell), as rich Text: per dot column
+the range from the lowest to the highest value of the buckets it covers (joined to the previous column),
+so a spike shows however many buckets share a column. Used by `mavscope plot` and the TUI's plot screen;
+`image()` draws the same series with matplotlib (an optional extra) to PNG or SVG.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from rich.text import Text
+
+from mavscope.analysis.series import Series
+from mavscope.errors import UsageError
+
+BRAILLE = 0x2800
+DOTS = ((0x01, 0x08), (0x02, 0x10), (0x04, 0x20), (0x40, 0x80))  # [row][col] bit of a braille cell
+
+
+def _num(v: float) -> str:
+    return f"{v:.6g}"
+
+
+def summary(s: Series, x_label: str) -> str:
+    """"FIELD [units]: N values, min .. max, mean M; interval W unit"."""
+    units = f" [{s.units}]" if s.units else ""
+    if not s.count:
+        return f"{s.name}{units}: no values"
+    return (f"{s.name}{units}: {s.count} values, min {_num(s.low)}, max {_num(s.high)}, "
+            f"mean {_num(s.total / s.count)}; interval {_num(s.width)} {x_label}")
+
+
+def chart(s: Series, width: int, height: int, x_label: str = "s") -> Text:
+    """The series in `width` x `height` character cells (y labels included), under its summary line."""
+    out = Text(summary(s, x_label) + "\n", style="bold")
+    if not s.count:
+        return out
+    lo, hi = (s.low, s.high) if s.high > s.low else (s.low - 1, s.high + 1)
+    span = hi - lo
+    rows = max(2, height)
+    labels = {0: _num(hi), rows - 1: _num(lo), rows // 2: _num((hi + lo) / 2)}
+    gutter = max(len(v) for v in labels.values()) + 2
+    cols = max(4, width - gutter)
+    dw, dh = 2 * cols, 4 * rows
+    n = len(s.buckets)
+    cells = [[0] * cols for _ in range(rows)]
+
+    def row_of(v: float) -> int:
+        return max(0, min(dh - 1, int(round((hi - v) / span * (dh - 1)))))
+
+    def put(x: int, low: float, high: float) -> None:
+        for y in range(row_of(high), row_of(low) + 1):
+            cells[y // 4][x // 2] |= DOTS[y % 4][x % 2]
+
+    prev: tuple[int, float] | None = None
+    for x in range(dw):
+        first, last = x * n // dw, max(x * n // dw + 1, (x + 1) * n // dw)
+        low, high, total, count = math.inf, -math.inf, 0.0, 0
+        for b in s.buckets[first:last]:
+            if b is not None:
+                low, high, total, count = min(low, b.low), max(high, b.high), total + b.total, count + b.count
+        if not count:
+            continue
+        avg = total / count
+        if prev is not None:  # a line from the previous column with values, through any empty ones
+            px, pv = prev
+            for gx in range(px + 1, x):
+                v = pv + (avg - pv) * (gx - px) / (x - px)
+                put(gx, v, v)
+            joint = pv + (avg - pv) * (x - 1 - px) / (x - px)
+            low, high = min(low, joint), max(high, joint)
+        put(x, low, high)
+        prev = (x, avg)
+    for r in range(rows):
+        out.append(f"{labels.get(r, ''):>{gutter - 2}} ┤", style="dim")
+        out.append("".join(chr(BRAILLE + c) if c else " " for c in cells[r]), style="cyan")
+        out.append("\n")
+    end = n * s.width
+    axis = f"0 {x_label}".ljust(cols - len(_num(end)) - len(x_label) - 1) + f"{_num(end)} {x_label}"
+    out.append(" " * gutter + axis[:cols], style="dim")
+    return out
+
+
+def image(series: Sequence[Series], x_label: str, path: str, title: str) -> None:
+    """The series (one panel each: the mean as a line, minimum to maximum shaded) written to `path`, a
+    .png or .svg, with matplotlib. UsageError when matplotlib is missing or the file cannot be written."""
+    fmt = path.rsplit(".", 1)[-1].lower() if "." in path else ""
+    if fmt not in ("png", "svg"):
+        raise UsageError(f"plot: --out {path}: the file name must end in .png or .svg")
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        raise UsageError("plot: --out needs matplotlib, which is not installed (pip install 'mavscope[plot]')") \
+            from None
+    fig, axes = plt.subplots(len(series), 1, sharex=True, squeeze=False, figsize=(10, 2.6 * len(series) + 0.6))
+    for ax, s in zip(axes[:, 0], series):
+        xs = [i * s.width for i, b in enumerate(s.buckets) if b is not None]
+        bs = [b for b in s.buckets if b is not None]
+        ax.fill_between(xs, [b.low for b in bs], [b.high for b in bs], step="post", alpha=0.3, label="min .. max")
+        ax.step(xs, [b.total / b.count for b in bs], where="post", linewidth=1.0, label="mean")
+        ax.set_ylabel(f"{s.name}" + (f" [{s.units}]" if s.units else ""), fontsize=8)
+        ax.grid(True, alpha=0.3)
+        ax.legend(loc="upper right", fontsize=7)
+    axes[-1, 0].set_xlabel(f"{x_label} (interval {_num(series[0].width)} {x_label})" if series else x_label)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    try:
+        fig.savefig(path, format=fmt, metadata={"Software": None} if fmt == "png" else {"Date": None})
+    except OSError as exc:
+        raise UsageError(f"plot: --out {path}: {exc.strerror or exc}") from None
+    finally:
+        plt.close(fig)
