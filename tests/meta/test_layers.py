@@ -129,10 +129,15 @@ def test_no_import_cycle() -> None:
     assert not cycles, "\n".join(" -> ".join(c) for c in cycles)
 
 
+# git-ignored folders of things made or installed (benchmarks/out holds the peers' venv): not our modules
+GENERATED = frozenset({"out", ".venv", "build", "__pycache__"})
+
+
 @pytest.mark.parametrize("folder", ["mavscope", "scripts", "benchmarks", "tests"])
 def test_no_module_over_500_lines(folder: str) -> None:
     long = [f"{p.relative_to(ROOT)}: {n} lines" for p in sorted((ROOT / folder).rglob("*.py"))
-            if (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_LINES]
+            if not GENERATED.intersection(p.relative_to(ROOT).parts)
+            and (n := len(p.read_text(encoding="utf-8").splitlines())) > MAX_LINES]
     assert not long, "\n".join(long)
 
 
