@@ -13,7 +13,7 @@ from collections.abc import Iterable
 
 from mavscope.mavlink.frame import EncryptionStatus, Frame, SignatureStatus
 from mavscope.notes import Finding, FrameNumbers, explanation, finding, sort_findings
-from mavscope.security.keystream import Collector, Recovery, frames_text, keystream_audit
+from mavscope.security.keystream import DAMAGED, Collector, Recovery, frames_text, keystream_audit
 from mavscope.security.passphrase import Targets, default_key_findings, passphrase_findings
 
 # The notes of the security stage that the audit sums up, in the order it reports them first.
@@ -59,6 +59,10 @@ class Audit:
         elif sec.signature_status is SignatureStatus.INVALID:
             self.by["sig-invalid"].add(f.record)
         enc = sec.encryption
+        if f.crc_status in DAMAGED:
+            # incompat bits 5-7 on a damaged frame are as likely a flipped bit as encryption (the CRC covers
+            # the ciphertext: an encrypted frame that arrived whole checks): no encryption finding from it
+            return
         if enc is not None and enc.status is EncryptionStatus.NO_KEY:
             self.no_cipher.add(f.record)
         elif enc is not None and enc.status is EncryptionStatus.FAILED:

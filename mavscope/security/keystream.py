@@ -55,6 +55,10 @@ def parse_known_plaintext(spec: str, dialect: Dialect) -> tuple[int, bytes]:
     return md.id, payload
 
 
+# Frames whose bytes are not what was sent: their incompat bits say nothing of encryption. (UNCHECKED
+# frames, of messages outside the dialects, cannot be checked and are kept: a custom message may be encrypted.)
+DAMAGED = frozenset({CrcStatus.BAD, CrcStatus.TRUNCATED})
+
 Plaintexts = dict[tuple[int, int], tuple[int, bytes]]  # (sysid, msgid) -> (record, zero-padded plaintext)
 
 
@@ -69,8 +73,8 @@ class Collector:
         self.plain: Plaintexts = {}
 
     def add(self, f: Frame) -> None:
-        if f.crc_status is CrcStatus.TRUNCATED or f.version != 2:
-            return
+        if f.crc_status in DAMAGED or f.version != 2:
+            return  # the CRC covers the ciphertext: a damaged frame is no evidence of a keystream
         method = f.encryption_method
         if method:
             enc = f.security.encryption if f.security is not None else None
