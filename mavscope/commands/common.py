@@ -7,6 +7,7 @@ become the frozen options every front end hands to `mavscope.pipeline.session`.
 from __future__ import annotations
 
 import argparse
+import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
@@ -41,6 +42,20 @@ def capture_path(args: argparse.Namespace) -> str:
     if args.file_opt and args.file:
         raise UsageError(f"{args.command}: give the capture file once (either FILE or -r FILE)")
     return str(path)
+
+
+def not_the_capture(option: str, out: str | None, args: argparse.Namespace) -> None:
+    """UsageError when the output file `out` of `option` is the capture being read: a forensics tool
+    never writes over its evidence. Checked before the capture is read."""
+    if not out or out == "-":
+        return
+    capture = capture_path(args)
+    try:
+        same = os.path.exists(out) and os.path.samefile(out, capture)
+    except OSError:
+        same = False
+    if same:
+        raise UsageError(f"{args.command}: {option} {out} is the capture being read")
 
 
 def add_key_options(p: argparse.ArgumentParser) -> None:

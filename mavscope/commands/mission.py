@@ -9,7 +9,7 @@ import json
 from mavscope.analysis.mission import analyse, log_json, to_plan
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
-from mavscope.commands.common import console, write_json
+from mavscope.commands.common import console, not_the_capture, write_json
 from mavscope.errors import UsageError
 from mavscope.output.tables import fmt, iso, param_text
 
@@ -29,6 +29,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    not_the_capture("--plan", args.plan, args)
     with analysis_pass(args, env) as frames:
         dialect, path, select = frames.session.dialect, frames.session.name, frames.selection
         log = analyse(frames, dialect)

@@ -23,7 +23,7 @@ from mavscope.analysis.params import (
 from mavscope.analysis.params.values import Value
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
-from mavscope.commands.common import console, write_json
+from mavscope.commands.common import console, not_the_capture, write_json
 from mavscope.errors import UsageError
 from mavscope.output.tables import iso
 
@@ -111,6 +111,7 @@ def _export(path: str, log: ParamLog, capture: str) -> dict[str, object]:
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    not_the_capture("--out", args.out, args)
     path, log, select = _analyse(args, env)
     doc: dict[str, object] = {"file": path, **params_json(log, select)}  # type: ignore[arg-type]
     if args.diff:

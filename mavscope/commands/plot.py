@@ -15,6 +15,7 @@ from mavscope.commands.common import (
     add_key_options,
     capture_session,
     console,
+    not_the_capture,
     write_json,
 )
 from mavscope.errors import UsageError
@@ -54,6 +55,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         raise UsageError("plot: give at least one field after the capture file, e.g. GLOBAL_POSITION_INT.relative_alt")
     if args.out and args.out.rsplit(".", 1)[-1].lower() not in ("png", "svg"):
         raise UsageError(f"plot: --out {args.out}: the file name must end in .png or .svg")
+    not_the_capture("--out", args.out, args)
     with capture_session(args, env) as session:
         plotter = Plotter(FieldRegistry(session.dialect), exprs, args.interval)
         flt = session.display_filter

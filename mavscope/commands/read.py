@@ -13,6 +13,7 @@ from mavscope.commands.common import (
     add_filter_option,
     add_key_options,
     capture_session,
+    not_the_capture,
     progress,
 )
 from mavscope.errors import UsageError
@@ -45,6 +46,7 @@ def frame_count(text: str) -> int:
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    not_the_capture("-w", args.write, args)
     out_b = env.stdout_bytes
     if _native_eligible(args, env):
         return _run_native(args, env)
@@ -54,7 +56,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     with capture_session(args, env) as session, contextlib.ExitStack() as files:
         t0 = session.t0
         path, name, dialect = session.path, session.name, session.dialect
-        frame_writer = _open_writer(args.write, path, session.reader.kind) if args.write else None
+        frame_writer = _open_writer(args.write, session.reader.kind) if args.write else None
         out_file = files.enter_context(open_output(args.write)) if args.write and frame_writer is None else None
         update, stop = progress(env, session.reader)
         printer = FramePrinter(env.stdout, out_b, dialect, args.format, verbose=args.verbose, hex=args.hex,
@@ -146,10 +148,8 @@ class _Position:
         self.position = 0
 
 
-def _open_writer(out: str, source: str, kind: str) -> FrameWriter | None:
+def _open_writer(out: str, kind: str) -> FrameWriter | None:
     """Check `-w OUT` before reading; a FrameWriter for inputs without packets (tlog, raw), else None."""
-    if os.path.exists(out) and os.path.samefile(out, source):
-        raise UsageError(f"read: -w {out} is the capture being read")
     if kind in ("tlog", "raw"):
         return FrameWriter(out)
     if out.lower().endswith(".tlog"):

@@ -9,7 +9,7 @@ import json
 from mavscope.analysis.track import TrackBuilder
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
-from mavscope.commands.common import console, write_json
+from mavscope.commands.common import console, not_the_capture, write_json
 from mavscope.errors import UsageError
 from mavscope.output.geo import geojson, gpx, kml, xsd_time
 
@@ -33,6 +33,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         raise UsageError("track: say where to write: --geojson OUT, --kml OUT or --gpx OUT (or --json for a summary)")
     if sum(1 for _, path in targets if path == "-") > 1 or (args.json and any(path == "-" for _, path in targets)):
         raise UsageError("track: only one output can go to stdout")
+    for fmt, out in targets:
+        not_the_capture(f"--{fmt}", out, args)
     with analysis_pass(args, env) as frames:
         dialect, path = frames.session.dialect, frames.session.name
         builder = TrackBuilder(dialect)
