@@ -44,6 +44,21 @@ def capture_path(args: argparse.Namespace) -> str:
     return str(path)
 
 
+def whole_number(minimum: int = 1, unit: str = "") -> Callable[[str], int]:
+    """An argparse type: plain ASCII digits (not str.isdigit's '²', not int()'s '+5' or '5_000') making a
+    number of at least `minimum`; `unit` names what is counted in the error ("frames")."""
+    what = (f"a whole positive number{unit}" if minimum == 1 else f"a whole number{unit} (0 or more)" if minimum == 0
+            else f"a whole number{unit} of at least {minimum}")
+
+    def parse(text: str) -> int:
+        plain = text.strip()
+        if not (plain.isascii() and plain.isdigit()) or int(plain) < minimum:
+            raise argparse.ArgumentTypeError(f"{what}, not {text!r}")
+        return int(plain)
+
+    return parse
+
+
 def not_the_capture(option: str, out: str | None, args: argparse.Namespace) -> None:
     """UsageError when the output file `out` of `option` is the capture being read: a forensics tool
     never writes over its evidence. Checked before the capture is read."""

@@ -25,8 +25,8 @@ from mavscope.commands.common import (
     add_key_options,
     pipeline_options,
     warner,
+    whole_number,
 )
-from mavscope.commands.read import frame_count
 from mavscope.errors import MavscopeError, UsageError
 from mavscope.live.sink import LivePcapWriter
 from mavscope.live.source import DEFAULT_QUEUE_ITEMS, LiveSource
@@ -59,7 +59,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-T", dest="format", choices=("text", "jsonl"), default="text",
                    help="output format (default text)")
     p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w)")
-    p.add_argument("-c", dest="count", type=frame_count, metavar="N", help="stop after N frames")
+    p.add_argument("-c", dest="count", type=whole_number(1, " of frames"), metavar="N", help="stop after N frames")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     p.add_argument("-w", dest="write", metavar="OUT.pcap",
                    help="write every packet received to a pcap as it goes (flushed at least every second)")

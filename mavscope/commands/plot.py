@@ -16,6 +16,7 @@ from mavscope.commands.common import (
     capture_session,
     console,
     not_the_capture,
+    whole_number,
     write_json,
 )
 from mavscope.errors import UsageError
@@ -38,8 +39,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--interval", type=float, metavar="SECONDS",
                    help="bucket width (default: chosen from the capture's length, at most 1024 buckets)")
     p.add_argument("--out", metavar="FILE.png|FILE.svg", help="draw to an image with matplotlib")
-    p.add_argument("--width", type=int, default=0, help="terminal chart width in characters (default: the terminal)")
-    p.add_argument("--height", type=int, default=12, help="terminal chart height in lines per field (default 12)")
+    p.add_argument("--width", type=whole_number(0), default=0,
+                   help="terminal chart width in characters (default 0: the terminal's)")
+    p.add_argument("--height", type=whole_number(2), default=12,
+                   help="terminal chart height in lines per field (default 12, at least 2)")
     p.add_argument("--json", action="store_true", help="the buckets as one JSON document (docs/analysis.md)")
     p.set_defaults(run=run)
 

@@ -15,6 +15,7 @@ from mavscope.commands.common import (
     capture_session,
     not_the_capture,
     progress,
+    whole_number,
 )
 from mavscope.errors import UsageError
 from mavscope.output.capture_out import FrameWriter, open_output, write_records
@@ -32,17 +33,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-x", dest="hex", action="store_true", help="print a hex dump of every frame")
     p.add_argument("-T", dest="format", choices=("text", "json", "jsonl"), default="text",
                    help="output format (default text)")
-    p.add_argument("-c", dest="count", type=frame_count, metavar="N", help="stop after N frames")
+    p.add_argument("-c", dest="count", type=whole_number(1, " of frames"), metavar="N", help="stop after N frames")
     p.add_argument("-w", dest="write", metavar="OUT", help="write the capture records holding the shown frames")
     p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w)")
     p.set_defaults(run=run)
-
-
-def frame_count(text: str) -> int:
-    """-c N: a whole, positive number of frames."""
-    if not (text.strip().isascii() and text.strip().isdigit()) or int(text) < 1:
-        raise argparse.ArgumentTypeError(f"a whole positive number of frames, not {text!r}")
-    return int(text)
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:

@@ -9,7 +9,7 @@ from mavscope.analysis.expert import Expert
 from mavscope.analysis.stats import StatsBuilder
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass, print_findings
-from mavscope.commands.common import console, write_json
+from mavscope.commands.common import console, whole_number, write_json
 from mavscope.output.tables import fmt, iso, sparkline
 
 SPARK_WIDTH = 40
@@ -21,7 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "Loss is counted from sequence gaps per (sysid, compid): filter by link, "
                                    "not by message, when loss matters.")
     add_analysis_options(p)
-    p.add_argument("--sparklines", type=int, default=12, metavar="N",
+    p.add_argument("--sparklines", type=whole_number(0), default=12, metavar="N",
                    help="per-second rate sparklines for the N busiest message streams (default 12, 0: none)")
     p.set_defaults(run=run)
 
