@@ -32,10 +32,10 @@ Getter = Callable[[Frame], float | None]
 
 
 def _number(v: object) -> float | None:
+    """The value as a float (NaN and infinities too: the series counts them apart), None if not a number."""
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         return None
-    f = float(v)
-    return f if math.isfinite(f) else None
+    return float(v)
 
 
 def field_getter(registry: FieldRegistry, expr: str) -> tuple[Getter, str]:
@@ -107,6 +107,7 @@ class Series:
         self.width = interval if interval is not None else START_WIDTH
         self.buckets: list[Bucket | None] = []
         self.count = 0
+        self.not_finite = 0  # NaN and infinite values seen (not plotted: they have no place on the axis)
         self.low = math.inf
         self.high = -math.inf
         self.total = 0.0
@@ -136,6 +137,7 @@ class Series:
     def to_json(self) -> dict[str, object]:
         return {
             "field": self.name, "units": self.units, "interval": self.width, "count": self.count,
+            "not_finite": self.not_finite,
             "min": self.low if self.count else None, "max": self.high if self.count else None,
             "mean": self.total / self.count if self.count else None,
             "buckets": [{"start": round(i * self.width, 9), "count": b.count, "min": b.low, "max": b.high,
@@ -173,5 +175,9 @@ class Plotter:
         x = pos - self.origin
         for get, s in zip(self.getters, self.series):
             v = get(f)
-            if v is not None:
+            if v is None:
+                continue
+            if math.isfinite(v):
                 s.add(x, v)
+            else:
+                s.not_finite += 1

@@ -25,9 +25,10 @@ def _num(v: float) -> str:
 def summary(s: Series, x_label: str) -> str:
     """"FIELD [units]: N values, min .. max, mean M; interval W unit"."""
     units = f" [{s.units}]" if s.units else ""
+    skipped = f" ({s.not_finite} NaN or infinite left out)" if s.not_finite else ""
     if not s.count:
-        return f"{s.name}{units}: no values"
-    return (f"{s.name}{units}: {s.count} values, min {_num(s.low)}, max {_num(s.high)}, "
+        return f"{s.name}{units}: no values{skipped}"
+    return (f"{s.name}{units}: {s.count} values{skipped}, min {_num(s.low)}, max {_num(s.high)}, "
             f"mean {_num(s.total / s.count)}; interval {_num(s.width)} {x_label}")
 
 

@@ -100,3 +100,16 @@ def test_terminal_chart_and_usage(cli: Cli) -> None:
         assert status == 2 and error in err, err
     doc = json.loads(cli("plot", "-r", SPOOF, "GPS_RAW_INT.fix_type", "--json").out)
     assert doc["series"][0]["field"] == "GPS_RAW_INT.fix_type"
+
+
+def test_nan_values_are_counted_not_plotted(cli: Cli) -> None:
+    """px4_sitl_udp.pcap's MISSION_ITEM_INT.param4 (yaw: NaN means "keep the current heading" in PX4's
+    missions), read with pymavlink: the NaNs are left out of the series and counted apart."""
+    path = CAPTURES / "px4_sitl_udp.pcap"
+    values = [m.msg.param4 for m in read_pcap(path) if m.name == "MISSION_ITEM_INT"]
+    nans = sum(1 for v in values if math.isnan(v))
+    assert nans and nans < len(values)
+    (s,) = cli.json("plot", path, "MISSION_ITEM_INT.param4")["series"]
+    assert (s["count"], s["not_finite"]) == (len(values) - nans, nans)
+    _, out, _ = cli("plot", str(path), "MISSION_ITEM_INT.param4")
+    assert f"{len(values) - nans} values ({nans} NaN or infinite left out)" in out
