@@ -83,6 +83,9 @@ def _other(args: argparse.Namespace, env: Env, log: ParamLog) -> tuple[str, dict
         return "parameter file", sets[key], which
     other = argparse.Namespace(**{**vars(args), "file": args.diff, "file_opt": None, "display_filter": None})
     _name, olog, _sel = _analyse(other, env)
+    if not olog.final:
+        raise UsageError(f"params: --diff {args.diff}: no parameter values in it (neither a parameter file nor a "
+                         "capture with PARAM_VALUE, PARAM_EXT_VALUE or param.pck)")
     main = olog.main
     return "capture", olog.final, "-" if main is None else f"{main[0]}/{main[1]}"
 

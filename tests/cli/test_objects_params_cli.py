@@ -26,3 +26,15 @@ def test_nothing_to_report(cli: Cli) -> None:
     assert status == 0 and "No object" in out, err
     doc = cli.json("params", CAPTURES / "px4_sitl_udp.pcap")
     assert (doc["final"], doc["timeline"], doc["main_component"]) == ({}, [], None)
+
+
+def test_diff_against_something_without_parameters(cli: Cli, tmp_path: Path) -> None:
+    """A review compared with a file of random bytes and got "0 changed, 0 only here, 0 only there":
+    comparing with nothing is an error, whether the other is junk or a capture without parameters."""
+    junk = tmp_path / "random.bin"
+    junk.write_bytes(bytes(range(256)) * 12)
+    for other in (str(junk), str(CAPTURES / "px4_sitl_udp.pcap")):
+        status, out, err = cli("params", str(CAPTURES / "ftp_params.pcap"), "--diff", other)
+        assert status == 2 and out == ""
+        assert err.endswith(f"params: --diff {other}: no parameter values in it (neither a parameter file nor a "
+                            "capture with PARAM_VALUE, PARAM_EXT_VALUE or param.pck)\n")
