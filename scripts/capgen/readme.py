@@ -141,7 +141,9 @@ Definitions:
 - **CRC ok / bad / unchecked**: `unchecked` when the message id is in no dialect the decoder knows, so its
   CRC_EXTRA is unknown (here only id {UNKNOWN_MSGID}, which is in no pymavlink dialect); never `bad`.
 - **truncated**: a frame cut short by the end of its datagram, of the capture record, or (in a byte stream)
-  by the next frame: reported as a truncated-frame note, **not** counted under frames.
+  by the next frame: reported as a truncated-frame note, **not** counted under frames in this table.
+  (`read -T jsonl` and `stats` list each one as a frame with `crc_status` `truncated`, so their totals
+  are frames + truncated: `stats` prints the split, e.g. "CRC bad 2, ok 7, truncated 2, unchecked 1".)
 - **skipped bytes**: bytes that belong to no frame and to no truncated frame (garbage, stray start bytes).
 
 `expected.json` holds these counts per file and, per frame in capture order, `frame_list` entries
