@@ -33,6 +33,12 @@ def tcp_seeds() -> list[bytes]:
     return out
 
 
+def analyses_seeds() -> list[bytes]:
+    """Byte strings the `analyses` target turns into frames (it reads choices from them): patterns, so
+    that the first runs already give many frames of many messages."""
+    return [bytes(range(256)) * 8, bytes(range(255, -1, -1)) * 8, b"\x00\x01\x02\x03" * 600, b"\x07" * 3000]
+
+
 def write(corpus: Path) -> None:
     """Fill corpus/<target>/ with the seeds of each target."""
     cap = corpus / "capture"
@@ -41,7 +47,7 @@ def write(corpus: Path) -> None:
         if p.suffix in (".pcap", ".pcapng", ".tlog", ".raw"):
             shutil.copyfile(p, cap / p.name)
     for target, seeds in (("filter", [f.encode() for f in FILTERS]), ("keys", [k.encode() for k in KEY_SPECS]),
-                          ("tcp", tcp_seeds())):
+                          ("tcp", tcp_seeds()), ("analyses", analyses_seeds())):
         d = corpus / target
         d.mkdir(parents=True, exist_ok=True)
         for i, s in enumerate(seeds):

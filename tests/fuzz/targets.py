@@ -12,6 +12,17 @@ from collections.abc import Callable
 import atheris
 
 with atheris.instrument_imports():
+    from mavscope.analysis.command_log import reconstruct as command_log
+    from mavscope.analysis.events.log import story
+    from mavscope.analysis.expert import expert_findings
+    from mavscope.analysis.mission.export import log_json
+    from mavscope.analysis.mission.reconstruct import analyse as mission
+    from mavscope.analysis.objects.tracker import analyse as objects
+    from mavscope.analysis.params.export import params_json
+    from mavscope.analysis.params.tracker import analyse as params
+    from mavscope.analysis.stats import compute_stats
+    from mavscope.analysis.timeline import reconstruct as timeline
+    from mavscope.analysis.track import tracks
     from mavscope.capture.detect import open_capture
     from mavscope.endpoint import Endpoint
     from mavscope.errors import MavscopeError
@@ -19,10 +30,12 @@ with atheris.instrument_imports():
     from mavscope.fields.tree import frame_items
     from mavscope.filter import compile_filter
     from mavscope.mavlink.dialect import load_dialect
+    from mavscope.mavlink.framing import mcrf4xx
     from mavscope.output.jsonout import jsonl_bytes
     from mavscope.pipeline.dissect import Anomaly, Dissector
     from mavscope.pipeline.options import PipelineOptions
     from mavscope.pipeline.session import make_security_stage
+    from mavscope.security.audit import audit
     from mavscope.transport.tcp import TcpReassembler
 
 DIALECT = load_dialect()
@@ -119,8 +132,69 @@ def key_spec(data: bytes) -> None:
                 assert SECRET not in message, f"{option} {spec!r}: {exc}"
 
 
+# The messages the analyses read (stats, expert, commands, mission, timeline, objects, params, events,
+# track, audit): most frames of the `analyses` target are one of these, the rest any message of the dialect.
+ANALYSED = (
+    "HEARTBEAT", "COMMAND_LONG", "COMMAND_INT", "COMMAND_ACK", "MISSION_COUNT", "MISSION_REQUEST_INT",
+    "MISSION_REQUEST", "MISSION_ITEM_INT", "MISSION_ITEM", "MISSION_ACK", "MISSION_CLEAR_ALL", "MISSION_CURRENT",
+    "MISSION_ITEM_REACHED", "MISSION_SET_CURRENT", "PARAM_VALUE", "PARAM_SET", "PARAM_EXT_VALUE", "PARAM_EXT_SET",
+    "PARAM_EXT_ACK", "FILE_TRANSFER_PROTOCOL", "LOG_ENTRY", "LOG_REQUEST_DATA", "LOG_DATA", "LOG_REQUEST_END",
+    "DATA_TRANSMISSION_HANDSHAKE", "ENCAPSULATED_DATA", "GLOBAL_POSITION_INT", "GPS_RAW_INT", "SYSTEM_TIME",
+    "TIMESYNC", "PING", "STATUSTEXT", "MANUAL_CONTROL", "RC_CHANNELS_OVERRIDE", "SET_MODE", "EXTENDED_SYS_STATE",
+    "EKF_STATUS_REPORT", "AUTOPILOT_VERSION", "SETUP_SIGNING", "REQUEST_DATA_STREAM", "HOME_POSITION",
+)
+_BY_NAME = {md.name: md for md in DIALECT.messages.values()}
+_ANALYSED = [_BY_NAME[n] for n in ANALYSED if n in _BY_NAME]
+_ALL = sorted(DIALECT.messages.values(), key=lambda md: md.id)
+
+
+def _frames(data: bytes) -> bytes:
+    """A tlog of up to 96 MAVLink 2 frames with good CRCs, whose senders, messages, payload bytes and times
+    (forward, still, or back: a reboot) the input chooses: the analyses see frames the pipeline accepts."""
+    fdp = atheris.FuzzedDataProvider(data)
+    out, t, seqs = bytearray(), 1_700_000_000_000_000, [0] * 256
+    for _ in range(96):
+        if fdp.remaining_bytes() < 4:
+            break
+        t = max(0, t + fdp.ConsumeIntInRange(-2_000_000, 30_000_000))
+        sysid = fdp.PickValueInList([1, 1, 1, 255, 255, 42, 2, fdp.ConsumeIntInRange(0, 255)])
+        compid = fdp.PickValueInList([1, 190, 0, 230, fdp.ConsumeIntInRange(0, 255)])
+        md = fdp.PickValueInList(_ANALYSED) if fdp.ConsumeIntInRange(0, 7) else fdp.PickValueInList(_ALL)
+        payload = fdp.ConsumeBytes(md.length)
+        seqs[sysid] = (seqs[sysid] + fdp.PickValueInList([1, 1, 1, 0, 2, 200])) & 0xFF
+        body = struct.pack("<BBBBBB", len(payload), 0, 0, seqs[sysid], sysid, compid) + md.id.to_bytes(3, "little")
+        body += payload
+        crc = mcrf4xx(md.crc_extra_byte, mcrf4xx(body))
+        out += struct.pack(">Q", t) + b"\xfd" + body + struct.pack("<H", crc)
+    return bytes(out)
+
+
+def analyses(data: bytes) -> None:
+    """Frames the pipeline accepts, of the messages the analyses read, with fuzzed payloads and times:
+    every analysis and its JSON over them (a crafted payload must never raise in an analysis)."""
+    fd, path = tempfile.mkstemp(suffix=".tlog")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(_frames(data))
+        with open_capture(path) as reader:
+            frames = [f for f in make_security_stage(PipelineOptions()).run(Dissector(DIALECT).run(reader))
+                      if type(f) is not Anomaly]
+    finally:
+        os.unlink(path)
+    compute_stats(frames).to_json()
+    expert_findings(frames, DIALECT)
+    command_log(frames, DIALECT)
+    timeline(frames).to_json()
+    log_json(mission(frames, DIALECT), DIALECT)
+    objects(frames, DIALECT)
+    params_json(params(frames))
+    story(frames, DIALECT).to_json()
+    tracks(frames, DIALECT)
+    audit(frames)
+
+
 TARGETS: dict[str, Callable[[bytes], None]] = {
-    "capture": capture, "tcp": tcp, "filter": display_filter, "keys": key_spec,
+    "capture": capture, "tcp": tcp, "filter": display_filter, "keys": key_spec, "analyses": analyses,
 }
 
 

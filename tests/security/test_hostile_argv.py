@@ -58,4 +58,5 @@ def test_verify_with_a_latin1_passphrase_on_the_command_line(tmp_path: Path) -> 
     proc = subprocess.run([exe, "verify", str(path).encode(), b"--key", b"passphrase:" + LATIN1],
                           capture_output=True, env=env, timeout=120)
     assert proc.returncode == 0, proc.stderr
-    assert b"Traceback" not in proc.stderr and b"valid" in proc.stdout
+    # (the table's columns shrink with the temporary path's length: its last line says it)
+    assert b"Traceback" not in proc.stderr and proc.stdout.endswith(b"OK: every signed frame verified\n")
