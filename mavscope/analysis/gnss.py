@@ -31,10 +31,9 @@ from dataclasses import dataclass, field
 from mavscope.analysis.framelist import frame_numbers
 from mavscope.analysis.vehicles import MAX_SENDERS
 from mavscope.mavlink.dialect import Dialect
-from mavscope.mavlink.frame import Frame
+from mavscope.mavlink.frame import Addr, Frame
 from mavscope.notes import Finding, FrameNumbers, finding
 
-Addr = tuple[int, int]
 Fields = dict[str, object]
 
 EARTH_RADIUS_M = 6_371_000.0

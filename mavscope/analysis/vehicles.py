@@ -10,14 +10,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from mavscope.mavlink.dialect import Dialect
-from mavscope.mavlink.frame import Frame
+from mavscope.mavlink.frame import Addr, Frame
 from mavscope.mavlink.modes import Modes, armed
 
 MAX_SENDERS = 4096
 MAV_STATE_CRITICAL, MAV_STATE_EMERGENCY, MAV_STATE_FLIGHT_TERMINATION = 5, 6, 8
 FAILSAFE_STATES = frozenset({MAV_STATE_CRITICAL, MAV_STATE_EMERGENCY, MAV_STATE_FLIGHT_TERMINATION})
 
-Addr = tuple[int, int]
 
 
 @dataclass(frozen=True, slots=True)

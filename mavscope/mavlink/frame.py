@@ -12,6 +12,8 @@ from mavscope.mavlink.dialect import MessageDef
 from mavscope.notes import Note
 from mavscope.wire import HEADER_V1, HEADER_V2, IFLAG_SIGNED
 
+Addr = tuple[int, int]  # a MAVLink system and component: (sysid, compid)
+
 IFLAG_ENCRYPTION_MASK = 0xE0  # SecureMAV: method = flags >> 5
 KNOWN_IFLAGS = IFLAG_SIGNED
 SIGNING_EPOCH = 1420070400  # 2015-01-01T00:00:00Z; signature timestamps count 10 us from here

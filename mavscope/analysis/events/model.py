@@ -17,9 +17,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Protocol
 
-from mavscope.mavlink.frame import Frame
+from mavscope.mavlink.frame import Addr, Frame
 
-Addr = tuple[int, int]
 Fields = dict[str, object]
 
 # Kinds of events (JSON `kind`), in the order docs/analysis.md lists them.

@@ -7,9 +7,8 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass, field
 
+from mavscope.mavlink.frame import Addr
 from mavscope.mavlink.semantics import finite
-
-Addr = tuple[int, int]  # (sysid, compid)
 
 MAV_MISSION_ACCEPTED = 0
 MAV_MISSION_TYPE_ALL = 255

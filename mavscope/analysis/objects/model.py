@@ -17,9 +17,7 @@ from types import MappingProxyType
 from typing import Any
 
 from mavscope.analysis.objects.content import Budget, Content, Ranges
-from mavscope.mavlink.frame import Frame
-
-Addr = tuple[int, int]  # (sysid, compid)
+from mavscope.mavlink.frame import Addr, Frame
 
 # Object kinds
 FTP_READ, FTP_WRITE, FTP_LIST, LOG, IMAGE = "ftp-read", "ftp-write", "ftp-list", "log", "image"

@@ -6,9 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from mavscope.analysis.params.values import Value
+from mavscope.mavlink.frame import Addr
 from mavscope.notes import Finding
-
-Addr = tuple[int, int]
 
 
 @dataclass(frozen=True, slots=True)
