@@ -25,8 +25,8 @@ def detect_kind(path: str | os.PathLike[str]) -> str:
             head = pread(f, min(size, SNIFF), 0)
         except OSError as e:
             raise CaptureError(f"cannot read: {e.strerror or e}", path=spath) from None
-        if sniff_pcapng(head[:16]):
-            return "pcapng"
+        if sniff_pcapng(head[:16]) or (size < 12 and head[:4] == b"\x0a\x0d\x0d\x0a"):
+            return "pcapng"  # (a file that ends inside the section header is a pcapng cut short, not raw bytes)
         if sniff_pcap(head[:16]):
             return "pcap"
         if sniff_tlog(head, len(head)):

@@ -77,7 +77,9 @@ class Decapsulator:
             return [Payload(TRANSPORT_TLOG, None, None, data, None, number, roff, rnotes)]
         if linktype == LINKTYPE_MAVLINK_RAW:
             return [Payload(TRANSPORT_RAW, None, None, data, RAW_STREAM, number, roff, rnotes)]
-        out, notes = self._decode(rec)
+        # a record the reader made only to carry its note (a block cut short): no packet to decode, so no
+        # second note saying the packet is too short for its link header
+        out, notes = ([], ()) if rnotes and not data else self._decode(rec)
         notes = rnotes + notes
         if notes:
             if out:
