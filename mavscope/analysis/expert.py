@@ -18,7 +18,7 @@ from mavscope.analysis.control import ControlSources
 from mavscope.analysis.framelist import MAX_FRAMES
 from mavscope.analysis.framelist import frame_numbers as _frames
 from mavscope.analysis.gnss import GnssAnomalies
-from mavscope.analysis.sequence import GAP_MIN, SeqTracker
+from mavscope.analysis.sequence import GAP_MIN, SeqChannels, SeqTracker, totals
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, SignatureStatus, decode_payload
@@ -86,20 +86,19 @@ class BadCrcBursts:
 
 class SequenceAnomalies:
     """Per link: frames lost for good in large gaps (the same count as the Links table's), duplicates,
-    late frames, and many backward steps (two sequence counters under one system/component id)."""
+    late frames, and many backward steps (two sequence counters under one system/component id). Each
+    channel the sender is heard on (source and destination endpoints) has its own counter, as MAVLink
+    keeps one per channel: a ground station talking to two vehicles over two links repeats no number."""
 
     def __init__(self) -> None:
-        self.trackers: dict[Link, SeqTracker] = {}
+        self.seqs = SeqChannels()
         self.counts: Counter[Link] = Counter()
         self.events: dict[tuple[Link, str], FrameNumbers] = {}
 
     def add(self, f: Frame, fields: Fields | None) -> None:
         key = (f.sysid, f.compid)
-        tr = self.trackers.get(key)
-        if tr is None:
-            tr = self.trackers[key] = SeqTracker()
         self.counts[key] += 1
-        what, _ = tr.feed(f.seq, f.record, f.raw)
+        what, _ = self.seqs.feed(f)
         if what in ("duplicate", "late", "unchanged"):
             ev = self.events.get((key, what))
             if ev is None:
@@ -108,42 +107,50 @@ class SequenceAnomalies:
 
     def findings(self) -> list[Finding]:
         out: list[Finding] = []
-        for (sysid, compid), tr in self.trackers.items():
-            gaps = [g for g in tr.gaps if g.remaining >= GAP_MIN]
+        for (sysid, compid), chans in self.seqs.senders.items():
+            trackers = list(chans.values())
+            gaps = [g for tr in trackers for g in tr.gaps if g.remaining >= GAP_MIN]
             if not gaps:
                 continue
+            large = sum(tr.large_gaps for tr in trackers)
+            kept = sum(len(tr.gaps) for tr in trackers)
             largest = max(gaps, key=lambda g: g.remaining)
-            more = f" (and {tr.large_gaps - len(tr.gaps)} more not listed)" if tr.large_gaps > len(tr.gaps) else ""
+            more = f" (and {large - kept} more not listed)" if large > kept else ""
             out.append(finding("seq-gap",
                                f"link {sysid}/{compid}: {sum(g.remaining for g in gaps)} frames lost in "
                                f"{len(gaps)} gap(s) of {GAP_MIN} or more{more}, the largest {largest.remaining} "
-                               f"(seq {largest.before} -> {largest.after}); {tr.lost} lost in all, as in the Links "
-                               "table", [g.record for g in gaps]))
+                               f"(seq {largest.before} -> {largest.after}); {totals(trackers).lost} lost in all, "
+                               "as in the Links table", sorted(g.record for g in gaps)))
         for (key, what), ev in self.events.items():
             sysid, compid = key
-            tr = self.trackers[key]
-            if what == "duplicate" and tr.duplicates:
-                out.append(finding("seq-duplicate", f"link {sysid}/{compid}: {tr.duplicates} frames repeat a "
-                                                    "sequence number already seen", ev.nums))
+            seq = self.seqs.totals(key)
+            if what == "duplicate" and seq.duplicates:
+                out.append(finding("seq-duplicate", f"link {sysid}/{compid}: {seq.duplicates} frames repeat a "
+                                                    "sequence number already seen on their channel", ev.nums))
             elif what == "unchanged":
-                out.append(finding("seq-unchanged", f"link {sysid}/{compid}: {ev.count} frames carry the sequence "
-                                                    "number of the frame before them with other contents: the "
-                                                    "sender does not count them (MAVProxy writes parameters it "
-                                                    "fetched over FTP into its tlog this way)", ev.nums))
+                out.append(finding("seq-unchanged", unchanged_message(key, ev.count), ev.nums))
             elif what == "late":
                 out.append(finding("seq-reordered", f"link {sysid}/{compid}: {ev.count} frames arrived after later "
                                                     "ones", ev.nums))
         for key, total in self.counts.items():
-            tr = self.trackers[key]
-            back = tr.reordered + tr.duplicates - tr.repeats  # steps back (not the same number again)
+            seq = self.seqs.totals(key)
+            back = seq.reordered + seq.duplicates - seq.repeats  # steps back (not the same number again)
             if back >= 5 and back * 20 >= total:
                 dup, late = self.events.get((key, "duplicate")), self.events.get((key, "late"))
                 nums = sorted((dup.nums if dup else []) + (late.nums if late else []))[:MAX_FRAMES]
                 out.append(finding("seq-interleaved",
                                    f"link {key[0]}/{key[1]}: {back} of {total} frames step back in sequence: two "
-                                   "sequence counters under one system/component id (two senders, or one sender "
-                                   "with two MAVLink channels)", nums))
+                                   "sequence counters under one system/component id on one channel (two senders, "
+                                   "or one sender's two MAVLink channels where the capture cannot tell them apart, "
+                                   "as in a tlog)", nums))
         return out
+
+
+def unchanged_message(sender: Link, count: int) -> str:
+    """The `seq-unchanged` finding's words: what was seen, and one known cause among others."""
+    return (f"link {sender[0]}/{sender[1]}: {count} frame(s) repeat the sequence number of the frame before "
+            "them from the same sender with other contents (neither copies nor losses; one known cause: MAVProxy "
+            "writes the parameters it fetched over FTP into its tlog under one number)")
 
 
 class CommandSources:

@@ -13,25 +13,40 @@ byte for byte 256 frames later (a neutral-stick MANUAL_CONTROL after the counter
 copy of a frame the counter has not yet left behind.
 
 A frame with the sequence number of the frame before it is a duplicate only when it is a copy of it. With
-other contents (`raw` given and different) the sender did not count it: MAVProxy writes the parameters it
-fetched over FTP into its tlog as PARAM_VALUE frames that all carry one number. Those are `unchanged`,
-neither duplicates nor losses.
+other contents (`raw` given and different) the sender did not count it: those are `unchanged`, neither
+duplicates nor losses. One known cause: MAVProxy writes the parameters it fetched over FTP into its tlog
+as PARAM_VALUE frames that all carry one number; test vectors written with seq 0 are another.
 
 A sender that reboots restarts its counter: its frames then step back without filling a gap. When
 RESET_RUN such frames in a row each continue the previous one (+1), the counter restarted (or moved to
 another channel): they were not duplicates, the counter is followed from there, and `resets` counts it.
 
-State is bounded: at most 127 missing slots, and the large gaps remembered for findings are capped.
+MAVLink keeps one counter per channel (the C library's `mavlink_status_t` per `mavlink_channel_t`): a
+ground station talking to two vehicles over two links numbers each link's frames on its own, so its
+frames from two endpoints interleave two counters. `SeqChannels` follows a sender per channel, a channel
+being the frame's source and destination endpoints (a tlog or a raw stream shows none: one channel per
+sender), and sums a sender's channels for the Links table and the findings.
+
+State is bounded: at most 127 missing slots, and the large gaps remembered for findings are capped; at most
+MAX_CHANNELS channels per sender and MAX_EXTRA channels beyond each sender's first in all (more share one
+counter, as before channels were told apart).
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import NamedTuple
+
+from mavscope.mavlink.frame import Frame
 
 LATE_WINDOW = 128
 GAP_MIN = 10  # a gap of this many frames or more is listed in the `seq-gap` finding
 GAPS_KEPT = 50  # large gaps remembered per sender (their count is kept beyond that)
 RESET_RUN = 10  # backward frames in a row, each one after the other, that make a restarted counter
+MAX_CHANNELS = 8  # channels followed apart per sender
+MAX_EXTRA = 4096  # channels beyond each sender's first, in all
+SHARED = ("*", "*")  # the channel the channels beyond those limits share
 
 
 @dataclass
@@ -135,3 +150,65 @@ class SeqTracker:
     @property
     def lost_in_large_gaps(self) -> int:
         return sum(g.remaining for g in self.gaps)
+
+
+Sender = tuple[int, int]
+Endpoints = tuple[str, str]  # (source, destination) as text; ("", "") where the capture has no addresses
+
+
+class SeqTotals(NamedTuple):
+    """A sender's counts summed over its channels."""
+
+    lost: int
+    duplicates: int
+    repeats: int
+    unchanged: int
+    reordered: int
+
+
+def totals(trackers: Iterable[SeqTracker]) -> SeqTotals:
+    lost = duplicates = repeats = unchanged = reordered = 0
+    for tr in trackers:
+        lost += tr.lost
+        duplicates += tr.duplicates
+        repeats += tr.repeats
+        unchanged += tr.unchanged
+        reordered += tr.reordered
+    return SeqTotals(lost, duplicates, repeats, unchanged, reordered)
+
+
+def endpoints(f: Frame) -> Endpoints:
+    """The channel a frame travels on: its source and destination endpoints."""
+    return ("" if f.src is None else f.src.text, "" if f.dst is None else f.dst.text)
+
+
+class SeqChannels:
+    """One `SeqTracker` per sender and channel (`tracker(frame)`); `senders` maps each sender to its
+    channels' trackers."""
+
+    def __init__(self) -> None:
+        self.senders: dict[Sender, dict[Endpoints, SeqTracker]] = {}
+        self.extra = 0
+
+    def tracker(self, f: Frame) -> SeqTracker:
+        sender = (f.sysid, f.compid)
+        chans = self.senders.get(sender)
+        if chans is None:
+            chans = self.senders[sender] = {}
+        ends = endpoints(f)
+        tr = chans.get(ends)
+        if tr is None:
+            if chans and (len(chans) >= MAX_CHANNELS or self.extra >= MAX_EXTRA):
+                ends = SHARED
+                tr = chans.get(ends)
+            if tr is None:
+                self.extra += 1 if chans else 0
+                tr = chans[ends] = SeqTracker()
+        return tr
+
+    def feed(self, f: Frame) -> tuple[str, int]:
+        """What the frame's sequence number was on its channel (`SeqTracker.feed`)."""
+        return self.tracker(f).feed(f.seq, f.record, f.raw)
+
+    def totals(self, sender: Sender) -> SeqTotals:
+        return totals(self.senders.get(sender, {}).values())

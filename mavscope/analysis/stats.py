@@ -5,10 +5,12 @@
 (docs/analysis.md): under a display filter, the rows with a matched frame, computed over every frame.
 No presentation here: the command renders the tables and sparklines.
 
-Loss comes from sequence gaps per (sysid, compid), modulo 256 (`SeqTracker`): a frame whose sequence
+Loss comes from sequence gaps per (sysid, compid) and channel (`SeqChannels`: the frame's source and
+destination endpoints, for MAVLink counts per channel), modulo 256 (`SeqTracker`): a frame whose sequence
 number is ahead of the last one by d counts d - 1 lost; the same number again is a duplicate; a number
 behind (by up to 128) is a late frame: it fills a gap already counted (loss - 1, `reordered`) or, if no
 gap holds it, is a duplicate. Gaps of more than 127 cannot be told from late frames and count as late.
+A link's row sums its channels.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from mavscope.analysis.selection import Selection
-from mavscope.analysis.sequence import SeqTracker
+from mavscope.analysis.sequence import Endpoints, SeqChannels, SeqTracker, totals
 from mavscope.mavlink.frame import Frame, signature_status
 from mavscope.mavlink.semantics import message_label
 
@@ -94,7 +96,7 @@ class _Link(_Timed):
     v2: int = 0
     crc: Counter[str] = field(default_factory=Counter)
     signature: Counter[str] = field(default_factory=Counter)
-    seq: SeqTracker = field(default_factory=SeqTracker)
+    channels: dict[Endpoints, SeqTracker] = field(default_factory=dict)  # the sender's, by channel
     endpoints: set[str] = field(default_factory=set)
 
 
@@ -166,11 +168,12 @@ class Stats:
         for (sysid, compid), lk in sorted(self.links.items()):
             if select is not None and not select.link((sysid, compid)):
                 continue
-            expected = lk.received - lk.seq.duplicates - lk.seq.unchanged + lk.seq.lost
+            seq = totals(lk.channels.values())
+            expected = lk.received - seq.duplicates - seq.unchanged + seq.lost
             out.append({
-                "sysid": sysid, "compid": compid, "received": lk.received, "lost": lk.seq.lost,
-                "loss_pct": round(100.0 * lk.seq.lost / expected, 3) if expected > 0 else 0.0,
-                "duplicates": lk.seq.duplicates, "unchanged_seq": lk.seq.unchanged, "reordered": lk.seq.reordered,
+                "sysid": sysid, "compid": compid, "received": lk.received, "lost": seq.lost,
+                "loss_pct": round(100.0 * seq.lost / expected, 3) if expected > 0 else 0.0,
+                "duplicates": seq.duplicates, "unchanged_seq": seq.unchanged, "reordered": seq.reordered,
                 "bytes": lk.bytes,
                 "v1": lk.v1, "v2": lk.v2, "crc": dict(sorted(lk.crc.items())),
                 "signature": dict(sorted(lk.signature.items())), "first": lk.first, "last": lk.last,
@@ -196,7 +199,7 @@ class Stats:
         return {
             "frames": self.frames, "bytes": self.bytes, "start": self.first, "duration": self.duration,
             "links": len(self.links), "messages": len({k[2] for k in self.streams}),
-            "lost": sum(lk.seq.lost for lk in self.links.values()),
+            "lost": sum(totals(lk.channels.values()).lost for lk in self.links.values()),
             "v1": self.versions.get(1, 0), "v2": self.versions.get(2, 0),
             "crc": dict(sorted(self.crc.items())), "signature": dict(sorted(self.signature.items())),
         }
@@ -225,6 +228,7 @@ class StatsBuilder:
         self.streams: dict[tuple[int, int, str], _Stream] = {}
         self.links: dict[tuple[int, int], _Link] = {}
         self.convs: dict[tuple[str, str, str], _Conversation] = {}
+        self.seqs = SeqChannels()
         self.crc: Counter[str] = Counter()
         self.versions: Counter[int] = Counter()
         self.sigs: Counter[str] = Counter()
@@ -257,6 +261,7 @@ class StatsBuilder:
         lk = self.links.get(key[:2])
         if lk is None:
             lk = self.links[key[:2]] = _Link()
+            lk.channels = self.seqs.senders.setdefault(key[:2], {})
         lk.received += 1
         lk.bytes += size
         if f.version == 1:
@@ -270,7 +275,7 @@ class StatsBuilder:
         verdict = signature_verdict(f)
         lk.signature[verdict] += 1
         self.sigs[verdict] += 1
-        lk.seq.feed(f.seq, f.record, f.raw)
+        self.seqs.feed(f)
         lk.see(t)
         if f.src is not None:
             lk.endpoints.add(f.src.text)

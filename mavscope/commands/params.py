@@ -134,7 +134,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
 
 def _answer(e: dict) -> str:
     if e["kind"] != "set":
-        return "-"
+        return e["explanation"] or "no set explains it"
     if e["confirmed"] is True:
         return f"confirmed ({e['confirm_frame']})"
     if e["confirmed"] is False:
@@ -165,7 +165,7 @@ def _print(env: Env, doc: dict) -> None:
                   f"{'' if x['complete'] else ' (incomplete)'}; frames {x['first_frame']}-{x['last_frame']}"
                   + "".join(f"; {p}" for p in x.get("problems", [])), highlight=False, markup=False)
     if doc["timeline"]:
-        t = Table(title="Timeline (sets, and changes no set explains)", title_justify="left")
+        t = Table(title="Timeline (sets with their answer, changes with what explains them)", title_justify="left")
         for col in ("frame", "time", "kind", "from -> to", "parameter", "value", "was", "via", "link", "signature",
                     "answer"):
             t.add_column(col, justify="right" if col == "frame" else "left")
@@ -177,7 +177,8 @@ def _print(env: Env, doc: dict) -> None:
                    _answer(e) + (f", {e['retries']} retries" if e["retries"] else "")]
             t.add_row(*(Text(c) for c in row))
         con.print(t)
-        con.print(f"{doc['sets']} set(s), {doc['confirmed']} confirmed; ! marks security-relevant parameters",
+        con.print(f"{doc['sets']} set(s), {doc['confirmed']} confirmed; {doc['unexplained']} change(s) nothing in "
+                  "the capture explains; ! marks security-relevant parameters",
                   highlight=False, markup=False)
     if "diff" in doc:
         d = doc["diff"]

@@ -162,3 +162,43 @@ def test_mavproxys_synthetic_param_values_are_neither_duplicates_nor_losses(cli:
     assert (links[(255, 190)]["duplicates"], links[(255, 190)]["reordered"]) == (28, 7)
     codes = {(f["code"], f["message"].split(":")[0]) for f in doc["findings"]}
     assert ("seq-unchanged", "link 1/190") in codes and ("seq-duplicate", "link 1/190") not in codes
+
+
+def test_seq_unchanged_says_what_was_seen(cli: Cli, real_captures: Path) -> None:
+    """The gomavlib test vectors (PROVENANCE.md; read by pymavlink's parser here): two frames of 0/0, both seq 0,
+    a HEARTBEAT and an OPTICAL_FLOW. The finding says so (one frame repeating its sender's number, with other
+    contents) and names MAVProxy only as one known cause: no MAVProxy wrote them."""
+    from tests.support.pymavlink_reader import read
+
+    path = real_captures / "gomavlib_signed_testvectors_key4F_DERIVED.raw"
+    msgs = read(path)
+    assert [(m.src, m.msg.get_seq(), m.name) for m in msgs] == [((0, 0), 0, "HEARTBEAT"), ((0, 0), 0, "OPTICAL_FLOW")]
+    [f] = [f for f in cli.json("stats", path)["findings"] if f["code"] == "seq-unchanged"]
+    assert f["message"].startswith("link 0/0: 1 frame(s) repeat the sequence number of the frame before them from "
+                                   "the same sender with other contents")
+    assert "one known cause: MAVProxy" in f["message"] and f["frames"] == [2]
+
+
+def test_seq_channels_are_per_endpoint_pair_and_bounded() -> None:
+    """By hand: one sender numbering each channel from 0 repeats nothing per channel; beyond MAX_CHANNELS
+    channels of one sender the rest share one counter, so state stays bounded whatever the input."""
+    from types import SimpleNamespace
+
+    from mavscope.analysis.sequence import MAX_CHANNELS, SeqChannels
+    from mavscope.endpoint import Endpoint
+
+    seqs = SeqChannels()
+    dst = Endpoint("10.0.0.1", 14550)
+    for port in range(MAX_CHANNELS + 5):
+        for s in range(3):
+            f = SimpleNamespace(sysid=255, compid=190, src=Endpoint("10.0.0.2", 20000 + port), dst=dst, seq=s,
+                                record=0, raw=bytes([port, s]))
+            seqs.feed(f)  # type: ignore[arg-type]  # the attributes a Frame has that the tracker reads
+    chans = seqs.senders[(255, 190)]
+    assert len(chans) == MAX_CHANNELS + 1 and ("*", "*") in chans
+    t = seqs.totals((255, 190))
+    # the first MAX_CHANNELS channels: 0, 1, 2 each, nothing repeated; the shared one sees 0, 1, 2 five times:
+    # its first run is new; in each of the 4 runs after it, 0 and 1 step back behind the counter (at 2) and fill
+    # nothing (duplicates), and 2 is the number of the frame before with other bytes (unchanged)
+    assert sum(tr.duplicates + tr.unchanged for e, tr in chans.items() if e != ("*", "*")) == 0
+    assert (t.lost, t.duplicates, t.unchanged) == (0, 4 * 2, 4)

@@ -7,11 +7,14 @@ An unwrapped counter `top` and a set of missing positions; for each frame, delta
 behind by 256 - delta: it fills a missing position (a late frame) or fills nothing. RESET_RUN frames
 behind in a row, each continuing the previous one, are a restarted counter: re-based above `top`, not
 counted as behind.
+
+MAVLink keeps one counter per channel (the C library's `mavlink_status_t` per channel), so a sender heard
+on several channels is walked per channel and the walks summed (`walk_channels`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from typing import NamedTuple
 
 RESET_RUN = 10
@@ -58,3 +61,9 @@ def walk(seqs: Sequence[int]) -> Walk:
                     resets += 1
                     run = []
     return Walk(len(seqs), len(missing), late, same, behind, resets)
+
+
+def walk_channels(channels: Iterable[Sequence[int]]) -> Walk:
+    """One sender's walks, one per channel, summed."""
+    walks = [walk(seqs) for seqs in channels]
+    return Walk(*(sum(w[i] for w in walks) for i in range(len(Walk._fields))))

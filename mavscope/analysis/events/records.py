@@ -51,7 +51,8 @@ def _answer(c: ParamChange, latency_ms: float | None) -> str:
 
 
 def param_event(c: ParamChange) -> Event:
-    """The event of one entry of the parameter timeline: a set with its answer, or a change no set explains."""
+    """The event of one entry of the parameter timeline: a set with its answer, or a change with what explains
+    it (a REQUEST_DATA_STREAM setting a stream rate) or that nothing in the capture explains it."""
     was = f" (was {value_text(c.previous)})" if c.previous is not None else ""
     guard = ""
     if c.security is not None:
@@ -64,23 +65,25 @@ def param_event(c: ParamChange) -> Event:
         "what": c.kind, "name": c.name, "value": json_value(c.value), "previous": json_value(c.previous),
         "confirmed": c.confirmed, "confirm_frame": c.confirm_frame, "reported": json_value(c.reported),
         "retries": c.retries, "ack": c.ack, "latency_ms": latency, "security": c.security, "disables": c.disables,
-        "source": c.source, "link": c.link, "signature": c.signature}
+        "source": c.source, "link": c.link, "signature": c.signature, "explanation": c.explanation,
+        "cause_frame": c.cause_frame}
     if c.kind == "set":
         via = "" if c.source == "PARAM_SET" else f" with {c.source}"
         retries = f", retried {c.retries} time{'s' if c.retries > 1 else ''}" if c.retries else ""
         text = (f"{addr(c.sender)} sets {addr(c.component)} {shown(c.name)} = {value_text(c.value)}{was}{via}"
                 f"{retries}: {_answer(c, latency)}{guard}")
         return Event(c.time, c.frame, PARAM, c.sender, text, c.component, details)
-    text = (f"{addr(c.component)} {shown(c.name)} changed to {value_text(c.value)}{was} with no set to explain it "
-            f"({c.source}){guard}")
+    why = f": {c.explanation}" if c.explanation else " with no set to explain it"
+    text = f"{addr(c.component)} {shown(c.name)} changed to {value_text(c.value)}{was}{why} ({c.source}){guard}"
     return Event(c.time, c.frame, PARAM, c.sender, text, None, details)
 
 
 class ParamEvents:
     """Every entry of the parameter timeline (`mavscope params`): PARAM_SET, PARAM_EXT_SET and param.pck
     written over FTP, each with its answer (the value confirmed, or the one reported instead, or none),
-    retries and the PARAM_EXT_ACK; values that changed with no set in the capture to explain them. Values
-    are decoded as the component carries them (ArduPilot's C cast, PX4's bytes)."""
+    retries and the PARAM_EXT_ACK; values that changed, with the REQUEST_DATA_STREAM that set them (stream
+    rates) or with nothing in the capture to explain them. Values are decoded as the component carries them
+    (ArduPilot's C cast, PX4's bytes)."""
 
     # the messages the tracker decodes: decoded once by the log and handed on (FTP it reads from the bytes)
     wants = MESSAGES - {FTP_MESSAGE}

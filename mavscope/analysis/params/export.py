@@ -23,7 +23,8 @@ def change_json(e: ParamChange) -> dict[str, object]:
             "previous": json_value(e.previous), "type": TYPE_NAMES.get(e.type or 0), "type_id": e.type,
             "link": e.link, "signature": e.signature, "confirmed": e.confirmed, "confirm_frame": e.confirm_frame,
             "confirm_time": e.confirm_time, "reported": json_value(e.reported), "retries": e.retries, "ack": e.ack,
-            "security": e.security, "disables": e.disables}
+            "security": e.security, "disables": e.disables, "explanation": e.explanation,
+            "cause_frame": e.cause_frame}
 
 
 def component_json(c: Component) -> dict[str, object]:
@@ -45,8 +46,9 @@ def describe(e: ParamChange) -> str:
                   None: "; not confirmed in the capture"}[e.confirmed]
         text = f"{e.name} set to {value_text(e.value)}{was} by {who} with {e.source} over {e.link}, {e.signature}"
         return text + answer
+    why = e.explanation or "with no set in the capture to explain it"
     return (f"{e.name} changed to {value_text(e.value)}{was} on {e.component[0]}/{e.component[1]}, reported by "
-            f"{e.source} over {e.link}, {e.signature}, with no set in the capture to explain it")
+            f"{e.source} over {e.link}, {e.signature}, {why}")
 
 
 def param_findings(log: ParamLog) -> list[Finding]:
@@ -76,6 +78,7 @@ def params_json(log: ParamLog, selection: Selection | None = None) -> dict[str, 
         "timeline": [change_json(e) for e in timeline],
         "sets": sum(1 for e in timeline if e.kind == "set"),
         "confirmed": sum(1 for e in timeline if e.kind == "set" and e.confirmed),
+        "unexplained": sum(1 for e in timeline if e.kind == "change" and e.explanation is None),
         "ftp": log.ftp,
         "findings": [f.to_json() for f in log.findings if not sel.active or sel.any_record(f.frames)],
         "limits": {"given_up": log.given_up},

@@ -14,7 +14,9 @@ from mavscope.notes import Finding
 class ParamChange:
     """One event of the timeline: a request to set a parameter (`kind` "set": PARAM_SET, PARAM_EXT_SET),
     or a component reporting a value other than the one it reported before that no set in the capture
-    explains (`kind` "change": PARAM_VALUE, PARAM_EXT_VALUE, a param.pck read over FTP)."""
+    answers (`kind` "change": PARAM_VALUE, PARAM_EXT_VALUE, a param.pck read over FTP). A change that
+    another message explains (a stream rate REQUEST_DATA_STREAM set: `streams.py`) says so in
+    `explanation`, with that message's frame in `cause_frame`; a change without one is unexplained."""
 
     time: float | None
     frame: int
@@ -36,6 +38,8 @@ class ParamChange:
     disables: str | None  # what this value turns off, if anything
     ack: str | None = None  # PARAM_EXT_SET: the PARAM_EXT_ACK result name
     confirm_time: float | None = None  # capture time of `confirm_frame`
+    cause_frame: int | None = None  # changes: the frame of the message that explains it
+    explanation: str | None = None  # changes: what explains it ("set by REQUEST_DATA_STREAM frame N")
 
 
 @dataclass

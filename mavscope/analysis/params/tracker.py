@@ -10,7 +10,8 @@ and MAVProxy wait about as long before giving up): `confirmed` is True when that
 value set, False when it carries another (the vehicle refused or clamped it), None when none came. A
 PARAM_EXT_SET is answered by PARAM_EXT_ACK (PARAM_ACK_IN_PROGRESS waits for the final one). The same set
 again before its answer is a retry. A report whose value differs from the component's last one without a
-set to explain it is a "change" (a set from another link, a vehicle that changed it itself, a reboot).
+set to explain it is a "change" (a set from another link, a vehicle that changed it itself, a reboot); a
+change of a stream-rate parameter that a REQUEST_DATA_STREAM set (`streams.py`) names that request.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from mavscope.analysis.params import pck
 from mavscope.analysis.params.export import param_findings
 from mavscope.analysis.params.model import Addr, Component, Param, ParamChange, ParamLog
 from mavscope.analysis.params.security import category, disables
+from mavscope.analysis.params.streams import StreamRequests
 from mavscope.analysis.params.values import (
     BYTEWISE,
     C_CAST,
@@ -48,7 +50,7 @@ PARAM_ACK_ACCEPTED, PARAM_ACK_IN_PROGRESS = 0, 3
 ACK_NAMES = {0: "PARAM_ACK_ACCEPTED", 1: "PARAM_ACK_VALUE_UNSUPPORTED", 2: "PARAM_ACK_FAILED",
              3: "PARAM_ACK_IN_PROGRESS"}
 MESSAGES = frozenset({"PARAM_VALUE", "PARAM_SET", "PARAM_EXT_VALUE", "PARAM_EXT_SET", "PARAM_EXT_ACK", "HEARTBEAT",
-                      "AUTOPILOT_VERSION", "FILE_TRANSFER_PROTOCOL"})
+                      "AUTOPILOT_VERSION", "FILE_TRANSFER_PROTOCOL", "REQUEST_DATA_STREAM"})
 
 
 @dataclass
@@ -74,12 +76,15 @@ class _Entry:
     ack: str | None = None
     confirm_time: float | None = None
     last: float | None = None  # time of the last transmission (sets)
+    cause_frame: int | None = None
+    explanation: str | None = None
 
     def freeze(self) -> ParamChange:
         return ParamChange(self.time, self.frame, self.kind, self.source, self.sender, self.component, self.name,
                            self.value, self.previous, self.type, self.link, self.signature, self.confirmed,
                            self.confirm_frame, self.reported, self.retries, category(self.name),
-                           disables(self.name, self.value), self.ack, self.confirm_time)
+                           disables(self.name, self.value), self.ack, self.confirm_time, self.cause_frame,
+                           self.explanation)
 
 
 def _link(f: Frame) -> str:
@@ -112,6 +117,7 @@ class ParamTracker:
         self.ftp: list[dict[str, object]] = []
         self.given_up: Counter[str] = Counter()
         self.now: float | None = None
+        self.streams = StreamRequests()
 
     # -- frames --------------------------------------------------------------------------------------
 
@@ -179,6 +185,8 @@ class ParamTracker:
                 self._set(f, target, _name(fields), value, ptype, name)
         elif name == "PARAM_EXT_ACK":
             self._ext_ack(f, fields)
+        elif name == "REQUEST_DATA_STREAM":
+            self.streams.feed(f.record, fields)
 
     def _decode(self, sysid: int, raw: bytes, ptype: int) -> tuple[Value, str]:
         known = self.encodings.get(sysid)
@@ -227,9 +235,10 @@ class ParamTracker:
 
     def _report(self, addr: Addr, sender: Addr, record: int, when: float | None, link: str, verdict: str,
                 name: str, value: Value, ptype: int | None, source: str, default: Value | None = None,
-                answers: bool = True, explained: bool = False) -> None:
+                answers: bool = True, explained: bool = False, read_from: int | None = None) -> None:
         """Component `addr` holds `name` = `value` (reported in frame `record`, sent by `sender`); `answers`:
-        the report can be the answer to a set (PARAM_VALUE, not a file read over FTP)."""
+        the report can be the answer to a set (PARAM_VALUE, not a file read over FTP); `read_from`: the
+        first frame of the param.pck read over FTP that reports it."""
         self._expire(when)
         s = self.pending.get((addr[0], name)) if answers else None
         if s is not None and (s.component[1] in (0, addr[1])) and s.ack is None:
@@ -251,8 +260,10 @@ class ParamTracker:
         if not same(old.value, value):
             old.changes += 1
             if not explained:
+                cause = self.streams.explain(addr, name, value, record, read_from)
                 self._append(_Entry(when, record, "change", source, sender, addr, name, value, old.value, ptype,
-                                    link, verdict))
+                                    link, verdict, cause_frame=None if cause is None else cause.frame,
+                                    explanation=None if cause is None else cause.text))
         old.value, old.type, old.source, old.last_frame = value, ptype, source, record
         old.reports += 1
         if default is not None:
@@ -342,7 +353,7 @@ class ParamTracker:
                                 f"FTP upload {rec.path}")
             else:
                 self._report(server, server, rec.last_frame, rec.end, link, verdict, p.name, value, p.mav_type,
-                             f"FTP {rec.path}", p.default, answers=False)
+                             f"FTP {rec.path}", p.default, answers=False, read_from=rec.first_frame)
         comp = self.components.get(server)
         if comp is not None and decoded.total_params is not None and not upload:
             comp.announced = decoded.total_params
