@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.common import add_dialect_option, add_key_options, pipeline_options, warner
-from mavscope.commands.export import bar, gather, needs_fleet
+from mavscope.commands.export import Reporter, bar, gather, needs_fleet
 from mavscope.errors import UsageError
 
 if TYPE_CHECKING:
@@ -76,9 +76,10 @@ def _export(args: argparse.Namespace, env: Env, paths: list[str], dataset: Path)
     if not captures:
         raise UsageError("sql: no captures and no dataset among the paths given")
     options = ExportOptions(pipeline=pipeline_options(args, env))
-    failed: list[str] = []
+    report = Reporter(env, errors=False)  # (the first error is the command's)
     with bar(env, sum(os.path.getsize(p) for p in captures), "exporting") as update:
-        results = export_local(dataset, captures, options, on_bytes=update, warn=warner(env))
+        results = export_local(dataset, captures, options, on_bytes=update, warn=warner(env), on_result=report)
+    report.close()
     failed = [r.error for r in results if r.status == "failed"]
     if failed:
         raise UsageError(failed[0])

@@ -80,6 +80,57 @@ def test_batch_audit_shows_the_damage_and_the_frames(cli: Cli, tmp_path: Path) -
     assert "line(s)" in table  # (the first problem beside it: rich may fold the cell over lines)
 
 
+def test_export_says_which_captures_were_damaged(cli: Cli, tmp_path: Path) -> None:
+    want = damaged(tmp_path)
+    caps = [tmp_path / "caps" / n for n in want]
+    status, out, err = cli("export", *map(str, caps), "--parquet", str(tmp_path / "ds"))
+    assert status == 0 and "3 with problems or no frames" in out
+    lines = err.splitlines()
+    for path, says in zip(caps, want.values()):
+        line = next(ln for ln in lines if ln.startswith(f"mavscope: {path}: "))
+        assert "problem(s) reading it" in line and says in line
+    assert "no MAVLink frames found" in next(ln for ln in lines if "bad.pcapng" in ln)
+    # the dataset keeps the count and the first problem of each capture
+    q = "SELECT name, problem_count, first_problem FROM captures ORDER BY name"
+    rows = json.loads(cli("sql", q, str(tmp_path / "ds"), "--json").out)
+    assert [r["name"] for r in rows] == sorted(want)
+    assert all(r["problem_count"] >= 1 and want[r["name"]] in r["first_problem"] for r in rows)
+
+
+def test_export_caps_its_lines(cli: Cli, tmp_path: Path) -> None:
+    folder = tmp_path / "many"
+    folder.mkdir()
+    for k in range(13):  # 13 distinct contents, each cut in another record
+        cut_pcap(folder / f"cut{k:02}.pcap", 10 + k)
+    status, out, err = cli("export", str(folder), "--parquet", str(tmp_path / "ds"), "--json")
+    assert status == 0
+    assert all(c["problems"] == 1 for c in json.loads(out)["captures"])
+    lines = err.splitlines()
+    assert len(lines) == 11 and "3 more capture(s) with problems or without frames not shown (13 in all" in lines[-1]
+
+
+def test_sql_over_raw_captures_says_the_damage(cli: Cli, tmp_path: Path) -> None:
+    block = bad_pcapng(tmp_path / "bad.pcapng")
+    status, out, err = cli("sql", "SELECT count(*) AS n FROM frames", str(tmp_path / "bad.pcapng"), "--json")
+    assert status == 0 and json.loads(out) == [{"n": 0}]
+    assert f"block at offset {block}" in err and "no MAVLink frames found" in err
+
+
+def test_files_passed_over_are_named_when_few(cli: Cli, tmp_path: Path) -> None:
+    folder = tmp_path / "flights"
+    folder.mkdir()
+    (folder / "flight.pcap").write_bytes(UDP.read_bytes())
+    for name in ("notes.txt", "README.md"):
+        (folder / name).write_text("not a capture\n")
+    _, _, err = cli("batch", str(folder), "--json", "--", "stats")
+    assert (f"2 file(s) in the directories are not captures and were passed over: {folder / 'README.md'}, "
+            f"{folder / 'notes.txt'}") in err
+    for k in range(4):
+        (folder / f"more{k}.txt").write_text("no\n")
+    _, _, err = cli("batch", str(folder), "--json", "--", "stats")
+    assert f"6 file(s) in the directories are not captures and were passed over (e.g. {folder / 'README.md'})" in err
+
+
 def test_audit_and_verify_say_the_damage_as_read_does(cli: Cli, tmp_path: Path) -> None:
     off, incl = cut_pcap(tmp_path / "cut.pcap", 300)
     for argv in (("audit",), ("verify", "--key", "passphrase:x")):
