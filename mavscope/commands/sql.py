@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     import pyarrow as pa
 
 TEXT_ROWS = 10_000  # rows a text table shows at most (--json and --csv write every row)
+INT_RANGE = (-(1 << 63), (1 << 64) - 1)  # the integers orjson writes (larger whole decimals: floats in JSON)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -87,11 +88,13 @@ def _export(args: argparse.Namespace, env: Env, paths: list[str], dataset: Path)
 
 
 def _plain(v: object) -> object:
-    """A value as JSON and CSV carry it: bytes as hex, decimals as floats, times as ISO-8601."""
+    """A value as JSON carries it: bytes as hex, whole decimals (DuckDB's sums of integers, HUGEINT, come
+    as decimal(38, 0)) as integers, other decimals as floats, times as ISO-8601."""
     if isinstance(v, (bytes, bytearray, memoryview)):
         return bytes(v).hex()
     if isinstance(v, decimal.Decimal):
-        return float(v)
+        whole = v.is_finite() and v == v.to_integral_value()
+        return int(v) if whole and INT_RANGE[0] <= v <= INT_RANGE[1] else float(v)  # (orjson: 64 bits at most)
     if isinstance(v, (datetime.datetime, datetime.date, datetime.time)):
         return v.isoformat()
     if isinstance(v, datetime.timedelta):
@@ -130,8 +133,11 @@ def _json(env: Env, batches: Iterator[pa.RecordBatch]) -> None:
 
 
 def _cell(v: object) -> str:
+    """A value as the text table and CSV write it (decimals exactly, in their own scale: 9, 1.50)."""
     if v is None:
         return ""
+    if isinstance(v, decimal.Decimal):
+        return format(v, "f")
     if isinstance(v, (list, dict)):
         import orjson
 
