@@ -231,6 +231,20 @@ class Note:
         return out
 
 
+def problem_line(where: str, n: Note) -> str:
+    """A problem as `read` writes it on stderr: "WHERE: offset N: MESSAGE" (no offset when the message
+    says it already). WHERE is "record R" for an anomaly, "frame F" for a frame's note."""
+    offset = n.offset
+    at = f"offset {offset}: " if offset is not None and str(offset) not in n.message else ""
+    return f"{where}: {at}{n.message}"
+
+
+def is_capture_damage(n: Note) -> bool:
+    """Whether a frame's note tells of damage to the capture file (a cut record...): `read` reports those
+    on stderr besides the anomalies, so that a damaged capture never passes in silence."""
+    return CODES[n.code].group is Group.CAPTURE
+
+
 def note(code: str, message: str | None = None, offset: int | None = None) -> Note:
     """A Note for a registered code (KeyError for an unregistered one: codes are a closed set)."""
     c = CODES[code]

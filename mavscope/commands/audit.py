@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 
 from mavscope.cli import Env, ExitStatus
+from mavscope.commands.analysis_common import Pass
 from mavscope.commands.common import add_capture_options, add_key_options, capture_session, write_json
 from mavscope.errors import UsageError
 from mavscope.mavlink.dialect import load_dialect
@@ -47,12 +48,13 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         words = read_wordlist(args.wordlist)
     audit = Audit()
     with capture_session(args, env, dialect) as session:
-        for frame in session.frames():
+        for frame in Pass(session, env):  # (damage and anomalies on stderr, as read says them)
             audit.add(frame)
+        frames = session.frame_count
     findings, recoveries = audit.result(words=words, qgc=args.qgc, known=known)
     status = ExitStatus.FINDINGS if any(f.severity >= Severity.WARN for f in findings) else ExitStatus.OK
     if args.json:
-        doc: dict[str, object] = {"findings": [f.to_json() for f in findings]}
+        doc: dict[str, object] = {"frames": frames, "findings": [f.to_json() for f in findings]}
         if recoveries:
             doc["recovered"] = [{"frame": r.record, "msgname": r.msgname, "bytes": r.recovered.hex(),
                                  "length": r.length, "fields": r.fields} for r in recoveries]

@@ -1,6 +1,11 @@
 """`mavscope batch FILES_OR_DIRS... [-j N] -- verify|audit|stats [OPTIONS]`: a per-capture command over
-many captures, N at a time in worker processes, with one summary table (or JSON) and the worst exit
-status of them all (2 an error > 1 findings > 0 ok)."""
+many captures, N at a time in worker processes, with one summary table (or JSON) and the worst status
+of them all (2 an error > 1 findings > 0 ok).
+
+A capture's status is decided from what its run gives: an error when the run failed; for verify and
+audit their exit status (1 already means a failed verification or a finding of severity warn or error);
+for stats, which always exits 0, "findings" when its JSON lists any finding. Lines the run wrote on
+stderr besides (damage to the capture, no frames found) are its *problems*: counted, the first shown."""
 
 from __future__ import annotations
 
@@ -28,7 +33,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                        description="Run a per-capture command over every capture named (directories are "
                                    "walked), N at a time, and summarise: one row per capture. The command and "
                                    "its options (keys...) follow `--`; each capture is given to it as its FILE. "
-                                   "Exit status: the worst of the runs (2 an error > 1 findings > 0 ok).")
+                                   "Status per capture: error when its run failed; findings when verify or audit "
+                                   "exit 1 (a failed verification; an audit finding of severity warn or error) "
+                                   "or stats lists any finding. Problems: the lines a run wrote on stderr "
+                                   "(damage to the capture, no frames found), counted, the first shown. "
+                                   "Exit status: the worst status (2 error > 1 findings > 0 ok); problems "
+                                   "alone do not change it.")
     p.add_argument("paths", nargs="+", metavar="FILE_OR_DIR", help="captures, or directories holding them")
     p.add_argument("-j", dest="jobs", type=jobs_count, default=1, metavar="N", help="captures at a time (default 1)")
     p.add_argument("--json", action="store_true", help="the summary and each run's JSON document as one JSON")
@@ -54,6 +64,16 @@ def worst(statuses: list[int]) -> ExitStatus:
     return ExitStatus.FINDINGS if ExitStatus.FINDINGS in statuses else ExitStatus.OK
 
 
+def _findings(found: list[dict[str, Any]]) -> str:
+    """"1 error, 2 warn [code] [code] [code]" (the first three codes) or "no findings"."""
+    counts: dict[str, int] = {}
+    for f in found:
+        counts[f["severity"]] = counts.get(f["severity"], 0) + 1
+    order = ("error", "warn", "note", "chat")
+    text = ", ".join(f"{counts[s]} {s}" for s in order if s in counts) or "no findings"
+    return text + "".join(f" [{f['code']}]" for f in found[:3])
+
+
 def _summary(command: str, doc: dict[str, Any]) -> tuple[int | None, str]:
     """(frames, one line) of a run's JSON document."""
     if command == "verify":
@@ -61,18 +81,19 @@ def _summary(command: str, doc: dict[str, Any]) -> tuple[int | None, str]:
         if doc.get("ok"):
             return frames, "ok" + ("" if doc.get("signing_in_force", True) else "; signing not in force (v1 frames)")
         return frames, f"FAIL: {doc.get('problem_count', 0)} problem(s)"
-    if command == "audit":
-        found = doc.get("findings", [])
-        counts: dict[str, int] = {}
-        for f in found:
-            counts[f["severity"]] = counts.get(f["severity"], 0) + 1
-        order = ("error", "warn", "note", "chat")
-        text = ", ".join(f"{counts[s]} {s}" for s in order if s in counts) or "no findings"
-        return None, text + "".join(f" [{f['code']}]" for f in found[:3])
-    totals = doc.get("totals", {})
     found = doc.get("findings", [])
-    return totals.get("frames"), (f"{totals.get('links', 0)} link(s), {totals.get('lost', 0)} lost, "
-                                  f"{len(found)} finding(s)")
+    if command == "audit":
+        return doc.get("frames"), _findings(found)
+    totals = doc.get("totals", {})
+    return totals.get("frames"), (f"{totals.get('links', 0)} link(s), {totals.get('lost', 0)} lost; "
+                                  + _findings(found))
+
+
+def status_of(command: str, exit_status: int, doc: dict[str, Any] | None) -> int:
+    """A run's status from its result: stats exits 0 whatever it found, so its findings decide."""
+    if command == "stats" and exit_status == ExitStatus.OK and doc is not None and doc.get("findings"):
+        return int(ExitStatus.FINDINGS)
+    return exit_status
 
 
 def _runner(jobs: int, count: int) -> Callable[[list[list[str]], Mapping[str, str]], list[Outcome]]:
@@ -111,10 +132,15 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                 doc = orjson.loads(out)
             except orjson.JSONDecodeError:
                 doc = None
-        frames, text = _summary(command, doc) if isinstance(doc, dict) else (None, "")
-        error = " ".join(ln.removeprefix("mavscope: ") for ln in err.splitlines() if ln.strip())
+        if not isinstance(doc, dict):
+            doc = None
+        frames, text = _summary(command, doc) if doc is not None else (None, "")
+        lines = [ln.removeprefix("mavscope: ").removeprefix(f"{path}: ") for ln in err.splitlines() if ln.strip()]
+        problems = lines if doc is not None else []  # (a failed run's lines are its error: the summary)
+        status = status_of(command, status, doc)
         rows.append({"file": path, "exit": status, "status": _status_name(status), "frames": frames,
-                     "summary": text or error, "result": doc, "stderr": err or None})
+                     "summary": text or " ".join(lines), "problems": len(problems),
+                     "first_problem": problems[0] if problems else None, "result": doc, "stderr": err or None})
     status = worst([r["exit"] for r in rows])  # type: ignore[misc]
     if args.json:
         write_json(env, {"command": command, "exit": int(status), "status": _status_name(status),
@@ -134,13 +160,15 @@ def _render(env: Env, command: str, rows: list[dict[str, object]], status: ExitS
 
     con = console(env)
     t = Table(title=f"mavscope {command} over {len(rows)} capture(s)", title_justify="left")
-    for col, just in (("capture", "left"), ("status", "left"), ("frames", "right"), ("summary", "left")):
+    for col, just in (("capture", "left"), ("status", "left"), ("frames", "right"), ("summary", "left"),
+                      ("problems", "left")):
         t.add_column(col, justify=just, overflow="fold")  # type: ignore[arg-type]
     for r in rows:
-        frames = r["frames"]
+        frames, problems = r["frames"], r["problems"]
         t.add_row(Text(str(r["file"])), str(r["status"]), "-" if frames is None else str(frames),
-                  Text(str(r["summary"])))
+                  Text(str(r["summary"])), Text(f"{problems} line(s): {r['first_problem']}" if problems else "-"))
     con.print(t)
     counts = {n: sum(r["status"] == n for r in rows) for n in ("ok", "findings", "error")}
-    con.print(f"{counts['ok']} ok, {counts['findings']} with findings, {counts['error']} error(s); exit status "
-              f"{int(status)} ({_status_name(status)})", highlight=False)
+    damaged = sum(bool(r["problems"]) for r in rows)
+    con.print(f"{counts['ok']} ok, {counts['findings']} with findings, {counts['error']} error(s); {damaged} with "
+              f"problems on stderr; exit status {int(status)} ({_status_name(status)})", highlight=False)

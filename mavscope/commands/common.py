@@ -16,7 +16,7 @@ from mavscope.cli import Env
 from mavscope.errors import UsageError
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
-from mavscope.notes import CODES, Group, Note
+from mavscope.notes import Note, is_capture_damage, problem_line
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.pipeline.options import PipelineOptions
 from mavscope.pipeline.session import Session, open_session
@@ -159,7 +159,7 @@ class Problems:
         n = self.counts.get(code, 0) + 1
         self.counts[code] = n
         if n <= self.LIMIT:
-            self.env.stderr.write(f"mavscope: {self.name}: {where}: {_where(note)}{note.message}\n")
+            self.env.stderr.write(f"mavscope: {self.name}: {problem_line(where, note)}\n")
 
     def anomaly(self, item: Anomaly) -> None:
         for note in item.notes:
@@ -167,7 +167,7 @@ class Problems:
 
     def frame(self, frame: Frame) -> None:
         for note in frame.notes:
-            if CODES[note.code].group is Group.CAPTURE:
+            if is_capture_damage(note):
                 self._line(note.code, f"frame {frame.number}", note)
 
     def close(self) -> None:
@@ -177,11 +177,6 @@ class Problems:
                 self.env.stderr.write(f"mavscope: {self.name}: {n - self.LIMIT} more {code} problems not shown "
                                       f"({n} in all)\n")
         self.counts.clear()
-
-
-def _where(note: Note) -> str:
-    """"offset N: " before a note's message, unless the message says where already."""
-    return f"offset {note.offset}: " if note.offset is not None and str(note.offset) not in note.message else ""
 
 
 def progress(env: Env, reader: CaptureReader) -> tuple[Callable[[], None], Callable[[], None]]:

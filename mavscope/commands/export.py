@@ -14,9 +14,11 @@ from mavscope.commands.common import add_dialect_option, add_key_options, pipeli
 from mavscope.errors import UsageError
 
 if TYPE_CHECKING:
+    from mavscope.export.dataset import CaptureResult
     from mavscope.export.source import ExportOptions
 
 PROGRESS_BYTES = 8 * 1024 * 1024  # a progress bar for inputs at least this large, on a terminal
+NAMED_PASSED_OVER = 5  # files passed over in directories, named one by one up to this many
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -99,10 +101,45 @@ def gather(env: Env, paths: list[str], dialects: tuple[str, ...]) -> list[str]:
     found = find_captures(paths, load_dialect(dialects))  # (batch needs no pyarrow: not export.source's cache)
     if found.missing:
         raise UsageError(f"no such file or directory: {found.missing[0]}")
-    if found.passed_over:
-        env.stderr.write(f"mavscope: {len(found.passed_over)} file(s) in the directories are not captures and were "
-                         f"passed over (e.g. {found.passed_over[0]})\n")
+    passed = found.passed_over
+    if passed:
+        which = (": " + ", ".join(passed) if len(passed) <= NAMED_PASSED_OVER else f" (e.g. {passed[0]})")
+        env.stderr.write(f"mavscope: {len(passed)} file(s) in the directories are not captures and were "
+                         f"passed over{which}\n")
     return found.captures
+
+
+class Reporter:
+    """Says on stderr what `read` would have said of each capture exported: its error, that reading it
+    had problems (how many, and the first as `read` writes it: the dataset's `anomalies` table and frame
+    notes hold them all) or that it held no MAVLink frame. One line per capture, for at most SHOWN
+    captures with problems, then one line for the rest (`close`): a directory of damaged captures must
+    not flood the terminal, nor pass in silence."""
+
+    SHOWN = 10
+
+    def __init__(self, env: Env, errors: bool = True) -> None:
+        self.env = env
+        self.errors = errors
+        self.damaged = 0
+
+    def __call__(self, r: CaptureResult) -> None:
+        if r.status == "failed" and self.errors:
+            self.env.stderr.write(f"mavscope: {r.error}\n")
+        if r.status != "exported":
+            return
+        said = [f"{r.problems} problem(s) reading it, the first: {r.first_problem}"] if r.problems else []
+        if not r.frames:
+            said.append("no MAVLink frames found")
+        if said:
+            self.damaged += 1
+            if self.damaged <= self.SHOWN:
+                self.env.stderr.write(f"mavscope: {r.path}: {'; '.join(said)}\n")
+
+    def close(self) -> None:
+        if self.damaged > self.SHOWN:
+            self.env.stderr.write(f"mavscope: {self.damaged - self.SHOWN} more capture(s) with problems or without "
+                                  f"frames not shown ({self.damaged} in all; `mavscope read FILE` lists them)\n")
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
@@ -130,13 +167,9 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
 def _parquet(args: argparse.Namespace, env: Env, captures: list[str], out: str, options: ExportOptions) -> ExitStatus:
     import os
 
-    from mavscope.export.dataset import CaptureResult
     from mavscope.export.run import export_local
 
-    def report(r: CaptureResult) -> None:
-        if r.status == "failed":
-            env.stderr.write(f"mavscope: {r.error}\n")
-
+    report = Reporter(env)
     total = sum(os.path.getsize(p) for p in captures if os.path.isfile(p))
     if args.engine == "dask":
         from mavscope.export.distributed import export_dask
@@ -147,6 +180,7 @@ def _parquet(args: argparse.Namespace, env: Env, captures: list[str], out: str, 
         with bar(env, total, "exporting") as update:
             results = export_local(out, captures, options, jobs=args.jobs, replace=args.replace,
                                    durable=args.durable, on_result=report, on_bytes=update, warn=warner(env))
+    report.close()
     failed = [r for r in results if r.status == "failed"]
     if args.json:
         write_json(env, {"dataset": out, "captures": [r.to_json() for r in results],
@@ -160,6 +194,7 @@ def _parquet(args: argparse.Namespace, env: Env, captures: list[str], out: str, 
         env.stdout.write(f"exported {len(done)} capture(s), {sum(r.frames for r in done):,} frames, to {out}"
                          + (f" ({seconds:.1f} s of work)" if done else "")
                          + (f"; {skipped} already there or repeated" if skipped else "")
+                         + (f"; {report.damaged} with problems or no frames (stderr)" if report.damaged else "")
                          + (f"; {len(failed)} failed" if failed else "") + "\n")
     return ExitStatus.ERROR if failed else ExitStatus.OK
 

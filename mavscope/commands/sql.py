@@ -15,13 +15,14 @@ from typing import TYPE_CHECKING
 
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.common import add_dialect_option, add_key_options, pipeline_options, warner
-from mavscope.commands.export import bar, gather, needs_fleet
+from mavscope.commands.export import Reporter, bar, gather, needs_fleet
 from mavscope.errors import UsageError
 
 if TYPE_CHECKING:
     import pyarrow as pa
 
 TEXT_ROWS = 10_000  # rows a text table shows at most (--json and --csv write every row)
+INT_RANGE = (-(1 << 63), (1 << 64) - 1)  # the integers orjson writes (larger whole decimals: floats in JSON)
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -76,9 +77,10 @@ def _export(args: argparse.Namespace, env: Env, paths: list[str], dataset: Path)
     if not captures:
         raise UsageError("sql: no captures and no dataset among the paths given")
     options = ExportOptions(pipeline=pipeline_options(args, env))
-    failed: list[str] = []
+    report = Reporter(env, errors=False)  # (the first error is the command's)
     with bar(env, sum(os.path.getsize(p) for p in captures), "exporting") as update:
-        results = export_local(dataset, captures, options, on_bytes=update, warn=warner(env))
+        results = export_local(dataset, captures, options, on_bytes=update, warn=warner(env), on_result=report)
+    report.close()
     failed = [r.error for r in results if r.status == "failed"]
     if failed:
         raise UsageError(failed[0])
@@ -86,11 +88,13 @@ def _export(args: argparse.Namespace, env: Env, paths: list[str], dataset: Path)
 
 
 def _plain(v: object) -> object:
-    """A value as JSON and CSV carry it: bytes as hex, decimals as floats, times as ISO-8601."""
+    """A value as JSON carries it: bytes as hex, whole decimals (DuckDB's sums of integers, HUGEINT, come
+    as decimal(38, 0)) as integers, other decimals as floats, times as ISO-8601."""
     if isinstance(v, (bytes, bytearray, memoryview)):
         return bytes(v).hex()
     if isinstance(v, decimal.Decimal):
-        return float(v)
+        whole = v.is_finite() and v == v.to_integral_value()
+        return int(v) if whole and INT_RANGE[0] <= v <= INT_RANGE[1] else float(v)  # (orjson: 64 bits at most)
     if isinstance(v, (datetime.datetime, datetime.date, datetime.time)):
         return v.isoformat()
     if isinstance(v, datetime.timedelta):
@@ -129,8 +133,11 @@ def _json(env: Env, batches: Iterator[pa.RecordBatch]) -> None:
 
 
 def _cell(v: object) -> str:
+    """A value as the text table and CSV write it (decimals exactly, in their own scale: 9, 1.50)."""
     if v is None:
         return ""
+    if isinstance(v, decimal.Decimal):
+        return format(v, "f")
     if isinstance(v, (list, dict)):
         import orjson
 

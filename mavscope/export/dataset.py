@@ -124,10 +124,13 @@ class CaptureResult:
     seconds: float = 0.0
     size: int = 0
     error: str = ""
+    problems: int = 0  # problems reading it, as `read` reports them (the captures table's problem_count)
+    first_problem: str = ""
 
     def to_json(self) -> dict[str, object]:
         return {"path": self.path, "capture_id": self.capture_id, "status": self.status, "frames": self.frames,
-                "seconds": round(self.seconds, 3), "bytes": self.size, "error": self.error or None}
+                "seconds": round(self.seconds, 3), "bytes": self.size, "error": self.error or None,
+                "problems": self.problems, "first_problem": self.first_problem or None}
 
 
 class _Writers:
@@ -141,6 +144,8 @@ class _Writers:
         self.durable = durable
         self.open: dict[str, pq.ParquetWriter] = {}
         self.frames = 0
+        self.problems = 0
+        self.first_problem = ""
 
     def write(self, batch: pa.RecordBatch) -> None:
         if not batch.num_rows:
@@ -155,6 +160,9 @@ class _Writers:
         w.write_batch(body)
         if table == "frames":
             self.frames += batch.num_rows
+        elif table == CAPTURES:  # (any batch source writes it: the problems travel with the result)
+            self.problems = int(batch.column("problem_count")[0].as_py() or 0)
+            self.first_problem = batch.column("first_problem")[0].as_py() or ""
 
     def close(self) -> None:
         for w in self.open.values():
@@ -237,4 +245,5 @@ def export_capture(dataset: str | os.PathLike[str], path: str, options: ExportOp
     finally:
         shutil.rmtree(stage, ignore_errors=True)
     return CaptureResult(path, cid, "exported" if done else "duplicate", frames=writers.frames,
-                         seconds=time.perf_counter() - t0, size=size)
+                         seconds=time.perf_counter() - t0, size=size, problems=writers.problems,
+                         first_problem=writers.first_problem)

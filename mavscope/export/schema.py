@@ -292,6 +292,9 @@ def captures_schema() -> pa.Schema:
         pa.field("kind", pa.string(), metadata={b"description": b"pcap, pcapng, tlog or raw"}),
         pa.field("frame_count", pa.int64()),
         pa.field("anomaly_count", pa.int64()),
+        pa.field("problem_count", pa.int64(), metadata={
+            b"description": b"the problems `read` reports on stderr: anomalies and frame notes of damage to the file"}),
+        pa.field("first_problem", pa.string(), metadata={b"description": b"the first of them, as `read` writes it"}),
         pa.field("finding_count", pa.int64()),
         pa.field("message_type_count", pa.int32()),
         pa.field("first_time", pa.float64()),

@@ -43,7 +43,7 @@ from mavscope.export.schema import (
     table_of,
 )
 from mavscope.mavlink.dialect import Dialect, load_dialect
-from mavscope.notes import CODES, Finding
+from mavscope.notes import CODES, Finding, Note, is_capture_damage, problem_line
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.pipeline.options import PipelineOptions
 from mavscope.pipeline.session import open_session
@@ -153,6 +153,13 @@ class _Summary:
     frames: int = 0
     first: float | None = None
     last: float | None = None
+    problems: int = 0  # what `read` reports on stderr: anomalies' notes, frames' notes of capture damage
+    first_problem: str | None = None
+
+    def problem(self, where: str, n: Note) -> None:
+        self.problems += 1
+        if self.first_problem is None:
+            self.first_problem = problem_line(where, n)
 
 
 def python_source(path: str, capture_id: str, options: ExportOptions, progress: Progress | None,
@@ -176,11 +183,17 @@ def python_source(path: str, capture_id: str, options: ExportOptions, progress: 
         tick = 0
         for item in session.items:
             if type(item) is Anomaly:
+                for n in item.notes:
+                    summary.problem(f"record {item.record}", n)
                 b = anomalies.add(item)
                 if b is not None:
                     yield b
                 continue
             summary.frames += 1
+            if item.notes:
+                for n in item.notes:
+                    if is_capture_damage(n):
+                        summary.problem(f"frame {item.number}", n)
             t = item.time
             if t is not None:
                 if summary.first is None:
@@ -226,7 +239,8 @@ def _captures_batch(capture_id: str, path: str, name: str, size: int, kind: str,
                     findings: int, types: int, dialect: Dialect, options: ExportOptions) -> pa.RecordBatch:
     values: list[object] = [
         capture_id, name, os.path.basename(os.fsencode(path)).decode("utf-8", "backslashreplace"), size, kind,
-        s.frames, anomalies, findings, types, s.first, s.last, options.pipeline.has_key_material,
+        s.frames, anomalies, s.problems, s.first_problem, findings, types, s.first, s.last,
+        options.pipeline.has_key_material,
         [os.path.basename(f) for f in dialect.files], options.source, __version__, SCHEMA_VERSION,
         datetime.fromtimestamp(time.time(), tz=timezone.utc),
     ]

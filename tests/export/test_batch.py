@@ -36,7 +36,6 @@ def test_verify_over_captures_as_each_alone(cli: Cli, jobs: str) -> None:
 
 def test_a_directory_text_summary_and_stats(cli: Cli) -> None:
     status, out, err = cli("batch", str(CAPTURES), "--", "stats")
-    assert status == 0
     # by name: README.md, expected.json and the generator's *.truth.json are not captures (batch sniffs content)
     files = [p for p in CAPTURES.iterdir() if p.is_file()]
     captures = [p for p in files if p.suffix in (".pcap", ".pcapng", ".tlog", ".raw")]
@@ -44,7 +43,21 @@ def test_a_directory_text_summary_and_stats(cli: Cli) -> None:
     stats = cli.json("stats", str(CAPTURES / "stats_loss.pcap"))["totals"]
     line = next(ln for ln in out.splitlines() if "stats_loss.pcap" in ln)
     assert f"{stats['links']} link(s), {stats['lost']} lost" in line and str(stats["frames"]) in line
-    assert f"{len(captures)} ok, 0 with findings, 0 error(s); exit status 0 (ok)" in out
+    # stats exits 0 whatever it finds: a capture with findings is "findings" all the same, and so is the batch
+    found = sum(bool(cli.json("stats", str(p))["findings"]) for p in captures)
+    assert 0 < found < len(captures) and status == 1
+    assert (f"{len(captures) - found} ok, {found} with findings, 0 error(s); 1 with problems on stderr; "
+            "exit status 1 (findings)") in out  # damaged.pcap's cut record (captures/README.md)
+
+
+def test_stats_findings_decide_the_status(cli: Cli) -> None:
+    # gcs_takeover.pcap: an intruder GCS disarms the vehicle in the air (gcs_takeover.truth.json: in-flight-disarm)
+    takeover = CAPTURES / "gcs_takeover.pcap"
+    assert "in-flight-disarm" in json.loads((CAPTURES / "gcs_takeover.truth.json").read_text())["findings"]
+    status, out, _ = cli("batch", str(takeover), str(SOME[0]), "--json", "--", "stats")
+    rows = json.loads(out)["captures"]
+    assert status == 1 and [(r["status"], r["exit"]) for r in rows] == [("findings", 1), ("ok", 0)]
+    assert "1 error" in rows[0]["summary"] and "[in-flight-disarm]" in rows[0]["summary"]
 
 
 def test_worst_status_with_an_error(cli: Cli, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -72,3 +72,37 @@ def test_errors_are_one_line(cli: Cli, tmp_path: Path) -> None:
     assert status == 2 and err.startswith("mavscope: sql:") and err.count("\n") == 1 and "nope" in err
     status, _, err = cli("sql", "SELECT 1", str(tmp_path / "missing"))
     assert status == 2 and "no such file or directory" in err
+
+
+def test_integer_sums_print_as_integers(cli: Cli) -> None:
+    # DuckDB sums integers as HUGEINT, which reaches Arrow as decimal(38, 0): the sum of sysid over every
+    # frame of px4_sitl_udp.pcap, from the generator's frame list (captures/expected.json: record, index,
+    # sysid, compid, seq, msgid)
+    name = "px4_sitl_udp.pcap"
+    frames = json.loads((CAPTURES / "expected.json").read_text())[name]["frame_list"]
+    want = sum(f[2] for f in frames)
+    q = "SELECT sum(sysid) AS s, 1.50::DECIMAL(5, 2) AS d FROM frames"
+    status, out, err = cli("sql", q, str(CAPTURES / name))
+    assert status == 0, err
+    assert f" {want} " in out and f"{want}.0" not in out
+    assert " 1.50 " in out  # a decimal in its own scale
+    assert json.loads(cli("sql", q, str(CAPTURES / name), "--json").out) == [{"s": want, "d": 1.5}]
+    assert cli("sql", q, str(CAPTURES / name), "--csv").out == f"s,d\n{want},1.50\n"
+    # beyond 64 bits: exact in the table and the CSV (JSON has a float there: orjson writes 64-bit integers)
+    big = (1 << 64) + 5
+    status, out, _ = cli("sql", f"SELECT {big}::HUGEINT * 1 AS b, sum(x) AS t FROM (VALUES ({big}::HUGEINT)) v(x)",
+                         str(CAPTURES / name), "--csv")
+    assert status == 0 and out == f"b,t\n{big},{big}\n"
+
+
+def test_a_missing_view_is_named_with_those_there_are(cli: Cli, tmp_path: Path) -> None:
+    # a capture without MAVLink frames: no message views, only the four fixed tables (docs/dataset.md)
+    empty = tmp_path / "empty.tlog"
+    empty.write_bytes(b"")
+    status, out, err = cli("sql", "SELECT count(*) FROM HEARTBEAT", str(empty))
+    assert status == 2 and out == ""
+    last = err.splitlines()[-1]
+    assert last.startswith("mavscope: sql: no view HEARTBEAT") and last.endswith(
+        "views: anomalies, captures, findings, frames")
+    status, _, err = cli("sql", "SELECT count(*) FROM HEARTBEAT JOIN nothing USING (capture_id)", str(SIGNED))
+    assert status == 2 and "no view nothing " in err and "HEARTBEAT, " in err
