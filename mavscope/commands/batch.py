@@ -4,8 +4,9 @@ of them all (2 an error > 1 findings > 0 ok).
 
 A capture's status is decided from what its run gives: an error when the run failed; for verify and
 audit their exit status (1 already means a failed verification or a finding of severity warn or error);
-for stats, which always exits 0, "findings" when its JSON lists any finding. Lines the run wrote on
-stderr besides (damage to the capture, no frames found) are its *problems*: counted, the first shown."""
+for stats, which always exits 0, "findings" when its JSON lists a finding of severity warn or error (notes
+are information). Lines the run wrote on stderr besides (damage to the capture, no frames found) are its
+*problems*: counted, the first shown."""
 
 from __future__ import annotations
 
@@ -35,8 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "its options (keys...) follow `--`; each capture is given to it as its FILE. "
                                    "Status per capture: error when its run failed; findings when verify or audit "
                                    "exit 1 (a failed verification; an audit finding of severity warn or error) "
-                                   "or stats lists any finding. Problems: the lines a run wrote on stderr "
-                                   "(damage to the capture, no frames found), counted, the first shown. "
+                                   "or stats lists a finding of severity warn or error. Problems: the lines a run "
+                                   "wrote on stderr (damage to the capture, no frames found), counted, the first "
+                                   "shown. "
                                    "Exit status: the worst status (2 error > 1 findings > 0 ok); problems "
                                    "alone do not change it.")
     p.add_argument("paths", nargs="+", metavar="FILE_OR_DIR", help="captures, or directories holding them")
@@ -90,8 +92,10 @@ def _summary(command: str, doc: dict[str, Any]) -> tuple[int | None, str]:
 
 
 def status_of(command: str, exit_status: int, doc: dict[str, Any] | None) -> int:
-    """A run's status from its result: stats exits 0 whatever it found, so its findings decide."""
-    if command == "stats" and exit_status == ExitStatus.OK and doc is not None and doc.get("findings"):
+    """A run's status from its result: stats exits 0 whatever it found, so its findings decide, by audit's
+    rule: a finding of severity warn or error (notes are information, as in Wireshark's expert info)."""
+    if command == "stats" and exit_status == ExitStatus.OK and doc is not None and any(
+            f.get("severity") in ("warn", "error") for f in doc.get("findings", [])):
         return int(ExitStatus.FINDINGS)
     return exit_status
 
