@@ -11,6 +11,8 @@
 
 #define MAX_ENTRIES (1u << 20)
 
+static const char HEX[] = "0123456789abcdef";
+
 typedef struct {
     const uint8_t *p;
     const uint8_t *end;
@@ -44,6 +46,28 @@ static int is_signed_type(unsigned type) {
     return type == MS_T_I8 || type == MS_T_I16 || type == MS_T_I32 || type == MS_T_I64;
 }
 
+/* n entries, strictly sorted (signed or unsigned); their longest name in *longest. 0, or -1 when bad. */
+static int take_entries(cursor *c, ms_enum_entry **out, uint64_t n, int sgn, size_t *longest) {
+    if (n > MAX_ENTRIES)
+        return -1;
+    ms_enum_entry *v = calloc(n ? n : 1, sizeof *v);
+    *out = v;
+    if (v == NULL)
+        return -1;
+    for (uint64_t e = 0; e < n; e++) {
+        v[e].value = take(c, 8);
+        v[e].name_len = (uint8_t)take(c, 1);
+        v[e].name = take_text(c, v[e].name_len);
+        if (c->bad)
+            return -1;
+        if (e && (sgn ? (int64_t)v[e].value <= (int64_t)v[e - 1].value : v[e].value <= v[e - 1].value))
+            return -1; /* not strictly sorted: the lookup would miss */
+        if (v[e].name_len > *longest)
+            *longest = v[e].name_len;
+    }
+    return 0;
+}
+
 void ms_summary_free(ms_summary *s) {
     if (s->messages != NULL) {
         for (size_t i = 0; i < s->count; i++) {
@@ -52,6 +76,10 @@ void ms_summary_free(ms_summary *s) {
                 for (size_t k = 0; k < m->nitems; k++)
                     free(m->items[k].entries);
             free(m->items);
+            if (m->commands != NULL)
+                for (size_t k = 0; k < m->ncommands; k++)
+                    free(m->commands[k].entries);
+            free(m->commands);
         }
     }
     free(s->messages);
@@ -86,10 +114,50 @@ int ms_summary_parse(ms_summary *s, const ms_table *t, const uint8_t *blob, size
         m->name = take_text(&c, m->name_len);
         if (c.bad)
             goto fail;
+        m->param1 = (uint16_t)take(&c, 2);
+        m->command = (uint16_t)take(&c, 2);
+        uint64_t ncommands = take(&c, 4);
+        if (c.bad || ncommands > MAX_ENTRIES)
+            goto fail;
+        if (m->param1 != MS_NO_FIELD) {
+            if (m->param1 >= tm->nfields || m->command >= tm->nfields ||
+                tm->fields[m->param1].type != MS_T_F32 || (tm->fields[m->command].type & MS_T_ARRAY) ||
+                (tm->fields[m->command].type & 0x7F) > MS_T_I64)
+                goto fail;
+        } else if (ncommands) {
+            goto fail;
+        }
+        m->commands = calloc(ncommands ? ncommands : 1, sizeof *m->commands);
+        if (m->commands == NULL)
+            goto fail;
+        m->ncommands = (uint32_t)ncommands;
+        size_t longest = 0;
+        for (uint32_t k = 0; k < ncommands; k++) {
+            ms_command *cmd = &m->commands[k];
+            cmd->value = (uint32_t)take(&c, 4);
+            cmd->flags = (uint8_t)(take(&c, 1) & (MS_CMD_PYTHON | MS_CMD_BITS));
+            uint64_t n = take(&c, 4);
+            if (c.bad || (k && cmd->value <= m->commands[k - 1].value))
+                goto fail;
+            cmd->nentries = (uint32_t)n;
+            size_t one = 0;
+            if (take_entries(&c, &cmd->entries, n, 1, &one) != 0)
+                goto fail;
+            if (cmd->flags & MS_CMD_BITS) { /* every name, " | " between, and the rest in hex */
+                one = 2 + 16;
+                for (uint32_t e = 0; e < n; e++) {
+                    if ((int64_t)cmd->entries[e].value < 0)
+                        goto fail; /* flags are non-negative */
+                    one += 3 + (size_t)cmd->entries[e].name_len;
+                }
+            }
+            if (one > longest)
+                longest = one;
+        }
         m->items = calloc(m->nitems ? m->nitems : 1, sizeof *m->items);
         if (m->items == NULL)
             goto fail;
-        m->info_max = (size_t)m->name_len + 32; /* " [signed link 255]" */
+        m->info_max = (size_t)m->name_len + 32 + longest; /* " [signed link 255]", a named param1 */
         for (size_t k = 0; k < m->nitems; k++) {
             ms_sitem *it = &m->items[k];
             it->field = (uint16_t)take(&c, 2);
@@ -101,25 +169,10 @@ int ms_summary_parse(ms_summary *s, const ms_table *t, const uint8_t *blob, size
                 goto fail;
             const ms_field *f = &tm->fields[it->field];
             const unsigned type = f->type & 0x7F;
-            const int sgn = is_signed_type(type);
             it->nentries = (uint32_t)n;
-            it->entries = calloc(n ? n : 1, sizeof *it->entries);
-            if (it->entries == NULL)
-                goto fail;
             size_t value_max = MS_DEG_MAX > MS_G4_MAX ? MS_DEG_MAX : MS_G4_MAX; /* also any integer */
-            for (uint32_t e = 0; e < n; e++) {
-                ms_enum_entry *en = &it->entries[e];
-                en->value = take(&c, 8);
-                en->name_len = (uint8_t)take(&c, 1);
-                en->name = take_text(&c, en->name_len);
-                if (c.bad)
-                    goto fail;
-                if (e && (sgn ? (int64_t)en->value <= (int64_t)it->entries[e - 1].value
-                              : en->value <= it->entries[e - 1].value))
-                    goto fail; /* not strictly sorted: the lookup would miss */
-                if (en->name_len > value_max)
-                    value_max = en->name_len;
-            }
+            if (take_entries(&c, &it->entries, n, is_signed_type(type), &value_max) != 0)
+                goto fail;
             if (type == MS_T_CHAR)
                 value_max = 4 * (size_t)f->count + 2;
             m->info_max += 1 + (size_t)it->label_len + value_max;
@@ -283,7 +336,6 @@ char *ms_w_reltime(char *p, double t) {
     return p + n;
 }
 
-static const char HEX[] = "0123456789abcdef";
 
 char *ms_w_repr_ascii(char *p, const uint8_t *s, size_t n) {
     while (n && s[n - 1] == 0)
@@ -385,14 +437,14 @@ static inline double float_at(unsigned type, const uint8_t *v) {
     return d;
 }
 
-static const ms_enum_entry *lookup(const ms_sitem *it, int64_t value, int sgn) {
-    size_t lo = 0, hi = it->nentries;
+static const ms_enum_entry *lookup(const ms_enum_entry *entries, uint32_t count, int64_t value, int sgn) {
+    size_t lo = 0, hi = count;
     while (lo < hi) {
         size_t mid = lo + (hi - lo) / 2;
-        const uint64_t ev = it->entries[mid].value;
+        const uint64_t ev = entries[mid].value;
         int less = sgn ? (int64_t)ev < value : ev < (uint64_t)value;
         if (ev == (uint64_t)value)
-            return &it->entries[mid];
+            return &entries[mid];
         if (less)
             lo = mid + 1;
         else
@@ -418,7 +470,7 @@ static char *w_item(char *p, const ms_sitem *it, const ms_field *f, const uint8_
     const int64_t x = int_at(type, v);
     const int sgn = is_signed_type(type);
     if (it->how == MS_HOW_ENUM) {
-        const ms_enum_entry *e = lookup(it, x, sgn);
+        const ms_enum_entry *e = lookup(it->entries, it->nentries, x, sgn);
         if (e != NULL && e->name_len) {
             memcpy(p, e->name, e->name_len);
             return p + e->name_len;
@@ -427,6 +479,73 @@ static char *w_item(char *p, const ms_sitem *it, const ms_field *f, const uint8_
         return ms_w_degrees(p, x, !sgn);
     }
     return sgn ? ms_w_i64(p, x) : ms_w_u64(p, (uint64_t)x);
+}
+
+enum { NAMED = 1, UNNAMED = 0, PYTHON = -1 };
+
+/* semantics.command_param_name(dialect, command, 1, param1) for a command message's param1: NAMED
+ * (*cmd the command, *n the whole value: an entry's name, or with MS_CMD_BITS the names of its bits),
+ * UNNAMED (the value is shown), or PYTHON (an infinite param1, on which Python raises; a negative value
+ * for bits) */
+static int param1_name(const ms_smessage *sm, const ms_message *m, const uint8_t *padded, const ms_command **cmd,
+                       int64_t *n) {
+    const double v = float_at(MS_T_F32, padded + m->fields[sm->param1].offset);
+    if (isinf(v))
+        return PYTHON;
+    if (v != v || v != trunc(v) || !(fabs(v) < 9.2e18))
+        return UNNAMED; /* NaN, not whole; or too large for any name */
+    const ms_field *cf = &m->fields[sm->command];
+    const int64_t command = int_at(cf->type & 0x7F, padded + cf->offset);
+    size_t lo = 0, hi = sm->ncommands;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        const ms_command *c = &sm->commands[mid];
+        if ((int64_t)c->value == command) {
+            *cmd = c;
+            *n = (int64_t)v;
+            if (c->flags & MS_CMD_PYTHON)
+                return PYTHON;
+            if (c->flags & MS_CMD_BITS)
+                return *n < 0 ? PYTHON : *n > 0 ? NAMED : UNNAMED; /* flags_of(0) is empty: None */
+            return lookup(c->entries, c->nentries, *n, 1) != NULL ? NAMED : UNNAMED;
+        }
+        if ((int64_t)c->value < command)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return UNNAMED;
+}
+
+/* Dialect enum flags_of(n) joined by " | ": the names of the entries whose bits n holds, the rest in hex */
+static char *w_flags(char *p, const ms_command *cmd, uint64_t n) {
+    uint64_t rest = n;
+    const char *sep = "";
+    for (uint32_t i = 0; i < cmd->nentries; i++) {
+        const uint64_t bits = cmd->entries[i].value;
+        if (bits && (n & bits) == bits) {
+            memcpy(p, sep, strlen(sep));
+            p += strlen(sep);
+            memcpy(p, cmd->entries[i].name, cmd->entries[i].name_len);
+            p += cmd->entries[i].name_len;
+            rest &= ~bits;
+            sep = " | ";
+        }
+    }
+    if (rest) {
+        char hex[17];
+        int k = 16;
+        while (rest) {
+            hex[--k] = HEX[rest & 15];
+            rest >>= 4;
+        }
+        memcpy(p, sep, strlen(sep));
+        p += strlen(sep);
+        p = MS_W_LIT(p, "0x");
+        memcpy(p, hex + k, (size_t)(16 - k));
+        p += 16 - k;
+    }
+    return p;
 }
 
 #define LINE_HEAD_MAX 96 /* "12.3" (up to 41 bytes), "255/255 v2 seq 255 " and the newline */
@@ -480,11 +599,29 @@ int ms_write_summary(const ms_summary *s, ms_buf *out, uint64_t number, const ch
             len = m->length; /* never: the scan hands longer payloads back */
         memcpy(padded, f + hlen, len);
         memset(padded + len, 0, (size_t)m->length - len);
+        const ms_command *cmd = NULL;
+        int64_t whole = 0;
+        int named = UNNAMED;
+        if (sm->param1 != MS_NO_FIELD) {
+            named = param1_name(sm, m, padded, &cmd, &whole);
+            if (named == PYTHON)
+                return 1;
+        }
         for (size_t k = 0; k < sm->nitems; k++) {
             const ms_sitem *it = &sm->items[k];
             *p++ = ' ';
             memcpy(p, it->label, it->label_len);
             p += it->label_len;
+            if (named == NAMED && it->field == sm->param1) {
+                if (cmd->flags & MS_CMD_BITS) {
+                    p = w_flags(p, cmd, (uint64_t)whole);
+                } else {
+                    const ms_enum_entry *e = lookup(cmd->entries, cmd->nentries, whole, 1);
+                    memcpy(p, e->name, e->name_len);
+                    p += e->name_len;
+                }
+                continue;
+            }
             p = w_item(p, it, &m->fields[it->field], padded);
             if (p == NULL)
                 return 1;

@@ -6,6 +6,11 @@
  *
  *   "MSSM", u32 version (1), u32 message count (= the layout table's, in its order), then per message:
  *   u32 msgid, u8 flags (bit 0: Python only), u8 item count, u16 name length, the name (UTF-8);
+ *   u16 param1 field index (0xFFFF: none; a command message's param1, named after its command's <param>
+ *   and never infinite, as semantics.command_param_name requires), u16 command field index, u32 command
+ *   count, per command (sorted by value): u32 value, u8 flags (MS_CMD_*: Python names it; bits), u32
+ *   entry count and entries (as below, sorted as signed values: the whole number param1 holds -> its
+ *   name, or the names of the bits it holds, as Enum.flags_of);
  *   per item: u16 field index (into the layout table's fields), u8 how (MS_HOW_*), u8 label length, the
  *   label ("name="), u32 entry count, then per entry (an enum's names, sorted by value as the field's
  *   type compares: signed or unsigned): u64 value, u8 name length, the name.
@@ -38,8 +43,23 @@ typedef struct {
     ms_enum_entry *entries;
 } ms_sitem;
 
+enum { MS_CMD_PYTHON = 1, MS_CMD_BITS = 2 };
+
+typedef struct {
+    uint32_t value;
+    uint8_t flags; /* MS_CMD_PYTHON: Python names param1; MS_CMD_BITS: the entries are bits (flags_of) */
+    uint32_t nentries;
+    ms_enum_entry *entries;
+} ms_command;
+
+#define MS_NO_FIELD 0xFFFF
+
 typedef struct {
     uint8_t python_only;
+    uint16_t param1;  /* field index, or MS_NO_FIELD */
+    uint16_t command; /* field index (with param1) */
+    uint32_t ncommands;
+    ms_command *commands;
     uint8_t nitems;
     uint16_t name_len;
     const char *name;
