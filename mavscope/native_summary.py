@@ -137,13 +137,13 @@ def _message_entry(md: MessageDef, dialect: Dialect, commands: Callable[[], byte
             continue
         code = how if scalar_int and how in (ENUM, DEGREES) else PLAIN
         items.append(struct.pack("<HBB", i, code, len(label)) + label + entries)
-    name = _text(md.name)
-    if name is None or len(items) > 255:
-        python_only, name = True, b"?"
+    title = _text(md.name)
+    if title is None or len(items) > 255:
+        python_only, title = True, b"?"
     param1 = _param1(md, dialect, commands)
     if python_only or param1 is None:
         python_only, items, param1 = True, [], _NO_PARAM1
-    return (struct.pack("<IBBH", md.id, int(python_only), len(items), len(name)) + name + param1
+    return (struct.pack("<IBBH", md.id, int(python_only), len(items), len(title)) + title + param1
             + b"".join(items))
 
 

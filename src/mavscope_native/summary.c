@@ -492,8 +492,9 @@ static int param1_name(const ms_smessage *sm, const ms_message *m, const uint8_t
     const double v = float_at(MS_T_F32, padded + m->fields[sm->param1].offset);
     if (isinf(v))
         return PYTHON;
-    if (v != v || v != trunc(v) || !(fabs(v) < 9.2e18))
-        return UNNAMED; /* NaN, not whole; or too large for any name */
+    if (v != v || v != trunc(v))
+        return UNNAMED; /* NaN, not whole */
+    const int in_range = fabs(v) < 9.2e18; /* else no entry's value; Python's flags_of shows it in hex */
     const ms_field *cf = &m->fields[sm->command];
     const int64_t command = int_at(cf->type & 0x7F, padded + cf->offset);
     size_t lo = 0, hi = sm->ncommands;
@@ -502,11 +503,13 @@ static int param1_name(const ms_smessage *sm, const ms_message *m, const uint8_t
         const ms_command *c = &sm->commands[mid];
         if ((int64_t)c->value == command) {
             *cmd = c;
-            *n = (int64_t)v;
             if (c->flags & MS_CMD_PYTHON)
                 return PYTHON;
-            if (c->flags & MS_CMD_BITS)
-                return *n < 0 ? PYTHON : *n > 0 ? NAMED : UNNAMED; /* flags_of(0) is empty: None */
+            if (c->flags & MS_CMD_BITS) /* flags_of(0) is empty: None; negative or huge values: Python */
+                return !in_range || v < 0 ? PYTHON : v > 0 ? (*n = (int64_t)v, NAMED) : UNNAMED;
+            if (!in_range)
+                return UNNAMED;
+            *n = (int64_t)v;
             return lookup(c->entries, c->nentries, *n, 1) != NULL ? NAMED : UNNAMED;
         }
         if ((int64_t)c->value < command)
