@@ -1,5 +1,7 @@
 #include "summary.h"
 
+#include "blob.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -13,26 +15,8 @@
 
 static const char HEX[] = "0123456789abcdef";
 
-typedef struct {
-    const uint8_t *p;
-    const uint8_t *end;
-    int bad;
-} cursor;
-
-static uint64_t take(cursor *c, size_t n) {
-    if (c->bad || (size_t)(c->end - c->p) < n) {
-        c->bad = 1;
-        return 0;
-    }
-    uint64_t v = 0;
-    for (size_t i = 0; i < n; i++)
-        v |= (uint64_t)c->p[i] << (8 * i);
-    c->p += n;
-    return v;
-}
-
 /* n bytes of text (no newline in it), or NULL (and `bad`) */
-static const char *take_text(cursor *c, size_t n) {
+static const char *take_text(ms_cursor *c, size_t n) {
     if (c->bad || (size_t)(c->end - c->p) < n || memchr(c->p, '\n', n) != NULL) {
         c->bad = 1;
         return NULL;
@@ -47,7 +31,7 @@ static int is_signed_type(unsigned type) {
 }
 
 /* n entries, strictly sorted (signed or unsigned); their longest name in *longest. 0, or -1 when bad. */
-static int take_entries(cursor *c, ms_enum_entry **out, uint64_t n, int sgn, size_t *longest) {
+static int take_entries(ms_cursor *c, ms_enum_entry **out, uint64_t n, int sgn, size_t *longest) {
     if (n > MAX_ENTRIES)
         return -1;
     ms_enum_entry *v = calloc(n ? n : 1, sizeof *v);
@@ -55,8 +39,8 @@ static int take_entries(cursor *c, ms_enum_entry **out, uint64_t n, int sgn, siz
     if (v == NULL)
         return -1;
     for (uint64_t e = 0; e < n; e++) {
-        v[e].value = take(c, 8);
-        v[e].name_len = (uint8_t)take(c, 1);
+        v[e].value = ms_take(c, 8);
+        v[e].name_len = (uint8_t)ms_take(c, 1);
         v[e].name = take_text(c, v[e].name_len);
         if (c->bad)
             return -1;
@@ -96,8 +80,8 @@ int ms_summary_parse(ms_summary *s, const ms_table *t, const uint8_t *blob, size
     if (s->blob == NULL)
         return -1;
     memcpy(s->blob, blob, len);
-    cursor c = {s->blob + 4, s->blob + len, 0};
-    if (take(&c, 4) != 1 || take(&c, 4) != t->count)
+    ms_cursor c = {s->blob + 4, s->blob + len, 0};
+    if (ms_take(&c, 4) != 1 || ms_take(&c, 4) != t->count)
         goto fail;
     s->messages = calloc(t->count ? t->count : 1, sizeof *s->messages);
     if (s->messages == NULL)
@@ -106,17 +90,17 @@ int ms_summary_parse(ms_summary *s, const ms_table *t, const uint8_t *blob, size
     for (size_t i = 0; i < t->count; i++) {
         const ms_message *tm = &t->messages[i];
         ms_smessage *m = &s->messages[i];
-        if (take(&c, 4) != tm->msgid)
+        if (ms_take(&c, 4) != tm->msgid)
             goto fail;
-        m->python_only = (uint8_t)(take(&c, 1) & 1);
-        m->nitems = (uint8_t)take(&c, 1);
-        m->name_len = (uint16_t)take(&c, 2);
+        m->python_only = (uint8_t)(ms_take(&c, 1) & 1);
+        m->nitems = (uint8_t)ms_take(&c, 1);
+        m->name_len = (uint16_t)ms_take(&c, 2);
         m->name = take_text(&c, m->name_len);
         if (c.bad)
             goto fail;
-        m->param1 = (uint16_t)take(&c, 2);
-        m->command = (uint16_t)take(&c, 2);
-        uint64_t ncommands = take(&c, 4);
+        m->param1 = (uint16_t)ms_take(&c, 2);
+        m->command = (uint16_t)ms_take(&c, 2);
+        uint64_t ncommands = ms_take(&c, 4);
         if (c.bad || ncommands > MAX_ENTRIES)
             goto fail;
         if (m->param1 != MS_NO_FIELD) {
@@ -134,9 +118,9 @@ int ms_summary_parse(ms_summary *s, const ms_table *t, const uint8_t *blob, size
         size_t longest = 0;
         for (uint32_t k = 0; k < ncommands; k++) {
             ms_command *cmd = &m->commands[k];
-            cmd->value = (uint32_t)take(&c, 4);
-            cmd->flags = (uint8_t)(take(&c, 1) & (MS_CMD_PYTHON | MS_CMD_BITS));
-            uint64_t n = take(&c, 4);
+            cmd->value = (uint32_t)ms_take(&c, 4);
+            cmd->flags = (uint8_t)(ms_take(&c, 1) & (MS_CMD_PYTHON | MS_CMD_BITS));
+            uint64_t n = ms_take(&c, 4);
             if (c.bad || (k && cmd->value <= m->commands[k - 1].value))
                 goto fail;
             cmd->nentries = (uint32_t)n;
@@ -160,11 +144,11 @@ int ms_summary_parse(ms_summary *s, const ms_table *t, const uint8_t *blob, size
         m->info_max = (size_t)m->name_len + 32 + longest; /* " [signed link 255]", a named param1 */
         for (size_t k = 0; k < m->nitems; k++) {
             ms_sitem *it = &m->items[k];
-            it->field = (uint16_t)take(&c, 2);
-            it->how = (uint8_t)take(&c, 1);
-            it->label_len = (uint8_t)take(&c, 1);
+            it->field = (uint16_t)ms_take(&c, 2);
+            it->how = (uint8_t)ms_take(&c, 1);
+            it->label_len = (uint8_t)ms_take(&c, 1);
             it->label = take_text(&c, it->label_len);
-            uint64_t n = take(&c, 4);
+            uint64_t n = ms_take(&c, 4);
             if (c.bad || it->field >= tm->nfields || it->how > MS_HOW_DEGREES || n > MAX_ENTRIES)
                 goto fail;
             const ms_field *f = &tm->fields[it->field];
@@ -278,6 +262,21 @@ char *ms_w_g4(char *p, double v) {
     return p + nd;
 }
 
+/* n / 10**digits with exactly `digits` decimals (digits <= 9) */
+static char *w_fixed(char *p, uint64_t n, int digits) {
+    uint32_t scale = 1;
+    for (int i = 0; i < digits; i++)
+        scale *= 10;
+    p = ms_w_u64(p, n / scale);
+    *p++ = '.';
+    uint32_t frac = (uint32_t)(n % scale);
+    for (int i = digits - 1; i >= 0; i--) {
+        p[i] = (char)('0' + frac % 10);
+        frac /= 10;
+    }
+    return p + digits;
+}
+
 char *ms_w_degrees(char *p, int64_t v, int is_unsigned) {
     const uint64_t u = (uint64_t)v;
     const int neg = !is_unsigned && v < 0;
@@ -290,14 +289,7 @@ char *ms_w_degrees(char *p, int64_t v, int is_unsigned) {
     /* |v| < 2**40: the double nearest v / 1e7 is within 1e-11 of it, so its 7 decimals are v's digits */
     if (neg)
         *p++ = '-';
-    p = ms_w_u64(p, mag / 10000000u);
-    *p++ = '.';
-    uint32_t frac = (uint32_t)(mag % 10000000u);
-    for (int i = 6; i >= 0; i--) {
-        p[i] = (char)('0' + frac % 10);
-        frac /= 10;
-    }
-    return p + 7;
+    return w_fixed(p, mag, 7);
 }
 
 char *ms_w_reltime(char *p, double t) {
@@ -313,17 +305,9 @@ char *ms_w_reltime(char *p, double t) {
         double fl = floor(scaled);
         double frac = scaled - fl;
         if (fabs(frac - 0.5) > 0.002) {
-            uint64_t n = (uint64_t)fl + (frac > 0.5);
             if (neg)
                 *q++ = '-';
-            q = ms_w_u64(q, n / 1000000u);
-            *q++ = '.';
-            uint32_t f = (uint32_t)(n % 1000000u);
-            for (int i = 5; i >= 0; i--) {
-                q[i] = (char)('0' + f % 10);
-                f /= 10;
-            }
-            q += 6;
+            q = w_fixed(q, (uint64_t)fl + (frac > 0.5), 6);
             fast = 1;
         }
     }

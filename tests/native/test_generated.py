@@ -249,8 +249,13 @@ def test_stream_frames_at_the_end_take_the_last_record_walked_natively() -> None
     check(TRAILING_EMPTY_RECORD, "none")
 
 
+# arbitrary bytes (a tail) behind a pcap or pcapng magic, or alone (a head)
+DAMAGED_FILES = (st.binary(max_size=600),
+                 st.sampled_from([b"\xd4\xc3\xb2\xa1\x02\x00\x04\x00", b"\x0a\x0d\x0d\x0a", b""]))
+
+
 @settings(SETTINGS, max_examples=max(SETTINGS.max_examples // 3, 10))
-@given(st.binary(max_size=600), st.sampled_from([b"\xd4\xc3\xb2\xa1\x02\x00\x04\x00", b"\x0a\x0d\x0d\x0a", b""]))
+@given(*DAMAGED_FILES)
 def test_arbitrary_bytes_are_identical(tail: bytes, head: bytes) -> None:
     """Damaged files: whatever the readers make of them, both engines make the same."""
     check(head + tail, "none")
