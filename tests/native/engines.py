@@ -10,7 +10,10 @@ mavscope.native.write_jsonl.
 from __future__ import annotations
 
 import io
-from collections.abc import Callable
+import os
+import tempfile
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from mavscope.capture.detect import open_capture
@@ -47,6 +50,18 @@ def same(cli: Cli, path: str | Path, *extra: str, fmt: tuple[str, ...] = ("-T", 
     assert n.out == p.out
     assert n.status == p.status
     return n
+
+
+@contextmanager
+def capture_file(data: bytes) -> Iterator[str]:
+    """`data` in a temporary file, deleted afterwards: its path."""
+    fd, path = tempfile.mkstemp(suffix=".cap")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        yield path
+    finally:
+        os.unlink(path)
 
 
 def material(kind: str) -> KeyMaterial:

@@ -12,19 +12,17 @@ must be equal; where the pure path raises (see `check`), the native one must rai
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from pathlib import Path
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from tests.conftest import CAPTURES, Cli
 from tests.native import build as nh
 from tests.native.engines import KEY_OPTIONS as CLI_KEYS
-from tests.native.engines import native_summary_output, pure_output, same, summary_render
-from tests.native.test_generated import DAMAGED_FILES, DIALECT, SETTINGS, capture, frame
+from tests.native.engines import capture_file, native_summary_output, pure_output, same, summary_render
+from tests.native.test_generated import CLI_KEY_CHOICES, DAMAGED_FILES, DIALECT, FEWER, FEWEST, SETTINGS, capture, frame
 from tests.native.test_identity import KEY_OPTIONS, real_names
 
 pytest.importorskip("mavscope._native", reason="the native extension is not built (no compiler at install)")
@@ -67,10 +65,7 @@ def check(data: bytes, keys: str, count: int | None = None) -> None:
     """Both engines on `data` through the API (and with a 64-byte read window): equal stdout and stderr.
     The pure path raises OverflowError on a command message whose param1 is infinite (summary_info ->
     command_param_name -> int(inf)); the native path hands those records back, so it raises the same."""
-    fd, path = tempfile.mkstemp(suffix=".cap")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
+    with capture_file(data) as path:
         try:
             expected: tuple[bytes, str] | type[BaseException] = pure_output(
                 path, DIALECT, keys, render=summary_render(path, DIALECT), count=count)
@@ -82,8 +77,6 @@ def check(data: bytes, keys: str, count: int | None = None) -> None:
             else:
                 with pytest.raises(expected):
                     native_summary_output(path, DIALECT, keys, window=window, count=count)
-    finally:
-        os.unlink(path)
 
 
 @SETTINGS
@@ -92,37 +85,32 @@ def test_generated_capture_is_identical(data: bytes, keys: str) -> None:
     check(data, keys)
 
 
-@settings(SETTINGS, max_examples=max(SETTINGS.max_examples // 3, 10))
+@FEWER
 @given(capture(), st.integers(1, 12))
 def test_generated_capture_with_a_count(data: bytes, count: int) -> None:
     check(data, "none", count)
 
 
-@settings(SETTINGS, max_examples=max(SETTINGS.max_examples // 3, 10))
+@FEWER
 @given(*DAMAGED_FILES)
 def test_arbitrary_bytes_are_identical(tail: bytes, head: bytes) -> None:
     check(head + tail, "none")
 
 
-@settings(SETTINGS, max_examples=max(SETTINGS.max_examples // 15, 5))
-@given(capture(), st.sampled_from(["none", "key", "leaked"]))
+@FEWEST
+@given(capture(), CLI_KEY_CHOICES)
 def test_generated_capture_through_the_command_line(data: bytes, keys: str) -> None:
     """The whole command: key options, problems on stderr, the no-frames line, exit status."""
-    fd, path = tempfile.mkstemp(suffix=".cap")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
+    with capture_file(data) as path:
         cli = Cli()
         try:
             same(cli, path, *CLI_KEYS[keys], fmt=SUMMARY)
         except OverflowError:  # the pure path's (see check): the native one raised it first, as it must
             with pytest.raises(OverflowError):
                 cli("read", path, *CLI_KEYS[keys], environ={"MAVSCOPE_PURE": "1"})
-    finally:
-        os.unlink(path)
 
 
-@settings(SETTINGS, max_examples=max(SETTINGS.max_examples // 3, 10))
+@FEWER
 @given(st.lists(st.one_of(frame(), st.binary(min_size=1, max_size=12).filter(lambda b: b[0] not in (0xFD, 0xFE))),
                 min_size=1, max_size=12))
 def test_tlog_with_text_runs(entries: list[bytes]) -> None:
