@@ -1,14 +1,16 @@
 #!/usr/bin/env python3
-"""Whole-process `mavscope read -T jsonl`: the native engine against the pure-Python path.
+"""Whole-process `mavscope read -T jsonl` (or the summary lines of `mavscope read`): native against pure.
 
-    benchmarks/native_jsonl.py [--repeat N] [--out DIR] [--skip-pure] [--skip-baseline] [--tlog-copies N]
+    benchmarks/native_jsonl.py [--format jsonl|summary] [--repeat N] [--out DIR] [--skip-pure]
+                               [--skip-baseline] [--tlog-copies N]
 
 Captures (generated once and cached in DIR, default benchmarks/out/, git-ignored):
 - the 1M-frame bench capture of bench_read.py (Ethernet/IPv4/UDP, 25% signed frames from two senders);
 - a real tlog concatenated to about 1M frames: ../shared/real-captures/ardusub_log_tools_small.tlog
   repeated --tlog-copies times (28 by default; a tlog is just concatenated entries). Skipped when absent.
 
-Every figure is a fresh process (`mavscope read FILE -T jsonl`, start-up and dialect load included),
+Every figure is a fresh process (`mavscope read FILE -T jsonl`, or `mavscope read FILE` with
+`--format summary`; start-up and dialect load included),
 stdout to /dev/null and to a real file in DIR (deleted before each run), best of --repeat for the native
 engine (the pure path: one run). Frames are counted from the output. The pymavlink baseline is
 benchmarks/baselines.py's `struct` (mmap+struct pcap loop, parse_buffer, json.dumps(to_dict())), one run.
@@ -33,6 +35,7 @@ from bench_capture import capture  # noqa: E402 - the bench capture's generator 
 MAVSCOPE = str(Path(sys.executable).with_name("mavscope"))
 REAL_TLOG = ROOT.parent / "shared" / "real-captures" / "ardusub_log_tools_small.tlog"
 CHILD_ENV = {k: v for k, v in os.environ.items() if k not in ("PYTHONUNBUFFERED", "MAVSCOPE_PURE")}
+FORMATS = {"jsonl": ["-T", "jsonl"], "summary": []}  # the output options of each format
 
 
 def tlog_capture(out: Path, copies: int) -> Path | None:
@@ -49,8 +52,8 @@ def tlog_capture(out: Path, copies: int) -> Path | None:
     return path
 
 
-def run(capture: Path, pure: bool, target: str) -> float:
-    """Seconds of one `mavscope read capture -T jsonl` to `target` ("null" or a file path)."""
+def run(capture: Path, pure: bool, target: str, fmt: str = "jsonl") -> float:
+    """Seconds of one `mavscope read capture` in format `fmt` to `target` ("null" or a file path)."""
     env = dict(CHILD_ENV)
     if pure:
         env["MAVSCOPE_PURE"] = "1"
@@ -59,15 +62,15 @@ def run(capture: Path, pure: bool, target: str) -> float:
         time.sleep(0.2)  # let the file system settle the freed blocks outside the timed run
     with open(os.devnull if target == "null" else target, "wb") as out:
         t0 = time.perf_counter()
-        subprocess.run([MAVSCOPE, "read", str(capture), "-T", "jsonl"], stdout=out, env=env, check=True)
+        subprocess.run([MAVSCOPE, "read", str(capture), *FORMATS[fmt]], stdout=out, env=env, check=True)
         return time.perf_counter() - t0
 
 
-def count_lines(capture: Path, pure: bool = False) -> int:
+def count_lines(capture: Path, pure: bool = False, fmt: str = "jsonl") -> int:
     env = dict(CHILD_ENV)
     if pure:
         env["MAVSCOPE_PURE"] = "1"
-    proc = subprocess.Popen([MAVSCOPE, "read", str(capture), "-T", "jsonl"], stdout=subprocess.PIPE, env=env)
+    proc = subprocess.Popen([MAVSCOPE, "read", str(capture), *FORMATS[fmt]], stdout=subprocess.PIPE, env=env)
     assert proc.stdout is not None
     n = 0
     while chunk := proc.stdout.read(1 << 20):
@@ -78,6 +81,8 @@ def count_lines(capture: Path, pure: bool = False) -> int:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--format", choices=sorted(FORMATS), default="jsonl",
+                    help="the output: JSON Lines (-T jsonl) or the summary lines (default jsonl)")
     ap.add_argument("--repeat", type=int, default=5, help="runs of the native engine per figure (best kept)")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "out")
     ap.add_argument("--skip-pure", action="store_true", help="skip the pure-Python path (about 12 s a run)")
@@ -91,21 +96,21 @@ def main() -> int:
     if tlog is not None:
         captures.append((f"{REAL_TLOG.name} x{args.tlog_copies}", tlog))
     version = subprocess.run([MAVSCOPE, "--version"], capture_output=True, text=True, env=CHILD_ENV).stdout.strip()
-    print(f"{version}; {platform.python_version()}; {os.cpu_count()} CPUs; load average before "
-          f"{os.getloadavg()[0]:.2f}")
+    print(f"{version}; {platform.python_version()}; {os.cpu_count()} CPUs; format {args.format}; load average "
+          f"before {os.getloadavg()[0]:.2f}")
     print()
     print("| capture | engine | output | seconds (best) | frames/s |")
     print("|---|---|---|---:|---:|")
     results: dict[tuple[str, str, str], float] = {}
     for label, path in captures:
-        frames = count_lines(path)
-        target_file = str(args.out / "native_jsonl.out")
+        frames = count_lines(path, fmt=args.format)
+        target_file = str(args.out / f"native_{args.format}.out")
         for engine in ("native", "pure-python"):
             if engine == "pure-python" and args.skip_pure:
                 continue
             repeat = args.repeat if engine == "native" else 1
             for target in ("null", target_file):
-                best = min(run(path, engine == "pure-python", target) for _ in range(repeat))
+                best = min(run(path, engine == "pure-python", target, args.format) for _ in range(repeat))
                 results[(label, engine, target)] = best
                 where = "/dev/null" if target == "null" else "file"
                 print(f"| {label} ({frames:,} frames) | {engine} | {where} | {best:.2f} | {frames / best:,.0f} |",
@@ -120,7 +125,7 @@ def main() -> int:
         frames = truth["frames"]
         print()
         print(f"pymavlink baseline on the bench pcap: {base:.2f} s, {frames / base:,.0f} frames/s")
-        for target, where in (("null", "/dev/null"), (str(args.out / "native_jsonl.out"), "file")):
+        for target, where in (("null", "/dev/null"), (str(args.out / f"native_{args.format}.out"), "file")):
             nat = results.get((captures[0][0], "native", target))
             if nat:
                 print(f"native to {where}: {base / nat:.1f}x the pymavlink baseline")

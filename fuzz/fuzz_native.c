@@ -14,6 +14,12 @@
  * number and string writers also run directly on the input's bytes, into buffers of exactly the room
  * they claim (MS_DOUBLE_MAX, ms_text_max), so a write past it is a heap overflow for ASan.
  *
+ * Every input is then walked a second time by the summary writer (summary.c: the lines of `read FILE`,
+ * with the summary table of $MAVSCOPE_FUZZ_SUMMARY and a t0 picked by the input's length: none, the
+ * capture's era, 0, or NaN); each line must end in one newline and hold printable ASCII and the route's
+ * arrow only. The summary number and string writers (ms_w_g4, ms_w_degrees, ms_w_reltime,
+ * ms_w_repr_ascii) run on the input's bytes into buffers of exactly their claimed room too.
+ *
  * Build and run: scripts/fuzz-native.sh SECONDS (docs/native.md). The message table comes from
  * mavscope's default dialect, written by the script to the file named in $MAVSCOPE_FUZZ_TABLE. */
 #include <stdio.h>
@@ -22,12 +28,312 @@
 
 #include "capture.h"
 #include "fmt.h"
+#include "summary.h"
 #include "table.h"
 #include "walk.h"
 
 static ms_table table;
+static ms_summary summary;
 
 int LLVMFuzzerInitialize(int *argc, char ***argv);
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+int LLVMFuzzerInitialize(int *argc, char ***argv) {
+    (void)argc;
+    (void)argv;
+    const char *path = getenv("MAVSCOPE_FUZZ_TABLE");
+    if (path == NULL) {
+        fprintf(stderr, "fuzz_native: set MAVSCOPE_FUZZ_TABLE to the table blob (scripts/fuzz-native.sh)\n");
+        abort();
+    }
+    FILE *f = fopen(path, "rb");
+    if (f == NULL) {
+        perror(path);
+        abort();
+    }
+    static uint8_t blob[1 << 20];
+    size_t n = fread(blob, 1, sizeof blob, f);
+    fclose(f);
+    if (ms_table_parse(&table, blob, n) != 0) {
+        fprintf(stderr, "fuzz_native: %s is not a table blob\n", path);
+        abort();
+    }
+    const char *spath = getenv("MAVSCOPE_FUZZ_SUMMARY");
+    if (spath == NULL) {
+        fprintf(stderr, "fuzz_native: set MAVSCOPE_FUZZ_SUMMARY to the summary blob (scripts/fuzz-native.sh)\n");
+        abort();
+    }
+    f = fopen(spath, "rb");
+    if (f == NULL) {
+        perror(spath);
+        abort();
+    }
+    n = fread(blob, 1, sizeof blob, f);
+    fclose(f);
+    if (ms_summary_parse(&summary, &table, blob, n) != 0) {
+        fprintf(stderr, "fuzz_native: %s is not a summary blob of this table\n", spath);
+        abort();
+    }
+    return 0;
+}
+
+/* A JSON value at *p (end e); depth-limited recursive descent, returns 0 when malformed. */
+static int json_value(const char **p, const char *e, int depth);
+
+static int json_string(const char **p, const char *e) {
+    const char *s = *p;
+    if (s >= e || *s != '"')
+        return 0;
+    s++;
+    while (s < e && *s != '"') {
+        unsigned char c = (unsigned char)*s;
+        if (c < 0x20)
+            return 0;
+        if (c == '\\') {
+            s++;
+            if (s >= e)
+                return 0;
+            if (*s == 'u') {
+                if (e - s < 5)
+                    return 0;
+                for (int i = 1; i <= 4; i++)
+                    if (!strchr("0123456789abcdef", s[i]) || s[i] == '\0')
+                        return 0;
+                s += 4;
+            } else if (!strchr("\"\\/bfnrt", *s) || *s == '\0') {
+                return 0;
+            }
+        }
+        s++;
+    }
+    if (s >= e)
+        return 0;
+    *p = s + 1;
+    return 1;
+}
+
+static int json_number(const char **p, const char *e) {
+    const char *s = *p;
+    if (s < e && *s == '-')
+        s++;
+    const char *d = s;
+    while (s < e && *s >= '0' && *s <= '9')
+        s++;
+    if (s == d || (s - d > 1 && *d == '0'))
+        return 0;
+    if (s < e && *s == '.') {
+        s++;
+        d = s;
+        while (s < e && *s >= '0' && *s <= '9')
+            s++;
+        if (s == d)
+            return 0;
+    }
+    if (s < e && (*s == 'e' || *s == 'E')) {
+        s++;
+        if (s < e && (*s == '+' || *s == '-'))
+            s++;
+        d = s;
+        while (s < e && *s >= '0' && *s <= '9')
+            s++;
+        if (s == d)
+            return 0;
+    }
+    *p = s;
+    return 1;
+}
+
+static int json_value(const char **p, const char *e, int depth) {
+    const char *s = *p;
+    if (s >= e || depth > 8)
+        return 0;
+    if (*s == '{' || *s == '[') {
+        const char close = *s == '{' ? '}' : ']';
+        s++;
+        if (s < e && *s == close) {
+            *p = s + 1;
+            return 1;
+        }
+        for (;;) {
+            if (close == '}') {
+                if (!json_string(&s, e) || s >= e || *s != ':')
+                    return 0;
+                s++;
+            }
+            if (!json_value(&s, e, depth + 1) || s >= e)
+                return 0;
+            if (*s == close) {
+                *p = s + 1;
+                return 1;
+            }
+            if (*s != ',')
+                return 0;
+            s++;
+        }
+    }
+    if (*s == '"')
+        return json_string(p, e);
+    if ((size_t)(e - s) >= 4 && memcmp(s, "null", 4) == 0) {
+        *p = s + 4;
+        return 1;
+    }
+    return json_number(p, e);
+}
+
+static void check_lines(const char *text, size_t len) {
+    if (len == 0)
+        return;
+    const char *p = text, *e = text + len;
+    while (p < e) {
+        const char *nl = memchr(p, '\n', (size_t)(e - p));
+        if (nl == NULL || *p != '{')
+            abort();
+        const char *q = p;
+        if (!json_value(&q, nl, 0) || q != nl)
+            abort(); /* a malformed JSON line */
+        p = nl + 1;
+    }
+}
+
+/* ms_w_double on doubles and widened floats from the input, ms_w_text on a piece of it, each into a
+ * heap buffer of exactly the room it claims */
+static void check_writers(const uint8_t *data, size_t size) {
+    char *room = malloc(MS_DOUBLE_MAX);
+    if (room == NULL)
+        return;
+    for (size_t i = 0; i + 8 <= size && i < 512; i += 8) {
+        uint64_t bits;
+        memcpy(&bits, data + i, 8);
+        double d;
+        memcpy(&d, &bits, 8);
+        char *end = ms_w_double(room, d);
+        if (end <= room || end > room + 24)
+            abort(); /* no double text is longer than 24 bytes */
+        float f;
+        memcpy(&f, data + i, 4);
+        end = ms_w_double(room, (double)f);
+        if (end <= room || end > room + 24)
+            abort();
+    }
+    free(room);
+    size_t n = size < 256 ? size : 256;
+    char *text = malloc(ms_text_max(n));
+    if (text == NULL)
+        return;
+    char *end = ms_w_text(text, data, n);
+    if (end - text < 2 || text[0] != '"' || end[-1] != '"')
+        abort();
+    const char *q = text;
+    if (!json_value(&q, end, 0) || q != end)
+        abort();
+    free(text);
+}
+
+
+/* Summary lines: each ends in its one newline; printable ASCII and the arrow (E2 86 92) only. */
+static void check_summary_lines(const char *text, size_t len) {
+    if (len && text[len - 1] != '\n')
+        abort();
+    for (size_t i = 0; i < len; i++) {
+        const unsigned char c = (unsigned char)text[i];
+        if (c == '\n' || (c >= 0x20 && c < 0x7F))
+            continue;
+        if (c == 0xE2 && i + 2 < len && (unsigned char)text[i + 1] == 0x86 && (unsigned char)text[i + 2] == 0x92) {
+            i += 2;
+            continue;
+        }
+        abort();
+    }
+}
+
+/* The summary formatters on the input's bytes, into buffers of exactly their claimed room. */
+static void check_summary_writers(const uint8_t *data, size_t size) {
+    char *g = malloc(MS_G4_MAX), *deg = malloc(MS_DEG_MAX), *rel = malloc(MS_REL_MAX);
+    if (g == NULL || deg == NULL || rel == NULL)
+        goto done;
+    for (size_t i = 0; i + 8 <= size && i < 256; i += 8) {
+        uint64_t bits;
+        memcpy(&bits, data + i, 8);
+        double d;
+        memcpy(&d, &bits, 8);
+        float f;
+        memcpy(&f, data + i, 4);
+        if (ms_w_g4(g, d) <= g || ms_w_g4(g, (double)f) <= g)
+            abort();
+        if (ms_w_degrees(deg, (int64_t)bits, (int)(bits & 1)) <= deg)
+            abort();
+        (void)ms_w_reltime(rel, d);
+        (void)ms_w_reltime(rel, (double)f);
+    }
+    size_t n = size < 256 ? size : 256;
+    char *r = malloc(4 * n + 2);
+    if (r != NULL) {
+        char *end = ms_w_repr_ascii(r, data, n);
+        if (end != NULL && (end - r < 2 || (r[0] != '\'' && r[0] != '"') || end[-1] != r[0]))
+            abort();
+        free(r);
+    }
+done:
+    free(g);
+    free(deg);
+    free(rel);
+}
+
+/* One walk of the file in `mf` (as JSON Lines, or as summary lines with `sum`), checking what comes out. */
+static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigned sel, unsigned control,
+                      const ms_summary *sum) {
+    ms_walker w;
+    ms_walker_init(&w, ms_memory_source(mf), n, MS_KIND_PCAP + (int)(sel & 3), &table);
+    if (sel & 0x80)
+        w.reader.window = (size_t)64 << (control & 7);
+    w.sign_mode = (sel & 4) ? MS_SIGNED_NOKEY : MS_SIGNED_HANDBACK;
+    w.fuzz_any_crc = (sel & 8) != 0;
+    if (sum != NULL) {
+        static const double T0[4] = {0.0, 1.7e9, 0.0, 0.0};
+        w.summary = sum;
+        w.has_t0 = (n & 3) != 0;
+        w.t0 = (n & 3) == 3 ? __builtin_nan("") : T0[n & 3];
+    }
+    const unsigned preset = (sel >> 4) & 7;
+    ms_buf out;
+    ms_buf_init(&out);
+    for (;;) {
+        if (preset)
+            ms_signer_set(&w, (preset << 8) | 1u); /* a sender seen signing, as Python may add */
+        out.len = 0;
+        ms_record rec;
+        int r = ms_walk(&w, &out, 4096, &rec);
+        if (r == MS_WALK_NOMEM)
+            break;
+        if (sum != NULL)
+            check_summary_lines(out.data, out.len);
+        else
+            check_lines(out.data, out.len);
+        if (r == MS_WALK_HANDBACK) {
+            /* what the glue reads of a handed-back record: its bytes are the file's at its offset */
+            if (rec.len && (rec.offset > n || rec.len > n - rec.offset || memcmp(rec.data, file + rec.offset, rec.len)))
+                abort();
+            volatile unsigned s = 0;
+            for (size_t i = 0; i < rec.notes->n; i++) {
+                const ms_note *note = &rec.notes->v[i];
+                if (note->msg_off + note->msg_len > rec.notes->text.len)
+                    abort();
+                for (size_t k = 0; k < note->msg_len; k++)
+                    s += (unsigned char)rec.notes->text.data[note->msg_off + k];
+            }
+            double t;
+            (void)ms_record_time(&rec, &t);
+            (void)s;
+        }
+        if (r == MS_WALK_END)
+            break;
+        w.n_new_signers = 0;
+        w.n_new_endpoints = 0;
+    }
+    ms_buf_free(&out);
+    ms_walker_free(&w);
+}
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     if (size < 1)
         return 0;
@@ -41,63 +347,26 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
         head = 2;
     }
     check_writers(data + head, size - head);
+    check_summary_writers(data + head, size - head);
     /* an exactly sized copy: a read past the end of the file is a heap overflow for ASan */
     size_t n = size - head;
     uint8_t *file = malloc(n ? n : 1);
     if (file == NULL)
         return 0;
     memcpy(file, data + head, n);
-    ms_memory_file mf = {file, n, 0, 0, 0, 0};
-    if (sel & 0x80) {
-        unsigned k = (control >> 3) & 7;
-        if (k == 7) {
-            mf.fail_at = 2;
-        } else if (k) {
-            mf.shrink_after = k;
-            mf.shrink_to = n * k / 7;
-        }
-    }
-    ms_walker w;
-    ms_walker_init(&w, ms_memory_source(&mf), n, MS_KIND_PCAP + (int)(sel & 3), &table);
-    if (sel & 0x80)
-        w.reader.window = (size_t)64 << (control & 7);
-    w.sign_mode = (sel & 4) ? MS_SIGNED_NOKEY : MS_SIGNED_HANDBACK;
-    w.fuzz_any_crc = (sel & 8) != 0;
-    const unsigned preset = (sel >> 4) & 7;
-    ms_buf out;
-    ms_buf_init(&out);
-    for (;;) {
-        if (preset)
-            ms_signer_set(&w, (preset << 8) | 1u); /* a sender seen signing, as Python may add */
-        out.len = 0;
-        ms_record rec;
-        int r = ms_walk(&w, &out, 4096, &rec);
-        if (r == MS_WALK_NOMEM)
-            break;
-        check_lines(out.data, out.len);
-        if (r == MS_WALK_HANDBACK) {
-            /* what the glue reads of a handed-back record: its bytes are the file's at its offset */
-            if (rec.len && (rec.offset > n || rec.len > n - rec.offset || memcmp(rec.data, file + rec.offset, rec.len)))
-                abort();
-            volatile unsigned sum = 0;
-            for (size_t i = 0; i < rec.notes->n; i++) {
-                const ms_note *note = &rec.notes->v[i];
-                if (note->msg_off + note->msg_len > rec.notes->text.len)
-                    abort();
-                for (size_t k = 0; k < note->msg_len; k++)
-                    sum += (unsigned char)rec.notes->text.data[note->msg_off + k];
+    for (int pass = 0; pass < 2; pass++) {
+        ms_memory_file mf = {file, n, 0, 0, 0, 0};
+        if (sel & 0x80) {
+            unsigned k = (control >> 3) & 7;
+            if (k == 7) {
+                mf.fail_at = 2;
+            } else if (k) {
+                mf.shrink_after = k;
+                mf.shrink_to = n * k / 7;
             }
-            double t;
-            (void)ms_record_time(&rec, &t);
-            (void)sum;
         }
-        if (r == MS_WALK_END)
-            break;
-        w.n_new_signers = 0;
-        w.n_new_endpoints = 0;
+        walk_file(&mf, file, n, sel, control, pass ? &summary : NULL);
     }
-    ms_buf_free(&out);
-    ms_walker_free(&w);
     free(file);
     return 0;
 }

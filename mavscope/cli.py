@@ -108,7 +108,7 @@ class _Commands(argparse._SubParsersAction):
 
 
 class _Version(argparse.Action):
-    """--version: the version and the engine `read -T jsonl` runs (mavscope.native, imported only here)."""
+    """--version: the version and the engine `read -T jsonl` and `read` run (mavscope.native, imported only here)."""
 
     def __init__(self, option_strings: Sequence[str], dest: str, environ: dict[str, str] | None = None,
                  **kwargs: object) -> None:

@@ -160,6 +160,8 @@ class NativeWalk:
 
     The file is opened here (CaptureError as the readers raise it) and read by the walker with pread, a
     `window` of bytes at a time as the Python readers read it (the tests make it small).
+    With `summary` (a `_native.Summary`, mavscope.native_summary) the text is summary lines, their
+    times relative to `t0`, instead of JSON Lines.
     `endpoints` and `signed_senders` are the Python sets both paths share (the dissector's
     `mavlink_endpoints` and the security stage's `signed_senders`). `signed_nokey()` is asked before
     each batch whether signed frames may be written natively (no signing key configured: `no-key`).
@@ -168,7 +170,8 @@ class NativeWalk:
     """
 
     def __init__(self, path: str | os.PathLike[str], dialect: Dialect, endpoints: set[Endpoint],
-                 signed_senders: set[tuple[int, int]], kind: str | None = None, window: int = WINDOW) -> None:
+                 signed_senders: set[tuple[int, int]], kind: str | None = None, window: int = WINDOW,
+                 summary: object | None = None, t0: float | None = None) -> None:
         if _native is None:
             raise RuntimeError("mavscope._native is not built")
         self.kind = kind or detect_kind(path)
@@ -176,7 +179,7 @@ class NativeWalk:
         try:
             self.walker = _native.Walker(self._file.fileno(), self.opened_size, _KINDS[self.kind],
                                          table_for(dialect), endpoints, Endpoint.from_packed, signed_senders,
-                                         window)
+                                         window, summary, t0)
         except BaseException:
             self._file.close()
             raise
@@ -313,6 +316,19 @@ def write_jsonl(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityS
     `out` happens on a thread of its own (_Writer); `progress` is called with the file offset reached
     after each native batch; `window` is the walker's read size. Returns the walk's counters, `frames`
     (every frame written) and `size`."""
+    return write_lines(path, dialect, stage, out, problems, jsonl_bytes, threaded=threaded, progress=progress,
+                       kind=kind, window=window)
+
+
+def write_lines(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityStage, out: IO[bytes],
+                problems: Reporter, render: Callable[[Frame], bytes], *, summary: object | None = None,
+                t0: float | None = None, count: int | None = None, threaded: bool = True,
+                progress: Callable[[int], None] | None = None, kind: str | None = None,
+                window: int = WINDOW) -> dict[str, int]:
+    """One line per frame of a whole capture, both paths interleaved in capture order: the walker's text
+    (JSON Lines, or summary lines with `summary`) and, for handed-back records, the Python pipeline with
+    `render(frame)` (the same line as bytes). `count`: stop after that many frames (`read -c`), as the
+    pure path's loop stops. See write_jsonl for the rest."""
     dissector = Dissector(dialect)
     writer = _Writer(out) if threaded else None
     put = writer.put if writer is not None else out.write
@@ -324,10 +340,11 @@ def write_jsonl(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityS
     nokey: Callable[[], bool] = lambda: not stage.check_signatures  # noqa: E731 - asked per batch
     run = stage.run
     passed = dissector.passed
-    frames = 0
+    frames = 0  # written by Python, or every frame when counting
+    left = -1 if count is None else count
 
     def python(items: Iterator[Frame | Anomaly] | list[Frame | Anomaly] | list[Anomaly]) -> None:
-        nonlocal frames
+        nonlocal frames, left
         lines: list[bytes] = []
         for item in run(items):
             if type(item) is Anomaly:
@@ -335,28 +352,51 @@ def write_jsonl(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityS
                 continue
             if item.notes:
                 problems.frame(item)
-            lines.append(jsonl_bytes(item))
+            lines.append(render(item))
+            left -= 1
+            if not left:
+                break
         if lines:
             frames += len(lines)
             put(b"".join(lines))
 
+    def native(text: bytes | bytearray) -> None:
+        nonlocal frames, left
+        if left < 0:
+            put(text)
+            return
+        n = text.count(b"\n")
+        if n >= left:  # the frame `count` ends in this text
+            end = -1
+            for _ in range(left):
+                end = text.index(b"\n", end + 1)
+            text = bytes(memoryview(text)[: end + 1])
+            n = left
+        put(text)
+        frames += n
+        left -= n
+
     try:
-        with NativeWalk(path, dialect, dissector.mavlink_endpoints, stage.signed_senders, kind, window) as walk:
+        with NativeWalk(path, dialect, dissector.mavlink_endpoints, stage.signed_senders, kind, window,
+                        summary, t0) as walk:
             for walked, text, record in walk.batches(nokey, buffers=buffers):
                 if walked is not None:
                     held = passed(*walked)  # a run of tlog text entries ends before these records
                     if held:
                         python(held)
-                if text is not None:
-                    put(text)
+                if text is not None and left:
+                    native(text)
                     if progress is not None:
                         progress(walk.position)
-                if record is not None:
+                if record is not None and left:
                     python(dissector.feed(record))
+                if not left:
+                    break
             stats = walk.stats()
-        python(dissector.finish())
+        if left:
+            python(dissector.finish())
     finally:
         if writer is not None:
             writer.close()
-    stats["frames"] = frames + stats["frames_native"]
+    stats["frames"] = frames if count is not None else frames + stats["frames_native"]
     return stats

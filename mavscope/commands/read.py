@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import codecs
 import contextlib
 import os
 
@@ -90,28 +91,54 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
 
 
 def _native_eligible(args: argparse.Namespace, env: Env) -> bool:
-    """The native engine serves plain `read -T jsonl` (no filter, count, -w or -q) when it is built and
-    MAVSCOPE_PURE is not set; its output is byte-identical to the Python path's (docs/native.md)."""
-    if args.format != "jsonl" or args.display_filter or args.count is not None or args.write or args.quiet:
+    """The native engine serves plain `read -T jsonl` (no filter, count, -w or -q) and the plain summary
+    lines (`read FILE`, `-c N` too; no -V, -x, filter, -w or -q) written to a stream that is not a
+    terminal and takes UTF-8, when it is built and MAVSCOPE_PURE is not set; its output is
+    byte-identical to the Python path's (docs/native.md)."""
+    if args.display_filter or args.write or args.quiet:
+        return False
+    if args.format == "jsonl":
+        if args.count is not None:
+            return False
+    elif args.format != "text" or args.verbose or args.hex or not _plain_utf8(env):
         return False
     from mavscope.native import engine
 
     return engine(env.environ) == "native"
 
 
+def _plain_utf8(env: Env) -> bool:
+    """Whether stdout is not a terminal and encodes text as UTF-8 (the native lines are UTF-8 bytes)."""
+    try:
+        if env.stdout.isatty():
+            return False
+    except (AttributeError, ValueError):
+        return False
+    encoding = getattr(env.stdout, "encoding", None)
+    return encoding is None or codecs.lookup(encoding).name == "utf-8"
+
+
 def _run_native(args: argparse.Namespace, env: Env) -> ExitStatus:
-    """`read -T jsonl` through mavscope.native.write_jsonl: what capture_session and the loop of `run`
-    do, in the same order (dialect, capture file, key options; problems on stderr, then the summary)."""
-    from mavscope.capture.detect import detect_kind
+    """`read -T jsonl` through mavscope.native.write_jsonl, the summary lines through
+    mavscope.native_summary.write_summary: what capture_session and the loop of `run` do, in the same
+    order (dialect, capture file and its first record's time, key options; problems on stderr, then the
+    no-frames line)."""
+    from mavscope.capture.detect import detect_kind, open_capture
     from mavscope.commands.common import capture_path, pipeline_options, warner
     from mavscope.mavlink.dialect import load_dialect
     from mavscope.native import write_jsonl
+    from mavscope.native_summary import write_summary
     from mavscope.pipeline.session import make_security_stage
 
     path = capture_path(args)
     options = pipeline_options(args, env)
     dialect = load_dialect(options.dialects)
     kind = detect_kind(path)  # the capture's errors before the key options', as open_session orders them
+    t0 = None
+    if args.format == "text":
+        with open_capture(path) as reader:  # the session's t0: the time of the first record
+            first = next(iter(reader), None)
+            t0 = None if first is None else first.time
     stage = make_security_stage(options, warner(env))
     name = os.fsencode(path).decode("utf-8", "backslashreplace")  # Session.name
     out_b = env.stdout_bytes
@@ -124,7 +151,11 @@ def _run_native(args: argparse.Namespace, env: Env) -> ExitStatus:
         update()
 
     try:
-        stats = write_jsonl(path, dialect, stage, out_b, problems, progress=advance, kind=kind)
+        if args.format == "text":
+            stats = write_summary(path, dialect, stage, out_b, problems, t0, args.count, progress=advance,
+                                  kind=kind)
+        else:
+            stats = write_jsonl(path, dialect, stage, out_b, problems, progress=advance, kind=kind)
     finally:
         stop()
         problems.close()

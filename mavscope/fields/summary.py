@@ -47,13 +47,14 @@ CONTAINER_MESSAGES = frozenset({"FILE_TRANSFER_PROTOCOL"})  # their Info is the 
 
 
 # How a summary shows one field: by its name, an enum's names, degE7 as degrees, or by the value's type.
-_PLAIN, _ENUM, _DEGREES = 0, 1, 2
+PLAIN, ENUM, DEGREES = 0, 1, 2
 _Plan = tuple[tuple[str, int, dict[int, str]], ...]
 _PLANS: WeakKeyDictionary[Dialect, dict[int, tuple[MessageDef, _Plan]]] = WeakKeyDictionary()
 
 
-def _summary_plan(md: MessageDef, dialect: Dialect) -> _Plan:
-    """(name, how, enum names) for the fields the summary of `md` shows: worked out once per message."""
+def summary_plan(md: MessageDef, dialect: Dialect) -> _Plan:
+    """(name, how, enum names) for the fields the summary of `md` shows: worked out once per message (the
+    native summary writer compiles the same plan, mavscope/native_summary.py)."""
     cache = _PLANS.get(dialect)
     if cache is None:
         cache = _PLANS[dialect] = {}
@@ -70,22 +71,22 @@ def _summary_plan(md: MessageDef, dialect: Dialect) -> _Plan:
             continue
         enum = dialect.enums.get(fd.enum) if fd.enum else None
         if enum is not None and not (enum.bitmask or fd.display == "bitmask"):
-            plan.append((name, _ENUM, {v: e.name for v, e in enum.entries.items()}))
+            plan.append((name, ENUM, {v: e.name for v, e in enum.entries.items()}))
         elif fd.units == "degE7" or (name in ("x", "y") and md.name in INT_COORDINATE_MESSAGES):
-            plan.append((name, _DEGREES, {}))
+            plan.append((name, DEGREES, {}))
         else:
-            plan.append((name, _PLAIN, {}))
+            plan.append((name, PLAIN, {}))
     result = tuple(plan)
     cache[md.id] = (md, result)
     return result
 
 
 def _short(name: str, how: int, names: dict[int, str], value: object) -> str:
-    if how == _ENUM and isinstance(value, int):
+    if how == ENUM and isinstance(value, int):
         text = names.get(value)
         if text:
             return f"{name}={text}"
-    elif how == _DEGREES and isinstance(value, int):
+    elif how == DEGREES and isinstance(value, int):
         return f"{name}={value / DEGE7:.7f}"
     if isinstance(value, float):
         return f"{name}={float_text(value, '.4g')}"
@@ -110,7 +111,7 @@ def summary_info(frame: Frame, dialect: Dialect, fields: dict[str, object] | Non
         if inner is not None:
             parts.append(inner)
         elif fields is not None:
-            parts.extend(_short(name, how, names, fields.get(name)) for name, how, names in _summary_plan(md, dialect))
+            parts.extend(_short(name, how, names, fields.get(name)) for name, how, names in summary_plan(md, dialect))
             if md.name in COMMAND_MESSAGES and "param1" in fields:  # the value's name where the XML gives one
                 named = command_param_name(dialect, fields.get("command"), 1, fields["param1"])  # type: ignore[arg-type]
                 if named is not None:

@@ -1,14 +1,18 @@
 /* mavscope._native: the CPython face of the native core (see mavscope/native.py for the Python side).
  *
  *   Table(blob: bytes)                  the message layouts, compiled by mavscope.native from a Dialect
+ *   Summary(table, blob: bytes)         what summary lines show per message (mavscope.native_summary)
  *   Walker(fd: int, size: int, kind: int, table, endpoints: set, endpoint: Callable[[bytes, int], object],
- *          signed_senders: set[tuple[int, int]], window: int = 1 << 20)
+ *          signed_senders: set[tuple[int, int]], window: int = 1 << 20, summary: Summary | None = None,
+ *          t0: float | None = None)     with `summary`: summary lines (relative to t0) instead of JSON
  *     .next(signed_nokey: bool, limit: int = 1 << 20, into: bytearray | None = None)
  *         -> list[bytes | bytearray | tuple] | None
  *     .walked() -> tuple[int, float | None, int | None] | None
  *     .stats() -> dict[str, int]
  *     .close()
  *   format_double(x) -> bytes, text_json(b) -> bytes   (the JSON formatting, for the tests)
+ *   format_g4(x), format_degrees(v, unsigned), format_reltime(t), repr_ascii(b) -> bytes | None
+ *                                        (the summary formatting, for the tests)
  *
  * The walker reads the file with pread(2) on `fd` (never a memory mapping: a file truncated while it is
  * read ends with a note, see capture.h); the caller owns the descriptor and keeps it open while the
@@ -21,6 +25,7 @@
 #include "capture.h"
 #include "fmt.h"
 #include "netlayers.h"
+#include "summary.h"
 #include "table.h"
 #include "walk.h"
 
@@ -77,6 +82,57 @@ static PyTypeObject TableType = {
     .tp_new = PyType_GenericNew,
 };
 
+/* ---- Summary ------------------------------------------------------------------------------ */
+
+typedef struct {
+    PyObject_HEAD
+    ms_summary summary;
+    PyObject *table; /* TableObject: the summary points into its messages */
+    int ok;
+} SummaryObject;
+
+static void Summary_dealloc(SummaryObject *self) {
+    if (self->ok)
+        ms_summary_free(&self->summary);
+    Py_XDECREF(self->table);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static int Summary_init(SummaryObject *self, PyObject *args, PyObject *kwds) {
+    static char *kwlist[] = {"table", "blob", NULL};
+    PyObject *table;
+    Py_buffer blob;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "O!y*", kwlist, &TableType, &table, &blob))
+        return -1;
+    if (self->ok) {
+        PyBuffer_Release(&blob);
+        PyErr_SetString(PyExc_RuntimeError, "Summary already initialised");
+        return -1;
+    }
+    int r = ms_summary_parse(&self->summary, &((TableObject *)table)->table, (const uint8_t *)blob.buf,
+                             (size_t)blob.len);
+    PyBuffer_Release(&blob);
+    if (r != 0) {
+        PyErr_SetString(PyExc_ValueError, "malformed summary table");
+        return -1;
+    }
+    Py_INCREF(table);
+    self->table = table;
+    self->ok = 1;
+    return 0;
+}
+
+static PyTypeObject SummaryType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "mavscope._native.Summary",
+    .tp_basicsize = sizeof(SummaryObject),
+    .tp_dealloc = (destructor)Summary_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "What summary lines show per message (built by mavscope.native_summary).",
+    .tp_init = (initproc)Summary_init,
+    .tp_new = PyType_GenericNew,
+};
+
 /* ---- Walker ------------------------------------------------------------------------------- */
 
 typedef struct {
@@ -90,6 +146,7 @@ typedef struct {
     PyObject *endpoints; /* the Dissector's mavlink_endpoints */
     PyObject *endpoint;  /* endpoint(packed: bytes, port: int) -> an element of `endpoints` */
     PyObject *senders;   /* set[tuple[int, int]] */
+    PyObject *summary;   /* SummaryObject or NULL (JSON Lines) */
     ms_buf out;
 } WalkerObject;
 
@@ -108,19 +165,32 @@ static void Walker_dealloc(WalkerObject *self) {
     Py_XDECREF(self->endpoints);
     Py_XDECREF(self->endpoint);
     Py_XDECREF(self->senders);
+    Py_XDECREF(self->summary);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
 static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
     static char *kwlist[] = {"fd", "size", "kind", "table", "endpoints", "endpoint", "signed_senders", "window",
-                             NULL};
-    PyObject *table, *endpoints, *endpoint, *senders;
+                             "summary", "t0", NULL};
+    PyObject *table, *endpoints, *endpoint, *senders, *summary = Py_None, *t0 = Py_None;
     int fd, kind;
     unsigned long long size;
     Py_ssize_t window = MS_WINDOW;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|n", kwlist, &fd, &size, &kind, &TableType, &table,
-                                     &PySet_Type, &endpoints, &endpoint, &PySet_Type, &senders, &window))
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|nOO", kwlist, &fd, &size, &kind, &TableType, &table,
+                                     &PySet_Type, &endpoints, &endpoint, &PySet_Type, &senders, &window,
+                                     &summary, &t0))
         return -1;
+    if (summary != Py_None &&
+        (!PyObject_TypeCheck(summary, &SummaryType) || ((SummaryObject *)summary)->table != table)) {
+        PyErr_SetString(PyExc_TypeError, "summary must be a Summary of the same table, or None");
+        return -1;
+    }
+    double t0v = 0.0;
+    if (t0 != Py_None) {
+        t0v = PyFloat_AsDouble(t0);
+        if (t0v == -1.0 && PyErr_Occurred())
+            return -1;
+    }
     if (window < 64) { /* a resynchronisation scan looks at whole headers within one window */
         PyErr_SetString(PyExc_ValueError, "window must be at least 64 bytes");
         return -1;
@@ -153,6 +223,13 @@ static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
     ms_buf_init(&self->out);
     ms_walker_init(&self->walker, ms_fd_source(&self->fd), (uint64_t)size, kind, &((TableObject *)table)->table);
     self->walker.reader.window = (size_t)window; /* bytes read at a time: the tests make it small */
+    if (summary != Py_None) {
+        Py_INCREF(summary);
+        self->summary = summary;
+        self->walker.summary = &((SummaryObject *)summary)->summary;
+        self->walker.has_t0 = t0 != Py_None;
+        self->walker.t0 = t0v;
+    }
     self->have_walker = 1;
     self->ended = 0;
     return 0;
@@ -470,7 +547,55 @@ static PyObject *text_json(PyObject *Py_UNUSED(mod), PyObject *arg) {
     return res;
 }
 
+static PyObject *format_g4(PyObject *Py_UNUSED(mod), PyObject *arg) {
+    double v = PyFloat_AsDouble(arg);
+    if (v == -1.0 && PyErr_Occurred())
+        return NULL;
+    char out[MS_G4_MAX];
+    return PyBytes_FromStringAndSize(out, ms_w_g4(out, v) - out);
+}
+
+static PyObject *format_degrees(PyObject *Py_UNUSED(mod), PyObject *args) {
+    unsigned long long bits;
+    int is_unsigned;
+    if (!PyArg_ParseTuple(args, "Kp", &bits, &is_unsigned))
+        return NULL;
+    char out[MS_DEG_MAX];
+    return PyBytes_FromStringAndSize(out, ms_w_degrees(out, (int64_t)bits, is_unsigned) - out);
+}
+
+static PyObject *format_reltime(PyObject *Py_UNUSED(mod), PyObject *arg) {
+    double v = PyFloat_AsDouble(arg);
+    if (v == -1.0 && PyErr_Occurred())
+        return NULL;
+    char out[MS_REL_MAX];
+    char *end = ms_w_reltime(out, v);
+    if (end == NULL)
+        Py_RETURN_NONE;
+    return PyBytes_FromStringAndSize(out, end - out);
+}
+
+static PyObject *repr_ascii(PyObject *Py_UNUSED(mod), PyObject *arg) {
+    Py_buffer b;
+    if (PyObject_GetBuffer(arg, &b, PyBUF_SIMPLE) != 0)
+        return NULL;
+    char *out = PyMem_Malloc(4 * (size_t)b.len + 2);
+    if (out == NULL) {
+        PyBuffer_Release(&b);
+        return PyErr_NoMemory();
+    }
+    char *end = ms_w_repr_ascii(out, (const uint8_t *)b.buf, (size_t)b.len);
+    PyBuffer_Release(&b);
+    PyObject *res = end == NULL ? Py_NewRef(Py_None) : PyBytes_FromStringAndSize(out, end - out);
+    PyMem_Free(out);
+    return res;
+}
+
 static PyMethodDef module_methods[] = {
+    {"format_g4", format_g4, METH_O, "format(x, '.4g') as the summary writer makes it (NaN as NaN)"},
+    {"format_degrees", format_degrees, METH_VARARGS, "f'{v / 1e7:.7f}' of a 64-bit integer (bits, unsigned)"},
+    {"format_reltime", format_reltime, METH_O, "f'{t:11.6f}' as the summary writer makes it, or None"},
+    {"repr_ascii", repr_ascii, METH_O, "repr() of char_text(b), or None when b is not ASCII"},
     {"format_double", format_double, METH_O, "JSON text of a float, as the native writer makes it"},
     {"text_json", text_json, METH_O, "JSON string of bytes decoded as UTF-8 with backslashreplace"},
     {NULL, NULL, 0, NULL},
@@ -482,15 +607,17 @@ static struct PyModuleDef native_module = {
 };
 
 PyMODINIT_FUNC PyInit__native(void) {
-    if (PyType_Ready(&TableType) < 0 || PyType_Ready(&WalkerType) < 0)
+    if (PyType_Ready(&TableType) < 0 || PyType_Ready(&SummaryType) < 0 || PyType_Ready(&WalkerType) < 0)
         return NULL;
     PyObject *m = PyModule_Create(&native_module);
     if (m == NULL)
         return NULL;
     Py_INCREF(&TableType);
     Py_INCREF(&WalkerType);
+    Py_INCREF(&SummaryType);
     if (PyModule_AddObject(m, "Table", (PyObject *)&TableType) < 0 ||
         PyModule_AddObject(m, "Walker", (PyObject *)&WalkerType) < 0 ||
+        PyModule_AddObject(m, "Summary", (PyObject *)&SummaryType) < 0 ||
         PyModule_AddIntConstant(m, "KIND_PCAP", MS_KIND_PCAP) < 0 ||
         PyModule_AddIntConstant(m, "KIND_PCAPNG", MS_KIND_PCAPNG) < 0 ||
         PyModule_AddIntConstant(m, "KIND_TLOG", MS_KIND_TLOG) < 0 ||

@@ -1,5 +1,7 @@
 #include "table.h"
 
+#include "blob.h"
+
 #include "fmt.h"
 
 #include <stdlib.h>
@@ -9,26 +11,8 @@ static const size_t TYPE_SIZE[] = {0, 1, 1, 2, 2, 4, 4, 8, 8, 4, 8, 1};
 /* the room the writer of one element needs: u8 255, i8 -128, u16, i16, u32, i32, u64, i64, floats (fmt.h) */
 static const size_t TEXT_MAX[] = {0, 3, 4, 5, 6, 10, 11, 20, 20, MS_DOUBLE_MAX, MS_DOUBLE_MAX, 0};
 
-typedef struct {
-    const uint8_t *p;
-    const uint8_t *end;
-    int bad;
-} cursor;
-
-static uint32_t take(cursor *c, size_t n) {
-    if (c->bad || (size_t)(c->end - c->p) < n) {
-        c->bad = 1;
-        return 0;
-    }
-    uint32_t v = 0;
-    for (size_t i = 0; i < n; i++)
-        v |= (uint32_t)c->p[i] << (8 * i);
-    c->p += n;
-    return v;
-}
-
 /* Copy the next n bytes of text into the arena (followed by MS_TEXT_PAD zero bytes). */
-static const char *take_text(cursor *c, size_t n, char *arena, size_t *used, size_t cap) {
+static const char *take_text(ms_cursor *c, size_t n, char *arena, size_t *used, size_t cap) {
     if (c->bad || (size_t)(c->end - c->p) < n || n == 0 || cap - *used < n + MS_TEXT_PAD) {
         c->bad = 1;
         return NULL;
@@ -53,13 +37,13 @@ void ms_table_free(ms_table *t) {
 
 int ms_table_parse(ms_table *t, const uint8_t *blob, size_t len) {
     memset(t, 0, sizeof *t);
-    cursor c = {blob, blob + len, 0};
+    ms_cursor c = {blob, blob + len, 0};
     if (len < 12 || memcmp(blob, "MSNT", 4) != 0)
         return -1;
     c.p += 4;
-    if (take(&c, 4) != 1)
+    if (ms_take(&c, 4) != 1)
         return -1;
-    uint32_t count = take(&c, 4);
+    uint32_t count = (uint32_t)ms_take(&c, 4);
     if (count > 1u << 20 || (size_t)count * 10 > len)
         return -1;
     /* every text is at least 1 byte of the blob and each takes MS_TEXT_PAD more in the arena */
@@ -79,13 +63,13 @@ int ms_table_parse(ms_table *t, const uint8_t *blob, size_t len) {
     for (uint32_t m = 0; m < count; m++) {
         ms_message *msg = &t->messages[m];
         t->count = m + 1;
-        msg->msgid = take(&c, 4);
-        msg->crc_extra = (uint8_t)take(&c, 1);
-        msg->length = (uint8_t)take(&c, 1);
-        msg->base_length = (uint8_t)take(&c, 1);
-        msg->python_only = (uint8_t)(take(&c, 1) & 1);
-        msg->nfields = (uint16_t)take(&c, 2);
-        msg->name_len = (uint16_t)take(&c, 2);
+        msg->msgid = (uint32_t)ms_take(&c, 4);
+        msg->crc_extra = (uint8_t)ms_take(&c, 1);
+        msg->length = (uint8_t)ms_take(&c, 1);
+        msg->base_length = (uint8_t)ms_take(&c, 1);
+        msg->python_only = (uint8_t)(ms_take(&c, 1) & 1);
+        msg->nfields = (uint16_t)ms_take(&c, 2);
+        msg->name_len = (uint16_t)ms_take(&c, 2);
         msg->name = take_text(&c, msg->name_len, t->text, &used, arena_cap);
         if (c.bad || msg->msgid > 0xFFFFFF || msg->base_length > msg->length || msg->nfields > 255)
             goto fail;
@@ -95,10 +79,10 @@ int ms_table_parse(ms_table *t, const uint8_t *blob, size_t len) {
         msg->json_max = 2; /* {} */
         for (uint16_t f = 0; f < msg->nfields; f++) {
             ms_field *fd = &msg->fields[f];
-            fd->type = (uint8_t)take(&c, 1);
-            fd->count = (uint8_t)take(&c, 1);
-            fd->offset = (uint8_t)take(&c, 1);
-            fd->key_len = (uint8_t)take(&c, 1);
+            fd->type = (uint8_t)ms_take(&c, 1);
+            fd->count = (uint8_t)ms_take(&c, 1);
+            fd->offset = (uint8_t)ms_take(&c, 1);
+            fd->key_len = (uint8_t)ms_take(&c, 1);
             fd->key = take_text(&c, fd->key_len, t->text, &used, arena_cap);
             unsigned base = fd->type & 0x7F;
             if (c.bad || base < MS_T_U8 || base > MS_T_CHAR || fd->count == 0)

@@ -270,6 +270,55 @@ static int write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t coun
     return 0;
 }
 
+/* The source of a datagram written natively: a source of valid MAVLink (the Dissector's
+ * mavlink_endpoints). */
+static int note_source(ms_walker *w, const ms_udp *udp) {
+    ms_endpoint e;
+    memset(&e, 0, sizeof e);
+    e.v6 = (uint8_t)udp->v6;
+    memcpy(e.addr, udp->src, udp->v6 ? 16 : 4);
+    e.port = udp->sport;
+    return note_endpoint(w, &e);
+}
+
+/* The frames of a record written natively: counted, and what Python's Dissector._index would hold. */
+static int count_frames(ms_walker *w, const uint8_t *d, size_t count) {
+    w->frames_native += count;
+    for (size_t i = 0; i < count; i++) {
+        if (d[w->frames[2 * i]] == MS_STX_V1) { /* Python's fast path stops there: its scanner counts them all */
+            w->py_index = (int64_t)count;
+            break;
+        }
+    }
+    return MS_WALK_FULL;
+}
+
+/* The summary lines of a clean record (summary.h), before anything is committed to the shared state:
+ * MS_WALK_FULL when written, MS_WALK_HANDBACK (nothing written) when a value needs the Python path. */
+static int write_summary_record(ms_walker *w, const ms_record *rec, ms_buf *out, const uint8_t *d, size_t count,
+                                int has_time, double t, const ms_udp *udp) {
+    char src[MS_ENDPOINT_TEXT], prefix[MS_PREFIX_MAX];
+    int src_len = 0, dst_len = 0;
+    const char *dst = NULL;
+    if (udp != NULL) {
+        memcpy(src, endpoint_text(w, udp->v6, udp->src, udp->sport, &src_len), MS_ENDPOINT_TEXT);
+        dst = endpoint_text(w, udp->v6, udp->dst, udp->dport, &dst_len);
+    }
+    size_t n = ms_summary_prefix(prefix, has_time, t, w->has_t0, w->t0, udp != NULL ? src : NULL, (size_t)src_len,
+                                 dst, (size_t)dst_len);
+    if (n == 0)
+        return MS_WALK_HANDBACK;
+    const size_t mark = out->len;
+    int r = ms_write_summary(w->summary, out, rec->number, prefix, n, d, w->frames, count);
+    if (r < 0)
+        return MS_WALK_NOMEM;
+    if (r > 0) {
+        out->len = mark;
+        return MS_WALK_HANDBACK;
+    }
+    return MS_WALK_FULL;
+}
+
 /* MS_WALK_FULL when the record was written (or had nothing), MS_WALK_HANDBACK, or MS_WALK_NOMEM. */
 static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
     if (rec->notes->n != 0 || w->reader.kind == MS_KIND_RAW)
@@ -306,6 +355,11 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
         return MS_WALK_HANDBACK;
     if (count == 0)
         return MS_WALK_FULL; /* an empty datagram */
+    if (w->summary != NULL) {
+        int r = write_summary_record(w, rec, out, d, count, has_time, t, is_udp ? &udp : NULL);
+        if (r != MS_WALK_FULL)
+            return r;
+    }
     /* commit what the Python path would have done to the shared state */
     for (size_t i = 0; i < nsigners; i++) {
         unsigned s = w->tentative[i];
@@ -316,19 +370,14 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
         ms_signer_set(w, s);
         w->new_signers[w->n_new_signers++] = (uint16_t)s;
     }
+    if (is_udp && note_source(w, &udp) != 0)
+        return MS_WALK_NOMEM;
+    if (w->summary != NULL)
+        return count_frames(w, d, count);
     const char *src = NULL, *dst = NULL;
     int src_len = 0, dst_len = 0;
-    if (is_udp) {
-        ms_endpoint e;
-        memset(&e, 0, sizeof e);
-        e.v6 = (uint8_t)udp.v6;
-        memcpy(e.addr, udp.src, udp.v6 ? 16 : 4);
-        e.port = udp.sport;
-        if (note_endpoint(w, &e) != 0)
-            return MS_WALK_NOMEM;
+    if (is_udp) /* the cache may move the source's text: it is copied into `mid` before the destination's */
         src = endpoint_text(w, udp.v6, udp.src, udp.sport, &src_len);
-        /* the cache may move the source's text: copy it into `mid` before asking for the destination */
-    }
     char lead[LEAD_MAX] = {0};
     memcpy(lead, "{\"frame\":", 9);
     size_t lead_len = (size_t)(ms_w_u64(lead + 9, rec->number) - lead);
@@ -361,14 +410,7 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
 #undef MID
     if (write_frames(w, out, d, count, lead, lead_len, mid, mid_len) != 0)
         return MS_WALK_NOMEM;
-    w->frames_native += count;
-    for (size_t i = 0; i < count; i++) {
-        if (d[w->frames[2 * i]] == MS_STX_V1) { /* Python's fast path stops there: its scanner counts them all */
-            w->py_index = (int64_t)count;
-            break;
-        }
-    }
-    return MS_WALK_FULL;
+    return count_frames(w, d, count);
 }
 
 int ms_walk(ms_walker *w, ms_buf *out, size_t limit, ms_record *rec) {

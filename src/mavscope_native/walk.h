@@ -22,6 +22,7 @@
 
 #include "buf.h"
 #include "capture.h"
+#include "summary.h"
 #include "table.h"
 
 enum { MS_SIGNED_HANDBACK = 0, MS_SIGNED_NOKEY = 1 };
@@ -39,6 +40,9 @@ typedef struct {
     ms_reader reader;
     const ms_table *table;
     int sign_mode;              /* MS_SIGNED_*, set by the glue before each batch */
+    const ms_summary *summary;  /* non-NULL: summary lines (summary.h) instead of JSON Lines */
+    int has_t0;                 /* summary lines: relative times count from t0 (the first record's time) */
+    double t0;
     int fuzz_any_crc;           /* the fuzz harness only: take every CRC for good, so that mutated
                                    payloads reach the decoder and the JSON writer (never set by the glue) */
     uint8_t signers[8192];      /* bit sysid << 8 | compid: senders seen signing */

@@ -47,6 +47,7 @@ LAYERS: tuple[tuple[str, int], ...] = (
     # pipeline.session does) and writes output.jsonout's JSON Lines, so it sits with the front ends; the C
     # extension it wraps reads, dissects and writes in one, and is for the front ends only.
     ("mavscope.native", 10),
+    ("mavscope.native_summary", 10),
     ("mavscope._native", 10),
     ("mavscope.cli", 10),
     ("mavscope.commands", 10),

@@ -1,4 +1,4 @@
-"""Both engines of `read -T jsonl` side by side.
+"""Both engines of `read -T jsonl` (and of the summary lines of `read FILE`) side by side.
 
 Through the command line (the `cli` fixture): `pure(cli, ...)` with MAVSCOPE_PURE=1, `native(cli, ...)`
 without it, `same(cli, ...)` runs both and asserts equal stdout, stderr and exit status. Through the API
@@ -10,13 +10,19 @@ mavscope.native.write_jsonl.
 from __future__ import annotations
 
 import io
+import os
+import tempfile
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from mavscope.capture.detect import open_capture
 from mavscope.cli import Env
 from mavscope.commands.common import Problems
 from mavscope.mavlink.dialect import Dialect
+from mavscope.mavlink.frame import Frame
 from mavscope.output.jsonout import jsonl_bytes
+from mavscope.output.text import summary_line
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.security.keys import KeyMaterial, SigningKey
 from mavscope.security.stage import SecurityStage
@@ -27,22 +33,35 @@ PURE = {"MAVSCOPE_PURE": "1"}
 KEY_OPTIONS = {"none": [], "key": ["--key", KEY_SPEC], "leaked": ["--use-leaked-keys"]}
 
 
-def pure(cli: Cli, path: str | Path, *extra: str) -> CliResult:
-    return cli("read", path, "-T", "jsonl", *extra, environ=PURE)
+def pure(cli: Cli, path: str | Path, *extra: str, fmt: tuple[str, ...] = ("-T", "jsonl")) -> CliResult:
+    return cli("read", path, *fmt, *extra, environ=PURE)
 
 
-def native(cli: Cli, path: str | Path, *extra: str) -> CliResult:
-    return cli("read", path, "-T", "jsonl", *extra, environ={})
+def native(cli: Cli, path: str | Path, *extra: str, fmt: tuple[str, ...] = ("-T", "jsonl")) -> CliResult:
+    return cli("read", path, *fmt, *extra, environ={})
 
 
-def same(cli: Cli, path: str | Path, *extra: str) -> CliResult:
-    """Both engines on `path`: stderr, stdout and exit status must be equal (the native result)."""
-    p = pure(cli, path, *extra)
-    n = native(cli, path, *extra)
+def same(cli: Cli, path: str | Path, *extra: str, fmt: tuple[str, ...] = ("-T", "jsonl")) -> CliResult:
+    """Both engines on `path`: stderr, stdout and exit status must be equal (the native result). `fmt`:
+    the output options (() for the summary lines)."""
+    p = pure(cli, path, *extra, fmt=fmt)
+    n = native(cli, path, *extra, fmt=fmt)
     assert n.err == p.err
     assert n.out == p.out
     assert n.status == p.status
     return n
+
+
+@contextmanager
+def capture_file(data: bytes) -> Iterator[str]:
+    """`data` in a temporary file, deleted afterwards: its path."""
+    fd, path = tempfile.mkstemp(suffix=".cap")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        yield path
+    finally:
+        os.unlink(path)
 
 
 def material(kind: str) -> KeyMaterial:
@@ -54,12 +73,15 @@ def material(kind: str) -> KeyMaterial:
     return KeyMaterial()
 
 
-def pure_output(path: str | Path, dialect: Dialect, keys: str = "none") -> tuple[bytes, str]:
-    """(stdout, stderr) of `read -T jsonl` on the pure-Python path, through the API."""
+def pure_output(path: str | Path, dialect: Dialect, keys: str = "none",
+                render: Callable[[Frame], bytes] = jsonl_bytes, count: int | None = None) -> tuple[bytes, str]:
+    """(stdout, stderr) of `read -T jsonl` on the pure-Python path, through the API (or, with `render`, of
+    the lines it makes per frame: summary_render for `read FILE`; `count`: stop after that many, as -c)."""
     err = io.StringIO()
     problems = Problems(Env(stdout=io.StringIO(), stderr=err, environ={}), str(path))
     out = io.BytesIO()
     stage = SecurityStage(material(keys))
+    shown = 0
     with open_capture(path) as reader:
         for item in stage.run(Dissector(dialect).run(reader)):
             if type(item) is Anomaly:
@@ -67,22 +89,55 @@ def pure_output(path: str | Path, dialect: Dialect, keys: str = "none") -> tuple
                 continue
             if item.notes:
                 problems.frame(item)
-            out.write(jsonl_bytes(item))
+            out.write(render(item))
+            shown += 1
+            if shown == count:
+                break
     problems.close()
     return out.getvalue(), err.getvalue()
+
+
+def summary_render(path: str | Path, dialect: Dialect) -> Callable[[Frame], bytes]:
+    """The summary line of `read FILE` as the pure path prints it: times relative to the first record's."""
+    with open_capture(path) as reader:
+        first = next(iter(reader), None)
+    t0 = None if first is None else first.time
+    return lambda frame: (summary_line(frame, dialect, t0) + "\n").encode()
 
 
 def native_output(path: str | Path, dialect: Dialect, keys: str = "none", threaded: bool = False,
                   window: int | None = None) -> tuple[bytes, str, dict[str, int]]:
     """(stdout, stderr, walk counters) of `read -T jsonl` on the native path, through the API (the walker
     reading `window` bytes at a time when given)."""
-    from mavscope.capture.reader import WINDOW
     from mavscope.native import write_jsonl
+
+    return _native(lambda *a, **k: write_jsonl(*a, **k), path, dialect, keys, threaded, window)
+
+
+def native_summary_output(path: str | Path, dialect: Dialect, keys: str = "none", threaded: bool = False,
+                          window: int | None = None, count: int | None = None) -> tuple[bytes, str, dict[str, int]]:
+    """(stdout, stderr, walk counters) of `read FILE` (summary lines) on the native path, through the API."""
+    from mavscope.native_summary import write_summary
+
+    with open_capture(path) as reader:
+        first = next(iter(reader), None)
+    t0 = None if first is None else first.time
+
+    def write(path: str | Path, dialect: Dialect, stage: SecurityStage, out: io.BytesIO, problems: Problems,
+              **options: object) -> dict[str, int]:
+        return write_summary(path, dialect, stage, out, problems, t0, count, **options)  # type: ignore[arg-type]
+
+    return _native(write, path, dialect, keys, threaded, window)
+
+
+def _native(write: Callable[..., dict[str, int]], path: str | Path, dialect: Dialect, keys: str, threaded: bool,
+            window: int | None) -> tuple[bytes, str, dict[str, int]]:
+    from mavscope.capture.reader import WINDOW
 
     err = io.StringIO()
     problems = Problems(Env(stdout=io.StringIO(), stderr=err, environ={}), str(path))
     out = io.BytesIO()
-    stats = write_jsonl(path, dialect, SecurityStage(material(keys)), out, problems, threaded=threaded,
-                        window=window or WINDOW)
+    stats = write(path, dialect, SecurityStage(material(keys)), out, problems, threaded=threaded,
+                  window=window or WINDOW)
     problems.close()
     return out.getvalue(), err.getvalue(), stats

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import os
 import struct
-import tempfile
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -24,7 +23,7 @@ from hypothesis import strategies as st
 from mavscope.mavlink.dialect import MessageDef, load_dialect
 from tests.conftest import Cli
 from tests.native import build as nh
-from tests.native.engines import KEY_OPTIONS, native_output, pure_output, same
+from tests.native.engines import KEY_OPTIONS, capture_file, native_output, pure_output, same
 
 pytest.importorskip("mavscope._native", reason="the native extension is not built (no compiler at install)")
 
@@ -33,6 +32,9 @@ MESSAGES = sorted(DIALECT.messages.values(), key=lambda m: m.id)
 V1_MESSAGES = [m for m in MESSAGES if m.id < 256]
 SETTINGS = settings(max_examples=int(os.environ.get("MAVSCOPE_NATIVE_EXAMPLES", "300")), deadline=None,
                     derandomize=True, suppress_health_check=list(HealthCheck))
+FEWER = settings(SETTINGS, max_examples=max(SETTINGS.max_examples // 3, 10))  # slower or narrower tests
+FEWEST = settings(SETTINGS, max_examples=max(SETTINGS.max_examples // 15, 5))  # through the command line
+CLI_KEY_CHOICES = st.sampled_from(["none", "key", "leaked"])
 
 F32_SPECIAL = [0x7FC00000, 0x7F800001, 0xFFC00000, 0x7F800000, 0xFF800000, 0x80000000, 0x00000000, 0x00000001,
                0x007FFFFF, 0x00800000, 0x7F7FFFFF, 0x3F800000, 0x4B189680, 0x5A0E1BCA, 0x3727C5AC, 0x358637BD]
@@ -210,10 +212,7 @@ CLI = Cli()
 def check(data: bytes, keys: str, cli: bool = False) -> None:
     """Both engines on `data`: through the API (the Python pipeline as `read` runs it, and write_jsonl with
     the walker's default and a 64-byte read window), or through the command line."""
-    fd, path = tempfile.mkstemp(suffix=".cap")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
+    with capture_file(data) as path:
         if cli:
             same(CLI, path, *KEY_OPTIONS[keys])
             return
@@ -222,8 +221,6 @@ def check(data: bytes, keys: str, cli: bool = False) -> None:
         assert native_err == pure_err
         assert native_out == pure_out
         assert native_output(path, DIALECT, keys, window=64)[:2] == (pure_out, pure_err)
-    finally:
-        os.unlink(path)
 
 
 @SETTINGS
@@ -249,15 +246,20 @@ def test_stream_frames_at_the_end_take_the_last_record_walked_natively() -> None
     check(TRAILING_EMPTY_RECORD, "none")
 
 
-@settings(SETTINGS, max_examples=max(SETTINGS.max_examples // 3, 10))
-@given(st.binary(max_size=600), st.sampled_from([b"\xd4\xc3\xb2\xa1\x02\x00\x04\x00", b"\x0a\x0d\x0d\x0a", b""]))
+# arbitrary bytes (a tail) behind a pcap or pcapng magic, or alone (a head)
+DAMAGED_FILES = (st.binary(max_size=600),
+                 st.sampled_from([b"\xd4\xc3\xb2\xa1\x02\x00\x04\x00", b"\x0a\x0d\x0d\x0a", b""]))
+
+
+@FEWER
+@given(*DAMAGED_FILES)
 def test_arbitrary_bytes_are_identical(tail: bytes, head: bytes) -> None:
     """Damaged files: whatever the readers make of them, both engines make the same."""
     check(head + tail, "none")
 
 
-@settings(SETTINGS, max_examples=max(SETTINGS.max_examples // 15, 5))
-@given(capture(), st.sampled_from(["none", "key", "leaked"]))
+@FEWEST
+@given(capture(), CLI_KEY_CHOICES)
 def test_generated_capture_through_the_command_line(data: bytes, keys: str) -> None:
     """The whole command (key options, problems on stderr, the no-frames line, exit status), fewer examples:
     each run loads the dialect."""
