@@ -78,8 +78,8 @@ def command_param_name(dialect: Dialect, command: int, index: int, value: object
     """The name of a command parameter's value where the XML says what names it: an entry of the enum
     the <param> gives (MAV_BOOL_TRUE), or the message of a "Message ID" (REQUEST_MESSAGE 148 ->
     AUTOPILOT_VERSION); None otherwise (or for a value that is not a whole number)."""
-    if not isinstance(value, (int, float)) or value != value or value != int(value):
-        return None
+    if not isinstance(value, (int, float)) or not math.isfinite(value) or value != int(value):
+        return None  # (NaN and infinities first: int() of an infinity raises)
     n = int(value)
     enum = dialect.command_param_enum(command, index)
     if enum:

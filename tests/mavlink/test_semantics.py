@@ -3,6 +3,7 @@ by pymavlink's own parser (not mavscope's dialect loader)."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pymavlink
@@ -10,6 +11,7 @@ import pytest
 from pymavlink.generator import mavparse
 
 from mavscope.mavlink import semantics
+from mavscope.mavlink.dialect import Dialect
 
 COMMON = Path(pymavlink.__file__).parent / "dialects" / "v20" / "common.xml"
 
@@ -35,3 +37,11 @@ def test_int_coordinates_by_frame(mav_frame: dict[str, int]) -> None:
     assert semantics.int_coordinate(7, mav_frame["MAV_FRAME_MISSION"]) == 7.0
     assert [semantics.coordinate_unit(mav_frame[n]) for n in ("MAV_FRAME_GLOBAL_INT", "MAV_FRAME_MISSION",
                                                                "MAV_FRAME_LOCAL_NED")] == ["deg", "raw", "m"]
+
+
+def test_a_command_parameter_that_is_not_finite_has_no_name(dialect: Dialect) -> None:
+    """int() of an infinity raises OverflowError: a COMMAND_LONG with param1 = inf crashed every summary
+    line of the pure path (found by the native summary's differential tests)."""
+    for value in (math.inf, -math.inf, math.nan):
+        assert semantics.command_param_name(dialect, 400, 1, value) is None  # COMPONENT_ARM_DISARM: MAV_BOOL
+    assert semantics.command_param_name(dialect, 400, 1, 1.0) is not None
