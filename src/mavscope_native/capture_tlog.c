@@ -170,12 +170,8 @@ int ms_tlog_next(ms_reader *r, ms_record *rec) {
         const int64_t last = base + blen < size ? (int64_t)blen - LOOKAHEAD : (int64_t)blen - 11;
         if (p <= last) {
             uint64_t ts = ms_be64(buf + p);
-            uint8_t stx = buf[p + 8];
-            int64_t end = -1;
-            if (stx == STX_V2)
-                end = p + 20 + buf[p + 9] + ((buf[p + 10] & 1) ? 13 : 0);
-            else if (stx == STX_V1)
-                end = p + 16 + buf[p + 9];
+            const int64_t flen = frame_length(buf, p + 8, (int64_t)blen);
+            int64_t end = flen < 0 ? -1 : p + 8 + flen;
             if (end >= 0 && end <= (int64_t)blen && in_range(ts, TS_MIN, TS_MAX)) {
                 r->last_ts = (int64_t)ts;
                 entry(r, rec, buf + p + 8, (size_t)(end - p - 8), base + (uint64_t)p + 8, (uint64_t)(end - p - 8), 1, ts);
@@ -206,12 +202,8 @@ int ms_tlog_next(ms_reader *r, ms_record *rec) {
         int64_t q;
         if (pos + 11 <= size) {
             uint64_t ts = ms_be64(buf + p);
-            uint8_t stx = buf[p + 8];
-            int64_t end = -1;
-            if (stx == STX_V2)
-                end = p + 20 + buf[p + 9] + ((buf[p + 10] & 1) ? 13 : 0);
-            else if (stx == STX_V1)
-                end = p + 16 + buf[p + 9];
+            const int64_t flen = frame_length(buf, p + 8, (int64_t)blen); /* the frame length the entry announces */
+            int64_t end = flen < 0 ? -1 : p + 8 + flen;
             if (end >= 0 && in_range(ts, TS_MIN, TS_MAX)) {
                 if (base + (uint64_t)end <= size) {
                     r->last_ts = (int64_t)ts;
@@ -221,7 +213,6 @@ int ms_tlog_next(ms_reader *r, ms_record *rec) {
                     r->pos = base + (uint64_t)end;
                     return 1;
                 }
-                const int64_t flen = end - p - 8; /* the frame length the entry announces */
                 int rc = find(r, pos + 1, r->last_ts, &q);
                 if (rc != 0)
                     FAIL(rc);
