@@ -34,8 +34,9 @@ demo: $(STAMP)
 	@echo "--- the return-to-launch command as JSON Lines (-T jsonl) ---"
 	$(BIN)/mavscope read captures/px4_sitl_udp.pcap -Y 'COMMAND_LONG.command == MAV_CMD_NAV_RETURN_TO_LAUNCH' -T jsonl
 
+# one test process per core (pytest-xdist): the suite is CPU-bound and its tests are independent
 test: $(TSTAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto
 
 lint: $(TSTAMP)
 	$(BIN)/ruff check mavscope scripts benchmarks tests
