@@ -20,8 +20,7 @@ from typing import Any
 import orjson
 
 from mavscope.cli import Env, ExitStatus
-from mavscope.commands.common import console, write_json
-from mavscope.commands.export import jobs_count
+from mavscope.commands.common import console, whole_number, write_json
 from mavscope.errors import UsageError
 
 COMMANDS = ("verify", "audit", "stats")
@@ -42,7 +41,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "Exit status: the worst status (2 error > 1 findings > 0 ok); problems "
                                    "alone do not change it.")
     p.add_argument("paths", nargs="+", metavar="FILE_OR_DIR", help="captures, or directories holding them")
-    p.add_argument("-j", dest="jobs", type=jobs_count, default=1, metavar="N", help="captures at a time (default 1)")
+    p.add_argument("-j", dest="jobs", type=whole_number(1), default=1, metavar="N",
+                   help="captures at a time (default 1)")
     p.add_argument("--json", action="store_true", help="the summary and each run's JSON document as one JSON")
     p.set_defaults(run=run, passthrough=None)
 

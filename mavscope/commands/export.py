@@ -10,7 +10,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from mavscope.cli import Env, ExitStatus
-from mavscope.commands.common import add_dialect_option, add_key_options, pipeline_options, warner, write_json
+from mavscope.commands.common import (
+    add_dialect_option,
+    add_key_options,
+    pipeline_options,
+    warner,
+    whole_number,
+    write_json,
+)
 from mavscope.errors import UsageError
 
 if TYPE_CHECKING:
@@ -33,7 +40,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-T", dest="format", choices=("parquet", "csv"), default="parquet",
                    help="parquet (default) or csv (mavlogdump-style, one file per message type and capture)")
     p.add_argument("-o", dest="out", metavar="DIR", help="output directory (the dataset with -T parquet)")
-    p.add_argument("-j", dest="jobs", type=jobs_count, default=1, metavar="N",
+    p.add_argument("-j", dest="jobs", type=whole_number(1), default=1, metavar="N",
                    help="captures exported at once, in N worker processes (default 1)")
     p.add_argument("--engine", choices=("local", "dask"), default="local",
                    help="local (default) or dask: tasks on a Dask cluster (--scheduler; else a local cluster of "
@@ -47,16 +54,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_dialect_option(p)
     add_key_options(p)
     p.set_defaults(run=run)
-
-
-def jobs_count(text: str) -> int:
-    try:
-        n = int(text)  # (not str.isdigit: it takes '²', which int() refuses)
-    except ValueError:
-        n = 0
-    if n < 1:
-        raise argparse.ArgumentTypeError(f"a whole positive number, not {text!r}")
-    return n
 
 
 def needs_fleet(*modules: str) -> None:
