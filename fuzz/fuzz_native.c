@@ -112,21 +112,24 @@ static int json_string(const char **p, const char *e) {
     return 1;
 }
 
+/* The end of the run of ASCII digits at s (s itself when there is none). */
+static const char *digits(const char *s, const char *e) {
+    while (s < e && *s >= '0' && *s <= '9')
+        s++;
+    return s;
+}
+
 static int json_number(const char **p, const char *e) {
     const char *s = *p;
     if (s < e && *s == '-')
         s++;
     const char *d = s;
-    while (s < e && *s >= '0' && *s <= '9')
-        s++;
+    s = digits(s, e);
     if (s == d || (s - d > 1 && *d == '0'))
         return 0;
     if (s < e && *s == '.') {
-        s++;
-        d = s;
-        while (s < e && *s >= '0' && *s <= '9')
-            s++;
-        if (s == d)
+        d = ++s;
+        if ((s = digits(s, e)) == d)
             return 0;
     }
     if (s < e && (*s == 'e' || *s == 'E')) {
@@ -134,9 +137,7 @@ static int json_number(const char **p, const char *e) {
         if (s < e && (*s == '+' || *s == '-'))
             s++;
         d = s;
-        while (s < e && *s >= '0' && *s <= '9')
-            s++;
-        if (s == d)
+        if ((s = digits(s, e)) == d)
             return 0;
     }
     *p = s;
