@@ -20,6 +20,11 @@
  * arrow only. The summary number and string writers (ms_w_g4, ms_w_degrees, ms_w_reltime,
  * ms_w_repr_ascii) run on the input's bytes into buffers of exactly their claimed room too.
  *
+ * Live capture's parts run on every input too: ms_udp_record (recv.c) on addresses, ports and a payload
+ * taken from the input (lengths and checksums checked), and a pcap input is walked again fed in pieces
+ * ending at record boundaries (ms_reader_extend), which must give the whole walk's output when its
+ * record headers are sane.
+ *
  * Build and run: scripts/fuzz-native.sh SECONDS (docs/native.md). The message table comes from
  * mavscope's default dialect, written by the script to the file named in $MAVSCOPE_FUZZ_TABLE. */
 #include <stdio.h>
@@ -28,6 +33,7 @@
 
 #include "capture.h"
 #include "fmt.h"
+#include "recv.h"
 #include "summary.h"
 #include "table.h"
 #include "walk.h"
@@ -335,6 +341,155 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
     ms_walker_free(&w);
 }
 
+/* ---- live capture: records made of datagrams, and a pcap that grows (recv.c, ms_reader_extend) ---- */
+
+static unsigned fold_sum(const uint8_t *p, size_t n, uint64_t acc) {
+    for (size_t i = 0; i + 1 < n; i += 2)
+        acc += ((uint64_t)p[i] << 8) | p[i + 1];
+    if (n & 1)
+        acc += (uint64_t)p[n - 1] << 8;
+    while (acc >> 16)
+        acc = (acc & 0xFFFF) + (acc >> 16);
+    return (unsigned)acc;
+}
+
+/* ms_udp_record on addresses, ports, a time and a payload taken from the input: the record must have
+ * the lengths it claims and checksums a receiver verifies (the one's-complement sums come to 0xFFFF). */
+static void check_udp_record(const uint8_t *d, size_t n) {
+    if (n < 40)
+        return;
+    ms_addr src = {(uint8_t)((d[0] & 1) ? 16 : 4), {0}}, dst = {(uint8_t)((d[0] & 2) ? 16 : 4), {0}};
+    memcpy(src.addr, d + 1, 16);
+    memcpy(dst.addr, d + 17, 16);
+    const uint16_t sport = (uint16_t)(d[33] << 8 | d[34]), dport = (uint16_t)(d[35] << 8 | d[36]);
+    const size_t plen = n - 37;
+    uint8_t *payload = malloc(plen ? plen : 1); /* exactly sized: a read past it is a heap overflow */
+    if (payload == NULL)
+        return;
+    memcpy(payload, d + 37, plen);
+    ms_buf out;
+    ms_buf_init(&out);
+    int rc = ms_udp_record(&out, d[0], (uint32_t)d[1] * 3906250u, &src, sport, &dst, dport, payload, plen);
+    if (rc == 0) {
+        const uint8_t *r = (const uint8_t *)out.data;
+        const int v4 = src.len == 4 && dst.len == 4;
+        const size_t head = 14 + (v4 ? 20 : 40) + 8;
+        const uint32_t incl = (uint32_t)r[8] | (uint32_t)r[9] << 8 | (uint32_t)r[10] << 16 | (uint32_t)r[11] << 24;
+        if (out.len != 16 + head + plen || incl != head + plen || memcmp(r + 16 + head, payload, plen) != 0)
+            abort();
+        const uint8_t *ip = r + 16 + 14, *udp = ip + (v4 ? 20 : 40);
+        uint64_t pseudo = 8 + plen + 17;
+        if (v4) {
+            if (fold_sum(ip, 20, 0) != 0xFFFF)
+                abort();
+            pseudo += fold_sum(ip + 12, 8, 0);
+        } else {
+            pseudo += fold_sum(ip + 8, 32, 0);
+        }
+        if (fold_sum(udp, 8 + plen, pseudo) != 0xFFFF)
+            abort();
+        /* the microsecond copy of the record: the same record but for its time; cut short, refused */
+        uint8_t *rec = malloc(out.len);
+        if (rec != NULL) {
+            memcpy(rec, out.data, out.len);
+            ms_buf micro;
+            ms_buf_init(&micro);
+            if (ms_records_to_micro(rec, out.len, &micro) == 1 &&
+                (micro.len != out.len || memcmp(micro.data + 8, rec + 8, out.len - 8) != 0 ||
+                 (uint8_t)micro.data[4] + ((uint8_t)micro.data[5] << 8) + ((uint8_t)micro.data[6] << 16) +
+                         ((uint32_t)(uint8_t)micro.data[7] << 24) > 999999u))
+                abort();
+            micro.len = 0;
+            if (ms_records_to_micro(rec, out.len - 1 - (size_t)(d[2] % 16), &micro) != -1 && !micro.failed)
+                abort();
+            ms_buf_free(&micro);
+            free(rec);
+        }
+    }
+    ms_buf_free(&out);
+    free(payload);
+}
+
+/* Walk to the end, appending the text and, for each handed-back record, its number to `all`. */
+static int walk_collect(ms_walker *w, ms_buf *all) {
+    ms_buf out;
+    ms_buf_init(&out);
+    int r;
+    do {
+        out.len = 0;
+        ms_record rec;
+        r = ms_walk(w, &out, 4096, &rec);
+        ms_buf_put(all, out.data ? out.data : "", out.len);
+        if (r == MS_WALK_HANDBACK) {
+            char mark[32];
+            int k = snprintf(mark, sizeof mark, "<record %llu>\n", (unsigned long long)rec.number);
+            ms_buf_put(all, mark, (size_t)k);
+        }
+    } while (r == MS_WALK_FULL || r == MS_WALK_HANDBACK);
+    ms_buf_free(&out);
+    return r;
+}
+
+/* A pcap fed in pieces that end at record boundaries (chosen by `control`), as live capture feeds the
+ * walker, must give what the whole file gives when every record header is sane (no resynchronisation,
+ * whose scans see only the bytes fed so far); otherwise it must merely be safe. */
+static void walk_fed(const uint8_t *file, size_t n, unsigned sel, unsigned control) {
+    size_t bounds[64];
+    size_t nb = 0;
+    int sane = n >= 24;
+    size_t pos = sane ? 24 : n;
+    while (sane && pos + 16 <= n) {
+        const uint8_t *h = file + pos;
+        uint32_t incl = (uint32_t)h[8] | (uint32_t)h[9] << 8 | (uint32_t)h[10] << 16 | (uint32_t)h[11] << 24;
+        uint32_t orig = (uint32_t)h[12] | (uint32_t)h[13] << 8 | (uint32_t)h[14] << 16 | (uint32_t)h[15] << 24;
+        if (incl > 262144u || orig != incl || pos + 16 + incl > n) {
+            sane = 0;
+            break;
+        }
+        pos += 16 + incl;
+        if (nb < 64 && ((control >> (nb & 7)) & 1))
+            bounds[nb++] = pos;
+    }
+    if (pos != n)
+        sane = 0;
+    if (nb == 0 || bounds[nb - 1] != pos) {
+        if (nb == 64)
+            nb--;
+        bounds[nb++] = pos; /* the last piece ends where the sane records end */
+    }
+    ms_buf whole, fed;
+    ms_buf_init(&whole);
+    ms_buf_init(&fed);
+    ms_memory_file mf = {file, n, 0, 0, 0, 0};
+    ms_walker w;
+    ms_walker_init(&w, ms_memory_source(&mf), n, MS_KIND_PCAP, &table);
+    w.sign_mode = (sel & 4) ? MS_SIGNED_NOKEY : MS_SIGNED_HANDBACK;
+    w.fuzz_any_crc = (sel & 8) != 0;
+    walk_collect(&w, &whole);
+    ms_walker_free(&w);
+    ms_memory_file mf2 = {file, bounds[0], 0, 0, 0, 0};
+    ms_walker_init(&w, ms_memory_source(&mf2), bounds[0], MS_KIND_PCAP, &table);
+    w.sign_mode = (sel & 4) ? MS_SIGNED_NOKEY : MS_SIGNED_HANDBACK;
+    w.fuzz_any_crc = (sel & 8) != 0;
+    int ok = walk_collect(&w, &fed) == MS_WALK_END;
+    for (size_t i = 1; ok && i < nb; i++) {
+        mf2.size = bounds[i];
+        if (ms_reader_extend(&w.reader, bounds[i]) != 0) {
+            if (sane)
+                abort(); /* a clean end at a record boundary must let the pcap grow */
+            ok = 0;
+            break;
+        }
+        ok = walk_collect(&w, &fed) == MS_WALK_END;
+    }
+    ms_walker_free(&w);
+    if (sane && ok && !whole.failed && !fed.failed &&
+        (whole.len != fed.len || (whole.len && memcmp(whole.data, fed.data, whole.len) != 0)))
+        abort();
+    ms_buf_free(&whole);
+    ms_buf_free(&fed);
+}
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     if (size < 1)
         return 0;
@@ -349,6 +504,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     }
     check_writers(data + head, size - head);
     check_summary_writers(data + head, size - head);
+    check_udp_record(data + head, size - head);
     /* an exactly sized copy: a read past the end of the file is a heap overflow for ASan */
     size_t n = size - head;
     uint8_t *file = malloc(n ? n : 1);
@@ -368,6 +524,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
         }
         walk_file(&mf, file, n, sel, control, pass ? &summary : NULL);
     }
+    if ((sel & 3) == 0) /* a pcap: fed in pieces as live capture feeds it */
+        walk_fed(file, n, sel, control);
     free(file);
     return 0;
 }

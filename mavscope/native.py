@@ -169,20 +169,33 @@ class NativeWalk:
     seen signing) holds for the records after it.
     """
 
-    def __init__(self, path: str | os.PathLike[str], dialect: Dialect, endpoints: set[Endpoint],
+    def __init__(self, path: str | os.PathLike[str] | None, dialect: Dialect, endpoints: set[Endpoint],
                  signed_senders: set[tuple[int, int]], kind: str | None = None, window: int = WINDOW,
                  summary: object | None = None, t0: float | None = None) -> None:
         if _native is None:
             raise RuntimeError("mavscope._native is not built")
-        self.kind = kind or detect_kind(path)
-        self.path, self._file, self.opened_size = open_file(path)
+        self._file: IO[bytes] | None = None
+        if path is None:  # a pcap that grows: `feed` it whole records (live capture, mavscope.native_live)
+            self.kind, self.path, self.opened_size, fd = "pcap", "", 0, -1
+        else:
+            self.kind = kind or detect_kind(path)
+            self.path, self._file, self.opened_size = open_file(path)
+            fd = self._file.fileno()
         try:
-            self.walker = _native.Walker(self._file.fileno(), self.opened_size, _KINDS[self.kind],
-                                         table_for(dialect), endpoints, Endpoint.from_packed, signed_senders,
-                                         window, summary, t0)
+            self.walker = _native.Walker(fd, self.opened_size, _KINDS[self.kind], table_for(dialect), endpoints,
+                                         Endpoint.from_packed, signed_senders, window, summary, t0)
         except BaseException:
-            self._file.close()
+            self.close_file()
             raise
+
+    def feed(self, records: bytes) -> None:
+        """More of a walk made without a path: whole pcap records (the global header first). The walk's
+        batches() then goes on from where the last one ended."""
+        self.walker.feed(records)
+
+    def close_file(self) -> None:
+        if self._file is not None:
+            self._file.close()
 
     def batches(self, signed_nokey: Callable[[], bool] = lambda: False, limit: int = BATCH_BYTES,
                 buffers: Callable[[], bytearray | None] | None = None) -> Iterator[Batch]:
@@ -235,7 +248,7 @@ class NativeWalk:
 
     def close(self) -> None:
         self.walker.close()
-        self._file.close()
+        self.close_file()
 
     def __enter__(self) -> NativeWalk:
         return self
@@ -307,6 +320,85 @@ class Reporter(Protocol):
     def frame(self, frame: Frame) -> None: ...
 
 
+class LineSink:
+    """The lines of both paths, in order, into `put`: native text as it comes, and `render(frame)` of the
+    frames the security stage gives for the Python pipeline's items (anomalies and frames with notes to
+    `problems`). Counts the frames written (`frames`); with `count`, stops after that many (`left`
+    reaches 0: `done`)."""
+
+    def __init__(self, stage: SecurityStage, problems: Reporter, render: Callable[[Frame], bytes],
+                 put: Callable[[bytes | bytearray], object], count: int | None = None) -> None:
+        self.run = stage.run
+        self.problems = problems
+        self.render = render
+        self.put = put
+        self.counting = count is not None
+        self.left = -1 if count is None else count
+        self.frames = 0  # written by Python, or every frame when counting
+
+    @property
+    def done(self) -> bool:
+        return not self.left
+
+    def python(self, items: Iterator[Frame | Anomaly] | list[Frame | Anomaly] | list[Anomaly]) -> None:
+        lines: list[bytes] = []
+        problems, render = self.problems, self.render
+        for item in self.run(items):
+            if type(item) is Anomaly:
+                problems.anomaly(item)
+                continue
+            if item.notes:
+                problems.frame(item)
+            lines.append(render(item))
+            self.left -= 1
+            if not self.left:
+                break
+        if lines:
+            self.frames += len(lines)
+            self.put(b"".join(lines))
+
+    def native(self, text: bytes | bytearray) -> None:
+        left = self.left
+        if left < 0:
+            self.put(text)
+            return
+        n = text.count(b"\n")
+        if n >= left:  # the frame `count` ends in this text
+            end = -1
+            for _ in range(left):
+                end = text.index(b"\n", end + 1)
+            text = bytes(memoryview(text)[: end + 1])
+            n = left
+        self.put(text)
+        self.frames += n
+        self.left -= n
+
+
+def drive(walk: NativeWalk, dissector: Dissector, stage: SecurityStage, sink: LineSink,
+          buffers: Callable[[], bytearray | None] | None = None,
+          progress: Callable[[int], None] | None = None) -> None:
+    """The walk's batches into `sink` until the walk's end (or `sink.done`): native text as it is, the
+    handed-back records through `dissector` (told first of the records walked natively before them);
+    `progress` with the file offset after each native batch. What the dissector still holds at the end
+    is the caller's (`dissector.finish()`)."""
+    nokey: Callable[[], bool] = lambda: not stage.check_signatures  # noqa: E731 - asked per batch
+    passed = dissector.passed
+    python = sink.python
+    for walked, text, record in walk.batches(nokey, buffers=buffers):
+        if walked is not None:
+            held = passed(*walked)  # a run of tlog text entries ends before these records
+            if held:
+                python(held)
+        if text is not None and not sink.done:
+            sink.native(text)
+            if progress is not None:
+                progress(walk.position)
+        if record is not None and not sink.done:
+            python(dissector.feed(record))
+        if sink.done:
+            return
+
+
 def write_jsonl(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityStage, out: IO[bytes],
                 problems: Reporter, threaded: bool = True, progress: Callable[[int], None] | None = None,
                 kind: str | None = None, window: int = WINDOW) -> dict[str, int]:
@@ -337,66 +429,16 @@ def write_lines(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityS
     else:
         only = bytearray()  # written before the next batch: one serves
         buffers = lambda: only  # noqa: E731
-    nokey: Callable[[], bool] = lambda: not stage.check_signatures  # noqa: E731 - asked per batch
-    run = stage.run
-    passed = dissector.passed
-    frames = 0  # written by Python, or every frame when counting
-    left = -1 if count is None else count
-
-    def python(items: Iterator[Frame | Anomaly] | list[Frame | Anomaly] | list[Anomaly]) -> None:
-        nonlocal frames, left
-        lines: list[bytes] = []
-        for item in run(items):
-            if type(item) is Anomaly:
-                problems.anomaly(item)
-                continue
-            if item.notes:
-                problems.frame(item)
-            lines.append(render(item))
-            left -= 1
-            if not left:
-                break
-        if lines:
-            frames += len(lines)
-            put(b"".join(lines))
-
-    def native(text: bytes | bytearray) -> None:
-        nonlocal frames, left
-        if left < 0:
-            put(text)
-            return
-        n = text.count(b"\n")
-        if n >= left:  # the frame `count` ends in this text
-            end = -1
-            for _ in range(left):
-                end = text.index(b"\n", end + 1)
-            text = bytes(memoryview(text)[: end + 1])
-            n = left
-        put(text)
-        frames += n
-        left -= n
-
+    sink = LineSink(stage, problems, render, put, count)
     try:
         with NativeWalk(path, dialect, dissector.mavlink_endpoints, stage.signed_senders, kind, window,
                         summary, t0) as walk:
-            for walked, text, record in walk.batches(nokey, buffers=buffers):
-                if walked is not None:
-                    held = passed(*walked)  # a run of tlog text entries ends before these records
-                    if held:
-                        python(held)
-                if text is not None and left:
-                    native(text)
-                    if progress is not None:
-                        progress(walk.position)
-                if record is not None and left:
-                    python(dissector.feed(record))
-                if not left:
-                    break
+            drive(walk, dissector, stage, sink, buffers, progress)
             stats = walk.stats()
-        if left:
-            python(dissector.finish())
+        if not sink.done:
+            sink.python(dissector.finish())
     finally:
         if writer is not None:
             writer.close()
-    stats["frames"] = frames if count is not None else frames + stats["frames_native"]
+    stats["frames"] = sink.frames if count is not None else sink.frames + stats["frames_native"]
     return stats

@@ -35,7 +35,7 @@ def internet_checksum(data: bytes) -> int:
 
 
 @functools.lru_cache(maxsize=4096)  # a live capture synthesises headers for the same few endpoints
-def _address(host: str) -> bytes:
+def packed_address(host: str) -> bytes:
     """The packed address of a numeric host: 4 bytes for IPv4 and IPv4-mapped IPv6, else 16."""
     try:
         addr = ipaddress.ip_address(host.split("%")[0])  # an IPv6 scope (fe80::1%eth0) is not on the wire
@@ -49,7 +49,7 @@ def _address(host: str) -> bytes:
 def udp_packet(src_host: str, src_port: int, dst_host: str, dst_port: int, payload: bytes) -> bytes:
     """Ethernet/IP/UDP carrying `payload`: IPv4 when both ends are IPv4 (or IPv4-mapped), else IPv6 (an
     IPv4 end then written IPv4-mapped). UsageError for a payload one IP packet cannot carry."""
-    saddr, daddr = _address(src_host), _address(dst_host)
+    saddr, daddr = packed_address(src_host), packed_address(dst_host)
     ulen = 8 + len(payload)
     if len(saddr) == 4 and len(daddr) == 4:
         if 20 + ulen > 0xFFFF:

@@ -136,6 +136,13 @@ class PcapWriter(_Writer):
         self._f.write(_PCAP_RECORD.pack(sec, frac, len(data), min(orig, 0xFFFFFFFF)))
         self._f.write(data)
 
+    def write_raw(self, records: bytes) -> None:
+        """Append whole records already in this file's format (little-endian 16-byte headers in its time
+        resolution, data within its snap length): live capture's batches, made in C."""
+        if self.closed:
+            raise UsageError("write to a closed PcapWriter")
+        self._f.write(records)
+
     def __enter__(self) -> PcapWriter:
         return self
 

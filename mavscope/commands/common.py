@@ -7,6 +7,7 @@ become the frozen options every front end hands to `mavscope.pipeline.session`.
 from __future__ import annotations
 
 import argparse
+import codecs
 import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -107,6 +108,17 @@ def pipeline_options(args: argparse.Namespace, env: Env) -> PipelineOptions:
         keyring=env.environ.get(KEYRING_ENV) or None,
         display_filter=given.get("display_filter") or None,
     )
+
+
+def plain_utf8(env: Env) -> bool:
+    """Whether stdout is not a terminal and encodes text as UTF-8 (the native lines are UTF-8 bytes)."""
+    try:
+        if env.stdout.isatty():
+            return False
+    except (AttributeError, ValueError):
+        return False
+    encoding = getattr(env.stdout, "encoding", None)
+    return encoding is None or codecs.lookup(encoding).name == "utf-8"
 
 
 def console(env: Env):  # type: ignore[no-untyped-def]

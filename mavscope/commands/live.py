@@ -11,9 +11,10 @@ one-line summary goes to stderr (exit status 0).
 from __future__ import annotations
 
 import argparse
+import io
 import signal
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from types import FrameType
 
 from mavscope.capture.base import Record
@@ -24,6 +25,7 @@ from mavscope.commands.common import (
     add_filter_option,
     add_key_options,
     pipeline_options,
+    plain_utf8,
     warner,
     whole_number,
 )
@@ -31,8 +33,9 @@ from mavscope.errors import MavscopeError, UsageError
 from mavscope.live.sink import LivePcapWriter
 from mavscope.live.source import DEFAULT_QUEUE_ITEMS, LiveSource
 from mavscope.live.stop import Stopper
-from mavscope.live.udp import UdpSource, parse_endpoint
-from mavscope.mavlink.dialect import load_dialect
+from mavscope.live.udp import BatchReceiver, UdpSource, parse_endpoint
+from mavscope.mavlink.dialect import Dialect, load_dialect
+from mavscope.mavlink.frame import Frame
 from mavscope.output.printer import FramePrinter
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.pipeline.session import build_pipeline
@@ -88,7 +91,7 @@ def _check(args: argparse.Namespace) -> None:
         raise UsageError("live: --rcvbuf and --queue need positive values")
 
 
-def make_source(args: argparse.Namespace) -> LiveSource:
+def make_source(args: argparse.Namespace, env: Env) -> LiveSource:
     """The live source the options name (not opened yet)."""
     rcvbuf = int(args.rcvbuf * (1 << 20))
     if args.sniff:
@@ -99,7 +102,65 @@ def make_source(args: argparse.Namespace) -> LiveSource:
     forward = parse_endpoint(args.forward, what="--forward", default_host=None) if args.forward else None
     if forward is not None and forward.port == 0:
         raise UsageError("--forward: port 0 is not a destination")
-    return UdpSource(listen, forward, rcvbuf=rcvbuf, max_items=args.queue)
+    return UdpSource(listen, forward, rcvbuf=rcvbuf, max_items=args.queue, receiver=_receiver(env))
+
+
+def _receiver(env: Env) -> Callable[[bytes, int], BatchReceiver] | None:
+    """The native batch receiver when the native engine runs (MAVSCOPE_PURE unset, extension built)."""
+    from mavscope.native import engine
+
+    if engine(env.environ) != "native":
+        return None
+    from mavscope.native_live import receiver_factory
+
+    return receiver_factory()  # type: ignore[return-value]
+
+
+def _native_lines(args: argparse.Namespace, env: Env, source: LiveSource) -> bool:
+    """Whether the native walker writes the lines: a batched source and plain JSON Lines or summary lines
+    (no filter, -V or -x; summary lines to a stream that is not a terminal and takes UTF-8), as for `read`,
+    or -q (lines made and dropped: the frames are counted, problems reported) (mavscope.native_live)."""
+    if not isinstance(source, UdpSource) or not source.batched:
+        return False
+    if args.display_filter or args.verbose or args.hex:
+        return False
+    if args.format != "jsonl" and not args.quiet and not plain_utf8(env):
+        return False
+    from mavscope.native import engine
+
+    return engine(env.environ) == "native"
+
+
+class _Discard(io.RawIOBase):
+    """Where `-q` sends the lines (the walk still counts the frames and reports the problems)."""
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, b: object) -> int:
+        return len(b)  # type: ignore[arg-type]
+
+
+def _write_native(args: argparse.Namespace, env: Env, source: LiveSource, dialect: Dialect, stopper: Stopper,
+                  writer: LivePcapWriter | None, problems: Problems, printer: FramePrinter) -> int:
+    """The lines of the live capture through mavscope.native_live; returns the frames written."""
+    from mavscope.native_live import write_live
+    from mavscope.output.jsonout import jsonl_bytes
+    from mavscope.output.text import summary_line
+    from mavscope.pipeline.session import make_security_stage
+
+    stage = make_security_stage(pipeline_options(args, env), warner(env))
+
+    def text(frame: Frame) -> bytes:
+        return (summary_line(frame, dialect, printer.t0) + "\n").encode("utf-8")
+
+    def on_t0(t0: float) -> None:
+        printer.t0 = t0
+
+    return write_live(source, dialect, stage, _Discard() if args.quiet else env.stdout_bytes, problems,
+                      jsonl_bytes if args.format == "jsonl" else text, summary=args.format == "text",
+                      count=args.count, stopper=stopper, writer=writer, on_t0=on_t0,
+                      idle=writer.tick if writer is not None else None)
 
 
 def describe(source: LiveSource) -> str:
@@ -125,7 +186,7 @@ def summary(source: LiveSource, frames: int, undecoded: int = 0) -> str:
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     _check(args)
     dialect = load_dialect(args.dialect)
-    source = make_source(args)
+    source = make_source(args, env)
     try:
         source.open()
     except BaseException:
@@ -171,19 +232,23 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
             timer.daemon = True
         limit = args.count if args.count is not None else -1
         show = printer.frame
+        native = _native_lines(args, env, source)
         source.start()
         if timer is not None:
             timer.start()
         try:
-            for item in build_pipeline(pipeline_options(args, env), dialect, records(), warn=warner(env)):
-                if type(item) is Anomaly:
-                    problems.anomaly(item)
-                    continue
-                show(item)
-                shown += 1
-                if shown == limit:
-                    source.stop(drain=False)
-                    break
+            if native:
+                shown = _write_native(args, env, source, dialect, stopper, writer, problems, printer)
+            else:
+                for item in build_pipeline(pipeline_options(args, env), dialect, records(), warn=warner(env)):
+                    if type(item) is Anomaly:
+                        problems.anomaly(item)
+                        continue
+                    show(item)
+                    shown += 1
+                    if shown == limit:
+                        source.stop(drain=False)
+                        break
         except BrokenPipeError:
             raise  # `mavscope live ... | head`: main() ends quietly
         except OSError as e:
@@ -194,7 +259,9 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
             timer.cancel()
         source.close()
         for sig, old in restore:
-            signal.signal(sig, old)  # type: ignore[arg-type]
+            # after a stop signal the capture is ending: a second one, arriving while the summary is
+            # written (a fast stop leaves little time between two), must not kill the process with it
+            signal.signal(sig, signal.SIG_IGN if stopper.deadline is not None else old)  # type: ignore[arg-type]
         if writer is not None:
             writer.close()
         try:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import codecs
 import contextlib
 import os
 
@@ -15,6 +14,7 @@ from mavscope.commands.common import (
     add_key_options,
     capture_session,
     not_the_capture,
+    plain_utf8,
     progress,
     whole_number,
 )
@@ -100,22 +100,11 @@ def _native_eligible(args: argparse.Namespace, env: Env) -> bool:
     if args.format == "jsonl":
         if args.count is not None:
             return False
-    elif args.format != "text" or args.verbose or args.hex or not _plain_utf8(env):
+    elif args.format != "text" or args.verbose or args.hex or not plain_utf8(env):
         return False
     from mavscope.native import engine
 
     return engine(env.environ) == "native"
-
-
-def _plain_utf8(env: Env) -> bool:
-    """Whether stdout is not a terminal and encodes text as UTF-8 (the native lines are UTF-8 bytes)."""
-    try:
-        if env.stdout.isatty():
-            return False
-    except (AttributeError, ValueError):
-        return False
-    encoding = getattr(env.stdout, "encoding", None)
-    return encoding is None or codecs.lookup(encoding).name == "utf-8"
 
 
 def _run_native(args: argparse.Namespace, env: Env) -> ExitStatus:

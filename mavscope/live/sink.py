@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable, Iterable
 
 from mavscope.capture.base import Record
 from mavscope.capture.writer import DEFAULT_SNAPLEN, PcapWriter
@@ -54,6 +55,22 @@ class LivePcapWriter:
         self._size += size
         self._count += 1
         self.records += 1
+        self._dirty = True
+        if time.monotonic() - self._last_flush >= self.flush_interval:
+            self.flush()
+
+    def write_batch(self, records: bytes, count: int, each: Callable[[], Iterable[Record]]) -> None:
+        """Append `count` records already in the file's format (microsecond pcap records: a live batch
+        converted in C) in one write; where a ring rotation falls inside them, record by record (`each()`
+        gives them as Records), so the files split exactly as `write` splits them."""
+        if self.half is not None and self._size + len(records) > self.half:
+            for rec in each():
+                self.write(rec)
+            return
+        self._writer.write_raw(records)
+        self._size += len(records)
+        self._count += count
+        self.records += count
         self._dirty = True
         if time.monotonic() - self._last_flush >= self.flush_interval:
             self.flush()

@@ -21,10 +21,11 @@ from __future__ import annotations
 import queue
 import select
 import socket
+import struct
 import threading
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 from mavscope.capture.base import LINKTYPE_ETHERNET, Record
 
@@ -32,6 +33,51 @@ DEFAULT_QUEUE_ITEMS = 200_000  # datagrams waiting for the decoder (10 s at 20,0
 DEFAULT_QUEUE_BYTES = 64 << 20  # and at most this many payload bytes
 PCAP_HEADER = 24  # a classic pcap file header, then 16 bytes before each record
 PCAP_RECORD_HEADER = 16
+
+
+_RECORD = struct.Struct("<IIII")  # a Chunk's record header: seconds, nanoseconds, captured and original length
+_ETHER_V4_HEAD = 14 + 20 + 8  # the headers before a datagram's payload in a Chunk's packets
+_ETHER_V6_HEAD = 14 + 40 + 8
+
+
+class Chunk(NamedTuple):
+    """Datagrams received in one batch by the native receiver (mavscope._native.Receiver): whole records
+    of a nanosecond, Ethernet pcap (`records`, each the packet capture.synth.udp_packet makes), how many
+    (`datagrams`) and their payload bytes (`size`, last as in every queue item)."""
+
+    records: bytes
+    datagrams: int
+    size: int
+
+
+def chunk_items(records: bytes | memoryview) -> Iterator[tuple[float, bytes, int]]:
+    """(time, packet, payload bytes) of every record of a Chunk, in order; the time as the pcap reader
+    computes it from the record (seconds + nanoseconds / 1e9)."""
+    unpack = _RECORD.unpack_from
+    pos = 0
+    end = len(records)
+    while pos + 16 <= end:
+        sec, nsec, incl, _orig = unpack(records, pos)
+        packet = bytes(records[pos + 16 : pos + 16 + incl])
+        pos += 16 + incl
+        head = _ETHER_V4_HEAD if packet[12:14] == b"\x08\x00" else _ETHER_V6_HEAD
+        yield sec + nsec / 1_000_000_000, packet, len(packet) - head
+
+
+def chunk_prefix(chunk: Chunk, items: int, size: int) -> Chunk:
+    """The first datagrams of `chunk`, at most `items` of them and `size` payload bytes in all."""
+    kept = bytearray()
+    n = total = 0
+    pos = 0
+    for _t, packet, payload in chunk_items(chunk.records):
+        if n >= items or total + payload > size:
+            break
+        end = pos + 16 + len(packet)
+        kept += chunk.records[pos:end]
+        pos = end
+        n += 1
+        total += payload
+    return Chunk(bytes(kept), n, total)
 
 
 @dataclass(frozen=True)
@@ -147,9 +193,47 @@ class LiveSource:
         `on_idle` is called whenever the queue is empty (before waiting) and every `idle_interval`
         seconds while it stays empty: the place to flush output and files.
         """
+        record = self._record
+        for item in self._items(on_idle, idle_interval):
+            if type(item) is Chunk:
+                yield from self._chunk_records(item)
+                continue
+            self.delivered += 1
+            self._delivered_bytes += item[-1]
+            rec = record(self.delivered, self._next_offset + PCAP_RECORD_HEADER, item)
+            self._next_offset += PCAP_RECORD_HEADER + len(rec.data)
+            if self.t0 is None:
+                self.t0 = rec.time
+            yield rec
+        if self.error is not None:
+            raise self.error
+
+    __iter__ = records
+
+    def chunks(
+        self, on_idle: Callable[[], None] | None = None, idle_interval: float = 0.25
+    ) -> Iterator[Chunk]:
+        """The queue as the native receiver filled it: Chunks of pcap records, in arrival order, until stop()
+        (for the native walker, mavscope.native_live). Records are counted and numbered as records() would
+        (the records of a Chunk are records `delivered - datagrams + 1` .. `delivered` after it is yielded).
+        Only for a source that queues Chunks (`UdpSource.batched`)."""
+        for item in self._items(on_idle, idle_interval):
+            if type(item) is not Chunk:
+                raise TypeError("chunks() needs a source whose receiver queues Chunks")
+            self.delivered += item.datagrams
+            self._delivered_bytes += item.size
+            if self.t0 is None and item.datagrams:
+                sec, nsec = _RECORD.unpack_from(item.records)[:2]
+                self.t0 = sec + nsec / 1_000_000_000
+            self._next_offset += len(item.records)
+            yield item
+        if self.error is not None:
+            raise self.error
+
+    def _items(self, on_idle: Callable[[], None] | None, idle_interval: float) -> Iterator[Any]:
+        """Queue items in order until the receiver's end mark; `on_idle` while the queue is empty."""
         get = self._q.get
         empty = queue.Empty
-        record = self._record
         while True:
             try:
                 item = get(block=False)
@@ -164,18 +248,19 @@ class LiveSource:
                         if on_idle is not None:
                             on_idle()
             if item is None:
-                break
-            self.delivered += 1
-            self._delivered_bytes += item[-1]
-            rec = record(self.delivered, self._next_offset + PCAP_RECORD_HEADER, item)
-            self._next_offset += PCAP_RECORD_HEADER + len(rec.data)
-            if self.t0 is None:
-                self.t0 = rec.time
-            yield rec
-        if self.error is not None:
-            raise self.error
+                return
+            yield item
 
-    __iter__ = records
+    def _chunk_records(self, chunk: Chunk) -> Iterator[Record]:
+        for t, packet, payload in chunk_items(chunk.records):
+            self.delivered += 1
+            self._delivered_bytes += payload
+            rec = Record(self.delivered, t, LINKTYPE_ETHERNET, packet, self._next_offset + PCAP_RECORD_HEADER,
+                         len(packet))
+            self._next_offset += PCAP_RECORD_HEADER + len(packet)
+            if self.t0 is None:
+                self.t0 = t
+            yield rec
 
     # -- the receiver side --------------------------------------------------------------------------
 
@@ -197,6 +282,21 @@ class LiveSource:
             return
         self._queued_bytes += size
         self._q.put(item)
+
+    def _offer_chunk(self, chunk: Chunk) -> None:
+        """Queue a Chunk; the datagrams that do not fit are dropped and counted, as `_offer` does."""
+        waiting = self.received - self.queue_drops - self.delivered  # before this chunk
+        self.received += chunk.datagrams
+        self.received_bytes += chunk.size
+        room = self.max_items - waiting
+        room_bytes = self.max_bytes - (self._queued_bytes - self._delivered_bytes)
+        if chunk.datagrams > room or chunk.size > room_bytes:
+            kept = chunk_prefix(chunk, max(room, 0), max(room_bytes, 0))
+            self.queue_drops += chunk.datagrams - kept.datagrams
+            chunk = kept
+        if chunk.datagrams:
+            self._queued_bytes += chunk.size
+            self._q.put(chunk)
 
     def _receive(self) -> None:
         raise NotImplementedError

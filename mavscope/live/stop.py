@@ -39,3 +39,10 @@ class Stopper:
             self.undecoded += 1
             return False
         return True
+
+    def decode_many(self, n: int) -> bool:
+        """`decode()` for `n` datagrams received together (a batch): all decoded or all counted."""
+        if self.deadline is not None and self.clock() >= self.deadline:
+            self.undecoded += n
+            return False
+        return True

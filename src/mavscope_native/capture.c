@@ -313,6 +313,18 @@ int ms_reader_next(ms_reader *r, ms_record *rec) {
     return got;
 }
 
+int ms_reader_extend(ms_reader *r, uint64_t size) {
+    if (r->kind != MS_KIND_PCAP || size < r->size)
+        return -1;
+    if (r->done) {
+        if (!r->header_ok || r->pos != r->size || r->pending.n != 0 || r->io_errno)
+            return -1;
+        r->done = 0;
+    }
+    r->size = r->opened_size = size;
+    return 0;
+}
+
 #if defined(__SIZEOF_INT128__)
 __extension__ typedef unsigned __int128 ms_u128;
 

@@ -148,6 +148,10 @@ void ms_reader_init(ms_reader *r, ms_source src, uint64_t size, int kind);
 void ms_reader_free(ms_reader *r);
 /* The next record: 1 (rec filled), 0 at the end, -1 when out of memory. */
 int ms_reader_next(ms_reader *r, ms_record *rec);
+/* A pcap that grows (live capture: records are appended whole): the file now has `size` bytes. The
+ * reader goes on after its end only when it ended cleanly there (no note, the last record whole);
+ * 0, or -1 when it cannot (then it stays ended). */
+int ms_reader_extend(ms_reader *r, uint64_t size);
 
 /* A source over bytes in memory (the fuzz harness, tests): the file is data[0 .. size); after `shrink_after`
  * reads (0: never) it has only `shrink_to` bytes, as a file truncated while it is read; read number

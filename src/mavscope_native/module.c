@@ -10,6 +10,9 @@
  *     .walked() -> tuple[int, float | None, int | None] | None
  *     .stats() -> dict[str, int]
  *     .close()
+ *     .feed(records)                    with fd=-1 (and size 0, kind pcap): a pcap that grows, fed whole
+ *                                        records (live capture: the global header, then Receiver batches)
+ *   Receiver, udp_record, UDP_PCAP_HEADER (module_recv.c: live capture's batched receive)
  *   format_double(x) -> bytes, text_json(b) -> bytes   (the JSON formatting, for the tests)
  *   format_g4(x), format_degrees(v, unsigned), format_reltime(t), repr_ascii(b) -> bytes | None
  *                                        (the summary formatting, for the tests)
@@ -24,6 +27,7 @@
 #include "buf.h"
 #include "capture.h"
 #include "fmt.h"
+#include "module_recv.h"
 #include "netlayers.h"
 #include "summary.h"
 #include "table.h"
@@ -135,10 +139,32 @@ static PyTypeObject SummaryType = {
 
 /* ---- Walker ------------------------------------------------------------------------------- */
 
+/* The bytes of a pcap that grows while it is walked (`Walker.feed`): what the reader has not passed yet,
+ * from file offset `base`. */
+typedef struct {
+    uint8_t *data;
+    size_t len, cap;
+    uint64_t base;
+} fed_bytes;
+
+static int64_t fed_read(void *ctx, uint8_t *dst, size_t n, uint64_t off, int *err) {
+    const fed_bytes *f = ctx;
+    if (off < f->base) { /* behind what was kept: never asked for (the reader reads on from its position) */
+        *err = EIO;
+        return -1;
+    }
+    if (off - f->base >= f->len)
+        return 0;
+    size_t k = f->len - (size_t)(off - f->base) < n ? f->len - (size_t)(off - f->base) : n;
+    memcpy(dst, f->data + (off - f->base), k);
+    return (int64_t)k;
+}
+
 typedef struct {
     PyObject_HEAD
     ms_walker walker;
-    int fd;              /* the capture file, owned by the caller */
+    int fd;              /* the capture file, owned by the caller; -1: a fed pcap (live capture) */
+    fed_bytes fed;       /* fd == -1: the bytes fed and not yet read, from file offset fed.base */
     int have_walker;
     int ended;
     int busy;
@@ -156,6 +182,8 @@ static void Walker_release(WalkerObject *self) {
         self->have_walker = 0;
     }
     ms_buf_free(&self->out);
+    free(self->fed.data);
+    memset(&self->fed, 0, sizeof self->fed);
     self->ended = 1;
 }
 
@@ -199,8 +227,8 @@ static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
         PyErr_SetString(PyExc_ValueError, "unknown capture kind");
         return -1;
     }
-    if (fd < 0) {
-        PyErr_SetString(PyExc_ValueError, "fd must be an open file descriptor");
+    if (fd < -1 || (fd == -1 && (kind != MS_KIND_PCAP || size != 0))) {
+        PyErr_SetString(PyExc_ValueError, "fd must be an open file descriptor, or -1 for a fed pcap of size 0");
         return -1;
     }
     if (!PyCallable_Check(endpoint)) {
@@ -221,7 +249,10 @@ static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
     Py_INCREF(senders);
     self->senders = senders;
     ms_buf_init(&self->out);
-    ms_walker_init(&self->walker, ms_fd_source(&self->fd), (uint64_t)size, kind, &((TableObject *)table)->table);
+    ms_source src = {fed_read, &self->fed};
+    if (fd != -1)
+        src = ms_fd_source(&self->fd);
+    ms_walker_init(&self->walker, src, (uint64_t)size, kind, &((TableObject *)table)->table);
     self->walker.reader.window = (size_t)window; /* bytes read at a time: the tests make it small */
     if (summary != Py_None) {
         Py_INCREF(summary);
@@ -475,6 +506,55 @@ static PyObject *Walker_walked(WalkerObject *self, PyObject *Py_UNUSED(ignored))
                          (long long)self->walker.py_index);
 }
 
+static PyObject *Walker_feed(WalkerObject *self, PyObject *arg) {
+    if (self->fd != -1) {
+        PyErr_SetString(PyExc_TypeError, "feed() is for a Walker made with fd=-1");
+        return NULL;
+    }
+    if (self->busy) {
+        PyErr_SetString(PyExc_RuntimeError, "Walker.next is running");
+        return NULL;
+    }
+    if (!self->have_walker) {
+        PyErr_SetString(PyExc_ValueError, "the Walker is closed");
+        return NULL;
+    }
+    Py_buffer b;
+    if (PyObject_GetBuffer(arg, &b, PyBUF_SIMPLE) != 0)
+        return NULL;
+    fed_bytes *f = &self->fed;
+    ms_reader *r = &self->walker.reader;
+    if (r->started && r->pos > f->base) { /* the reader has passed these bytes for good */
+        size_t k = r->pos - f->base < f->len ? (size_t)(r->pos - f->base) : f->len;
+        memmove(f->data, f->data + k, f->len - k);
+        f->len -= k;
+        f->base += k;
+    }
+    size_t need = f->len + (size_t)b.len;
+    if (need > f->cap) {
+        size_t cap = f->cap ? f->cap : 65536;
+        while (cap < need)
+            cap *= 2;
+        uint8_t *p = realloc(f->data, cap);
+        if (p == NULL) {
+            PyBuffer_Release(&b);
+            return PyErr_NoMemory();
+        }
+        f->data = p;
+        f->cap = cap;
+    }
+    if (b.len)
+        memcpy(f->data + f->len, b.buf, (size_t)b.len);
+    f->len = need;
+    PyBuffer_Release(&b);
+    if (ms_reader_extend(r, f->base + f->len) != 0) {
+        PyErr_SetString(PyExc_ValueError, "the fed pcap did not end with a whole record: it cannot grow");
+        return NULL;
+    }
+    self->ended = 0;
+    Py_RETURN_NONE;
+}
+
 static PyObject *Walker_close(WalkerObject *self, PyObject *Py_UNUSED(ignored)) {
     if (self->busy) {
         PyErr_SetString(PyExc_RuntimeError, "Walker.next is running");
@@ -503,6 +583,8 @@ static PyMethodDef Walker_methods[] = {
      "when they leave it unchanged"},
     {"stats", (PyCFunction)Walker_stats, METH_NOARGS,
      "counters of the walk, the file position reached and the file size (smaller if the file shrank)"},
+    {"feed", (PyCFunction)Walker_feed, METH_O,
+     "feed(records): append bytes (whole pcap records; the global header first) to a Walker made with fd=-1"},
     {"close", (PyCFunction)Walker_close, METH_NOARGS, "release the walker's memory (the caller closes the file)"},
     {NULL, NULL, 0, NULL},
 };
@@ -598,6 +680,11 @@ static PyMethodDef module_methods[] = {
     {"repr_ascii", repr_ascii, METH_O, "repr() of char_text(b), or None when b is not ASCII"},
     {"format_double", format_double, METH_O, "JSON text of a float, as the native writer makes it"},
     {"text_json", text_json, METH_O, "JSON string of bytes decoded as UTF-8 with backslashreplace"},
+    {"records_to_micro", ms_py_records_to_micro, METH_O,
+     "records_to_micro(records): a live batch's records with microsecond times as the pcap writer writes them, "
+     "and their number"},
+    {"udp_record", ms_py_udp_record, METH_VARARGS,
+     "udp_record(sec, nsec, src, sport, dst, dport, payload): the pcap record live capture makes of a datagram"},
     {NULL, NULL, 0, NULL},
 };
 
@@ -622,7 +709,7 @@ PyMODINIT_FUNC PyInit__native(void) {
         PyModule_AddIntConstant(m, "KIND_PCAPNG", MS_KIND_PCAPNG) < 0 ||
         PyModule_AddIntConstant(m, "KIND_TLOG", MS_KIND_TLOG) < 0 ||
         PyModule_AddIntConstant(m, "KIND_RAW", MS_KIND_RAW) < 0 ||
-        PyModule_AddIntConstant(m, "TABLE_VERSION", 1) < 0) {
+        PyModule_AddIntConstant(m, "TABLE_VERSION", 1) < 0 || ms_py_add_receiver(m) < 0) {
         Py_DECREF(m);
         return NULL;
     }

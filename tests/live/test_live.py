@@ -32,6 +32,17 @@ SUMMARY = re.compile(r"^mavscope: live: (\d+) frames, (\d+) bytes, (\d+) dropped
 LISTENING = re.compile(r"listening on udp (\S+):(\d+)")
 
 
+@pytest.fixture(autouse=True, params=["native", "pure-python"])
+def engine(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> str:
+    """Every test with both engines: the native one (batched receive, the C walker writing the lines where
+    the options allow) and MAVSCOPE_PURE=1 (recvmsg per datagram, the Python pipeline)."""
+    if request.param == "pure-python":
+        monkeypatch.setenv("MAVSCOPE_PURE", "1")
+    else:
+        monkeypatch.delenv("MAVSCOPE_PURE", raising=False)
+    return str(request.param)
+
+
 class LiveRun:
     """`main(["live", ...])` on a thread; the port it bound is read from its first stderr line."""
 

@@ -48,6 +48,7 @@ LAYERS: tuple[tuple[str, int], ...] = (
     # extension it wraps reads, dissects and writes in one, and is for the front ends only.
     ("mavscope.native", 10),
     ("mavscope.native_summary", 10),
+    ("mavscope.native_live", 10),
     ("mavscope._native", 10),
     ("mavscope.cli", 10),
     ("mavscope.commands", 10),
