@@ -52,6 +52,7 @@ SEQ_EVENTS = ("duplicate", "late", "unchanged")
 LABEL_COMMAND = 0x40000000  # control.c: a label that is a command's name
 LABEL_UNKNOWN = 0x80000000  # expert.c: str(msgid) of an unknown message
 GNSS_CODES = ("gnss-position-jump", "gnss-fix-collapse", "ekf-gnss-alarm", "gnss-time-jump")  # MS_GC_*
+EPISODE_TEXT = 0x80  # acc.h MS_EPISODE_TEXT
 GNSS_MESSAGES = ("GLOBAL_POSITION_INT", "GPS_RAW_INT", "GPS2_RAW", "SYSTEM_TIME", "EKF_STATUS_REPORT",
                  "ESTIMATOR_STATUS")  # MS_G_*
 
@@ -328,10 +329,12 @@ def _experts(r: _Reader, dialect: Dialect, links: dict[tuple[int, int], _Link],
         fn = r.frames()
         worst, a0, a1, a2, a3, n0, n1, n2, n3 = r.take("d4d4q")
         msg = GNSS_MESSAGES[g]
-        if code == 0:
+        if not flags & EPISODE_TEXT:
+            text = ""  # no size above the initial worst (-1.0): no sentence
+        elif code == 0:
             text = gnss.jump_text(a0, a1, a2, n0, n1, a3)
         elif code == 1:
-            text = gnss.collapse_text(n0, n1 if flags else None, n2, a0, n3)
+            text = gnss.collapse_text(n0, n1 if flags & 1 else None, n2, a0, n3)
         elif code == 2:
             text = gnss.ekf_text(gnss.ekf_reasons(bool(flags & 1), bool(flags & 2), a0 if flags & 4 else None), n0, n1)
         elif flags & 2:

@@ -178,6 +178,7 @@ typedef struct {
 
 enum { MS_G_GPI, MS_G_GPS_RAW, MS_G_GPS2_RAW, MS_G_SYSTEM_TIME, MS_G_EKF, MS_G_EST, MS_G_N };
 enum { MS_GC_JUMP, MS_GC_COLLAPSE, MS_GC_EKF, MS_GC_TIME };
+#define MS_EPISODE_TEXT 0x80
 
 typedef struct {
     double t, lat, lon, speed;
@@ -200,7 +201,8 @@ typedef struct {
 typedef struct {
     uint8_t code, kind; /* MS_GC_*, MS_G_* of the message */
     uint16_t sender;
-    uint8_t flags;      /* ekf: 1 glitch, 2 position lost, 4 ratio; time: 1 against capture time; collapse: 1 nsat */
+    uint8_t flags;      /* MS_EPISODE_TEXT: a sentence was made (a size above -1.0 was seen); ekf: 1 glitch,
+                           2 position lost, 4 ratio; time: 1 against capture time, 2 a GPS time; collapse: 1 nsat */
     ms_fnums fn;
     double worst;
     double a[4];

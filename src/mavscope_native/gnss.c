@@ -79,7 +79,7 @@ static ms_episode *note(ms_acc *a, int code, unsigned sender, int g, uint64_t re
     e->worst = size;
     memset(e->a, 0, sizeof e->a);
     memset(e->n, 0, sizeof e->n);
-    e->flags = 0;
+    e->flags = MS_EPISODE_TEXT;
     return e; /* the caller fills the numbers of the new worst sentence */
 }
 
@@ -125,7 +125,7 @@ static int gps_time(ms_acc *a, ms_gsender *s, unsigned sender, int g, const ms_a
     double diff = usec / 1e6 - expected;
     if (fabs(diff) > a->plan->d[MS_D_TIME_MISMATCH_S]) {
         NOTE(e, MS_GC_TIME, fabs(diff)) {
-            e->flags = 2; /* against SYSTEM_TIME */
+            e->flags |= 2; /* against SYSTEM_TIME */
             e->a[0] = diff;
             e->n[0] = (int64_t)s->utc_record;
             e->n[1] = (int64_t)f->record;
@@ -157,7 +157,7 @@ static int fix(ms_acc *a, ms_gsender *s, unsigned sender, int g, const ms_acc_fr
     if (weak || few) {
         s->collapsed[g] = 1;
         NOTE(e, MS_GC_COLLAPSE, (double)(good - (has_nsat ? nsat : 0))) {
-            e->flags = (uint8_t)has_nsat;
+            e->flags |= (uint8_t)has_nsat;
             e->n[0] = good;
             e->n[1] = nsat;
             e->n[2] = fixv;
@@ -275,7 +275,7 @@ static int system_time(ms_acc *a, ms_gsender *s, unsigned sender, int g, const m
             e->n[0] = (int64_t)precord;
             e->n[1] = (int64_t)f->record;
             if (f->has_time && p_has_t) {
-                e->flags = 1;
+                e->flags |= 1;
                 e->a[1] = (u - f->time) - (pu - pt);
             }
         }
@@ -327,7 +327,7 @@ static int ekf(ms_acc *a, ms_gsender *s, unsigned sender, int g, const ms_acc_fr
     if (s->ekf_good && why && !s->ekf_alarm) {
         s->ekf_alarm = 1;
         NOTE(e, MS_GC_EKF, worst + nwhy) {
-            e->flags = (uint8_t)why;
+            e->flags |= (uint8_t)why;
             e->a[0] = worst;
             e->n[0] = (int64_t)flags;
             e->n[1] = (int64_t)f->record;
