@@ -115,8 +115,8 @@ def main() -> int:
             best = min(s for s, _ in runs)
             rss = max(k for _, k in runs) / 1024
             output = "--json" if json else "text"
-            print(f"| {label} ({frames:,} frames) | native | {output} | {best:.2f} | {frames / best:,.0f} | {rss:.0f} |",
-                  flush=True)
+            print(f"| {label} ({frames:,} frames) | native | {output} | {best:.2f} | {frames / best:,.0f} | "
+                  f"{rss:.0f} |", flush=True)
             if with_pure and not args.skip_pure:
                 with tempfile.TemporaryDirectory() as tmp:
                     pure_out, native_out = Path(tmp) / "pure", Path(tmp) / "native"
