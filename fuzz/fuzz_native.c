@@ -24,6 +24,14 @@
  * taken from the input (lengths and checksums checked), and a pcap input is walked again fed in pieces
  * ending at record boundaries (ms_reader_extend), which must give the whole walk's output when its
  * record headers are sane.
+ * Every input is walked a third time with the `stats` accumulator (acc.h, with the plan of
+ * $MAVSCOPE_FUZZ_PLAN): the walker's clean records go into it, and the frames of every handed-back record
+ * are fed to ms_acc_add as the glue feeds Python's frames, with made-up verdicts: each STX in the record
+ * starts a frame of the length it announces (cut at the record's end), its CRC and signature verdicts,
+ * known flag and time taken from the input's bytes, its payload given or not, its endpoints the text of
+ * a few of the record's bytes (so that damaged, unknown and truncated frames reach every detector). The
+ * accumulator's dump is then read back whole against its layout (acc_dump.c), its totals checked against
+ * its rows, and everything freed (LeakSanitizer).
  *
  * Build and run: scripts/fuzz-native.sh SECONDS (docs/native.md). The message table comes from
  * mavscope's default dialect, written by the script to the file named in $MAVSCOPE_FUZZ_TABLE. */
@@ -31,15 +39,19 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "acc.h"
 #include "capture.h"
 #include "fmt.h"
 #include "recv.h"
+#include "mavlink.h"
+#include "plan.h"
 #include "summary.h"
 #include "table.h"
 #include "walk.h"
 
 static ms_table table;
 static ms_summary summary;
+static ms_plan plan;
 
 int LLVMFuzzerInitialize(int *argc, char ***argv);
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
@@ -78,6 +90,22 @@ int LLVMFuzzerInitialize(int *argc, char ***argv) {
     fclose(f);
     if (ms_summary_parse(&summary, &table, blob, n) != 0) {
         fprintf(stderr, "fuzz_native: %s is not a summary blob of this table\n", spath);
+        abort();
+    }
+    const char *ppath = getenv("MAVSCOPE_FUZZ_PLAN");
+    if (ppath == NULL) {
+        fprintf(stderr, "fuzz_native: set MAVSCOPE_FUZZ_PLAN to the statistics plan (scripts/fuzz-native.sh)\n");
+        abort();
+    }
+    f = fopen(ppath, "rb");
+    if (f == NULL) {
+        perror(ppath);
+        abort();
+    }
+    n = fread(blob, 1, sizeof blob, f);
+    fclose(f);
+    if (ms_plan_parse(&plan, blob, n) != 0) {
+        fprintf(stderr, "fuzz_native: %s is not a statistics plan\n", ppath);
         abort();
     }
     return 0;
@@ -286,9 +314,181 @@ done:
     free(rel);
 }
 
+/* The frames of a handed-back record into the accumulator, as the glue feeds the Python pipeline's frames:
+ * a frame at each STX, its verdicts and endpoints made up from the record's bytes. */
+static void feed_record(ms_acc *acc, const ms_record *rec, unsigned sel) {
+    const uint8_t *d = rec->data;
+    const size_t n = rec->len;
+    for (size_t pos = 0; pos < n; pos++) {
+        if (d[pos] != MS_STX_V2 && d[pos] != MS_STX_V1)
+            continue;
+        const int v2 = d[pos] == MS_STX_V2;
+        const size_t hlen = v2 ? MS_HEADER_V2 : MS_HEADER_V1;
+        size_t left = n - pos, len = left > 1 ? d[pos + 1] : 0;
+        size_t size = hlen + len + 2 + (v2 && left > 2 && (d[pos + 2] & 1) ? MS_SIGNATURE_LEN : 0);
+        if (size > left)
+            size = left;
+        uint8_t h[10] = {0};
+        memcpy(h, d + pos, size < 10 ? size : 10);
+        const uint8_t mix = (uint8_t)(h[1] ^ (pos & 0xFF) ^ sel);
+        ms_acc_frame f;
+        memset(&f, 0, sizeof f);
+        f.record = rec->number;
+        double t;
+        f.has_time = ms_record_time(rec, &t) > 0 && (mix & 0x40) == 0;
+        f.time = f.has_time ? t : 0.0;
+        f.transport = (int)((sel >> 5) & 3);
+        f.raw = d + pos;
+        f.raw_len = size;
+        f.version = v2 ? 2 : 1;
+        f.seq = h[v2 ? 4 : 2];
+        f.sysid = h[v2 ? 5 : 3];
+        f.compid = h[v2 ? 6 : 4];
+        f.msgid = v2 ? (uint32_t)h[7] | ((uint32_t)h[8] << 8) | ((uint32_t)h[9] << 16) : h[5];
+        f.known = ms_table_get(&table, f.msgid) != NULL;
+        f.crc = mix % MS_CRC_N;
+        f.sig = (mix >> 2) % MS_SIG_N;
+        f.has_signature = (mix >> 5) & 1;
+        if (!(mix & 0x80) && size >= hlen) {
+            f.payload = d + pos + hlen;
+            f.payload_len = size - hlen < len ? size - hlen : len;
+        }
+        char text[2][8];
+        int32_t ids[2] = {-1, -1};
+        for (int k = 0; k < 2; k++) {
+            if ((mix >> k) & 1)
+                continue;
+            int m = snprintf(text[k], sizeof text[k], "%02x:%u", h[k + 3], (unsigned)(k + (mix & 4)));
+            ids[k] = ms_acc_intern(acc, text[k], (size_t)m);
+            if (ids[k] == -1)
+                return;
+            if (ids[k] < 0)
+                ids[k] = -1;
+        }
+        f.src = ids[0];
+        f.dst = f.src < 0 ? -1 : ids[1];
+        if (ms_acc_add(acc, &f) < 0)
+            return;
+    }
+}
+
+/* The dump read back against its layout (acc_dump.c); its totals against its rows. */
+typedef struct {
+    const uint8_t *p, *e;
+} rd;
+
+static void skip(rd *r, size_t n) {
+    if ((size_t)(r->e - r->p) < n)
+        abort(); /* the dump is shorter than its layout says */
+    r->p += n;
+}
+
+/* a little-endian number of n <= 8 bytes */
+static uint64_t take(rd *r, size_t n) {
+    const uint8_t *p = r->p;
+    skip(r, n);
+    uint64_t v = 0;
+    for (size_t i = 0; i < n; i++)
+        v |= (uint64_t)p[i] << (8 * i);
+    return v;
+}
+
+static void skip_fn(rd *r) {
+    skip(r, 8);
+    uint64_t n = take(r, 4);
+    if (n > MS_FN_MAX)
+        abort();
+    for (uint64_t i = 0; i < n; i++)
+        skip(r, 8);
+}
+
+static void skip_pairs(rd *r) {
+    uint64_t n = take(r, 4);
+    for (uint64_t i = 0; i < n; i++)
+        skip(r, 16);
+}
+
+static void check_dump(const ms_acc *a, const ms_buf *b) {
+    rd r = {(const uint8_t *)b->data, (const uint8_t *)b->data + b->len};
+    if (take(&r, 4) != 0x4453534Du || take(&r, 4) != 1) /* "MSSD" */
+        abort();
+    const uint64_t total = take(&r, 8);
+    skip(&r, 8 + 1 + 16 + 8 * MS_CRC_N + 8 * MS_SIG_N + 16);
+    uint64_t nstr = take(&r, 4);
+    for (uint64_t i = 0; i < nstr; i++)
+        skip(&r, (size_t)take(&r, 4));
+    uint64_t counted = 0, n = take(&r, 4);
+    for (uint64_t i = 0; i < n; i++) {
+        skip(&r, 8);
+        counted += take(&r, 8);
+        skip(&r, 8 + 1 + 16 + 1 + 8);
+        uint64_t bins = take(&r, 4);
+        if (bins > (uint64_t)plan.k[MS_K_RATE_BINS])
+            abort();
+        for (uint64_t k = 0; k < bins; k++)
+            skip(&r, 8);
+    }
+    uint64_t received = 0;
+    n = take(&r, 4);
+    for (uint64_t i = 0; i < n; i++) {
+        skip(&r, 2);
+        received += take(&r, 8);
+        skip(&r, 24 + 8 * MS_CRC_N + 8 * MS_SIG_N + 1 + 16 + 12);
+        uint64_t chans = take(&r, 4);
+        for (uint64_t c = 0; c < chans; c++) {
+            skip(&r, 8 + 48);
+            uint64_t gaps = take(&r, 1);
+            for (uint64_t g = 0; g < gaps; g++)
+                skip(&r, 12);
+        }
+    }
+    if (counted != total || received != total)
+        abort(); /* every frame counted once per stream and once per link */
+    skip_pairs(&r);
+    n = take(&r, 4);
+    for (uint64_t i = 0; i < n; i++)
+        skip(&r, 1 + 8 + 32 + 1 + 16);
+    skip_pairs(&r);
+    n = take(&r, 4);
+    for (uint64_t i = 0; i < n; i++) {
+        skip(&r, 3);
+        skip_fn(&r);
+    }
+    n = take(&r, 4);
+    for (uint64_t i = 0; i < n; i++) {
+        skip(&r, 20);
+        skip_fn(&r);
+    }
+    skip_pairs(&r);
+    for (int v = 0; v < 4; v++) {
+        n = take(&r, 4);
+        for (uint64_t i = 0; i < n; i++)
+            if (take(&r, 4) >= a->named.n)
+                abort(); /* an index past the entries */
+    }
+    skip(&r, 64);
+    n = take(&r, 4);
+    for (uint64_t i = 0; i < n; i++)
+        skip(&r, 24);
+    n = take(&r, 4);
+    for (uint64_t i = 0; i < n; i++) {
+        skip(&r, 6 + 4 + 24 + 8);
+        skip(&r, (size_t)take(&r, 2));
+        skip(&r, (size_t)take(&r, 2));
+    }
+    n = take(&r, 4);
+    for (uint64_t i = 0; i < n; i++) {
+        skip(&r, 5);
+        skip_fn(&r);
+        skip(&r, 8 + 32 + 32);
+    }
+    if (r.p != r.e)
+        abort(); /* the dump is longer than its layout says */
+}
+
 /* One walk of the file in `mf` (as JSON Lines, or as summary lines with `sum`), checking what comes out. */
 static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigned sel, unsigned control,
-                      const ms_summary *sum) {
+                      const ms_summary *sum, ms_acc *acc) {
     ms_walker w;
     ms_walker_init(&w, ms_memory_source(mf), n, MS_KIND_PCAP + (int)(sel & 3), &table);
     if (sel & 0x80)
@@ -301,6 +501,7 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
         w.has_t0 = (n & 3) != 0;
         w.t0 = (n & 3) == 3 ? __builtin_nan("") : T0[n & 3];
     }
+    w.acc = acc;
     const unsigned preset = (sel >> 4) & 7;
     ms_buf out;
     ms_buf_init(&out);
@@ -312,6 +513,8 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
         int r = ms_walk(&w, &out, 4096, &rec);
         if (r == MS_WALK_NOMEM)
             break;
+        if (acc != NULL && out.len)
+            abort(); /* the stats walk writes no text */
         if (sum != NULL)
             check_summary_lines(out.data, out.len);
         else
@@ -331,6 +534,8 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
             double t;
             (void)ms_record_time(&rec, &t);
             (void)s;
+            if (acc != NULL)
+                feed_record(acc, &rec, sel);
         }
         if (r == MS_WALK_END)
             break;
@@ -511,7 +716,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     if (file == NULL)
         return 0;
     memcpy(file, data + head, n);
-    for (int pass = 0; pass < 2; pass++) {
+    for (int pass = 0; pass < 3; pass++) {
         ms_memory_file mf = {file, n, 0, 0, 0, 0};
         if (sel & 0x80) {
             unsigned k = (control >> 3) & 7;
@@ -522,7 +727,20 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
                 mf.shrink_to = n * k / 7;
             }
         }
-        walk_file(&mf, file, n, sel, control, pass ? &summary : NULL);
+        if (pass < 2) {
+            walk_file(&mf, file, n, sel, control, pass ? &summary : NULL, NULL);
+            continue;
+        }
+        ms_acc acc;
+        if (ms_acc_init(&acc, &plan) != 0)
+            break;
+        walk_file(&mf, file, n, sel, control, NULL, &acc);
+        ms_buf dump;
+        ms_buf_init(&dump);
+        if (ms_acc_dump(&acc, &dump) == 0)
+            check_dump(&acc, &dump);
+        ms_buf_free(&dump);
+        ms_acc_free(&acc);
     }
     if ((sel & 3) == 0) /* a pcap: fed in pieces as live capture feeds it */
         walk_fed(file, n, sel, control);

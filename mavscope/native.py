@@ -161,7 +161,8 @@ class NativeWalk:
     The file is opened here (CaptureError as the readers raise it) and read by the walker with pread, a
     `window` of bytes at a time as the Python readers read it (the tests make it small).
     With `summary` (a `_native.Summary`, mavscope.native_summary) the text is summary lines, their
-    times relative to `t0`, instead of JSON Lines.
+    times relative to `t0`, instead of JSON Lines; with `stats` (a `_native.Stats`, mavscope.native_stats)
+    there is no text: the frames go to that accumulator.
     `endpoints` and `signed_senders` are the Python sets both paths share (the dissector's
     `mavlink_endpoints` and the security stage's `signed_senders`). `signed_nokey()` is asked before
     each batch whether signed frames may be written natively (no signing key configured: `no-key`).
@@ -171,7 +172,7 @@ class NativeWalk:
 
     def __init__(self, path: str | os.PathLike[str] | None, dialect: Dialect, endpoints: set[Endpoint],
                  signed_senders: set[tuple[int, int]], kind: str | None = None, window: int = WINDOW,
-                 summary: object | None = None, t0: float | None = None) -> None:
+                 summary: object | None = None, t0: float | None = None, stats: object | None = None) -> None:
         if _native is None:
             raise RuntimeError("mavscope._native is not built")
         self._file: IO[bytes] | None = None
@@ -183,7 +184,7 @@ class NativeWalk:
             fd = self._file.fileno()
         try:
             self.walker = _native.Walker(fd, self.opened_size, _KINDS[self.kind], table_for(dialect), endpoints,
-                                         Endpoint.from_packed, signed_senders, window, summary, t0)
+                                         Endpoint.from_packed, signed_senders, window, summary, t0, stats)
         except BaseException:
             self.close_file()
             raise

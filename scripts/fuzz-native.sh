@@ -19,14 +19,16 @@ PY="${PYTHON:-.venv/bin/python}"
 OUT=fuzz/build
 mkdir -p "$OUT/corpus"
 
-"$PY" - "$OUT/table.bin" "$OUT/summary.bin" <<'PYEOF'
+"$PY" - "$OUT/table.bin" "$OUT/summary.bin" "$OUT/plan.bin" <<'PYEOF'
 import sys
 from mavscope.mavlink.dialect import load_dialect
 from mavscope.native import build_table
+from mavscope.native_plan import build_plan
 from mavscope.native_summary import build_summary_table
 dialect = load_dialect()
 open(sys.argv[1], "wb").write(build_table(dialect))
 open(sys.argv[2], "wb").write(build_summary_table(dialect))
+open(sys.argv[3], "wb").write(build_plan(dialect))
 PYEOF
 
 SRC=src/mavscope_native
@@ -34,8 +36,9 @@ SRC=src/mavscope_native
     -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
     -I"$SRC" fuzz/fuzz_native.c \
     "$SRC"/walk.c "$SRC"/capture.c "$SRC"/capture_pcap.c "$SRC"/capture_pcapng.c "$SRC"/capture_tlog.c \
-    "$SRC"/netlayers.c "$SRC"/mavlink.c "$SRC"/table.c "$SRC"/decode.c "$SRC"/fmt.c "$SRC"/buf.c "$SRC"/summary.c "$SRC"/recv.c \
-    -lm -o "$OUT/fuzz_native"
+    "$SRC"/netlayers.c "$SRC"/mavlink.c "$SRC"/table.c "$SRC"/decode.c "$SRC"/fmt.c "$SRC"/buf.c "$SRC"/summary.c \
+    "$SRC"/plan.c "$SRC"/acc.c "$SRC"/acc_dump.c "$SRC"/seq.c "$SRC"/expert.c "$SRC"/control.c "$SRC"/gnss.c \
+    "$SRC"/recv.c -ffp-contract=off -lm -o "$OUT/fuzz_native"
 
 # Seeds: every bundled capture under the selector of its own format (0 pcap, 1 pcapng, 2 tlog, 3 raw),
 # with and without native signed frames (bit 2), with every CRC taken (bit 3), and as hostile files
@@ -62,6 +65,7 @@ PYEOF
 
 export MAVSCOPE_FUZZ_TABLE="$PWD/$OUT/table.bin"
 export MAVSCOPE_FUZZ_SUMMARY="$PWD/$OUT/summary.bin"
+export MAVSCOPE_FUZZ_PLAN="$PWD/$OUT/plan.bin"
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
 status=0
@@ -81,7 +85,8 @@ if [ -n "$PROFDATA" ] && [ -n "$LLVMCOV" ]; then
     "$CLANG" -std=c11 -O1 -fsanitize=fuzzer -fprofile-instr-generate -fcoverage-mapping -I"$SRC" \
         fuzz/fuzz_native.c "$SRC"/walk.c "$SRC"/capture.c "$SRC"/capture_pcap.c "$SRC"/capture_pcapng.c \
         "$SRC"/capture_tlog.c "$SRC"/netlayers.c "$SRC"/mavlink.c "$SRC"/table.c "$SRC"/decode.c "$SRC"/fmt.c \
-        "$SRC"/buf.c "$SRC"/summary.c "$SRC"/recv.c -lm -o "$OUT/fuzz_native_cov"
+        "$SRC"/buf.c "$SRC"/summary.c "$SRC"/plan.c "$SRC"/acc.c "$SRC"/acc_dump.c "$SRC"/seq.c "$SRC"/expert.c \
+        "$SRC"/control.c "$SRC"/gnss.c "$SRC"/recv.c -lm -o "$OUT/fuzz_native_cov"
     rm -f "$OUT"/cov.profraw
     (cd "$OUT" && LLVM_PROFILE_FILE=cov.profraw ./fuzz_native_cov -runs=0 corpus >/dev/null 2>&1) || true
     "$PROFDATA" merge -sparse "$OUT/cov.profraw" -o "$OUT/cov.profdata"

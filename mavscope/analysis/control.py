@@ -153,11 +153,7 @@ class ControlSources:
         if asked is not None:
             c.request = (f.sysid, label, f.record, f.time, asked)
         if clear:
-            what = "MISSION_CLEAR_ALL" if name == "MISSION_CLEAR_ALL" else "an upload of 0 mission items"
-            self.out.append(finding("unexpected-mission-clear",
-                                    f"system {f.sysid} clears the mission of vehicle {vehicle} ({what}, frame "
-                                    f"{f.record}) while system {c.holder} is in control (since frame {c.since})",
-                                    (f.record,)))
+            self.out.append(mission_clear(f.sysid, vehicle, name == "MISSION_CLEAR_ALL", f.record, c.holder, c.since))
         if c.armed:
             key = (vehicle, f.sysid)
             intr = self.intrusions.get(key)
@@ -200,10 +196,7 @@ class ControlSources:
             req = c.request = None  # not followed in time
         if c.mode and mode != c.mode and req is not None and mode == req[4]:
             if c.holder is not None and req[0] != c.holder:
-                self.out.append(finding(
-                    "unexpected-mode-change",
-                    f"vehicle {f.sysid} changes mode {c.mode} -> {mode} (frame {f.record}) as {req[1]} from system "
-                    f"{req[0]} (frame {req[2]}) asked, while system {c.holder} is in control", (req[2], f.record)))
+                self.out.append(mode_change(f.sysid, c.mode, mode, f.record, req[1], req[0], req[2], c.holder))
             c.request = None
         if c.armed and not hb.armed:
             self._disarmed(f, c, hb)
@@ -220,19 +213,13 @@ class ControlSources:
 
         if c.landed is not None and c.landed[0] != MAV_LANDED_STATE_UNDEFINED and fresh(c.landed[1]):
             if c.landed[0] in (MAV_LANDED_STATE_IN_AIR, MAV_LANDED_STATE_TAKEOFF):
-                state = "IN_AIR" if c.landed[0] == MAV_LANDED_STATE_IN_AIR else "TAKEOFF"
-                why = f"EXTENDED_SYS_STATE says {state}"
+                why = landed_why(c.landed[0])
         elif c.alt is not None and c.alt[0] > ALT_FLYING_M and fresh(c.alt[1]):
-            why = f"{c.alt[0]:.1f} m above home"
+            why = altitude_why(c.alt[0])
         if why is None:
             return
-        frames = [f.record]
-        by = ""
-        if c.disarm is not None and fresh(c.disarm[2]):
-            by = f"; the disarm command came from system {c.disarm[0]} (frame {c.disarm[1]})"
-            frames.insert(0, c.disarm[1])
-        self.out.append(finding("in-flight-disarm", f"vehicle {f.sysid} disarmed in the air ({why}) at frame "
-                                                    f"{f.record}{by}", frames))
+        by = c.disarm[:2] if c.disarm is not None and fresh(c.disarm[2]) else None
+        self.out.append(in_flight_disarm(f.sysid, why, f.record, by))
 
     def findings(self) -> list[Finding]:
         out = list(self.out)
@@ -243,3 +230,34 @@ class ControlSources:
                                f"is in control (since frame {intr.since}): {intr.frames.count} frame(s) ({kinds})",
                                intr.frames.nums))
         return out
+
+
+# ControlSources' findings (the native accumulator's events are written by these too)
+def mission_clear(sender: int, vehicle: int, clear_all: bool, record: int, holder: int, since: int) -> Finding:
+    what = "MISSION_CLEAR_ALL" if clear_all else "an upload of 0 mission items"
+    return finding("unexpected-mission-clear", f"system {sender} clears the mission of vehicle {vehicle} ({what}, "
+                                               f"frame {record}) while system {holder} is in control (since frame "
+                                               f"{since})", (record,))
+
+
+def mode_change(vehicle: int, old: str, new: str, record: int, label: str, sender: int, asked: int,
+                holder: int) -> Finding:
+    return finding("unexpected-mode-change",
+                   f"vehicle {vehicle} changes mode {old} -> {new} (frame {record}) as {label} from system {sender} "
+                   f"(frame {asked}) asked, while system {holder} is in control", (asked, record))
+
+
+def landed_why(state: int) -> str:
+    return f"EXTENDED_SYS_STATE says {'IN_AIR' if state == MAV_LANDED_STATE_IN_AIR else 'TAKEOFF'}"
+
+
+def altitude_why(alt: float) -> str:
+    return f"{alt:.1f} m above home"
+
+
+def in_flight_disarm(vehicle: int, why: str, record: int, by: tuple[int, int] | None) -> Finding:
+    """`by`: (system, frame) of the disarm command, when one came shortly before."""
+    more = "" if by is None else f"; the disarm command came from system {by[0]} (frame {by[1]})"
+    frames = [record] if by is None else [by[1], record]
+    return finding("in-flight-disarm", f"vehicle {vehicle} disarmed in the air ({why}) at frame {record}{more}",
+                   frames)

@@ -183,24 +183,34 @@ class CommandSources:
         est = self.first_commander.setdefault(target, sender)
         if est[0] != sender[0] and ("new", (target, sender)) not in self.reported:
             self.reported.add(("new", (target, sender)))
-            self.out.append((target, finding(
-                "new-commander", f"system {sender[0]}/{sender[1]} commands system {target} ({name}), which "
-                                 f"{est[0]}/{est[1]} commanded until then", (f.record,))))
+            self.out.append((target, new_commander(sender, target, name, est, f.record)))
         if f.src is not None:
             known = self.endpoints.setdefault(sender, f.src)
             if known != f.src and ("src", (sender, f.src)) not in self.reported:
                 self.reported.add(("src", (sender, f.src)))
-                self.out.append((target, finding(
-                    "unexpected-command-source", f"{name} from {sender[0]}/{sender[1]} arrives from {f.src}; its "
-                                                 f"commands came from {known} until then", (f.record,))))
+                self.out.append((target, unexpected_command_source(sender, name, str(f.src), str(known), f.record)))
         if sender not in self.heartbeat_seen and ("hb", sender) not in self.reported:
             self.reported.add(("hb", sender))
-            self.out.append((target, finding(
-                "command-without-heartbeat", f"{sender[0]}/{sender[1]} sends {name} to system {target} before "
-                                             "any HEARTBEAT of its own", (f.record,))))
+            self.out.append((target, command_without_heartbeat(sender, name, target, f.record)))
 
     def findings(self) -> list[Finding]:
         return [fd for target, fd in self.out if target not in self.gcs]
+
+
+# CommandSources' findings (the native accumulator's events are written by these too)
+def new_commander(sender: Link, target: int, name: str, est: Link, record: int) -> Finding:
+    return finding("new-commander", f"system {sender[0]}/{sender[1]} commands system {target} ({name}), which "
+                                    f"{est[0]}/{est[1]} commanded until then", (record,))
+
+
+def unexpected_command_source(sender: Link, name: str, src: str, known: str, record: int) -> Finding:
+    return finding("unexpected-command-source", f"{name} from {sender[0]}/{sender[1]} arrives from {src}; its "
+                                                f"commands came from {known} until then", (record,))
+
+
+def command_without_heartbeat(sender: Link, name: str, target: int, record: int) -> Finding:
+    return finding("command-without-heartbeat", f"{sender[0]}/{sender[1]} sends {name} to system {target} before "
+                                                "any HEARTBEAT of its own", (record,))
 
 
 class ReplayedCommands:

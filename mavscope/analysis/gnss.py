@@ -226,9 +226,7 @@ class GnssAnomalies:
         v = max(speed, prev.speed)
         allowed = SPEED_FACTOR * v * dt + 0.5 * ACCEL_MPS2 * dt * dt + MARGIN_M + accuracy
         if d >= JUMP_MIN_M and d > allowed:
-            self._note("gnss-position-jump", me, name, f.record, d,
-                       f"{d:.0f} m in {dt:.2f} s while reporting {v:.1f} m/s (frames {prev.record} -> {f.record}; "
-                       f"at most {allowed:.0f} m expected)")
+            self._note("gnss-position-jump", me, name, f.record, d, jump_text(d, dt, v, prev.record, f.record, allowed))
 
     def _fix(self, f: Frame, s: _Sender, me: Addr, name: str, t: float, fix: int, sats: object) -> None:
         nsat = sats if isinstance(sats, int) and sats != UNKNOWN_SATS else None
@@ -245,10 +243,8 @@ class GnssAnomalies:
         few = nsat is not None and good[1] > 0 and nsat * 2 < good[1] and nsat < MIN_SATS
         if weak or few:
             s.collapsed.add(name)
-            was = f"{good[1]} satellites, 3D fix" if good[1] >= 0 else "a 3D fix"
-            now = f"{nsat} satellites, fix type {fix}" if nsat is not None else f"fix type {fix}"
             self._note("gnss-fix-collapse", me, name, f.record, float(good[1] - (nsat or 0)),
-                       f"{was} -> {now} within {t - good[0]:.1f} s (frame {f.record})")
+                       collapse_text(good[1], nsat, fix, t - good[0], f.record))
 
     def _ekf(self, f: Frame, s: _Sender, me: Addr, name: str, fields: Fields, bits: tuple[int, int, int, int],
              ratios: tuple[str, str]) -> None:
@@ -260,20 +256,14 @@ class GnssAnomalies:
             s.ekf_good = s.ekf_alarm = False
             return
         worst = max((v for v in (_num(fields, r) for r in ratios) if v is not None), default=0.0)
-        why = []
-        if glitch and flags & glitch:
-            why.append("GPS glitch flag")
-        if not flags & pos_abs:
-            why.append("absolute horizontal position lost")
-        if worst >= VARIANCE_ALARM:
-            why.append(f"innovation test ratio {worst:.2f}")
+        why = ekf_reasons(bool(glitch and flags & glitch), not flags & pos_abs,
+                          worst if worst >= VARIANCE_ALARM else None)
         if not why and flags & healthy == healthy:
             s.ekf_good, s.ekf_alarm = True, False
             return
         if s.ekf_good and why and not s.ekf_alarm:
             s.ekf_alarm = True
-            self._note("ekf-gnss-alarm", me, name, f.record, worst + len(why),
-                       f"{', '.join(why)} (flags 0x{flags:x}, frame {f.record})")
+            self._note("ekf-gnss-alarm", me, name, f.record, worst + len(why), ekf_text(why, flags, f.record))
 
     def _system_time(self, f: Frame, s: _Sender, me: Addr, fields: Fields) -> None:
         unix, boot = _num(fields, "time_unix_usec"), _num(fields, "time_boot_ms")
@@ -286,11 +276,9 @@ class GnssAnomalies:
             return
         step = (u - b) - (prev[0] - prev[1])
         if abs(step) > TIME_JUMP_S:
-            cap = ""
-            if f.time is not None and prev[2] is not None:
-                cap = f"; against capture time {(u - f.time) - (prev[0] - prev[2]):+.1f} s"
+            against = (u - f.time) - (prev[0] - prev[2]) if f.time is not None and prev[2] is not None else None
             self._note("gnss-time-jump", me, "SYSTEM_TIME", f.record, abs(step),
-                       f"UTC {step:+.1f} s against the boot clock (frames {prev[3]} -> {f.record}{cap})")
+                       time_jump_text(step, prev[3], f.record, against))
 
     def _gps_time(self, f: Frame, s: _Sender, me: Addr, name: str, usec: float) -> None:
         """A UTC time_usec against the UTC that the last SYSTEM_TIME and the boot clock give now."""
@@ -299,9 +287,7 @@ class GnssAnomalies:
         expected = s.utc[0] + (s.boot_s - s.utc[1])
         diff = usec / 1e6 - expected
         if abs(diff) > TIME_MISMATCH_S:
-            self._note("gnss-time-jump", me, name, f.record, abs(diff),
-                       f"{name}.time_usec {diff:+.1f} s from the UTC of SYSTEM_TIME (frame {s.utc[3]}) and the boot "
-                       f"clock (frame {f.record})")
+            self._note("gnss-time-jump", me, name, f.record, abs(diff), gps_time_text(name, diff, s.utc[3], f.record))
 
     def findings(self) -> list[Finding]:
         out = []
@@ -312,3 +298,42 @@ class GnssAnomalies:
             out.append(finding(code, f"{msg} of {sysid}/{compid}: {ep.frames.count} {what[code]}; the largest: "
                                      f"{ep.text}", ep.frames.nums))
         return out
+
+
+# The sentences of the worst episode of each kind (the native accumulator's episodes are written by these too)
+def jump_text(d: float, dt: float, v: float, before: int, record: int, allowed: float) -> str:
+    return (f"{d:.0f} m in {dt:.2f} s while reporting {v:.1f} m/s (frames {before} -> {record}; at most "
+            f"{allowed:.0f} m expected)")
+
+
+def collapse_text(good: int, nsat: int | None, fix: int, dt: float, record: int) -> str:
+    was = f"{good} satellites, 3D fix" if good >= 0 else "a 3D fix"
+    now = f"{nsat} satellites, fix type {fix}" if nsat is not None else f"fix type {fix}"
+    return f"{was} -> {now} within {dt:.1f} s (frame {record})"
+
+
+def ekf_reasons(glitch: bool, position_lost: bool, ratio: float | None) -> list[str]:
+    """Why the navigation filter's report is an alarm (`ratio`: the worst innovation test ratio when it is
+    one); empty when it is none."""
+    why = []
+    if glitch:
+        why.append("GPS glitch flag")
+    if position_lost:
+        why.append("absolute horizontal position lost")
+    if ratio is not None:
+        why.append(f"innovation test ratio {ratio:.2f}")
+    return why
+
+
+def ekf_text(why: list[str], flags: int, record: int) -> str:
+    return f"{', '.join(why)} (flags 0x{flags:x}, frame {record})"
+
+
+def time_jump_text(step: float, before: int, record: int, against: float | None) -> str:
+    cap = "" if against is None else f"; against capture time {against:+.1f} s"
+    return f"UTC {step:+.1f} s against the boot clock (frames {before} -> {record}{cap})"
+
+
+def gps_time_text(name: str, diff: float, utc_record: int, record: int) -> str:
+    return (f"{name}.time_usec {diff:+.1f} s from the UTC of SYSTEM_TIME (frame {utc_record}) and the boot clock "
+            f"(frame {record})")

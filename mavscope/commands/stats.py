@@ -3,13 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import io
+import os
 from typing import cast
 
 from mavscope.analysis.expert import Expert
-from mavscope.analysis.stats import StatsBuilder
+from mavscope.analysis.selection import Selection
+from mavscope.analysis.stats import Stats, StatsBuilder
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass, print_findings
 from mavscope.commands.common import console, whole_number, write_json
+from mavscope.notes import Finding
 from mavscope.output.tables import fmt, iso, sparkline
 
 SPARK_WIDTH = 40
@@ -27,15 +31,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
-    builder = StatsBuilder()
-    with analysis_pass(args, env) as frames:
-        expert = Expert(frames.session.dialect)
-        for frame in frames:
-            builder.add(frame)
-            expert.add(frame)
-        path, select = frames.session.name, frames.selection
-    stats = builder.result()
-    findings = [f for f in expert.findings() if select.any_record(f.frames)]
+    computed = _native(args, env) if _native_eligible(args, env) else None
+    stats, findings, path, select = computed if computed is not None else _pure(args, env)
     doc = stats.to_json(select)
     if args.json:
         doc["findings"] = [f.to_json() for f in findings]
@@ -86,6 +83,59 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
               f"signature {_counts(tot['signature'])}")
     print_findings(con, findings)
     return ExitStatus.OK
+
+
+def _pure(args: argparse.Namespace, env: Env) -> tuple[Stats, list[Finding], str, Selection]:
+    """The statistics and the findings (those about a selected frame), the capture's name, the selection."""
+    builder = StatsBuilder()
+    with analysis_pass(args, env) as frames:
+        expert = Expert(frames.session.dialect)
+        for frame in frames:
+            builder.add(frame)
+            expert.add(frame)
+        path, select = frames.session.name, frames.selection
+    return builder.result(), [f for f in expert.findings() if select.any_record(f.frames)], path, select
+
+
+def _native_eligible(args: argparse.Namespace, env: Env) -> bool:
+    """The native engine serves `stats` without a display filter (a filter must see every frame as a Python
+    Frame: the pure path runs it), when it is built and MAVSCOPE_PURE is not set (docs/native.md)."""
+    if args.display_filter:
+        return False
+    from mavscope.native import engine
+
+    return engine(env.environ) == "native"
+
+
+def _native(args: argparse.Namespace, env: Env) -> tuple[Stats, list[Finding], str, Selection] | None:
+    """What `_pure` gives, from mavscope.native_stats: what capture_session and Pass do, in the same order
+    (dialect, capture file, key options; problems on stderr, then the no-frames line). None when the native
+    pass gave up (the dialect cannot be described to C, a table of the accumulator filled up): what it
+    wrote on stderr is held back until then, so that the pure path starts from nothing."""
+    from mavscope.capture.detect import detect_kind
+    from mavscope.commands.common import Problems, capture_path, pipeline_options, warner
+    from mavscope.mavlink.dialect import load_dialect
+    from mavscope.native_stats import native_stats, plan_for
+    from mavscope.pipeline.session import make_security_stage
+
+    path = capture_path(args)
+    options = pipeline_options(args, env)
+    dialect = load_dialect(options.dialects)
+    if plan_for(dialect) is None:
+        return None
+    kind = detect_kind(path)  # the capture's errors before the key options', as open_session orders them
+    held = Env(stdout=env.stdout, stderr=io.StringIO(), environ=env.environ)
+    stage = make_security_stage(options, warner(held))
+    name = os.fsencode(path).decode("utf-8", "backslashreplace")  # Session.name
+    problems = Problems(held, name)
+    result = native_stats(path, dialect, stage, problems, kind)
+    if result is None:
+        return None
+    problems.close()
+    env.stderr.write(held.stderr.getvalue())  # type: ignore[attr-defined]
+    if result.frames == 0:
+        env.stderr.write(f"mavscope: no MAVLink frames found in {name} ({result.size} bytes, detected as {kind})\n")
+    return result.stats, result.findings, name, Selection()
 
 
 def _counts(d: dict[str, int]) -> str:

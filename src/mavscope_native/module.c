@@ -2,9 +2,15 @@
  *
  *   Table(blob: bytes)                  the message layouts, compiled by mavscope.native from a Dialect
  *   Summary(table, blob: bytes)         what summary lines show per message (mavscope.native_summary)
+ *   Stats(table, plan: bytes)           the `stats` accumulator (acc.h; mavscope.native_stats)
+ *     .add(record, time, transport, src, dst, raw, version, seq, sysid, compid, msgid, known, crc, sig,
+ *          has_signature, payload)      one frame of a handed-back record
+ *     .full() -> bool, .dump() -> bytes
  *   Walker(fd: int, size: int, kind: int, table, endpoints: set, endpoint: Callable[[bytes, int], object],
  *          signed_senders: set[tuple[int, int]], window: int = 1 << 20, summary: Summary | None = None,
- *          t0: float | None = None)     with `summary`: summary lines (relative to t0) instead of JSON
+ *          t0: float | None = None, stats: Stats | None = None)
+ *                                        with `summary`: summary lines (relative to t0) instead of JSON;
+ *                                        with `stats`: no text, the frames go to the accumulator
  *     .next(signed_nokey: bool, limit: int = 1 << 20, into: bytearray | None = None)
  *         -> list[bytes | bytearray | tuple] | None
  *     .walked() -> tuple[int, float | None, int | None] | None
@@ -24,6 +30,7 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
+#include "acc.h"
 #include "buf.h"
 #include "capture.h"
 #include "fmt.h"
@@ -137,6 +144,173 @@ static PyTypeObject SummaryType = {
     .tp_new = PyType_GenericNew,
 };
 
+/* ---- Stats -------------------------------------------------------------------------------- */
+
+typedef struct {
+    PyObject_HEAD
+    ms_plan plan;
+    ms_acc acc;
+    PyObject *table; /* TableObject the walkers that feed this accumulator use */
+    int ok;
+} StatsObject;
+
+static void Stats_dealloc(StatsObject *self) {
+    if (self->ok) {
+        ms_acc_free(&self->acc);
+        ms_plan_free(&self->plan);
+    }
+    Py_XDECREF(self->table);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static int Stats_init(StatsObject *self, PyObject *args, PyObject *kwds) {
+    static char *kwlist[] = {"table", "plan", NULL};
+    PyObject *table;
+    Py_buffer blob;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "O!y*", kwlist, &TableType, &table, &blob))
+        return -1;
+    if (self->ok) {
+        PyBuffer_Release(&blob);
+        PyErr_SetString(PyExc_RuntimeError, "Stats already initialised");
+        return -1;
+    }
+    int r = ms_plan_parse(&self->plan, (const uint8_t *)blob.buf, (size_t)blob.len);
+    PyBuffer_Release(&blob);
+    if (r != 0) {
+        PyErr_SetString(PyExc_ValueError, "malformed statistics plan");
+        return -1;
+    }
+    if (ms_acc_init(&self->acc, &self->plan) != 0) {
+        ms_plan_free(&self->plan);
+        PyErr_NoMemory();
+        return -1;
+    }
+    Py_INCREF(table);
+    self->table = table;
+    self->ok = 1;
+    return 0;
+}
+
+/* The id of an endpoint's text (None: -1); -2 with an exception set, -3 when a table is full. */
+static int32_t intern_text(StatsObject *self, PyObject *text) {
+    if (text == Py_None)
+        return -1;
+    Py_ssize_t n;
+    const char *s = PyUnicode_AsUTF8AndSize(text, &n);
+    if (s == NULL)
+        return -2;
+    int32_t id = ms_acc_intern(&self->acc, s, (size_t)n);
+    if (id == -1) {
+        PyErr_NoMemory();
+        return -2;
+    }
+    return id == -2 ? -3 : id;
+}
+
+static PyObject *Stats_add(StatsObject *self, PyObject *args) {
+    unsigned long long record;
+    PyObject *time, *src, *dst, *payload;
+    int transport, version, known, crc, sig, has_signature;
+    unsigned int seq, sysid, compid, msgid;
+    Py_buffer raw;
+    if (!PyArg_ParseTuple(args, "KOiOOy*iIIIIpiipO", &record, &time, &transport, &src, &dst, &raw, &version, &seq,
+                          &sysid, &compid, &msgid, &known, &crc, &sig, &has_signature, &payload))
+        return NULL;
+    PyObject *res = NULL;
+    Py_buffer pl = {0};
+    int have_pl = 0;
+    if (!self->ok || transport < 0 || transport >= MS_TR_N || crc < 0 || crc >= MS_CRC_N || sig < 0 ||
+        sig >= MS_SIG_N || seq > 255 || sysid > 255 || compid > 255 || msgid > 0xFFFFFF) {
+        PyErr_SetString(PyExc_ValueError, "not a frame");
+        goto done;
+    }
+    ms_acc_frame f;
+    memset(&f, 0, sizeof f);
+    f.record = record;
+    f.has_time = time != Py_None;
+    if (f.has_time) {
+        f.time = PyFloat_AsDouble(time);
+        if (f.time == -1.0 && PyErr_Occurred())
+            goto done;
+    }
+    f.transport = transport;
+    f.raw = (const uint8_t *)raw.buf;
+    f.raw_len = (size_t)raw.len;
+    f.version = version;
+    f.seq = seq;
+    f.sysid = sysid;
+    f.compid = compid;
+    f.msgid = msgid;
+    f.known = known;
+    f.crc = crc;
+    f.sig = sig;
+    f.has_signature = has_signature;
+    if (payload != Py_None) {
+        if (PyObject_GetBuffer(payload, &pl, PyBUF_SIMPLE) != 0)
+            goto done;
+        have_pl = 1;
+        f.payload = (const uint8_t *)pl.buf;
+        f.payload_len = (size_t)pl.len;
+        if (f.payload == NULL)
+            f.payload = (const uint8_t *)"";
+    }
+    f.src = intern_text(self, src);
+    f.dst = f.src < -1 ? -1 : intern_text(self, dst);
+    if (f.src == -2 || f.dst == -2)
+        goto done;
+    if (f.src != -3 && f.dst != -3 && ms_acc_add(&self->acc, &f) < 0) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    res = Py_NewRef(Py_None);
+done:
+    if (have_pl)
+        PyBuffer_Release(&pl);
+    PyBuffer_Release(&raw);
+    return res;
+}
+
+static PyObject *Stats_full(StatsObject *self, PyObject *Py_UNUSED(ignored)) {
+    return PyBool_FromLong(self->ok && self->acc.full);
+}
+
+static PyObject *Stats_dump(StatsObject *self, PyObject *Py_UNUSED(ignored)) {
+    if (!self->ok) {
+        PyErr_SetString(PyExc_RuntimeError, "Stats not initialised");
+        return NULL;
+    }
+    ms_buf out;
+    ms_buf_init(&out);
+    if (ms_acc_dump(&self->acc, &out) != 0) {
+        ms_buf_free(&out);
+        return PyErr_NoMemory();
+    }
+    PyObject *res = PyBytes_FromStringAndSize(out.data, (Py_ssize_t)out.len);
+    ms_buf_free(&out);
+    return res;
+}
+
+static PyMethodDef Stats_methods[] = {
+    {"add", (PyCFunction)Stats_add, METH_VARARGS,
+     "add(record, time, transport, src, dst, raw, version, seq, sysid, compid, msgid, known, crc, sig, "
+     "has_signature, payload): one frame the Python pipeline made"},
+    {"full", (PyCFunction)Stats_full, METH_NOARGS, "whether a table reached its cap (then run the pure path)"},
+    {"dump", (PyCFunction)Stats_dump, METH_NOARGS, "the whole state as bytes (acc_dump.c has the layout)"},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyTypeObject StatsType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "mavscope._native.Stats",
+    .tp_basicsize = sizeof(StatsObject),
+    .tp_dealloc = (destructor)Stats_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "The `stats` accumulator (built by mavscope.native_stats).",
+    .tp_methods = Stats_methods,
+    .tp_init = (initproc)Stats_init,
+    .tp_new = PyType_GenericNew,
+};
+
 /* ---- Walker ------------------------------------------------------------------------------- */
 
 /* The bytes of a pcap that grows while it is walked (`Walker.feed`): what the reader has not passed yet,
@@ -173,6 +347,7 @@ typedef struct {
     PyObject *endpoint;  /* endpoint(packed: bytes, port: int) -> an element of `endpoints` */
     PyObject *senders;   /* set[tuple[int, int]] */
     PyObject *summary;   /* SummaryObject or NULL (JSON Lines) */
+    PyObject *stats;     /* StatsObject or NULL */
     ms_buf out;
 } WalkerObject;
 
@@ -194,20 +369,26 @@ static void Walker_dealloc(WalkerObject *self) {
     Py_XDECREF(self->endpoint);
     Py_XDECREF(self->senders);
     Py_XDECREF(self->summary);
+    Py_XDECREF(self->stats);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
 static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
     static char *kwlist[] = {"fd", "size", "kind", "table", "endpoints", "endpoint", "signed_senders", "window",
-                             "summary", "t0", NULL};
-    PyObject *table, *endpoints, *endpoint, *senders, *summary = Py_None, *t0 = Py_None;
+                             "summary", "t0", "stats", NULL};
+    PyObject *table, *endpoints, *endpoint, *senders, *summary = Py_None, *t0 = Py_None, *stats = Py_None;
     int fd, kind;
     unsigned long long size;
     Py_ssize_t window = MS_WINDOW;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|nOO", kwlist, &fd, &size, &kind, &TableType, &table,
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|nOOO", kwlist, &fd, &size, &kind, &TableType, &table,
                                      &PySet_Type, &endpoints, &endpoint, &PySet_Type, &senders, &window,
-                                     &summary, &t0))
+                                     &summary, &t0, &stats))
         return -1;
+    if (stats != Py_None && (!PyObject_TypeCheck(stats, &StatsType) || ((StatsObject *)stats)->table != table ||
+                             !((StatsObject *)stats)->ok || summary != Py_None)) {
+        PyErr_SetString(PyExc_TypeError, "stats must be a Stats of the same table (without summary), or None");
+        return -1;
+    }
     if (summary != Py_None &&
         (!PyObject_TypeCheck(summary, &SummaryType) || ((SummaryObject *)summary)->table != table)) {
         PyErr_SetString(PyExc_TypeError, "summary must be a Summary of the same table, or None");
@@ -260,6 +441,11 @@ static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
         self->walker.summary = &((SummaryObject *)summary)->summary;
         self->walker.has_t0 = t0 != Py_None;
         self->walker.t0 = t0v;
+    }
+    if (stats != Py_None) {
+        Py_INCREF(stats);
+        self->stats = stats;
+        self->walker.acc = &((StatsObject *)stats)->acc;
     }
     self->have_walker = 1;
     self->ended = 0;
@@ -694,7 +880,8 @@ static struct PyModuleDef native_module = {
 };
 
 PyMODINIT_FUNC PyInit__native(void) {
-    if (PyType_Ready(&TableType) < 0 || PyType_Ready(&SummaryType) < 0 || PyType_Ready(&WalkerType) < 0)
+    if (PyType_Ready(&TableType) < 0 || PyType_Ready(&SummaryType) < 0 || PyType_Ready(&WalkerType) < 0 ||
+        PyType_Ready(&StatsType) < 0)
         return NULL;
     PyObject *m = PyModule_Create(&native_module);
     if (m == NULL)
@@ -702,9 +889,11 @@ PyMODINIT_FUNC PyInit__native(void) {
     Py_INCREF(&TableType);
     Py_INCREF(&WalkerType);
     Py_INCREF(&SummaryType);
+    Py_INCREF(&StatsType);
     if (PyModule_AddObject(m, "Table", (PyObject *)&TableType) < 0 ||
         PyModule_AddObject(m, "Walker", (PyObject *)&WalkerType) < 0 ||
         PyModule_AddObject(m, "Summary", (PyObject *)&SummaryType) < 0 ||
+        PyModule_AddObject(m, "Stats", (PyObject *)&StatsType) < 0 ||
         PyModule_AddIntConstant(m, "KIND_PCAP", MS_KIND_PCAP) < 0 ||
         PyModule_AddIntConstant(m, "KIND_PCAPNG", MS_KIND_PCAPNG) < 0 ||
         PyModule_AddIntConstant(m, "KIND_TLOG", MS_KIND_TLOG) < 0 ||

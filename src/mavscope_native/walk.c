@@ -319,6 +319,26 @@ static int write_summary_record(ms_walker *w, const ms_record *rec, ms_buf *out,
     return MS_WALK_FULL;
 }
 
+/* The frames of a clean record into the `stats` accumulator: MS_WALK_FULL, MS_WALK_END when one of its
+ * tables is full (the caller then runs the pure path), or MS_WALK_NOMEM. */
+static int stats_record(ms_walker *w, const ms_record *rec, const uint8_t *d, size_t count, int has_time, double t,
+                        const ms_udp *udp) {
+    char src[MS_ENDPOINT_TEXT];
+    int src_len = 0, dst_len = 0;
+    const char *dst = NULL;
+    if (udp != NULL) {
+        memcpy(src, endpoint_text(w, udp->v6, udp->src, udp->sport, &src_len), MS_ENDPOINT_TEXT);
+        dst = endpoint_text(w, udp->v6, udp->dst, udp->dport, &dst_len);
+    }
+    int r = ms_acc_record(w->acc, rec->number, has_time, t, udp != NULL, src, (size_t)src_len, dst, (size_t)dst_len,
+                          d, w->frames, count);
+    if (r < 0)
+        return MS_WALK_NOMEM;
+    if (r > 0)
+        return MS_WALK_END;
+    return count_frames(w, d, count);
+}
+
 /* MS_WALK_FULL when the record was written (or had nothing), MS_WALK_HANDBACK, or MS_WALK_NOMEM. */
 static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
     if (rec->notes->n != 0 || w->reader.kind == MS_KIND_RAW)
@@ -372,6 +392,8 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
     }
     if (is_udp && note_source(w, &udp) != 0)
         return MS_WALK_NOMEM;
+    if (w->acc != NULL)
+        return stats_record(w, rec, d, count, has_time, t, is_udp ? &udp : NULL);
     if (w->summary != NULL)
         return count_frames(w, d, count);
     const char *src = NULL, *dst = NULL;

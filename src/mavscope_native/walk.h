@@ -20,6 +20,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "acc.h"
 #include "buf.h"
 #include "capture.h"
 #include "summary.h"
@@ -41,6 +42,7 @@ typedef struct {
     const ms_table *table;
     int sign_mode;              /* MS_SIGNED_*, set by the glue before each batch */
     const ms_summary *summary;  /* non-NULL: summary lines (summary.h) instead of JSON Lines */
+    ms_acc *acc;                /* non-NULL: the frames go to the `stats` accumulator (acc.h), no text */
     int has_t0;                 /* summary lines: relative times count from t0 (the first record's time) */
     double t0;
     int fuzz_any_crc;           /* the fuzz harness only: take every CRC for good, so that mutated

@@ -49,6 +49,8 @@ LAYERS: tuple[tuple[str, int], ...] = (
     ("mavscope.native", 10),
     ("mavscope.native_summary", 10),
     ("mavscope.native_live", 10),
+    ("mavscope.native_plan", 10),  # the `stats` accumulator's plan: compiled from the dialect and the analyses
+    ("mavscope.native_stats", 10),
     ("mavscope._native", 10),
     ("mavscope.cli", 10),
     ("mavscope.commands", 10),

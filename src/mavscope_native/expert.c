@@ -1,0 +1,393 @@
+/* The expert detectors of analysis/expert.py that look at every frame: SequenceAnomalies (its sequence
+ * counters are StatsBuilder's, fed the same frames: the step comes from acc.c), CommandSources,
+ * ReplayedCommands (with its own tracker per link and the copies it has seen, least recently seen first
+ * out) and UnsignedCommands; then ControlSources (control.c) and GnssAnomalies (gnss.c). */
+#include <stdlib.h>
+#include <string.h>
+
+#include "acc.h"
+#include "table.h"
+
+/* ---- decoded fields --------------------------------------------------------------------------- */
+
+static uint64_t le(const ms_acc_frame *f, size_t off, size_t n) {
+    uint64_t v = 0;
+    for (size_t i = 0; i < n; i++)
+        if (off + i < f->payload_len) /* the payload is zero-padded to the message's length */
+            v |= (uint64_t)f->payload[off + i] << (8 * i);
+    return v;
+}
+
+ms_val ms_get(const ms_acc_frame *f, const ms_plan_msg *pm, int slot) {
+    ms_val v = {0, 0, 0, 0.0};
+    const ms_slot *s = &pm->slots[slot];
+    if (s->type == 0 || f->payload == NULL)
+        return v;
+    v.has = 1;
+    uint64_t u;
+    switch (s->type) {
+    case MS_T_U8: v.i = (int64_t)le(f, s->offset, 1); break;
+    case MS_T_I8: v.i = (int8_t)le(f, s->offset, 1); break;
+    case MS_T_U16: v.i = (int64_t)le(f, s->offset, 2); break;
+    case MS_T_I16: v.i = (int16_t)le(f, s->offset, 2); break;
+    case MS_T_U32: v.i = (int64_t)le(f, s->offset, 4); break;
+    case MS_T_I32: v.i = (int32_t)le(f, s->offset, 4); break;
+    case MS_T_U64: /* as float(v): correctly rounded (the plan allows it only where Python converts it) */
+        u = le(f, s->offset, 8);
+        v.i = u > INT64_MAX ? INT64_MAX : (int64_t)u;
+        v.d = (double)u;
+        return v;
+    case MS_T_I64: v.i = (int64_t)le(f, s->offset, 8); break;
+    case MS_T_F32: {
+        uint32_t b = (uint32_t)le(f, s->offset, 4);
+        float x;
+        memcpy(&x, &b, 4);
+        v.is_float = 1;
+        v.d = (double)x;
+        return v;
+    }
+    case MS_T_F64: {
+        u = le(f, s->offset, 8);
+        memcpy(&v.d, &u, 8);
+        v.is_float = 1;
+        return v;
+    }
+    default: v.has = 0; return v;
+    }
+    v.d = (double)v.i;
+    return v;
+}
+
+/* expert._target: target_system, else MANUAL_CONTROL's target */
+static ms_val target_of(const ms_acc_frame *f, const ms_plan_msg *pm) {
+    return pm->slots[MS_F_TARGET_SYSTEM].type ? ms_get(f, pm, MS_F_TARGET_SYSTEM) : ms_get(f, pm, MS_F_TARGET);
+}
+
+static uint32_t label_of(const ms_acc_frame *f) {
+    return f->known ? f->msgid : f->msgid | 0x80000000u; /* f.msgname or str(f.msgid) */
+}
+
+/* ---- the copies ReplayedCommands has seen: raw bytes -> (record, position), an LRU -------------- */
+
+typedef struct {
+    uint64_t hash, record;
+    int64_t position;
+    int32_t prev, next;
+    uint16_t len;
+    uint8_t raw[MS_RAW_MAX];
+} seen_entry;
+
+struct ms_seen {
+    seen_entry *e;
+    uint32_t n, cap, used; /* entries allocated, their capacity, entries in use */
+    int32_t head, tail, free_list;
+    int32_t *slots;
+    uint32_t nslots;
+};
+
+void ms_seen_free(struct ms_seen *s) {
+    if (s == NULL)
+        return;
+    free(s->e);
+    free(s->slots);
+    free(s);
+}
+
+static uint64_t raw_hash(const uint8_t *p, size_t n) {
+    uint64_t h = 1469598103934665603ULL;
+    for (size_t i = 0; i < n; i++)
+        h = (h ^ p[i]) * 1099511628211ULL;
+    return h ^ (h >> 29);
+}
+
+static int32_t seen_find(const struct ms_seen *s, const uint8_t *raw, size_t n, uint64_t h) {
+    uint32_t mask = s->nslots - 1;
+    for (uint32_t i = (uint32_t)h & mask; s->slots[i] >= 0; i = (i + 1) & mask) {
+        const seen_entry *e = &s->e[s->slots[i]];
+        if (e->hash == h && e->len == n && memcmp(e->raw, raw, n) == 0)
+            return s->slots[i];
+    }
+    return -1;
+}
+
+/* Remove entry `k` from the slots (linear probing: the entries after it shift back). */
+static void seen_unslot(struct ms_seen *s, int32_t k) {
+    uint32_t mask = s->nslots - 1;
+    uint32_t i = (uint32_t)s->e[k].hash & mask;
+    while (s->slots[i] != k)
+        i = (i + 1) & mask;
+    for (uint32_t j = (i + 1) & mask; s->slots[j] >= 0; j = (j + 1) & mask) {
+        uint32_t home = (uint32_t)s->e[s->slots[j]].hash & mask;
+        /* the entry at j may move to i when its home is not within (i, j] */
+        if ((j > i && (home <= i || home > j)) || (j < i && (home <= i && home > j))) {
+            s->slots[i] = s->slots[j];
+            i = j;
+        }
+    }
+    s->slots[i] = -1;
+}
+
+static void lru_unlink(struct ms_seen *s, int32_t k) {
+    seen_entry *e = &s->e[k];
+    if (e->prev >= 0)
+        s->e[e->prev].next = e->next;
+    else
+        s->head = e->next;
+    if (e->next >= 0)
+        s->e[e->next].prev = e->prev;
+    else
+        s->tail = e->prev;
+}
+
+static void lru_append(struct ms_seen *s, int32_t k) {
+    s->e[k].prev = s->tail;
+    s->e[k].next = -1;
+    if (s->tail >= 0)
+        s->e[s->tail].next = k;
+    else
+        s->head = k;
+    s->tail = k;
+}
+
+/* seen[raw] = (record, position); seen.move_to_end(raw); drop the oldest beyond `kept`. */
+static int seen_put(ms_acc *a, const uint8_t *raw, size_t n, uint64_t h, int32_t k, uint64_t record,
+                    int64_t position) {
+    struct ms_seen *s = a->seen;
+    const uint32_t kept = (uint32_t)a->plan->k[MS_K_COPIES_KEPT];
+    if (k >= 0) {
+        s->e[k].record = record;
+        s->e[k].position = position;
+        lru_unlink(s, k);
+        lru_append(s, k);
+        return 0;
+    }
+    if (s->free_list >= 0) {
+        k = s->free_list;
+        s->free_list = s->e[k].next;
+    } else {
+        if (ms_vec_grow((void **)&s->e, &s->cap, s->n + 1, sizeof *s->e, kept + 1) != 0)
+            return -1;
+        k = (int32_t)s->n++;
+    }
+    seen_entry *e = &s->e[k];
+    e->hash = h;
+    e->record = record;
+    e->position = position;
+    e->len = (uint16_t)n;
+    memcpy(e->raw, raw, n);
+    uint32_t mask = s->nslots - 1;
+    uint32_t i = (uint32_t)h & mask;
+    while (s->slots[i] >= 0)
+        i = (i + 1) & mask;
+    s->slots[i] = k;
+    lru_append(s, k);
+    if (++s->used > kept) { /* popitem(last=False) */
+        int32_t old = s->head;
+        lru_unlink(s, old);
+        seen_unslot(s, old);
+        s->e[old].next = s->free_list;
+        s->free_list = old;
+        s->used--;
+    }
+    return 0;
+}
+
+static int seen_init(ms_acc *a) {
+    struct ms_seen *s = calloc(1, sizeof *s);
+    if (s == NULL)
+        return -1;
+    uint32_t want = 4 * ((uint32_t)a->plan->k[MS_K_COPIES_KEPT] + 1), n = 16;
+    while (n < want)
+        n *= 2;
+    s->slots = malloc((size_t)n * sizeof *s->slots);
+    if (s->slots == NULL) {
+        free(s);
+        return -1;
+    }
+    memset(s->slots, 0xFF, (size_t)n * sizeof *s->slots);
+    s->nslots = n;
+    s->head = s->tail = s->free_list = -1;
+    a->seen = s;
+    return 0;
+}
+
+/* ---- findings in the making ------------------------------------------------------------------- */
+
+/* ReplayedCommands._count: the link's entry in `which` (created in order), its frames and one `label`. */
+int ms_count_named(ms_acc *a, int32_t *slot, ms_ivec *order, uint32_t key, const uint64_t *records, int nrec,
+                       uint32_t label) {
+    if (*slot < 0) {
+        int g = ms_vec_grow((void **)&order->v, &order->cap, order->n + 1, sizeof *order->v, MS_CAP_ITEMS);
+        if (g != 0)
+            return g;
+        int32_t at = ms_named_new(a, key);
+        if (at < 0)
+            return at == -1 ? -1 : 1;
+        order->v[order->n++] = at;
+        *slot = at;
+    }
+    ms_named *e = &a->named.v[*slot];
+    for (int i = 0; i < nrec; i++)
+        ms_fn_add(&e->fn, records[i], (uint32_t)a->plan->k[MS_K_MAX_FRAMES]);
+    return ms_pairs_count(&a->names, (uint32_t)*slot, label, 1);
+}
+
+static int reported(ms_acc *a, uint64_t key) {
+    uint32_t v;
+    if (ms_map_get(&a->reported, key, &v))
+        return 1;
+    if (a->reported.n >= MS_CAP_ITEMS)
+        return -2;
+    return ms_map_put(&a->reported, key, 1) != 0 ? -1 : 0;
+}
+
+static int cmd_event(ms_acc *a, int kind, unsigned target, unsigned sender, uint32_t msgid, int32_t x, int32_t y,
+                     uint64_t record) {
+    int g = MS_VGROW(a, a->cmd_events, MS_CAP_ITEMS);
+    if (g != 0)
+        return g;
+    ms_cmd_event *e = &a->cmd_events.v[a->cmd_events.n++];
+    e->kind = (uint8_t)kind;
+    e->target = (uint8_t)target;
+    e->sender = (uint16_t)sender;
+    e->msgid = msgid;
+    e->a = x;
+    e->b = y;
+    e->record = record;
+    return 0;
+}
+
+/* CommandSources.add */
+static int command_sources(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg *pm, int fields) {
+    const unsigned sender = (f->sysid << 8) | f->compid;
+    if (f->msgid == 0) {
+        a->heartbeat_seen[sender >> 3] |= (uint8_t)(1u << (sender & 7));
+        if (fields) {
+            ms_val t = ms_get(f, pm, MS_F_TYPE);
+            if (t.has && !t.is_float && t.i == a->plan->k[MS_K_MAV_TYPE_GCS])
+                a->cs_gcs[f->sysid >> 3] |= (uint8_t)(1u << (f->sysid & 7));
+        }
+        return 0;
+    }
+    if (!fields || !(pm->roles & MS_R_COMMANDING))
+        return 0;
+    ms_val tv = target_of(f, pm);
+    if (!tv.has || tv.is_float || tv.i < 0 || tv.i > 255) /* not an int (the plan allows uint8 only) */
+        return 0;
+    const unsigned target = (unsigned)tv.i;
+    if (ms_bit(a->cs_gcs, target) || target == f->sysid)
+        return 0;
+    if (a->first_commander[target] < 0)
+        a->first_commander[target] = (int32_t)sender;
+    const unsigned est = (unsigned)a->first_commander[target];
+    int r;
+    if ((est >> 8) != f->sysid) {
+        r = reported(a, (uint64_t)target << 16 | sender);
+        if (r < 0)
+            return r == -1 ? -1 : 1;
+        if (r == 0 && (r = cmd_event(a, 0, target, sender, f->msgid, (int32_t)est, 0, f->record)) != 0)
+            return r;
+    }
+    if (f->src >= 0) {
+        uint32_t known;
+        if (!ms_map_get(&a->cs_endpoints, sender, &known)) {
+            if (a->cs_endpoints.n >= MS_CAP_ITEMS)
+                return 1;
+            if (ms_map_put(&a->cs_endpoints, sender, (uint32_t)f->src) != 0)
+                return -1;
+            known = (uint32_t)f->src;
+        }
+        if (known != (uint32_t)f->src) {
+            r = reported(a, 1ULL << 56 | (uint64_t)sender << 32 | (uint32_t)f->src);
+            if (r < 0)
+                return r == -1 ? -1 : 1;
+            if (r == 0 && (r = cmd_event(a, 1, target, sender, f->msgid, f->src, (int32_t)known, f->record)) != 0)
+                return r;
+        }
+    }
+    if (!ms_bit(a->heartbeat_seen, sender)) {
+        r = reported(a, 2ULL << 56 | sender);
+        if (r < 0)
+            return r == -1 ? -1 : 1;
+        if (r == 0 && (r = cmd_event(a, 2, target, sender, f->msgid, 0, 0, f->record)) != 0)
+            return r;
+    }
+    return 0;
+}
+
+/* ReplayedCommands.add */
+static int replayed_commands(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg *pm, ms_link *lk) {
+    int step = ms_seq_feed(&lk->replay_seq, &a->rules, f->seq, f->record, NULL, 0);
+    if (step < 0)
+        return -1;
+    const uint32_t key = lk->sender;
+    if (f->sig == MS_SIG_REPLAY)
+        return ms_count_named(a, &lk->replays, &a->replays, key, &f->record, 1, label_of(f));
+    if (pm == NULL || !(pm->roles & MS_R_COMMANDING) || f->crc != MS_CRC_OK)
+        return 0;
+    if (a->seen == NULL && seen_init(a) != 0)
+        return -1;
+    const size_t n = f->raw_len < MS_RAW_MAX ? f->raw_len : MS_RAW_MAX;
+    const uint64_t h = raw_hash(f->raw, n);
+    int32_t k = seen_find(a->seen, f->raw, n, h);
+    const int64_t position = lk->replay_seq.position;
+    if (k >= 0 && (position - a->seen->e[k].position < 256 || step == MS_STEP_DUPLICATE)) {
+        uint64_t records[2] = {a->seen->e[k].record, f->record};
+        return ms_count_named(a, &lk->copies, &a->copies, key, records, 2, label_of(f));
+    }
+    return seen_put(a, f->raw, n, h, k, f->record, position);
+}
+
+/* UnsignedCommands.add */
+static int unsigned_commands(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg *pm, int fields) {
+    if (f->has_signature) {
+        a->signing[f->sysid >> 3] |= (uint8_t)(1u << (f->sysid & 7));
+        return 0;
+    }
+    if (!fields || !(pm->roles & MS_R_COMMANDING))
+        return 0;
+    ms_val tv = target_of(f, pm);
+    int64_t target = tv.has && !tv.is_float && tv.i >= 0 && tv.i <= 255 ? tv.i : -1;
+    uint32_t key = ((f->sysid << 8) | f->compid) << 9 | (uint32_t)(target + 1);
+    uint32_t at;
+    int32_t slot = -1;
+    if (ms_map_get(&a->candidate_index, key, &at))
+        slot = (int32_t)at;
+    int r = ms_count_named(a, &slot, &a->candidates, key, &f->record, 1, f->msgid);
+    if (r == 0 && a->candidate_index.n < a->candidates.n)
+        r = ms_map_put(&a->candidate_index, key, (uint32_t)slot);
+    return r;
+}
+
+int ms_expert_add(ms_acc *a, const ms_acc_frame *f, ms_link *lk, int step) {
+    const ms_plan_msg *pm = f->known ? ms_plan_get(a->plan, f->msgid) : NULL;
+    const int fields = pm != NULL && (pm->roles & MS_R_DECODE) && f->crc != MS_CRC_BAD && f->payload != NULL;
+    int r;
+    /* SequenceAnomalies (its counts are the links' `received`) */
+    if (step == MS_STEP_DUPLICATE || step == MS_STEP_LATE || step == MS_STEP_UNCHANGED) {
+        const int what = step == MS_STEP_DUPLICATE ? 0 : step == MS_STEP_LATE ? 1 : 2;
+        if (lk->events[what] < 0) {
+            int g = MS_VGROW(a, a->ev, MS_CAP_ITEMS);
+            if (g != 0)
+                return g;
+            ms_event *e = &a->ev.v[a->ev.n];
+            memset(e, 0, sizeof *e);
+            e->sender = lk->sender;
+            e->what = (uint8_t)what;
+            lk->events[what] = (int32_t)a->ev.n++;
+        }
+        ms_fn_add(&a->ev.v[lk->events[what]].fn, f->record, (uint32_t)a->plan->k[MS_K_MAX_FRAMES]);
+    }
+    if (pm != NULL || f->msgid == 0)
+        if ((r = command_sources(a, f, pm, fields)) != 0)
+            return r;
+    if ((r = replayed_commands(a, f, pm, lk)) != 0)
+        return r;
+    if ((r = unsigned_commands(a, f, pm, fields)) != 0)
+        return r;
+    if (fields && (pm->roles & MS_R_CONTROL) && (r = ms_control_add(a, f, pm)) != 0)
+        return r;
+    if (fields && (pm->roles & MS_R_GNSS) && (r = ms_gnss_add(a, f, pm)) != 0)
+        return r;
+    return 0;
+}

@@ -1,0 +1,68 @@
+"""Both engines of `mavscope stats`, through the API, as comparable values.
+
+`pure_stats` is the pure path as the command runs it (Dissector, SecurityStage, StatsBuilder and Expert
+over every frame, problems through `Problems`); `native_stats_of` is mavscope.native_stats. `observed`
+turns either into what the command's outputs are made of: the `--json` document (rows, totals,
+findings), the order of the streams (the busiest ones are picked by a stable sort: ties keep it) and of
+the conversations, every stream's sparkline series, and what went to stderr.
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+from mavscope.analysis.expert import Expert
+from mavscope.analysis.stats import Stats, StatsBuilder
+from mavscope.capture.detect import open_capture
+from mavscope.cli import Env
+from mavscope.commands.common import Problems
+from mavscope.mavlink.dialect import Dialect
+from mavscope.notes import Finding
+from mavscope.pipeline.dissect import Anomaly, Dissector
+from mavscope.security.stage import SecurityStage
+from tests.native.engines import material
+
+
+def observed(stats: Stats, findings: list[Finding], err: str) -> dict[str, object]:
+    return {
+        "json": stats.to_json(),
+        "findings": [f.to_json() for f in findings],
+        "stream_order": list(stats.streams),
+        "conversation_order": list(stats.conversations),
+        "series": {key: stats.rate_series(key, 40) for key in stats.streams},
+        "stderr": err,
+    }
+
+
+def pure_stats(path: str | Path, dialect: Dialect, keys: str = "none") -> dict[str, object]:
+    err = io.StringIO()
+    problems = Problems(Env(stdout=io.StringIO(), stderr=err, environ={}), str(path))
+    builder, expert = StatsBuilder(), Expert(dialect)
+    stage = SecurityStage(material(keys))
+    with open_capture(path) as reader:
+        for item in stage.run(Dissector(dialect).run(reader)):
+            if type(item) is Anomaly:
+                problems.anomaly(item)
+                continue
+            if item.notes:
+                problems.frame(item)
+            builder.add(item)
+            expert.add(item)
+    problems.close()
+    return observed(builder.result(), expert.findings(), err.getvalue())
+
+
+def native_stats_of(path: str | Path, dialect: Dialect, keys: str = "none",
+                    window: int | None = None) -> dict[str, object] | None:
+    """The native pass's observed outputs, or None when it gave up (a cap of the accumulator)."""
+    from mavscope.capture.reader import WINDOW
+    from mavscope.native_stats import native_stats
+
+    err = io.StringIO()
+    problems = Problems(Env(stdout=io.StringIO(), stderr=err, environ={}), str(path))
+    result = native_stats(path, dialect, SecurityStage(material(keys)), problems, window=window or WINDOW)
+    if result is None:
+        return None
+    problems.close()
+    return observed(result.stats, result.findings, err.getvalue())

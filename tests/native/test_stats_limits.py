@@ -1,0 +1,106 @@
+"""The Python analyses' own limits, reached on the native engine as on the pure path.
+
+Each capture is made to go past one cap the pure path has (and the C port copies): the copies
+ReplayedCommands remembers (COPIES_KEPT, least recently seen first out: copies of frames it forgot are
+not copies, copies of frames it kept are), the senders Systems, ControlSources and GnssAnomalies follow
+(MAX_SENDERS), the channels of one sender (MAX_CHANNELS) and in all (MAX_EXTRA). The expected answers are
+the pure path's (the reference); the native pass must not give up on them.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from mavscope.analysis.expert import COPIES_KEPT
+from mavscope.analysis.sequence import MAX_CHANNELS, MAX_EXTRA
+from mavscope.analysis.vehicles import MAX_SENDERS
+from mavscope.mavlink.dialect import load_dialect
+from tests.native import build as nh
+from tests.native.engines import capture_file
+from tests.native.stats_engines import native_stats_of, pure_stats
+from tests.native.stories import BY_NAME, pack
+
+pytest.importorskip("mavscope._native", reason="the native extension is not built (no compiler at install)")
+
+DIALECT = load_dialect()
+T0 = 1_700_000_000_000_000
+
+
+def frame(name: str, values: dict[str, object], seq: int, sysid: int, compid: int) -> bytes:
+    md = BY_NAME[name]
+    return nh.frame_v2(md, md.id, pack(md, values), seq % 256, sysid, compid)
+
+
+def check(data: bytes) -> dict[str, object]:
+    with capture_file(data) as path:
+        pure = pure_stats(path, DIALECT)
+        native = native_stats_of(path, DIALECT)
+    assert native is not None
+    assert native == pure
+    return pure
+
+
+def test_copies_past_what_replayed_commands_remembers() -> None:
+    """COPIES_KEPT + 2000 different COMMAND_LONGs (the first 2000 forgotten, least recently seen first),
+    then copies out of the sender's sequence of forgotten and of remembered ones, and of one seen again
+    (moved to the end) just before it would have been forgotten."""
+    n = COPIES_KEPT + 2000
+    frames = [frame("COMMAND_LONG", {"target_system": 1, "command": 511, "param1": float(i)}, i, 255, 190)
+              for i in range(n)]
+    entries = list(frames)
+    entries.insert(1500, frames[2100])  # seen again: a copy? (its position tells) and remembered anew
+    entries += [frames[5], frames[1999], frames[2100], frames[n - 3], frames[n - 300], frames[40_000]]
+    data = nh.tlog([(T0 + i * 1000, f) for i, f in enumerate(entries)])
+    found = check(data)
+    assert any(f["code"] == "replayed-command" for f in found["findings"])  # type: ignore[attr-defined,index]
+
+
+def test_more_senders_than_the_analyses_follow() -> None:
+    """MAX_SENDERS + 200 senders: HEARTBEATs of vehicles and GPS fixes (Systems, GnssAnomalies), then
+    17 armed vehicles each controlled by 255 others (ControlSources' intrusions, past MAX_SENDERS)."""
+    entries = []
+    senders = [(s, c) for s in range(1, 256) for c in range(1, 256)][: MAX_SENDERS + 200]
+    for i, (s, c) in enumerate(senders):
+        entries.append(frame("HEARTBEAT", {"type": 2, "autopilot": 3, "base_mode": 0x81, "custom_mode": 5},
+                             i, s, c))
+        for k, lat in enumerate((473977418, 474977418)):
+            entries.append(frame("GPS_RAW_INT", {"time_usec": (1000 + k * 500) * 1000, "fix_type": 3, "lat": lat,
+                                                 "lon": 85455939, "vel": 100, "satellites_visible": 12}, i, s, c))
+    for vehicle in range(1, 18):
+        entries.append(frame("HEARTBEAT", {"type": 2, "autopilot": 3, "base_mode": 0x81}, 1, vehicle, 1))
+        entries.append(frame("COMMAND_LONG", {"target_system": vehicle, "command": 400, "param1": 1.0}, 1, 200, 1))
+        for sysid in range(1, 256):
+            entries.append(frame("RC_CHANNELS_OVERRIDE", {"target_system": vehicle}, vehicle, sysid, 190))
+    data = nh.tlog([(T0 + i * 1000, f) for i, f in enumerate(entries)])
+    found = check(data)
+    codes = {f["code"] for f in found["findings"]}  # type: ignore[attr-defined,index]
+    assert {"second-gcs-control", "gnss-position-jump"} <= codes
+
+
+def test_more_channels_than_the_sequence_counters_follow() -> None:
+    """One sender on MAX_CHANNELS + 3 channels (the rest share one counter), then senders enough to pass
+    MAX_EXTRA channels beyond their first in all."""
+    records = []
+    t = 1_700_000_000
+
+    def udp(f: bytes, sport: int, dport: int, src: int = 1) -> None:
+        nonlocal t
+        t += 1
+        ip = nh.ipv4(bytes([10, 0, 0, src]), bytes([10, 0, 1, 1]), 17, nh.udp(sport, dport, f))
+        records.append((t, 0, nh.link("ethernet", ip, False)))
+
+    for k in range(3):
+        for ch in range(MAX_CHANNELS + 3):
+            udp(frame("ATTITUDE", {}, k * 7 + ch, 1, 1), 14550 + ch, 14560)
+    per = MAX_CHANNELS
+    for s in range(MAX_EXTRA // (per - 1) + 2):
+        for ch in range(per):
+            udp(frame("ATTITUDE", {}, ch * 3, 2 + s // 250, s % 250), 20000 + ch, 14560, src=2 + s % 200)
+    check(nh.pcap(records, nh.LINKTYPES["ethernet"]))
+
+
+def test_a_dump_of_nothing() -> None:
+    """A capture without frames: empty rows, totals of zero, no finding."""
+    found = check(nh.pcap([(1_700_000_000, 0, b"\0" * 20)], nh.LINKTYPES["ethernet"]))
+    assert found["json"]["totals"]["frames"] == 0  # type: ignore[index]
+    assert found["findings"] == []
