@@ -99,11 +99,15 @@ class SequenceAnomalies:
         key = (f.sysid, f.compid)
         self.counts[key] += 1
         what, _ = self.seqs.feed(f)
+        self.event(key, what, f.record)
+
+    def event(self, key: Link, what: str, record: int) -> None:
+        """What sender `key`'s frame in `record` was on its channel (`SeqTracker.feed`), in capture order."""
         if what in ("duplicate", "late", "unchanged"):
             ev = self.events.get((key, what))
             if ev is None:
                 ev = self.events[(key, what)] = _frames()
-            ev.add(f.record)
+            ev.add(record)
 
     def findings(self) -> list[Finding]:
         out: list[Finding] = []
@@ -225,6 +229,11 @@ class ReplayedCommands:
         if tr is None:
             tr = self.trackers[link] = SeqTracker()
         step, _ = tr.feed(f.seq, f.record)
+        self.judge(f, step, tr.position)
+
+    def judge(self, f: Frame, step: str, position: int) -> None:
+        """The frame after its link's tracker took it (`step`, and the frame's `position` in the sequence)."""
+        link = (f.sysid, f.compid)
         name = f.msgname or str(f.msgid)
         sec = f.security
         if sec is not None and sec.signature_status is SignatureStatus.REPLAY:
@@ -234,10 +243,10 @@ class ReplayedCommands:
         if md is None or md.name not in COMMANDING or f.crc_status is not CrcStatus.OK:
             return
         prev = self.seen.get(f.raw)
-        if prev is not None and (tr.position - prev[1] < 256 or step == "duplicate"):
+        if prev is not None and (position - prev[1] < 256 or step == "duplicate"):
             self._count(self.copies, link, (prev[0], f.record), name)
             return
-        self.seen[f.raw] = (f.record, tr.position)
+        self.seen[f.raw] = (f.record, position)
         self.seen.move_to_end(f.raw)
         if len(self.seen) > COPIES_KEPT:
             self.seen.popitem(last=False)
@@ -346,12 +355,16 @@ class Expert:
         self.decode = COMMANDING.union({"HEARTBEAT"}, *(getattr(d, "wants", ()) for d in self.detectors))
 
     def add(self, f: Frame) -> None:
-        fields = None
-        md = f.msgdef
-        if md is not None and md.name in self.decode and f.crc_status is not CrcStatus.BAD:
-            fields = decode_payload(f)
+        fields = self.fields(f)
         for d in self.detectors:
             d.add(f, fields)
+
+    def fields(self, f: Frame) -> Fields | None:
+        """The decoded payload the detectors get with `f`: of the messages they decode, CRC not bad."""
+        md = f.msgdef
+        if md is not None and md.name in self.decode and f.crc_status is not CrcStatus.BAD:
+            return decode_payload(f)
+        return None
 
     def findings(self) -> list[Finding]:
         out: list[Finding] = []

@@ -22,6 +22,7 @@
 
 #include "buf.h"
 #include "capture.h"
+#include "columns.h"
 #include "summary.h"
 #include "table.h"
 
@@ -43,6 +44,8 @@ typedef struct {
     const ms_summary *summary;  /* non-NULL: summary lines (summary.h) instead of JSON Lines */
     int has_t0;                 /* summary lines: relative times count from t0 (the first record's time) */
     double t0;
+    ms_cols *cols;              /* non-NULL: column mode (columns.h, the export) instead of JSON Lines; the
+                                   walk also stops once the columns hold their limit of frames */
     int fuzz_any_crc;           /* the fuzz harness only: take every CRC for good, so that mutated
                                    payloads reach the decoder and the JSON writer (never set by the glue) */
     uint8_t signers[8192];      /* bit sysid << 8 | compid: senders seen signing */

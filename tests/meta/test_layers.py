@@ -48,7 +48,7 @@ LAYERS: tuple[tuple[str, int], ...] = (
     # extension it wraps reads, dissects and writes in one, and is for the front ends only.
     ("mavscope.native", 10),
     ("mavscope.native_summary", 10),
-    ("mavscope._native", 10),
+    ("mavscope._native", 9),  # see below: the export's native batch source walks with it too
     ("mavscope.cli", 10),
     ("mavscope.commands", 10),
     ("mavscope.tui", 10),
