@@ -108,7 +108,7 @@ class _Pending:
     def add_message(self, msgid: int, batch: pa.RecordBatch) -> Iterator[pa.RecordBatch]:
         self.messages.setdefault(msgid, []).append(batch)
         self.counts[msgid] = self.counts.get(msgid, 0) + batch.num_rows
-        while self.counts[msgid] >= self.rows:
+        while self.counts.get(msgid, 0) >= self.rows:
             yield self._cut_message(msgid, self.rows)
         while sum(self.counts.values()) > 4 * self.rows:
             largest = max(self.counts, key=lambda k: self.counts[k])
