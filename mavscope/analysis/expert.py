@@ -52,6 +52,8 @@ def _link(f: Frame) -> str:
 class BadCrcBursts:
     """Runs of bad-CRC frames close together: interference, a failing link, or injection attempts."""
 
+    clean: frozenset[str | int] = frozenset()  # bad-CRC frames only (see Detector)
+
     def __init__(self) -> None:
         self.out: list[Finding] = []
         self.run = _frames()
@@ -162,6 +164,8 @@ class CommandSources:
     commanding from another network endpoint, commands from a system that never sent a HEARTBEAT.
     Commands to a ground station (HEARTBEAT type GCS) are not about a vehicle: they are set aside until
     the end, when every HEARTBEAT has been seen."""
+
+    clean: frozenset[str | int] = COMMANDING | {0}  # message id 0: the HEARTBEATs, by id as `add` tells them
 
     def __init__(self) -> None:
         self.gcs: set[int] = set()
@@ -282,10 +286,16 @@ class UnsignedCommands:
     known only once their signed frames are seen, so candidates wait for the end (bounded: MAX_FRAMES
     listed, all counted per sender)."""
 
+    clean: frozenset[str | int] = COMMANDING  # and which systems sign: `signers`, where frames are counted in bulk
+
     def __init__(self) -> None:
         self.signing: set[int] = set()
         self.candidates: dict[tuple[int, int, int], FrameNumbers] = {}  # (sysid, compid, target) -> frames
         self.names: dict[tuple[int, int, int], Counter[str]] = {}
+
+    def signers(self, sysids: Iterable[int]) -> None:
+        """Systems seen sending signed frames (as `add` notes them from their signed frames)."""
+        self.signing.update(sysids)
 
     def add(self, f: Frame, fields: Fields | None) -> None:
         if f.signature is not None:
@@ -316,6 +326,8 @@ class UnsignedCommands:
 class KeyLeaks:
     """SETUP_SIGNING carries the secret key in clear: whoever holds the capture holds the key."""
 
+    clean: frozenset[str | int] = frozenset({"SETUP_SIGNING"})
+
     def __init__(self) -> None:
         self.frames = _frames()
 
@@ -332,7 +344,12 @@ class KeyLeaks:
 
 class Detector(Protocol):
     """`add` gets the decoded payload of commanding frames and HEARTBEATs, and of the messages named in the
-    detector's `wants` attribute where it has one."""
+    detector's `wants` attribute where it has one.
+
+    A detector may say in a `clean` attribute which clean frames (good CRC, no note, plaintext, no verdict
+    but `no-key`) can change what it finds: the names (or ids) of their messages. A caller that knows
+    which frames are clean (the export's native source) then gives it only those of them, and every
+    other frame. Without the attribute it gets every frame."""
 
     def add(self, f: Frame, fields: Fields | None) -> None: ...
 

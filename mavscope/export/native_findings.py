@@ -94,26 +94,38 @@ class Window:
         """The rows of the native frames where `mask` (per native frame) is set."""
         return self.gn[mask]
 
+    def message_of_row(self) -> list[int]:
+        """Per row, the table position of a native frame's message (-1 for a handed-back frame)."""
+        out = np.full(self.size, -1, np.int64)
+        out[self.gn] = self.c.message
+        return out.tolist()  # type: ignore[no-any-return]
+
     def build(self, rows: np.ndarray) -> None:
         """Frames of the native rows `rows`, as the Python dissector makes them (kept for `frame`)."""
         c = self.c
+        if self.built:
+            rows = rows[[r not in self.built for r in rows.tolist()]]
         idx = self.at[rows]
-        idx = idx[[r not in self.built for r in rows.tolist()]] if self.built else idx
         if not len(idx):
             return
-        cols = [a[idx].tolist() for a in (c.record, c.index, c.time, c.transport, c.src, c.dst, c.offset, c.version,
-                                           c.len, c.iflags, c.cflags, c.seq, c.sysid, c.compid, c.msgid, c.crc,
-                                           c.message, c.sig_link, c.sig_time)]
-        ok, signed = c.time_ok[idx].tolist(), c.signed[idx].tolist()
-        messages, ends, raw_of, built, gn = self.messages, self.ends, c.raw_of, self.built, self.gn
-        for k, (i, record, index, time, transport, src, dst, offset, version, length, iflags, cflags, seq, sysid,
-                compid, msgid, crc, message, link, stamp) in enumerate(zip(idx.tolist(), *cols)):
-            raw = raw_of(i)
-            sig = Signature(link, stamp, raw[-6:]) if signed[k] else None
-            built[int(gn[i])] = new_frame(
-                record, index, time if ok[k] else None, _TRANSPORT[transport], ends[src] if src >= 0 else None,
-                ends[dst] if dst >= 0 else None, offset, raw, version, length, iflags, cflags, seq, sysid, compid, msgid,
-                crc, CrcStatus.OK, messages[message], sig, (), None)
+        raw, at = c.raw, c.raw_at[idx].tolist()
+        ends = list(self.ends) + [None]  # an id of -1 (no endpoint): the None at the end
+        messages = self.messages
+        times = [t if ok else None for t, ok in zip(c.time[idx].tolist(), c.time_ok[idx].tolist())]
+        transports = [_TRANSPORT[t] for t in c.transport[idx].tolist()]
+        signed = c.signed[idx].tolist()
+        cols = [a[idx].tolist() for a in (c.record, c.index, c.offset, c.version, c.len, c.iflags, c.cflags, c.seq,
+                                           c.sysid, c.compid, c.msgid, c.crc, c.sig_link, c.sig_time)]
+        built = self.built
+        for (row, a, time, transport, src, dst, message, is_signed, record, index, offset, version, length, iflags,
+             cflags, seq, sysid, compid, msgid, crc, link, stamp) in zip(
+                rows.tolist(), at, times, transports, c.src[idx].tolist(), c.dst[idx].tolist(),
+                c.message[idx].tolist(), signed, *cols):
+            r = raw[a:a + ((25 if is_signed else 12) if version == 2 else 8) + length]
+            built[row] = new_frame(
+                record, index, time, transport, ends[src], ends[dst], offset, r, version,
+                length, iflags, cflags, seq, sysid, compid, msgid, crc, CrcStatus.OK, messages[message],
+                Signature(link, stamp, r[-6:]) if is_signed else None, (), None)
 
     def frame(self, row: int) -> Frame:
         if not self.native[row]:
@@ -169,22 +181,30 @@ class NativeFeed:
         self.replay: ReplayedCommands = _one(ex.detectors, ReplayedCommands)  # type: ignore[assignment]
         self.unsigned: UnsignedCommands = _one(ex.detectors, UnsignedCommands)  # type: ignore[assignment]
         self.others = [d for d in ex.detectors if d is not self.seq and d is not self.replay]
-        names = [md.name for md in messages]
         self.messages = messages
-        self.expert_msgs = np.array([n in ex.decode or md.id == 0 for n, md in zip(names, messages)], np.bool_)
-        self.commanding = np.array([n in COMMANDING for n in names], np.bool_)
-        self.tracked = np.array([n in TRACKED_MESSAGES or n in PARAM_MESSAGES for n in names], np.bool_)
+        self.commanding = self._mask(lambda md: md.name in COMMANDING)
+        # per message of the table: the detectors its clean frames go to (Detector.clean; all without it)
+        wanted = [self._mask(lambda md, c=getattr(d, "clean", None): c is None or md.name in c or md.id in c)
+                  for d in self.others]
+        self.dispatch = [tuple(d for d, m in zip(self.others, wanted) if m[k]) for k in range(len(messages))]
+        self.detected = np.array([bool(ds) for ds in self.dispatch], np.bool_)
+        self.objects_msgs = self._mask(lambda md: md.name in TRACKED_MESSAGES)
+        self.params_msgs = self._mask(lambda md: md.name in PARAM_MESSAGES)
         self.seen = 0  # frames of the capture before the current window
         self.channels: dict[Endpoints, int] = {}
         self.channel_ends: list[Endpoints] = []
         self.trackers: dict[tuple[int, int], SeqTracker] = {}  # (sender, channel) -> its SequenceAnomalies tracker
+
+    def _mask(self, test: Callable[[MessageDef], bool]) -> np.ndarray:
+        """Per message of the table, whether `test` holds."""
+        return np.array([test(md) for md in self.messages], np.bool_)
 
     def window(self, c: Chunk, py: list[Frame], pos: Sequence[int], ends: Sequence[Endpoint]) -> None:
         w = Window(c, py, pos, self.messages, ends)
         if not w.size:
             return
         by_msg = c.message
-        w.build(w.native_rows(self.expert_msgs[by_msg] | self.tracked[by_msg]))
+        w.build(w.native_rows((self.detected | self.commanding | self.objects_msgs | self.params_msgs)[by_msg]))
         self._detectors(w)
         self._sequences(w, ends)
         self._replays(w)
@@ -198,14 +218,16 @@ class NativeFeed:
 
     def _detectors(self, w: Window) -> None:
         fields_of = self.a.expert.fields
-        others = self.others
-        for row in self._in_order(w, self.expert_msgs[w.c.message]):
+        others, dispatch = self.others, self.dispatch
+        message = w.message_of_row()
+        for row in self._in_order(w, self.detected[w.c.message]):
             f = w.frame(row)
             fields = fields_of(f)
-            for d in others:
+            m = message[row]
+            for d in dispatch[m] if m >= 0 else others:
                 d.add(f, fields)
         c = w.c
-        self.unsigned.signing.update(np.unique(c.sysid[c.signed]).tolist())
+        self.unsigned.signers(np.unique(c.sysid[c.signed]).tolist())
 
     def _channel(self, ends: Endpoints) -> int:
         k = self.channels.get(ends)
@@ -220,12 +242,13 @@ class NativeFeed:
         seq.counts.update({(int(w.sender[g[0]]) >> 8, int(w.sender[g[0]]) & 255): len(g) for g in groups})
         chan = np.empty(w.size, np.int64)
         if c.n:
-            distinct, inverse = np.unique(np.stack([c.src, c.dst], axis=1), axis=0, return_inverse=True)
+            pair = (c.src.astype(np.int64) + 1) << 32 | (c.dst.astype(np.int64) + 1)  # ids from -1 up
+            distinct, inverse = np.unique(pair, return_inverse=True)
 
             def text(k: int) -> str:
                 return ends[k].text if k >= 0 else ""
 
-            ids = [self._channel((text(s), text(d))) for s, d in distinct.tolist()]
+            ids = [self._channel((text((p >> 32) - 1), text((p & 0xFFFFFFFF) - 1))) for p in distinct.tolist()]
             chan[w.gn] = np.asarray(ids, np.int64)[inverse.reshape(-1)]
         for j, f in enumerate(w.py):
             chan[w.gp[j]] = self._channel(endpoints(f))
@@ -308,12 +331,14 @@ class NativeFeed:
     def _objects(self, w: Window) -> None:
         objects, params = self.a.objects, self.a.params
         inner = params.objects
-        for row in self._in_order(w, self.tracked[w.c.message]):
-            f = w.frame(row)
-            objects.ctx.tick = inner.ctx.tick = self.seen + row
-            objects.feed(f)
+        messages = w.c.message
+        for row in self._in_order(w, self.objects_msgs[messages]):
+            objects.ctx.tick = self.seen + row
+            objects.feed(w.frame(row))
             Analyses.took(objects)
-            params.feed(f)
+        for row in self._in_order(w, self.params_msgs[messages]):
+            inner.ctx.tick = self.seen + row
+            params.feed(w.frame(row))
         objects.ctx.tick = inner.ctx.tick = self.seen + w.size
         c = w.c
         last = -1
