@@ -20,6 +20,7 @@ import os
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import replace
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
@@ -192,7 +193,7 @@ class _Export:
                 if self.py_messages.held > held:
                     self.py_message_rows.setdefault(item.msgid, []).append(len(self.py) - 1)
 
-    def window(self, taken: tuple[int, bool, list[tuple[bytes, int]], list[object], list[tuple[int, object, object, int]]],
+    def window(self, taken: tuple[int, bool, list[tuple[bytes, int]], list[Any], list[tuple[int, Any, Any, int]]],
                ) -> Iterator[pa.RecordBatch]:
         n, reset, new_ends, columns, parts = taken
         assert _native is not None
@@ -215,12 +216,12 @@ class _Export:
         self._times(c, gn, gp)
         self.py, self.pos = [], []
 
-    def _messages(self, c: Chunk, parts: list[tuple[int, object, object, int]], gn: np.ndarray,
+    def _messages(self, c: Chunk, parts: list[tuple[int, Any, Any, int]], gn: np.ndarray,
                   gp: np.ndarray) -> Iterator[pa.RecordBatch]:
         native: dict[int, tuple[pa.RecordBatch, np.ndarray]] = {}
         for position, rows, frames, count in parts:
             md = self.messages[position]
-            at = np.frombuffer(frames, np.uint32, count=count)  # type: ignore[call-overload]
+            at = np.frombuffer(frames, np.uint32, count=count)
             native[md.id] = (message_batch(message_plan(md, self.dialect), rows, at, c, self.capture_id), gn[at])
             self.types.add(md.name)
         python: dict[int, pa.RecordBatch] = {}

@@ -17,6 +17,7 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
@@ -86,13 +87,14 @@ def quiet_nans(values: np.ndarray) -> np.ndarray:
 class Chunk:
     """One chunk of frames the C walker took, as numpy views of its buffers."""
 
-    def __init__(self, n: int, columns: Sequence[object], names: Sequence[str]) -> None:
+    def __init__(self, n: int, columns: Sequence[Any], names: Sequence[str]) -> None:
+        """`columns`: the chunk's `_native.Block`s (buffers), named by `names` (the module's COLUMN_NAMES)."""
         self.n = n
-        self.blocks = dict(zip(names, columns))
+        self.blocks: dict[str, Any] = dict(zip(names, columns))
         b = self.blocks
 
         def view(name: str, dtype: str) -> np.ndarray:
-            return np.frombuffer(b[name], np.dtype(dtype).newbyteorder("="), count=n)  # type: ignore[arg-type]
+            return np.frombuffer(b[name], np.dtype(dtype).newbyteorder("="), count=n)
 
         self.record = view("record", "i8")
         self.index = view("index", "i4")
@@ -113,12 +115,12 @@ class Chunk:
         self.crc = view("crc", "u2")
         self.sig_link = view("signature_link_id", "u1")
         self.sig_time = view("signature_timestamp", "i8")
-        self.sig_value = np.frombuffer(b["signature_value"], np.uint8, count=6 * n).reshape(n, 6)  # type: ignore[call-overload]
+        self.sig_value = np.frombuffer(b["signature_value"], np.uint8, count=6 * n).reshape(n, 6)
         self.offset = view("offset", "i8")
-        self.raw_at = np.frombuffer(b["raw_at"], np.int32, count=n + 1 if n else 0)  # type: ignore[call-overload]
-        self.raw = bytes(b["raw"]) if n else b""  # type: ignore[call-overload]
-        self.payload_at = np.frombuffer(b["payload_at"], np.int32, count=n + 1 if n else 0)  # type: ignore[call-overload]
-        self.payload = memoryview(b["payload"])  # type: ignore[arg-type]
+        self.raw_at = np.frombuffer(b["raw_at"], np.int32, count=n + 1 if n else 0)
+        self.raw = bytes(b["raw"]) if n else b""
+        self.payload_at = np.frombuffer(b["payload_at"], np.int32, count=n + 1 if n else 0)
+        self.payload = memoryview(b["payload"])
         self.signed = (self.iflags & 1).astype(np.bool_)
 
     def payload_of(self, i: int) -> bytes:
@@ -222,7 +224,9 @@ def _numpy_type(fd: FieldDef) -> str:
 def message_plan(md: MessageDef, dialect: Dialect) -> MessagePlan:
     """The plan of message `md` (cached per message definition and dialect)."""
     cols = message_columns(md, dialect)
-    formats, offsets, dnames = [], [], []
+    formats: list[str | tuple[str, tuple[int]]] = []
+    offsets: list[int] = []
+    dnames: list[str] = []
     for k, fd in enumerate(md.fields):
         dnames.append(f"f{k}")
         offsets.append(fd.offset)
@@ -294,11 +298,11 @@ def _enum_names(values: np.ndarray, names: dict[int, str], bitmask: bool, valid:
     return pa.array(named, pa.string()).take(pa.array(inverse.reshape(-1), pa.int32(), mask=mask))
 
 
-def message_batch(plan: MessagePlan, rows: object, frames: np.ndarray, c: Chunk, capture_id: str) -> pa.RecordBatch:
+def message_batch(plan: MessagePlan, rows: Any, frames: np.ndarray, c: Chunk, capture_id: str) -> pa.RecordBatch:
     """The table rows of one message's payload `rows` (zero-extended, one per frame), whose frames are at
     positions `frames` of chunk `c`."""
     n = len(frames)
-    recs = np.frombuffer(rows, plan.dtype, count=n)  # type: ignore[call-overload]
+    recs = np.frombuffer(rows, plan.dtype, count=n)
     v1 = c.version[frames] == 1
     ext_valid = ~v1 if v1.any() else None
     signed = c.signed[frames]

@@ -45,6 +45,15 @@ def _one(detectors: Sequence[Detector], kind: type) -> Detector:
     return found[0]
 
 
+def _reads(clean: frozenset[str | int] | None) -> Callable[[MessageDef], bool]:
+    """Whether a detector with `Detector.clean` reads the clean frames of a message."""
+    return lambda md: clean is None or md.name in clean or md.id in clean
+
+
+def _nth(w: Window, rows: list[int]) -> Callable[[int], Frame]:
+    return lambda k: w.frame(rows[k])
+
+
 def _groups(keys: np.ndarray) -> list[np.ndarray]:
     """Row positions per distinct key, each group ascending, the groups in the order of their first row."""
     if not len(keys):
@@ -98,7 +107,8 @@ class Window:
         """Per row, the table position of a native frame's message (-1 for a handed-back frame)."""
         out = np.full(self.size, -1, np.int64)
         out[self.gn] = self.c.message
-        return out.tolist()  # type: ignore[no-any-return]
+        rows: list[int] = out.tolist()
+        return rows
 
     def build(self, rows: np.ndarray) -> None:
         """Frames of the native rows `rows`, as the Python dissector makes them (kept for `frame`)."""
@@ -184,8 +194,7 @@ class NativeFeed:
         self.messages = messages
         self.commanding = self._mask(lambda md: md.name in COMMANDING)
         # per message of the table: the detectors its clean frames go to (Detector.clean; all without it)
-        wanted = [self._mask(lambda md, c=getattr(d, "clean", None): c is None or md.name in c or md.id in c)
-                  for d in self.others]
+        wanted = [self._mask(_reads(getattr(d, "clean", None))) for d in self.others]
         self.dispatch = [tuple(d for d, m in zip(self.others, wanted) if m[k]) for k in range(len(messages))]
         self.detected = np.array([bool(ds) for ds in self.dispatch], np.bool_)
         self.objects_msgs = self._mask(lambda md: md.name in TRACKED_MESSAGES)
@@ -324,9 +333,8 @@ class NativeFeed:
         stream = w.sender[rows] << 8 | link[rows]
         for g in _groups(stream):
             s = int(stream[g[0]])
-            members = rows[g]
-            audit.targets.add_run((s >> 16, (s >> 8) & 255, s & 255), len(g),
-                                  lambda k, members=members: w.frame(int(members[k])))
+            members = rows[g].tolist()
+            audit.targets.add_run((s >> 16, (s >> 8) & 255, s & 255), len(g), _nth(w, members))
 
     def _objects(self, w: Window) -> None:
         objects, params = self.a.objects, self.a.params

@@ -79,7 +79,8 @@ def state(a: Analyses) -> dict[str, object]:
     unsigned: UnsignedCommands = _one(a, UnsignedCommands)  # type: ignore[assignment]
     return {
         "counts": list(seq.counts.items()),
-        "channels": [(s, [(ends, _tracker(tr)) for ends, tr in chans.items()]) for s, chans in seq.seqs.senders.items()],
+        "channels": [(s, [(ends, _tracker(tr)) for ends, tr in chans.items()])
+                     for s, chans in seq.seqs.senders.items()],
         "extra": seq.seqs.extra,
         "events": [(k, ev.nums, ev.count) for k, ev in seq.events.items()],
         "links": [(k, _tracker(tr)) for k, tr in replay.trackers.items()],

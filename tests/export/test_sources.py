@@ -28,10 +28,11 @@ from mavscope.export import native as native_source
 from mavscope.export.schema import FIXED_SCHEMAS, MESSAGE_PREFIX
 from mavscope.export.source import SOURCES, dialect_for, source_name
 from mavscope.pipeline.options import PipelineOptions
-from tests.conftest import CAPTURES
+from tests.conftest import CAPTURES, Cli
 from tests.native.build import KEY_SPEC
 from tests.native.engines import capture_file
 from tests.native.test_generated import DAMAGED_FILES, FEWER, SETTINGS, capture
+from tests.support.dataset import arrow_table
 
 PATHS = sorted(p for p in CAPTURES.iterdir() if p.suffix not in (".md", ".json"))
 DEMO_KEY = "passphrase:mavscope-demo"  # the generator signs the bundled captures' GCS frames with it
@@ -191,3 +192,14 @@ def test_sources_by_name(monkeypatch: pytest.MonkeyPatch) -> None:
         assert next(record_batches(PATHS[0], ExportOptions(source="registered", tables=frozenset({"frames"}))))
     finally:
         SOURCES.pop("registered")
+
+
+def test_export_says_which_source_read_each_capture(cli: Cli, tmp_path: Path) -> None:
+    """`export` runs the native source where it is built, the pure one with MAVSCOPE_PURE=1 (as `read`)."""
+    path = CAPTURES / "px4_sitl_udp.pcap"
+    for environ, want in (({}, "native" if native_source._native is not None else "python"),
+                          ({"MAVSCOPE_PURE": "1"}, "python")):
+        root = tmp_path / f"ds-{want}-{len(environ)}"
+        status, _, err = cli("export", str(path), "--parquet", str(root), environ=environ)
+        assert status == 0, err
+        assert arrow_table(root, "captures").column("batch_source").to_pylist() == [want]
