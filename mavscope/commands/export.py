@@ -57,7 +57,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def needs_fleet(*modules: str) -> None:
-    """UsageError unless `modules` of the fleet extra (pyarrow, duckdb, dask) import."""
+    """UsageError unless `modules` of the fleet extra (pyarrow, numpy, duckdb, dask) import."""
     import importlib
 
     missing = []
@@ -140,7 +140,7 @@ class Reporter:
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
-    needs_fleet("pyarrow")
+    needs_fleet("pyarrow", "numpy")
     out = args.out or args.parquet
     if args.parquet and args.out and args.parquet != args.out:
         raise UsageError("export: give the output directory once (--parquet DIR or -o DIR)")

@@ -43,7 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
-    needs_fleet("pyarrow", "duckdb")
+    needs_fleet("pyarrow", "numpy", "duckdb")
     from mavscope.export.dataset import is_dataset
 
     datasets = [Path(p) for p in args.paths if is_dataset(p)]
