@@ -34,7 +34,7 @@ SRC=src/mavscope_native
     -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
     -I"$SRC" fuzz/fuzz_native.c \
     "$SRC"/walk.c "$SRC"/capture.c "$SRC"/capture_pcap.c "$SRC"/capture_pcapng.c "$SRC"/capture_tlog.c \
-    "$SRC"/netlayers.c "$SRC"/mavlink.c "$SRC"/table.c "$SRC"/decode.c "$SRC"/fmt.c "$SRC"/buf.c "$SRC"/summary.c \
+    "$SRC"/netlayers.c "$SRC"/mavlink.c "$SRC"/table.c "$SRC"/decode.c "$SRC"/fmt.c "$SRC"/buf.c "$SRC"/summary.c "$SRC"/columns.c \
     -lm -o "$OUT/fuzz_native"
 
 # Seeds: every bundled capture under the selector of its own format (0 pcap, 1 pcapng, 2 tlog, 3 raw),
@@ -81,7 +81,7 @@ if [ -n "$PROFDATA" ] && [ -n "$LLVMCOV" ]; then
     "$CLANG" -std=c11 -O1 -fsanitize=fuzzer -fprofile-instr-generate -fcoverage-mapping -I"$SRC" \
         fuzz/fuzz_native.c "$SRC"/walk.c "$SRC"/capture.c "$SRC"/capture_pcap.c "$SRC"/capture_pcapng.c \
         "$SRC"/capture_tlog.c "$SRC"/netlayers.c "$SRC"/mavlink.c "$SRC"/table.c "$SRC"/decode.c "$SRC"/fmt.c \
-        "$SRC"/buf.c "$SRC"/summary.c -lm -o "$OUT/fuzz_native_cov"
+        "$SRC"/buf.c "$SRC"/summary.c "$SRC"/columns.c -lm -o "$OUT/fuzz_native_cov"
     rm -f "$OUT"/cov.profraw
     (cd "$OUT" && LLVM_PROFILE_FILE=cov.profraw ./fuzz_native_cov -runs=0 corpus >/dev/null 2>&1) || true
     "$PROFDATA" merge -sparse "$OUT/cov.profraw" -o "$OUT/cov.profdata"

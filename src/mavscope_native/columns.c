@@ -16,8 +16,7 @@ const char *const MS_COL_NAMES[MS_NCOLS] = {
     [MS_COL_RAW_AT] = "raw_at", [MS_COL_RAW] = "raw",
 };
 
-/* bytes per frame of each fixed-width column (0: a variable-width one) */
-static const uint8_t WIDTH[MS_NCOLS] = {
+const uint8_t MS_COL_WIDTH[MS_NCOLS] = {
     [MS_COL_RECORD] = 8, [MS_COL_INDEX] = 4, [MS_COL_TIME] = 8, [MS_COL_TIME_OK] = 1, [MS_COL_TRANSPORT] = 1,
     [MS_COL_SRC] = 4, [MS_COL_DST] = 4, [MS_COL_VERSION] = 1, [MS_COL_LEN] = 1, [MS_COL_IFLAGS] = 1,
     [MS_COL_CFLAGS] = 1, [MS_COL_SEQ] = 1, [MS_COL_SYSID] = 1, [MS_COL_COMPID] = 1, [MS_COL_MSGID] = 4,
@@ -120,7 +119,7 @@ static int64_t endpoint_id(ms_cols *c, int v6, const uint8_t *addr, uint16_t por
 }
 
 static inline void put(ms_cols *c, int k, const void *v) {
-    ms_buf_put(&c->col[k], v, WIDTH[k]);
+    ms_buf_put(&c->col[k], v, MS_COL_WIDTH[k]);
 }
 
 static inline void put_u8(ms_cols *c, int k, unsigned v) {

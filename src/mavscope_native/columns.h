@@ -56,6 +56,8 @@ enum {
 
 /* the columns' names as Python knows them (module.c exports them as COLUMN_NAMES, in this order) */
 extern const char *const MS_COL_NAMES[MS_NCOLS];
+/* bytes per frame of each fixed-width column (0: the offsets and bytes of PAYLOAD and RAW) */
+extern const uint8_t MS_COL_WIDTH[MS_NCOLS];
 
 enum { MS_TRANSPORT_UDP = 1, MS_TRANSPORT_TLOG = 2 };
 
