@@ -165,7 +165,7 @@ class _Export:
         self.anomalies = AnomalyColumns(capture_id, options.batch_rows)
         self.pending = _Pending(options.batch_rows)
         self.analyses = Analyses(dialect)
-        self.feed = NativeFeed(self.analyses, self.messages)
+        self.feed = NativeFeed(self.analyses, dialect, self.messages)
         self.ends: list[Endpoint] = []
         self.names = Names(pa.array([], pa.string()), names)
         self.types: set[str] = set()  # messages with rows
@@ -212,7 +212,7 @@ class _Export:
         if self.want_messages:
             yield from self._messages(c, parts, gn, gp)
         if self.want_findings:
-            self.feed.window(c, py, pos, self.ends)
+            self.feed.window(c, py, pos, self.ends, parts)
         self._times(c, gn, gp)
         self.py, self.pos = [], []
 

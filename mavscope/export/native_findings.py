@@ -21,6 +21,7 @@ What each analysis does with a frame is kept exactly; what differs is how often 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -29,9 +30,9 @@ from mavscope.analysis.objects.tracker import TRACKED_MESSAGES
 from mavscope.analysis.params.tracker import MESSAGES as PARAM_MESSAGES
 from mavscope.analysis.sequence import Endpoints, SeqTracker, endpoints
 from mavscope.endpoint import Endpoint
-from mavscope.export.native_columns import Chunk
+from mavscope.export.native_columns import Chunk, decoded, message_plan
 from mavscope.export.pure import Analyses
-from mavscope.mavlink.dialect import MessageDef
+from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import CrcStatus, Frame, Signature, new_frame
 
 EVENTS = frozenset({"duplicate", "late", "unchanged"})  # SequenceAnomalies.event keeps these
@@ -184,8 +185,10 @@ def run_tracker(tr: SeqTracker, rows: np.ndarray, seqs: np.ndarray, records: lis
 class NativeFeed:
     """Feeds `analyses` window by window (see the module docstring)."""
 
-    def __init__(self, analyses: Analyses, messages: Sequence[MessageDef]) -> None:
+    def __init__(self, analyses: Analyses, dialect: Dialect, messages: Sequence[MessageDef]) -> None:
         self.a = analyses
+        self.dialect = dialect
+        self.rows: Sequence[tuple[int, Any, Any, int]] = ()
         ex = analyses.expert
         self.seq: SequenceAnomalies = _one(ex.detectors, SequenceAnomalies)  # type: ignore[assignment]
         self.replay: ReplayedCommands = _one(ex.detectors, ReplayedCommands)  # type: ignore[assignment]
@@ -208,8 +211,12 @@ class NativeFeed:
         """Per message of the table, whether `test` holds."""
         return np.array([test(md) for md in self.messages], np.bool_)
 
-    def window(self, c: Chunk, py: list[Frame], pos: Sequence[int], ends: Sequence[Endpoint]) -> None:
+    def window(self, c: Chunk, py: list[Frame], pos: Sequence[int], ends: Sequence[Endpoint],
+               rows: Sequence[tuple[int, Any, Any, int]]) -> None:
+        """One window: chunk `c`, the handed-back frames `py` (after `pos[j]` native ones), the chunk's
+        endpoints and its message rows (`_native.Columns.take`: position, payload rows, frames, count)."""
         w = Window(c, py, pos, self.messages, ends)
+        self.rows = rows
         if not w.size:
             return
         by_msg = c.message
@@ -225,16 +232,40 @@ class NativeFeed:
         """The rows of the native frames where `native` is set and of every handed-back frame, in order."""
         return np.sort(np.concatenate([w.native_rows(native), w.gp])).tolist()
 
+    def _fields(self, w: Window) -> dict[int, dict[str, object]]:
+        """`Expert.fields` of the native rows that have any (a message the expert decodes), by row: the
+        payload rows of messages of scalar fields decoded in bulk, the others by the message's decoder."""
+        out: dict[int, dict[str, object]] = {}
+        decode = self.a.expert.decode
+        for position, rows, frames, count in self.rows:
+            md = self.messages[position]
+            if md.name not in decode or not self.detected[position]:
+                continue
+            at = np.frombuffer(frames, np.uint32, count=count)
+            plan = message_plan(md, self.dialect)
+            if plan.simple:
+                out.update(zip(w.gn[at].tolist(), decoded(plan, rows, count)))
+            else:
+                payload = w.c.payload_of
+                out.update((r, md.decode(payload(i))) for r, i in zip(w.gn[at].tolist(), at.tolist()))
+        return out
+
     def _detectors(self, w: Window) -> None:
         fields_of = self.a.expert.fields
         others, dispatch = self.others, self.dispatch
         message = w.message_of_row()
+        fields = self._fields(w)
         for row in self._in_order(w, self.detected[w.c.message]):
             f = w.frame(row)
-            fields = fields_of(f)
             m = message[row]
-            for d in dispatch[m] if m >= 0 else others:
-                d.add(f, fields)
+            if m >= 0:
+                fs = fields.get(row)
+                for d in dispatch[m]:
+                    d.add(f, fs)
+            else:
+                fs = fields_of(f)
+                for d in others:
+                    d.add(f, fs)
         c = w.c
         self.unsigned.signers(np.unique(c.sysid[c.signed]).tolist())
 
