@@ -14,6 +14,7 @@ a few rows, so that handed-back frames interleave with native ones inside a wind
 from __future__ import annotations
 
 import os
+import struct
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -27,8 +28,10 @@ from mavscope.export import ExportOptions, message_schema, record_batches, regis
 from mavscope.export import native as native_source
 from mavscope.export.schema import FIXED_SCHEMAS, MESSAGE_PREFIX
 from mavscope.export.source import SOURCES, dialect_for, source_name
+from mavscope.mavlink.dialect import Dialect
 from mavscope.pipeline.options import PipelineOptions
 from tests.conftest import CAPTURES, Cli
+from tests.native import build as nh
 from tests.native.build import KEY_SPEC
 from tests.native.engines import capture_file
 from tests.native.test_generated import DAMAGED_FILES, FEWER, SETTINGS, capture
@@ -203,3 +206,18 @@ def test_export_says_which_source_read_each_capture(cli: Cli, tmp_path: Path) ->
         status, _, err = cli("export", str(path), "--parquet", str(root), environ=environ)
         assert status == 0, err
         assert arrow_table(root, "captures").column("batch_source").to_pylist() == [want]
+
+
+@needs_native
+def test_more_endpoints_than_the_walker_remembers(dialect: Dialect) -> None:
+    """70,000 senders' ports: the walker's endpoint map grows, then starts over between two chunks
+    (columns.h MS_COLS_ENDPOINTS), and the endpoints' ids with it; the rows stay the pure source's."""
+    hb = dialect.by_name["HEARTBEAT"]
+    records = [nh.pcap([], nh.LINKTYPES["ethernet"])]  # the header; records joined once (70,000 of them)
+    for i in range(70_000):
+        f = nh.frame_v2(hb, 0, bytes(hb.length), i & 255, 1 + i % 3, 1)
+        ip = nh.ipv4(bytes([10, 0, i // 64000, 1]), b"\x0a\x00\x00\x02", 17, nh.udp(1024 + i % 64000, 14550, f))
+        packet = nh.link("ethernet", ip, False)
+        records.append(struct.pack("<IIII", 1_700_000_000 + i // 1000, i % 1000, len(packet), len(packet)) + packet)
+    with capture_file(b"".join(records)) as path:
+        same_tables(path)
