@@ -301,7 +301,7 @@ def captures_schema() -> pa.Schema:
         pa.field("last_time", pa.float64()),
         pa.field("key_material", pa.bool_(), metadata={b"description": b"whether keys judged the signatures"}),
         pa.field("dialects", pa.list_(pa.string())),
-        pa.field("batch_source", pa.string(), metadata={b"description": b"the batch source that read it (python)"}),
+        pa.field("batch_source", pa.string(), metadata={b"description": b"the batch source that read it: native, python"}),
         pa.field("mavscope_version", pa.string()),
         pa.field("schema_version", pa.int32()),
         pa.field("exported_at", pa.timestamp("us", tz="UTC")),
