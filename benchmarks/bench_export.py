@@ -73,7 +73,8 @@ def _children_cpu() -> float:
     return ru.ru_utime + ru.ru_stime
 
 
-SOURCES = (("native", {"MAVSCOPE_PURE": "0"}), ("python", {"MAVSCOPE_PURE": "1"}))  # (batch source, environment it runs with)
+# (batch source, the environment it runs with)
+SOURCES = (("native", {"MAVSCOPE_PURE": "0"}), ("python", {"MAVSCOPE_PURE": "1"}))
 
 
 def run(cmd: list[str], repeat: int = 1, fresh: Path | None = None,

@@ -69,6 +69,8 @@ def _compiled(dialect: Dialect) -> tuple[object, list[MessageDef], pa.Array]:
     got = _tables.get(id(dialect))
     if got is None or got[0] is not dialect:
         assert _native is not None
+        if len(_tables) >= 8:  # as many as export.options keeps dialects
+            _tables.clear()
         messages = sorted(dialect.messages.values(), key=lambda m: m.id)  # build_table's order
         got = _tables[id(dialect)] = (dialect, _native.Table(build_table(dialect)), messages,
                                       pa.array([m.name for m in messages], pa.string()))

@@ -119,7 +119,7 @@ class Window:
         idx = self.at[rows]
         if not len(idx):
             return
-        raw, at = c.raw, c.raw_at[idx].tolist()
+        raw, at, end = c.raw, c.raw_at[idx].tolist(), c.raw_at[idx + 1].tolist()
         ends = list(self.ends) + [None]  # an id of -1 (no endpoint): the None at the end
         messages = self.messages
         times = [t if ok else None for t, ok in zip(c.time[idx].tolist(), c.time_ok[idx].tolist())]
@@ -128,11 +128,11 @@ class Window:
         cols = [a[idx].tolist() for a in (c.record, c.index, c.offset, c.version, c.len, c.iflags, c.cflags, c.seq,
                                            c.sysid, c.compid, c.msgid, c.crc, c.sig_link, c.sig_time)]
         built = self.built
-        for (row, a, time, transport, src, dst, message, is_signed, record, index, offset, version, length, iflags,
-             cflags, seq, sysid, compid, msgid, crc, link, stamp) in zip(
-                rows.tolist(), at, times, transports, c.src[idx].tolist(), c.dst[idx].tolist(),
+        for (row, a, b, time, transport, src, dst, message, is_signed, record, index, offset, version, length,
+             iflags, cflags, seq, sysid, compid, msgid, crc, link, stamp) in zip(
+                rows.tolist(), at, end, times, transports, c.src[idx].tolist(), c.dst[idx].tolist(),
                 c.message[idx].tolist(), signed, *cols):
-            r = raw[a:a + ((25 if is_signed else 12) if version == 2 else 8) + length]
+            r = raw[a:b]
             built[row] = new_frame(
                 record, index, time, transport, ends[src], ends[dst], offset, r, version,
                 length, iflags, cflags, seq, sysid, compid, msgid, crc, CrcStatus.OK, messages[message],
@@ -188,7 +188,7 @@ class NativeFeed:
     def __init__(self, analyses: Analyses, dialect: Dialect, messages: Sequence[MessageDef]) -> None:
         self.a = analyses
         self.dialect = dialect
-        self.rows: Sequence[tuple[int, Any, Any, int]] = ()
+        self.payload_rows: Sequence[tuple[int, Any, Any, int]] = ()  # the current window's (Columns.take)
         ex = analyses.expert
         self.seq: SequenceAnomalies = _one(ex.detectors, SequenceAnomalies)  # type: ignore[assignment]
         self.replay: ReplayedCommands = _one(ex.detectors, ReplayedCommands)  # type: ignore[assignment]
@@ -216,7 +216,7 @@ class NativeFeed:
         """One window: chunk `c`, the handed-back frames `py` (after `pos[j]` native ones), the chunk's
         endpoints and its message rows (`_native.Columns.take`: position, payload rows, frames, count)."""
         w = Window(c, py, pos, self.messages, ends)
-        self.rows = rows
+        self.payload_rows = rows
         if not w.size:
             return
         by_msg = c.message
@@ -237,7 +237,7 @@ class NativeFeed:
         payload rows of messages of scalar fields decoded in bulk, the others by the message's decoder."""
         out: dict[int, dict[str, object]] = {}
         decode = self.a.expert.decode
-        for position, rows, frames, count in self.rows:
+        for position, rows, frames, count in self.payload_rows:
             md = self.messages[position]
             if md.name not in decode or not self.detected[position]:
                 continue
