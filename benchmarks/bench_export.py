@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Export-throughput benchmark: `mavscope export --parquet` on the 1M-frame capture and on a directory of
-200 captures (-j 1, -j 2, --engine dask), a re-run that skips everything, a query over the dataset.
+200 captures (-j 1, -j 2, --engine dask), with the native batch source and the pure one side by side, a
+re-run that skips everything, a query over the dataset.
 
     benchmarks/bench_export.py [--frames N] [--captures K] [--out DIR] [--write-doc]
 
@@ -8,9 +9,12 @@
    and cached in DIR). The directory is that capture cut into K pcaps of consecutive records (each with
    the pcap header), so it holds the same N frames in K captures of distinct content (cached too).
 2. Every end-to-end figure is a fresh `mavscope` process into a new dataset (start-up, hashing,
-   writing included), wall clock, best of `--repeat`; frames/s is frames exported per second.
-3. In one process: the pipeline alone (session items), `record_batches` (every table, nothing written)
-   and the batch sources registered (the native decoder's row is there once it registers).
+   writing included), wall clock, best of `--repeat`; frames/s is frames exported per second. Each runs
+   with the native source (the default where the extension is built) and with MAVSCOPE_PURE=1 (the pure
+   source), one after the other.
+3. In one process: the pipeline alone (session items), then `record_batches` of each registered batch
+   source: every table (analyses included), the frames and message tables only (no findings), the
+   frames table only; nothing written.
 Prints markdown; --write-doc replaces the generated block of "Exporting datasets" in docs/performance.md.
 """
 
@@ -69,16 +73,21 @@ def _children_cpu() -> float:
     return ru.ru_utime + ru.ru_stime
 
 
-def run(cmd: list[str], repeat: int = 1, fresh: Path | None = None) -> tuple[float, float, dict]:
+# (batch source, the environment it runs with)
+SOURCES = (("native", {"MAVSCOPE_PURE": "0"}), ("python", {"MAVSCOPE_PURE": "1"}))
+
+
+def run(cmd: list[str], repeat: int = 1, fresh: Path | None = None,
+        environ: dict[str, str] | None = None) -> tuple[float, float, dict]:
     """(wall-clock seconds, CPU seconds of the process and every process it waited for, --json document)
-    of the best of `repeat` runs; `fresh` is removed first."""
+    of the best of `repeat` runs; `fresh` is removed first; `environ` added to the children's."""
     best, cpu, doc = float("inf"), 0.0, {}
     for _ in range(repeat):
         if fresh is not None:
             shutil.rmtree(fresh, ignore_errors=True)
         c0 = _children_cpu()
         t0 = time.perf_counter()
-        p = subprocess.run(cmd, capture_output=True, env=CHILD_ENV, check=False)
+        p = subprocess.run(cmd, capture_output=True, env={**CHILD_ENV, **(environ or {})}, check=False)
         dt = time.perf_counter() - t0
         if p.returncode != 0:
             raise SystemExit(f"{' '.join(cmd)} failed ({p.returncode}): {p.stderr.decode()[-800:]}")
@@ -90,8 +99,10 @@ def run(cmd: list[str], repeat: int = 1, fresh: Path | None = None) -> tuple[flo
 
 
 def in_process(path: Path) -> list[tuple[str, float, float, int]]:
-    """(what, seconds, CPU seconds, frames): the pipeline alone, then record_batches of every source."""
-    from mavscope.export.source import SOURCES, ExportOptions, dialect_for, record_batches
+    """(what, seconds, CPU seconds, frames): the pipeline alone, then record_batches of every source (every
+    table; frames and message tables; the frames table), best of two each."""
+    from mavscope.export.source import SOURCES as REGISTERED
+    from mavscope.export.source import ExportOptions, content_id, dialect_for, record_batches
     from mavscope.pipeline.dissect import Anomaly
     from mavscope.pipeline.options import PipelineOptions
     from mavscope.pipeline.session import open_session
@@ -103,14 +114,22 @@ def in_process(path: Path) -> list[tuple[str, float, float, int]]:
         n = sum(1 for i in s.items if type(i) is not Anomaly)
     rows.append(("pipeline only (dissector + security stage, `Session.items`)", time.perf_counter() - t0,
                  time.process_time() - c0, n))
-    for name in sorted(SOURCES):
-        t0, c0 = time.perf_counter(), time.process_time()
-        frames = 0
-        for b in record_batches(path, ExportOptions(source=name)):
-            if b.schema.metadata[b"mavscope.table"] == b"frames":
-                frames += b.num_rows
-        rows.append((f"`record_batches`, source `{name}`: every table, analyses included, nothing written",
-                     time.perf_counter() - t0, time.process_time() - c0, frames))
+    cid = content_id(path)
+    kinds = ((None, "every table, analyses included"), (frozenset({"frames", "msg=*"}), "frames and message tables "
+             "(no findings)"), (frozenset({"frames"}), "the frames table only"))
+    for name in sorted(REGISTERED, key=lambda k: k != "native"):
+        for tables, what in kinds:
+            best = (float("inf"), 0.0, 0)
+            for _ in range(2 if name == "native" else 1):
+                t0, c0 = time.perf_counter(), time.process_time()
+                frames = 0
+                for b in record_batches(path, ExportOptions(source=name, tables=tables, capture_id=cid)):
+                    if b.schema.metadata[b"mavscope.table"] == b"frames":
+                        frames += b.num_rows
+                dt, cpu = time.perf_counter() - t0, time.process_time() - c0
+                if cpu < best[1] or best[2] == 0:
+                    best = (dt, cpu, frames)
+            rows.append((f"`record_batches`, source `{name}`: {what}, nothing written", *best))
     return rows
 
 
@@ -141,28 +160,31 @@ def main() -> int:
     folder = parts[0].parent
     mav = shutil.which("mavscope", path=str(Path(PY).parent)) or "mavscope"
     work = Path(tempfile.mkdtemp(prefix="bench-export-"))
-    rows: list[tuple[str, float, float, int, str]] = []  # (what, seconds, CPU seconds, frames, note)
+    rows: list[tuple[str, str, float, float, int, str]] = []  # (what, source, seconds, CPU s, frames, note)
     try:
         ds = work / "one"
-        log("export the 1M-frame capture ...")
-        dt, cpu, doc = run([mav, "export", str(big), "--parquet", str(ds), "--json"], args.repeat, fresh=ds)
-        rows.append((f"`mavscope export {big.name} --parquet DS`", dt, cpu, doc["frames"],
-                     f"dataset {du(ds) / 1e6:.0f} MB (capture {big.stat().st_size / 1e6:.0f} MB)"))
+        for source, environ in SOURCES:
+            log(f"export the 1M-frame capture, source {source} ...")
+            dt, cpu, doc = run([mav, "export", str(big), "--parquet", str(ds), "--json"], args.repeat, fresh=ds,
+                               environ=environ)
+            rows.append((f"`mavscope export {big.name} --parquet DS`", source, dt, cpu, doc["frames"],
+                         f"dataset {du(ds) / 1e6:.0f} MB (capture {big.stat().st_size / 1e6:.0f} MB)"))
         log("query ...")
         q = "SELECT sysid, count(*) FROM frames WHERE signature_status = 'no-key' GROUP BY 1"
         dt, cpu, _ = run([mav, "sql", q, str(ds), "--json"], args.repeat)
-        rows.append((f"`mavscope sql \"{q}\" DS`", dt, cpu, N, f"{N:,} rows scanned (start-up included)"))
-        for jobs, extra in ((1, []), (2, []), (1, ["--no-fsync"])):
-            d = work / f"dir{jobs}{len(extra)}"
-            log(f"export {len(parts)} captures -j {jobs} {' '.join(extra)} ...")
-            dt, cpu, doc = run([mav, "export", str(folder), "--parquet", str(d), "-j", str(jobs), "--json", *extra],
-                               args.repeat, fresh=d)
-            rows.append((f"`mavscope export DIR --parquet DS -j {jobs}{' ' if extra else ''}{' '.join(extra)}` "
-                         f"({len(parts)} captures)", dt, cpu, doc["frames"],
-                         f"{doc['exported']} exported, {sum(1 for _ in d.rglob('*.parquet'))} files"))
+        rows.append((f"`mavscope sql \"{q}\" DS`", "-", dt, cpu, N, f"{N:,} rows scanned (start-up included)"))
+        for source, environ in SOURCES:
+            for jobs, extra in ((1, []), (2, []), (1, ["--no-fsync"]), (2, ["--no-fsync"])):
+                d = work / f"dir{jobs}{len(extra)}"
+                log(f"export {len(parts)} captures -j {jobs} {' '.join(extra)}, source {source} ...")
+                dt, cpu, doc = run([mav, "export", str(folder), "--parquet", str(d), "-j", str(jobs), "--json",
+                                    *extra], args.repeat, fresh=d, environ=environ)
+                rows.append((f"`mavscope export DIR --parquet DS -j {jobs}{' ' if extra else ''}{' '.join(extra)}` "
+                             f"({len(parts)} captures)", source, dt, cpu, doc["frames"],
+                             f"{doc['exported']} exported, {sum(1 for _ in d.rglob('*.parquet'))} files"))
         log("re-run (everything there already) ...")
         dt, cpu, doc = run([mav, "export", str(folder), "--parquet", str(work / "dir10"), "--json"], args.repeat)
-        rows.append(("the same again into that dataset (every capture skipped by content hash)", dt, cpu, 0,
+        rows.append(("the same again into that dataset (every capture skipped by content hash)", "-", dt, cpu, 0,
                      f"{doc['skipped']} skipped"))
         if not args.skip_dask:
             d = work / "dask"
@@ -170,7 +192,7 @@ def main() -> int:
             dt, cpu, doc = run([mav, "export", str(folder), "--parquet", str(d), "--engine", "dask", "-j", "2",
                                 "--json"], args.repeat, fresh=d)
             rows.append(("`mavscope export DIR --parquet DS --engine dask -j 2` (a local cluster of 2 worker "
-                         "processes)", dt, cpu, doc["frames"], f"{doc['exported']} exported"))
+                         "processes)", "native", dt, cpu, doc["frames"], f"{doc['exported']} exported"))
         log("in process ...")
         inner = in_process(big)
     finally:
@@ -187,11 +209,11 @@ def main() -> int:
          "",
          f"### End to end, fresh process each (best of {args.repeat})",
          "",
-         "| what | seconds | frames/s | CPU s | frames per CPU s | |",
-         "|---|---:|---:|---:|---:|---|"]
-    for what, dt, cpu, n, note in rows:
-        L.append(f"| {what} | {dt:.2f} | {rate(n, dt) if n else '-'} | {cpu:.2f} | {rate(n, cpu) if n else '-'} "
-                 f"| {note} |")
+         "| what | source | seconds | frames/s | CPU s | frames per CPU s | |",
+         "|---|---|---:|---:|---:|---:|---|"]
+    for what, source, dt, cpu, n, note in rows:
+        L.append(f"| {what} | {source} | {dt:.2f} | {rate(n, dt) if n else '-'} | {cpu:.2f} | "
+                 f"{rate(n, cpu) if n else '-'} | {note} |")
     L += ["", f"### In one process, the {N:,}-frame capture", "",
           "| what | seconds | frames/s | CPU s | frames per CPU s |", "|---|---:|---:|---:|---:|"]
     for what, dt, cpu, n in inner:

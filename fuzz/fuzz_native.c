@@ -32,6 +32,11 @@
  * a few of the record's bytes (so that damaged, unknown and truncated frames reach every detector). The
  * accumulator's dump is then read back whole against its layout (acc_dump.c), its totals checked against
  * its rows, and everything freed (LeakSanitizer).
+ * A third walk fills the export's column buffers (columns.c, in chunks of 1 to 16 frames picked by the
+ * input's length, each checked and started over): every frame's wire bytes must be the file's at the
+ * offset its column states, its header columns and payload those bytes', every fixed-width column one
+ * value per frame, the offsets in order and inside their bytes, each message row its frame's payload
+ * zero-extended to the message's length and pointing at a frame of that message, endpoint ids known.
  *
  * Build and run: scripts/fuzz-native.sh SECONDS (docs/native.md). The message table comes from
  * mavscope's default dialect, written by the script to the file named in $MAVSCOPE_FUZZ_TABLE. */
@@ -41,10 +46,11 @@
 
 #include "acc.h"
 #include "capture.h"
+#include "columns.h"
 #include "fmt.h"
-#include "recv.h"
 #include "mavlink.h"
 #include "plan.h"
+#include "recv.h"
 #include "summary.h"
 #include "table.h"
 #include "walk.h"
@@ -486,9 +492,93 @@ static void check_dump(const ms_acc *a, const ms_buf *b) {
         abort(); /* the dump is longer than its layout says */
 }
 
+static int32_t i32_at(const ms_buf *b, size_t i) {
+    int32_t v;
+    memcpy(&v, b->data + 4 * i, 4);
+    return v;
+}
+
+/* An int32 offsets column of the chunk: n + 1 of them from 0, in order, the last the bytes' length. */
+static void check_offsets(const ms_buf *at, const ms_buf *bytes, size_t n) {
+    if (n == 0)
+        return;
+    if (at->len != 4 * (n + 1) || i32_at(at, 0) != 0 || (size_t)i32_at(at, n) != bytes->len)
+        abort();
+    for (size_t i = 0; i < n; i++)
+        if (i32_at(at, i) > i32_at(at, i + 1))
+            abort();
+}
+
+/* A chunk of the column buffers against the file they were read from. */
+static void check_columns(const ms_cols *c, const uint8_t *file, size_t size) {
+    const size_t n = c->n;
+    for (int k = 0; k < MS_NCOLS; k++)
+        if (MS_COL_WIDTH[k] && c->col[k].len != n * MS_COL_WIDTH[k])
+            abort();
+    check_offsets(&c->col[MS_COL_PAYLOAD_AT], &c->col[MS_COL_PAYLOAD], n);
+    check_offsets(&c->col[MS_COL_RAW_AT], &c->col[MS_COL_RAW], n);
+    size_t rows = 0;
+    for (size_t i = 0; i < n; i++) {
+        const uint8_t *raw = (const uint8_t *)c->col[MS_COL_RAW].data + i32_at(&c->col[MS_COL_RAW_AT], i);
+        const size_t len = (size_t)(i32_at(&c->col[MS_COL_RAW_AT], i + 1) - i32_at(&c->col[MS_COL_RAW_AT], i));
+        int64_t off;
+        memcpy(&off, c->col[MS_COL_OFFSET].data + 8 * i, 8);
+        if (off < 0 || (uint64_t)off > size || len > size - (size_t)off || len < 8 || memcmp(raw, file + off, len))
+            abort(); /* a frame's bytes are the file's where its offset says */
+        const uint8_t version = (uint8_t)c->col[MS_COL_VERSION].data[i];
+        const uint8_t plen = (uint8_t)c->col[MS_COL_LEN].data[i];
+        const size_t hlen = version == 2 ? MS_HEADER_V2 : MS_HEADER_V1;
+        if (raw[0] != (version == 2 ? MS_STX_V2 : MS_STX_V1) || raw[1] != plen || hlen + plen + 2 > len)
+            abort();
+        const uint8_t *pay = (const uint8_t *)c->col[MS_COL_PAYLOAD].data + i32_at(&c->col[MS_COL_PAYLOAD_AT], i);
+        if (i32_at(&c->col[MS_COL_PAYLOAD_AT], i + 1) - i32_at(&c->col[MS_COL_PAYLOAD_AT], i) != plen ||
+            memcmp(pay, raw + hlen, plen))
+            abort();
+        if ((uint8_t)c->col[MS_COL_SEQ].data[i] != raw[version == 2 ? 4 : 2] ||
+            (uint8_t)c->col[MS_COL_SYSID].data[i] != raw[version == 2 ? 5 : 3])
+            abort();
+        int32_t m, src, dst;
+        uint32_t msgid;
+        memcpy(&m, c->col[MS_COL_MESSAGE].data + 4 * i, 4);
+        memcpy(&msgid, c->col[MS_COL_MSGID].data + 4 * i, 4);
+        memcpy(&src, c->col[MS_COL_SRC].data + 4 * i, 4);
+        memcpy(&dst, c->col[MS_COL_DST].data + 4 * i, 4);
+        if (m < 0 || (size_t)m >= c->table->count || c->table->messages[m].msgid != msgid)
+            abort();
+        if (src < -1 || dst < -1 || (src >= 0 && (uint32_t)src >= c->nends) || (dst >= 0 && (uint32_t)dst >= c->nends))
+            abort();
+    }
+    for (uint32_t t = 0; t < c->ntouched; t++) {
+        const uint32_t k = c->touched[t];
+        const ms_msg_rows *r = &c->msgs[k];
+        const ms_message *m = &c->table->messages[k];
+        if (r->rows.len != (size_t)r->n * m->length || r->frame.len != (size_t)r->n * 4)
+            abort();
+        for (uint32_t j = 0; j < r->n; j++) {
+            uint32_t f;
+            memcpy(&f, r->frame.data + 4 * j, 4);
+            int32_t fm;
+            if (f >= n)
+                abort();
+            memcpy(&fm, c->col[MS_COL_MESSAGE].data + 4 * f, 4);
+            const uint8_t plen = (uint8_t)c->col[MS_COL_LEN].data[f];
+            const uint8_t *row = (const uint8_t *)r->rows.data + (size_t)j * m->length;
+            const uint8_t *pay = (const uint8_t *)c->col[MS_COL_PAYLOAD].data + i32_at(&c->col[MS_COL_PAYLOAD_AT], f);
+            if ((uint32_t)fm != k || plen > m->length || memcmp(row, pay, plen))
+                abort();
+            for (size_t b = plen; b < m->length; b++)
+                if (row[b])
+                    abort(); /* zero-extended */
+        }
+        rows += r->n;
+    }
+    if (rows != n)
+        abort();
+}
+
 /* One walk of the file in `mf` (as JSON Lines, or as summary lines with `sum`), checking what comes out. */
 static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigned sel, unsigned control,
-                      const ms_summary *sum, ms_acc *acc) {
+                      const ms_summary *sum, ms_acc *acc, ms_cols *cols) {
     ms_walker w;
     ms_walker_init(&w, ms_memory_source(mf), n, MS_KIND_PCAP + (int)(sel & 3), &table);
     if (sel & 0x80)
@@ -502,6 +592,7 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
         w.t0 = (n & 3) == 3 ? __builtin_nan("") : T0[n & 3];
     }
     w.acc = acc;
+    w.cols = cols;
     const unsigned preset = (sel >> 4) & 7;
     ms_buf out;
     ms_buf_init(&out);
@@ -515,10 +606,18 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
             break;
         if (acc != NULL && out.len)
             abort(); /* the stats walk writes no text */
-        if (sum != NULL)
+        if (cols != NULL) {
+            if (out.len != 0)
+                abort(); /* column mode writes no text */
+            if (r != MS_WALK_FULL || ms_cols_full(cols)) {
+                check_columns(cols, file, n);
+                ms_cols_restart(cols);
+            }
+        } else if (sum != NULL) {
             check_summary_lines(out.data, out.len);
-        else
+        } else {
             check_lines(out.data, out.len);
+        }
         if (r == MS_WALK_HANDBACK) {
             /* what the glue reads of a handed-back record: its bytes are the file's at its offset */
             if (rec.len && (rec.offset > n || rec.len > n - rec.offset || memcmp(rec.data, file + rec.offset, rec.len)))
@@ -716,7 +815,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     if (file == NULL)
         return 0;
     memcpy(file, data + head, n);
-    for (int pass = 0; pass < 3; pass++) {
+    for (int pass = 0; pass < 4; pass++) {
         ms_memory_file mf = {file, n, 0, 0, 0, 0};
         if (sel & 0x80) {
             unsigned k = (control >> 3) & 7;
@@ -728,19 +827,27 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
             }
         }
         if (pass < 2) {
-            walk_file(&mf, file, n, sel, control, pass ? &summary : NULL, NULL);
+            walk_file(&mf, file, n, sel, control, pass ? &summary : NULL, NULL, NULL);
             continue;
         }
-        ms_acc acc;
-        if (ms_acc_init(&acc, &plan) != 0)
+        if (pass == 2) {
+            ms_acc acc;
+            if (ms_acc_init(&acc, &plan) != 0)
+                break;
+            walk_file(&mf, file, n, sel, control, NULL, &acc, NULL);
+            ms_buf dump;
+            ms_buf_init(&dump);
+            if (ms_acc_dump(&acc, &dump) == 0)
+                check_dump(&acc, &dump);
+            ms_buf_free(&dump);
+            ms_acc_free(&acc);
+            continue;
+        }
+        ms_cols cols;
+        if (ms_cols_init(&cols, &table, 1 + (uint32_t)(n & 15)) != 0)
             break;
-        walk_file(&mf, file, n, sel, control, NULL, &acc);
-        ms_buf dump;
-        ms_buf_init(&dump);
-        if (ms_acc_dump(&acc, &dump) == 0)
-            check_dump(&acc, &dump);
-        ms_buf_free(&dump);
-        ms_acc_free(&acc);
+        walk_file(&mf, file, n, sel, control, NULL, NULL, &cols);
+        ms_cols_free(&cols);
     }
     if ((sel & 3) == 0) /* a pcap: fed in pieces as live capture feeds it */
         walk_fed(file, n, sel, control);

@@ -21,20 +21,18 @@ from __future__ import annotations
 
 import os
 import queue
-import struct
 import threading
 from collections.abc import Callable, Iterator, Mapping
 from types import ModuleType, TracebackType
 from typing import IO, NamedTuple, Protocol
 
-import orjson
-
 from mavscope.capture.base import Record
 from mavscope.capture.detect import detect_kind
 from mavscope.capture.reader import WINDOW, make_record, open_file
 from mavscope.endpoint import Endpoint
-from mavscope.mavlink.dialect import Dialect, MessageDef
+from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
+from mavscope.mavlink.native_table import build_table
 from mavscope.notes import note
 from mavscope.output.jsonout import jsonl_bytes
 from mavscope.pipeline.dissect import Anomaly, Dissector
@@ -47,26 +45,8 @@ except ImportError:  # built without a compiler: the pure-Python path serves
     _native = None
 
 PURE_ENV = "MAVSCOPE_PURE"
-TABLE_MAGIC = b"MSNT"
-TABLE_VERSION = 1
 BATCH_BYTES = 1 << 20  # JSON text per batch handed to Python
 
-# MavLink wire type -> (native type code, bytes per element); the codes of src/mavscope_native/table.h
-_TYPES: dict[str, tuple[int, int]] = {
-    "uint8_t": (1, 1),
-    "uint8_t_mavlink_version": (1, 1),
-    "int8_t": (2, 1),
-    "uint16_t": (3, 2),
-    "int16_t": (4, 2),
-    "uint32_t": (5, 4),
-    "int32_t": (6, 4),
-    "uint64_t": (7, 8),
-    "int64_t": (8, 8),
-    "float": (9, 4),
-    "double": (10, 8),
-    "char": (11, 1),
-}
-_ARRAY = 0x80
 _KINDS = {"pcap": 1, "pcapng": 2, "tlog": 3, "raw": 4}
 
 
@@ -81,43 +61,6 @@ def engine(environ: Mapping[str, str] | None = None) -> str:
     if _native is None or env.get(PURE_ENV, "") not in ("", "0"):
         return "pure-python"
     return "native"
-
-
-def _message_entry(md: MessageDef) -> bytes:
-    """One message of the table: header, name, fields (see table.h for the layout)."""
-    fields: list[bytes] = []
-    offset = 0
-    python_only = False
-    names: set[str] = set()
-    for f in md.fields:
-        code, size = _TYPES[f.type]
-        if f.type == "char":
-            count = max(f.array_length, 1)
-        elif f.array_length:
-            count = f.array_length
-            code |= _ARRAY
-        else:
-            count = 1
-        key = orjson.dumps(f.name) + b":"
-        if count > 255 or offset > 255 or len(key) > 255 or f.name in names:
-            python_only = True  # cannot be described to C (never in a real dialect): Python decodes it
-        names.add(f.name)
-        fields.append(struct.pack("<BBBB", code, count & 0xFF, offset & 0xFF, len(key) & 0xFF) + key)
-        offset += size * count
-    if offset != md.length or md.length > 255:
-        python_only = True
-    if python_only:
-        fields = []
-    name = orjson.dumps(md.name)
-    head = struct.pack("<IBBBBHH", md.id, md.crc_extra, md.length & 0xFF, min(md.base_length, md.length) & 0xFF,
-                       int(python_only), len(fields), len(name))
-    return head + name + b"".join(fields)
-
-
-def build_table(dialect: Dialect) -> bytes:
-    """The layouts of every message of `dialect` as the native table blob (wire order, padded offsets)."""
-    entries = [_message_entry(md) for md in sorted(dialect.messages.values(), key=lambda m: m.id)]
-    return TABLE_MAGIC + struct.pack("<II", TABLE_VERSION, len(entries)) + b"".join(entries)
 
 
 _table: list[tuple[Dialect, object]] = []  # the last Dialect compiled and its table (a command loads one)

@@ -38,7 +38,7 @@ SRC=src/mavscope_native
     "$SRC"/walk.c "$SRC"/capture.c "$SRC"/capture_pcap.c "$SRC"/capture_pcapng.c "$SRC"/capture_tlog.c \
     "$SRC"/netlayers.c "$SRC"/mavlink.c "$SRC"/table.c "$SRC"/decode.c "$SRC"/fmt.c "$SRC"/buf.c "$SRC"/summary.c \
     "$SRC"/plan.c "$SRC"/acc.c "$SRC"/acc_dump.c "$SRC"/seq.c "$SRC"/expert.c "$SRC"/control.c "$SRC"/gnss.c \
-    "$SRC"/recv.c -ffp-contract=off -lm -o "$OUT/fuzz_native"
+    "$SRC"/recv.c "$SRC"/columns.c -ffp-contract=off -lm -o "$OUT/fuzz_native"
 
 # Seeds: every bundled capture under the selector of its own format (0 pcap, 1 pcapng, 2 tlog, 3 raw),
 # with and without native signed frames (bit 2), with every CRC taken (bit 3), and as hostile files
@@ -86,7 +86,7 @@ if [ -n "$PROFDATA" ] && [ -n "$LLVMCOV" ]; then
         fuzz/fuzz_native.c "$SRC"/walk.c "$SRC"/capture.c "$SRC"/capture_pcap.c "$SRC"/capture_pcapng.c \
         "$SRC"/capture_tlog.c "$SRC"/netlayers.c "$SRC"/mavlink.c "$SRC"/table.c "$SRC"/decode.c "$SRC"/fmt.c \
         "$SRC"/buf.c "$SRC"/summary.c "$SRC"/plan.c "$SRC"/acc.c "$SRC"/acc_dump.c "$SRC"/seq.c "$SRC"/expert.c \
-        "$SRC"/control.c "$SRC"/gnss.c "$SRC"/recv.c -lm -o "$OUT/fuzz_native_cov"
+        "$SRC"/control.c "$SRC"/gnss.c "$SRC"/recv.c "$SRC"/columns.c -lm -o "$OUT/fuzz_native_cov"
     rm -f "$OUT"/cov.profraw
     (cd "$OUT" && LLVM_PROFILE_FILE=cov.profraw ./fuzz_native_cov -runs=0 corpus >/dev/null 2>&1) || true
     "$PROFDATA" merge -sparse "$OUT/cov.profraw" -o "$OUT/cov.profdata"

@@ -90,6 +90,7 @@ class ControlSources:
     """Control of each vehicle and control by others (see the module docstring)."""
 
     wants = WANTS
+    clean: frozenset[str | int] = WANTS  # what `add` reads (see expert.Detector)
 
     def __init__(self, dialect: Dialect) -> None:
         self.dialect = dialect

@@ -52,6 +52,8 @@ def _link(f: Frame) -> str:
 class BadCrcBursts:
     """Runs of bad-CRC frames close together: interference, a failing link, or injection attempts."""
 
+    clean: frozenset[str | int] = frozenset()  # bad-CRC frames only (see Detector)
+
     def __init__(self) -> None:
         self.out: list[Finding] = []
         self.run = _frames()
@@ -99,11 +101,15 @@ class SequenceAnomalies:
         key = (f.sysid, f.compid)
         self.counts[key] += 1
         what, _ = self.seqs.feed(f)
+        self.event(key, what, f.record)
+
+    def event(self, key: Link, what: str, record: int) -> None:
+        """What sender `key`'s frame in `record` was on its channel (`SeqTracker.feed`), in capture order."""
         if what in ("duplicate", "late", "unchanged"):
             ev = self.events.get((key, what))
             if ev is None:
                 ev = self.events[(key, what)] = _frames()
-            ev.add(f.record)
+            ev.add(record)
 
     def findings(self) -> list[Finding]:
         out: list[Finding] = []
@@ -158,6 +164,8 @@ class CommandSources:
     commanding from another network endpoint, commands from a system that never sent a HEARTBEAT.
     Commands to a ground station (HEARTBEAT type GCS) are not about a vehicle: they are set aside until
     the end, when every HEARTBEAT has been seen."""
+
+    clean: frozenset[str | int] = COMMANDING | {0}  # message id 0: the HEARTBEATs, by id as `add` tells them
 
     def __init__(self) -> None:
         self.gcs: set[int] = set()
@@ -235,6 +243,11 @@ class ReplayedCommands:
         if tr is None:
             tr = self.trackers[link] = SeqTracker()
         step, _ = tr.feed(f.seq, f.record)
+        self.judge(f, step, tr.position)
+
+    def judge(self, f: Frame, step: str, position: int) -> None:
+        """The frame after its link's tracker took it (`step`, and the frame's `position` in the sequence)."""
+        link = (f.sysid, f.compid)
         name = f.msgname or str(f.msgid)
         sec = f.security
         if sec is not None and sec.signature_status is SignatureStatus.REPLAY:
@@ -244,10 +257,10 @@ class ReplayedCommands:
         if md is None or md.name not in COMMANDING or f.crc_status is not CrcStatus.OK:
             return
         prev = self.seen.get(f.raw)
-        if prev is not None and (tr.position - prev[1] < 256 or step == "duplicate"):
+        if prev is not None and (position - prev[1] < 256 or step == "duplicate"):
             self._count(self.copies, link, (prev[0], f.record), name)
             return
-        self.seen[f.raw] = (f.record, tr.position)
+        self.seen[f.raw] = (f.record, position)
         self.seen.move_to_end(f.raw)
         if len(self.seen) > COPIES_KEPT:
             self.seen.popitem(last=False)
@@ -283,10 +296,16 @@ class UnsignedCommands:
     known only once their signed frames are seen, so candidates wait for the end (bounded: MAX_FRAMES
     listed, all counted per sender)."""
 
+    clean: frozenset[str | int] = COMMANDING  # and which systems sign: `signers`, where frames are counted in bulk
+
     def __init__(self) -> None:
         self.signing: set[int] = set()
         self.candidates: dict[tuple[int, int, int], FrameNumbers] = {}  # (sysid, compid, target) -> frames
         self.names: dict[tuple[int, int, int], Counter[str]] = {}
+
+    def signers(self, sysids: Iterable[int]) -> None:
+        """Systems seen sending signed frames (as `add` notes them from their signed frames)."""
+        self.signing.update(sysids)
 
     def add(self, f: Frame, fields: Fields | None) -> None:
         if f.signature is not None:
@@ -317,6 +336,8 @@ class UnsignedCommands:
 class KeyLeaks:
     """SETUP_SIGNING carries the secret key in clear: whoever holds the capture holds the key."""
 
+    clean: frozenset[str | int] = frozenset({"SETUP_SIGNING"})
+
     def __init__(self) -> None:
         self.frames = _frames()
 
@@ -333,7 +354,12 @@ class KeyLeaks:
 
 class Detector(Protocol):
     """`add` gets the decoded payload of commanding frames and HEARTBEATs, and of the messages named in the
-    detector's `wants` attribute where it has one."""
+    detector's `wants` attribute where it has one.
+
+    A detector may say in a `clean` attribute which clean frames (good CRC, no note, plaintext, no verdict
+    but `no-key`) can change what it finds: the names (or ids) of their messages. A caller that knows
+    which frames are clean (the export's native source) then gives it only those of them, and every
+    other frame. Without the attribute it gets every frame."""
 
     def add(self, f: Frame, fields: Fields | None) -> None: ...
 
@@ -356,12 +382,16 @@ class Expert:
         self.decode = COMMANDING.union({"HEARTBEAT"}, *(getattr(d, "wants", ()) for d in self.detectors))
 
     def add(self, f: Frame) -> None:
-        fields = None
-        md = f.msgdef
-        if md is not None and md.name in self.decode and f.crc_status is not CrcStatus.BAD:
-            fields = decode_payload(f)
+        fields = self.fields(f)
         for d in self.detectors:
             d.add(f, fields)
+
+    def fields(self, f: Frame) -> Fields | None:
+        """The decoded payload the detectors get with `f`: of the messages they decode, CRC not bad."""
+        md = f.msgdef
+        if md is not None and md.name in self.decode and f.crc_status is not CrcStatus.BAD:
+            return decode_payload(f)
+        return None
 
     def findings(self) -> list[Finding]:
         out: list[Finding] = []

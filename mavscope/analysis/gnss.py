@@ -113,6 +113,7 @@ class GnssAnomalies:
     """Position jumps, fix collapses, EKF GNSS alarms and GNSS time jumps, per sender (see the module)."""
 
     wants = WANTS
+    clean: frozenset[str | int] = WANTS  # what `add` reads (see expert.Detector)
 
     def __init__(self, dialect: Dialect | None = None) -> None:
         self.senders: dict[Addr, _Sender] = {}

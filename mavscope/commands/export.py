@@ -57,7 +57,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def needs_fleet(*modules: str) -> None:
-    """UsageError unless `modules` of the fleet extra (pyarrow, duckdb, dask) import."""
+    """UsageError unless `modules` of the fleet extra (pyarrow, numpy, duckdb, dask) import."""
     import importlib
 
     missing = []
@@ -140,7 +140,7 @@ class Reporter:
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
-    needs_fleet("pyarrow")
+    needs_fleet("pyarrow", "numpy")
     out = args.out or args.parquet
     if args.parquet and args.out and args.parquet != args.out:
         raise UsageError("export: give the output directory once (--parquet DIR or -o DIR)")
@@ -152,9 +152,10 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         raise UsageError("export: --scheduler needs --engine dask")
     if args.engine == "dask" and args.format == "csv":
         raise UsageError("export: -T csv runs locally (--engine dask writes Parquet)")
-    from mavscope.export.source import ExportOptions
+    from mavscope.export.source import ExportOptions, source_name
 
-    options = ExportOptions(pipeline=pipeline_options(args, env))
+    # the native batch source where the extension is built, unless MAVSCOPE_PURE=1 (docs/dataset.md)
+    options = ExportOptions(pipeline=pipeline_options(args, env), source=source_name("auto", env.environ))
     captures = gather(env, args.paths, options.pipeline.dialects)
     if args.format == "csv":
         return _csv(args, env, captures, Path(out), options)

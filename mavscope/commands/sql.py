@@ -43,7 +43,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
-    needs_fleet("pyarrow", "duckdb")
+    needs_fleet("pyarrow", "numpy", "duckdb")
     from mavscope.export.dataset import is_dataset
 
     datasets = [Path(p) for p in args.paths if is_dataset(p)]
@@ -71,12 +71,13 @@ def _export(args: argparse.Namespace, env: Env, paths: list[str], dataset: Path)
     import os
 
     from mavscope.export.run import export_local
-    from mavscope.export.source import ExportOptions
+    from mavscope.export.source import ExportOptions, source_name
 
     captures = gather(env, paths, tuple(args.dialect or ()))
     if not captures:
         raise UsageError("sql: no captures and no dataset among the paths given")
-    options = ExportOptions(pipeline=pipeline_options(args, env))
+    # the native batch source where the extension is built, unless MAVSCOPE_PURE=1 (docs/dataset.md)
+    options = ExportOptions(pipeline=pipeline_options(args, env), source=source_name("auto", env.environ))
     report = Reporter(env, errors=False)  # (the first error is the command's)
     with bar(env, sum(os.path.getsize(p) for p in captures), "exporting") as update:
         results = export_local(dataset, captures, options, on_bytes=update, warn=warner(env), on_result=report)

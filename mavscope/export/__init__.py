@@ -1,5 +1,5 @@
 """Captures into one columnar dataset (Parquet, Hive-partitioned by capture) for DuckDB, Spark, Polars or
-pandas: docs/dataset.md. The modules that build Arrow data need pyarrow (`pip install 'mavscope[fleet]'`);
+pandas: docs/dataset.md. The modules that build Arrow data need pyarrow and numpy (the fleet extra);
 the public names (`record_batches`, `ExportOptions`, the schemas...) are imported from them on first
 use, so that `mavscope.export.inputs` (which files of a directory are captures) works without it."""
 
@@ -29,6 +29,6 @@ def __getattr__(name: str) -> object:
     try:
         return getattr(importlib.import_module(module), name)
     except ImportError as exc:
-        if exc.name == "pyarrow":
-            raise ImportError("mavscope.export needs pyarrow: pip install 'mavscope[fleet]'") from exc
+        if exc.name in ("pyarrow", "numpy"):
+            raise ImportError(f"mavscope.export needs {exc.name}: pip install 'mavscope[fleet]'") from exc
         raise

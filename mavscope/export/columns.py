@@ -61,27 +61,10 @@ class FrameColumns:
 
     def _convert(self) -> None:
         chunk, self.chunk = self.chunk, []
-        n = len(chunk)
-        if not n:
+        if not chunk:
             return
-        arrays = [pa.array([self.capture_id] * n, pa.string()), pa.array([self.capture_path] * n, pa.string())]
-        having: dict[str, list[Frame | None]] = {}  # per block: the frames that have it (None: not this one)
-        for col in FRAME_COLUMNS:
-            if col.block is None:
-                arrays.append(pa.array(list(map(col.get, chunk)), col.type))
-                continue
-            rows = having.get(col.block)
-            if rows is None:
-                rows = having[col.block] = [f if has_block(col.block, f) else None for f in chunk]
-                if not any(rows):
-                    rows = having[col.block] = []
-            if not rows:
-                arrays.append(pa.nulls(n, col.type))
-            else:
-                get = col.get
-                arrays.append(pa.array([None if f is None else get(f) for f in rows], col.type))
-        self.parts.append(pa.RecordBatch.from_arrays(arrays, schema=self.schema))
-        self.held += n
+        self.parts.append(frame_batch(self.capture_id, self.capture_path, chunk, self.schema))
+        self.held += len(chunk)
 
     def flush(self) -> pa.RecordBatch | None:
         self._convert()
@@ -91,6 +74,29 @@ class FrameColumns:
         if len(parts) == 1:
             return parts[0]
         return pa.Table.from_batches(parts, schema=self.schema).combine_chunks().to_batches()[0]
+
+
+def frame_batch(capture_id: str, capture_path: str, chunk: list[Frame], schema: pa.Schema | None = None,
+                ) -> pa.RecordBatch:
+    """The frames-table rows of `chunk`, each column one pass over it."""
+    n = len(chunk)
+    arrays = [pa.array([capture_id] * n, pa.string()), pa.array([capture_path] * n, pa.string())]
+    having: dict[str, list[Frame | None]] = {}  # per block: the frames that have it (None: not this one)
+    for col in FRAME_COLUMNS:
+        if col.block is None:
+            arrays.append(pa.array(list(map(col.get, chunk)), col.type))
+            continue
+        rows = having.get(col.block)
+        if rows is None:
+            rows = having[col.block] = [f if has_block(col.block, f) else None for f in chunk]
+            if not any(rows):
+                rows = having[col.block] = []
+        if not rows:
+            arrays.append(pa.nulls(n, col.type))
+        else:
+            get = col.get
+            arrays.append(pa.array([None if f is None else get(f) for f in rows], col.type))
+    return pa.RecordBatch.from_arrays(arrays, schema=schema or frames_schema())
 
 
 class AnomalyColumns:
@@ -160,7 +166,7 @@ def _plan(md: MessageDef, dialect: Dialect) -> _Plan:
     return _Plan(md, cols.schema, unpack, steps, order, extensions, names, [{} for _ in names])
 
 
-def _flag_names(value: int, names: dict[int, str]) -> str | None:
+def flag_names(value: int, names: dict[int, str]) -> str | None:
     """A bitmask value as its set flags joined by "|" (unknown bits as hex); the zero entry's name for 0."""
     if not isinstance(value, int):
         return None
@@ -225,7 +231,7 @@ class _Message:
                     if v in cache:
                         out.append(cache[v])
                         continue
-                    name = _flag_names(v, names)
+                    name = flag_names(v, names)
                     if len(cache) < ENUM_CACHE:
                         cache[v] = name
                     out.append(name)

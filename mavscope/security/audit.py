@@ -46,11 +46,16 @@ class Audit:
         self.targets = Targets()
 
     def add(self, f: Frame) -> None:
+        self.add_untargeted(f)
+        self.targets.add(f)
+
+    def add_untargeted(self, f: Frame) -> None:
+        """Everything `add` does but the signing streams' target frames (`Targets`), which a caller that
+        counts signed frames in bulk (the export's native source) gives `targets` itself."""
         for n in f.notes:
             if n.code in _NOTE_CODES:
                 self.by[n.code].add(f.record)
         self.keystreams.add(f)
-        self.targets.add(f)
         sec = f.security
         if sec is None:
             return

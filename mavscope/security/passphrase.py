@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from hmac import compare_digest
 
@@ -57,6 +57,18 @@ class Targets:
         self.seen[stream] = n
         if n in self.POSITIONS:
             self.frames.setdefault(stream, []).append(f)
+
+    def add_run(self, stream: Stream, count: int, frame_at: Callable[[int], Frame]) -> None:
+        """`count` signed frames with a good CRC of `stream`, as that many `add()` calls in capture order;
+        `frame_at(i)` gives the i-th of them (from 0) where one is kept. Streams must come in the order of
+        their first frames (the limit of streams counts those seen before)."""
+        n = self.seen.get(stream, 0)
+        if count <= 0 or (n == 0 and len(self.seen) >= MAX_TARGETS):
+            return
+        self.seen[stream] = n + count
+        for p in sorted(self.POSITIONS):
+            if n < p <= n + count:
+                self.frames.setdefault(stream, []).append(frame_at(p - n - 1))
 
 
 Candidates = dict[Stream, list[tuple[int, bytes, bytes]]]  # stream -> [(record, signed data, mac)]

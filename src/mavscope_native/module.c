@@ -8,7 +8,7 @@
  *     .full() -> bool, .dump() -> bytes
  *   Walker(fd: int, size: int, kind: int, table, endpoints: set, endpoint: Callable[[bytes, int], object],
  *          signed_senders: set[tuple[int, int]], window: int = 1 << 20, summary: Summary | None = None,
- *          t0: float | None = None, stats: Stats | None = None)
+ *          t0: float | None = None, stats: Stats | None = None, columns: Columns | None = None)
  *                                        with `summary`: summary lines (relative to t0) instead of JSON;
  *                                        with `stats`: no text, the frames go to the accumulator
  *     .next(signed_nokey: bool, limit: int = 1 << 20, into: bytearray | None = None)
@@ -19,6 +19,14 @@
  *     .feed(records)                    with fd=-1 (and size 0, kind pcap): a pcap that grows, fed whole
  *                                        records (live capture: the global header, then Receiver batches)
  *   Receiver, udp_record, UDP_PCAP_HEADER (module_recv.c: live capture's batched receive)
+ *   Columns(table, limit: int = 65536)  column mode for the export (columns.h): Walker(..., columns=Columns)
+ *     fills it instead of writing JSON Lines, stopping once it holds `limit` frames
+ *     .frames -> int                     frames held
+ *     .take() -> (frames, endpoints_reset, new_endpoints, columns, messages)   the chunk, whose memory
+ *         passes to Python as read-only Block objects (the buffer protocol): columns, one per MS_COL_*;
+ *         messages, (position in the table, rows, frame positions, count) per message with rows;
+ *         new_endpoints, (packed address, port) of the endpoint ids first used in this chunk, in id order
+ *   COLUMN_NAMES: tuple[str, ...]       the names of those columns, in order
  *   format_double(x) -> bytes, text_json(b) -> bytes   (the JSON formatting, for the tests)
  *   format_g4(x), format_degrees(v, unsigned), format_reltime(t), repr_ascii(b) -> bytes | None
  *                                        (the summary formatting, for the tests)
@@ -33,6 +41,7 @@
 #include "acc.h"
 #include "buf.h"
 #include "capture.h"
+#include "columns.h"
 #include "fmt.h"
 #include "module_recv.h"
 #include "netlayers.h"
@@ -311,6 +320,181 @@ static PyTypeObject StatsType = {
     .tp_new = PyType_GenericNew,
 };
 
+/* ---- Block, Columns (the export's column mode) -------------------------------------------- */
+
+/* Memory the column buffers grew in C, handed to Python without a copy (read-only buffer protocol). */
+typedef struct {
+    PyObject_HEAD
+    char *data;
+    Py_ssize_t len;
+} BlockObject;
+
+static void Block_dealloc(BlockObject *self) {
+    free(self->data);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static int Block_getbuffer(BlockObject *self, Py_buffer *view, int flags) {
+    return PyBuffer_FillInfo(view, (PyObject *)self, self->data ? self->data : (char *)"", self->len, 1, flags);
+}
+
+static Py_ssize_t Block_length(BlockObject *self) {
+    return self->len;
+}
+
+static PyBufferProcs Block_as_buffer = {(getbufferproc)Block_getbuffer, NULL};
+static PySequenceMethods Block_as_sequence = {.sq_length = (lenfunc)Block_length};
+
+static PyTypeObject BlockType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "mavscope._native.Block",
+    .tp_basicsize = sizeof(BlockObject),
+    .tp_dealloc = (destructor)Block_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "Read-only bytes of a column chunk, owned by Python once taken (buffer protocol).",
+    .tp_as_buffer = &Block_as_buffer,
+    .tp_as_sequence = &Block_as_sequence,
+};
+
+/* A Block taking the memory of `b` (which is left empty). */
+static PyObject *block_from(ms_buf *b) {
+    BlockObject *o = PyObject_New(BlockObject, &BlockType);
+    if (o == NULL)
+        return NULL;
+    o->data = b->data;
+    o->len = (Py_ssize_t)b->len;
+    ms_buf_init(b);
+    return (PyObject *)o;
+}
+
+typedef struct {
+    PyObject_HEAD
+    ms_cols cols;
+    PyObject *table; /* TableObject: the columns point into its messages */
+    int ok;
+    int busy;        /* a Walker is filling it (without the GIL) */
+} ColumnsObject;
+
+static void Columns_dealloc(ColumnsObject *self) {
+    if (self->ok)
+        ms_cols_free(&self->cols);
+    Py_XDECREF(self->table);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static int Columns_init(ColumnsObject *self, PyObject *args, PyObject *kwds) {
+    static char *kwlist[] = {"table", "limit", NULL};
+    PyObject *table;
+    Py_ssize_t limit = 65536;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "O!|n", kwlist, &TableType, &table, &limit))
+        return -1;
+    if (self->ok) {
+        PyErr_SetString(PyExc_RuntimeError, "Columns already initialised");
+        return -1;
+    }
+    if (limit < 1 || limit > (Py_ssize_t)MS_COLS_MAX_FRAMES) {
+        PyErr_SetString(PyExc_ValueError, "limit out of range");
+        return -1;
+    }
+    if (ms_cols_init(&self->cols, &((TableObject *)table)->table, (uint32_t)limit) != 0) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    Py_INCREF(table);
+    self->table = table;
+    self->ok = 1;
+    return 0;
+}
+
+static PyObject *Columns_frames(ColumnsObject *self, void *Py_UNUSED(closure)) {
+    return PyLong_FromUnsignedLong(self->ok ? self->cols.n : 0);
+}
+
+static PyObject *Columns_take(ColumnsObject *self, PyObject *Py_UNUSED(ignored)) {
+    if (!self->ok) {
+        PyErr_SetString(PyExc_RuntimeError, "Columns not initialised");
+        return NULL;
+    }
+    if (self->busy) {
+        PyErr_SetString(PyExc_RuntimeError, "a Walker is filling these Columns");
+        return NULL;
+    }
+    ms_cols *c = &self->cols;
+    if (c->failed)
+        return PyErr_NoMemory();
+    PyObject *ends = NULL, *cols = NULL, *msgs = NULL, *res = NULL;
+    ends = PyList_New(0);
+    cols = PyList_New(MS_NCOLS);
+    msgs = PyList_New(0);
+    if (ends == NULL || cols == NULL || msgs == NULL)
+        goto done;
+    for (uint32_t i = c->first_new; i < c->nends; i++) {
+        const ms_cols_endpoint *e = &c->ends[i];
+        PyObject *t = Py_BuildValue("(y#i)", (const char *)e->addr, (Py_ssize_t)(e->v6 ? 16 : 4), (int)e->port);
+        if (t == NULL || PyList_Append(ends, t) != 0) {
+            Py_XDECREF(t);
+            goto done;
+        }
+        Py_DECREF(t);
+    }
+    for (int k = 0; k < MS_NCOLS; k++) {
+        PyObject *b = block_from(&c->col[k]);
+        if (b == NULL)
+            goto done;
+        PyList_SET_ITEM(cols, k, b);
+    }
+    for (uint32_t i = 0; i < c->ntouched; i++) {
+        ms_msg_rows *r = &c->msgs[c->touched[i]];
+        PyObject *rows = block_from(&r->rows);
+        if (rows == NULL)
+            goto done;
+        PyObject *frame = block_from(&r->frame);
+        if (frame == NULL) {
+            Py_DECREF(rows);
+            goto done;
+        }
+        PyObject *t = Py_BuildValue("(INNI)", c->touched[i], rows, frame, r->n); /* N: released on failure too */
+        if (t == NULL)
+            goto done;
+        if (PyList_Append(msgs, t) != 0) {
+            Py_DECREF(t);
+            goto done;
+        }
+        Py_DECREF(t);
+    }
+    res = Py_BuildValue("(IOOOO)", c->n, c->reset ? Py_True : Py_False, ends, cols, msgs);
+done:
+    Py_XDECREF(ends);
+    Py_XDECREF(cols);
+    Py_XDECREF(msgs);
+    ms_cols_restart(c); /* whatever was handed over; a failure above loses the chunk and raises */
+    return res;
+}
+
+static PyMethodDef Columns_methods[] = {
+    {"take", (PyCFunction)Columns_take, METH_NOARGS,
+     "take() -> (frames, endpoints_reset, new_endpoints, columns, messages): the chunk held, as Blocks"},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyGetSetDef Columns_getset[] = {
+    {"frames", (getter)Columns_frames, NULL, "frames held", NULL},
+    {NULL, NULL, NULL, NULL, NULL},
+};
+
+static PyTypeObject ColumnsType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "mavscope._native.Columns",
+    .tp_basicsize = sizeof(ColumnsObject),
+    .tp_dealloc = (destructor)Columns_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "Column buffers a Walker fills in column mode (mavscope.export.native).",
+    .tp_methods = Columns_methods,
+    .tp_getset = Columns_getset,
+    .tp_init = (initproc)Columns_init,
+    .tp_new = PyType_GenericNew,
+};
+
 /* ---- Walker ------------------------------------------------------------------------------- */
 
 /* The bytes of a pcap that grows while it is walked (`Walker.feed`): what the reader has not passed yet,
@@ -348,6 +532,7 @@ typedef struct {
     PyObject *senders;   /* set[tuple[int, int]] */
     PyObject *summary;   /* SummaryObject or NULL (JSON Lines) */
     PyObject *stats;     /* StatsObject or NULL */
+    PyObject *columns;   /* ColumnsObject or NULL: column mode */
     ms_buf out;
 } WalkerObject;
 
@@ -370,23 +555,30 @@ static void Walker_dealloc(WalkerObject *self) {
     Py_XDECREF(self->senders);
     Py_XDECREF(self->summary);
     Py_XDECREF(self->stats);
+    Py_XDECREF(self->columns);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
 static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
     static char *kwlist[] = {"fd", "size", "kind", "table", "endpoints", "endpoint", "signed_senders", "window",
-                             "summary", "t0", "stats", NULL};
+                             "summary", "t0", "stats", "columns", NULL};
     PyObject *table, *endpoints, *endpoint, *senders, *summary = Py_None, *t0 = Py_None, *stats = Py_None;
+    PyObject *columns = Py_None;
     int fd, kind;
     unsigned long long size;
     Py_ssize_t window = MS_WINDOW;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|nOOO", kwlist, &fd, &size, &kind, &TableType, &table,
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|nOOOO", kwlist, &fd, &size, &kind, &TableType, &table,
                                      &PySet_Type, &endpoints, &endpoint, &PySet_Type, &senders, &window,
-                                     &summary, &t0, &stats))
+                                     &summary, &t0, &stats, &columns))
         return -1;
     if (stats != Py_None && (!PyObject_TypeCheck(stats, &StatsType) || ((StatsObject *)stats)->table != table ||
                              !((StatsObject *)stats)->ok || summary != Py_None)) {
         PyErr_SetString(PyExc_TypeError, "stats must be a Stats of the same table (without summary), or None");
+        return -1;
+    }
+    if (columns != Py_None && (!PyObject_TypeCheck(columns, &ColumnsType) || ((ColumnsObject *)columns)->table != table ||
+                               summary != Py_None || stats != Py_None)) {
+        PyErr_SetString(PyExc_TypeError, "columns must be Columns of the same table (and no summary or stats), or None");
         return -1;
     }
     if (summary != Py_None &&
@@ -446,6 +638,11 @@ static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
         Py_INCREF(stats);
         self->stats = stats;
         self->walker.acc = &((StatsObject *)stats)->acc;
+    }
+    if (columns != Py_None) {
+        Py_INCREF(columns);
+        self->columns = columns;
+        self->walker.cols = &((ColumnsObject *)columns)->cols;
     }
     self->have_walker = 1;
     self->ended = 0;
@@ -623,11 +820,21 @@ static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds)
     self->out.len = 0;
     ms_record rec;
     int r;
+    ColumnsObject *cols = (ColumnsObject *)self->columns;
+    if (cols != NULL && (cols->busy || cols->cols.failed)) {
+        PyErr_SetString(PyExc_RuntimeError, cols->busy ? "another Walker is filling these Columns"
+                                                       : "these Columns ran out of memory");
+        return NULL;
+    }
     self->busy = 1;
+    if (cols != NULL)
+        cols->busy = 1;
     Py_BEGIN_ALLOW_THREADS
     r = ms_walk(&self->walker, &self->out, (size_t)limit, &rec);
     Py_END_ALLOW_THREADS
     self->busy = 0;
+    if (cols != NULL)
+        cols->busy = 0;
     if (r == MS_WALK_NOMEM) {
         Walker_release(self);
         return PyErr_NoMemory();
@@ -881,19 +1088,42 @@ static struct PyModuleDef native_module = {
 
 PyMODINIT_FUNC PyInit__native(void) {
     if (PyType_Ready(&TableType) < 0 || PyType_Ready(&SummaryType) < 0 || PyType_Ready(&WalkerType) < 0 ||
-        PyType_Ready(&StatsType) < 0)
+        PyType_Ready(&StatsType) < 0 || PyType_Ready(&BlockType) < 0 || PyType_Ready(&ColumnsType) < 0)
         return NULL;
     PyObject *m = PyModule_Create(&native_module);
     if (m == NULL)
         return NULL;
+    PyObject *names = PyTuple_New(MS_NCOLS);
+    if (names == NULL) {
+        Py_DECREF(m);
+        return NULL;
+    }
+    for (int k = 0; k < MS_NCOLS; k++) {
+        PyObject *n = PyUnicode_FromString(MS_COL_NAMES[k]);
+        if (n == NULL) {
+            Py_DECREF(names);
+            Py_DECREF(m);
+            return NULL;
+        }
+        PyTuple_SET_ITEM(names, k, n);
+    }
+    if (PyModule_AddObject(m, "COLUMN_NAMES", names) < 0) {
+        Py_DECREF(names);
+        Py_DECREF(m);
+        return NULL;
+    }
     Py_INCREF(&TableType);
     Py_INCREF(&WalkerType);
     Py_INCREF(&SummaryType);
     Py_INCREF(&StatsType);
+    Py_INCREF(&BlockType);
+    Py_INCREF(&ColumnsType);
     if (PyModule_AddObject(m, "Table", (PyObject *)&TableType) < 0 ||
         PyModule_AddObject(m, "Walker", (PyObject *)&WalkerType) < 0 ||
         PyModule_AddObject(m, "Summary", (PyObject *)&SummaryType) < 0 ||
         PyModule_AddObject(m, "Stats", (PyObject *)&StatsType) < 0 ||
+        PyModule_AddObject(m, "Block", (PyObject *)&BlockType) < 0 ||
+        PyModule_AddObject(m, "Columns", (PyObject *)&ColumnsType) < 0 ||
         PyModule_AddIntConstant(m, "KIND_PCAP", MS_KIND_PCAP) < 0 ||
         PyModule_AddIntConstant(m, "KIND_PCAPNG", MS_KIND_PCAPNG) < 0 ||
         PyModule_AddIntConstant(m, "KIND_TLOG", MS_KIND_TLOG) < 0 ||

@@ -396,6 +396,11 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
         return stats_record(w, rec, d, count, has_time, t, is_udp ? &udp : NULL);
     if (w->summary != NULL)
         return count_frames(w, d, count);
+    if (w->cols != NULL) {
+        if (ms_cols_record(w->cols, rec, d, w->frames, count, has_time, t, is_udp ? &udp : NULL) != 0)
+            return MS_WALK_NOMEM;
+        return count_frames(w, d, count);
+    }
     const char *src = NULL, *dst = NULL;
     int src_len = 0, dst_len = 0;
     if (is_udp) /* the cache may move the source's text: it is copied into `mid` before the destination's */
@@ -438,7 +443,7 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
 int ms_walk(ms_walker *w, ms_buf *out, size_t limit, ms_record *rec) {
     w->n_walked = 0;
     w->py_index = -1;
-    while (out->len < limit) {
+    while (out->len < limit && (w->cols == NULL || !ms_cols_full(w->cols))) {
         int got = ms_reader_next(&w->reader, rec);
         if (got < 0)
             return MS_WALK_NOMEM;

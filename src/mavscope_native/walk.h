@@ -23,6 +23,7 @@
 #include "acc.h"
 #include "buf.h"
 #include "capture.h"
+#include "columns.h"
 #include "summary.h"
 #include "table.h"
 
@@ -45,6 +46,8 @@ typedef struct {
     ms_acc *acc;                /* non-NULL: the frames go to the `stats` accumulator (acc.h), no text */
     int has_t0;                 /* summary lines: relative times count from t0 (the first record's time) */
     double t0;
+    ms_cols *cols;              /* non-NULL: column mode (columns.h, the export) instead of JSON Lines; the
+                                   walk also stops once the columns hold their limit of frames */
     int fuzz_any_crc;           /* the fuzz harness only: take every CRC for good, so that mutated
                                    payloads reach the decoder and the JSON writer (never set by the glue) */
     uint8_t signers[8192];      /* bit sysid << 8 | compid: senders seen signing */

@@ -44,14 +44,15 @@ LAYERS: tuple[tuple[str, int], ...] = (
     ("mavscope.export", 9),  # captures into a columnar dataset: builds on pipeline.session and the analyses
     ("mavscope.output", 10),
     # The native engine of `read -T jsonl` composes the dissector and the security stage (as
-    # pipeline.session does) and writes output.jsonout's JSON Lines, so it sits with the front ends; the C
-    # extension it wraps reads, dissects and writes in one, and is for the front ends only.
+    # pipeline.session does) and writes output.jsonout's JSON Lines, so it sits with the front ends.
     ("mavscope.native", 10),
     ("mavscope.native_summary", 10),
     ("mavscope.native_live", 10),
     ("mavscope.native_plan", 10),  # the `stats` accumulator's plan: compiled from the dialect and the analyses
     ("mavscope.native_stats", 10),
-    ("mavscope._native", 10),
+    # The C extension it wraps reads, dissects and writes in one; its column mode also serves the export's
+    # native batch source (export/native.py), so it sits in the export's layer (it imports nothing).
+    ("mavscope._native", 9),
     ("mavscope.cli", 10),
     ("mavscope.commands", 10),
     ("mavscope.tui", 10),
