@@ -18,7 +18,8 @@ from setuptools.command.build_py import build_py
 ROOT = Path(__file__).resolve().parent
 NATIVE = Path("src") / "mavscope_native"
 SOURCES = ["module.c", "walk.c", "capture.c", "capture_pcap.c", "capture_pcapng.c", "capture_tlog.c",
-           "netlayers.c", "mavlink.c", "table.c", "decode.c", "fmt.c", "buf.c", "summary.c"]
+           "netlayers.c", "mavlink.c", "table.c", "decode.c", "fmt.c", "buf.c", "summary.c",
+           "sha256.c", "signing.c"]
 CFLAGS = [] if sys.platform == "win32" else ["-std=c11", "-O2", "-Wall", "-Wextra"]
 
 

@@ -5,7 +5,8 @@ every record whose frames are all clean (docs/native.md says exactly which); eve
 handed back, in capture order, to the Python pipeline (`Dissector.feed`, then the security stage), whose
 output is the reference. The two paths share their state explicitly: the dissector's
 `mavlink_endpoints` and the security stage's `signed_senders` are the very sets the walker reads before
-each batch and adds to after it, and `Dissector.passed` is told of the records each batch walked.
+each batch and adds to after it, `Dissector.passed` is told of the records each batch walked, and the
+signature verifier's replay state is a `_native.SigningState` the walker judges known streams against.
 
 - `engine(environ)`: "native" or "pure-python" (MAVSCOPE_PURE=1, or no compiled extension: pure).
 - `build_table(dialect)`: the message layouts as the byte string `_native.Table` takes, compiled from
@@ -185,12 +186,14 @@ class NativeWalk:
             raise
 
     def batches(self, signed_nokey: Callable[[], bool] = lambda: False, limit: int = BATCH_BYTES,
-                buffers: Callable[[], bytearray | None] | None = None) -> Iterator[Batch]:
+                buffers: Callable[[], bytearray | None] | None = None,
+                signing: Callable[[], object | None] = lambda: None) -> Iterator[Batch]:
         """The walk, batch by batch.
 
         The text comes as bytes, or, with `buffers`, in the bytearray it returns for each batch (the
         caller recycles them once written: their memory stays mapped, where a new 1 MiB bytes object
-        costs fresh pages every batch).
+        costs fresh pages every batch). `signing()`, asked before each batch: the verifier's
+        `_native.SigningState` (signed frames of streams it knows are judged in C), or None.
         """
         walk = self.walker.next
         walked = self.walker.walked
@@ -198,7 +201,7 @@ class NativeWalk:
         told: Walked | None = None
         while True:
             buf = spare if spare is not None else (buffers() if buffers is not None else None)
-            segs = walk(signed_nokey(), limit, buf)
+            segs = walk(signed_nokey(), limit, buf, signing())
             if segs is None:
                 # records at the end that gave no text (a UDP datagram without payload): the
                 # dissector must still hear of them, as stream frames the capture's end completes
@@ -338,6 +341,13 @@ def write_lines(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityS
         only = bytearray()  # written before the next batch: one serves
         buffers = lambda: only  # noqa: E731
     nokey: Callable[[], bool] = lambda: not stage.check_signatures  # noqa: E731 - asked per batch
+    assert _native is not None  # NativeWalk refuses to run without it
+    state_type = _native.SigningState
+    stage.use_signing_store(state_type)  # the verifier's replay state is the one the walker judges with
+
+    def signing() -> object | None:  # the stage may start over with new material: its verifier's store
+        store = stage.verifier.store
+        return store if type(store) is state_type else None
     run = stage.run
     passed = dissector.passed
     frames = 0  # written by Python, or every frame when counting
@@ -379,7 +389,7 @@ def write_lines(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityS
     try:
         with NativeWalk(path, dialect, dissector.mavlink_endpoints, stage.signed_senders, kind, window,
                         summary, t0) as walk:
-            for walked, text, record in walk.batches(nokey, buffers=buffers):
+            for walked, text, record in walk.batches(nokey, buffers=buffers, signing=signing):
                 if walked is not None:
                     held = passed(*walked)  # a run of tlog text entries ends before these records
                     if held:
