@@ -59,6 +59,8 @@ typedef struct {
     double t0;
     int fuzz_any_crc;           /* the fuzz harness only: take every CRC for good, so that mutated
                                    payloads reach the decoder and the JSON writer (never set by the glue) */
+    int fuzz_any_mac;           /* the fuzz harness only: take every MAC for good (MS_SIGNED_VERIFY), so that
+                                   mutated signed frames reach the `valid` writer (never set by the glue) */
     uint8_t signers[8192];      /* bit sysid << 8 | compid: senders seen signing */
     uint16_t *new_signers;      /* added by this batch */
     size_t n_new_signers, cap_new_signers;
