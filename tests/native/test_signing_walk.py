@@ -235,7 +235,7 @@ def signed_capture(draw: st.DrawFn) -> sg.Capture:
 
 SETTINGS = settings(max_examples=int(os.environ.get("MAVSCOPE_NATIVE_EXAMPLES", "300")), deadline=None,
                     derandomize=True, suppress_health_check=list(HealthCheck))
-FEWEST = settings(SETTINGS, max_examples=max(SETTINGS.max_examples // 15, 5))
+FEWEST = settings(SETTINGS, max_examples=max(SETTINGS.max_examples // 30, 5))  # through the command line
 
 
 def material(config: str) -> KeyMaterial:
