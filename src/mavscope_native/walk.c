@@ -138,6 +138,8 @@ enum { CLEAN = 1, NOT_CLEAN = 0, NOMEM = -1 };
  * of another key or of none) is the Python verifier's: NOT_CLEAN. */
 static int verify_signed(ms_walker *w, const uint8_t *f, size_t size, size_t k) {
     const ms_signing *s = w->signing;
+    if (s == NULL)
+        return NOT_CLEAN;
     const uint8_t *sig = f + size - MS_SIGNATURE_LEN;
     const uint32_t stream = ms_sign_stream(f[5], f[6], sig[0]);
     const ms_sign_entry *e = ms_signing_find(s, stream);
