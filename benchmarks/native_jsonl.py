@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Whole-process `mavscope read -T jsonl` (or the summary lines of `mavscope read`): native against pure.
 
-    benchmarks/native_jsonl.py [--format jsonl|summary] [--repeat N] [--out DIR] [--skip-pure]
+    benchmarks/native_jsonl.py [--format jsonl|summary] [--key] [--repeat N] [--out DIR] [--skip-pure]
                                [--skip-baseline] [--tlog-copies N]
 
 Captures (generated once and cached in DIR, default benchmarks/out/, git-ignored):
@@ -15,6 +15,8 @@ stdout to /dev/null and to a real file in DIR (deleted before each run), best of
 engine (the pure path: one run). Frames are counted from the output. The pymavlink baseline is
 benchmarks/baselines.py's `struct` (mmap+struct pcap loop, parse_buffer, json.dumps(to_dict())), one run.
 The machine's load average is printed with the results: other processes share it.
+With --key every run verifies signatures: `--key hex:<the bench capture's signing key>` (bench_capture's
+SIGNING_KEY, bytes(range(32))), so the bench pcap's signed quarter is judged (valid) rather than no-key.
 """
 
 from __future__ import annotations
@@ -30,12 +32,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
-from bench_capture import capture  # noqa: E402 - the bench capture's generator (bench_read.py uses it too)
+from bench_capture import SIGNING_KEY, capture  # noqa: E402 - the bench capture's generator (bench_read.py too)
 
 MAVSCOPE = str(Path(sys.executable).with_name("mavscope"))
 REAL_TLOG = ROOT.parent / "shared" / "real-captures" / "ardusub_log_tools_small.tlog"
 CHILD_ENV = {k: v for k, v in os.environ.items() if k not in ("PYTHONUNBUFFERED", "MAVSCOPE_PURE")}
 FORMATS = {"jsonl": ["-T", "jsonl"], "summary": []}  # the output options of each format
+KEY_OPTIONS = ["--key", "hex:" + SIGNING_KEY.hex()]  # the bench capture's signing key (--key)
 
 
 def tlog_capture(out: Path, copies: int) -> Path | None:
@@ -52,8 +55,9 @@ def tlog_capture(out: Path, copies: int) -> Path | None:
     return path
 
 
-def run(capture: Path, pure: bool, target: str, fmt: str = "jsonl") -> float:
-    """Seconds of one `mavscope read capture` in format `fmt` to `target` ("null" or a file path)."""
+def run(capture: Path, pure: bool, target: str, fmt: str = "jsonl", extra: tuple[str, ...] = ()) -> float:
+    """Seconds of one `mavscope read capture` in format `fmt` (and `extra` options) to `target` ("null"
+    or a file path)."""
     env = dict(CHILD_ENV)
     if pure:
         env["MAVSCOPE_PURE"] = "1"
@@ -62,15 +66,16 @@ def run(capture: Path, pure: bool, target: str, fmt: str = "jsonl") -> float:
         time.sleep(0.2)  # let the file system settle the freed blocks outside the timed run
     with open(os.devnull if target == "null" else target, "wb") as out:
         t0 = time.perf_counter()
-        subprocess.run([MAVSCOPE, "read", str(capture), *FORMATS[fmt]], stdout=out, env=env, check=True)
+        subprocess.run([MAVSCOPE, "read", str(capture), *FORMATS[fmt], *extra], stdout=out, env=env, check=True)
         return time.perf_counter() - t0
 
 
-def count_lines(capture: Path, pure: bool = False, fmt: str = "jsonl") -> int:
+def count_lines(capture: Path, pure: bool = False, fmt: str = "jsonl", extra: tuple[str, ...] = ()) -> int:
     env = dict(CHILD_ENV)
     if pure:
         env["MAVSCOPE_PURE"] = "1"
-    proc = subprocess.Popen([MAVSCOPE, "read", str(capture), *FORMATS[fmt]], stdout=subprocess.PIPE, env=env)
+    proc = subprocess.Popen([MAVSCOPE, "read", str(capture), *FORMATS[fmt], *extra], stdout=subprocess.PIPE,
+                            env=env)
     assert proc.stdout is not None
     n = 0
     while chunk := proc.stdout.read(1 << 20):
@@ -83,6 +88,8 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--format", choices=sorted(FORMATS), default="jsonl",
                     help="the output: JSON Lines (-T jsonl) or the summary lines (default jsonl)")
+    ap.add_argument("--key", action="store_true",
+                    help="verify signatures with the bench capture's signing key (--key hex:...)")
     ap.add_argument("--repeat", type=int, default=5, help="runs of the native engine per figure (best kept)")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "out")
     ap.add_argument("--skip-pure", action="store_true", help="skip the pure-Python path (about 12 s a run)")
@@ -96,21 +103,22 @@ def main() -> int:
     if tlog is not None:
         captures.append((f"{REAL_TLOG.name} x{args.tlog_copies}", tlog))
     version = subprocess.run([MAVSCOPE, "--version"], capture_output=True, text=True, env=CHILD_ENV).stdout.strip()
-    print(f"{version}; {platform.python_version()}; {os.cpu_count()} CPUs; format {args.format}; load average "
-          f"before {os.getloadavg()[0]:.2f}")
+    extra = tuple(KEY_OPTIONS) if args.key else ()
+    print(f"{version}; {platform.python_version()}; {os.cpu_count()} CPUs; format {args.format}"
+          f"{'; --key (the bench capture key)' if args.key else ''}; load average before {os.getloadavg()[0]:.2f}")
     print()
     print("| capture | engine | output | seconds (best) | frames/s |")
     print("|---|---|---|---:|---:|")
     results: dict[tuple[str, str, str], float] = {}
     for label, path in captures:
-        frames = count_lines(path, fmt=args.format)
+        frames = count_lines(path, fmt=args.format, extra=extra)
         target_file = str(args.out / f"native_{args.format}.out")
         for engine in ("native", "pure-python"):
             if engine == "pure-python" and args.skip_pure:
                 continue
             repeat = args.repeat if engine == "native" else 1
             for target in ("null", target_file):
-                best = min(run(path, engine == "pure-python", target, args.format) for _ in range(repeat))
+                best = min(run(path, engine == "pure-python", target, args.format, extra) for _ in range(repeat))
                 results[(label, engine, target)] = best
                 where = "/dev/null" if target == "null" else "file"
                 print(f"| {label} ({frames:,} frames) | {engine} | {where} | {best:.2f} | {frames / best:,.0f} |",

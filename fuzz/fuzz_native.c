@@ -37,9 +37,18 @@
  * offset its column states, its header columns and payload those bytes', every fixed-width column one
  * value per frame, the offsets in order and inside their bytes, each message row its frame's payload
  * zero-extended to the message's length and pointing at a frame of that message, endpoint ids known.
+ * Signed frames with keys (signing.c, sha256.c): with selector bit 2 clear and a preset sender (bits
+ * 4-6), the walk judges signed frames against a signing state (MS_SIGNED_VERIFY) holding four keys
+ * (the bench capture's, the bundled captures' "mavscope-demo", one whose name is as long as the writer
+ * takes, one without a name) and streams preset for the usual senders; bit 3 takes every MAC for good
+ * too. After each handed-back record the harness does what the Python verifier would: each signed frame
+ * in it whose MAC one of the keys makes opens or advances its stream. SHA-256 is checked against
+ * itself (one piece against many), the MAC check against the digest, and the `valid` signature object
+ * and the skew's rounding run on the input's bytes into buffers of exactly their claimed room.
  *
  * Build and run: scripts/fuzz-native.sh SECONDS (docs/native.md). The message table comes from
  * mavscope's default dialect, written by the script to the file named in $MAVSCOPE_FUZZ_TABLE. */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -47,10 +56,13 @@
 #include "acc.h"
 #include "capture.h"
 #include "columns.h"
+#include "decode.h"
 #include "fmt.h"
 #include "mavlink.h"
 #include "plan.h"
 #include "recv.h"
+#include "sha256.h"
+#include "signing.h"
 #include "summary.h"
 #include "table.h"
 #include "walk.h"
@@ -270,6 +282,63 @@ static void check_writers(const uint8_t *data, size_t size) {
     free(text);
 }
 
+
+/* SHA-256 in one piece and in pieces cut where the input says, the MAC check against the digest, and
+ * the writers of a judged signature (its skew rounded as Python's round(x, 6)) into exact rooms. */
+static void check_signing(const uint8_t *data, size_t size) {
+    uint8_t one[MS_SHA256_LEN], many[MS_SHA256_LEN];
+    ms_sha256 h;
+    ms_sha256_init(&h);
+    ms_sha256_update(&h, data, size);
+    ms_sha256_final(&h, one);
+    ms_sha256_init(&h);
+    size_t done = 0, cut = size ? data[0] : 0;
+    while (done < size) {
+        size_t take = size - done < cut + 1 ? size - done : cut + 1;
+        ms_sha256_update(&h, data + done, take);
+        done += take;
+        cut = data[done - 1] % 97;
+    }
+    ms_sha256_final(&h, many);
+    if (memcmp(one, many, MS_SHA256_LEN) != 0)
+        abort();
+    if (size >= 32 + 6) { /* a key of the input's first 32 bytes, a MAC over the rest */
+        ms_signing s;
+        ms_signing_init(&s);
+        if (ms_signing_add_key(&s, data, "\"k\"", 3) == 0) {
+            uint8_t digest[MS_SHA256_LEN];
+            ms_sha256_init(&h);
+            ms_sha256_update(&h, data, size - 6);
+            ms_sha256_final(&h, digest);
+            const int same = memcmp(digest, data + size - 6, 6) == 0;
+            if (ms_signing_mac_ok(&s.keys[0], data + 32, size - 38, data + size - 6) != same ||
+                !ms_signing_mac_ok(&s.keys[0], data + 32, size - 38, digest))
+                abort();
+        }
+        ms_signing_free(&s);
+    }
+    char *room = malloc(MS_DOUBLE_MAX);
+    char *sig = malloc(MS_SIGNATURE_JSON_MAX + MS_SIGNATURE_VALID_EXTRA);
+    char name[MS_SIGN_NAME_MAX];
+    memset(name, 'n', sizeof name);
+    name[0] = name[sizeof name - 1] = '"';
+    for (size_t i = 0; room != NULL && sig != NULL && i + 21 <= size && i < 512; i += 8) {
+        double d;
+        memcpy(&d, data + i, 8);
+        const double r = ms_round6(d);
+        if (!(r == r) != !(d == d) || (d == d && fabs(r - d) > 5e-7 + fabs(d) * 0x1p-51))
+            abort(); /* round(x, 6) moves a value by half a millionth at most (and the read-back's rounding) */
+        char *end = ms_w_double(room, r);
+        if (end <= room || end > room + 24)
+            abort();
+        end = ms_w_signature_valid(sig, data + i + 8, name, sizeof name, (int)(data[i] & 1), d);
+        const char *q = sig;
+        if (!json_value(&q, end, 0) || q != end)
+            abort();
+    }
+    free(room);
+    free(sig);
+}
 
 /* Summary lines: each ends in its one newline; printable ASCII and the arrow (E2 86 92) only. */
 static void check_summary_lines(const char *text, size_t len) {
@@ -576,6 +645,64 @@ static void check_columns(const ms_cols *c, const uint8_t *file, size_t size) {
         abort();
 }
 
+/* The signing state of a walk that judges signed frames: four keys, streams preset for the usual senders
+ * and the preset one, with last timestamps picked by the input's length. */
+static int signing_setup(ms_signing *s, unsigned preset, size_t n) {
+    static const char *const NAMES[3] = {"\"key1\"", "\"demo\"", NULL};
+    static const uint8_t DEMO[32] = {0xac, 0x21, 0x93, 0xec, 0xb3, 0xbe, 0x4d, 0x7e, 0x44, 0x4e, 0x28,
+                                     0x67, 0xd4, 0x30, 0xa8, 0xb1, 0x61, 0x8c, 0xd2, 0xac, 0x1e, 0xd9,
+                                     0x71, 0x0d, 0x58, 0x0a, 0x79, 0x63, 0x0f, 0x54, 0x20, 0xf0};
+    uint8_t secret[32];
+    char longest[MS_SIGN_NAME_MAX];
+    memset(longest, 'x', sizeof longest);
+    longest[0] = longest[sizeof longest - 1] = '"';
+    ms_signing_init(s);
+    for (int k = 0; k < 4; k++) {
+        for (int i = 0; i < 32; i++)
+            secret[i] = k == 1 ? DEMO[i] : (uint8_t)(i + 64 * k); /* key 0: bytes(range(32)), the bench's */
+        const char *name = k < 2 ? NAMES[k] : k == 2 ? longest : NULL;
+        if (ms_signing_add_key(s, secret, name, k == 2 ? sizeof longest : name ? strlen(name) : 0) < 0)
+            return -1;
+    }
+    static const unsigned SYSIDS[5] = {1, 2, 254, 255, 0};
+    for (int i = 0; i < 5; i++) {
+        const unsigned sysid = i == 4 ? preset : SYSIDS[i];
+        for (unsigned c = 0; c < 2; c++)
+            for (unsigned link = 0; link < 4; link++) /* 40 streams: past the first table size */
+                if (ms_signing_put(s, ms_sign_stream(sysid, c ? 190 : 1, link), (n * 7919u * (link + 1)) % 1000003u,
+                                   (sysid + link) % 4) != 0)
+                    return -1;
+    }
+    return 0;
+}
+
+/* What the Python verifier does with a handed-back record, roughly: each whole signed MAVLink 2 frame in
+ * it whose MAC a key makes opens its stream or moves it on. Bounded: a MAC per whole frame found. */
+static void learn_streams(ms_signing *s, const uint8_t *d, size_t n) {
+    size_t p = 0;
+    while (p + 12 <= n) {
+        const size_t size = 12 + (size_t)d[p + 1] + 13;
+        if (d[p] != 0xFD || !(d[p + 2] & 1) || size > n - p) {
+            p++;
+            continue;
+        }
+        const uint8_t *f = d + p, *sig = f + size - 13;
+        uint64_t ts = 0;
+        for (int i = 6; i >= 1; i--)
+            ts = (ts << 8) | sig[i];
+        for (size_t k = 0; k < s->nkeys; k++) {
+            if (!ms_signing_mac_ok(&s->keys[k], f, size - 6, sig + 7))
+                continue;
+            const uint32_t stream = ms_sign_stream(f[5], f[6], sig[0]);
+            const ms_sign_entry *e = ms_signing_find(s, stream);
+            if (e == NULL || ts > e->last)
+                (void)ms_signing_put(s, stream, ts, (uint32_t)k);
+            break;
+        }
+        p += size;
+    }
+}
+
 /* One walk of the file in `mf` (as JSON Lines, or as summary lines with `sum`), checking what comes out. */
 static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigned sel, unsigned control,
                       const ms_summary *sum, ms_acc *acc, ms_cols *cols) {
@@ -583,8 +710,22 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
     ms_walker_init(&w, ms_memory_source(mf), n, MS_KIND_PCAP + (int)(sel & 3), &table);
     if (sel & 0x80)
         w.reader.window = (size_t)64 << (control & 7);
-    w.sign_mode = (sel & 4) ? MS_SIGNED_NOKEY : MS_SIGNED_HANDBACK;
+    const unsigned preset = (sel >> 4) & 7;
+    ms_signing signing;
+    ms_signing_init(&signing);
+    w.sign_mode = (sel & 4) ? MS_SIGNED_NOKEY : preset ? MS_SIGNED_VERIFY : MS_SIGNED_HANDBACK;
+    if (w.sign_mode == MS_SIGNED_VERIFY && (acc != NULL || cols != NULL))
+        w.sign_mode = MS_SIGNED_HANDBACK; /* the stats and column walks never judge MACs (their glue hands back) */
+    if (w.sign_mode == MS_SIGNED_VERIFY) {
+        if (signing_setup(&signing, preset, n) != 0) {
+            ms_signing_free(&signing);
+            ms_walker_free(&w);
+            return;
+        }
+        w.signing = &signing;
+    }
     w.fuzz_any_crc = (sel & 8) != 0;
+    w.fuzz_any_mac = (sel & 8) != 0;
     if (sum != NULL) {
         static const double T0[4] = {0.0, 1.7e9, 0.0, 0.0};
         w.summary = sum;
@@ -593,7 +734,6 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
     }
     w.acc = acc;
     w.cols = cols;
-    const unsigned preset = (sel >> 4) & 7;
     ms_buf out;
     ms_buf_init(&out);
     for (;;) {
@@ -635,6 +775,8 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
             (void)s;
             if (acc != NULL)
                 feed_record(acc, &rec, sel);
+            if (w.signing != NULL && rec.len)
+                learn_streams(&signing, rec.data, rec.len);
         }
         if (r == MS_WALK_END)
             break;
@@ -643,6 +785,7 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
     }
     ms_buf_free(&out);
     ms_walker_free(&w);
+    ms_signing_free(&signing);
 }
 
 /* ---- live capture: records made of datagrams, and a pcap that grows (recv.c, ms_reader_extend) ---- */
@@ -809,6 +952,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     check_writers(data + head, size - head);
     check_summary_writers(data + head, size - head);
     check_udp_record(data + head, size - head);
+    check_signing(data + head, size - head);
     /* an exactly sized copy: a read past the end of the file is a heap overflow for ASan */
     size_t n = size - head;
     uint8_t *file = malloc(n ? n : 1);

@@ -5,7 +5,8 @@ every record whose frames are all clean (docs/native.md says exactly which); eve
 handed back, in capture order, to the Python pipeline (`Dissector.feed`, then the security stage), whose
 output is the reference. The two paths share their state explicitly: the dissector's
 `mavlink_endpoints` and the security stage's `signed_senders` are the very sets the walker reads before
-each batch and adds to after it, and `Dissector.passed` is told of the records each batch walked.
+each batch and adds to after it, `Dissector.passed` is told of the records each batch walked, and the
+signature verifier's replay state is a `_native.SigningState` the walker judges known streams against.
 
 - `engine(environ)`: "native" or "pure-python" (MAVSCOPE_PURE=1, or no compiled extension: pure).
 - `build_table(dialect)`: the message layouts as the byte string `_native.Table` takes, compiled from
@@ -142,12 +143,14 @@ class NativeWalk:
             self._file.close()
 
     def batches(self, signed_nokey: Callable[[], bool] = lambda: False, limit: int = BATCH_BYTES,
-                buffers: Callable[[], bytearray | None] | None = None) -> Iterator[Batch]:
+                buffers: Callable[[], bytearray | None] | None = None,
+                signing: Callable[[], object | None] = lambda: None) -> Iterator[Batch]:
         """The walk, batch by batch.
 
         The text comes as bytes, or, with `buffers`, in the bytearray it returns for each batch (the
         caller recycles them once written: their memory stays mapped, where a new 1 MiB bytes object
-        costs fresh pages every batch).
+        costs fresh pages every batch). `signing()`, asked before each batch: the verifier's
+        `_native.SigningState` (signed frames of streams it knows are judged in C), or None.
         """
         walk = self.walker.next
         walked = self.walker.walked
@@ -155,7 +158,7 @@ class NativeWalk:
         told: Walked | None = None
         while True:
             buf = spare if spare is not None else (buffers() if buffers is not None else None)
-            segs = walk(signed_nokey(), limit, buf)
+            segs = walk(signed_nokey(), limit, buf, signing())
             if segs is None:
                 # records at the end that gave no text (a UDP datagram without payload): the
                 # dissector must still hear of them, as stream frames the capture's end completes
@@ -318,17 +321,34 @@ class LineSink:
         self.left -= n
 
 
+def share_signing(stage: SecurityStage) -> Callable[[], object | None]:
+    """Make `stage` keep its signature replay state in a `_native.SigningState` (before it has judged any
+    frame), and return what the walker is given before each batch: the verifier's store (the stage may
+    start over with new material), or None when it is not one."""
+    if _native is None:
+        raise RuntimeError("mavscope._native is not built")
+    state_type = _native.SigningState
+    stage.use_signing_store(state_type)  # the verifier's replay state is the one the walker judges with
+
+    def signing() -> object | None:
+        store = stage.verifier.store
+        return store if type(store) is state_type else None
+
+    return signing
+
+
 def drive(walk: NativeWalk, dissector: Dissector, stage: SecurityStage, sink: LineSink,
           buffers: Callable[[], bytearray | None] | None = None,
-          progress: Callable[[int], None] | None = None) -> None:
+          progress: Callable[[int], None] | None = None,
+          signing: Callable[[], object | None] = lambda: None) -> None:
     """The walk's batches into `sink` until the walk's end (or `sink.done`): native text as it is, the
     handed-back records through `dissector` (told first of the records walked natively before them);
-    `progress` with the file offset after each native batch. What the dissector still holds at the end
-    is the caller's (`dissector.finish()`)."""
+    `progress` with the file offset after each native batch; `signing` (share_signing) before each
+    batch. What the dissector still holds at the end is the caller's (`dissector.finish()`)."""
     nokey: Callable[[], bool] = lambda: not stage.check_signatures  # noqa: E731 - asked per batch
     passed = dissector.passed
     python = sink.python
-    for walked, text, record in walk.batches(nokey, buffers=buffers):
+    for walked, text, record in walk.batches(nokey, buffers=buffers, signing=signing):
         if walked is not None:
             held = passed(*walked)  # a run of tlog text entries ends before these records
             if held:
@@ -374,10 +394,11 @@ def write_lines(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityS
         only = bytearray()  # written before the next batch: one serves
         buffers = lambda: only  # noqa: E731
     sink = LineSink(stage, problems, render, put, count)
+    signing = share_signing(stage)
     try:
         with NativeWalk(path, dialect, dissector.mavlink_endpoints, stage.signed_senders, kind, window,
                         summary, t0) as walk:
-            drive(walk, dissector, stage, sink, buffers, progress)
+            drive(walk, dissector, stage, sink, buffers, progress, signing)
             stats = walk.stats()
         if not sink.done:
             sink.python(dissector.finish())

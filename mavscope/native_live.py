@@ -24,7 +24,7 @@ from mavscope.live.source import Chunk, LiveSource, chunk_items
 from mavscope.live.stop import Stopper
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
-from mavscope.native import LineSink, NativeWalk, Reporter, _native, drive
+from mavscope.native import LineSink, NativeWalk, Reporter, _native, drive, share_signing
 from mavscope.native_summary import summary_for
 from mavscope.pipeline.dissect import Dissector
 from mavscope.security.stage import SecurityStage
@@ -67,6 +67,7 @@ def write_live(source: LiveSource, dialect: Dialect, stage: SecurityStage, out: 
     sink = LineSink(stage, problems, render, out.write, count)
     walk: NativeWalk | None = None
     native_frames = 0
+    signing = share_signing(stage)
 
     def on_idle() -> None:
         out.flush()
@@ -88,7 +89,7 @@ def write_live(source: LiveSource, dialect: Dialect, stage: SecurityStage, out: 
                 walk.feed(pcap_header() + chunk.records)
             else:
                 walk.feed(chunk.records)
-            drive(walk, dissector, stage, sink)
+            drive(walk, dissector, stage, sink, signing=signing)
             if sink.done:
                 source.stop(drain=False)
                 break

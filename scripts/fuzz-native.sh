@@ -38,22 +38,28 @@ SRC=src/mavscope_native
     "$SRC"/walk.c "$SRC"/capture.c "$SRC"/capture_pcap.c "$SRC"/capture_pcapng.c "$SRC"/capture_tlog.c \
     "$SRC"/netlayers.c "$SRC"/mavlink.c "$SRC"/table.c "$SRC"/decode.c "$SRC"/fmt.c "$SRC"/buf.c "$SRC"/summary.c \
     "$SRC"/plan.c "$SRC"/acc.c "$SRC"/acc_dump.c "$SRC"/seq.c "$SRC"/expert.c "$SRC"/control.c "$SRC"/gnss.c \
-    "$SRC"/recv.c "$SRC"/columns.c -ffp-contract=off -lm -o "$OUT/fuzz_native"
+    "$SRC"/recv.c "$SRC"/columns.c "$SRC"/sha256.c "$SRC"/signing.c -ffp-contract=off -lm -o "$OUT/fuzz_native"
 
 # Seeds: every bundled capture under the selector of its own format (0 pcap, 1 pcapng, 2 tlog, 3 raw),
-# with and without native signed frames (bit 2), with every CRC taken (bit 3), and as hostile files
-# (bit 7: small read windows, shrinking, a failed read). libFuzzer's -max_len bounds the size.
+# with and without native signed frames (bit 2), with every CRC taken (bit 3), judged with keys (a
+# preset sender, bits 4-6, bit 2 clear), and as hostile files (bit 7: small read windows, shrinking, a
+# failed read); and 600 frames of the bench capture (benchmarks/bench_capture.py, two senders signing).
+# libFuzzer's -max_len bounds the size.
 "$PY" - "$OUT/corpus" <<'PYEOF'
-import hashlib, pathlib, sys
+import hashlib, pathlib, sys, tempfile
+sys.path.insert(0, "benchmarks")
+from bench_capture import generate
 from mavscope.capture.detect import detect_kind
 corpus = pathlib.Path(sys.argv[1])
 sel = {"pcap": 0, "pcapng": 1, "tlog": 2, "raw": 3}
-for path in sorted(pathlib.Path("captures").glob("*")):
+bench = pathlib.Path(tempfile.mkdtemp()) / "bench.pcap"
+generate(bench, 600)
+for path in sorted(pathlib.Path("captures").glob("*")) + [bench]:
     if path.suffix in (".md", ".json"):
         continue
     data = path.read_bytes()
     base = sel[detect_kind(path)]
-    for extra in (0, 4, 8, 12):
+    for extra in (0, 4, 8, 12, 0x10, 0x18, 0x70):
         for piece in (data[:4096], data[:65536]):
             blob = bytes([base | extra]) + piece
             (corpus / hashlib.sha1(blob).hexdigest()).write_bytes(blob)
@@ -86,7 +92,8 @@ if [ -n "$PROFDATA" ] && [ -n "$LLVMCOV" ]; then
         fuzz/fuzz_native.c "$SRC"/walk.c "$SRC"/capture.c "$SRC"/capture_pcap.c "$SRC"/capture_pcapng.c \
         "$SRC"/capture_tlog.c "$SRC"/netlayers.c "$SRC"/mavlink.c "$SRC"/table.c "$SRC"/decode.c "$SRC"/fmt.c \
         "$SRC"/buf.c "$SRC"/summary.c "$SRC"/plan.c "$SRC"/acc.c "$SRC"/acc_dump.c "$SRC"/seq.c "$SRC"/expert.c \
-        "$SRC"/control.c "$SRC"/gnss.c "$SRC"/recv.c "$SRC"/columns.c -lm -o "$OUT/fuzz_native_cov"
+        "$SRC"/control.c "$SRC"/gnss.c "$SRC"/recv.c "$SRC"/columns.c "$SRC"/sha256.c "$SRC"/signing.c \
+        -lm -o "$OUT/fuzz_native_cov"
     rm -f "$OUT"/cov.profraw
     (cd "$OUT" && LLVM_PROFILE_FILE=cov.profraw ./fuzz_native_cov -runs=0 corpus >/dev/null 2>&1) || true
     "$PROFDATA" merge -sparse "$OUT/cov.profraw" -o "$OUT/cov.profdata"

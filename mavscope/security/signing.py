@@ -9,12 +9,17 @@ New streams: the C library accepts a new stream only when its timestamp is withi
 receiver's clock. Offline, the capture is the clock: mavscope accepts the stream and reports the skew
 (signature time - capture time of the frame); beyond `NEW_STREAM_WINDOW` it adds a note, because a
 receiver would have rejected the stream (docs/security.md, "Replay rules").
+
+The replay state (per stream the last accepted timestamp and the key that verified it, tried first next
+time) lives in a `SigningStore`: `DictSigningStore` here, or with the native engine the C extension's
+`SigningState`, which the native walker reads and advances itself, so that a frame judged in C and the
+next one judged here see the same state (docs/native.md, "Shared state").
 """
 
 from __future__ import annotations
 
 from hmac import compare_digest
-from typing import NamedTuple
+from typing import NamedTuple, Protocol
 
 from mavscope.mavlink.frame import SignatureReason, SignatureStatus
 from mavscope.security.keys import SigningKey
@@ -36,13 +41,61 @@ class Verdict(NamedTuple):
     skew: float | None = None  # signature time - capture time, seconds, for a new stream
 
 
-class SignatureVerifier:
-    """Checks signed frames against a set of keys, keeping replay state per stream."""
+class SigningStore(Protocol):
+    """Per stream the last accepted timestamp and the slot of the key that verified it last.
 
-    def __init__(self, keys: list[SigningKey] | None = None) -> None:
+    A key gets a slot (`add_key`) before its first `put`; the store may keep what it needs to check that
+    key's MACs itself (the native one keeps the hash state after the secret), and never shows it."""
+
+    def add_key(self, secret: bytes, name: str) -> int: ...
+
+    def get(self, stream: Stream) -> tuple[int, int] | None: ...
+
+    def put(self, stream: Stream, last: int, key: int) -> None: ...
+
+    def __len__(self) -> int: ...
+
+
+class DictSigningStore:
+    """The SigningStore of the pure-Python path: a dict. It keeps no key material."""
+
+    __slots__ = ("_streams", "_keys")
+
+    def __init__(self) -> None:
+        self._streams: dict[Stream, tuple[int, int]] = {}
+        self._keys = 0
+
+    def add_key(self, secret: bytes, name: str) -> int:
+        self._keys += 1
+        return self._keys - 1
+
+    def get(self, stream: Stream) -> tuple[int, int] | None:
+        return self._streams.get(stream)
+
+    def put(self, stream: Stream, last: int, key: int) -> None:
+        if not 0 <= key < self._keys:
+            raise ValueError("no such key slot")
+        self._streams[stream] = (last, key)
+
+    def __len__(self) -> int:
+        return len(self._streams)
+
+
+class SignatureVerifier:
+    """Checks signed frames against a set of keys, keeping replay state per stream in `store`."""
+
+    def __init__(self, keys: list[SigningKey] | None = None, store: SigningStore | None = None) -> None:
         self.keys: list[SigningKey] = list(keys or [])
-        self.last: dict[Stream, int] = {}  # last accepted timestamp per stream
-        self.stream_key: dict[Stream, SigningKey] = {}  # which key verified the stream last (tried first)
+        self.store: SigningStore = DictSigningStore() if store is None else store
+        self._slots: dict[int, int] = {}  # id(key) -> its slot in the store
+        self._by_slot: dict[int, SigningKey] = {}  # and back (holding the keys: their ids stay theirs)
+
+    def _slot(self, key: SigningKey) -> int:
+        slot = self._slots.get(id(key))
+        if slot is None:
+            slot = self._slots[id(key)] = self.store.add_key(key.secret, key.name)
+            self._by_slot[slot] = key
+        return slot
 
     def add_key(self, key: SigningKey, first: bool = False) -> None:
         if key in self.keys:
@@ -52,11 +105,10 @@ class SignatureVerifier:
         else:
             self.keys.append(key)
 
-    def match(self, raw: bytes, stream: Stream | None = None) -> SigningKey | None:
-        """The key whose MAC matches the signed frame `raw`, or None."""
+    def match(self, raw: bytes, hint: SigningKey | None = None) -> SigningKey | None:
+        """The key whose MAC matches the signed frame `raw` (`hint` tried first), or None."""
         value = raw[-6:]
         data = raw[:-6]
-        hint = self.stream_key.get(stream) if stream is not None else None
         if hint is not None:
             h = hint._hash.copy()
             h.update(data)
@@ -79,15 +131,15 @@ class SignatureVerifier:
         if not self.keys:
             return Verdict(SignatureStatus.NO_KEY, None, Reason.NO_KEY, "")
         stream = (sysid, compid, link_id)
-        key = self.match(raw, stream)
+        entry = self.store.get(stream)
+        key = self.match(raw, None if entry is None else self._by_slot[entry[1]])
         if key is None:
             return Verdict(SignatureStatus.INVALID, None, Reason.NO_KEY_MATCHES, "")
-        last = self.last.get(stream)
+        last = None if entry is None else entry[0]
         if last is not None and timestamp <= last:
             return Verdict(SignatureStatus.REPLAY, key, Reason.NOT_NEWER,
                            f"timestamp {timestamp} <= last accepted {last} on link {link_id}")
-        self.last[stream] = timestamp
-        self.stream_key[stream] = key
+        self.store.put(stream, timestamp, self._slot(key))
         if last is None:
             skew = None if capture_time is None else sig_unix_time - capture_time
             detail = "" if skew is None else f"signature time {skew:+.6f} s from capture time"

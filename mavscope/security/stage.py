@@ -48,7 +48,7 @@ from mavscope.security.keys import (
     KeyMaterial,
     SigningKey,
 )
-from mavscope.security.signing import NEW_STREAM_WINDOW, SignatureVerifier
+from mavscope.security.signing import NEW_STREAM_WINDOW, DictSigningStore, SignatureVerifier, SigningStore
 from mavscope.wire import IFLAG_SIGNED
 
 SETUP_SIGNING = 256
@@ -63,8 +63,10 @@ NOTE_CODES = frozenset({"signature-skew", "unsigned-in-signed-stream", "v1-in-si
 class SecurityStage:
     """One instance per capture: it keeps the replay state, the senders seen signing, the epochs."""
 
-    def __init__(self, material: KeyMaterial | None = None) -> None:
+    def __init__(self, material: KeyMaterial | None = None,
+                 signing_store: Callable[[], SigningStore] = DictSigningStore) -> None:
         self.signed_senders: set[tuple[int, int]] = set()  # one set for good: run() holds it
+        self._new_store = signing_store  # where each verifier keeps its replay state
         self._incoming: list[tuple[KeyMaterial, Callable[[SecurityStage], object] | None]] = []
         self._incoming_lock = threading.Lock()
         self._taking = False
@@ -73,7 +75,7 @@ class SecurityStage:
     def _setup(self, material: KeyMaterial) -> None:
         """Start over with `material`: keys, ciphers, and empty replay, sender and epoch state."""
         self.material = m = material
-        self.verifier = SignatureVerifier(m.signing)
+        self.verifier = SignatureVerifier(m.signing, self._new_store())
         self.check_signatures = m.has_signing_material
         self.kex = KeyExchangeTracker(m.ecdh_private)
         self.ciphers: dict[int, CipherKey] = dict(m.ciphers)
@@ -91,6 +93,14 @@ class SecurityStage:
         self.nonces: dict[tuple[bytes, int, int], tuple[int, bytes]] = {}
         self.signed_senders.clear()
         self.leaked: list[SigningKey] = []
+
+    def use_signing_store(self, new: Callable[[], SigningStore]) -> None:
+        """Keep the replay state in stores made by `new` from now on (the native engine's SigningState,
+        which its walker shares), starting with the current verifier's: only before it holds any."""
+        if len(self.verifier.store):
+            raise RuntimeError("the signing state already holds streams")
+        self._new_store = new
+        self.verifier = SignatureVerifier(self.verifier.keys, new())
 
     def add_signing_key(self, key: SigningKey, first: bool = False) -> None:
         self.verifier.add_key(key, first)

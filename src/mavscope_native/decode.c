@@ -4,6 +4,7 @@
 
 #include "capture.h"
 #include "fmt.h"
+#include "signing.h"
 
 #define SIGNING_EPOCH 1420070400ull
 
@@ -117,7 +118,8 @@ void ms_iso_second(uint64_t seconds, char out[19]) {
 
 static const char HEXDIGITS[] = "0123456789abcdef";
 
-char *ms_w_signature_nokey(char *p, const uint8_t *block) {
+/* The signature object up to its value: {"link_id":..,"timestamp":..,"time":"..","value":"..." */
+static char *signature_head(char *p, const uint8_t *block) {
     uint64_t ts = 0;
     for (int i = 5; i >= 0; i--)
         ts = (ts << 8) | block[1 + i];
@@ -141,5 +143,28 @@ char *ms_w_signature_nokey(char *p, const uint8_t *block) {
         *p++ = HEXDIGITS[block[7 + i] >> 4];
         *p++ = HEXDIGITS[block[7 + i] & 15];
     }
-    return MS_W_LIT(p, "\",\"status\":\"no-key\"}");
+    return p;
+}
+
+char *ms_w_signature_nokey(char *p, const uint8_t *block) {
+    return MS_W_LIT(signature_head(p, block), "\",\"status\":\"no-key\"}");
+}
+
+_Static_assert(MS_SIGNATURE_VALID_EXTRA >= 64 + MS_SIGN_NAME_MAX + MS_DOUBLE_MAX, "room of a valid signature");
+
+char *ms_w_signature_valid(char *p, const uint8_t *block, const char *key, size_t key_len, int has_time, double t) {
+    p = MS_W_LIT(signature_head(p, block), "\",\"status\":\"valid\",\"key\":");
+    memcpy(p, key, key_len);
+    p += key_len;
+    if (has_time) {
+        uint64_t ts = 0;
+        for (int i = 5; i >= 0; i--)
+            ts = (ts << 8) | block[1 + i];
+        /* Signature.unix_time - frame.time, as Python computes them: SIGNING_EPOCH + ts / 100_000 */
+        const double unix_time = (double)SIGNING_EPOCH + (double)ts / 100000.0;
+        p = MS_W_LIT(p, ",\"skew\":");
+        p = ms_w_double(p, ms_round6(unix_time - t));
+    }
+    *p++ = '}';
+    return p;
 }

@@ -16,6 +16,13 @@ char *ms_w_fields(char *p, const ms_message *m, const uint8_t *payload, size_t l
 /* The "signature" object of a signed frame no key checked (status no-key), from its 13-byte block. */
 char *ms_w_signature_nokey(char *p, const uint8_t *block);
 
+/* The most a `valid` signature object writes beyond the no-key one: the key's name (at most
+ * MS_SIGN_NAME_MAX bytes of JSON) and the skew (a double, with its fixed-size copy). */
+#define MS_SIGNATURE_VALID_EXTRA (64 + 256 + 48)
+/* The "signature" object of a signed frame the walker judged valid (reason mac-ok): status `valid`, the
+ * key's name (`key`, JSON text), and with a record time `t` the skew, round(signature time - t, 6). */
+char *ms_w_signature_valid(char *p, const uint8_t *block, const char *key, size_t key_len, int has_time, double t);
+
 /* "YYYY-MM-DDTHH:MM:SS" of a whole second since 2015-01-01T00:00:00Z (19 bytes, no NUL). */
 void ms_iso_second(uint64_t seconds, char out[19]);
 

@@ -11,13 +11,19 @@
  *          t0: float | None = None, stats: Stats | None = None, columns: Columns | None = None)
  *                                        with `summary`: summary lines (relative to t0) instead of JSON;
  *                                        with `stats`: no text, the frames go to the accumulator
- *     .next(signed_nokey: bool, limit: int = 1 << 20, into: bytearray | None = None)
- *         -> list[bytes | bytearray | tuple] | None
+ *     .next(signed_nokey: bool, limit: int = 1 << 20, into: bytearray | None = None,
+ *           signing: SigningState | None = None) -> list[bytes | bytearray | tuple] | None
+ *         with `signing` (and not signed_nokey): signed frames of known streams judged against it
  *     .walked() -> tuple[int, float | None, int | None] | None
  *     .stats() -> dict[str, int]
  *     .close()
  *     .feed(records)                    with fd=-1 (and size 0, kind pcap): a pcap that grows, fed whole
  *                                        records (live capture: the global header, then Receiver batches)
+ *   SigningState()                       the signing state both paths share (signing.h): key slots,
+ *     .add_key(secret: bytes, name: str) -> int       per stream the last accepted timestamp and key
+ *     .get(stream: tuple[int, int, int]) -> tuple[int, int] | None     (last, key slot)
+ *     .put(stream, last: int, key: int), len()
+ *   sha256(data) -> bytes, format_skew(x) -> bytes   (the signing code, for the tests)
  *   Receiver, udp_record, UDP_PCAP_HEADER (module_recv.c: live capture's batched receive)
  *   Columns(table, limit: int = 65536)  column mode for the export (columns.h): Walker(..., columns=Columns)
  *     fills it instead of writing JSON Lines, stopping once it holds `limit` frames
@@ -45,6 +51,8 @@
 #include "fmt.h"
 #include "module_recv.h"
 #include "netlayers.h"
+#include "sha256.h"
+#include "signing.h"
 #include "summary.h"
 #include "table.h"
 #include "walk.h"
@@ -495,6 +503,159 @@ static PyTypeObject ColumnsType = {
     .tp_new = PyType_GenericNew,
 };
 
+/* ---- SigningState ------------------------------------------------------------------------- */
+
+/* Holds secrets (as SHA-256 states): nothing of them is readable from Python, printed or pickled. */
+typedef struct {
+    PyObject_HEAD
+    ms_signing state;
+    int busy; /* a walk uses it without the GIL: Python may not change it meanwhile */
+} SigningObject;
+
+static void Signing_dealloc(SigningObject *self) {
+    ms_signing_free(&self->state);
+    Py_TYPE(self)->tp_free((PyObject *)self);
+}
+
+static int Signing_init(SigningObject *self, PyObject *args, PyObject *kwds) {
+    static char *kwlist[] = {NULL};
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "", kwlist))
+        return -1;
+    if (self->busy) {
+        PyErr_SetString(PyExc_RuntimeError, "SigningState is in use by a walk");
+        return -1;
+    }
+    ms_signing_free(&self->state);
+    ms_signing_init(&self->state);
+    return 0;
+}
+
+static int signing_free_to_change(SigningObject *self) {
+    if (self->busy) {
+        PyErr_SetString(PyExc_RuntimeError, "SigningState is in use by a walk");
+        return -1;
+    }
+    return 0;
+}
+
+static int parse_stream(PyObject *stream, uint32_t *out) {
+    int sysid, compid, link;
+    if (!PyArg_ParseTuple(stream, "iii", &sysid, &compid, &link))
+        return -1;
+    if (sysid < 0 || sysid > 255 || compid < 0 || compid > 255 || link < 0 || link > 255) {
+        PyErr_SetString(PyExc_ValueError, "a stream is (sysid, compid, link_id), each 0..255");
+        return -1;
+    }
+    *out = ms_sign_stream((unsigned)sysid, (unsigned)compid, (unsigned)link);
+    return 0;
+}
+
+static PyObject *Signing_add_key(SigningObject *self, PyObject *args) {
+    Py_buffer secret;
+    PyObject *name;
+    if (!PyArg_ParseTuple(args, "y*U", &secret, &name))
+        return NULL;
+    if (signing_free_to_change(self) != 0 || secret.len != MS_SIGN_SECRET_LEN) {
+        if (!PyErr_Occurred()) /* the length only: never anything of the secret */
+            PyErr_SetString(PyExc_ValueError, "a signing secret is 32 bytes");
+        PyBuffer_Release(&secret);
+        return NULL;
+    }
+    Py_ssize_t n = 0;
+    const char *utf8 = PyUnicode_AsUTF8AndSize(name, &n);
+    char *json = NULL;
+    size_t json_len = 0;
+    if (utf8 == NULL) {
+        PyErr_Clear(); /* a name that is not UTF-8 (a lone surrogate): its frames are written by Python */
+    } else if ((size_t)n <= MS_SIGN_NAME_MAX) {
+        json = PyMem_Malloc(ms_text_max((size_t)n));
+        if (json == NULL) {
+            PyBuffer_Release(&secret);
+            return PyErr_NoMemory();
+        }
+        json_len = (size_t)(ms_w_text(json, (const uint8_t *)utf8, (size_t)n) - json);
+    }
+    long slot = ms_signing_add_key(&self->state, (const uint8_t *)secret.buf, json, json_len);
+    PyBuffer_Release(&secret);
+    PyMem_Free(json);
+    if (slot < 0)
+        return PyErr_NoMemory();
+    return PyLong_FromLong(slot);
+}
+
+static PyObject *Signing_get(SigningObject *self, PyObject *stream) {
+    uint32_t st;
+    if (parse_stream(stream, &st) != 0)
+        return NULL;
+    const ms_sign_entry *e = ms_signing_find(&self->state, st);
+    if (e == NULL)
+        Py_RETURN_NONE;
+    return Py_BuildValue("(KI)", (unsigned long long)e->last, (unsigned int)e->key);
+}
+
+static PyObject *Signing_put(SigningObject *self, PyObject *args) {
+    PyObject *stream, *last_obj;
+    unsigned long key;
+    if (!PyArg_ParseTuple(args, "OOk", &stream, &last_obj, &key))
+        return NULL;
+    uint32_t st;
+    if (signing_free_to_change(self) != 0 || parse_stream(stream, &st) != 0)
+        return NULL;
+    unsigned long long last = PyLong_AsUnsignedLongLong(last_obj);
+    if (last == (unsigned long long)-1 && PyErr_Occurred())
+        return NULL;
+    if (key >= self->state.nkeys) {
+        PyErr_SetString(PyExc_ValueError, "no such key slot");
+        return NULL;
+    }
+    if (ms_signing_put(&self->state, st, (uint64_t)last, (uint32_t)key) != 0)
+        return PyErr_NoMemory();
+    Py_RETURN_NONE;
+}
+
+static Py_ssize_t Signing_len(SigningObject *self) { return (Py_ssize_t)self->state.nstreams; }
+
+static PyObject *Signing_repr(SigningObject *self) {
+    return PyUnicode_FromFormat("SigningState(%zu keys, %zu streams)", self->state.nkeys, self->state.nstreams);
+}
+
+static PyObject *Signing_reduce(SigningObject *Py_UNUSED(self), PyObject *Py_UNUSED(ignored)) {
+    PyErr_SetString(PyExc_TypeError, "a SigningState holds keys: it is not copied or pickled");
+    return NULL;
+}
+
+static PyMethodDef Signing_methods[] = {
+    {"add_key", (PyCFunction)Signing_add_key, METH_VARARGS,
+     "add_key(secret: bytes, name: str) -> int: a new key slot (32-byte secret; the name is what JSON shows)"},
+    {"get", (PyCFunction)Signing_get, METH_O,
+     "get((sysid, compid, link_id)) -> (last accepted timestamp, key slot) or None"},
+    {"put", (PyCFunction)Signing_put, METH_VARARGS,
+     "put((sysid, compid, link_id), last, key_slot): the stream's last accepted timestamp and its key"},
+    {"__reduce__", (PyCFunction)Signing_reduce, METH_NOARGS, "refused: the state holds keys"},
+    {"__reduce_ex__", (PyCFunction)Signing_reduce, METH_O, "refused: the state holds keys"},
+    {"__copy__", (PyCFunction)Signing_reduce, METH_NOARGS, "refused: the state holds keys"},
+    {"__deepcopy__", (PyCFunction)Signing_reduce, METH_O, "refused: the state holds keys"},
+    {NULL, NULL, 0, NULL},
+};
+
+static PySequenceMethods Signing_as_sequence = {
+    .sq_length = (lenfunc)Signing_len,
+};
+
+static PyTypeObject SigningType = {
+    PyVarObject_HEAD_INIT(NULL, 0)
+    .tp_name = "mavscope._native.SigningState",
+    .tp_basicsize = sizeof(SigningObject),
+    .tp_dealloc = (destructor)Signing_dealloc,
+    .tp_repr = (reprfunc)Signing_repr,
+    .tp_as_sequence = &Signing_as_sequence,
+    .tp_flags = Py_TPFLAGS_DEFAULT,
+    .tp_doc = "MAVLink signing state shared by the native walker and SignatureVerifier (docs/native.md).",
+    .tp_methods = Signing_methods,
+    .tp_init = (initproc)Signing_init,
+    .tp_new = PyType_GenericNew,
+};
+
 /* ---- Walker ------------------------------------------------------------------------------- */
 
 /* The bytes of a pcap that grows while it is walked (`Walker.feed`): what the reader has not passed yet,
@@ -796,12 +957,20 @@ static int push_state(WalkerObject *self) {
 }
 
 static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds) {
-    static char *kwlist[] = {"signed_nokey", "limit", "into", NULL};
+    static char *kwlist[] = {"signed_nokey", "limit", "into", "signing", NULL};
     int nokey = 0;
     Py_ssize_t limit = 1 << 20;
-    PyObject *into = Py_None;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "|pnO", kwlist, &nokey, &limit, &into))
+    PyObject *into = Py_None, *signing = Py_None;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "|pnOO", kwlist, &nokey, &limit, &into, &signing))
         return NULL;
+    if (signing != Py_None && !PyObject_TypeCheck(signing, &SigningType)) {
+        PyErr_SetString(PyExc_TypeError, "signing must be a SigningState or None");
+        return NULL;
+    }
+    if (signing != Py_None && ((SigningObject *)signing)->busy) {
+        PyErr_SetString(PyExc_RuntimeError, "SigningState is in use by another walk");
+        return NULL;
+    }
     if (into != Py_None && !PyByteArray_CheckExact(into)) {
         PyErr_SetString(PyExc_TypeError, "into must be a bytearray or None");
         return NULL;
@@ -816,25 +985,36 @@ static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds)
         limit = 1;
     if (load_signers(self) != 0)
         return NULL;
-    self->walker.sign_mode = nokey ? MS_SIGNED_NOKEY : MS_SIGNED_HANDBACK;
-    self->out.len = 0;
-    ms_record rec;
-    int r;
     ColumnsObject *cols = (ColumnsObject *)self->columns;
     if (cols != NULL && (cols->busy || cols->cols.failed)) {
         PyErr_SetString(PyExc_RuntimeError, cols->busy ? "another Walker is filling these Columns"
                                                        : "these Columns ran out of memory");
         return NULL;
     }
+    SigningObject *state = nokey || signing == Py_None ? NULL : (SigningObject *)signing;
+    self->walker.sign_mode = nokey ? MS_SIGNED_NOKEY : state != NULL ? MS_SIGNED_VERIFY : MS_SIGNED_HANDBACK;
+    self->walker.signing = state != NULL ? &state->state : NULL;
+    self->out.len = 0;
+    ms_record rec;
+    int r;
     self->busy = 1;
     if (cols != NULL)
         cols->busy = 1;
+    if (state != NULL) {
+        Py_INCREF(state);
+        state->busy = 1;
+    }
     Py_BEGIN_ALLOW_THREADS
     r = ms_walk(&self->walker, &self->out, (size_t)limit, &rec);
     Py_END_ALLOW_THREADS
     self->busy = 0;
     if (cols != NULL)
         cols->busy = 0;
+    self->walker.signing = NULL;
+    if (state != NULL) {
+        state->busy = 0;
+        Py_DECREF(state);
+    }
     if (r == MS_WALK_NOMEM) {
         Walker_release(self);
         return PyErr_NoMemory();
@@ -968,8 +1148,9 @@ static PyObject *Walker_stats(WalkerObject *self, PyObject *Py_UNUSED(ignored)) 
 
 static PyMethodDef Walker_methods[] = {
     {"next", (PyCFunction)(void (*)(void))Walker_next, METH_VARARGS | METH_KEYWORDS,
-     "next(signed_nokey=False, limit=1<<20, into=None): the next segments (JSON lines as bytes, or in "
-     "the bytearray `into`; a handed-back record tuple, which always comes last), or None at the end"},
+     "next(signed_nokey=False, limit=1<<20, into=None, signing=None): the next segments (JSON lines as bytes, "
+     "or in the bytearray `into`; a handed-back record tuple, which always comes last), or None at the end; "
+     "with `signing` (a SigningState) signed frames of known streams are judged against it"},
     {"walked", (PyCFunction)Walker_walked, METH_NOARGS,
      "(number, time, index) of the last record the last next() walked natively (before a handed-back one), "
      "or None when it walked none; index: the frame index Python's dissector would hold after them, or None "
@@ -1066,7 +1247,37 @@ static PyObject *repr_ascii(PyObject *Py_UNUSED(mod), PyObject *arg) {
     return res;
 }
 
+static PyObject *sha256(PyObject *Py_UNUSED(mod), PyObject *arg) {
+    Py_buffer b;
+    if (PyObject_GetBuffer(arg, &b, PyBUF_SIMPLE) != 0)
+        return NULL;
+    ms_sha256 h;
+    uint8_t digest[MS_SHA256_LEN];
+    ms_sha256_init(&h);
+    /* in uneven pieces, so the tests cover the block buffer's every fill level */
+    size_t done = 0, piece = 1;
+    while (done < (size_t)b.len) {
+        size_t take = (size_t)b.len - done < piece ? (size_t)b.len - done : piece;
+        ms_sha256_update(&h, (const uint8_t *)b.buf + done, take);
+        done += take;
+        piece = piece * 3 % 97 + 1;
+    }
+    PyBuffer_Release(&b);
+    ms_sha256_final(&h, digest);
+    return PyBytes_FromStringAndSize((const char *)digest, MS_SHA256_LEN);
+}
+
+static PyObject *format_skew(PyObject *Py_UNUSED(mod), PyObject *arg) {
+    double v = PyFloat_AsDouble(arg);
+    if (v == -1.0 && PyErr_Occurred())
+        return NULL;
+    char out[MS_DOUBLE_MAX];
+    return PyBytes_FromStringAndSize(out, ms_w_double(out, ms_round6(v)) - out);
+}
+
 static PyMethodDef module_methods[] = {
+    {"sha256", sha256, METH_O, "SHA-256 of a bytes-like object by the native code (fed in uneven pieces)"},
+    {"format_skew", format_skew, METH_O, "JSON text of round(x, 6) as the native writer makes a skew"},
     {"format_g4", format_g4, METH_O, "format(x, '.4g') as the summary writer makes it (NaN as NaN)"},
     {"format_degrees", format_degrees, METH_VARARGS, "f'{v / 1e7:.7f}' of a 64-bit integer (bits, unsigned)"},
     {"format_reltime", format_reltime, METH_O, "f'{t:11.6f}' as the summary writer makes it, or None"},
@@ -1088,7 +1299,8 @@ static struct PyModuleDef native_module = {
 
 PyMODINIT_FUNC PyInit__native(void) {
     if (PyType_Ready(&TableType) < 0 || PyType_Ready(&SummaryType) < 0 || PyType_Ready(&WalkerType) < 0 ||
-        PyType_Ready(&StatsType) < 0 || PyType_Ready(&BlockType) < 0 || PyType_Ready(&ColumnsType) < 0)
+        PyType_Ready(&StatsType) < 0 || PyType_Ready(&BlockType) < 0 || PyType_Ready(&ColumnsType) < 0 ||
+        PyType_Ready(&SigningType) < 0)
         return NULL;
     PyObject *m = PyModule_Create(&native_module);
     if (m == NULL)
@@ -1118,9 +1330,11 @@ PyMODINIT_FUNC PyInit__native(void) {
     Py_INCREF(&StatsType);
     Py_INCREF(&BlockType);
     Py_INCREF(&ColumnsType);
+    Py_INCREF(&SigningType);
     if (PyModule_AddObject(m, "Table", (PyObject *)&TableType) < 0 ||
         PyModule_AddObject(m, "Walker", (PyObject *)&WalkerType) < 0 ||
         PyModule_AddObject(m, "Summary", (PyObject *)&SummaryType) < 0 ||
+        PyModule_AddObject(m, "SigningState", (PyObject *)&SigningType) < 0 ||
         PyModule_AddObject(m, "Stats", (PyObject *)&StatsType) < 0 ||
         PyModule_AddObject(m, "Block", (PyObject *)&BlockType) < 0 ||
         PyModule_AddObject(m, "Columns", (PyObject *)&ColumnsType) < 0 ||

@@ -29,6 +29,8 @@ void ms_walker_free(ms_walker *w) {
     free(w->seen_used);
     free(w->frames);
     free(w->tentative);
+    free(w->sig_keys);
+    free(w->pending);
     memset(w, 0, sizeof *w);
 }
 
@@ -129,9 +131,47 @@ static const char *endpoint_text(ms_walker *w, int v6, const uint8_t *addr, uint
 
 enum { CLEAN = 1, NOT_CLEAN = 0, NOMEM = -1 };
 
+/* MS_SIGNED_VERIFY: whether the signed frame f[0..size) (frame `k` of the record) is the next of a known
+ * stream under the key that verified it last: the stream's last timestamp (or the one an earlier frame
+ * of this record would set) is older and that key's MAC matches: the Python verifier's `valid` with
+ * reason `mac-ok` (the hint is the key it tries first). Everything else (a new stream, a replay, a MAC
+ * of another key or of none) is the Python verifier's: NOT_CLEAN. */
+static int verify_signed(ms_walker *w, const uint8_t *f, size_t size, size_t k) {
+    const ms_signing *s = w->signing;
+    if (s == NULL)
+        return NOT_CLEAN;
+    const uint8_t *sig = f + size - MS_SIGNATURE_LEN;
+    const uint32_t stream = ms_sign_stream(f[5], f[6], sig[0]);
+    const ms_sign_entry *e = ms_signing_find(s, stream);
+    if (e == NULL || e->key >= s->nkeys || s->keys[e->key].name == NULL)
+        return NOT_CLEAN;
+    uint64_t last = e->last;
+    for (size_t i = w->n_pending; i-- > 0;) {
+        if (w->pending[i].stream == stream) {
+            last = w->pending[i].last;
+            break;
+        }
+    }
+    uint64_t ts = 0;
+    for (int i = 6; i >= 1; i--)
+        ts = (ts << 8) | sig[i];
+    if (ts <= last || !(ms_signing_mac_ok(&s->keys[e->key], f, size - 6, sig + 7) || w->fuzz_any_mac))
+        return NOT_CLEAN;
+    if (grow((void **)&w->pending, &w->cap_pending, w->n_pending + 1, sizeof *w->pending) != 0 ||
+        grow((void **)&w->sig_keys, &w->cap_sig_keys, k + 1, sizeof *w->sig_keys) != 0)
+        return NOMEM;
+    w->pending[w->n_pending].stream = stream;
+    w->pending[w->n_pending].key = e->key;
+    w->pending[w->n_pending].last = ts;
+    w->n_pending++;
+    w->sig_keys[k] = e->key;
+    return CLEAN;
+}
+
 /* Whether d[0..n) is a run of frames the native path writes; their (position, size) in w->frames. */
 static int scan_clean(ms_walker *w, const uint8_t *d, size_t n, size_t *count, size_t *nsigners) {
     size_t k = 0, t = 0, pos = 0;
+    w->n_pending = 0;
     while (pos < n) {
         const size_t left = n - pos;
         const uint8_t *f = d + pos;
@@ -181,8 +221,13 @@ static int scan_clean(ms_walker *w, const uint8_t *d, size_t n, size_t *count, s
         for (size_t i = 0; i < t && !known; i++)
             known = w->tentative[i] == sender;
         if (is_signed) {
-            if (w->sign_mode != MS_SIGNED_NOKEY)
+            if (w->sign_mode == MS_SIGNED_VERIFY) {
+                const int v = verify_signed(w, f, size, k);
+                if (v != CLEAN)
+                    return v;
+            } else if (w->sign_mode != MS_SIGNED_NOKEY) {
                 return NOT_CLEAN;
+            }
             if (!known) {
                 if (grow((void **)&w->tentative, &w->cap_tentative, t + 1, sizeof *w->tentative) != 0)
                     return NOMEM;
@@ -210,9 +255,10 @@ static int scan_clean(ms_walker *w, const uint8_t *d, size_t n, size_t *count, s
 #define LINE_ROOM (LEAD_MAX + MID_MAX + LINE_FIXED_MAX + LINE_SLACK) /* + name and fields of the message */
 
 /* One JSON line per frame of a clean datagram. `lead` is `{"frame":N,"index":`, `mid` everything from
- * `,"time":` to `"version":`. Room is made once per line for the most it can hold. */
+ * `,"time":` to `"version":`; `has_time`, `t`: the record's time (a judged signature's skew). Room is
+ * made once per line for the most it can hold. */
 static int write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t count, const char *lead,
-                        size_t lead_len, const char *mid, size_t mid_len) {
+                        size_t lead_len, const char *mid, size_t mid_len, int has_time, double t) {
     for (size_t i = 0; i < count; i++) {
         const uint8_t *f = d + w->frames[2 * i];
         const size_t size = w->frames[2 * i + 1];
@@ -221,7 +267,7 @@ static int write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t coun
         const size_t len = f[1];
         const uint32_t msgid = v2 ? (uint32_t)f[7] | ((uint32_t)f[8] << 8) | ((uint32_t)f[9] << 16) : f[5];
         const ms_message *m = ms_table_get(w->table, msgid); /* found by scan_clean */
-        const size_t room = LINE_ROOM + m->name_len + m->json_max;
+        const size_t room = LINE_ROOM + m->name_len + m->json_max + MS_SIGNATURE_VALID_EXTRA;
         (void)lead_len;
         char *const start = ms_buf_room(out, room);
         if (start == NULL)
@@ -258,7 +304,12 @@ static int write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t coun
         p = ms_w_fields(p, m, f + hlen, len);
         if (v2 && (f[2] & 1)) {
             p = MS_W_LIT(p, ",\"signature\":");
-            p = ms_w_signature_nokey(p, f + size - MS_SIGNATURE_LEN);
+            if (w->sign_mode == MS_SIGNED_VERIFY) {
+                const ms_sign_key *key = &w->signing->keys[w->sig_keys[i]]; /* set by verify_signed */
+                p = ms_w_signature_valid(p, f + size - MS_SIGNATURE_LEN, key->name, key->name_len, has_time, t);
+            } else {
+                p = ms_w_signature_nokey(p, f + size - MS_SIGNATURE_LEN);
+            }
             p = MS_W_LIT(p, ",\"encryption\":null,\"notes\":[]}\n");
         } else {
             p = MS_W_LIT(p, ",\"signature\":null,\"encryption\":null,\"notes\":[]}\n");
@@ -390,6 +441,8 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
         ms_signer_set(w, s);
         w->new_signers[w->n_new_signers++] = (uint16_t)s;
     }
+    for (size_t i = 0; i < w->n_pending; i++) /* the streams exist: no allocation, cannot fail */
+        (void)ms_signing_put(w->signing, w->pending[i].stream, w->pending[i].last, w->pending[i].key);
     if (is_udp && note_source(w, &udp) != 0)
         return MS_WALK_NOMEM;
     if (w->acc != NULL)
@@ -435,7 +488,7 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
         MID(",\"transport\":\"tlog\",\"src\":null,\"dst\":null,\"version\":");
     }
 #undef MID
-    if (write_frames(w, out, d, count, lead, lead_len, mid, mid_len) != 0)
+    if (write_frames(w, out, d, count, lead, lead_len, mid, mid_len, has_time, t) != 0)
         return MS_WALK_NOMEM;
     return count_frames(w, d, count);
 }

@@ -4,7 +4,8 @@
  * reader note, a UDP datagram (or a tlog entry) that is a run of frames with known message ids, good
  * CRCs, no unknown or encryption flags, no length mismatch, not SETUP_SIGNING or
  * MAVSCOPE_KEY_EXCHANGE, no unsigned frame from a sender seen signing, and signed frames only when no
- * signing key is configured (the `no-key` verdict). Records with nothing for MAVLink (not IP, not
+ * signing key is configured (the `no-key` verdict) or, with keys, when the frame is the next of a known
+ * stream under the key that verified it last (the `valid` verdict, MS_SIGNED_VERIFY). Records with nothing for MAVLink (not IP, not
  * UDP/TCP, an empty datagram) are consumed silently, as Python does. Everything else is handed back
  * whole, in capture order, for the Python pipeline.
  *
@@ -13,7 +14,9 @@
  * from the Python set before each batch and pushes back what the batch added (`new_signers`,
  * `new_endpoints`); Python changes them only while handling a handed-back record, between batches. What
  * else the Python dissector keeps from a record (its number and time, the frame index, the end of a run
- * of tlog text entries) it learns from `Dissector.passed`, told of the records walked by each batch. */
+ * of tlog text entries) it learns from `Dissector.passed`, told of the records walked by each batch.
+ * The signing state (signing.h) is not copied at all: the walker and the Python verifier use the same
+ * ms_signing, the walker during a batch, Python between batches. */
 #ifndef MAVSCOPE_NATIVE_WALK_H
 #define MAVSCOPE_NATIVE_WALK_H
 
@@ -24,10 +27,14 @@
 #include "buf.h"
 #include "capture.h"
 #include "columns.h"
+#include "signing.h"
 #include "summary.h"
 #include "table.h"
 
-enum { MS_SIGNED_HANDBACK = 0, MS_SIGNED_NOKEY = 1 };
+/* Signed frames: handed back; written with the no-key verdict (no signing key configured); or judged
+ * here against the shared signing state (MS_SIGNED_VERIFY: a known stream, its key's MAC, a newer
+ * timestamp is written as `valid`; anything else is handed back for the Python verifier). */
+enum { MS_SIGNED_HANDBACK = 0, MS_SIGNED_NOKEY = 1, MS_SIGNED_VERIFY = 2 };
 enum { MS_WALK_NOMEM = -1, MS_WALK_END = 0, MS_WALK_FULL = 1, MS_WALK_HANDBACK = 2 };
 
 typedef struct {
@@ -36,12 +43,19 @@ typedef struct {
     uint16_t port;
 } ms_endpoint;
 
+typedef struct {
+    uint32_t stream; /* ms_sign_stream() */
+    uint32_t key;
+    uint64_t last;   /* the timestamp the record would make the stream's last accepted one */
+} ms_sign_pending;
+
 #define MS_ENDPOINT_TEXT 64
 
 typedef struct {
     ms_reader reader;
     const ms_table *table;
     int sign_mode;              /* MS_SIGNED_*, set by the glue before each batch */
+    ms_signing *signing;        /* MS_SIGNED_VERIFY: the signing state shared with Python (signing.h) */
     const ms_summary *summary;  /* non-NULL: summary lines (summary.h) instead of JSON Lines */
     ms_acc *acc;                /* non-NULL: the frames go to the `stats` accumulator (acc.h), no text */
     int has_t0;                 /* summary lines: relative times count from t0 (the first record's time) */
@@ -50,6 +64,8 @@ typedef struct {
                                    walk also stops once the columns hold their limit of frames */
     int fuzz_any_crc;           /* the fuzz harness only: take every CRC for good, so that mutated
                                    payloads reach the decoder and the JSON writer (never set by the glue) */
+    int fuzz_any_mac;           /* the fuzz harness only: take every MAC for good (MS_SIGNED_VERIFY), so that
+                                   mutated signed frames reach the `valid` writer (never set by the glue) */
     uint8_t signers[8192];      /* bit sysid << 8 | compid: senders seen signing */
     uint16_t *new_signers;      /* added by this batch */
     size_t n_new_signers, cap_new_signers;
@@ -62,6 +78,11 @@ typedef struct {
     size_t cap_frames;
     uint16_t *tentative;        /* scratch: senders the current record would add */
     size_t cap_tentative;
+    uint32_t *sig_keys;         /* scratch, MS_SIGNED_VERIFY: per frame of the current record the key slot
+                                   that verified it (MS_SIGN_NO_KEY: unsigned) */
+    size_t cap_sig_keys;
+    ms_sign_pending *pending;   /* scratch, MS_SIGNED_VERIFY: the streams the current record would advance */
+    size_t n_pending, cap_pending;
     ms_endpoint last_noted;     /* the endpoint note_endpoint saw last (most records repeat it) */
     int have_last_noted;
     ms_endpoint text_key[2];    /* the last two endpoints formatted, and their text */

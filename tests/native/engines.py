@@ -64,8 +64,11 @@ def capture_file(data: bytes) -> Iterator[str]:
         os.unlink(path)
 
 
-def material(kind: str) -> KeyMaterial:
-    """"none": no key; "key": KEY as a signing key (as `--key KEY_SPEC` makes it); "leaked": --use-leaked-keys."""
+def material(kind: str | KeyMaterial) -> KeyMaterial:
+    """"none": no key; "key": KEY as a signing key (as `--key KEY_SPEC` makes it); "leaked": --use-leaked-keys;
+    or the KeyMaterial given."""
+    if isinstance(kind, KeyMaterial):
+        return kind
     if kind == "key":
         return KeyMaterial(signing=[SigningKey("key1", KEY)])  # the name the command line gives it
     if kind == "leaked":
@@ -73,7 +76,7 @@ def material(kind: str) -> KeyMaterial:
     return KeyMaterial()
 
 
-def pure_output(path: str | Path, dialect: Dialect, keys: str = "none",
+def pure_output(path: str | Path, dialect: Dialect, keys: str | KeyMaterial = "none",
                 render: Callable[[Frame], bytes] = jsonl_bytes, count: int | None = None) -> tuple[bytes, str]:
     """(stdout, stderr) of `read -T jsonl` on the pure-Python path, through the API (or, with `render`, of
     the lines it makes per frame: summary_render for `read FILE`; `count`: stop after that many, as -c)."""
@@ -105,7 +108,7 @@ def summary_render(path: str | Path, dialect: Dialect) -> Callable[[Frame], byte
     return lambda frame: (summary_line(frame, dialect, t0) + "\n").encode()
 
 
-def native_output(path: str | Path, dialect: Dialect, keys: str = "none", threaded: bool = False,
+def native_output(path: str | Path, dialect: Dialect, keys: str | KeyMaterial = "none", threaded: bool = False,
                   window: int | None = None) -> tuple[bytes, str, dict[str, int]]:
     """(stdout, stderr, walk counters) of `read -T jsonl` on the native path, through the API (the walker
     reading `window` bytes at a time when given)."""
@@ -114,8 +117,9 @@ def native_output(path: str | Path, dialect: Dialect, keys: str = "none", thread
     return _native(lambda *a, **k: write_jsonl(*a, **k), path, dialect, keys, threaded, window)
 
 
-def native_summary_output(path: str | Path, dialect: Dialect, keys: str = "none", threaded: bool = False,
-                          window: int | None = None, count: int | None = None) -> tuple[bytes, str, dict[str, int]]:
+def native_summary_output(path: str | Path, dialect: Dialect, keys: str | KeyMaterial = "none",
+                          threaded: bool = False, window: int | None = None,
+                          count: int | None = None) -> tuple[bytes, str, dict[str, int]]:
     """(stdout, stderr, walk counters) of `read FILE` (summary lines) on the native path, through the API."""
     from mavscope.native_summary import write_summary
 
@@ -130,8 +134,8 @@ def native_summary_output(path: str | Path, dialect: Dialect, keys: str = "none"
     return _native(write, path, dialect, keys, threaded, window)
 
 
-def _native(write: Callable[..., dict[str, int]], path: str | Path, dialect: Dialect, keys: str, threaded: bool,
-            window: int | None) -> tuple[bytes, str, dict[str, int]]:
+def _native(write: Callable[..., dict[str, int]], path: str | Path, dialect: Dialect, keys: str | KeyMaterial,
+            threaded: bool, window: int | None) -> tuple[bytes, str, dict[str, int]]:
     from mavscope.capture.reader import WINDOW
 
     err = io.StringIO()
