@@ -60,17 +60,9 @@ void ms_cols_free(ms_cols *c) {
     memset(c, 0, sizeof *c);
 }
 
-static uint32_t endpoint_hash(const ms_cols_endpoint *e) {
-    uint32_t h = 2166136261u;
-    for (int i = 0; i < 16; i++)
-        h = (h ^ e->addr[i]) * 16777619u;
-    h = (h ^ e->port) * 16777619u;
-    return (h ^ e->v6) * 16777619u;
-}
-
 /* Put `e` (already in ends[id]) into the map of `nslots` slots. */
-static void endpoint_slot(uint32_t *slots, uint32_t nslots, const ms_cols_endpoint *e, uint32_t id) {
-    uint32_t j = endpoint_hash(e) & (nslots - 1);
+static void endpoint_slot(uint32_t *slots, uint32_t nslots, const ms_endpoint *e, uint32_t id) {
+    uint32_t j = ms_endpoint_hash(e) & (nslots - 1);
     while (slots[j] != 0)
         j = (j + 1) & (nslots - 1);
     slots[j] = id + 1;
@@ -78,15 +70,15 @@ static void endpoint_slot(uint32_t *slots, uint32_t nslots, const ms_cols_endpoi
 
 /* The id of an endpoint (a new one when first seen), or -1 when memory runs out. */
 static int64_t endpoint_id(ms_cols *c, int v6, const uint8_t *addr, uint16_t port) {
-    ms_cols_endpoint e;
+    ms_endpoint e;
     memset(&e, 0, sizeof e);
     e.v6 = (uint8_t)v6;
     memcpy(e.addr, addr, v6 ? 16 : 4);
     e.port = port;
     if (c->nslots != 0) {
-        uint32_t j = endpoint_hash(&e) & (c->nslots - 1);
+        uint32_t j = ms_endpoint_hash(&e) & (c->nslots - 1);
         while (c->slots[j] != 0) {
-            const ms_cols_endpoint *o = &c->ends[c->slots[j] - 1];
+            const ms_endpoint *o = &c->ends[c->slots[j] - 1];
             if (memcmp(o, &e, sizeof e) == 0)
                 return (int64_t)c->slots[j] - 1;
             j = (j + 1) & (c->nslots - 1);
@@ -96,7 +88,7 @@ static int64_t endpoint_id(ms_cols *c, int v6, const uint8_t *addr, uint16_t por
         return -1;
     if (c->nends >= c->capends) {
         uint32_t cap = c->capends ? 2 * c->capends : 64;
-        ms_cols_endpoint *p = realloc(c->ends, (size_t)cap * sizeof *p);
+        ms_endpoint *p = realloc(c->ends, (size_t)cap * sizeof *p);
         if (p == NULL)
             return -1;
         c->ends = p;

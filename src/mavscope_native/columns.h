@@ -72,12 +72,6 @@ typedef struct {
 } ms_msg_rows;
 
 typedef struct {
-    uint8_t v6;
-    uint8_t addr[16];
-    uint16_t port;
-} ms_cols_endpoint;
-
-typedef struct {
     const ms_table *table;
     uint32_t limit;        /* the walk stops once this many frames are held */
     uint32_t n;            /* frames held */
@@ -86,7 +80,7 @@ typedef struct {
     uint32_t *touched;     /* positions of the messages with rows, in the order they got their first */
     uint32_t ntouched;
     /* endpoints: id -> endpoint, and an open-addressing map endpoint -> id + 1 (0: empty slot) */
-    ms_cols_endpoint *ends;
+    ms_endpoint *ends;
     uint32_t nends, capends;
     uint32_t *slots;
     uint32_t nslots;

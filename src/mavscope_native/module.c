@@ -437,7 +437,7 @@ static PyObject *Columns_take(ColumnsObject *self, PyObject *Py_UNUSED(ignored))
     if (ends == NULL || cols == NULL || msgs == NULL)
         goto done;
     for (uint32_t i = c->first_new; i < c->nends; i++) {
-        const ms_cols_endpoint *e = &c->ends[i];
+        const ms_endpoint *e = &c->ends[i];
         PyObject *t = Py_BuildValue("(y#i)", (const char *)e->addr, (Py_ssize_t)(e->v6 ? 16 : 4), (int)e->port);
         if (t == NULL || PyList_Append(ends, t) != 0) {
             Py_XDECREF(t);

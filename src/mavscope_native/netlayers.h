@@ -27,4 +27,20 @@ int ms_net_decode(int64_t linktype, const uint8_t *data, size_t n, ms_udp *out);
 #define MS_ENDPOINT_MAX 64
 int ms_fmt_endpoint(int v6, const uint8_t *addr, uint16_t port, char *out);
 
+/* A UDP endpoint as the walker and the column mode remember it (addr: 4 bytes then zeros for IPv4). */
+typedef struct {
+    uint8_t v6;
+    uint8_t addr[16];
+    uint16_t port;
+} ms_endpoint;
+
+/* FNV-1a over an endpoint's fields, for the open-addressing tables that hold endpoints. */
+static inline uint32_t ms_endpoint_hash(const ms_endpoint *e) {
+    uint32_t h = 2166136261u;
+    for (int i = 0; i < 16; i++)
+        h = (h ^ e->addr[i]) * 16777619u;
+    h = (h ^ e->port) * 16777619u;
+    return (h ^ e->v6) * 16777619u;
+}
+
 #endif

@@ -48,14 +48,6 @@ static int grow(void **v, size_t *cap, size_t need, size_t item) {
     return 0;
 }
 
-static uint32_t endpoint_hash(const ms_endpoint *e) {
-    uint32_t h = 2166136261u;
-    for (int i = 0; i < 16; i++)
-        h = (h ^ e->addr[i]) * 16777619u;
-    h = (h ^ e->port) * 16777619u;
-    return (h ^ e->v6) * 16777619u;
-}
-
 /* Record `e` as a source of valid MAVLink unless it was reported already. */
 static int note_endpoint(ms_walker *w, const ms_endpoint *e) {
     if (w->have_last_noted && memcmp(&w->last_noted, e, sizeof *e) == 0)
@@ -78,7 +70,7 @@ static int note_endpoint(ms_walker *w, const ms_endpoint *e) {
             for (size_t i = 0; i < w->capseen; i++) {
                 if (!w->seen_used[i])
                     continue;
-                size_t j = endpoint_hash(&w->seen[i]) & (cap - 1);
+                size_t j = ms_endpoint_hash(&w->seen[i]) & (cap - 1);
                 while (used[j])
                     j = (j + 1) & (cap - 1);
                 seen[j] = w->seen[i];
@@ -91,7 +83,7 @@ static int note_endpoint(ms_walker *w, const ms_endpoint *e) {
             w->capseen = cap;
         }
     }
-    size_t j = endpoint_hash(e) & (w->capseen - 1);
+    size_t j = ms_endpoint_hash(e) & (w->capseen - 1);
     while (w->seen_used[j]) {
         if (memcmp(&w->seen[j], e, sizeof *e) == 0)
             return 0;

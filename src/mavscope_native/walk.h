@@ -27,6 +27,7 @@
 #include "buf.h"
 #include "capture.h"
 #include "columns.h"
+#include "netlayers.h"
 #include "signing.h"
 #include "summary.h"
 #include "table.h"
@@ -36,12 +37,6 @@
  * timestamp is written as `valid`; anything else is handed back for the Python verifier). */
 enum { MS_SIGNED_HANDBACK = 0, MS_SIGNED_NOKEY = 1, MS_SIGNED_VERIFY = 2 };
 enum { MS_WALK_NOMEM = -1, MS_WALK_END = 0, MS_WALK_FULL = 1, MS_WALK_HANDBACK = 2 };
-
-typedef struct {
-    uint8_t v6;
-    uint8_t addr[16];
-    uint16_t port;
-} ms_endpoint;
 
 typedef struct {
     uint32_t stream; /* ms_sign_stream() */
