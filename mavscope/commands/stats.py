@@ -115,7 +115,8 @@ def _native(args: argparse.Namespace, env: Env) -> tuple[Stats, list[Finding], s
     from mavscope.capture.detect import detect_kind
     from mavscope.commands.common import Problems, capture_path, pipeline_options, warner
     from mavscope.mavlink.dialect import load_dialect
-    from mavscope.native_stats import native_stats, plan_for
+    from mavscope.native_dump import plan_for
+    from mavscope.native_stats import native_stats
     from mavscope.pipeline.session import make_security_stage
 
     path = capture_path(args)

@@ -11,6 +11,8 @@
  *          t0: float | None = None, stats: Stats | None = None, columns: Columns | None = None)
  *                                        with `summary`: summary lines (relative to t0) instead of JSON;
  *                                        with `stats`: no text, the frames go to the accumulator
+ *                                        (with `columns` too: the export's findings; once `full` the
+ *                                        accumulator takes nothing more and the walk goes on)
  *     .next(signed_nokey: bool, limit: int = 1 << 20, into: bytearray | None = None,
  *           signing: SigningState | None = None) -> list[bytes | bytearray | tuple] | None
  *         with `signing` (and not signed_nokey): signed frames of known streams judged against it
@@ -738,8 +740,8 @@ static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
         return -1;
     }
     if (columns != Py_None && (!PyObject_TypeCheck(columns, &ColumnsType) || ((ColumnsObject *)columns)->table != table ||
-                               summary != Py_None || stats != Py_None)) {
-        PyErr_SetString(PyExc_TypeError, "columns must be Columns of the same table (and no summary or stats), or None");
+                               summary != Py_None)) {
+        PyErr_SetString(PyExc_TypeError, "columns must be Columns of the same table (and no summary), or None");
         return -1;
     }
     if (summary != Py_None &&

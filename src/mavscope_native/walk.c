@@ -362,10 +362,9 @@ static int write_summary_record(ms_walker *w, const ms_record *rec, ms_buf *out,
     return MS_WALK_FULL;
 }
 
-/* The frames of a clean record into the `stats` accumulator: MS_WALK_FULL, MS_WALK_END when one of its
- * tables is full (the caller then runs the pure path), or MS_WALK_NOMEM. */
-static int stats_record(ms_walker *w, const ms_record *rec, const uint8_t *d, size_t count, int has_time, double t,
-                        const ms_udp *udp) {
+/* The frames of a clean record into the `stats` accumulator: ms_acc_record's 0, 1 (a table is full) or -1. */
+static int acc_record(ms_walker *w, const ms_record *rec, const uint8_t *d, size_t count, int has_time, double t,
+                      const ms_udp *udp) {
     char src[MS_ENDPOINT_TEXT];
     int src_len = 0, dst_len = 0;
     const char *dst = NULL;
@@ -373,8 +372,15 @@ static int stats_record(ms_walker *w, const ms_record *rec, const uint8_t *d, si
         memcpy(src, endpoint_text(w, udp->v6, udp->src, udp->sport, &src_len), MS_ENDPOINT_TEXT);
         dst = endpoint_text(w, udp->v6, udp->dst, udp->dport, &dst_len);
     }
-    int r = ms_acc_record(w->acc, rec->number, has_time, t, udp != NULL, src, (size_t)src_len, dst, (size_t)dst_len,
-                          d, w->frames, count);
+    return ms_acc_record(w->acc, rec->number, has_time, t, udp != NULL, src, (size_t)src_len, dst, (size_t)dst_len,
+                         d, w->frames, count);
+}
+
+/* `stats` alone: MS_WALK_FULL, MS_WALK_END when one of the accumulator's tables is full (the caller then
+ * runs the pure path), or MS_WALK_NOMEM. */
+static int stats_record(ms_walker *w, const ms_record *rec, const uint8_t *d, size_t count, int has_time, double t,
+                        const ms_udp *udp) {
+    int r = acc_record(w, rec, d, count, has_time, t, udp);
     if (r < 0)
         return MS_WALK_NOMEM;
     if (r > 0)
@@ -437,11 +443,14 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
         (void)ms_signing_put(w->signing, w->pending[i].stream, w->pending[i].last, w->pending[i].key);
     if (is_udp && note_source(w, &udp) != 0)
         return MS_WALK_NOMEM;
-    if (w->acc != NULL)
+    if (w->acc != NULL && w->cols == NULL)
         return stats_record(w, rec, d, count, has_time, t, is_udp ? &udp : NULL);
     if (w->summary != NULL)
         return count_frames(w, d, count);
     if (w->cols != NULL) {
+        /* the export's findings: a full accumulator takes nothing more (the caller asks `full`) */
+        if (w->acc != NULL && !w->acc->full && acc_record(w, rec, d, count, has_time, t, is_udp ? &udp : NULL) < 0)
+            return MS_WALK_NOMEM;
         if (ms_cols_record(w->cols, rec, d, w->frames, count, has_time, t, is_udp ? &udp : NULL) != 0)
             return MS_WALK_NOMEM;
         return count_frames(w, d, count);

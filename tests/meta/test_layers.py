@@ -48,8 +48,11 @@ LAYERS: tuple[tuple[str, int], ...] = (
     ("mavscope.native", 10),
     ("mavscope.native_summary", 10),
     ("mavscope.native_live", 10),
-    ("mavscope.native_plan", 10),  # the `stats` accumulator's plan: compiled from the dialect and the analyses
     ("mavscope.native_stats", 10),
+    # The `stats` accumulator's plan (compiled from the dialect and the analyses) and its state read back
+    # into the analyses' objects: `stats` and the export's findings both use them.
+    ("mavscope.native_plan", 9),
+    ("mavscope.native_dump", 9),
     # The C extension it wraps reads, dissects and writes in one; its column mode also serves the export's
     # native batch source (export/native.py), so it sits in the export's layer (it imports nothing).
     ("mavscope._native", 9),
