@@ -136,25 +136,6 @@ class SeqTracker:
             return "reset", 0
         return "duplicate", 0
 
-    def skip(self, count: int, raw: bytes | None = None) -> None:
-        """Take `count` frames numbered one after the other from `last` on (each +1), exactly as that many
-        `feed()` calls would (`raw`: the last one's bytes), without their steps: what a caller that knows
-        the numbers in bulk (the export's native source) does between the frames it feeds one by one.
-        Missing slots the frames leave behind are dropped as each step would drop them."""
-        if count <= 0:
-            return
-        if self.last is None:
-            raise ValueError("skip() needs a first frame fed")
-        self.run = 0
-        self.last_raw = raw
-        while count and self.missing:
-            self._advance((self.last + 1) % 256, 1)
-            count -= 1
-        if count:
-            self.last = (self.last + count) % 256
-            self.newest += count
-            self.position = self.newest
-
     def _advance(self, seq: int, d: int) -> None:
         self.last = seq
         self.newest += d

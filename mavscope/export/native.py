@@ -33,11 +33,12 @@ from mavscope.export.columns import AnomalyColumns, MessageTables, frame_batch
 from mavscope.export.native_columns import Chunk, Names, frames_batch, message_batch, message_plan
 from mavscope.export.native_findings import NativeFeed, window_rows
 from mavscope.export.options import ExportOptions, Progress, Warn, dialect_for
-from mavscope.export.pure import Analyses, CaptureSummary, captures_batch, findings_batch, python_source
+from mavscope.export.pure import Analyses, CaptureSummary, captures_batch, expert_pass, findings_batch, python_source
 from mavscope.export.schema import CAPTURES, FINDINGS, FRAMES, frames_schema
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import Frame
 from mavscope.mavlink.native_table import build_table
+from mavscope.native_dump import Accumulator, plan_for
 from mavscope.notes import note
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.pipeline.session import make_security_stage
@@ -167,7 +168,10 @@ class _Export:
         self.anomalies = AnomalyColumns(capture_id, options.batch_rows)
         self.pending = _Pending(options.batch_rows)
         self.analyses = Analyses(dialect)
-        self.feed = NativeFeed(self.analyses, dialect, self.messages)
+        self.feed = NativeFeed(self.analyses, self.messages)
+        # the expert's detectors: the `stats` accumulator, fed by the walker and by `python`
+        plan = plan_for(dialect) if self.want_findings else None
+        self.acc = Accumulator(_native.Stats(self.table, plan)) if plan is not None and _native is not None else None
         self.ends: list[Endpoint] = []
         self.names = Names(pa.array([], pa.string()), names)
         self.types: set[str] = set()  # messages with rows
@@ -186,6 +190,8 @@ class _Export:
                     yield b
                 continue
             self.summary.damage(item)
+            if self.acc is not None:
+                self.acc.add(item)
             self.pos.append(at)
             self.py.append(item)
             if self.want_messages:
@@ -258,7 +264,8 @@ class _Export:
         try:
             cols = _native.Columns(self.table, WINDOW_FRAMES)
             walker = _native.Walker(f.fileno(), size, _KINDS[self.kind], self.table, self.dissector.mavlink_endpoints,
-                                    Endpoint.from_packed, self.stage.signed_senders, WINDOW, columns=cols)
+                                    Endpoint.from_packed, self.stage.signed_senders, WINDOW, columns=cols,
+                                    stats=None if self.acc is None else self.acc.acc)
             try:
                 yield from self._walk(walker, cols, progress)
                 stats = walker.stats()
@@ -296,8 +303,20 @@ class _Export:
         yield from self.python(dissector.finish(), cols.frames)  # type: ignore[attr-defined]
         yield from self.window(cols.take())  # type: ignore[attr-defined]
 
+    def settle(self) -> None:
+        """The expert's detectors with the state of the whole capture (after `run`): the accumulator's, or
+        where it could not hold the capture (a table at its cap; a dialect it cannot be told), those of a
+        pure pass."""
+        if not self.want_findings:
+            return
+        if self.acc is not None and not self.acc.full():
+            self.analyses.expert = self.acc.result(self.dialect)[1]
+        else:
+            self.analyses.expert = expert_pass(self.path, self.options, self.dialect)
+
     def finish(self) -> Iterator[pa.RecordBatch]:
         yield from self.pending.flush()
+        self.settle()
         found = self.analyses.findings() if self.want_findings else []
         if self.want_findings:
             yield findings_batch(self.capture_id, found)

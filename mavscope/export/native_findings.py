@@ -1,21 +1,23 @@
 """The findings of the native batch source: the analyses of `pure.Analyses`, fed each window of frames in
 the state the pure source's one pass would leave them, without a Python Frame for every frame.
 
+The expert's detectors (`stats`' findings) are not fed here: the C walker puts its frames into the
+`stats` accumulator (native_dump.Accumulator, acc.h: the detectors that see every frame, ported step for
+step) and the export adds the handed-back frames to it, in capture order; at the end its state becomes
+the Expert. What is fed here, window by window, is what the accumulator does not hold: the audit, the
+object tracker and the parameter tracker.
+
 A window is a chunk of frames the C walker took (clean: good CRC, no note, plaintext, no verdict but
 `no-key`) and the frames the Python pipeline made of the records handed back among them, in capture order.
 What each analysis does with a frame is kept exactly; what differs is how often Python runs:
 
-- Frames a detector looks at (the messages the expert decodes, HEARTBEATs, the object and parameter
-  trackers' messages) and every handed-back frame are built as Frames and given to the analyses one by
-  one, in capture order (each analysis is an object of its own: each sees its frames in order).
-- Sequence numbers, which the expert's `SequenceAnomalies` (per sender and channel) and
-  `ReplayedCommands` (per sender) follow on every frame, are stepped from the columns: runs of frames each
-  one after the other (+1) are taken in bulk (`SeqTracker.skip`, exact, dropped missing slots included),
-  every other frame (a gap, a repeat, the first of a run, a frame a detector must judge) is fed one by one.
+- Frames of the messages the object and parameter trackers read, and every handed-back frame, are built as
+  Frames and given to them one by one, in capture order; but not the HEARTBEATs that cannot change what
+  the parameter tracker holds (`NativeFeed._quiet_heartbeats`).
 - The audit's per-frame parts on clean frames are a first plaintext per (system, message) (a
   `setdefault` at the first one) and the signing streams' target frames (`Targets.add_run`, by count);
-  `UnsignedCommands` needs only which systems sign; the object and parameter trackers' activity clock
-  counts every frame (`tick`), set before each frame they are given.
+  the object and parameter trackers' activity clock counts every frame (`tick`), set before each frame
+  they are given.
 """
 
 from __future__ import annotations
@@ -25,30 +27,16 @@ from typing import Any
 
 import numpy as np
 
-from mavscope.analysis.expert import COMMANDING, Detector, ReplayedCommands, SequenceAnomalies, UnsignedCommands
 from mavscope.analysis.objects.tracker import TRACKED_MESSAGES
+from mavscope.analysis.params.tracker import MAV_AUTOPILOT_INVALID, MAV_AUTOPILOT_PX4, MAV_TYPE_GCS
 from mavscope.analysis.params.tracker import MESSAGES as PARAM_MESSAGES
-from mavscope.analysis.sequence import Endpoints, SeqTracker, endpoints
 from mavscope.endpoint import Endpoint
-from mavscope.export.native_columns import Chunk, decoded, message_plan
+from mavscope.export.native_columns import Chunk
 from mavscope.export.pure import Analyses
-from mavscope.mavlink.dialect import Dialect, MessageDef
+from mavscope.mavlink.dialect import MessageDef
 from mavscope.mavlink.frame import CrcStatus, Frame, Signature, new_frame
 
-EVENTS = frozenset({"duplicate", "late", "unchanged"})  # SequenceAnomalies.event keeps these
 _TRANSPORT = {1: "udp", 2: "tlog"}  # columns.h MS_TRANSPORT_*
-
-
-def _one(detectors: Sequence[Detector], kind: type) -> Detector:
-    found = [d for d in detectors if isinstance(d, kind)]
-    if len(found) != 1:
-        raise ValueError(f"the native source feeds one {kind.__name__}, not {len(found)}")
-    return found[0]
-
-
-def _reads(clean: frozenset[str | int] | None) -> Callable[[MessageDef], bool]:
-    """Whether a detector with `Detector.clean` reads the clean frames of a message."""
-    return lambda md: clean is None or md.name in clean or md.id in clean
 
 
 def _nth(w: Window, rows: list[int]) -> Callable[[int], Frame]:
@@ -90,8 +78,6 @@ class Window:
         self.at[self.gn] = np.arange(n)
         self.at[self.gp] = np.arange(p)
         self.sender = self._join(c.sysid.astype(np.int64) << 8 | c.compid, [f.sysid << 8 | f.compid for f in py])
-        self.seq = self._join(c.seq.astype(np.int64), [f.seq for f in py])
-        self.record = self._join(c.record, [f.record for f in py]).tolist()
         self.built: dict[int, Frame] = {}
 
     def _join(self, native: np.ndarray, py: list[int]) -> np.ndarray:
@@ -103,13 +89,6 @@ class Window:
     def native_rows(self, mask: np.ndarray) -> np.ndarray:
         """The rows of the native frames where `mask` (per native frame) is set."""
         return self.gn[mask]
-
-    def message_of_row(self) -> list[int]:
-        """Per row, the table position of a native frame's message (-1 for a handed-back frame)."""
-        out = np.full(self.size, -1, np.int64)
-        out[self.gn] = self.c.message
-        rows: list[int] = out.tolist()
-        return rows
 
     def build(self, rows: np.ndarray) -> None:
         """Frames of the native rows `rows`, as the Python dissector makes them (kept for `frame`)."""
@@ -147,192 +126,79 @@ class Window:
             f = self.built[row]
         return f
 
-    def raw(self, row: int) -> bytes:
-        if not self.native[row]:
-            return self.py[int(self.at[row])].raw
-        return self.c.raw_of(int(self.at[row]))
-
-
-def run_tracker(tr: SeqTracker, rows: np.ndarray, seqs: np.ndarray, records: list[int],
-                must: np.ndarray | None, raw: Callable[[int], bytes] | None) -> list[tuple[int, str, int]]:
-    """Step `tr` through its frames `rows` (numbers `seqs`), as feeding each would: runs of +1 steps in bulk,
-    the others (and the rows `must` marks) fed one by one. (row, step, position) of those fed."""
-    m = len(rows)
-    s = seqs.tolist()
-    special = np.ones(m, np.bool_)
-    if m > 1:
-        special[1:] = (np.diff(seqs) % 256) != 1
-    if must is not None:
-        special |= must
-    stops = np.flatnonzero(special).tolist()
-    out: list[tuple[int, str, int]] = []
-    i = k = 0
-    while i < m:
-        if special[i] or tr.last is None or (s[i] - tr.last) % 256 != 1:
-            row = int(rows[i])
-            step, _ = tr.feed(s[i], records[row], raw(row) if raw is not None else None)
-            out.append((row, step, tr.position))
-            i += 1
-            continue
-        while k < len(stops) and stops[k] <= i:
-            k += 1
-        j = stops[k] if k < len(stops) else m
-        tr.skip(j - i, raw(int(rows[j - 1])) if raw is not None else None)
-        i = j
-    return out
 
 
 class NativeFeed:
-    """Feeds `analyses` window by window (see the module docstring)."""
+    """Feeds the audit, object and parameter analyses of `analyses` window by window (see the module
+    docstring); the expert's detectors are the accumulator's."""
 
-    def __init__(self, analyses: Analyses, dialect: Dialect, messages: Sequence[MessageDef]) -> None:
+    def __init__(self, analyses: Analyses, messages: Sequence[MessageDef]) -> None:
         self.a = analyses
-        self.dialect = dialect
-        self.payload_rows: Sequence[tuple[int, Any, Any, int]] = ()  # the current window's (Columns.take)
-        ex = analyses.expert
-        self.seq: SequenceAnomalies = _one(ex.detectors, SequenceAnomalies)  # type: ignore[assignment]
-        self.replay: ReplayedCommands = _one(ex.detectors, ReplayedCommands)  # type: ignore[assignment]
-        self.unsigned: UnsignedCommands = _one(ex.detectors, UnsignedCommands)  # type: ignore[assignment]
-        self.others = [d for d in ex.detectors if d is not self.seq and d is not self.replay]
         self.messages = messages
-        self.commanding = self._mask(lambda md: md.name in COMMANDING)
-        # per message of the table: the detectors its clean frames go to (Detector.clean; all without it)
-        wanted = [self._mask(_reads(getattr(d, "clean", None))) for d in self.others]
-        self.dispatch = [tuple(d for d, m in zip(self.others, wanted) if m[k]) for k in range(len(messages))]
-        self.detected = np.array([bool(ds) for ds in self.dispatch], np.bool_)
         self.objects_msgs = self._mask(lambda md: md.name in TRACKED_MESSAGES)
         self.params_msgs = self._mask(lambda md: md.name in PARAM_MESSAGES)
         self.seen = 0  # frames of the capture before the current window
-        self.channels: dict[Endpoints, int] = {}
-        self.channel_ends: list[Endpoints] = []
-        self.trackers: dict[tuple[int, int], SeqTracker] = {}  # (sender, channel) -> its SequenceAnomalies tracker
+        # HEARTBEAT's table position and the offsets of the two fields the parameter tracker reads
+        self.heartbeat: tuple[int, int, int, int] | None = None  # (position, length, type, autopilot)
+        for k, md in enumerate(messages):
+            t, a = md.field("type"), md.field("autopilot")
+            if md.name == "HEARTBEAT" and t is not None and a is not None and t.size == a.size == 1:
+                self.heartbeat = (k, md.length, t.offset, a.offset)
 
     def _mask(self, test: Callable[[MessageDef], bool]) -> np.ndarray:
         """Per message of the table, whether `test` holds."""
         return np.array([test(md) for md in self.messages], np.bool_)
 
     def window(self, c: Chunk, py: list[Frame], pos: Sequence[int], ends: Sequence[Endpoint],
-               rows: Sequence[tuple[int, Any, Any, int]]) -> None:
+               parts: Sequence[tuple[int, Any, Any, int]]) -> None:
         """One window: chunk `c`, the handed-back frames `py` (after `pos[j]` native ones), the chunk's
-        endpoints and its message rows (`_native.Columns.take`: position, payload rows, frames, count)."""
+        endpoints and its payload rows (`_native.Columns.take`: position, rows, frames, count per message)."""
         w = Window(c, py, pos, self.messages, ends)
-        self.payload_rows = rows
         if not w.size:
             return
-        by_msg = c.message
-        w.build(w.native_rows((self.detected | self.commanding | self.objects_msgs | self.params_msgs)[by_msg]))
-        self._detectors(w)
-        self._sequences(w, ends)
-        self._replays(w)
+        params = self.params_msgs[c.message]
+        params[self._quiet_heartbeats(w, parts)] = False
+        w.build(w.native_rows(self.objects_msgs[c.message] | params))
         self._audit(w)
-        self._objects(w)
+        self._objects(w, params)
         self.seen += w.size
+
+    def _quiet_heartbeats(self, w: Window, parts: Sequence[tuple[int, Any, Any, int]]) -> np.ndarray:
+        """The native HEARTBEATs the parameter tracker need not be given (their index in the chunk).
+
+        A HEARTBEAT tells the tracker one thing, the parameter encoding of its system: none (autopilot
+        INVALID or a GCS), or PX4's bytewise, or C-cast, set unless an AUTOPILOT_VERSION set it (which then
+        stays); its clock (`tick`) is set before each frame given and its `now` at the window's end. So a
+        HEARTBEAT that says none changes nothing, and one that says what the previous HEARTBEAT of its system
+        in this window said changes nothing either, unless a handed-back frame of that system (which may be a
+        HEARTBEAT saying something else) came between: those are left out, every other one is given."""
+        if self.heartbeat is None:
+            return np.empty(0, np.int64)
+        position, length, t_at, a_at = self.heartbeat
+        part = next((p for p in parts if p[0] == position), None)
+        if part is None:
+            return np.empty(0, np.int64)
+        _, rows, frames, count = part
+        at = np.frombuffer(frames, np.uint32, count=count).astype(np.int64)
+        payload = np.frombuffer(rows, np.uint8, count=count * length).reshape(count, length)
+        autopilot, kind = payload[:, a_at], payload[:, t_at]
+        says = np.where((autopilot == MAV_AUTOPILOT_INVALID) | (kind == MAV_TYPE_GCS), 0,
+                        np.where(autopilot == MAV_AUTOPILOT_PX4, 1, 2))
+        # per system, in capture order: what each HEARTBEAT says, and each handed-back frame as a word of its own
+        rows_of = np.concatenate([w.gn[at], w.gp])
+        system = np.concatenate([w.c.sysid[at].astype(np.int64), np.asarray([f.sysid for f in w.py], np.int64)])
+        word = np.concatenate([says, -1 - np.arange(len(w.py), dtype=np.int64)])
+        order = np.lexsort((rows_of, system))
+        system, word = system[order], word[order]
+        same = np.zeros(len(order), np.bool_)
+        same[1:] = (system[1:] == system[:-1]) & (word[1:] == word[:-1])
+        quiet = (word == 0) | same
+        native = order < count
+        return at[order[quiet & native]]
 
     def _in_order(self, w: Window, native: np.ndarray) -> list[int]:
         """The rows of the native frames where `native` is set and of every handed-back frame, in order."""
         return np.sort(np.concatenate([w.native_rows(native), w.gp])).tolist()
-
-    def _fields(self, w: Window) -> dict[int, dict[str, object]]:
-        """`Expert.fields` of the native rows that have any (a message the expert decodes), by row: the
-        payload rows of messages of scalar fields decoded in bulk, the others by the message's decoder."""
-        out: dict[int, dict[str, object]] = {}
-        decode = self.a.expert.decode
-        for position, rows, frames, count in self.payload_rows:
-            md = self.messages[position]
-            if md.name not in decode or not self.detected[position]:
-                continue
-            at = np.frombuffer(frames, np.uint32, count=count)
-            plan = message_plan(md, self.dialect)
-            if plan.simple:
-                out.update(zip(w.gn[at].tolist(), decoded(plan, rows, count)))
-            else:
-                payload = w.c.payload_of
-                out.update((r, md.decode(payload(i))) for r, i in zip(w.gn[at].tolist(), at.tolist()))
-        return out
-
-    def _detectors(self, w: Window) -> None:
-        fields_of = self.a.expert.fields
-        others, dispatch = self.others, self.dispatch
-        message = w.message_of_row()
-        fields = self._fields(w)
-        for row in self._in_order(w, self.detected[w.c.message]):
-            f = w.frame(row)
-            m = message[row]
-            if m >= 0:
-                fs = fields.get(row)
-                for d in dispatch[m]:
-                    d.add(f, fs)
-            else:
-                fs = fields_of(f)
-                for d in others:
-                    d.add(f, fs)
-        c = w.c
-        self.unsigned.signers(np.unique(c.sysid[c.signed]).tolist())
-
-    def _channel(self, ends: Endpoints) -> int:
-        k = self.channels.get(ends)
-        if k is None:
-            k = self.channels[ends] = len(self.channel_ends)
-            self.channel_ends.append(ends)
-        return k
-
-    def _sequences(self, w: Window, ends: Sequence[Endpoint]) -> None:
-        c, seq = w.c, self.seq
-        groups = _groups(w.sender)
-        seq.counts.update({(int(w.sender[g[0]]) >> 8, int(w.sender[g[0]]) & 255): len(g) for g in groups})
-        chan = np.empty(w.size, np.int64)
-        if c.n:
-            pair = (c.src.astype(np.int64) + 1) << 32 | (c.dst.astype(np.int64) + 1)  # ids from -1 up
-            distinct, inverse = np.unique(pair, return_inverse=True)
-
-            def text(k: int) -> str:
-                return ends[k].text if k >= 0 else ""
-
-            ids = [self._channel((text((p >> 32) - 1), text((p & 0xFFFFFFFF) - 1))) for p in distinct.tolist()]
-            chan[w.gn] = np.asarray(ids, np.int64)[inverse.reshape(-1)]
-        for j, f in enumerate(w.py):
-            chan[w.gp[j]] = self._channel(endpoints(f))
-        key = w.sender << 32 | chan
-        trackers: list[SeqTracker] = []
-        index_of: dict[int, int] = {}  # id of a tracker -> its position in `trackers` (channels may share one)
-        per_row = np.empty(w.size, np.int64)
-        for g in _groups(key):
-            sender, channel = int(w.sender[g[0]]), int(chan[g[0]])
-            tr = self.trackers.get((sender, channel))
-            if tr is None:
-                tr = self.trackers[(sender, channel)] = seq.seqs.tracker_for((sender >> 8, sender & 255),
-                                                                             self.channel_ends[channel])
-            k = index_of.get(id(tr))
-            if k is None:
-                k = index_of[id(tr)] = len(trackers)
-                trackers.append(tr)
-            per_row[g] = k
-        events: list[tuple[int, str]] = []
-        for g in _groups(per_row):
-            tr = trackers[int(per_row[g[0]])]
-            events += [(row, step) for row, step, _ in run_tracker(tr, g, w.seq[g], w.record, None, w.raw)
-                       if step in EVENTS]
-        events.sort()
-        for row, step in events:
-            s = int(w.sender[row])
-            seq.event((s >> 8, s & 255), step, w.record[row])
-
-    def _replays(self, w: Window) -> None:
-        judged = ~w.native
-        judged[w.native_rows(self.commanding[w.c.message])] = True
-        trackers = self.replay.trackers
-        steps: list[tuple[int, str, int]] = []
-        for g in _groups(w.sender):
-            s = int(w.sender[g[0]])
-            link = (s >> 8, s & 255)
-            tr = trackers.get(link)
-            if tr is None:
-                tr = trackers[link] = SeqTracker()
-            steps += [x for x in run_tracker(tr, g, w.seq[g], w.record, judged[g], None) if judged[x[0]]]
-        steps.sort()
-        judge = self.replay.judge
-        for row, step, position in steps:
-            judge(w.frame(row), step, position)
 
     def _audit(self, w: Window) -> None:
         c, audit = w.c, self.a.audit
@@ -367,15 +233,15 @@ class NativeFeed:
             members = rows[g].tolist()
             audit.targets.add_run((s >> 16, (s >> 8) & 255, s & 255), len(g), _nth(w, members))
 
-    def _objects(self, w: Window) -> None:
+    def _objects(self, w: Window, params_rows: np.ndarray) -> None:
+        """The object and parameter trackers (`params_rows`: the native frames the latter is given)."""
         objects, params = self.a.objects, self.a.params
         inner = params.objects
-        messages = w.c.message
-        for row in self._in_order(w, self.objects_msgs[messages]):
+        for row in self._in_order(w, self.objects_msgs[w.c.message]):
             objects.ctx.tick = self.seen + row
             objects.feed(w.frame(row))
             Analyses.took(objects)
-        for row in self._in_order(w, self.params_msgs[messages]):
+        for row in self._in_order(w, params_rows):
             inner.ctx.tick = self.seen + row
             params.feed(w.frame(row))
         objects.ctx.tick = inner.ctx.tick = self.seen + w.size

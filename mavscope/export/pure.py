@@ -109,6 +109,18 @@ class Analyses:
                 + [("params", f) for f in self.params.finish().findings])
 
 
+def expert_pass(path: str, options: ExportOptions, dialect: Dialect) -> Expert:
+    """The expert's detectors over every frame of the capture, one pass of the pure pipeline (the native
+    source's fallback when its accumulator cannot hold a capture)."""
+    popts = replace(options.pipeline, display_filter=None)
+    ex = Expert(dialect)
+    with open_session(path, popts, dialect=dialect, warn=lambda _m: None) as session:
+        for item in session.items:
+            if type(item) is not Anomaly:
+                ex.add(item)
+    return ex
+
+
 def python_source(path: str, capture_id: str, options: ExportOptions, progress: Progress | None,
                   warn: Warn | None) -> Iterator[pa.RecordBatch]:
     """The pure-Python batch source: session, the analyses with findings, column builders, one pass."""

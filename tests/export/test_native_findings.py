@@ -3,10 +3,9 @@ leaves them in must be the state the pure one-frame-at-a-time pass leaves, not o
 captures do not reach the limits and rare paths where a difference would show in a finding).
 
 The pure side here is the reference written out: the session's frames, each given to `Analyses.add`. The
-state compared: every sequence tracker (per sender and channel, and per link for replays) field by field,
-the replay detector's remembered frames, the audit's first plaintexts and signing-stream targets, the
-object and parameter trackers' activity clocks, the systems seen signing. `SeqTracker.skip` and
-`Targets.add_run` are held to the calls they stand for, on hypothesis-drawn sequences.
+state compared: the audit's first plaintexts and signing-stream targets, the object and parameter
+trackers' activity clocks, and the expert's findings (its detectors are the `stats` accumulator's on the
+native side). `Targets.add_run` is held to the calls it stands for, on hypothesis-drawn sequences.
 """
 
 from __future__ import annotations
@@ -19,10 +18,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mavscope.analysis.expert import ReplayedCommands, SequenceAnomalies, UnsignedCommands
 from mavscope.analysis.objects import ObjectTracker
 from mavscope.analysis.objects.tracker import FTP_MESSAGE, TRACKED_MESSAGES
-from mavscope.analysis.sequence import SeqTracker
 from mavscope.capture.detect import open_capture
 from mavscope.export import native, record_batches
 from mavscope.export.native_columns import decoded, message_plan
@@ -62,6 +59,7 @@ def native_analyses(path: str | Path, pipeline: PipelineOptions) -> Analyses:
                             make_security_stage(pipeline))
     for _ in export.run(None):
         pass
+    export.settle()
     return export.analyses
 
 
@@ -69,30 +67,20 @@ def _one(a: Analyses, kind: type) -> object:
     return next(d for d in a.expert.detectors if isinstance(d, kind))
 
 
-def _tracker(tr: SeqTracker) -> dict[str, object]:
-    state = dataclasses.asdict(tr)
-    state["missing"] = list(tr.missing.items())  # insertion order matters (which slot is dropped first)
-    return state
-
-
 def state(a: Analyses) -> dict[str, object]:
-    seq: SequenceAnomalies = _one(a, SequenceAnomalies)  # type: ignore[assignment]
-    replay: ReplayedCommands = _one(a, ReplayedCommands)  # type: ignore[assignment]
-    unsigned: UnsignedCommands = _one(a, UnsignedCommands)  # type: ignore[assignment]
     return {
-        "counts": list(seq.counts.items()),
-        "channels": [(s, [(ends, _tracker(tr)) for ends, tr in chans.items()])
-                     for s, chans in seq.seqs.senders.items()],
-        "extra": seq.seqs.extra,
-        "events": [(k, ev.nums, ev.count) for k, ev in seq.events.items()],
-        "links": [(k, _tracker(tr)) for k, tr in replay.trackers.items()],
-        "seen": list(replay.seen.items()),
-        "signing": sorted(unsigned.signing),
+        # the expert's detectors are the `stats` accumulator's on the native side (their internal state is
+        # held to the pure pass's by tests/native's stats tests): their findings, every field of them
+        "findings": [dataclasses.asdict(f) for f in a.expert.findings()],
         "plain": sorted(a.audit.keystreams.plain.items()),
         "targets": list(a.audit.targets.seen.items()),
         "target_frames": [(s, [(f.record, f.index, f.raw) for f in fs]) for s, fs in a.audit.targets.frames.items()],
         "ticks": (a.objects.ctx.tick, a.params.objects.ctx.tick),
         "now": a.params.now,
+        # what the parameter tracker holds (the native source leaves out HEARTBEATs that change nothing)
+        "encodings": a.params.encodings,
+        "components": {k: dataclasses.asdict(c) for k, c in a.params.components.items()},
+        "timeline": [dataclasses.asdict(e) for e in a.params.timeline],
     }
 
 
@@ -124,28 +112,6 @@ def test_real_captures_leave_the_same_state(real_captures: Path) -> None:
 def test_generated_captures_leave_the_same_state(data: bytes) -> None:
     with capture_file(data) as path:
         same_state(path)
-
-
-def _fed(seqs: list[int], raws: list[bytes | None]) -> SeqTracker:
-    tr = SeqTracker()
-    for i, (s, raw) in enumerate(zip(seqs, raws)):
-        tr.feed(s, i, raw)
-    return tr
-
-
-@given(st.lists(st.integers(0, 255), min_size=1, max_size=60), st.integers(1, 400), st.booleans())
-def test_skip_is_as_many_feeds_of_the_next_numbers(head: list[int], count: int, with_raw: bool) -> None:
-    """After any history (gaps leave missing slots, repeats a restart run), `skip(k)` equals k feeds of
-    last + 1, last + 2, ..., field for field."""
-    raws = [bytes([s, i & 255]) if with_raw else None for i, s in enumerate(head)]
-    fed = _fed(head, raws)
-    assert fed.last is not None
-    more = [(fed.last + k) % 256 for k in range(1, count + 1)]
-    last_raw = b"last" if with_raw else None
-    want = _fed(head + more, raws + [b"x"] * (count - 1) + [last_raw])
-    got = _fed(head, raws)
-    got.skip(count, last_raw)
-    assert _tracker(got) == _tracker(want)
 
 
 def _signed(record: int, sysid: int, link: int) -> Frame:
@@ -236,3 +202,72 @@ def test_payload_rows_decode_as_the_message_decoder_decodes(md: MessageDef, data
     plan = message_plan(md, dialect_for(PipelineOptions()))
     got = decoded(plan, b"".join(rows), len(rows))
     assert [_bits_of(d) for d in got] == [_bits_of(md.decode(r)) for r in rows]
+
+
+@pytest.mark.parametrize("why", ["full", "no-plan"])
+def test_the_findings_come_from_a_pure_pass_where_the_accumulator_cannot_serve(
+        why: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A capture the accumulator cannot hold (a table at its cap: forced here) or a dialect it cannot be
+    told: the expert's findings come from a pure pass, the same as the pure source's (gcs_takeover.pcap
+    has `stats` findings: a second commander, a mode change)."""
+    if why == "full":
+        monkeypatch.setattr(native.Accumulator, "full", lambda self: True)
+    else:
+        monkeypatch.setattr(native, "plan_for", lambda dialect: None)
+    passes: list[str] = []
+    expert_pass = native.expert_pass
+    monkeypatch.setattr(native, "expert_pass", lambda path, *a: passes.append(path) or expert_pass(path, *a))
+    path = CAPTURES / "gcs_takeover.pcap"
+    want = [dataclasses.asdict(f) for f in pure_analyses(path, PipelineOptions()).expert.findings()]
+    assert want
+    assert state(native_analyses(path, PipelineOptions()))["findings"] == want
+    assert passes == [str(path)]
+
+
+@pytest.mark.parametrize("window", [65_536, 3])
+def test_heartbeats_left_out_change_nothing_the_parameter_tracker_holds(
+        window: int, dialect: Dialect, monkeypatch: pytest.MonkeyPatch) -> None:
+    """System 1 switches between PX4 (bytewise parameters) and ArduPilot (C-cast) HEARTBEATs, repeats them, sends
+    GCS-typed ones, one with a bad CRC and one after stray bytes (both handed back: the latter says ArduPilot
+    between two PX4 ones), each followed by PARAM_VALUEs whose INT32 bytes read differently in the two
+    encodings: the parameter tracker's state (encodings, values, timeline) must be the pure pass's, so the
+    HEARTBEATs the native source leaves out must be exactly those that change nothing."""
+    monkeypatch.setattr(native, "WINDOW_FRAMES", window)
+    hb, pv = dialect.by_name["HEARTBEAT"], dialect.by_name["PARAM_VALUE"]
+
+    def heartbeat(autopilot: int, kind: int) -> bytes:
+        payload = bytearray(hb.length)
+        payload[hb.field("type").offset] = kind  # type: ignore[union-attr]
+        payload[hb.field("autopilot").offset] = autopilot  # type: ignore[union-attr]
+        return bytes(payload)
+
+    def param(value: bytes) -> bytes:
+        payload = bytearray(pv.length)
+        at = pv.field("param_value").offset  # type: ignore[union-attr]
+        payload[at:at + 4] = value
+        payload[pv.field("param_id").offset:][:4] = b"RATE"  # type: ignore[union-attr]
+        payload[pv.field("param_type").offset] = 6  # MAV_PARAM_TYPE_INT32  # type: ignore[union-attr]
+        return bytes(payload)
+
+    px4, apm, gcs = heartbeat(12, 2), heartbeat(3, 2), heartbeat(8, 6)
+    script = [(hb, px4), (pv, param(b"\x05\0\0\0")), (hb, px4), (hb, apm), (pv, param(b"\0\0\xa0\x40")),
+              (hb, apm), (hb, gcs), (hb, apm), (pv, param(b"\x07\0\0\0")), (hb, px4), (hb, "bad"), (hb, px4),
+              (pv, param(b"\0\0\xa0\x40")), (hb, "stray"), (hb, px4), (pv, param(b"\x05\0\0\0")), (hb, apm),
+              (hb, apm), (pv, param(b"\x05\0\0\0"))]
+    frames = []
+    for seq, (md, payload) in enumerate(script):
+        if payload == "bad":
+            f = bytearray(nh.frame_v2(md, md.id, apm, seq, 1, 1))
+            f[-1] ^= 0xFF  # the CRC
+            frames.append(bytes(f))
+        elif payload == "stray":
+            frames.append(b"\x00\x01" + nh.frame_v2(md, md.id, apm, seq, 1, 1))
+        else:
+            frames.append(nh.frame_v2(md, md.id, payload, seq, 1, 1))  # type: ignore[arg-type]
+    packets = [nh.link("ethernet", nh.ipv4(b"\x0a\0\0\x01", b"\x0a\0\0\x02", 17, nh.udp(14550, 14555, f)), False)
+               for f in frames]
+    data = nh.pcap([(1_700_000_000 + i, 0, p) for i, p in enumerate(packets)], nh.LINKTYPES["ethernet"])
+    with capture_file(data) as path:
+        want = state(pure_analyses(path, PipelineOptions()))
+        assert [e["value"] for e in want["timeline"]] and want["encodings"]  # the capture says something
+        same_state(path)
