@@ -36,6 +36,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_capture import GEN_VERSION, capture  # noqa: E402
 from bench_read import CHILD_ENV, machine, write_doc  # noqa: E402
+from native_jsonl import tlog_capture  # noqa: E402 - the real tlog concatenated to about 1M frames
 
 ROOT = Path(__file__).resolve().parent.parent
 PY = sys.executable
@@ -98,9 +99,10 @@ def run(cmd: list[str], repeat: int = 1, fresh: Path | None = None,
     return best, cpu, doc
 
 
-def in_process(path: Path) -> list[tuple[str, float, float, int]]:
-    """(what, seconds, CPU seconds, frames): the pipeline alone, then record_batches of every source (every
-    table; frames and message tables; the frames table), best of two each."""
+def in_process(path: Path, sources: tuple[str, ...] | None = None,
+               pipeline: bool = True) -> list[tuple[str, float, float, int]]:
+    """(what, seconds, CPU seconds, frames): the pipeline alone, then record_batches of every source (or of
+    `sources`: every table; frames and message tables; the frames table), best of two each (native)."""
     from mavscope.export.source import SOURCES as REGISTERED
     from mavscope.export.source import ExportOptions, content_id, dialect_for, record_batches
     from mavscope.pipeline.dissect import Anomaly
@@ -109,15 +111,16 @@ def in_process(path: Path) -> list[tuple[str, float, float, int]]:
 
     dialect_for(PipelineOptions())
     rows = []
-    t0, c0 = time.perf_counter(), time.process_time()
-    with open_session(str(path), PipelineOptions(), dialect=dialect_for(PipelineOptions())) as s:
-        n = sum(1 for i in s.items if type(i) is not Anomaly)
-    rows.append(("pipeline only (dissector + security stage, `Session.items`)", time.perf_counter() - t0,
-                 time.process_time() - c0, n))
+    if pipeline:
+        t0, c0 = time.perf_counter(), time.process_time()
+        with open_session(str(path), PipelineOptions(), dialect=dialect_for(PipelineOptions())) as s:
+            n = sum(1 for i in s.items if type(i) is not Anomaly)
+        rows.append(("pipeline only (dissector + security stage, `Session.items`)", time.perf_counter() - t0,
+                     time.process_time() - c0, n))
     cid = content_id(path)
     kinds = ((None, "every table, analyses included"), (frozenset({"frames", "msg=*"}), "frames and message tables "
              "(no findings)"), (frozenset({"frames"}), "the frames table only"))
-    for name in sorted(REGISTERED, key=lambda k: k != "native"):
+    for name in sorted(sources or REGISTERED, key=lambda k: k != "native"):
         for tables, what in kinds:
             best = (float("inf"), 0.0, 0)
             for _ in range(2 if name == "native" else 1):
@@ -148,6 +151,7 @@ def main() -> int:
     ap.add_argument("--repeat", type=int, default=1, help="runs per end-to-end figure (best kept)")
     ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "out")
     ap.add_argument("--skip-dask", action="store_true")
+    ap.add_argument("--tlog-copies", type=int, default=28, help="the real tlog (../shared) concatenated this often")
     ap.add_argument("--write-doc", action="store_true", help="write the report into docs/performance.md")
     args = ap.parse_args()
     t_start = time.perf_counter()
@@ -193,8 +197,18 @@ def main() -> int:
                                 "--json"], args.repeat, fresh=d)
             rows.append(("`mavscope export DIR --parquet DS --engine dask -j 2` (a local cluster of 2 worker "
                          "processes)", "native", dt, cpu, doc["frames"], f"{doc['exported']} exported"))
+        tlog = tlog_capture(args.out, args.tlog_copies)
+        if tlog is not None:
+            d = work / "tlog"
+            log(f"export the real tlog x{args.tlog_copies}, source native ...")
+            dt, cpu, doc = run([mav, "export", str(tlog), "--parquet", str(d), "--json"], args.repeat, fresh=d,
+                               environ=dict(SOURCES)["native"])
+            rows.append((f"`mavscope export {tlog.name} --parquet DS` (real ArduSub tlog x{args.tlog_copies})",
+                         "native", dt, cpu, doc["frames"], f"dataset {du(d) / 1e6:.0f} MB (capture "
+                         f"{tlog.stat().st_size / 1e6:.0f} MB)"))
         log("in process ...")
         inner = in_process(big)
+        inner_tlog = in_process(tlog, ("native",), pipeline=False) if tlog is not None else []
     finally:
         shutil.rmtree(work, ignore_errors=True)
 
@@ -218,6 +232,11 @@ def main() -> int:
           "| what | seconds | frames/s | CPU s | frames per CPU s |", "|---|---:|---:|---:|---:|"]
     for what, dt, cpu, n in inner:
         L.append(f"| {what} | {dt:.2f} | {rate(n, dt)} | {cpu:.2f} | {rate(n, cpu)} |")
+    if inner_tlog and tlog is not None:
+        L += ["", f"### In one process, the real ArduSub tlog x{args.tlog_copies} (`{tlog.name}`)", "",
+              "| what | seconds | frames/s | CPU s | frames per CPU s |", "|---|---:|---:|---:|---:|"]
+        for what, dt, cpu, n in inner_tlog:
+            L.append(f"| {what} | {dt:.2f} | {rate(n, dt)} | {cpu:.2f} | {rate(n, cpu)} |")
     report = "\n".join(L)
     print(report)
     if args.write_doc:

@@ -37,6 +37,8 @@
  * offset its column states, its header columns and payload those bytes', every fixed-width column one
  * value per frame, the offsets in order and inside their bytes, each message row its frame's payload
  * zero-extended to the message's length and pointing at a frame of that message, endpoint ids known.
+ * With the input's length odd the column walk feeds a `stats` accumulator too, as the export's findings
+ * do (walk.c: columns and accumulator together; a full accumulator takes nothing more), its dump checked.
  * Signed frames with keys (signing.c, sha256.c): with selector bit 2 clear and a preset sender (bits
  * 4-6), the walk judges signed frames against a signing state (MS_SIGNED_VERIFY) holding four keys
  * (the bench capture's, the bundled captures' "mavscope-demo", one whose name is as long as the writer
@@ -990,8 +992,18 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
         ms_cols cols;
         if (ms_cols_init(&cols, &table, 1 + (uint32_t)(n & 15)) != 0)
             break;
-        walk_file(&mf, file, n, sel, control, NULL, NULL, &cols);
+        ms_acc acc;
+        const int with_acc = (n & 1) != 0 && ms_acc_init(&acc, &plan) == 0;
+        walk_file(&mf, file, n, sel, control, NULL, with_acc ? &acc : NULL, &cols);
         ms_cols_free(&cols);
+        if (with_acc) {
+            ms_buf dump;
+            ms_buf_init(&dump);
+            if (ms_acc_dump(&acc, &dump) == 0)
+                check_dump(&acc, &dump);
+            ms_buf_free(&dump);
+            ms_acc_free(&acc);
+        }
     }
     if ((sel & 3) == 0) /* a pcap: fed in pieces as live capture feeds it */
         walk_fed(file, n, sel, control);
