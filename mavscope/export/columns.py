@@ -53,7 +53,7 @@ class FrameColumns:
         """Keep `frame`; a batch when `rows` frames are kept."""
         chunk = self.chunk
         chunk.append(frame)
-        if len(chunk) >= self.step:
+        if len(chunk) >= min(self.step, self.rows - self.held):  # never past `rows`
             self._convert()
             if self.held >= self.rows:
                 return self.flush()

@@ -14,6 +14,7 @@ import pytest
 from pymavlink.dialects.v20 import all as v2
 
 from mavscope.export import ExportOptions, record_batches, signed_batch, signed_schema, table_of
+from mavscope.export.columns import FrameColumns
 from mavscope.export.schema import FIXED_SCHEMAS, frames_schema
 from tests.conftest import CAPTURES, ROOT, Cli
 from tests.support.dataset import arrow_table, sha256
@@ -113,6 +114,18 @@ def test_batches_are_bounded_and_rows_the_same() -> None:
             continue
         parts = [b for b in small if table_of(b) == name]
         assert repr(pa.Table.from_batches(parts).to_pylist()) == repr(t.to_pylist()), name  # repr: NaN == NaN
+
+
+@pytest.mark.parametrize("source", ["python", "native"])
+def test_frames_batches_hold_batch_rows_when_it_is_no_multiple_of_the_chunk(
+        source: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The pure source turns frames into Arrow `CHUNK` at a time: with batch_rows 10 and chunks of 4, the
+    frames batches still hold exactly 10 rows (the last one what is left), never 12."""
+    monkeypatch.setattr(FrameColumns, "CHUNK", 4)
+    path = CAPTURES / "px4_sitl_udp.pcap"
+    sizes = [b.num_rows for b in record_batches(path, ExportOptions(batch_rows=10, source=source,
+                                                                     tables=frozenset({"frames"})))]
+    assert len(sizes) > 2 and set(sizes[:-1]) == {10} and 0 < sizes[-1] <= 10
 
 
 def test_tables_option_and_schema_metadata() -> None:
