@@ -200,24 +200,30 @@ def _parquet(args: argparse.Namespace, env: Env, captures: list[str], out: str, 
 def _csv(args: argparse.Namespace, env: Env, captures: list[str], out: Path, options: ExportOptions) -> ExitStatus:
     from mavscope.errors import MavscopeError
     from mavscope.export.csvout import csv_folder, write_capture_csv
+    from mavscope.export.dataset import CaptureResult
 
     taken: set[str] = set()
     failed = 0
     written: list[tuple[str, Path, dict[str, int]]] = []
+    report = Reporter(env)
     for path in captures:
         folder = csv_folder(out, path, taken)
         try:
-            counts = write_capture_csv(path, folder, options, warn=warner(env))
+            got = write_capture_csv(path, folder, options, warn=warner(env))
         except MavscopeError as e:
             env.stderr.write(f"mavscope: {e}\n")
             failed += 1
             continue
-        written.append((path, folder, counts))
+        report(CaptureResult(path, None, "exported", frames=got.frames, problems=got.problems,
+                             first_problem=got.first_problem))
+        written.append((path, folder, got.counts))
+    report.close()
     if args.json:
         write_json(env, {"out": str(out), "failed": failed, "captures": [
             {"path": p, "folder": str(f), "messages": c} for p, f, c in written]})
     else:
         files = sum(len(c) for _, _, c in written)
         env.stdout.write(f"wrote {files} CSV file(s) for {len(written)} capture(s) under {out}"
+                         + (f"; {report.damaged} with problems or no frames (stderr)" if report.damaged else "")
                          + (f"; {failed} failed" if failed else "") + "\n")
     return ExitStatus.ERROR if failed else ExitStatus.OK

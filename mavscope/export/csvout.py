@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import csv
 import os
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import IO, Any
 
 import pyarrow.compute as pc
 
-from mavscope.export.schema import IDENTITY, MESSAGE_PREFIX, message_columns, table_of
+from mavscope.export.schema import CAPTURES, IDENTITY, MESSAGE_PREFIX, message_columns, table_of
 from mavscope.export.source import ExportOptions, Progress, Warn, dialect_for, record_batches
 
 _SKIP = 1 + len(IDENTITY)  # capture_id and the frame identity come before the fields
@@ -28,18 +29,32 @@ def _text(v: object) -> str:
     return str(v)
 
 
-def write_capture_csv(path: str, folder: Path, options: ExportOptions | None = None, *,
-                      progress: Progress | None = None, warn: Warn | None = None) -> dict[str, int]:
-    """The CSV files of the capture at `path` in `folder` (created): {message: rows written}."""
-    from dataclasses import replace
+@dataclass(frozen=True, slots=True)
+class CsvCapture:
+    """What `write_capture_csv` wrote of a capture, and what reading it said (the captures table's row)."""
 
-    options = replace(options or ExportOptions(), tables=frozenset({"msg=*"}))
+    counts: dict[str, int] = field(default_factory=dict)  # message -> rows written
+    frames: int = 0
+    problems: int = 0  # the problems `read` reports on stderr
+    first_problem: str = ""
+
+
+def write_capture_csv(path: str, folder: Path, options: ExportOptions | None = None, *,
+                      progress: Progress | None = None, warn: Warn | None = None) -> CsvCapture:
+    """The CSV files of the capture at `path` in `folder` (created)."""
+    options = replace(options or ExportOptions(), tables=frozenset({"msg=*", CAPTURES}))
     dialect = dialect_for(options.pipeline)
     folder.mkdir(parents=True, exist_ok=True)
     files: dict[str, tuple[IO[str], Any]] = {}
     counts: dict[str, int] = {}
+    said = CsvCapture()
     try:
         for batch in record_batches(path, options, progress=progress, warn=warn):
+            if table_of(batch) == CAPTURES:
+                row = batch.to_pylist()[0]
+                said = CsvCapture(frames=row["frame_count"], problems=row["problem_count"] or 0,
+                                  first_problem=row["first_problem"] or "")
+                continue
             name = table_of(batch)[len(MESSAGE_PREFIX):]
             md = dialect.by_name[name]
             cols = message_columns(md, dialect)
@@ -60,7 +75,7 @@ def write_capture_csv(path: str, folder: Path, options: ExportOptions | None = N
     finally:
         for f, _ in files.values():
             f.close()
-    return counts
+    return replace(said, counts=counts)
 
 
 def csv_folder(out: Path, path: str, taken: set[str]) -> Path:

@@ -34,7 +34,7 @@ from mavscope.export.native_columns import Chunk, Names, frames_batch, message_b
 from mavscope.export.native_findings import NativeFeed, window_rows
 from mavscope.export.options import ExportOptions, Progress, Warn, dialect_for
 from mavscope.export.pure import Analyses, CaptureSummary, captures_batch, expert_pass, findings_batch, python_source
-from mavscope.export.schema import CAPTURES, FINDINGS, FRAMES, frames_schema
+from mavscope.export.schema import FINDINGS, FRAMES, frames_schema
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import Frame
 from mavscope.mavlink.native_table import build_table
@@ -162,7 +162,7 @@ class _Export:
         self.table, self.messages, names = _compiled(dialect)
         self.want_frames = options.wants(FRAMES)
         self.want_messages = options.wants_messages
-        self.want_findings = options.wants(FINDINGS) or options.wants(CAPTURES)
+        self.want_findings = options.wants(FINDINGS)
         self.dissector = Dissector(dialect)
         self.summary = CaptureSummary()
         self.anomalies = AnomalyColumns(capture_id, options.batch_rows)
@@ -324,7 +324,8 @@ class _Export:
         if b is not None:
             yield b
         yield captures_batch(self.capture_id, self.path, self.name, self.size, self.kind, self.summary,
-                             self.anomalies.count, len(found), len(self.types), self.dialect, self.options, NATIVE)
+                             self.anomalies.count, len(found) if self.want_findings else None, len(self.types),
+                             self.dialect, self.options, NATIVE)
 
 
 def native_source(path: str, capture_id: str, options: ExportOptions, progress: Progress | None,

@@ -21,7 +21,7 @@ from mavscope.analysis.objects import ObjectTracker
 from mavscope.analysis.params import ParamTracker
 from mavscope.export.columns import AnomalyColumns, FrameColumns, MessageTables
 from mavscope.export.options import ExportOptions, Progress, Warn, dialect_for
-from mavscope.export.schema import CAPTURES, FINDINGS, FRAMES, SCHEMA_VERSION, captures_schema, findings_schema
+from mavscope.export.schema import FINDINGS, FRAMES, SCHEMA_VERSION, captures_schema, findings_schema
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
 from mavscope.notes import CODES, Finding, Note, is_capture_damage, problem_line
@@ -128,7 +128,7 @@ def python_source(path: str, capture_id: str, options: ExportOptions, progress: 
     dialect = dialect_for(popts)
     rows = options.batch_rows
     want_frames = options.wants(FRAMES)
-    want_findings = options.wants(FINDINGS) or options.wants(CAPTURES)
+    want_findings = options.wants(FINDINGS)
     want_messages = options.wants_messages
     with open_session(path, popts, dialect=dialect, warn=warn or (lambda _m: None)) as session:
         name = session.name
@@ -172,11 +172,11 @@ def python_source(path: str, capture_id: str, options: ExportOptions, progress: 
         if progress is not None:
             progress(reader.position)
         yield captures_batch(capture_id, session.path, name, reader.size, reader.kind, summary, anomalies.count,
-                             len(found), len(messages.counts), dialect, options, PYTHON)
+                             len(found) if want_findings else None, len(messages.counts), dialect, options, PYTHON)
 
 
 def captures_batch(capture_id: str, path: str, name: str, size: int, kind: str, s: CaptureSummary, anomalies: int,
-                   findings: int, types: int, dialect: Dialect, options: ExportOptions,
+                   findings: int | None, types: int, dialect: Dialect, options: ExportOptions,
                    source: str) -> pa.RecordBatch:
     values: list[object] = [
         capture_id, name, os.path.basename(os.fsencode(path)).decode("utf-8", "backslashreplace"), size, kind,

@@ -97,6 +97,19 @@ def test_export_says_which_captures_were_damaged(cli: Cli, tmp_path: Path) -> No
     assert all(r["problem_count"] >= 1 and want[r["name"]] in r["first_problem"] for r in rows)
 
 
+def test_csv_export_says_which_captures_were_damaged(cli: Cli, tmp_path: Path) -> None:
+    """`-T csv` reads the captures as the Parquet export does, and says their damage the same way."""
+    want = damaged(tmp_path)
+    caps = [tmp_path / "caps" / n for n in want]
+    status, out, err = cli("export", *map(str, caps), "-T", "csv", "-o", str(tmp_path / "csv"))
+    assert status == 0 and "3 with problems or no frames" in out
+    lines = err.splitlines()
+    for path, says in zip(caps, want.values()):
+        line = next(ln for ln in lines if ln.startswith(f"mavscope: {path}: "))
+        assert "problem(s) reading it" in line and says in line
+    assert "no MAVLink frames found" in next(ln for ln in lines if "bad.pcapng" in ln)
+
+
 def test_export_caps_its_lines(cli: Cli, tmp_path: Path) -> None:
     folder = tmp_path / "many"
     folder.mkdir()

@@ -180,3 +180,20 @@ def test_signed_types_for_spark_keep_every_value() -> None:
                            pa.types.is_unsigned_integer(f.type.value_type)) for f in signed.schema)
             assert signed.schema == signed_schema(batch.schema)
             assert signed.to_pylist() == batch.to_pylist()  # (no NaN in these tables)
+
+
+@pytest.mark.parametrize("source", ["python", "native"])
+def test_the_findings_are_computed_only_when_their_table_is_wanted(source: str) -> None:
+    """`captures.finding_count` counts the findings table's rows; without that table the analyses do not run
+    (the CSV export asks for the captures row only, for the problems): the count is null, not 0."""
+    path = CAPTURES / "gcs_takeover.pcap"
+
+    def captures(tables: frozenset[str] | None) -> dict[str, object]:
+        batches = record_batches(path, ExportOptions(source=source, tables=tables))
+        rows = [r for b in batches if table_of(b) == "captures" for r in b.to_pylist()]
+        return rows[0]
+
+    every = list(record_batches(path, ExportOptions(source=source)))
+    found = sum(b.num_rows for b in every if table_of(b) == "findings")
+    assert found and captures(None)["finding_count"] == found
+    assert captures(frozenset({"captures"}))["finding_count"] is None
