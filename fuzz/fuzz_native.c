@@ -581,6 +581,16 @@ static void check_offsets(const ms_buf *at, const ms_buf *bytes, size_t n) {
 }
 
 /* A chunk of the column buffers against the file they were read from. */
+/* An accumulator's dump checked (when it could be made), then the accumulator freed. */
+static void check_and_free(ms_acc *acc) {
+    ms_buf dump;
+    ms_buf_init(&dump);
+    if (ms_acc_dump(acc, &dump) == 0)
+        check_dump(acc, &dump);
+    ms_buf_free(&dump);
+    ms_acc_free(acc);
+}
+
 static void check_columns(const ms_cols *c, const uint8_t *file, size_t size) {
     const size_t n = c->n;
     for (int k = 0; k < MS_NCOLS; k++)
@@ -981,12 +991,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
             if (ms_acc_init(&acc, &plan) != 0)
                 break;
             walk_file(&mf, file, n, sel, control, NULL, &acc, NULL);
-            ms_buf dump;
-            ms_buf_init(&dump);
-            if (ms_acc_dump(&acc, &dump) == 0)
-                check_dump(&acc, &dump);
-            ms_buf_free(&dump);
-            ms_acc_free(&acc);
+            check_and_free(&acc);
             continue;
         }
         ms_cols cols;
@@ -996,14 +1001,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
         const int with_acc = (n & 1) != 0 && ms_acc_init(&acc, &plan) == 0;
         walk_file(&mf, file, n, sel, control, NULL, with_acc ? &acc : NULL, &cols);
         ms_cols_free(&cols);
-        if (with_acc) {
-            ms_buf dump;
-            ms_buf_init(&dump);
-            if (ms_acc_dump(&acc, &dump) == 0)
-                check_dump(&acc, &dump);
-            ms_buf_free(&dump);
-            ms_acc_free(&acc);
-        }
+        if (with_acc)
+            check_and_free(&acc);
     }
     if ((sel & 3) == 0) /* a pcap: fed in pieces as live capture feeds it */
         walk_fed(file, n, sel, control);

@@ -80,16 +80,21 @@ def test_batch_audit_shows_the_damage_and_the_frames(cli: Cli, tmp_path: Path) -
     assert "line(s)" in table  # (the first problem beside it: rich may fold the cell over lines)
 
 
-def test_export_says_which_captures_were_damaged(cli: Cli, tmp_path: Path) -> None:
-    want = damaged(tmp_path)
-    caps = [tmp_path / "caps" / n for n in want]
-    status, out, err = cli("export", *map(str, caps), "--parquet", str(tmp_path / "ds"))
-    assert status == 0 and "3 with problems or no frames" in out
+def said_the_damage(err: str, caps: list[Path], want: dict[str, str]) -> None:
+    """One line on stderr per damaged capture, with its first problem; the pcapng without frames says so."""
     lines = err.splitlines()
     for path, says in zip(caps, want.values()):
         line = next(ln for ln in lines if ln.startswith(f"mavscope: {path}: "))
         assert "problem(s) reading it" in line and says in line
     assert "no MAVLink frames found" in next(ln for ln in lines if "bad.pcapng" in ln)
+
+
+def test_export_says_which_captures_were_damaged(cli: Cli, tmp_path: Path) -> None:
+    want = damaged(tmp_path)
+    caps = [tmp_path / "caps" / n for n in want]
+    status, out, err = cli("export", *map(str, caps), "--parquet", str(tmp_path / "ds"))
+    assert status == 0 and "3 with problems or no frames" in out
+    said_the_damage(err, caps, want)
     # the dataset keeps the count and the first problem of each capture
     q = "SELECT name, problem_count, first_problem FROM captures ORDER BY name"
     rows = json.loads(cli("sql", q, str(tmp_path / "ds"), "--json").out)
@@ -103,11 +108,7 @@ def test_csv_export_says_which_captures_were_damaged(cli: Cli, tmp_path: Path) -
     caps = [tmp_path / "caps" / n for n in want]
     status, out, err = cli("export", *map(str, caps), "-T", "csv", "-o", str(tmp_path / "csv"))
     assert status == 0 and "3 with problems or no frames" in out
-    lines = err.splitlines()
-    for path, says in zip(caps, want.values()):
-        line = next(ln for ln in lines if ln.startswith(f"mavscope: {path}: "))
-        assert "problem(s) reading it" in line and says in line
-    assert "no MAVLink frames found" in next(ln for ln in lines if "bad.pcapng" in ln)
+    said_the_damage(err, caps, want)
 
 
 def test_export_caps_its_lines(cli: Cli, tmp_path: Path) -> None:
