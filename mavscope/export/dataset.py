@@ -16,9 +16,12 @@ from __future__ import annotations
 
 import json
 import os
+import queue
 import shutil
+import threading
 import time
 import uuid
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from dataclasses import replace as dc_replace
 from pathlib import Path
@@ -186,6 +189,41 @@ class _Writers:
                 os.close(fd)
 
 
+WRITE_BEHIND = 2  # batches made and waiting for the writer thread at most (each up to a row group)
+
+
+def write_behind(batches: Iterator[pa.RecordBatch], write: Callable[[pa.RecordBatch], None]) -> None:
+    """`write` every batch of `batches`, on a thread of its own while the next batches are made: Parquet's
+    encoding and compression (pyarrow, without the GIL) overlap the walk and the analyses. At most
+    WRITE_BEHIND batches wait. The first error of either side is raised here, after both have stopped."""
+    todo: queue.Queue[pa.RecordBatch | None] = queue.Queue(WRITE_BEHIND)
+    failed: list[BaseException] = []
+
+    def writer() -> None:
+        while (b := todo.get()) is not None:
+            if not failed:
+                try:
+                    write(b)
+                except BaseException as e:  # noqa: BLE001 - handed to the caller's thread
+                    failed.append(e)
+
+    t = threading.Thread(target=writer, name="mavscope-parquet", daemon=True)
+    t.start()
+    try:
+        for b in batches:
+            if failed:
+                break
+            todo.put(b)
+    finally:
+        todo.put(None)
+        t.join()
+        close = getattr(batches, "close", None)
+        if close is not None:  # a generator left early: its files and walker closed now
+            close()
+    if failed:
+        raise failed[0]
+
+
 def remove_capture(root: Path, capture_id: str) -> None:
     """Every partition of `capture_id`, its `captures` partition first (so that it is never committed
     with a table missing), and staging folders an interrupted export of it left."""
@@ -243,9 +281,8 @@ def export_capture(dataset: str | os.PathLike[str], path: str, options: ExportOp
     writers = _Writers(stage, cid, durable)
     try:
         try:
-            for batch in record_batches(path, dc_replace(options, capture_id=cid, tables=None), progress=progress,
-                                        warn=warn):
-                writers.write(batch)
+            write_behind(record_batches(path, dc_replace(options, capture_id=cid, tables=None), progress=progress,
+                                        warn=warn), writers.write)
         finally:
             writers.close()
         done = _commit(root, stage, cid, list(writers.open))
