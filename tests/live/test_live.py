@@ -29,6 +29,9 @@ from tests.conftest import ROOT
 from tests.support import pmav
 
 SUMMARY = re.compile(r"^mavscope: live: (\d+) frames, (\d+) bytes, (\d+) dropped \((\d+) queue, (\d+) kernel\)$")
+# the summary when the stop came before every datagram received was decoded (a loaded machine): they are
+# written to -w's pcap all the same, and counted here
+SUMMARY_LATE = re.compile(SUMMARY.pattern[:-1] + r"(?:; (\d+) received after the stop written but not decoded)?$")
 LISTENING = re.compile(r"listening on udp (\S+):(\d+)")
 
 
@@ -280,7 +283,7 @@ def test_a_second_sigterm_is_not_ignored(tmp_path: Path) -> None:
             proc.kill()
     assert proc.returncode == 0, err
     last = err.decode().splitlines()[-1]
-    assert SUMMARY.match(last), err
+    assert SUMMARY_LATE.match(last), err  # however far the decoding had got when the signals came
     with open_capture(str(pcap)) as reader:
         assert len(list(reader)) <= len(sent)  # what the receiver took before the second stop
 
