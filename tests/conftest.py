@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import io
 import json
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import NamedTuple
 
@@ -18,6 +18,7 @@ import pytest
 
 from mavscope.cli import Env, main
 from mavscope.mavlink.dialect import Dialect, load_dialect
+from mavscope.mavlink.dialect_cache import CACHE_ENV, NO_CACHE_ENV
 
 ROOT = Path(__file__).resolve().parents[1]
 CAPTURES = ROOT / "captures"
@@ -53,6 +54,17 @@ class Cli:
         status, out, err = self("read", *argv, "-T", "jsonl", environ=environ)
         assert status == 0, err
         return [json.loads(line) for line in out.splitlines()]
+
+
+@pytest.fixture(scope="session", autouse=True)
+def dialect_cache_dir(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """The dialect cache of the whole run (and of the mavscope processes it starts): a temporary directory,
+    never the user's ~/.cache (mavscope.mavlink.dialect_cache)."""
+    path = tmp_path_factory.mktemp("dialect-cache")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv(CACHE_ENV, str(path))
+        patch.delenv(NO_CACHE_ENV, raising=False)
+        yield path
 
 
 @pytest.fixture
