@@ -31,7 +31,6 @@ import io
 import os
 import stat
 import sys
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -123,12 +122,11 @@ def _salt() -> bytes:
     """What an entry's name depends on besides the XML (module docstring); computed once."""
     global _SALT
     if _SALT is None:
-        import pymavlink
-        from pymavlink.generator import mavparse
+        import pymavlink  # its parser is not imported: with every file cached, it is never needed
 
         from mavscope import __version__
 
-        parser = os.stat(mavparse.__file__)
+        parser = os.stat(Path(pymavlink.__file__).parent / "generator" / "mavparse.py")
         parts = [FORMAT, __version__.encode(), hashlib.sha256(Path(__file__).read_bytes()).digest(),
                  str(getattr(pymavlink, "__version__", "")).encode(), f"{parser.st_size}:{parser.st_mtime_ns}".encode(),
                  sys.version.encode()]
@@ -192,6 +190,8 @@ def read_entry(directory: Path, key: str) -> Record | None:
 def write_entry(directory: Path, key: str, record: Record) -> None:
     """Store `record` under `key`, best effort: nothing happens when the directory cannot be made private
     or written, or the record is not plain JSON."""
+    import tempfile
+
     import orjson
 
     try:

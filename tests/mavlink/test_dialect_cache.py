@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import tempfile
 from pathlib import Path
 
 import orjson
@@ -234,7 +235,7 @@ def test_an_unwritable_cache_still_loads(tmp_path: Path, monkeypatch: pytest.Mon
     def refuse(*args: object, **kwargs: object) -> None:
         raise PermissionError("read-only file system")
 
-    monkeypatch.setattr(dialect_cache.tempfile, "mkstemp", refuse)  # root ignores mode bits: refuse the write
+    monkeypatch.setattr(tempfile, "mkstemp", refuse)  # root ignores mode bits: refuse the write
     assert snapshot(load(folder, read_only)) == fresh
     assert entries(read_only) == []
 
