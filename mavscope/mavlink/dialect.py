@@ -3,7 +3,8 @@
 Each message is compiled once into a `struct.Struct` for its full wire layout (base fields sorted by
 type size, then extensions), a tuple of field definitions with their payload offsets, and a decoder
 that turns a payload into a dict of raw wire values. Layouts are never written by hand: pymavlink's
-`mavparse` computes field order and CRC_EXTRA from the XML.
+`mavparse` computes field order and CRC_EXTRA from the XML. What it gives for each file is kept as plain
+data (a record), cached between runs: `mavscope.mavlink.dialect_cache`.
 """
 
 from __future__ import annotations

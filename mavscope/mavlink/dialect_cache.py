@@ -198,6 +198,8 @@ def write_entry(directory: Path, key: str, record: Record) -> None:
         body = orjson.dumps(record)
     except TypeError:  # an int beyond 64 bits, a lone surrogate: not cached, parsed every run
         return
+    if len(body) > MAX_ENTRY - 200:  # never read back (read_entry): not worth writing
+        return
     head = orjson.dumps({"key": key, "sha256": hashlib.sha256(body).hexdigest()})
     try:
         directory.mkdir(mode=0o700, parents=True, exist_ok=True)
