@@ -194,23 +194,39 @@ def test_a_damaged_or_hostile_entry_is_ignored(damage: str, tmp_path: Path) -> N
     assert snapshot(load(folder, cache)) == fresh
 
 
-def test_an_entry_owned_by_someone_else_is_ignored(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def misleading_cache(tmp_path: Path) -> tuple[Path, Path]:
+    """A user dialect and a cache whose every entry is well formed, private and has a correct header, but
+    holds wrong CRC_EXTRAs: served as it is, it would mislead (the first test shows it is)."""
     folder, cache = tmp_path / "dissectors", tmp_path / "cache"
     user_dialect(folder)
     load(folder, cache)
     for path in entries(cache):
         _rewrite(path, orjson.dumps(_mislead(_body(path))))
+    return folder, cache
+
+
+def test_a_private_well_formed_entry_is_served_as_it_is(tmp_path: Path) -> None:
+    """The control of the tests below: the user's own entries are trusted like the user's own XML."""
+    folder, cache = misleading_cache(tmp_path)
+    served, fresh = load(folder, cache), load(folder, None)
+    assert served.by_name["TEST_USER"].crc_extra == (fresh.by_name["TEST_USER"].crc_extra + 1) % 256
+
+
+def test_an_entry_owned_by_someone_else_is_ignored(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    folder, cache = misleading_cache(tmp_path)
     monkeypatch.setattr(os, "getuid", lambda: os.stat(cache).st_uid + 1)  # the files are now another user's
     assert snapshot(load(folder, cache)) == snapshot(load(folder, None))
 
 
 def test_a_cache_directory_others_can_write_is_not_used(tmp_path: Path) -> None:
-    folder, cache = tmp_path / "dissectors", tmp_path / "cache"
-    user_dialect(folder)
-    load(folder, cache)
-    for path in entries(cache):
-        _rewrite(path, orjson.dumps(_mislead(_body(path))))
+    folder, cache = misleading_cache(tmp_path)
     cache.chmod(0o777)  # anyone could have put these files there
+    assert snapshot(load(folder, cache)) == snapshot(load(folder, None))
+
+
+def test_an_entry_over_the_size_limit_is_ignored(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    folder, cache = misleading_cache(tmp_path)
+    monkeypatch.setattr(dialect_cache, "MAX_ENTRY", 100)
     assert snapshot(load(folder, cache)) == snapshot(load(folder, None))
 
 
@@ -302,13 +318,3 @@ def test_a_file_edited_while_parsed_is_not_cached(tmp_path: Path, monkeypatch: p
     monkeypatch.setattr(dialect_cache, "parse_xml", parse)
     assert snapshot(load(folder, cache)) == snapshot(load(folder, None))
     assert user.read_text().count("double") == 1
-
-
-def test_an_entry_over_the_size_limit_is_ignored(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    folder, cache = tmp_path / "dissectors", tmp_path / "cache"
-    user_dialect(folder)
-    load(folder, cache)
-    for path in entries(cache):
-        _rewrite(path, orjson.dumps(_mislead(_body(path))))
-    monkeypatch.setattr(dialect_cache, "MAX_ENTRY", 100)
-    assert snapshot(load(folder, cache)) == snapshot(load(folder, None))
