@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import io
 import json
-from collections.abc import Iterator, Mapping
+import os
+import shutil
+import tempfile
+from collections.abc import Mapping
 from pathlib import Path
 from typing import NamedTuple
 
@@ -56,15 +59,26 @@ class Cli:
         return [json.loads(line) for line in out.splitlines()]
 
 
-@pytest.fixture(scope="session", autouse=True)
-def dialect_cache_dir(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
-    """The dialect cache of the whole run (and of the mavscope processes it starts): a temporary directory,
-    never the user's ~/.cache (mavscope.mavlink.dialect_cache)."""
-    path = tmp_path_factory.mktemp("dialect-cache")
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setenv(CACHE_ENV, str(path))
-        patch.delenv(NO_CACHE_ENV, raising=False)
-        yield path
+_SAVED_ENV: dict[str, str | None] = {}
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """The dialect cache of the whole run (and of the mavscope processes it starts) in a temporary directory,
+    never the user's ~/.cache (mavscope.mavlink.dialect_cache); set before collection, since some test
+    modules load the dialect when imported. Each xdist worker configures its own."""
+    _SAVED_ENV.update({name: os.environ.get(name) for name in (CACHE_ENV, NO_CACHE_ENV)})
+    os.environ[CACHE_ENV] = tempfile.mkdtemp(prefix="mavscope-dialect-cache-")
+    os.environ.pop(NO_CACHE_ENV, None)
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    if CACHE_ENV in _SAVED_ENV:
+        shutil.rmtree(os.environ[CACHE_ENV], ignore_errors=True)
+    for name, value in _SAVED_ENV.items():
+        if value is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = value
 
 
 @pytest.fixture
