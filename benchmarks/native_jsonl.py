@@ -36,7 +36,10 @@ from bench_capture import SIGNING_KEY, capture  # noqa: E402 - the bench capture
 
 MAVSCOPE = str(Path(sys.executable).with_name("mavscope"))
 REAL_TLOG = ROOT.parent / "shared" / "real-captures" / "ardusub_log_tools_small.tlog"
-CHILD_ENV = {k: v for k, v in os.environ.items() if k not in ("PYTHONUNBUFFERED", "MAVSCOPE_PURE")}
+# Children run as an installed mavscope does: buffered output, bytecode cached (a shell's
+# PYTHONDONTWRITEBYTECODE would recompile every module each run), the engine chosen by mavscope.
+CHILD_ENV = {k: v for k, v in os.environ.items()
+             if k not in ("PYTHONUNBUFFERED", "MAVSCOPE_PURE", "PYTHONDONTWRITEBYTECODE")}
 FORMATS = {"jsonl": ["-T", "jsonl"], "summary": []}  # the output options of each format
 KEY_OPTIONS = ["--key", "hex:" + SIGNING_KEY.hex()]  # the bench capture's signing key (--key)
 
@@ -55,9 +58,10 @@ def tlog_capture(out: Path, copies: int) -> Path | None:
     return path
 
 
-def run(capture: Path, pure: bool, target: str, fmt: str = "jsonl", extra: tuple[str, ...] = ()) -> float:
-    """Seconds of one `mavscope read capture` in format `fmt` (and `extra` options) to `target` ("null"
-    or a file path)."""
+def run(capture: Path, pure: bool, target: str, fmt: str = "jsonl", extra: tuple[str, ...] = ()
+        ) -> tuple[float, float]:
+    """Wall seconds and CPU seconds (the child's user + system, from wait4) of one `mavscope read capture`
+    in format `fmt` (and `extra` options) to `target` ("null" or a file path)."""
     env = dict(CHILD_ENV)
     if pure:
         env["MAVSCOPE_PURE"] = "1"
@@ -66,8 +70,13 @@ def run(capture: Path, pure: bool, target: str, fmt: str = "jsonl", extra: tuple
         time.sleep(0.2)  # let the file system settle the freed blocks outside the timed run
     with open(os.devnull if target == "null" else target, "wb") as out:
         t0 = time.perf_counter()
-        subprocess.run([MAVSCOPE, "read", str(capture), *FORMATS[fmt], *extra], stdout=out, env=env, check=True)
-        return time.perf_counter() - t0
+        proc = subprocess.Popen([MAVSCOPE, "read", str(capture), *FORMATS[fmt], *extra], stdout=out, env=env)
+        _, status, usage = os.wait4(proc.pid, 0)
+        wall = time.perf_counter() - t0
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        if proc.returncode != 0:
+            raise SystemExit(f"mavscope exited with {proc.returncode}")
+        return wall, usage.ru_utime + usage.ru_stime
 
 
 def count_lines(capture: Path, pure: bool = False, fmt: str = "jsonl", extra: tuple[str, ...] = ()) -> int:
@@ -107,8 +116,8 @@ def main() -> int:
     print(f"{version}; {platform.python_version()}; {os.cpu_count()} CPUs; format {args.format}"
           f"{'; --key (the bench capture key)' if args.key else ''}; load average before {os.getloadavg()[0]:.2f}")
     print()
-    print("| capture | engine | output | seconds (best) | frames/s |")
-    print("|---|---|---|---:|---:|")
+    print("| capture | engine | output | seconds (best) | frames/s | CPU s (that run) |")
+    print("|---|---|---|---:|---:|---:|")
     results: dict[tuple[str, str, str], float] = {}
     for label, path in captures:
         frames = count_lines(path, fmt=args.format, extra=extra)
@@ -118,11 +127,11 @@ def main() -> int:
                 continue
             repeat = args.repeat if engine == "native" else 1
             for target in ("null", target_file):
-                best = min(run(path, engine == "pure-python", target, args.format, extra) for _ in range(repeat))
+                best, cpu = min(run(path, engine == "pure-python", target, args.format, extra) for _ in range(repeat))
                 results[(label, engine, target)] = best
                 where = "/dev/null" if target == "null" else "file"
-                print(f"| {label} ({frames:,} frames) | {engine} | {where} | {best:.2f} | {frames / best:,.0f} |",
-                      flush=True)
+                print(f"| {label} ({frames:,} frames) | {engine} | {where} | {best:.2f} | {frames / best:,.0f} "
+                      f"| {cpu:.2f} |", flush=True)
         if os.path.exists(target_file):
             os.unlink(target_file)
     if not args.skip_baseline:

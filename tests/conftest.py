@@ -10,6 +10,9 @@ from __future__ import annotations
 
 import io
 import json
+import os
+import shutil
+import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import NamedTuple
@@ -18,6 +21,7 @@ import pytest
 
 from mavscope.cli import Env, main
 from mavscope.mavlink.dialect import Dialect, load_dialect
+from mavscope.mavlink.dialect_cache import CACHE_ENV, NO_CACHE_ENV
 
 ROOT = Path(__file__).resolve().parents[1]
 CAPTURES = ROOT / "captures"
@@ -53,6 +57,28 @@ class Cli:
         status, out, err = self("read", *argv, "-T", "jsonl", environ=environ)
         assert status == 0, err
         return [json.loads(line) for line in out.splitlines()]
+
+
+_SAVED_ENV: dict[str, str | None] = {}
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """The dialect cache of the whole run (and of the mavscope processes it starts) in a temporary directory,
+    never the user's ~/.cache (mavscope.mavlink.dialect_cache); set before collection, since some test
+    modules load the dialect when imported. Each xdist worker configures its own."""
+    _SAVED_ENV.update({name: os.environ.get(name) for name in (CACHE_ENV, NO_CACHE_ENV)})
+    os.environ[CACHE_ENV] = tempfile.mkdtemp(prefix="mavscope-dialect-cache-")
+    os.environ.pop(NO_CACHE_ENV, None)
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    if CACHE_ENV in _SAVED_ENV:
+        shutil.rmtree(os.environ[CACHE_ENV], ignore_errors=True)
+    for name, value in _SAVED_ENV.items():
+        if value is None:
+            os.environ.pop(name, None)
+        else:
+            os.environ[name] = value
 
 
 @pytest.fixture

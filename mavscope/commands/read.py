@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+from typing import TYPE_CHECKING
 
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.common import (
@@ -19,9 +20,9 @@ from mavscope.commands.common import (
     whole_number,
 )
 from mavscope.errors import UsageError
-from mavscope.output.capture_out import FrameWriter, open_output, write_records
-from mavscope.output.printer import FramePrinter
-from mavscope.pipeline.dissect import Anomaly
+
+if TYPE_CHECKING:
+    from mavscope.output.capture_out import FrameWriter
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -45,6 +46,11 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     out_b = env.stdout_bytes
     if _native_eligible(args, env):
         return _run_native(args, env)
+    # the Python path's modules, imported here: the native engine needs none of them
+    from mavscope.output.capture_out import open_output, write_records
+    from mavscope.output.printer import FramePrinter
+    from mavscope.pipeline.dissect import Anomaly
+
     limit = args.count if args.count is not None else -1
     shown_records: set[int] = set()
     shown = 0
@@ -115,8 +121,6 @@ def _run_native(args: argparse.Namespace, env: Env) -> ExitStatus:
     from mavscope.capture.detect import detect_kind, open_capture
     from mavscope.commands.common import capture_path, pipeline_options, warner
     from mavscope.mavlink.dialect import load_dialect
-    from mavscope.native import write_jsonl
-    from mavscope.native_summary import write_summary
     from mavscope.pipeline.session import make_security_stage
 
     path = capture_path(args)
@@ -141,9 +145,13 @@ def _run_native(args: argparse.Namespace, env: Env) -> ExitStatus:
 
     try:
         if args.format == "text":
+            from mavscope.native_summary import write_summary
+
             stats = write_summary(path, dialect, stage, out_b, problems, t0, args.count, progress=advance,
                                   kind=kind)
         else:
+            from mavscope.native import write_jsonl
+
             stats = write_jsonl(path, dialect, stage, out_b, problems, progress=advance, kind=kind)
     finally:
         stop()
@@ -164,6 +172,8 @@ class _Position:
 
 def _open_writer(out: str, kind: str) -> FrameWriter | None:
     """Check `-w OUT` before reading; a FrameWriter for inputs without packets (tlog, raw), else None."""
+    from mavscope.output.capture_out import FrameWriter
+
     if kind in ("tlog", "raw"):
         return FrameWriter(out)
     if out.lower().endswith(".tlog"):

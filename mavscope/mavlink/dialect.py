@@ -3,20 +3,20 @@
 Each message is compiled once into a `struct.Struct` for its full wire layout (base fields sorted by
 type size, then extensions), a tuple of field definitions with their payload offsets, and a decoder
 that turns a payload into a dict of raw wire values. Layouts are never written by hand: pymavlink's
-`mavparse` computes field order and CRC_EXTRA from the XML.
+`mavparse` computes field order and CRC_EXTRA from the XML. What it gives for each file is kept as plain
+data (a record), cached between runs: `mavscope.mavlink.dialect_cache`.
 """
 
 from __future__ import annotations
 
-import contextlib
-import io
 import os
 import struct
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from mavscope.errors import DialectError
+from mavscope.mavlink.dialect_cache import Record, cache_dir, record_of
 
 # Wire type -> struct code (little-endian). `uint8_t_mavlink_version` is HEARTBEAT's constant field.
 _STRUCT_CODE = {
@@ -192,48 +192,29 @@ def _make_decoder(fields: tuple[FieldDef, ...], length: int) -> Callable[[bytes]
     return decode_shaped
 
 
-def _compile_message(m: object, source: str) -> MessageDef:
-    base_count = m.base_fields()  # type: ignore[attr-defined]
-    fields = []
-    for i, f in enumerate(m.ordered_fields):  # type: ignore[attr-defined]
-        fields.append(
-            FieldDef(
-                name=f.name,
-                message=m.name,  # type: ignore[attr-defined]
-                type=f.type,
-                array_length=f.array_length,
-                offset=f.wire_offset,
-                size=f.wire_length,
-                extension=i >= base_count,
-                units=(f.units or "").strip("[] "),
-                enum=f.enum or "",
-                display=f.display or "",
-                description=" ".join((f.description or "").split()),
-                print_format=f.print_format or "",
-            )
-        )
-    ftuple = tuple(fields)
-    length = m.wire_length  # type: ignore[attr-defined]
+def _compile_message(m: list, source: str) -> MessageDef:
+    """A message of a dialect file's record (mavscope.mavlink.dialect_cache.xml_record) compiled."""
+    mid, name, crc_extra, base_length, length, description, xml_order, fields = m
+    ftuple = tuple(FieldDef(f[0], name, f[1], f[2], f[3], f[4], f[5], f[6], f[7], f[8], f[9], f[10]) for f in fields)
     return MessageDef(
-        id=m.id,  # type: ignore[attr-defined]
-        name=m.name,  # type: ignore[attr-defined]
-        crc_extra=m.crc_extra,  # type: ignore[attr-defined]
+        id=mid,
+        name=name,
+        crc_extra=crc_extra,
         fields=ftuple,
-        base_length=m.wire_min_length,  # type: ignore[attr-defined]
+        base_length=base_length,
         length=length,
-        description=" ".join((m.description or "").split()),  # type: ignore[attr-defined]
+        description=description,
         source=source,
-        crc_extra_byte=bytes((m.crc_extra,)),  # type: ignore[attr-defined]
+        crc_extra_byte=bytes((crc_extra,)),
         decode=_make_decoder(ftuple, length),
-        xml_order=tuple(m.fieldnames),  # type: ignore[attr-defined]
+        xml_order=tuple(xml_order),
     )
 
 
-def _parse_files(root: Path) -> list[object]:
-    """Parse `root` and, breadth first, every file it includes (pymavlink's MAVXML per file)."""
-    from pymavlink.generator import mavparse
-
-    done: dict[Path, object] = {}
+def _parse_files(root: Path, cache: Path | None = None) -> list[tuple[Path, Record]]:
+    """The records of `root` and, breadth first, of every file it includes (from the cache in `cache`, a
+    directory, or parsed by pymavlink)."""
+    done: dict[Path, Record] = {}
     queue = [root.resolve()]
     while queue:
         path = queue.pop(0)
@@ -241,15 +222,10 @@ def _parse_files(root: Path) -> list[object]:
             continue
         if not path.is_file():
             raise DialectError(f"{path}: dialect file not found")
-        try:
-            # mavparse prints warnings about upstream XML to stdout; keep our output clean.
-            with contextlib.redirect_stdout(io.StringIO()):
-                xml = mavparse.MAVXML(str(path), "2.0")
-        except Exception as exc:  # mavparse raises bare Exceptions and ExpatErrors
-            raise DialectError(f"{path}: cannot parse dialect: {exc}") from exc
-        done[path] = xml
-        queue.extend((path.parent / inc).resolve() for inc in xml.include)
-    return list(done.values())
+        record = record_of(path, cache)
+        done[path] = record
+        queue.extend((path.parent / inc).resolve() for inc in record["include"])
+    return list(done.items())
 
 
 class Dialect:
@@ -262,49 +238,40 @@ class Dialect:
         self.files: list[str] = []
         self.overrides: list[str] = []  # "MSG (id) from A replaced by B" for each redefinition
 
-    def load(self, path: str | os.PathLike[str]) -> None:
-        """Add every message and enum of `path` and of the files it includes."""
-        xmls = _parse_files(Path(path))
+    def load(self, path: str | os.PathLike[str], cache: Path | None = None) -> None:
+        """Add every message and enum of `path` and of the files it includes (their parsed XML cached in
+        the directory `cache`, if given: mavscope.mavlink.dialect_cache)."""
+        records = _parse_files(Path(path), cache)
         self.files.append(str(path))
-        for xml in xmls:
-            src = os.path.basename(xml.filename)  # type: ignore[attr-defined]
-            for m in xml.message:  # type: ignore[attr-defined]
-                old = self.messages.get(m.id)
+        for file, record in records:
+            src = file.name
+            for m in record["messages"]:
+                mid, name, crc_extra = m[0], m[1], m[2]
+                old = self.messages.get(mid)
                 if old is not None:
-                    if old.crc_extra == m.crc_extra and old.name == m.name:
+                    if old.crc_extra == crc_extra and old.name == name:
                         continue
-                    self.overrides.append(f"{old.name} ({m.id}) from {old.source} replaced by {m.name} from {src}")
+                    self.overrides.append(f"{old.name} ({mid}) from {old.source} replaced by {name} from {src}")
                     self.by_name.pop(old.name, None)
                 md = _compile_message(m, src)
                 self.messages[md.id] = md
                 self.by_name[md.name] = md
-            for e in xml.enum:  # type: ignore[attr-defined]
+            for e in record["enums"]:
                 self._merge_enum(e)
 
-    def _merge_enum(self, e: object) -> None:
-        existing = self.enums.get(e.name)  # type: ignore[attr-defined]
+    def _merge_enum(self, e: list) -> None:
+        name, bitmask, description, new_entries = e
+        existing = self.enums.get(name)
         entries = dict(existing.entries) if existing else {}
-        for entry in e.entry:  # type: ignore[attr-defined]
-            if entry.name.endswith("_ENUM_END"):
-                continue
-            params = tuple(
-                (int(p.index), (p.label or "").strip(), (p.units or "").strip())
-                for p in entry.param
-                if not getattr(p, "reserved", False) and (p.label or "").strip()
-            )
-            param_enums = tuple(
-                (int(p.index), p.enum.strip()) for p in entry.param
-                if not getattr(p, "reserved", False) and (getattr(p, "enum", "") or "").strip()
-            )
-            entries[entry.value] = EnumEntry(
-                entry.name, entry.value, " ".join((entry.description or "").split()), params, param_enums
-            )
-        self.enums[e.name] = EnumDef(  # type: ignore[attr-defined]
-            name=e.name,  # type: ignore[attr-defined]
-            bitmask=bool(getattr(e, "bitmask", False)) or bool(existing and existing.bitmask),
+        for entry_name, value, entry_description, params, param_enums in new_entries:
+            entries[value] = EnumEntry(entry_name, value, entry_description, tuple(map(tuple, params)),
+                                       tuple(map(tuple, param_enums)))
+        self.enums[name] = EnumDef(
+            name=name,
+            bitmask=bitmask or bool(existing and existing.bitmask),
             entries=entries,
             by_name={en.name: en for en in entries.values()},
-            description=" ".join((e.description or "").split()),  # type: ignore[attr-defined]
+            description=description,
         )
 
     def enum_value(self, name: str) -> tuple[str, int] | None:
@@ -348,14 +315,18 @@ def load_dialect(
     *,
     base: str | os.PathLike[str] | None = None,
     dissectors: str | os.PathLike[str] | None = None,
+    environ: Mapping[str, str] | None = None,
 ) -> Dialect:
-    """The default dialect (pymavlink's all.xml), then every XML in `dissectors/`, then `extra` files."""
+    """The default dialect (pymavlink's all.xml), then every XML in `dissectors/`, then `extra` files.
+    Each file's parsed XML comes from the cache `environ` (default os.environ) names, where it holds it
+    (mavscope.mavlink.dialect_cache.cache_dir: MAVSCOPE_CACHE_DIR, MAVSCOPE_NO_CACHE)."""
+    cache = cache_dir(environ)
     d = Dialect()
-    d.load(base if base is not None else pymavlink_dialect_path("all"))
+    d.load(base if base is not None else pymavlink_dialect_path("all"), cache)
     folder = Path(dissectors) if dissectors is not None else default_dissectors_dir()
     if folder.is_dir():
         for xml in sorted(folder.glob("*.xml")):
-            d.load(xml)
+            d.load(xml, cache)
     for path in extra:
-        d.load(path)
+        d.load(path, cache)
     return d

@@ -17,17 +17,20 @@ import os
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from mavscope.capture.base import Record
 from mavscope.capture.detect import open_capture
 from mavscope.capture.reader import CaptureReader
-from mavscope.filter import DisplayFilter, compile_filter
 from mavscope.mavlink.dialect import Dialect, load_dialect
 from mavscope.mavlink.frame import Frame
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.pipeline.options import PipelineOptions
 from mavscope.security.keys import KEYRING_ENV, build_material
 from mavscope.security.stage import SecurityStage
+
+if TYPE_CHECKING:  # the filter compiler is imported by make_filter, when a filter is given
+    from mavscope.filter import DisplayFilter
 
 Warn = Callable[[str], object]
 
@@ -49,7 +52,11 @@ def make_security_stage(options: PipelineOptions, warn: Warn = _quiet) -> Securi
 
 def make_filter(options: PipelineOptions, dialect: Dialect) -> DisplayFilter | None:
     """The compiled display filter of `options` (FilterError if it does not compile), None without one."""
-    return compile_filter(options.display_filter, dialect) if options.display_filter else None
+    if not options.display_filter:
+        return None
+    from mavscope.filter import compile_filter
+
+    return compile_filter(options.display_filter, dialect)
 
 
 def filter_stage(flt: DisplayFilter, items: Iterable[Frame | Anomaly]) -> Iterator[Frame | Anomaly]:

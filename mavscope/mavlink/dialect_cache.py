@@ -1,0 +1,269 @@
+"""What mavscope takes from pymavlink's parser for one dialect XML file, as plain data, and a cache of it.
+
+Parsing the XML (pymavlink's `mavparse`) is most of the cost of loading a dialect (about 0.08 s of 0.1 s
+for all.xml and the 16 files it includes), paid by every run. `xml_record(xml)` turns one parsed file
+into a *record*: lists, strings, ints and bools only, exactly what `mavscope.mavlink.dialect` builds its
+messages and enums from. `record_of(path, directory)` gives a file's record, from the cache when it holds
+one, else parsed (and then stored).
+
+The cache is content-addressed: an entry is named by the SHA-256 of the file's bytes salted with the
+cache format, mavscope's version, this module's own source, pymavlink's version and parser file, and the
+Python version. Editing any XML (one in `dissectors/`, one a dialect includes) gives a new name, so a
+stale entry is never read; includes are resolved against the real path every run.
+
+Trust: an entry is plain JSON (never pickle or marshal, which can run code or crash on crafted bytes)
+in a directory the user owns. It is read only when the directory and the file are owned by the user and
+not writable by group or others, the file is a regular file (not a symlink) under 16 MiB, its header
+names the expected key, the SHA-256 of its body matches the header, and the body has exactly the record's
+shape with consistent layouts (`valid_record`). Anything else is ignored and the XML parsed afresh.
+Writing is best effort (a temporary file renamed into place); a read-only or missing directory only
+costs the parse.
+
+Where: `$MAVSCOPE_CACHE_DIR`, else `$XDG_CACHE_HOME/mavscope`, else `~/.cache/mavscope`; `MAVSCOPE_NO_CACHE`
+set to anything but empty turns the cache off.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import io
+import os
+import stat
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from mavscope.errors import DialectError
+
+CACHE_ENV = "MAVSCOPE_CACHE_DIR"
+NO_CACHE_ENV = "MAVSCOPE_NO_CACHE"
+FORMAT = b"mavscope dialect cache 1"
+MAX_ENTRY = 16 << 20  # bytes: all.xml's largest file gives about 0.5 MB
+
+Record = dict[str, Any]  # {"include": [str], "messages": [message], "enums": [enum]}: see xml_record
+
+# Wire type -> bytes of one element (mavparse's type names).
+TYPE_SIZE = {"float": 4, "double": 8, "char": 1, "int8_t": 1, "uint8_t": 1, "uint8_t_mavlink_version": 1,
+             "int16_t": 2, "uint16_t": 2, "int32_t": 4, "uint32_t": 4, "int64_t": 8, "uint64_t": 8}
+
+
+def _text(value: object) -> str:
+    """An XML description in one line (runs of white space as one space)."""
+    return " ".join(str(value or "").split())
+
+
+def xml_record(xml: Any) -> Record:
+    """The record of one parsed file (a pymavlink MAVXML):
+    - include: the `<include>` file names, as written;
+    - messages: [id, name, crc_extra, base_length, length, description, xml_order, fields], with fields
+      in wire order, each [name, type, array_length, offset, size, extension, units, enum, display,
+      description, print_format];
+    - enums: [name, bitmask, description, entries], each entry [name, value, description, params,
+      param_enums] (params: [index, label, units] of the labelled ones; param_enums: [index, enum]);
+      the `*_ENUM_END` markers left out."""
+    messages = []
+    for m in xml.message:
+        base_count = m.base_fields()
+        fields = [[f.name, f.type, f.array_length, f.wire_offset, f.wire_length, i >= base_count,
+                   (f.units or "").strip("[] "), f.enum or "", f.display or "", _text(f.description),
+                   f.print_format or ""] for i, f in enumerate(m.ordered_fields)]
+        messages.append([m.id, m.name, m.crc_extra, m.wire_min_length, m.wire_length, _text(m.description),
+                         list(m.fieldnames), fields])
+    enums = []
+    for e in xml.enum:
+        entries = []
+        for entry in e.entry:
+            if entry.name.endswith("_ENUM_END"):
+                continue
+            used = [p for p in entry.param if not getattr(p, "reserved", False)]
+            params = [[int(p.index), (p.label or "").strip(), (p.units or "").strip()]
+                      for p in used if (p.label or "").strip()]
+            param_enums = [[int(p.index), p.enum.strip()] for p in used if (getattr(p, "enum", "") or "").strip()]
+            entries.append([entry.name, entry.value, _text(entry.description), params, param_enums])
+        enums.append([e.name, bool(getattr(e, "bitmask", False)), _text(e.description), entries])
+    return {"include": list(xml.include), "messages": messages, "enums": enums}
+
+
+def parse_xml(path: Path) -> Record:
+    """Parse one dialect file with pymavlink (v2.0 definitions) into its record."""
+    from pymavlink.generator import mavparse
+
+    try:
+        # mavparse prints warnings about upstream XML to stdout; keep our output clean.
+        with contextlib.redirect_stdout(io.StringIO()):
+            xml = mavparse.MAVXML(str(path), "2.0")
+    except Exception as exc:  # mavparse raises bare Exceptions and ExpatErrors
+        raise DialectError(f"{path}: cannot parse dialect: {exc}") from exc
+    return xml_record(xml)
+
+
+def cache_dir(environ: Mapping[str, str] | None = None) -> Path | None:
+    """Where entries go (module docstring), or None when the cache is off or there is no home."""
+    env = os.environ if environ is None else environ
+    if env.get(NO_CACHE_ENV):
+        return None
+    if env.get(CACHE_ENV):
+        return Path(env[CACHE_ENV])
+    xdg = env.get("XDG_CACHE_HOME", "")
+    if os.path.isabs(xdg):  # the XDG spec: a relative path is invalid and ignored
+        return Path(xdg) / "mavscope"
+    try:
+        return Path.home() / ".cache" / "mavscope"
+    except (RuntimeError, KeyError):  # no HOME and no password entry
+        return None
+
+
+_SALT: bytes | None = None
+
+
+def _salt() -> bytes:
+    """What an entry's name depends on besides the XML (module docstring); computed once."""
+    global _SALT
+    if _SALT is None:
+        import pymavlink  # its parser is not imported: with every file cached, it is never needed
+
+        from mavscope import __version__
+
+        parser = os.stat(Path(pymavlink.__file__).parent / "generator" / "mavparse.py")
+        parts = [FORMAT, __version__.encode(), hashlib.sha256(Path(__file__).read_bytes()).digest(),
+                 str(getattr(pymavlink, "__version__", "")).encode(), f"{parser.st_size}:{parser.st_mtime_ns}".encode(),
+                 sys.version.encode()]
+        _SALT = b"\0".join(parts) + b"\0"
+    return _SALT
+
+
+def entry_key(data: bytes) -> str:
+    """The name of the entry for an XML file with these bytes."""
+    return hashlib.sha256(_salt() + data).hexdigest()
+
+
+def record_of(path: Path, directory: Path | None) -> Record:
+    """The record of the dialect file `path`: cached in `directory` (None: no cache) or parsed."""
+    if directory is None:
+        return parse_xml(path)
+    try:
+        data = path.read_bytes()
+        key = entry_key(data)
+    except OSError:
+        return parse_xml(path)  # which reports the error as without a cache
+    cached = read_entry(directory, key)
+    if cached is not None:
+        return cached
+    record = parse_xml(path)
+    with contextlib.suppress(OSError):
+        if path.read_bytes() == data:  # the file parsed is the file named by the key
+            write_entry(directory, key, record)
+    return record
+
+
+def _private(st: os.stat_result) -> bool:
+    """Owned by this user and not writable by anyone else."""
+    return st.st_uid == os.getuid() and not st.st_mode & (stat.S_IWGRP | stat.S_IWOTH)
+
+
+def read_entry(directory: Path, key: str) -> Record | None:
+    """The record stored under `key`, or None when there is none or it cannot be trusted (module docstring)."""
+    import orjson
+
+    try:
+        if not _private(os.stat(directory)):
+            return None
+        fd = os.open(directory / f"{key}.json", os.O_RDONLY | os.O_NOFOLLOW | getattr(os, "O_CLOEXEC", 0))
+        with os.fdopen(fd, "rb") as f:
+            st = os.fstat(f.fileno())
+            if not stat.S_ISREG(st.st_mode) or not _private(st) or st.st_size > MAX_ENTRY:
+                return None
+            blob = f.read(MAX_ENTRY + 1)
+        head, sep, body = blob.partition(b"\n")
+        header = orjson.loads(head)
+        if (not sep or not isinstance(header, dict) or header.get("key") != key
+                or header.get("sha256") != hashlib.sha256(body).hexdigest()):
+            return None
+        record = orjson.loads(body)
+    except (OSError, ValueError):  # orjson.JSONDecodeError is a ValueError
+        return None
+    return record if valid_record(record) else None
+
+
+def write_entry(directory: Path, key: str, record: Record) -> None:
+    """Store `record` under `key`, best effort: nothing happens when the directory cannot be made private
+    or written, or the record is not plain JSON."""
+    import tempfile
+
+    import orjson
+
+    try:
+        body = orjson.dumps(record)
+    except TypeError:  # an int beyond 64 bits, a lone surrogate: not cached, parsed every run
+        return
+    if len(body) > MAX_ENTRY - 200:  # never read back (read_entry): not worth writing
+        return
+    head = orjson.dumps({"key": key, "sha256": hashlib.sha256(body).hexdigest()})
+    try:
+        directory.mkdir(mode=0o700, parents=True, exist_ok=True)
+        if not _private(os.stat(directory)):
+            return
+        fd, tmp = tempfile.mkstemp(dir=directory, prefix=".tmp-", suffix=".json")  # mode 0600
+        try:
+            with os.fdopen(fd, "wb") as f:
+                f.write(head + b"\n" + body)
+            os.replace(tmp, directory / f"{key}.json")
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+            raise
+    except OSError:
+        return
+
+
+# The types of a record's lists, item by item (xml_record): one map(type, ...) checks a whole list.
+_FIELD = (str, str, int, int, int, bool, str, str, str, str, str)
+_MESSAGE = (int, str, int, int, int, str, list, list)
+_ENUM = (str, bool, str, list)
+_ENTRY = (str, int, str, list, list)
+_PARAM = (int, str, str)
+_PARAM_ENUM = (int, str)
+
+
+def _valid_message(m: Any) -> bool:
+    if type(m) is not list or tuple(map(type, m)) != _MESSAGE:
+        return False
+    mid, _, crc_extra, base_length, length, _, order, fields = m
+    if not (0 <= mid < 1 << 24 and 0 <= crc_extra <= 255 and 0 <= base_length <= length <= 255
+            and all(type(o) is str for o in order)):
+        return False
+    offset = 0
+    for f in fields:
+        if type(f) is not list or tuple(map(type, f)) != _FIELD:
+            return False
+        kind, count, at, size = f[1], f[2], f[3], f[4]
+        if at != offset or kind not in TYPE_SIZE or not 0 <= count <= 255 or size != TYPE_SIZE[kind] * max(count, 1):
+            return False
+        offset += size
+    return offset == length
+
+
+def _valid_enum(e: Any) -> bool:
+    if type(e) is not list or tuple(map(type, e)) != _ENUM:
+        return False
+    for x in e[3]:
+        if type(x) is not list or tuple(map(type, x)) != _ENTRY:
+            return False
+        for p in x[3]:
+            if type(p) is not list or tuple(map(type, p)) != _PARAM:
+                return False
+        for p in x[4]:
+            if type(p) is not list or tuple(map(type, p)) != _PARAM_ENUM:
+                return False
+    return True
+
+
+def valid_record(record: Any) -> bool:
+    """Whether `record` has exactly the shape `xml_record` gives, with each message's fields laid end to
+    end from offset 0 to its length (a type's size times the array length)."""
+    return (type(record) is dict and record.keys() == {"include", "messages", "enums"}
+            and type(record["include"]) is list and all(type(i) is str for i in record["include"])
+            and type(record["messages"]) is list and all(map(_valid_message, record["messages"]))
+            and type(record["enums"]) is list and all(map(_valid_enum, record["enums"])))
