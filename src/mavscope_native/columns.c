@@ -13,7 +13,7 @@ const char *const MS_COL_NAMES[MS_NCOLS] = {
     [MS_COL_MESSAGE] = "message", [MS_COL_CRC] = "crc", [MS_COL_SIG_LINK] = "signature_link_id",
     [MS_COL_SIG_TIME] = "signature_timestamp", [MS_COL_SIG_VALUE] = "signature_value",
     [MS_COL_OFFSET] = "offset", [MS_COL_PAYLOAD_AT] = "payload_at", [MS_COL_PAYLOAD] = "payload",
-    [MS_COL_RAW_AT] = "raw_at", [MS_COL_RAW] = "raw",
+    [MS_COL_RAW_AT] = "raw_at", [MS_COL_RAW] = "raw", [MS_COL_SIZE] = "size",
 };
 
 const uint8_t MS_COL_WIDTH[MS_NCOLS] = {
@@ -21,7 +21,7 @@ const uint8_t MS_COL_WIDTH[MS_NCOLS] = {
     [MS_COL_SRC] = 4, [MS_COL_DST] = 4, [MS_COL_VERSION] = 1, [MS_COL_LEN] = 1, [MS_COL_IFLAGS] = 1,
     [MS_COL_CFLAGS] = 1, [MS_COL_SEQ] = 1, [MS_COL_SYSID] = 1, [MS_COL_COMPID] = 1, [MS_COL_MSGID] = 4,
     [MS_COL_MESSAGE] = 4, [MS_COL_CRC] = 2, [MS_COL_SIG_LINK] = 1, [MS_COL_SIG_TIME] = 8, [MS_COL_SIG_VALUE] = 6,
-    [MS_COL_OFFSET] = 8,
+    [MS_COL_OFFSET] = 8, [MS_COL_SIZE] = 2,
 };
 
 int ms_cols_init(ms_cols *c, const ms_table *table, uint32_t limit) {
@@ -160,7 +160,8 @@ int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uin
         src = (int32_t)s;
         dst = (int32_t)e;
     }
-    if (c->n == 0 && c->col[MS_COL_PAYLOAD_AT].len == 0) {
+    const int full = !c->index_only;
+    if (full && c->n == 0 && c->col[MS_COL_PAYLOAD_AT].len == 0) {
         put_i32(c, MS_COL_PAYLOAD_AT, 0);
         put_i32(c, MS_COL_RAW_AT, 0);
     }
@@ -186,6 +187,26 @@ int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uin
             return -1;
         }
         const int32_t index = (int32_t)(i + 1);
+        const int64_t offset = (int64_t)(base + frames[2 * i]);
+        const uint16_t fsize = (uint16_t)size;
+        put(c, MS_COL_RECORD, &number);
+        put(c, MS_COL_INDEX, &index);
+        put(c, MS_COL_TIME, &time);
+        put_u8(c, MS_COL_TIME_OK, time_ok);
+        put_u8(c, MS_COL_TRANSPORT, transport);
+        put(c, MS_COL_SRC, &src);
+        put(c, MS_COL_DST, &dst);
+        put_u8(c, MS_COL_IFLAGS, v2 ? f[2] : 0);
+        put_u8(c, MS_COL_SEQ, f[v2 ? 4 : 2]);
+        put_u8(c, MS_COL_SYSID, f[v2 ? 5 : 3]);
+        put_u8(c, MS_COL_COMPID, f[v2 ? 6 : 4]);
+        put(c, MS_COL_MSGID, &msgid);
+        put(c, MS_COL_OFFSET, &offset);
+        put(c, MS_COL_SIZE, &fsize);
+        if (!full) {
+            c->n++;
+            continue;
+        }
         const int32_t message = (int32_t)(m - c->table->messages);
         const uint16_t crc = (uint16_t)(f[hlen + len] | (f[hlen + len + 1] << 8));
         const int is_signed = v2 && (f[2] & 1);
@@ -198,28 +219,14 @@ int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uin
                 stamp = (stamp << 8) | s[b];
             memcpy(value, s + 7, 6);
         }
-        const int64_t offset = (int64_t)(base + frames[2 * i]);
-        put(c, MS_COL_RECORD, &number);
-        put(c, MS_COL_INDEX, &index);
-        put(c, MS_COL_TIME, &time);
-        put_u8(c, MS_COL_TIME_OK, time_ok);
-        put_u8(c, MS_COL_TRANSPORT, transport);
-        put(c, MS_COL_SRC, &src);
-        put(c, MS_COL_DST, &dst);
         put_u8(c, MS_COL_VERSION, v2 ? 2 : 1);
         put_u8(c, MS_COL_LEN, (unsigned)len);
-        put_u8(c, MS_COL_IFLAGS, v2 ? f[2] : 0);
         put_u8(c, MS_COL_CFLAGS, v2 ? f[3] : 0);
-        put_u8(c, MS_COL_SEQ, f[v2 ? 4 : 2]);
-        put_u8(c, MS_COL_SYSID, f[v2 ? 5 : 3]);
-        put_u8(c, MS_COL_COMPID, f[v2 ? 6 : 4]);
-        put(c, MS_COL_MSGID, &msgid);
         put(c, MS_COL_MESSAGE, &message);
         put(c, MS_COL_CRC, &crc);
         put_u8(c, MS_COL_SIG_LINK, link);
         put(c, MS_COL_SIG_TIME, &stamp);
         put(c, MS_COL_SIG_VALUE, value);
-        put(c, MS_COL_OFFSET, &offset);
         ms_buf_put(&c->col[MS_COL_PAYLOAD], f + hlen, len);
         put_i32(c, MS_COL_PAYLOAD_AT, (int32_t)c->col[MS_COL_PAYLOAD].len);
         ms_buf_put(&c->col[MS_COL_RAW], f, size);
