@@ -20,7 +20,10 @@ Cancelled = Callable[[], bool]
 
 
 def fill_index(index: FrameIndex, source: FrameSource, post: Post, cancelled: Cancelled) -> None:
-    """Walk `source`'s pipeline into `index`, posting IndexProgress as it goes."""
+    """Walk `source`'s pipeline into `index`, posting IndexProgress as it goes (natively where the
+    engine reads the capture: mavscope.browse.native)."""
+    if source.index_natively(index, lambda p: post(IndexProgress(index, p)), cancelled):
+        return
     reader, items, index.t0 = source.open()
     with reader:  # type: ignore[attr-defined]  # a CaptureReader or a LiveReader
         if isinstance(reader, LiveReader) and isinstance(source, LiveFrameSource):
