@@ -29,11 +29,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mavscope.browse.index import FrameIndex
-from mavscope.fields.registry import Field, FieldRegistry, PayloadField
-from mavscope.filter import DisplayFilter
+from mavscope.fields.registry import FLOAT, INT, Field, FieldRegistry, PayloadField
+from mavscope.filter import DisplayFilter, FilterError
 from mavscope.filter.compiler import Compiler, Pred
 from mavscope.filter.parser import BoolOp, Node, Not, Range, Test, Value, parse
-from mavscope.mavlink.dialect import MessageDef
+from mavscope.mavlink.dialect import FieldDef, MessageDef
 from mavscope.mavlink.frame import decode_payload
 
 BLOCK = 1 << 20  # rows per block
@@ -56,6 +56,19 @@ NUMERIC = {"frame.time": "time", "frame.number": "record"}
 SIGNED_ONLY = ("signature", "signature.link_id", "signature.timestamp", "signature.time", "signature.value",
                "signature.skew")  # MISSING unless the frame's signed flag is set
 EXACT = 1 << 53  # integers up to this compare exactly with float64
+
+
+def _exact(v: object, ftype: str, op: str | None) -> bool:
+    """Whether numpy compares a `ftype` payload value with literal `v` exactly as Python does."""
+    if type(v) not in (int, float):
+        return False
+    if op == "&":
+        return type(v) is int and 0 <= v < 1 << 63 and ftype not in ("float", "double")  # type: ignore[operator]
+    if type(v) is float:
+        return v == v and ftype not in ("int64_t", "uint64_t")  # an int64 widened to float64 would round
+    if ftype == "uint64_t":
+        return 0 <= v <= EXACT  # type: ignore[operator]
+    return abs(v) <= EXACT  # type: ignore[arg-type]
 
 
 class Cancelled(Exception):
@@ -87,14 +100,29 @@ class _Frames:
 
 
 @dataclass
+class _Payload:
+    """A comparison of a scalar number in the payload: decoded with numpy from the file's bytes."""
+
+    pred: Pred  # the exact predicate, for the rows the vectorised decode does not serve
+    op: str | None
+    msgids: np.ndarray  # the messages that have the field (every other row: false)
+    fields: dict[int, tuple[FieldDef, list[object]]]  # msgid -> the field and its literals (converted for it)
+
+
+@dataclass
 class _Bool:
     op: str  # "and", "or", "not"
     args: list[Plan]
 
 
-Plan = _Grouped | _Numeric | _Frames | _Bool
+Plan = _Grouped | _Numeric | _Frames | _Payload | _Bool
 _DTYPES = {"record": "u4", "index": "u2", "time": "f8", "transport": "u1", "src": "u4", "dst": "u4", "rawlen": "u2",
-           "crc": "u1", "iflags": "u1", "sysid": "u1", "compid": "u1", "seq": "u1", "msgid": "u4", "security": "u4"}
+           "crc": "u1", "iflags": "u1", "sysid": "u1", "compid": "u1", "seq": "u1", "msgid": "u4", "security": "u4",
+           "offset": "i8"}
+_NUMPY = {"float": "<f4", "double": "<f8", "int8_t": "<i1", "uint8_t": "<u1", "uint8_t_mavlink_version": "<u1",
+          "int16_t": "<i2", "uint16_t": "<u2", "int32_t": "<i4", "uint32_t": "<u4", "int64_t": "<i8", "uint64_t": "<u8"}
+SPAN = 1 << 24  # file bytes read at once for the payloads of a block
+_TRUNCATED = 3  # index.CRC_CODES
 _OPS: dict[str, Callable[[np.ndarray, object], np.ndarray]] = {
     "==": np.equal, "!=": np.not_equal, "<": np.less, "<=": np.less_equal, ">": np.greater,
     ">=": np.greater_equal}  # type: ignore[dict-item]
@@ -131,7 +159,9 @@ class ColumnFilter:
             return self._grouped(("msgid",), pred)
         if isinstance(lhs, PayloadField):  # false wherever the frame's message has no such field
             self.columns.add("msgid")
-            return _Frames(pred, comp.needs_payload, "msgid", np.array(sorted(lhs.defs), np.uint32))
+            msgids = np.array(sorted(lhs.defs), np.uint32)
+            vector = self._payload(lhs, node, comp, pred, msgids)
+            return vector if vector is not None else _Frames(pred, comp.needs_payload, "msgid", msgids)
         assert isinstance(lhs, Field)
         hits = [self.registry.lookup(n) for n in comp.names]
         if not comp.needs_payload and all(isinstance(h, Field) and h.name in KEYS for h in hits):
@@ -172,6 +202,34 @@ class ColumnFilter:
             consts.append(c)
         self.columns.add(NUMERIC[ff.name])
         return _Numeric(NUMERIC[ff.name], op, consts)
+
+    def _payload(self, lhs: PayloadField, node: Test, comp: Compiler, pred: Pred,
+                 msgids: np.ndarray) -> _Payload | None:
+        """A payload test numpy can decide exactly: scalar numbers against numbers, or None."""
+        op = node.op
+        if op is not None and op not in _OPS and op not in ("in", "&"):
+            return None
+        if any(not isinstance(e, (Value, Range)) for e in node.values) or any(
+                isinstance(e, Value) and e.kind == "word" and comp._is_field_word(comp.side(node.name), e)  # type: ignore[arg-type]
+                for e in node.values):
+            return None
+        fields: dict[int, tuple[FieldDef, list[object]]] = {}
+        for mid, fd in lhs.defs.items():
+            if fd.type == "char" or fd.array_length or fd.type not in _NUMPY:
+                return None
+            kind = FLOAT if fd.type in ("float", "double") else INT
+            try:
+                consts = [comp.elem(lambda v, fd=fd, kind=kind: comp.literal_for_payload(kind, fd, v, op or "=="), e)
+                          for e in node.values]
+            except FilterError:
+                continue  # the compiled filter has no matcher for this message: false there
+            for c in consts:
+                for v in (c[1:] if isinstance(c, tuple) else (c,)):
+                    if not _exact(v, fd.type, op):
+                        return None
+            fields[mid] = (fd, consts)
+        self.columns.update(("crc", "iflags", "offset"))
+        return _Payload(pred, op, msgids, fields)
 
     # --- evaluation ---------------------------------------------------------------------------
 
@@ -220,6 +278,8 @@ class ColumnFilter:
             return self._eval_grouped(p, first, cols, care)
         if isinstance(p, _Numeric):
             return self._eval_numeric(p, cols)
+        if isinstance(p, _Payload):
+            return self._eval_payload(p, first, cols, care)
         return self._eval_frames(p, first, cols, care)
 
     def _test_frame(self, pred: Pred, payload: bool, n: int) -> bool | None:
@@ -296,6 +356,80 @@ class ColumnFilter:
                 hit |= col == c
         return present & hit
 
+    def _held(self, table: dict[int, object], first: int, n: int) -> np.ndarray:
+        """Mask of the block's rows that have an entry in the side table `table` (notes, raw bytes)."""
+        with self.index.lock:
+            at = self.index.first
+            held = np.fromiter(table.keys(), np.int64, len(table))
+        held = held + at - first
+        mask = np.zeros(n, np.bool_)
+        mask[held[(held >= 0) & (held < n)]] = True
+        return mask
+
+    def _eval_payload(self, p: _Payload, first: int, cols: dict[str, np.ndarray], care: np.ndarray) -> np.ndarray:
+        out = np.zeros(len(care), np.bool_)
+        msgid = cols["msgid"]
+        sel = care & np.isin(msgid, p.msgids)
+        if not sel.any():
+            return out
+        data = self.index._bytes
+        fast = sel & (cols["crc"] != _TRUNCATED) & ((cols["iflags"] & 0xFE) == 0) & ~self._held(
+            self.index._raw, first, len(care))  # type: ignore[arg-type]
+        if data is None:
+            fast[:] = False
+        slow = np.flatnonzero(sel & ~fast)
+        for k, i in enumerate(slow.tolist()):
+            if not k & 0xFFF and self.cancelled():
+                raise Cancelled
+            out[i] = bool(self._test_frame(p.pred, True, first + i))
+        rows = np.flatnonzero(fast)
+        offsets = cols["offset"][rows]
+        spans = offsets // SPAN
+        for span in np.unique(spans).tolist():
+            at = rows[spans == span]
+            off = cols["offset"][at]
+            lo = int(off.min())
+            buf = np.frombuffer(data.get(lo, int(off.max()) + 300 - lo), np.uint8)  # type: ignore[union-attr]
+            buf = np.concatenate([buf, np.zeros(300, np.uint8)])  # a frame cut by the file's end reads zeros
+            rel = off - lo
+            hdr = np.where(buf[rel] == 0xFD, 10, 6)
+            plen = buf[rel + 1].astype(np.int64)
+            ids = msgid[at]
+            for mid in np.unique(ids).tolist():
+                which = np.flatnonzero(ids == mid)
+                out[at[which]] = self._payload_values(p, mid, buf, rel[which] + hdr[which], plen[which])
+        return out
+
+    @staticmethod
+    def _payload_values(p: _Payload, mid: int, buf: np.ndarray, start: np.ndarray, plen: np.ndarray) -> np.ndarray:
+        """The test on message `mid`'s frames whose payloads start at `start` in `buf` (`plen` bytes long)."""
+        got = p.fields.get(mid)
+        if got is None:
+            return np.zeros(len(start), np.bool_)  # the literals are no values of this message's field
+        fd, consts = got
+        size = np.dtype(_NUMPY[fd.type]).itemsize
+        cols = fd.offset + np.arange(size)
+        take = buf[start[:, None] + cols[None, :]]
+        take[cols[None, :] >= plen[:, None]] = 0  # bytes past the payload's length (trimmed zeros)
+        values = np.ascontiguousarray(take).view(_NUMPY[fd.type]).reshape(-1)
+        if fd.type in ("float", "double"):
+            values = values.astype(np.float64)
+        elif fd.type not in ("uint64_t", "int64_t"):
+            values = values.astype(np.int64)
+        if p.op is None:
+            return np.ones(len(start), np.bool_)
+        if p.op == "&":
+            return (values & consts[0]) != 0  # type: ignore[no-any-return,operator]
+        if p.op != "in":
+            return _OPS[p.op](values, consts[0])
+        hit = np.zeros(len(start), np.bool_)
+        for c in consts:
+            if isinstance(c, tuple):
+                hit |= (values >= c[1]) & (values <= c[2])
+            else:
+                hit |= values == c
+        return hit
+
     def _eval_frames(self, p: _Frames, first: int, cols: dict[str, np.ndarray], care: np.ndarray) -> np.ndarray:
         out = np.zeros(len(care), np.bool_)
         sel = care
@@ -305,14 +439,7 @@ class ColumnFilter:
         elif p.where == "signed":
             sel = care & ((cols["iflags"] & 1) != 0)
         elif p.where == "notes":
-            with self.index.lock:
-                at = self.index.first
-                held = np.fromiter(self.index._notes.keys(), np.int64, len(self.index._notes))
-            held = held + at - first
-            held = held[(held >= 0) & (held < len(care))]
-            mask = np.zeros(len(care), np.bool_)
-            mask[held] = True
-            sel = care & mask
+            sel = care & self._held(self.index._notes, first, len(care))  # type: ignore[arg-type]
         test, pred, payload = self._test_frame, p.pred, p.payload
         for k, i in enumerate(np.flatnonzero(sel).tolist()):
             if not k & 0xFFF and self.cancelled():
