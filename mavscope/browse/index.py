@@ -217,7 +217,7 @@ class FrameIndex:
             raise ValueError("extend: a bounded index")
         import numpy as np  # only the native build, which has numpy, comes here
 
-        codes = np.unique(chunk.transport)
+        codes = np.flatnonzero(np.bincount(chunk.transport, minlength=len(transports)))
         tmap = np.zeros(len(transports), np.uint8)
         for code in codes.tolist():
             name = transports[code]
@@ -230,8 +230,9 @@ class FrameIndex:
             self.first_time = float(chunk.time[int(np.argmax(chunk.time_ok))])
         self._record.frombytes(_bytes_of(chunk.record.astype(np.uint32)))
         self._index.frombytes(_bytes_of(np.minimum(chunk.index, 0xFFFF).astype(np.uint16)))
-        self._time.frombytes(_bytes_of(np.where(chunk.time_ok != 0, chunk.time, np.nan)))
-        self._transport.frombytes(_bytes_of(tmap[chunk.transport]))
+        timed = chunk.time_ok.all()
+        self._time.frombytes(_bytes_of(chunk.time if timed else np.where(chunk.time_ok != 0, chunk.time, np.nan)))
+        self._transport.frombytes(_bytes_of(tmap[chunk.transport]) if len(codes) > 1 or tmap[codes[0]] else bytes(n))
         self._src.frombytes(_bytes_of(ends[chunk.src + 1]))
         self._dst.frombytes(_bytes_of(ends[chunk.dst + 1]))
         self._offset.frombytes(_bytes_of(chunk.offset))

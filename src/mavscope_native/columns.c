@@ -68,13 +68,31 @@ static void endpoint_slot(uint32_t *slots, uint32_t nslots, const ms_endpoint *e
     slots[j] = id + 1;
 }
 
+static int64_t endpoint_lookup(ms_cols *c, const ms_endpoint *ep);
+
 /* The id of an endpoint (a new one when first seen), or -1 when memory runs out. */
 static int64_t endpoint_id(ms_cols *c, int v6, const uint8_t *addr, uint16_t port) {
+    const unsigned r = (unsigned)(port ^ (port >> 3) ^ addr[v6 ? 15 : 3]) & 7u;
+    const ms_endpoint *hit = &c->recent[r];
+    if (c->recent_ok[r] && hit->port == port && hit->v6 == (uint8_t)v6 && memcmp(hit->addr, addr, v6 ? 16 : 4) == 0)
+        return c->recent_id[r]; /* an IPv4 entry's other 12 bytes are zeros, as `e` would hold them */
     ms_endpoint e;
     memset(&e, 0, sizeof e);
     e.v6 = (uint8_t)v6;
     memcpy(e.addr, addr, v6 ? 16 : 4);
     e.port = port;
+    const int64_t id = endpoint_lookup(c, &e);
+    if (id >= 0) {
+        memcpy(&c->recent[r], &e, sizeof e);
+        c->recent_id[r] = (uint32_t)id;
+        c->recent_ok[r] = 1;
+    }
+    return id;
+}
+
+/* The id of endpoint `e` (a new one when first seen), or -1 when memory runs out. */
+static int64_t endpoint_lookup(ms_cols *c, const ms_endpoint *ep) {
+    const ms_endpoint e = *ep;
     if (c->nslots != 0) {
         uint32_t j = ms_endpoint_hash(&e) & (c->nslots - 1);
         while (c->slots[j] != 0) {
@@ -261,6 +279,7 @@ void ms_cols_restart(ms_cols *c) {
     c->reset = 0;
     if (c->nends > MS_COLS_ENDPOINTS) {
         memset(c->slots, 0, (size_t)c->nslots * sizeof *c->slots);
+        memset(c->recent_ok, 0, sizeof c->recent_ok);
         c->nends = 0;
         c->reset = 1;
     }

@@ -94,6 +94,9 @@ typedef struct {
     uint32_t nslots;
     uint32_t first_new;    /* ids from here on are new since the last take */
     int reset;             /* the map started over at the last take: ids before it mean nothing now */
+    ms_endpoint recent[8]; /* endpoints looked up lately, by a cheap hash of port and address (the map's */
+    uint32_t recent_id[8]; /* FNV hash costs a fifth of an index walk); valid while recent_ok, until the */
+    uint8_t recent_ok[8];  /* map starts over */
     int index_only;        /* the TUI's index (mavscope/browse/native.py): only MS_INDEX_COLUMNS are filled,
                               no payloads, wire bytes, signatures or message rows (those columns stay empty) */
     int failed;
