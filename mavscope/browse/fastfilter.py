@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -63,7 +64,7 @@ def _exact(v: object, ftype: str, op: str | None) -> bool:
     if type(v) not in (int, float):
         return False
     if op == "&":
-        return type(v) is int and 0 <= v < 1 << 63 and ftype not in ("float", "double")  # type: ignore[operator]
+        return type(v) is int and 0 <= v < 1 << 63 and ftype not in ("float", "double")
     if type(v) is float:
         return v == v and ftype not in ("int64_t", "uint64_t")  # an int64 widened to float64 would round
     if ftype == "uint64_t":
@@ -123,9 +124,9 @@ _NUMPY = {"float": "<f4", "double": "<f8", "int8_t": "<i1", "uint8_t": "<u1", "u
           "int16_t": "<i2", "uint16_t": "<u2", "int32_t": "<i4", "uint32_t": "<u4", "int64_t": "<i8", "uint64_t": "<u8"}
 SPAN = 1 << 24  # file bytes read at once for the payloads of a block
 _TRUNCATED = 3  # index.CRC_CODES
-_OPS: dict[str, Callable[[np.ndarray, object], np.ndarray]] = {
+_OPS: dict[str, Any] = {
     "==": np.equal, "!=": np.not_equal, "<": np.less, "<=": np.less_equal, ">": np.greater,
-    ">=": np.greater_equal}  # type: ignore[dict-item]
+    ">=": np.greater_equal}
 
 
 class ColumnFilter:
@@ -197,7 +198,7 @@ class ColumnFilter:
                 numbers = [c]
             else:
                 return None
-            if not all(type(v) in (int, float) and (v == v and abs(v) <= EXACT) for v in numbers):  # type: ignore[operator]
+            if not all(type(v) in (int, float) and (v == v and abs(v) <= EXACT) for v in numbers):
                 return None
             consts.append(c)
         self.columns.add(NUMERIC[ff.name])
@@ -218,9 +219,11 @@ class ColumnFilter:
             if fd.type == "char" or fd.array_length or fd.type not in _NUMPY:
                 return None
             kind = FLOAT if fd.type in ("float", "double") else INT
+
+            def convert(v: Value, fd: FieldDef = fd, kind: str = kind) -> object:
+                return comp.literal_for_payload(kind, fd, v, op or "==")
             try:
-                consts = [comp.elem(lambda v, fd=fd, kind=kind: comp.literal_for_payload(kind, fd, v, op or "=="), e)
-                          for e in node.values]
+                consts = [comp.elem(convert, e) for e in node.values]
             except FilterError:
                 continue  # the compiled filter has no matcher for this message: false there
             for c in consts:
@@ -419,7 +422,7 @@ class ColumnFilter:
         if p.op is None:
             return np.ones(len(start), np.bool_)
         if p.op == "&":
-            return (values & consts[0]) != 0  # type: ignore[no-any-return,operator]
+            return np.asarray((values & consts[0]) != 0)
         if p.op != "in":
             return _OPS[p.op](values, consts[0])
         hit = np.zeros(len(start), np.bool_)

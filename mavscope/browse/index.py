@@ -53,7 +53,7 @@ def _bytes_of(a: Any) -> memoryview:
     """A numpy array's bytes, for array.frombytes (which takes a buffer of bytes only)."""
     import numpy as np
 
-    return memoryview(np.ascontiguousarray(a)).cast("B")
+    return memoryview(np.ascontiguousarray(a)).cast("B")  # type: ignore[arg-type]
 
 
 class FrameIndex:
@@ -208,7 +208,7 @@ class FrameIndex:
             self._endpoints.append(ep)
         return got
 
-    def extend(self, chunk: Any, ends: Any, transports: tuple[str | None, ...]) -> None:
+    def extend(self, chunk: Any, ends: Any, transports: tuple[str, ...]) -> None:
         """Append a native chunk of clean frames (mavscope.browse.native: numpy columns, `ends` mapping its
         endpoint ids + 1 to this index's, `transports` its transport codes to names), as `add` would
         append each frame: CRC ok, no note, span or security verdict, the bytes at their offset."""

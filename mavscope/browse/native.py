@@ -45,7 +45,7 @@ PURE_ENV = "MAVSCOPE_PURE"  # as for `read` and `export`: set, the pure build ru
 FIRST_CHUNK = 256  # frames in the first chunk: the first rows go out at once
 CHUNK = 1 << 18  # frames per chunk afterwards
 _KINDS = {"pcap": 1, "pcapng": 2, "tlog": 3}  # capture.h MS_KIND_* (raw streams stay on the pure path)
-_TRANSPORTS = (None, TRANSPORT_UDP, TRANSPORT_TLOG)  # columns.h MS_TRANSPORT_*
+_TRANSPORTS = ("", TRANSPORT_UDP, TRANSPORT_TLOG)  # columns.h MS_TRANSPORT_* (0: never written)
 
 
 def available(kind: str | None = None, environ: Mapping[str, str] | None = None) -> bool:

@@ -58,7 +58,7 @@ def scan_filter(flt: DisplayFilter, index: FrameIndex, rows: array, post: Post, 
             complete = index.done or index.progress.cancelled
             end = index.end
             for stop, hits in fast.scan(max(done, index.first), end):
-                rows.frombytes(memoryview(hits).cast("B"))
+                rows.frombytes(hits.tobytes())
                 now = time.perf_counter()
                 if now - last_post > 0.1:
                     last_post = now
