@@ -39,7 +39,7 @@ from mavscope.mavlink.frame import decode_payload
 
 BLOCK = 1 << 20  # rows per block
 FIRST_BLOCK = 1 << 14  # the first block: the first matches go out at once
-DENSE = 1 << 24  # a lookup table over this many key values at most; more: a table per distinct value
+DENSE = 1 << 20  # a lookup table (one byte each) over this many key values at most; more: per distinct value
 
 # the index columns each registered field's value is a function of (with the dialect)
 KEYS: dict[str, tuple[str, ...]] = {
@@ -300,17 +300,22 @@ class ColumnFilter:
         if not len(rows):
             return out
         idx = self.index
-        bounds = {"src": len(idx._endpoints), "dst": len(idx._endpoints), "security": len(idx._securities),
-                  "transport": len(idx._transports), "msgid": 1 << 24, "index": 1 << 16, "rawlen": 1 << 16}
-        radix = tuple(bounds.get(k, 256) for k in p.keys)
-        size = int(np.prod(np.array(radix, np.float64)))
         values = [cols[k][rows].astype(np.int64) for k in p.keys]
+        tables = {"src": len(idx._endpoints), "dst": len(idx._endpoints), "security": len(idx._securities),
+                  "transport": len(idx._transports)}
+        radix = []
+        for j, k in enumerate(p.keys):  # each key's range: grows (to a power of two) as larger values come
+            need = tables.get(k, 256 if _DTYPES[k] == "u1" else int(values[j].max()) + 1)
+            have = p.radix[j] if p.radix else 1
+            radix.append(have if need <= have else 1 << max(need - 1, 1).bit_length())
+        size = int(np.prod(np.array(radix, np.float64)))
         if size <= DENSE:
+            radix_t = tuple(radix)
             code = values[0]
             for v, r in zip(values[1:], radix[1:]):
                 code = code * r + v
-            if p.lut is None or p.radix != radix:
-                p.radix, p.lut = radix, np.full(size, -1, np.int8)
+            if p.lut is None or p.radix != radix_t:
+                p.radix, p.lut = radix_t, np.full(size, -1, np.int8)
             lut = p.lut
             got = lut[code]
             unknown = np.flatnonzero(got < 0)

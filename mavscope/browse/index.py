@@ -17,8 +17,9 @@ What the pipeline said that the bytes cannot tell again (notes such as skipped b
 the records a reassembled frame spans, the security layer's verdicts) is kept exactly: notes and spans
 in sparse tables, security verdicts interned (a signed capture has a handful of distinct ones).
 
-The index is filled by one thread (`build`) while another reads it: rows below `len(index)` are
-complete and never change. No Textual here: the TUI drives `build` from a worker.
+The index is filled by one thread (`build`, or with the native engine `browse.native.native_build`, which
+appends the walker's chunks of clean frames in bulk through `extend`) while another reads it: rows below
+`len(index)` are complete and never change. No Textual here: the TUI drives `build` from a worker.
 """
 
 from __future__ import annotations

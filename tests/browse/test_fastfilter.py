@@ -156,3 +156,37 @@ def test_generated_filters(name: str, text: str) -> None:
 def test_generated_comparisons(name: str, op: str, number: float) -> None:
     check(index_of("px4_sitl_udp.pcap"), f"{name} {op} {number}")
     check(index_of("mavlink_v1_udp.pcap"), f"{name} {op} {number}")
+
+
+@pytest.mark.parametrize("path", ALL, ids=lambda p: p.name)
+def test_without_dense_tables(path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Keys over more values than a dense lookup table takes are answered per distinct value."""
+    from mavscope.browse import fastfilter
+
+    monkeypatch.setattr(fastfilter, "DENSE", 4)
+    index = index_of(path.name)
+    for text in ("mavlink.sysid == 1", "HEARTBEAT || ATTITUDE", "signature.status == no-key", "udp.port == 14550",
+                 "!(mavlink.msgid in {0..30})", "frame.src contains \"145\""):
+        check(index, text)
+
+
+from tests.native.test_generated import capture  # noqa: E402
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck), derandomize=True)
+@given(capture(), st.sampled_from(["none", "key"]), st.lists(st.sampled_from(TESTS), min_size=1, max_size=3))
+def test_generated_captures(data: bytes, keys: str, tests: list[str]) -> None:
+    """Captures of random frames (unknown and large message ids, damaged, signed, encrypted, TCP, tlog):
+    each test alone and all of them joined."""
+    from tests.native.engines import capture_file
+
+    with capture_file(data) as path:
+        try:
+            index = FrameIndex(DIALECT, path)
+            with open_capture(path) as reader:
+                index.build(SecurityStage(material(keys)).run(Dissector(DIALECT).run(reader)))
+        except Exception:  # noqa: BLE001 - a file no reader opens: nothing to filter
+            return
+        for text in [*tests, " || ".join(f"({t})" for t in tests), " && ".join(f"!({t})" for t in tests)]:
+            check(index, text)
+        index.close()
