@@ -211,7 +211,8 @@ class FrameIndex:
 
     def extend(self, chunk: Any, ends: Any, transports: tuple[str, ...]) -> None:
         """Append a native chunk of clean frames (mavscope.browse.native: numpy columns, `ends` mapping its
-        endpoint ids + 1 to this index's, `transports` its transport codes to names), as `add` would
+        endpoint ids + 1 to this index's, None when they are the same; `transports` its transport codes to
+        names), as `add` would
         append each frame: CRC ok, no note, span or security verdict, the bytes at their offset."""
         n = chunk.n
         if self.limit is not None:  # a bounded index is live, never native: keep add's trimming
@@ -234,8 +235,12 @@ class FrameIndex:
         timed = chunk.time_ok.all()
         self._time.frombytes(_bytes_of(chunk.time if timed else np.where(chunk.time_ok != 0, chunk.time, np.nan)))
         self._transport.frombytes(_bytes_of(tmap[chunk.transport]) if len(codes) > 1 or tmap[codes[0]] else bytes(n))
-        self._src.frombytes(_bytes_of(ends[chunk.src + 1]))
-        self._dst.frombytes(_bytes_of(ends[chunk.dst + 1]))
+        if ends is None:  # the walker's ids are this index's, less one (no gather)
+            self._src.frombytes(_bytes_of((chunk.src + 1).view(np.uint32)))
+            self._dst.frombytes(_bytes_of((chunk.dst + 1).view(np.uint32)))
+        else:
+            self._src.frombytes(_bytes_of(ends[chunk.src + 1]))
+            self._dst.frombytes(_bytes_of(ends[chunk.dst + 1]))
         self._offset.frombytes(_bytes_of(chunk.offset))
         self._rawlen.frombytes(_bytes_of(chunk.size))
         self._crc.frombytes(bytes(n))  # CRC_CODES[0]: ok

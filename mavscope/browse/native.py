@@ -112,6 +112,7 @@ def native_build(index: Any, path: str, dialect: Dialect, stage: SecurityStage, 
     cols = _native.Columns(_table(dialect), FIRST_CHUNK, index=True)
     ends: list[int] = []  # walker endpoint id -> index endpoint id
     ends_map = np.zeros(1, np.uint32)  # ends, offset by one: position 0 is the walker's -1 (no endpoint)
+    same = [True]  # ends_map[k] == k: the walker's endpoint ids + 1 are the index's
     names = _native.COLUMN_NAMES
     told_at = [0]  # items indexed when progress was last told
     items = [0]
@@ -134,8 +135,9 @@ def native_build(index: Any, path: str, dialect: Dialect, stage: SecurityStage, 
             ends.extend(index.endpoint_id(Endpoint.from_packed(a, port)) for a, port in new_ends)
         if reset or new_ends:
             ends_map = np.array([0] + ends, np.uint32)
+            same[0] = bool((ends_map == np.arange(len(ends_map))).all())
         if n:
-            index.extend(Chunk(n, blocks, names), ends_map, _TRANSPORTS)
+            index.extend(Chunk(n, blocks, names), None if same[0] else ends_map, _TRANSPORTS)
             items[0] += n
 
     try:

@@ -155,3 +155,37 @@ def test_arbitrary_bytes(tail: bytes, head: bytes) -> None:
                 native_index(path, DIALECT, "none")
             return
         assert_same(path)
+
+
+def test_endpoint_ids_interned_by_python_first(tmp_path: Path, small_chunks: None) -> None:
+    """A damaged datagram B -> A comes first (handed back: the index interns B, then A), then clean ones
+    A -> B and C -> A (the walker numbers A, B, C): the chunks' ids must be mapped, not taken as they are."""
+    from tests.native import build as nh
+
+    hb = DIALECT.by_name["HEARTBEAT"]
+    payload = bytes(9)
+    a, b, c = bytes([10, 0, 0, 1]), bytes([10, 0, 0, 2]), bytes([10, 0, 0, 3])
+
+    def dgram(src: bytes, dst: bytes, sport: int, dport: int, frame: bytes) -> bytes:
+        return nh.link("raw", nh.ipv4(src, dst, 17, nh.udp(sport, dport, frame)), False)
+
+    good = nh.frame_v2(hb, 0, payload, 1, 1, 1)
+    bad = good[:-1] + bytes([good[-1] ^ 0xFF])  # bad CRC: handed back
+    records = [(1, 0, dgram(b, a, 14550, 14555, bad))]
+    records += [(2 + k, 0, dgram(a, b, 14555, 14550, good) if k % 3 else dgram(c, a, 14560, 14555, good))
+                for k in range(30)]
+    path = tmp_path / "ends.pcap"
+    path.write_bytes(nh.pcap(records, 101))  # LINKTYPE_RAW
+    calls: list[bool] = []
+    extend = FrameIndex.extend
+
+    def spy(self: FrameIndex, chunk: object, ends: object, transports: tuple[str, ...]) -> None:
+        calls.append(ends is None)
+        extend(self, chunk, ends, transports)
+
+    FrameIndex.extend = spy  # type: ignore[method-assign]
+    try:
+        assert assert_same(path) == 31
+    finally:
+        FrameIndex.extend = extend  # type: ignore[method-assign]
+    assert calls and not any(calls)  # every chunk went through the id map
