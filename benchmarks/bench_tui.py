@@ -1,17 +1,27 @@
 """TUI figures on a large generated capture: time to the first rows, full index time, memory.
 
     python benchmarks/bench_tui.py [RECORDS]      # default 1,000,000 records (about 1.1M frames)
+    python benchmarks/bench_tui.py --big [--copies 10] [--repeat 3] [--out DIR] [--app]
+                                                  # the 10M-frame figures of issue 12 (native engine)
 
 Generates the capture in a temporary directory (px4_sitl_udp.pcap's records repeated), then
 1. builds the FrameIndex alone (no UI): first batch, full build, bytes per frame, RSS;
 2. runs the app headless (Textual's Pilot) and reads `first_rows_at` / `indexed_at` off it;
 3. compares with Textual's DataTable: the time to add 100k rows (why the packet list is a Line API widget);
 4. times FrameIndex.rejudge over the whole index (what a key added in the live TUI costs per kept frame).
+
+With --big: the 1M-frame bench pcap (benchmarks/out/bench_1000000_v2.pcap) `--copies` times behind one pcap
+header (10,000,000 frames, as native_stats.py makes it), indexed natively (mavscope.browse.native): time to
+the first rows (the first progress callback), to the whole index (every row navigable), bytes per frame;
+then display filters over the 10M rows through the column filter (mavscope.browse.fastfilter), best of
+`--repeat` each; with --app, the app's own first-rows and indexed times on that capture.
 """
 
 from __future__ import annotations
 
+import argparse
 import asyncio
+import os
 import resource
 import sys
 import tempfile
@@ -20,8 +30,11 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from mavscope.browse.fastfilter import ColumnFilter  # noqa: E402
 from mavscope.browse.index import FrameIndex  # noqa: E402
+from mavscope.browse.native import native_build  # noqa: E402
 from mavscope.capture.detect import open_capture  # noqa: E402
+from mavscope.filter import compile_filter  # noqa: E402
 from mavscope.mavlink.dialect import load_dialect  # noqa: E402
 from mavscope.pipeline.dissect import Dissector  # noqa: E402
 from mavscope.pipeline.options import PipelineOptions  # noqa: E402
@@ -109,8 +122,65 @@ def bench_datatable(rows: int = 100_000) -> None:
     asyncio.run(scenario())
 
 
-def main() -> None:
-    records = int(sys.argv[1]) if len(sys.argv) > 1 else 1_000_000
+BIG_FILTERS = ("mavlink.sysid == 1", "HEARTBEAT", "mavlink.msgname == GLOBAL_POSITION_INT",
+               "signature.status == no-key", "mavlink.sysid == 1 && !ATTITUDE", "frame.time > 1700000100",
+               "GLOBAL_POSITION_INT.relative_alt > 10000", "HEARTBEAT.type == MAV_TYPE_GCS")
+
+
+def bench_big(args: argparse.Namespace) -> None:
+    path, repeat = args.bench, args.repeat
+    from benchmarks.native_stats import pcap_times
+
+    dialect = load_dialect()
+    folder = Path(tempfile.gettempdir()) / "mavscope-big"
+    folder.mkdir(exist_ok=True)
+    big = pcap_times(path, folder / f"bench_x{args.copies}.pcap", args.copies) if args.copies > 1 else path
+    print(f"capture: {big} ({big.stat().st_size / 1e6:.0f} MB); load average {os.getloadavg()}")
+    best_first = best_full = float("inf")
+    index: FrameIndex | None = None
+    for _ in range(repeat):
+        if index is not None:
+            index.close()
+        before = rss_anon_mb()
+        first: list[float] = []
+        t0 = time.perf_counter()
+        index = FrameIndex(dialect, big)
+        native_build(index, str(big), dialect, make_security_stage(PipelineOptions()),
+                     on_progress=lambda p: first or first.append(time.perf_counter() - t0))
+        full = time.perf_counter() - t0
+        best_first, best_full = min(best_first, first[0]), min(best_full, full)
+        grew = rss_anon_mb() - before
+    assert index is not None
+    n = len(index)
+    print(f"native index: {n:,} frames; first rows after {best_first * 1000:.1f} ms; complete (every row navigable) "
+          f"after {best_full:.2f} s ({best_full / n * 1e9:.0f} ns/frame), best of {repeat}")
+    print(f"index memory: {index.memory() / 1e6:.0f} MB ({index.memory() / n:.1f} bytes/frame); anonymous RSS grew "
+          f"{grew:.0f} MB")
+    t = time.perf_counter()
+    for i in range(0, n, max(1, n // 1000)):
+        index.detail(i)
+    print(f"detail of 1000 rows spread over the index: {(time.perf_counter() - t) * 1000:.0f} µs each")
+    for text in BIG_FILTERS:
+        flt = compile_filter(text, dialect)
+        best = float("inf")
+        for _ in range(repeat):
+            fast = ColumnFilter(flt, index)
+            t = time.perf_counter()
+            hits = sum(len(h) for _, h in fast.scan(0, n))
+            best = min(best, time.perf_counter() - t)
+        print(f"filter {text!r}: {hits:,} rows in {best:.2f} s (best of {repeat}; {fast.frames_tested:,} frames "
+              "rebuilt)")
+    print(f"load average after: {os.getloadavg()}")
+    index.close()
+    if args.app:
+        bench_app(big)
+
+
+def main(args: argparse.Namespace) -> None:
+    if args.big:
+        bench_big(args)
+        return
+    records = args.records
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "big.pcap"
         t = time.perf_counter()
@@ -121,5 +191,16 @@ def main() -> None:
     bench_datatable()
 
 
+def parse() -> argparse.Namespace:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("records", nargs="?", type=int, default=1_000_000)
+    ap.add_argument("--big", action="store_true", help="the 10M-frame figures (native index, column filter)")
+    ap.add_argument("--bench", type=Path, default=Path(__file__).parent / "out" / "bench_1000000_v2.pcap")
+    ap.add_argument("--copies", type=int, default=10)
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--app", action="store_true", help="with --big: the app's own times too")
+    return ap.parse_args()
+
+
 if __name__ == "__main__":
-    main()
+    main(parse())

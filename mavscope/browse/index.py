@@ -17,8 +17,9 @@ What the pipeline said that the bytes cannot tell again (notes such as skipped b
 the records a reassembled frame spans, the security layer's verdicts) is kept exactly: notes and spans
 in sparse tables, security verdicts interned (a signed capture has a handful of distinct ones).
 
-The index is filled by one thread (`build`) while another reads it: rows below `len(index)` are
-complete and never change. No Textual here: the TUI drives `build` from a worker.
+The index is filled by one thread (`build`, or with the native engine `browse.native.native_build`, which
+appends the walker's chunks of clean frames in bulk through `extend`) while another reads it: rows below
+`len(index)` are complete and never change. No Textual here: the TUI drives `build` from a worker.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import threading
 from array import array
 from bisect import bisect_left
 from collections.abc import Callable, Collection, Iterable, Iterator
+from typing import Any
 
 from mavscope.browse.rows import LRU, Detail, Progress, Row
 from mavscope.capture.reader import FileBytes, open_file
@@ -46,6 +48,13 @@ _CRC_CODE = {s: i for i, s in enumerate(CRC_CODES)}
 NO_OFFSET = -1  # offset column: Frame.offset is None
 
 PROGRESS_EVERY = 8192  # items between progress callbacks (and cancellation checks)
+
+
+def _bytes_of(a: Any) -> memoryview:
+    """A numpy array's bytes, for array.frombytes (which takes a buffer of bytes only)."""
+    import numpy as np
+
+    return memoryview(np.ascontiguousarray(a)).cast("B")  # type: ignore[arg-type]
 
 
 class FrameIndex:
@@ -190,6 +199,58 @@ class FrameIndex:
         self._msgid.append(frame.msgid)
         self._security.append(sid)
         self._count = i + 1  # published last: readers only look below _count
+
+    def endpoint_id(self, ep: Endpoint | None) -> int:
+        """The interned id of `ep` (a new one when first seen)."""
+        eps = self._endpoint_ids
+        got = eps.get(ep)
+        if got is None:
+            got = eps[ep] = len(self._endpoints)
+            self._endpoints.append(ep)
+        return got
+
+    def extend(self, chunk: Any, ends: Any, transports: tuple[str, ...]) -> None:
+        """Append a native chunk of clean frames (mavscope.browse.native: numpy columns, `ends` mapping its
+        endpoint ids + 1 to this index's, None when they are the same; `transports` its transport codes to
+        names), as `add` would
+        append each frame: CRC ok, no note, span or security verdict, the bytes at their offset."""
+        n = chunk.n
+        if self.limit is not None:  # a bounded index is live, never native: keep add's trimming
+            raise ValueError("extend: a bounded index")
+        import numpy as np  # only the native build, which has numpy, comes here
+
+        codes = np.flatnonzero(np.bincount(chunk.transport, minlength=len(transports)))
+        tmap = np.zeros(len(transports), np.uint8)
+        for code in codes.tolist():
+            name = transports[code]
+            tr = self._transport_ids.get(name)
+            if tr is None:
+                tr = self._transport_ids[name] = len(self._transports)
+                self._transports.append(name)
+            tmap[code] = tr
+        if self.first_time is None and chunk.time_ok.any():
+            self.first_time = float(chunk.time[int(np.argmax(chunk.time_ok))])
+        self._record.frombytes(_bytes_of(chunk.record.astype(np.uint32)))
+        self._index.frombytes(_bytes_of(np.minimum(chunk.index, 0xFFFF).astype(np.uint16)))
+        timed = chunk.time_ok.all()
+        self._time.frombytes(_bytes_of(chunk.time if timed else np.where(chunk.time_ok != 0, chunk.time, np.nan)))
+        self._transport.frombytes(_bytes_of(tmap[chunk.transport]) if len(codes) > 1 or tmap[codes[0]] else bytes(n))
+        if ends is None:  # the walker's ids are this index's, less one (no gather)
+            self._src.frombytes(_bytes_of((chunk.src + 1).view(np.uint32)))
+            self._dst.frombytes(_bytes_of((chunk.dst + 1).view(np.uint32)))
+        else:
+            self._src.frombytes(_bytes_of(ends[chunk.src + 1]))
+            self._dst.frombytes(_bytes_of(ends[chunk.dst + 1]))
+        self._offset.frombytes(_bytes_of(chunk.offset))
+        self._rawlen.frombytes(_bytes_of(chunk.size))
+        self._crc.frombytes(bytes(n))  # CRC_CODES[0]: ok
+        self._iflags.frombytes(_bytes_of(chunk.iflags))
+        self._sysid.frombytes(_bytes_of(chunk.sysid))
+        self._compid.frombytes(_bytes_of(chunk.compid))
+        self._seq.frombytes(_bytes_of(chunk.seq))
+        self._msgid.frombytes(_bytes_of(chunk.msgid))
+        self._security.frombytes(bytes(4 * n))  # no verdict
+        self._count += n  # published last: readers only look below _count
 
     def _security_id(self, sec: Security) -> int:
         sid = self._security_ids.get(sec)

@@ -14,6 +14,9 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 
 from mavscope.browse.index import FrameIndex
+from mavscope.browse.native import available as native_available
+from mavscope.browse.native import native_build
+from mavscope.browse.rows import Progress
 from mavscope.capture.detect import open_capture
 from mavscope.capture.reader import CaptureReader
 from mavscope.endpoint import Endpoint
@@ -64,6 +67,20 @@ class FrameSource:
         t0, records = peek_time(iter(reader))
         return reader, build_pipeline(self.pipeline_options(), self.dialect, records, warn=self.warn), t0
 
+    def index_natively(self, index: FrameIndex, on_progress: Callable[[Progress], object],
+                       cancelled: Callable[[], bool]) -> bool:
+        """Fill `index` through the native engine (mavscope.browse.native) when it can read this capture;
+        False (nothing done) when the pure pipeline must (no extension, MAVSCOPE_PURE, a raw stream)."""
+        with open_capture(self.path) as reader:  # the capture's errors as the pure path raises them
+            kind = reader.kind
+            t0, _ = peek_time(iter(reader))
+        if not native_available(kind):
+            return False
+        index.t0 = t0
+        native_build(index, self.path, self.dialect, make_security_stage(self.pipeline_options(), self.warn),
+                     on_progress=on_progress, cancelled=cancelled)
+        return True
+
     def check(self) -> None:
         """Build the stages over no records: they parse their options (MavscopeError if one is wrong)."""
         for _ in build_pipeline(self.pipeline_options(), self.dialect, iter(()), warn=self.warn):
@@ -102,6 +119,10 @@ class LiveFrameSource(FrameSource):
     pipeline. The index keeps the newest `keep` frames."""
 
     live = True
+
+    def index_natively(self, index: FrameIndex, on_progress: Callable[[Progress], object],
+                       cancelled: Callable[[], bool]) -> bool:
+        return False  # frames as they arrive: the pure pipeline
 
     def __init__(self, listen: str, options: PipelineOptions, dialect: Dialect) -> None:
         super().__init__(f"udp {listen}", options, dialect)

@@ -9,6 +9,8 @@ from collections.abc import Callable
 
 from textual.message import Message
 
+from mavscope.browse.fastfilter import Cancelled as FilterCancelled
+from mavscope.browse.fastfilter import ColumnFilter
 from mavscope.browse.index import PROGRESS_EVERY, FrameIndex
 from mavscope.browse.rows import Progress
 from mavscope.filter import DisplayFilter
@@ -20,7 +22,10 @@ Cancelled = Callable[[], bool]
 
 
 def fill_index(index: FrameIndex, source: FrameSource, post: Post, cancelled: Cancelled) -> None:
-    """Walk `source`'s pipeline into `index`, posting IndexProgress as it goes."""
+    """Walk `source`'s pipeline into `index`, posting IndexProgress as it goes (natively where the
+    engine reads the capture: mavscope.browse.native)."""
+    if source.index_natively(index, lambda p: post(IndexProgress(index, p)), cancelled):
+        return
     reader, items, index.t0 = source.open()
     with reader:  # type: ignore[attr-defined]  # a CaptureReader or a LiveReader
         if isinstance(reader, LiveReader) and isinstance(source, LiveFrameSource):
@@ -42,32 +47,29 @@ def fill_index(index: FrameIndex, source: FrameSource, post: Post, cancelled: Ca
 
 
 def scan_filter(flt: DisplayFilter, index: FrameIndex, rows: array, post: Post, cancelled: Cancelled) -> None:
-    """Fill `rows` with the rows `flt` matches (following a live index as it grows), posting FilterProgress."""
-    matches = flt.matches
-    frame = index.frame
+    """Fill `rows` with the rows `flt` matches (following a live index as it grows), posting FilterProgress.
+    The filter runs over the index's columns (mavscope.browse.fastfilter: vectorised where it can be, the
+    exact predicate on the frames of the rest)."""
+    fast = ColumnFilter(flt, index, cancelled)
     start = done = index.first  # row numbers: a bounded live index drops rows but never renumbers
     last_post = time.perf_counter()
-    while True:
-        complete = index.done or index.progress.cancelled
-        end = index.end
-        for i in range(max(done, index.first), end):
-            try:
-                if matches(frame(i)):
-                    rows.append(i)
-            except IndexError:  # dropped meanwhile
-                pass
-            if not i & 0x1FFF:
-                if cancelled():
-                    return
+    try:
+        while True:
+            complete = index.done or index.progress.cancelled
+            end = index.end
+            for stop, hits in fast.scan(max(done, index.first), end):
+                rows.frombytes(hits.tobytes())
                 now = time.perf_counter()
                 if now - last_post > 0.1:
                     last_post = now
-                    post(FilterProgress(flt, rows, i + 1 - start, max(end - start, 1), False))
-        done = end
-        if complete and done == index.end:
-            break
-        post(FilterProgress(flt, rows, done - start, max(end - start, 1), False))
-        time.sleep(0.05)
-        if cancelled():
-            return
+                    post(FilterProgress(flt, rows, stop - start, max(end - start, 1), False))
+            done = end
+            if complete and done == index.end:
+                break
+            post(FilterProgress(flt, rows, done - start, max(end - start, 1), False))
+            time.sleep(0.05)
+            if cancelled():
+                return
+    except FilterCancelled:
+        return
     post(FilterProgress(flt, rows, done - start, done - start, True))

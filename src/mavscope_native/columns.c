@@ -13,7 +13,7 @@ const char *const MS_COL_NAMES[MS_NCOLS] = {
     [MS_COL_MESSAGE] = "message", [MS_COL_CRC] = "crc", [MS_COL_SIG_LINK] = "signature_link_id",
     [MS_COL_SIG_TIME] = "signature_timestamp", [MS_COL_SIG_VALUE] = "signature_value",
     [MS_COL_OFFSET] = "offset", [MS_COL_PAYLOAD_AT] = "payload_at", [MS_COL_PAYLOAD] = "payload",
-    [MS_COL_RAW_AT] = "raw_at", [MS_COL_RAW] = "raw",
+    [MS_COL_RAW_AT] = "raw_at", [MS_COL_RAW] = "raw", [MS_COL_SIZE] = "size",
 };
 
 const uint8_t MS_COL_WIDTH[MS_NCOLS] = {
@@ -21,7 +21,7 @@ const uint8_t MS_COL_WIDTH[MS_NCOLS] = {
     [MS_COL_SRC] = 4, [MS_COL_DST] = 4, [MS_COL_VERSION] = 1, [MS_COL_LEN] = 1, [MS_COL_IFLAGS] = 1,
     [MS_COL_CFLAGS] = 1, [MS_COL_SEQ] = 1, [MS_COL_SYSID] = 1, [MS_COL_COMPID] = 1, [MS_COL_MSGID] = 4,
     [MS_COL_MESSAGE] = 4, [MS_COL_CRC] = 2, [MS_COL_SIG_LINK] = 1, [MS_COL_SIG_TIME] = 8, [MS_COL_SIG_VALUE] = 6,
-    [MS_COL_OFFSET] = 8,
+    [MS_COL_OFFSET] = 8, [MS_COL_SIZE] = 2,
 };
 
 int ms_cols_init(ms_cols *c, const ms_table *table, uint32_t limit) {
@@ -68,13 +68,31 @@ static void endpoint_slot(uint32_t *slots, uint32_t nslots, const ms_endpoint *e
     slots[j] = id + 1;
 }
 
+static int64_t endpoint_lookup(ms_cols *c, const ms_endpoint *ep);
+
 /* The id of an endpoint (a new one when first seen), or -1 when memory runs out. */
 static int64_t endpoint_id(ms_cols *c, int v6, const uint8_t *addr, uint16_t port) {
+    const unsigned r = (unsigned)(port ^ (port >> 3) ^ addr[v6 ? 15 : 3]) & 7u;
+    const ms_endpoint *hit = &c->recent[r];
+    if (c->recent_ok[r] && hit->port == port && hit->v6 == (uint8_t)v6 && memcmp(hit->addr, addr, v6 ? 16 : 4) == 0)
+        return c->recent_id[r]; /* an IPv4 entry's other 12 bytes are zeros, as `e` would hold them */
     ms_endpoint e;
     memset(&e, 0, sizeof e);
     e.v6 = (uint8_t)v6;
     memcpy(e.addr, addr, v6 ? 16 : 4);
     e.port = port;
+    const int64_t id = endpoint_lookup(c, &e);
+    if (id >= 0) {
+        memcpy(&c->recent[r], &e, sizeof e);
+        c->recent_id[r] = (uint32_t)id;
+        c->recent_ok[r] = 1;
+    }
+    return id;
+}
+
+/* The id of endpoint `e` (a new one when first seen), or -1 when memory runs out. */
+static int64_t endpoint_lookup(ms_cols *c, const ms_endpoint *ep) {
+    const ms_endpoint e = *ep;
     if (c->nslots != 0) {
         uint32_t j = ms_endpoint_hash(&e) & (c->nslots - 1);
         while (c->slots[j] != 0) {
@@ -160,7 +178,8 @@ int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uin
         src = (int32_t)s;
         dst = (int32_t)e;
     }
-    if (c->n == 0 && c->col[MS_COL_PAYLOAD_AT].len == 0) {
+    const int full = !c->index_only;
+    if (full && c->n == 0 && c->col[MS_COL_PAYLOAD_AT].len == 0) {
         put_i32(c, MS_COL_PAYLOAD_AT, 0);
         put_i32(c, MS_COL_RAW_AT, 0);
     }
@@ -186,6 +205,26 @@ int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uin
             return -1;
         }
         const int32_t index = (int32_t)(i + 1);
+        const int64_t offset = (int64_t)(base + frames[2 * i]);
+        const uint16_t fsize = (uint16_t)size;
+        put(c, MS_COL_RECORD, &number);
+        put(c, MS_COL_INDEX, &index);
+        put(c, MS_COL_TIME, &time);
+        put_u8(c, MS_COL_TIME_OK, time_ok);
+        put_u8(c, MS_COL_TRANSPORT, transport);
+        put(c, MS_COL_SRC, &src);
+        put(c, MS_COL_DST, &dst);
+        put_u8(c, MS_COL_IFLAGS, v2 ? f[2] : 0);
+        put_u8(c, MS_COL_SEQ, f[v2 ? 4 : 2]);
+        put_u8(c, MS_COL_SYSID, f[v2 ? 5 : 3]);
+        put_u8(c, MS_COL_COMPID, f[v2 ? 6 : 4]);
+        put(c, MS_COL_MSGID, &msgid);
+        put(c, MS_COL_OFFSET, &offset);
+        put(c, MS_COL_SIZE, &fsize);
+        if (!full) {
+            c->n++;
+            continue;
+        }
         const int32_t message = (int32_t)(m - c->table->messages);
         const uint16_t crc = (uint16_t)(f[hlen + len] | (f[hlen + len + 1] << 8));
         const int is_signed = v2 && (f[2] & 1);
@@ -198,28 +237,14 @@ int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uin
                 stamp = (stamp << 8) | s[b];
             memcpy(value, s + 7, 6);
         }
-        const int64_t offset = (int64_t)(base + frames[2 * i]);
-        put(c, MS_COL_RECORD, &number);
-        put(c, MS_COL_INDEX, &index);
-        put(c, MS_COL_TIME, &time);
-        put_u8(c, MS_COL_TIME_OK, time_ok);
-        put_u8(c, MS_COL_TRANSPORT, transport);
-        put(c, MS_COL_SRC, &src);
-        put(c, MS_COL_DST, &dst);
         put_u8(c, MS_COL_VERSION, v2 ? 2 : 1);
         put_u8(c, MS_COL_LEN, (unsigned)len);
-        put_u8(c, MS_COL_IFLAGS, v2 ? f[2] : 0);
         put_u8(c, MS_COL_CFLAGS, v2 ? f[3] : 0);
-        put_u8(c, MS_COL_SEQ, f[v2 ? 4 : 2]);
-        put_u8(c, MS_COL_SYSID, f[v2 ? 5 : 3]);
-        put_u8(c, MS_COL_COMPID, f[v2 ? 6 : 4]);
-        put(c, MS_COL_MSGID, &msgid);
         put(c, MS_COL_MESSAGE, &message);
         put(c, MS_COL_CRC, &crc);
         put_u8(c, MS_COL_SIG_LINK, link);
         put(c, MS_COL_SIG_TIME, &stamp);
         put(c, MS_COL_SIG_VALUE, value);
-        put(c, MS_COL_OFFSET, &offset);
         ms_buf_put(&c->col[MS_COL_PAYLOAD], f + hlen, len);
         put_i32(c, MS_COL_PAYLOAD_AT, (int32_t)c->col[MS_COL_PAYLOAD].len);
         ms_buf_put(&c->col[MS_COL_RAW], f, size);
@@ -254,6 +279,7 @@ void ms_cols_restart(ms_cols *c) {
     c->reset = 0;
     if (c->nends > MS_COLS_ENDPOINTS) {
         memset(c->slots, 0, (size_t)c->nslots * sizeof *c->slots);
+        memset(c->recent_ok, 0, sizeof c->recent_ok);
         c->nends = 0;
         c->reset = 1;
     }

@@ -51,6 +51,7 @@ enum {
     MS_COL_PAYLOAD,    /* bytes: the payloads as on the wire */
     MS_COL_RAW_AT,     /* int32 offsets (n + 1) into RAW */
     MS_COL_RAW,        /* bytes: the frames as on the wire (header to signature) */
+    MS_COL_SIZE,       /* uint16: the frame's size in bytes (header to signature) */
     MS_NCOLS,
 };
 
@@ -60,6 +61,13 @@ extern const char *const MS_COL_NAMES[MS_NCOLS];
 extern const uint8_t MS_COL_WIDTH[MS_NCOLS];
 
 enum { MS_TRANSPORT_UDP = 1, MS_TRANSPORT_TLOG = 2 };
+
+/* the columns an index_only chunk fills (bit k: MS_COL_k) */
+#define MS_INDEX_COLUMNS                                                                                     \
+    ((1u << MS_COL_RECORD) | (1u << MS_COL_INDEX) | (1u << MS_COL_TIME) | (1u << MS_COL_TIME_OK) |           \
+     (1u << MS_COL_TRANSPORT) | (1u << MS_COL_SRC) | (1u << MS_COL_DST) | (1u << MS_COL_IFLAGS) |            \
+     (1u << MS_COL_SEQ) | (1u << MS_COL_SYSID) | (1u << MS_COL_COMPID) | (1u << MS_COL_MSGID) |              \
+     (1u << MS_COL_OFFSET) | (1u << MS_COL_SIZE))
 
 #define MS_COLS_ENDPOINTS 65536 /* endpoint ids remembered; past that the map starts over at a take */
 #define MS_COLS_MAX_FRAMES (1u << 22) /* a chunk never holds more (its byte offsets fit int32) */
@@ -86,6 +94,11 @@ typedef struct {
     uint32_t nslots;
     uint32_t first_new;    /* ids from here on are new since the last take */
     int reset;             /* the map started over at the last take: ids before it mean nothing now */
+    ms_endpoint recent[8]; /* endpoints looked up lately, by a cheap hash of port and address (the map's */
+    uint32_t recent_id[8]; /* FNV hash costs a fifth of an index walk); valid while recent_ok, until the */
+    uint8_t recent_ok[8];  /* map starts over */
+    int index_only;        /* the TUI's index (mavscope/browse/native.py): only MS_INDEX_COLUMNS are filled,
+                              no payloads, wire bytes, signatures or message rows (those columns stay empty) */
     int failed;
 } ms_cols;
 

@@ -27,7 +27,8 @@
  *     .put(stream, last: int, key: int), len()
  *   sha256(data) -> bytes, format_skew(x) -> bytes   (the signing code, for the tests)
  *   Receiver, udp_record, UDP_PCAP_HEADER (module_recv.c: live capture's batched receive)
- *   Columns(table, limit: int = 65536)  column mode for the export (columns.h): Walker(..., columns=Columns)
+ *   Columns(table, limit: int = 65536, *, index: bool = False)  column mode for the export (columns.h):
+ *       Walker(..., columns=Columns); `index`: only the columns the TUI's index takes; `.limit` settable
  *     fills it instead of writing JSON Lines, stopping once it holds `limit` frames
  *     .frames -> int                     frames held
  *     .take() -> (frames, endpoints_reset, new_endpoints, columns, messages)   the chunk, whose memory
@@ -393,10 +394,11 @@ static void Columns_dealloc(ColumnsObject *self) {
 }
 
 static int Columns_init(ColumnsObject *self, PyObject *args, PyObject *kwds) {
-    static char *kwlist[] = {"table", "limit", NULL};
+    static char *kwlist[] = {"table", "limit", "index", NULL};
     PyObject *table;
     Py_ssize_t limit = 65536;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "O!|n", kwlist, &TableType, &table, &limit))
+    int index_only = 0;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "O!|n$p", kwlist, &TableType, &table, &limit, &index_only))
         return -1;
     if (self->ok) {
         PyErr_SetString(PyExc_RuntimeError, "Columns already initialised");
@@ -410,10 +412,28 @@ static int Columns_init(ColumnsObject *self, PyObject *args, PyObject *kwds) {
         PyErr_NoMemory();
         return -1;
     }
+    self->cols.index_only = index_only;
     Py_INCREF(table);
     self->table = table;
     self->ok = 1;
     return 0;
+}
+
+/* limit = n: the frames a chunk holds from now on (the TUI's index takes a small first chunk). */
+static int Columns_set_limit(ColumnsObject *self, PyObject *value, void *Py_UNUSED(closure)) {
+    Py_ssize_t limit = value == NULL ? -1 : PyLong_AsSsize_t(value);
+    if (limit == -1 && PyErr_Occurred())
+        return -1;
+    if (!self->ok || self->busy || limit < 1 || limit > (Py_ssize_t)MS_COLS_MAX_FRAMES) {
+        PyErr_SetString(PyExc_ValueError, "limit out of range (or Columns busy)");
+        return -1;
+    }
+    self->cols.limit = (uint32_t)limit;
+    return 0;
+}
+
+static PyObject *Columns_limit(ColumnsObject *self, void *Py_UNUSED(closure)) {
+    return PyLong_FromUnsignedLong(self->ok ? self->cols.limit : 0);
 }
 
 static PyObject *Columns_frames(ColumnsObject *self, void *Py_UNUSED(closure)) {
@@ -489,6 +509,7 @@ static PyMethodDef Columns_methods[] = {
 
 static PyGetSetDef Columns_getset[] = {
     {"frames", (getter)Columns_frames, NULL, "frames held", NULL},
+    {"limit", (getter)Columns_limit, (setter)Columns_set_limit, "frames a chunk holds", NULL},
     {NULL, NULL, NULL, NULL, NULL},
 };
 

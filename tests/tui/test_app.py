@@ -375,3 +375,30 @@ def test_a_superseded_filter_runs_late_message_does_not_replace_the_view() -> No
             assert app.packet_list.count == shown
 
     run(scenario())
+
+
+@pytest.mark.parametrize("engine", ["pure", "native"])
+def test_a_payload_filter_selects_the_frames_pymavlink_decodes_so(engine: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The filter worker over the index's columns (mavscope.browse.fastfilter), on the pure and the native
+    index: `GLOBAL_POSITION_INT.relative_alt > 1000 || (HEARTBEAT && mavlink.sysid == 255)` shows exactly
+    the frames pymavlink's own decoder (tests/support/pymavlink_reader.py, no mavscope code) says match, in
+    capture order."""
+    from tests.support.pymavlink_reader import read_pcap
+
+    monkeypatch.setenv("MAVSCOPE_PURE", "1" if engine == "pure" else "")
+    msgs = read_pcap(PX4)
+    expected = [k for k, m in enumerate(msgs) if (m.name == "GLOBAL_POSITION_INT" and m.msg.relative_alt > 1000)
+                or (m.name == "HEARTBEAT" and m.src[0] == 255)]
+    assert len(expected) > 10
+    text = "GLOBAL_POSITION_INT.relative_alt > 1000 || (HEARTBEAT && mavlink.sysid == 255)"
+
+    async def scenario() -> None:
+        app = create_app(PX4, parse_options([str(PX4), "-Y", text]))
+        async with app.run_test(size=SIZE) as pilot:
+            await wait_for(pilot, lambda: app.index.done and app.status.filtering is None
+                           and app.status.shown == len(expected))
+            assert len(app.index) == len(msgs)  # the same frames, so positions compare
+            assert list(app._filter_rows) == expected
+            assert [app.index.row(n).record for n in expected] == [msgs[k].index for k in expected]
+
+    run(scenario())
