@@ -29,12 +29,11 @@ from typing import IO, NamedTuple, Protocol
 
 from mavscope.capture.base import Record
 from mavscope.capture.detect import detect_kind
-from mavscope.capture.reader import WINDOW, make_record, open_file
+from mavscope.capture.reader import WINDOW, handed_back_record, open_file
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
 from mavscope.mavlink.native_table import build_table
-from mavscope.notes import note
 from mavscope.output.jsonout import jsonl_bytes
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.security.stage import SecurityStage
@@ -76,18 +75,8 @@ def table_for(dialect: Dialect) -> object:
     return _table[0][1]
 
 
-# what _native.Walker.next hands back for a record: (number, time, linktype, data, offset, orig_len,
-# notes as (code, message, offset))
-HandedBack = tuple[int, float | None, int, bytes, int, int, tuple[tuple[str, str, int], ...]]
 # (number, time, index) of the last record a batch walked natively: what Dissector.passed is told
 Walked = tuple[int, float | None, int | None]
-
-
-def _record(seg: HandedBack) -> Record:
-    """A handed-back record description as the Record the Python readers would have yielded."""
-    number, time, linktype, data, offset, orig_len, notes = seg
-    return make_record(number, time, linktype, data, offset, orig_len,
-                       tuple(note(code, message, off) for code, message, off in notes))
 
 
 class Batch(NamedTuple):
@@ -171,7 +160,7 @@ class NativeWalk:
             record: Record | None = None
             for seg in segs:
                 if type(seg) is tuple:
-                    record = _record(seg)
+                    record = handed_back_record(seg)
                 else:
                     text = seg
             spare = buf if buf is not None and text is not buf else None

@@ -25,12 +25,11 @@ import numpy as np
 
 from mavscope.browse.rows import Progress
 from mavscope.capture.detect import open_capture
-from mavscope.capture.reader import WINDOW, make_record, open_file
+from mavscope.capture.reader import WINDOW, handed_back_record, open_file
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
 from mavscope.mavlink.native_table import build_table
-from mavscope.notes import note
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.security.stage import SecurityStage
 from mavscope.transport.base import TRANSPORT_TLOG, TRANSPORT_UDP
@@ -64,12 +63,6 @@ def _table(dialect: Dialect) -> object:
     if not _tables or _tables[0][0] is not dialect:
         _tables[:] = [(dialect, _native.Table(build_table(dialect)))]
     return _tables[0][1]
-
-
-def _record(seg: tuple[int, float | None, int, bytes, int, int, tuple[tuple[str, str, int], ...]]) -> Any:
-    number, time, linktype, data, offset, orig_len, notes = seg
-    return make_record(number, time, linktype, data, offset, orig_len,
-                       tuple(note(code, message, off) for code, message, off in notes))
 
 
 class Chunk:
@@ -161,7 +154,7 @@ def native_build(index: Any, path: str, dialect: Dialect, stage: SecurityStage, 
                 chunk()
                 for seg in segs:
                     if type(seg) is tuple:
-                        python(dissector.feed(_record(seg)))
+                        python(dissector.feed(handed_back_record(seg)))
                 if first and items[0]:
                     first = False
                     cols.limit = CHUNK

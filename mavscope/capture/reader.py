@@ -42,6 +42,18 @@ def make_record(
     return _tuple_new(Record, (number, time, linktype, data, offset, orig_len, notes))
 
 
+# A record the native walker hands back to the Python pipeline: (number, time, linktype, data, offset,
+# orig_len, notes as (code, message, offset)), as src/mavscope_native/module.c's handback_tuple makes it
+HandedBack = tuple[int, float | None, int, bytes, int, int, tuple[tuple[str, str, int], ...]]
+
+
+def handed_back_record(seg: HandedBack) -> Record:
+    """A record the native walker handed back, as the Python readers would have yielded it."""
+    number, time, linktype, data, offset, orig_len, notes = seg
+    return make_record(number, time, linktype, data, offset, orig_len,
+                       tuple(note(code, message, off) for code, message, off in notes))
+
+
 def open_file(path: str | os.PathLike[str]) -> tuple[str, BinaryIO, int]:
     """Open `path` for reading: (path as str, unbuffered file object, size).
 

@@ -25,9 +25,8 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 
-from mavscope.capture.base import Record
 from mavscope.capture.detect import open_capture
-from mavscope.capture.reader import WINDOW, make_record, open_file
+from mavscope.capture.reader import WINDOW, handed_back_record, open_file
 from mavscope.endpoint import Endpoint
 from mavscope.export.columns import AnomalyColumns, MessageTables, frame_batch
 from mavscope.export.native_columns import Chunk, Names, frames_batch, message_batch, message_plan
@@ -39,7 +38,6 @@ from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import Frame
 from mavscope.mavlink.native_table import build_table
 from mavscope.native_dump import Accumulator, plan_for
-from mavscope.notes import note
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.pipeline.session import make_security_stage
 from mavscope.security.stage import SecurityStage
@@ -76,13 +74,6 @@ def _compiled(dialect: Dialect) -> tuple[object, list[MessageDef], pa.Array]:
         got = _tables[id(dialect)] = (dialect, _native.Table(build_table(dialect)), messages,
                                       pa.array([m.name for m in messages], pa.string()))
     return got[1], got[2], got[3]
-
-
-def _record(seg: tuple[int, float | None, int, bytes, int, int, tuple[tuple[str, str, int], ...]]) -> Record:
-    """A record the walker handed back, as the Python readers make it."""
-    number, time, linktype, data, offset, orig_len, notes = seg
-    return make_record(number, time, linktype, data, offset, orig_len,
-                       tuple(note(code, message, off) for code, message, off in notes))
 
 
 class _Pending:
@@ -295,7 +286,7 @@ class _Export:
                     yield from self.python(held, before)
             for seg in segs:
                 if type(seg) is tuple:
-                    yield from self.python(dissector.feed(_record(seg)), cols.frames)  # type: ignore[attr-defined]
+                    yield from self.python(dissector.feed(handed_back_record(seg)), cols.frames)  # type: ignore[attr-defined]
             if cols.frames >= WINDOW_FRAMES or len(self.py) >= WINDOW_FRAMES:  # type: ignore[attr-defined]
                 yield from self.window(cols.take())  # type: ignore[attr-defined]
                 if progress is not None:
