@@ -155,9 +155,10 @@ class MavscopeApp(App[None]):
         fill_index(index, source, self.post_message, lambda: worker.is_cancelled)
 
     def _torn_down(self) -> bool:
-        """The main screen's widgets are gone (the app is exiting): late worker messages have nothing to
-        update."""
-        return not self.default_screen.query(PacketList)
+        """The main screen's widgets are going (the app is exiting; they are removed one by one): late worker
+        messages have nothing to update."""
+        screen = self.default_screen
+        return not screen.query(PacketList) or not screen.query(StatusBar)
 
     def on_index_progress(self, msg: IndexProgress) -> None:
         if self._torn_down():
