@@ -94,6 +94,11 @@ class _Pending:
             yield self._cut_frames(self.rows)
 
     def _cut_frames(self, k: int) -> pa.RecordBatch:
+        first = self.frames[0]
+        if first.num_rows >= k:  # a window of `k` rows or more: its rows as they are (a slice copies nothing)
+            self.frames[0:1] = [first.slice(k)] if first.num_rows > k else []
+            self.frames_held -= k
+            return first.slice(0, k) if first.num_rows > k else first
         table = pa.Table.from_batches(self.frames, schema=self.frames[0].schema)
         head = table.slice(0, k).combine_chunks()
         self.frames = table.slice(k).to_batches()
@@ -273,6 +278,12 @@ class _Export:
         dissector = self.dissector
         while True:
             before = cols.frames  # type: ignore[attr-defined]
+            # windows of WINDOW_FRAMES rows, native and handed back together, less what the frames table
+            # carries over (a handed-back record of several frames can overshoot a window): so that frames
+            # batches of as many rows are windows as they are, not copies. The walker stops where the native
+            # rows fill the window.
+            goal = WINDOW_FRAMES - self.pending.frames_held % WINDOW_FRAMES
+            cols.limit = goal - len(self.py)  # type: ignore[attr-defined]  # > cols.frames here
             segs = step(not self.stage.check_signatures, 1 << 20, None)
             if segs is None:
                 last = walked()
@@ -287,7 +298,7 @@ class _Export:
             for seg in segs:
                 if type(seg) is tuple:
                     yield from self.python(dissector.feed(handed_back_record(seg)), cols.frames)  # type: ignore[attr-defined]
-            if cols.frames >= WINDOW_FRAMES or len(self.py) >= WINDOW_FRAMES:  # type: ignore[attr-defined]
+            if cols.frames + len(self.py) >= goal:  # type: ignore[attr-defined]
                 yield from self.window(cols.take())  # type: ignore[attr-defined]
                 if progress is not None:
                     progress(int(walker.stats()["position"]))  # type: ignore[attr-defined]
