@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import CAPTURES, REAL_CAPTURES, Cli
-from tests.native.engines import native, same
+from tests.native.engines import PURE, native, same
 
 pytest.importorskip("mavscope._native", reason="the native extension is not built (no compiler at install)")
 
@@ -69,3 +69,23 @@ def test_engine_is_named_and_pure_can_be_forced() -> None:
     assert engine({}) == "native"
     assert engine({"MAVSCOPE_PURE": "1"}) == "pure-python"
     assert engine({"MAVSCOPE_PURE": "0"}) == "native"
+
+
+def _same_command(cli: Cli, *argv: str) -> None:
+    """`mavscope ARGV` with MAVSCOPE_PURE=1 and without: stdout, stderr and exit status equal."""
+    p, n = cli(*argv, environ=PURE), cli(*argv, environ={})
+    assert (n.err, n.out, n.status) == (p.err, p.out, p.status)
+
+
+@pytest.mark.parametrize("name", BUNDLED)
+def test_bundled_capture_verbose_hex_and_verify(name: str, cli: Cli) -> None:
+    """Issue 12's evidence beyond JSON Lines: `read -V -x` (the detail tree and hex of every frame, which the
+    native engine leaves to the Python printer) and `verify --json` are the same under both engines."""
+    same(cli, CAPTURES / name, "--key", SIGNED_UDP_KEY, fmt=("-V", "-x"))
+    _same_command(cli, "verify", str(CAPTURES / name), "--json", "--key", SIGNED_UDP_KEY)
+
+
+@pytest.mark.parametrize("name", real_names())
+def test_real_capture_verbose_hex_and_verify(name: str, real_captures: Path, cli: Cli) -> None:
+    same(cli, real_captures / name, "-c", "3000", fmt=("-V", "-x"))  # the first 3,000 frames: output stays small
+    _same_command(cli, "verify", str(real_captures / name), "--json", "--use-leaked-keys")
