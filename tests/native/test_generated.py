@@ -23,7 +23,7 @@ from hypothesis import strategies as st
 from mavscope.mavlink.dialect import MessageDef, load_dialect
 from tests.conftest import Cli
 from tests.native import build as nh
-from tests.native.engines import KEY_OPTIONS, capture_file, native_output, pure_output, same
+from tests.native.engines import KEY_OPTIONS, PURE, capture_file, native_output, pure_output, same
 
 pytest.importorskip("mavscope._native", reason="the native extension is not built (no compiler at install)")
 
@@ -215,6 +215,10 @@ def check(data: bytes, keys: str, cli: bool = False) -> None:
     with capture_file(data) as path:
         if cli:
             same(CLI, path, *KEY_OPTIONS[keys])
+            same(CLI, path, *KEY_OPTIONS[keys], fmt=("-V", "-x"))  # the detail tree and hex dump, too
+            verify = ("verify", path, "--json", *KEY_OPTIONS[keys])
+            p, n = CLI(*verify, environ=PURE), CLI(*verify, environ={})
+            assert (n.err, n.out, n.status) == (p.err, p.out, p.status)
             return
         pure_out, pure_err = pure_output(path, DIALECT, keys)
         native_out, native_err, _ = native_output(path, DIALECT, keys)
