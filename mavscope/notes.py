@@ -128,6 +128,10 @@ CODES: dict[str, Code] = {
         Code("signature-skew", _NOTE, Group.SECURITY, _B, "new signing stream more than a minute from capture time",
              "signing streams that start more than a minute from capture time (a receiver's new-stream check "
              "would refuse them)"),
+        Code("signature-ahead", _WARN, Group.SECURITY, _C,
+             "a signing stream whose timestamps start far ahead of every other stream's: a receiver that takes "
+             "it moves its signing clock that far ahead, so that genuine frames then look like replays to it "
+             "(a future-timestamp attack), or that sender's clock is wrong"),
         Code("key-exchange", _NOTE, Group.SECURITY, _F, "MAVSCOPE_KEY_EXCHANGE public key (ECDH epoch)"),
         Code("nonce-reuse", _ERROR, Group.SECURITY, _B, "aes-gcm nonce used twice under one key",
              "aes-gcm nonces used twice under one key"),

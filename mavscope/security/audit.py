@@ -14,11 +14,13 @@ from collections.abc import Iterable
 from mavscope.mavlink.frame import EncryptionStatus, Frame, SignatureStatus
 from mavscope.notes import Finding, FrameNumbers, explanation, finding, sort_findings
 from mavscope.security.keystream import DAMAGED, Collector, Recovery, frames_text, keystream_audit
-from mavscope.security.passphrase import Targets, default_key_findings, passphrase_findings
+from mavscope.security.passphrase import Stream, Targets, default_key_findings, passphrase_findings
+from mavscope.security.signing import NEW_STREAM_WINDOW
 
 # The notes of the security stage that the audit sums up, in the order it reports them first.
 _NOTE_CODES = ("key-leak", "unsigned-in-signed-stream", "v1-in-signed-stream", "nonce-reuse", "signature-skew")
 RECORDS_LISTED = 10_000  # frame numbers kept per kind of verdict (all of them are counted)
+AHEAD_S = 3600.0  # a signing stream that starts this much further ahead of the capture clock than every other
 
 
 def _records() -> FrameNumbers:
@@ -94,9 +96,36 @@ class Audit:
         ks = keystream_audit(self.keystreams, known)
         findings += ks.findings
         findings += default_key_findings(self.targets.frames)
+        findings += ahead_findings(self.targets.frames)
         if words is not None:
             findings += passphrase_findings(self.targets.frames, words, qgc)
         return sort_findings(findings), ks.recoveries
+
+
+def ahead_findings(streams: dict[Stream, list[Frame]]) -> list[Finding]:
+    """`signature-ahead`: signing streams whose first frame's signature time (the timestamp is in clear: no
+    key needed) is more than a minute ahead of the capture clock and AHEAD_S further ahead than the first
+    frame of every other signing stream in the capture. Comparing streams with each other, not with the
+    capture clock alone, keeps a capture taken with a wrong clock quiet; with one stream nothing is said.
+    `streams`: each stream's target frames (`Targets.frames`), its first signed frame with a good CRC first."""
+    starts: dict[Stream, tuple[Frame, float]] = {}
+    for stream, fs in streams.items():
+        first = fs[0] if fs else None
+        if first is not None and first.signature is not None and first.time is not None:
+            starts[stream] = (first, first.signature.unix_time - first.time)
+    out: list[Finding] = []
+    for (sysid, compid, link), (f, skew) in sorted(starts.items()):
+        others = [k for s, (_, k) in starts.items() if s != (sysid, compid, link)]
+        if not others or skew <= NEW_STREAM_WINDOW or skew - max(others) <= AHEAD_S:
+            continue
+        out.append(finding(
+            "signature-ahead",
+            f"signing stream {sysid}/{compid} link {link} starts {skew:+,.0f} s from the capture clock "
+            f"({skew / 86400:.1f} days ahead), {skew - max(others):,.0f} s ahead of every other signing stream of "
+            f"the capture (the nearest {max(others):+,.1f} s): a receiver that takes it moves its signing clock "
+            f"that far ahead, so that genuine frames then look like replays to it (a future-timestamp attack), or "
+            f"that sender's clock is wrong (frame {f.record})", [f.record]))
+    return out
 
 
 def audit(frames: Iterable[Frame], *, words: Iterable[bytes] | None = None, qgc: bool = False,
