@@ -120,7 +120,7 @@ def ahead_findings(streams: dict[Stream, list[Frame]]) -> list[Finding]:
             continue
         out.append(finding(
             "signature-ahead",
-            f"signing stream {sysid}/{compid} link {link} starts {skew:+,.0f} s from the capture clock "
+            f"{sysid}/{compid} signature link {link}: its signing stream starts {skew:+,.0f} s from the capture clock "
             f"({skew / 86400:.1f} days ahead), {skew - max(others):,.0f} s ahead of every other signing stream of "
             f"the capture (the nearest {max(others):+,.1f} s): a receiver that takes it moves its signing clock "
             f"that far ahead, so that genuine frames then look like replays to it (a future-timestamp attack), or "
