@@ -9,8 +9,9 @@ each batch and adds to after it, `Dissector.passed` is told of the records each 
 signature verifier's replay state is a `_native.SigningState` the walker judges known streams against.
 
 - `engine(environ)`: "native" or "pure-python" (MAVSCOPE_PURE=1, or no compiled extension: pure).
-- `build_table(dialect)`: the message layouts as the byte string `_native.Table` takes, compiled from
-  mavscope's MessageDef/FieldDef (so from pymavlink's parser), never written by hand.
+- `table_for(dialect)` (mavscope.native_tables): the compiled `_native.Table` of the message layouts,
+  from `mavlink.native_table.build_table` (mavscope's MessageDef/FieldDef, so pymavlink's parser), never
+  written by hand.
 - `NativeWalk`: the batch walker over a capture file: `Batch`es of JSON text and handed-back Records.
 - `write_jsonl(...)`: the whole `read -T jsonl` output of a capture, both paths interleaved.
 
@@ -33,7 +34,7 @@ from mavscope.capture.reader import WINDOW, handed_back_record, open_file
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
-from mavscope.mavlink.native_table import build_table
+from mavscope.native_tables import table_for
 from mavscope.output.jsonout import jsonl_bytes
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.security.stage import SecurityStage
@@ -61,18 +62,6 @@ def engine(environ: Mapping[str, str] | None = None) -> str:
     if _native is None or env.get(PURE_ENV, "") not in ("", "0"):
         return "pure-python"
     return "native"
-
-
-_table: list[tuple[Dialect, object]] = []  # the last Dialect compiled and its table (a command loads one)
-
-
-def table_for(dialect: Dialect) -> object:
-    """The compiled `_native.Table` of `dialect`, built once for the Dialect object last asked for."""
-    if _native is None:
-        raise RuntimeError("mavscope._native is not built")
-    if not _table or _table[0][0] is not dialect:
-        _table[:] = [(dialect, _native.Table(build_table(dialect)))]
-    return _table[0][1]
 
 
 # (number, time, index) of the last record a batch walked natively: what Dissector.passed is told

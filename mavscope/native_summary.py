@@ -149,7 +149,7 @@ def _message_entry(md: MessageDef, dialect: Dialect, commands: Callable[[], byte
 
 def build_summary_table(dialect: Dialect) -> bytes:
     """What the summary of every message of `dialect` shows, as the blob of `_native.Summary` (in the
-    order of mavscope.native.build_table: by message id)."""
+    order of mavscope.mavlink.native_table.build_table: by message id)."""
     made: list[bytes] = []
 
     def commands() -> bytes:  # the same for every command message: made once

@@ -29,7 +29,7 @@ from mavscope.capture.reader import WINDOW, handed_back_record, open_file
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
-from mavscope.mavlink.native_table import build_table
+from mavscope.native_tables import table_for
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.security.stage import SecurityStage
 from mavscope.transport.base import TRANSPORT_TLOG, TRANSPORT_UDP
@@ -53,16 +53,6 @@ def available(kind: str | None = None, environ: Mapping[str, str] | None = None)
     env = os.environ if environ is None else environ
     return (_native is not None and env.get(PURE_ENV, "") in ("", "0")
             and (kind is None or kind in _KINDS))
-
-
-_tables: list[tuple[Dialect, object]] = []
-
-
-def _table(dialect: Dialect) -> object:
-    assert _native is not None
-    if not _tables or _tables[0][0] is not dialect:
-        _tables[:] = [(dialect, _native.Table(build_table(dialect)))]
-    return _tables[0][1]
 
 
 class Chunk:
@@ -102,7 +92,7 @@ def native_build(index: Any, path: str, dialect: Dialect, stage: SecurityStage, 
         kind = reader.kind
     dissector = Dissector(dialect)
     spath, f, size = open_file(path)
-    cols = _native.Columns(_table(dialect), FIRST_CHUNK, index=True)
+    cols = _native.Columns(table_for(dialect), FIRST_CHUNK, index=True)
     ends: list[int] = []  # walker endpoint id -> index endpoint id
     ends_map = np.zeros(1, np.uint32)  # ends, offset by one: position 0 is the walker's -1 (no endpoint)
     same = [True]  # ends_map[k] == k: the walker's endpoint ids + 1 are the index's
@@ -134,7 +124,7 @@ def native_build(index: Any, path: str, dialect: Dialect, stage: SecurityStage, 
             items[0] += n
 
     try:
-        walker = _native.Walker(f.fileno(), size, _KINDS[kind], _table(dialect), dissector.mavlink_endpoints,
+        walker = _native.Walker(f.fileno(), size, _KINDS[kind], table_for(dialect), dissector.mavlink_endpoints,
                                 Endpoint.from_packed, stage.signed_senders, WINDOW, columns=cols)
         try:
             step, walked, told = walker.next, walker.walked, None

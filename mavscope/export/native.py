@@ -36,8 +36,8 @@ from mavscope.export.pure import Analyses, CaptureSummary, captures_batch, exper
 from mavscope.export.schema import FINDINGS, FRAMES, frames_schema
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import Frame
-from mavscope.mavlink.native_table import build_table
 from mavscope.native_dump import Accumulator, plan_for
+from mavscope.native_tables import table_for
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.pipeline.session import make_security_stage
 from mavscope.security.stage import SecurityStage
@@ -71,7 +71,7 @@ def _compiled(dialect: Dialect) -> tuple[object, list[MessageDef], pa.Array]:
         if len(_tables) >= 8:  # as many as export.options keeps dialects
             _tables.clear()
         messages = sorted(dialect.messages.values(), key=lambda m: m.id)  # build_table's order
-        got = _tables[id(dialect)] = (dialect, _native.Table(build_table(dialect)), messages,
+        got = _tables[id(dialect)] = (dialect, table_for(dialect), messages,
                                       pa.array([m.name for m in messages], pa.string()))
     return got[1], got[2], got[3]
 

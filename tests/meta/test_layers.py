@@ -53,6 +53,7 @@ LAYERS: tuple[tuple[str, int], ...] = (
     # into the analyses' objects: `stats` and the export's findings both use them.
     ("mavscope.native_plan", 9),
     ("mavscope.native_dump", 9),
+    ("mavscope.native_tables", 9),  # the dialect's compiled layout table: read, stats, export, the TUI's index
     # The C extension it wraps reads, dissects and writes in one; its column mode also serves the export's
     # native batch source (export/native.py), so it sits in the export's layer (it imports nothing).
     ("mavscope._native", 9),

@@ -15,6 +15,7 @@ from mavscope.capture.reader import make_record
 from mavscope.cli import Env, main
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
+from mavscope.mavlink.native_table import build_table
 from mavscope.pipeline.dissect import Dissector
 from tests.conftest import CAPTURES
 from tests.native import build as nh
@@ -27,7 +28,7 @@ from mavscope import native  # noqa: E402 - after the skip
 
 
 def test_table_describes_every_message_from_the_dialect(dialect: Dialect) -> None:
-    blob = native.build_table(dialect)
+    blob = build_table(dialect)
     assert native_mod.Table(blob).count() == len(dialect.messages)
     # offsets in the padded payload are the FieldDefs' wire offsets (pymavlink's layout)
     pos = 12
