@@ -33,7 +33,7 @@ from mavscope.analysis.params.tracker import MESSAGES as PARAM_MESSAGES
 from mavscope.endpoint import Endpoint
 from mavscope.export.native_columns import Chunk
 from mavscope.export.pure import Analyses
-from mavscope.mavlink.dialect import MessageDef
+from mavscope.mavlink.dialect import MessageDef, char_text
 from mavscope.mavlink.frame import CrcStatus, Frame, Signature, new_frame
 
 _TRANSPORT = {1: "udp", 2: "tlog"}  # columns.h MS_TRANSPORT_*
@@ -53,6 +53,21 @@ def _groups(keys: np.ndarray) -> list[np.ndarray]:
     groups = np.split(order, cut)
     groups.sort(key=lambda g: int(g[0]))
     return groups
+
+
+def _param_value_layout(position: int, md: MessageDef) -> tuple[int, int, int, int, int, int] | None:
+    """PARAM_VALUE's position in the table, length and field offsets where its fields are common.xml's
+    (a dialect that redefines them: None, and its frames are built and given to `feed`)."""
+    want = {"param_value": ("float", 0), "param_count": ("uint16_t", 0), "param_id": ("char", 16),
+            "param_type": ("uint8_t", 0)}
+    got = {n: md.field(n) for n in want}
+    offsets = []
+    for n, (kind, count) in want.items():
+        fd = got[n]
+        if fd is None or fd.type != kind or fd.array_length != count:
+            return None
+        offsets.append(fd.offset)
+    return (position, md.length, *offsets)
 
 
 def window_rows(n: int, pos: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
@@ -140,10 +155,14 @@ class NativeFeed:
         self.seen = 0  # frames of the capture before the current window
         # HEARTBEAT's table position and the offsets of the two fields the parameter tracker reads
         self.heartbeat: tuple[int, int, int, int] | None = None  # (position, length, type, autopilot)
-        for k, md in enumerate(messages):
+        # PARAM_VALUE's table position, length and the offsets of the fields the parameter tracker reads
+        self.param_value: tuple[int, int, int, int, int, int] | None = None  # (position, length, and the value,
+        for k, md in enumerate(messages):  # count, id and type offsets)
             t, a = md.field("type"), md.field("autopilot")
             if md.name == "HEARTBEAT" and t is not None and a is not None and t.size == a.size == 1:
                 self.heartbeat = (k, md.length, t.offset, a.offset)
+            if md.name == "PARAM_VALUE" and md.name not in TRACKED_MESSAGES:
+                self.param_value = _param_value_layout(k, md)
 
     def _mask(self, test: Callable[[MessageDef], bool]) -> np.ndarray:
         """Per message of the table, whether `test` holds."""
@@ -158,10 +177,46 @@ class NativeFeed:
             return
         params = self.params_msgs[c.message]
         params[self._quiet_heartbeats(w, parts)] = False
-        w.build(w.native_rows(self.objects_msgs[c.message] | params))
+        given, reports = self._param_values(w, parts)
+        build = self.objects_msgs[c.message] | params
+        build[given] = False
+        w.build(w.native_rows(build))
         self._audit(w)
-        self._objects(w, params)
+        self._objects(w, params, reports)
         self.seen += w.size
+
+    def _param_values(self, w: Window, parts: Sequence[tuple[int, Any, Any, int]],
+                      ) -> tuple[np.ndarray, dict[int, tuple[Any, ...]]]:
+        """The native PARAM_VALUEs of the window, read from their payload rows (no Frame built): their
+        index in the chunk, and their row -> the arguments of `ParamTracker.param_value` as its `feed`
+        finds them."""
+        part = None
+        if self.param_value is not None:
+            position, length, v_at, n_at, id_at, t_at = self.param_value
+            part = next((p for p in parts if p[0] == position), None)
+        if part is None:
+            return np.empty(0, np.int64), {}
+        _, rows, frames, count = part
+        at = np.frombuffer(frames, np.uint32, count=count).astype(np.int64)
+        payload = np.frombuffer(rows, np.uint8, count=count * length).reshape(count, length)
+        raw = np.ascontiguousarray(payload[:, v_at:v_at + 4]).view("V4").ravel().tolist()
+        total = np.ascontiguousarray(payload[:, n_at:n_at + 2]).view("<u2").ravel().tolist()
+        ids = np.ascontiguousarray(payload[:, id_at:id_at + 16]).view("V16").ravel().tolist()
+        kind = payload[:, t_at].tolist()
+        c, ends = w.c, w.ends
+        times = [t if ok else None for t, ok in zip(c.time[at].tolist(), c.time_ok[at].tolist())]
+        links = [ends[s].text if s >= 0 else _TRANSPORT[t] for s, t in zip(c.src[at].tolist(), c.transport[at].tolist())]
+        verdicts = ["no-key" if s else "unsigned" for s in c.signed[at].tolist()]
+        names: dict[bytes, str] = {}
+        out: dict[int, tuple[Any, ...]] = {}
+        for row, sysid, compid, record, when, link, verdict, pid, value, ptype, n in zip(
+                w.gn[at].tolist(), c.sysid[at].tolist(), c.compid[at].tolist(), c.record[at].tolist(), times, links,
+                verdicts, ids, raw, kind, total):
+            name = names.get(pid)
+            if name is None:
+                name = names[pid] = char_text(pid)
+            out[row] = ((sysid, compid), record, when, link, verdict, name, value, ptype, n)
+        return at, out
 
     def _quiet_heartbeats(self, w: Window, parts: Sequence[tuple[int, Any, Any, int]]) -> np.ndarray:
         """The native HEARTBEATs the parameter tracker need not be given (their index in the chunk).
@@ -233,17 +288,23 @@ class NativeFeed:
             members = rows[g].tolist()
             audit.targets.add_run((s >> 16, (s >> 8) & 255, s & 255), len(g), _nth(w, members))
 
-    def _objects(self, w: Window, params_rows: np.ndarray) -> None:
-        """The object and parameter trackers (`params_rows`: the native frames the latter is given)."""
+    def _objects(self, w: Window, params_rows: np.ndarray, reports: dict[int, tuple[Any, ...]]) -> None:
+        """The object and parameter trackers (`params_rows`: the native frames the latter is given; `reports`:
+        those of them that are PARAM_VALUEs, by row, given without a Frame)."""
         objects, params = self.a.objects, self.a.params
         inner = params.objects
         for row in self._in_order(w, self.objects_msgs[w.c.message]):
             objects.ctx.tick = self.seen + row
             objects.feed(w.frame(row))
             Analyses.took(objects)
+        report = params.param_value
         for row in self._in_order(w, params_rows):
-            inner.ctx.tick = self.seen + row
-            params.feed(w.frame(row))
+            args = reports.get(row)
+            if args is None:
+                inner.ctx.tick = self.seen + row
+                params.feed(w.frame(row))
+            else:  # all `feed` does with it but count it on its FTP tracker's clock, which is set again before
+                report(*args)  # that tracker is given a frame and at the window's end
         objects.ctx.tick = inner.ctx.tick = self.seen + w.size
         c = w.c
         last = -1

@@ -11,6 +11,7 @@ native side). `Targets.add_run` is held to the calls it stands for, on hypothesi
 from __future__ import annotations
 
 import dataclasses
+import math
 import struct
 from pathlib import Path
 
@@ -20,6 +21,7 @@ from hypothesis import strategies as st
 
 from mavscope.analysis.objects import ObjectTracker
 from mavscope.analysis.objects.tracker import FTP_MESSAGE, TRACKED_MESSAGES
+from mavscope.analysis.params.tracker import ParamTracker
 from mavscope.capture.detect import open_capture
 from mavscope.export import native, record_batches
 from mavscope.export.native_columns import decoded, message_plan
@@ -84,9 +86,21 @@ def state(a: Analyses) -> dict[str, object]:
     }
 
 
+def _nan_named(value: object) -> object:
+    """`value` with every float NaN replaced by the string "NaN" (a NaN is unequal to itself, and a parameter
+    or a finding may well hold one: two runs' states would differ though the same)."""
+    if isinstance(value, float) and math.isnan(value):
+        return "NaN"
+    if isinstance(value, dict):
+        return {k: _nan_named(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return type(value)(_nan_named(v) for v in value)
+    return value
+
+
 def same_state(path: str | Path, pipeline: PipelineOptions | None = None) -> None:
     pipeline = pipeline or PipelineOptions()
-    want, got = state(pure_analyses(path, pipeline)), state(native_analyses(path, pipeline))
+    want, got = (_nan_named(state(a(path, pipeline))) for a in (pure_analyses, native_analyses))
     for key in want:
         assert got[key] == want[key], key
 
@@ -271,3 +285,89 @@ def test_heartbeats_left_out_change_nothing_the_parameter_tracker_holds(
         want = state(pure_analyses(path, PipelineOptions()))
         assert [e["value"] for e in want["timeline"]] and want["encodings"]  # the capture says something
         same_state(path)
+
+
+@pytest.mark.parametrize("window", [65_536, 3])
+@pytest.mark.parametrize("kind", ["pcap", "tlog"])
+def test_param_values_read_from_payload_rows_leave_the_same_state(
+        window: int, kind: str, dialect: Dialect, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The native source gives clean PARAM_VALUEs to the parameter tracker from their payload rows, without a
+    Frame (`NativeFeed._param_values`). Reports that change values, signed (no key: `no-key`) and unsigned,
+    from two UDP endpoints (or a tlog: no endpoint, the link is the transport), MAVLink 1 and 2, names with
+    undecodable bytes, an embedded NUL and all 16 characters, a payload cut short (MAVLink 2's trailing
+    zeros), a PARAM_SET they answer, and one with a bad CRC (handed back, so built and given to `feed`): the
+    tracker's state must be the pure pass's, and `feed` must not have been given the clean ones."""
+    monkeypatch.setattr(native, "WINDOW_FRAMES", window)
+    pv, ps = dialect.by_name["PARAM_VALUE"], dialect.by_name["PARAM_SET"]
+
+    def put(md: MessageDef, payload: bytearray, name: str, value: bytes) -> None:
+        fd = md.field(name)
+        assert fd is not None
+        payload[fd.offset:fd.offset + len(value)] = value
+
+    def param(pid: bytes, value: float, ptype: int = 9, count: int = 7) -> bytes:
+        payload = bytearray(pv.length)
+        put(pv, payload, "param_id", pid)
+        put(pv, payload, "param_value", struct.pack("<f", value))
+        put(pv, payload, "param_count", struct.pack("<H", count))
+        put(pv, payload, "param_type", bytes([ptype]))
+        return bytes(payload)
+
+    def param_set(pid: bytes, value: float) -> bytes:
+        payload = bytearray(ps.length)
+        put(ps, payload, "param_id", pid)
+        put(ps, payload, "param_value", struct.pack("<f", value))
+        put(ps, payload, "target_system", b"\x01")
+        put(ps, payload, "target_component", b"\x01")
+        put(ps, payload, "param_type", b"\x09")
+        return bytes(payload)
+
+    # (frame bytes, from the vehicle's endpoint)
+    script: list[tuple[bytes, bool]] = []
+    for seq in range(12):  # system 2 signs all it sends (an unsigned frame of a signing system has a note)
+        script.append((nh.frame_v2(pv, pv.id, param(b"RATE_RLL_P", 0.1 * seq), seq, 1, 1), True))
+        script.append((nh.frame_v2(pv, pv.id, param(b"RATE_RLL_P", 0.2 * seq), seq, 2, 1, iflags=1, link_id=1,
+                                   timestamp=seq), True))
+        script.append((nh.frame_v2(pv, pv.id, param(b"\xffBAD\xfe", seq, 6, 9 + seq), seq, 1, 2), seq % 2 == 0))
+    script += [
+        (nh.frame_v1(pv, param(b"A\0B", 1.5), 20, 1, 1), True),
+        (nh.frame_v1(pv, param(b"A\0B", 2.5), 21, 1, 1), True),
+        (nh.frame_v2(pv, pv.id, param(b"SIXTEEN_CHARS_ID", 3.0), 22, 1, 1), True),
+        (nh.frame_v2(pv, pv.id, param(b"SIXTEEN_CHARS_ID", 4.0), 23, 1, 1), True),
+        (nh.frame_v2(pv, pv.id, param(b"CUT", 5.0, 0).rstrip(b"\0"), 24, 1, 1), True),
+        (nh.frame_v2(pv, pv.id, param(b"CUT", 6.0, 0).rstrip(b"\0"), 25, 1, 1), True),
+        (nh.frame_v2(ps, ps.id, param_set(b"RATE_RLL_P", 0.25), 26, 255, 190), False),
+        (nh.frame_v2(pv, pv.id, param(b"RATE_RLL_P", 0.25), 27, 1, 1), True),
+    ]
+    bad = bytearray(nh.frame_v2(pv, pv.id, param(b"RATE_RLL_P", 9.0), 28, 1, 1))
+    bad[-1] ^= 0xFF
+    script += [(bytes(bad), True), (nh.frame_v2(pv, pv.id, param(b"RATE_RLL_P", 0.5), 29, 1, 1), True)]
+    if kind == "tlog":
+        data = nh.tlog([(1_700_000_000_000_000 + 1000 * i, f) for i, (f, _) in enumerate(script)])
+    else:
+        vehicle, gcs = b"\x0a\0\0\x01", b"\x0a\0\0\x02"
+        packets = [nh.link("ethernet", nh.ipv4(vehicle if v else gcs, gcs if v else vehicle, 17,
+                                               nh.udp(14550 if v else 14555, 14555 if v else 14550, f)), False)
+                   for f, v in script]
+        data = nh.pcap([(1_700_000_000 + i, 0, p) for i, p in enumerate(packets)], nh.LINKTYPES["ethernet"])
+    fed: list[str] = []
+    feed = ParamTracker.feed
+
+    def counting(self: ParamTracker, f: Frame, fields: dict[str, object] | None = None) -> None:
+        if f.msgdef is not None and f.msgdef.name == "PARAM_VALUE":
+            fed.append("ok" if f.crc_status is CrcStatus.OK else "bad")
+        feed(self, f, fields)
+
+    with capture_file(data, ".tlog" if kind == "tlog" else ".pcap") as path:
+        want = state(pure_analyses(path, PipelineOptions()))
+        # the capture says something: changes signed and not, links, names as pymavlink decodes them
+        timeline = want["timeline"]
+        assert isinstance(timeline, list)
+        assert {e["signature"] for e in timeline} == {"no-key", "unsigned"}
+        assert {e["name"] for e in timeline} >= {"RATE_RLL_P", "\\xffBAD\\xfe", "A\x00B", "SIXTEEN_CHARS_ID", "CUT"}
+        assert any(e["kind"] == "set" and e["confirmed"] for e in timeline)
+        monkeypatch.setattr(ParamTracker, "feed", counting)
+        same_state(path)
+        fed.clear()
+        native_analyses(path, PipelineOptions())
+        assert fed == ["bad"]  # the clean ones came from the payload rows

@@ -53,9 +53,9 @@ def same(cli: Cli, path: str | Path, *extra: str, fmt: tuple[str, ...] = ("-T", 
 
 
 @contextmanager
-def capture_file(data: bytes) -> Iterator[str]:
-    """`data` in a temporary file, deleted afterwards: its path."""
-    fd, path = tempfile.mkstemp(suffix=".cap")
+def capture_file(data: bytes, suffix: str = ".cap") -> Iterator[str]:
+    """`data` in a temporary file (named `*suffix`), deleted afterwards: its path."""
+    fd, path = tempfile.mkstemp(suffix=suffix)
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)

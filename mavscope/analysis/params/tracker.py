@@ -159,14 +159,8 @@ class ParamTracker:
         elif name == "PARAM_VALUE":
             raw = field_bytes(f, "param_value")
             if raw is not None:
-                ptype = int_field(fields, "param_type")
-                value, basis = self._decode(f.sysid, raw, ptype)
-                comp = self._component((f.sysid, f.compid))
-                if comp is not None:
-                    comp.announced = int_field(fields, "param_count")
-                    if comp.encoding is None or basis != "values":
-                        comp.encoding, comp.encoding_basis = self._encoding(f.sysid, raw, ptype)
-                self._report_frame(f, _name(fields), value, ptype, "PARAM_VALUE")
+                self.param_value((f.sysid, f.compid), f.record, f.time, _link(f), _verdict(f), _name(fields), raw,
+                                 int_field(fields, "param_type"), int_field(fields, "param_count"))
         elif name == "PARAM_EXT_VALUE":
             raw = field_bytes(f, "param_value")
             if raw is not None:
@@ -187,6 +181,19 @@ class ParamTracker:
             self._ext_ack(f, fields)
         elif name == "REQUEST_DATA_STREAM":
             self.streams.feed(f.record, fields)
+
+    def param_value(self, addr: Addr, record: int, when: float | None, link: str, verdict: str, name: str,
+                    raw: bytes, ptype: int, count: int) -> None:
+        """A PARAM_VALUE with a good CRC from component `addr` in frame `record` (`raw`: the 4 bytes of its
+        `param_value`), its `link` and signature `verdict` as `feed` names them. `feed` gives every one here;
+        so does the export's native source, from its payload columns, without a Frame."""
+        value, basis = self._decode(addr[0], raw, ptype)
+        comp = self._component(addr)
+        if comp is not None:
+            comp.announced = count
+            if comp.encoding is None or basis != "values":
+                comp.encoding, comp.encoding_basis = self._encoding(addr[0], raw, ptype)
+        self._report(addr, addr, record, when, link, verdict, name, value, ptype, "PARAM_VALUE")
 
     def _decode(self, sysid: int, raw: bytes, ptype: int) -> tuple[Value, str]:
         known = self.encodings.get(sysid)
