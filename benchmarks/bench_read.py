@@ -44,7 +44,9 @@ SLICE_FRAMES = 20_000
 PY = sys.executable
 # Subprocesses run without PYTHONUNBUFFERED (some CI/containers set it; it turns every write of mavscope
 # and of the baseline into a write(2) call, ~0.6 s per 1M lines); the doc records whether it was set.
-CHILD_ENV = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"}
+# the children run as a user's would: buffered output, compiled modules cached (PYTHONDONTWRITEBYTECODE,
+# set in some sandboxes, would make every child compile mavscope afresh: 0.1-0.2 s of start-up)
+CHILD_ENV = {k: v for k, v in os.environ.items() if k not in ("PYTHONUNBUFFERED", "PYTHONDONTWRITEBYTECODE")}
 
 # --------------------------------------------------------------------------------------------------
 # measuring
