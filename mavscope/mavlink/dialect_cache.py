@@ -17,7 +17,10 @@ not writable by group or others, the file is a regular file (not a symlink) unde
 names the expected key, the SHA-256 of its body matches the header, and the body has exactly the record's
 shape with consistent layouts (`valid_record`). Anything else is ignored and the XML parsed afresh.
 Writing is best effort (a temporary file renamed into place); a read-only or missing directory only
-costs the parse.
+costs the parse. Each write keeps the directory bounded: at most MAX_ENTRIES entries, those least
+recently used removed first (an entry read a day or more after its last write or touch is touched; a new
+mavscope, pymavlink or Python names every file anew, so the entries of the version left behind age
+out), and temporary files a crashed write left behind over an hour ago.
 
 Where: `$MAVSCOPE_CACHE_DIR`, else `$XDG_CACHE_HOME/mavscope`, else `~/.cache/mavscope`; `MAVSCOPE_NO_CACHE`
 set to anything but empty turns the cache off.
@@ -31,6 +34,7 @@ import io
 import os
 import stat
 import sys
+import time
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -41,6 +45,9 @@ CACHE_ENV = "MAVSCOPE_CACHE_DIR"
 NO_CACHE_ENV = "MAVSCOPE_NO_CACHE"
 FORMAT = b"mavscope dialect cache 1"
 MAX_ENTRY = 16 << 20  # bytes: all.xml's largest file gives about 0.5 MB
+MAX_ENTRIES = 256  # entries kept (one version: about 20, all.xml's 17 files and dissectors/; 40 KB each)
+STALE_TEMP = 3600  # seconds after which a `.tmp-*` file is a crashed write's, not one in progress
+TOUCH_AFTER = 86_400  # seconds: an entry read this long after it was written (or last touched) is touched
 
 Record = dict[str, Any]  # {"include": [str], "messages": [message], "enums": [enum]}: see xml_record
 
@@ -176,6 +183,9 @@ def read_entry(directory: Path, key: str) -> Record | None:
             if not stat.S_ISREG(st.st_mode) or not _private(st) or st.st_size > MAX_ENTRY:
                 return None
             blob = f.read(MAX_ENTRY + 1)
+            if time.time() - st.st_mtime > TOUCH_AFTER:  # in use: pruned after the entries not read
+                with contextlib.suppress(OSError):
+                    os.utime(f.fileno())
         head, sep, body = blob.partition(b"\n")
         header = orjson.loads(head)
         if (not sep or not isinstance(header, dict) or header.get("key") != key
@@ -214,8 +224,45 @@ def write_entry(directory: Path, key: str, record: Record) -> None:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
             raise
+        prune(directory)
     except OSError:
         return
+
+
+def _is_entry_name(name: str) -> bool:
+    stem, dot, ext = name.partition(".")
+    return ext == "json" and len(stem) == 64 and all(c in "0123456789abcdef" for c in stem)
+
+
+def prune(directory: Path, limit: int | None = None) -> None:
+    """Keep at most `limit` (MAX_ENTRIES) entries in `directory`, removing those least recently written or
+    touched, and remove temporary files older than STALE_TEMP seconds. Only the user's own regular files
+    named as entries or temporary files are touched; a file gone meanwhile (another process) is skipped."""
+    limit = MAX_ENTRIES if limit is None else limit
+    found: list[tuple[int, str]] = []
+    stale = time.time() - STALE_TEMP
+    with os.scandir(directory) as it:
+        for e in it:
+            entry, temp = _is_entry_name(e.name), e.name.startswith(".tmp-") and e.name.endswith(".json")
+            if not (entry or temp):
+                continue
+            try:
+                st = e.stat(follow_symlinks=False)
+            except OSError:
+                continue
+            if not stat.S_ISREG(st.st_mode) or st.st_uid != os.getuid():
+                continue
+            if entry:
+                found.append((st.st_mtime_ns, e.name))
+            elif st.st_mtime < stale:
+                with contextlib.suppress(OSError):
+                    os.unlink(e.path)
+    if len(found) <= limit:
+        return
+    found.sort()
+    for _mtime, name in found[:len(found) - limit]:
+        with contextlib.suppress(OSError):
+            os.unlink(directory / name)
 
 
 # The types of a record's lists, item by item (xml_record): one map(type, ...) checks a whole list.

@@ -11,6 +11,7 @@ from __future__ import annotations
 import hashlib
 import os
 import tempfile
+import time
 from pathlib import Path
 
 import orjson
@@ -79,7 +80,7 @@ def load(folder: Path, cache: Path | None) -> Dialect:
 
 
 def entries(cache: Path) -> list[Path]:
-    return sorted(cache.glob("*.json"))
+    return sorted(p for p in cache.glob("*.json") if not p.name.startswith("."))
 
 
 def _no_parse(path: Path) -> None:
@@ -318,3 +319,67 @@ def test_a_file_edited_while_parsed_is_not_cached(tmp_path: Path, monkeypatch: p
     monkeypatch.setattr(dialect_cache, "parse_xml", parse)
     assert snapshot(load(folder, cache)) == snapshot(load(folder, None))
     assert user.read_text().count("double") == 1
+
+
+def _fake_entry(cache: Path, n: int, age: float) -> Path:
+    """An entry-named file written `age` seconds ago (its content does not matter to pruning)."""
+    path = cache / f"{hashlib.sha256(str(n).encode()).hexdigest()}.json"
+    path.write_text("{}")
+    when = time.time() - age
+    os.utime(path, (when, when))
+    return path
+
+
+def test_writing_keeps_the_cache_bounded_least_recently_used_out_first(tmp_path: Path,
+                                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A version change names every file anew: without pruning, each one left its entries behind for good.
+    Expected by construction: the dialect's own entries and, up to the limit, the youngest of the fakes."""
+    folder, cache = tmp_path / "dissectors", tmp_path / "cache"
+    user_dialect(folder)
+    load(folder, tmp_path / "count")
+    n = len(entries(tmp_path / "count"))  # the files the dialect loads (all.xml's and the user's)
+    cache.mkdir(mode=0o700)
+    monkeypatch.setattr(dialect_cache, "MAX_ENTRIES", n + 8)
+    fakes = [_fake_entry(cache, k, age=1000.0 + k) for k in range(20)]  # fakes[0] the youngest
+    other = cache / "notes.txt"  # not an entry: never touched
+    other.write_text("mine")
+    stale = cache / ".tmp-crashed.json"  # a crashed write's, two hours old
+    stale.write_text("{")
+    os.utime(stale, (time.time() - 7200,) * 2)
+    fresh_temp = cache / ".tmp-in-progress.json"  # another process writing right now
+    fresh_temp.write_text("{")
+    fresh = snapshot(load(folder, None))
+    assert snapshot(load(folder, cache)) == fresh  # parsed (the fakes are not its entries) and written
+    kept = entries(cache)
+    assert len(kept) == n + 8
+    assert sorted(p for p in kept if p in fakes) == sorted(fakes[:8])
+    assert other.read_text() == "mine" and fresh_temp.exists() and not stale.exists()
+    monkeypatch.setattr(dialect_cache, "parse_xml", _no_parse)
+    assert snapshot(load(folder, cache)) == fresh  # its entries all kept: served without a parse
+
+
+def test_an_entry_read_after_a_day_is_touched_so_it_outlives_unread_ones(tmp_path: Path,
+                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    folder, cache = tmp_path / "dissectors", tmp_path / "cache"
+    user_dialect(folder)
+    load(folder, cache)
+    mine = entries(cache)
+    old = time.time() - 3 * 86_400
+    for p in mine:
+        os.utime(p, (old, old))
+    fakes = [_fake_entry(cache, n, age=86_400.0) for n in range(5)]  # younger than ours, never read
+    monkeypatch.setattr(dialect_cache, "parse_xml", _no_parse)
+    load(folder, cache)  # served from the cache: ours touched
+    assert all(p.stat().st_mtime > time.time() - 60 for p in mine)
+    dialect_cache.prune(cache, limit=len(mine))
+    assert entries(cache) == mine and not any(p.exists() for p in fakes)
+
+
+def test_an_entry_read_within_a_day_of_its_write_is_left_as_it_is(tmp_path: Path) -> None:
+    """No write per run: the touch happens at most once a day per entry."""
+    folder, cache = tmp_path / "dissectors", tmp_path / "cache"
+    user_dialect(folder)
+    load(folder, cache)
+    before = {p: p.stat().st_mtime_ns for p in entries(cache)}
+    load(folder, cache)
+    assert {p: p.stat().st_mtime_ns for p in entries(cache)} == before
