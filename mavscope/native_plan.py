@@ -163,7 +163,7 @@ def _build(dialect: Dialect) -> bytes:
                  | (ROLE_CONTROL if md.name in control.WANTS else 0) | (ROLE_GNSS if md.name in gnss.WANTS else 0))
         if roles or md.id == 0:
             messages.append(_message(md, roles))
-    m = modes.Modes(dialect)
+    m = modes.modes_for(dialect)
     ardupilot: dict[str, int] = {}
     types = bytearray(b"\xff" * 256)
     for mav_type, enum_name in sorted(m.ardupilot.items()):

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Addr, Frame
-from mavscope.mavlink.modes import Modes, armed
+from mavscope.mavlink.modes import armed, modes_for
 
 MAX_SENDERS = 4096
 MAV_STATE_CRITICAL, MAV_STATE_EMERGENCY, MAV_STATE_FLIGHT_TERMINATION = 5, 6, 8
@@ -47,7 +47,7 @@ class Systems:
     """The last HEARTBEAT of each sender, and what follows from it."""
 
     def __init__(self, dialect: Dialect) -> None:
-        self.modes = Modes(dialect)
+        self.modes = modes_for(dialect)
         self.last: dict[Addr, Heartbeat] = {}
         self.gcs: set[int] = set()
         self.vehicles: dict[int, Addr] = {}  # sysid -> the component whose HEARTBEAT is the vehicle's

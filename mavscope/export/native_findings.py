@@ -61,13 +61,14 @@ def _param_value_layout(position: int, md: MessageDef) -> tuple[int, int, int, i
     want = {"param_value": ("float", 0), "param_count": ("uint16_t", 0), "param_id": ("char", 16),
             "param_type": ("uint8_t", 0)}
     got = {n: md.field(n) for n in want}
-    offsets = []
+    offsets: list[int] = []
     for n, (kind, count) in want.items():
         fd = got[n]
         if fd is None or fd.type != kind or fd.array_length != count:
             return None
         offsets.append(fd.offset)
-    return (position, md.length, *offsets)
+    value, count_at, id_at, type_at = offsets
+    return (position, md.length, value, count_at, id_at, type_at)
 
 
 def window_rows(n: int, pos: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
@@ -158,10 +159,11 @@ class NativeFeed:
         # PARAM_VALUE's table position, length and the offsets of the fields the parameter tracker reads
         self.param_value: tuple[int, int, int, int, int, int] | None = None  # (position, length, and the value,
         for k, md in enumerate(messages):  # count, id and type offsets)
-            t, a = md.field("type"), md.field("autopilot")
-            if md.name == "HEARTBEAT" and t is not None and a is not None and t.size == a.size == 1:
-                self.heartbeat = (k, md.length, t.offset, a.offset)
-            if md.name == "PARAM_VALUE" and md.name not in TRACKED_MESSAGES:
+            if md.name == "HEARTBEAT":
+                t, a = md.field("type"), md.field("autopilot")
+                if t is not None and a is not None and t.size == a.size == 1:
+                    self.heartbeat = (k, md.length, t.offset, a.offset)
+            elif md.name == "PARAM_VALUE" and md.name not in TRACKED_MESSAGES:
                 self.param_value = _param_value_layout(k, md)
 
     def _mask(self, test: Callable[[MessageDef], bool]) -> np.ndarray:
@@ -205,7 +207,8 @@ class NativeFeed:
         kind = payload[:, t_at].tolist()
         c, ends = w.c, w.ends
         times = [t if ok else None for t, ok in zip(c.time[at].tolist(), c.time_ok[at].tolist())]
-        links = [ends[s].text if s >= 0 else _TRANSPORT[t] for s, t in zip(c.src[at].tolist(), c.transport[at].tolist())]
+        links = [ends[s].text if s >= 0 else _TRANSPORT[t]
+                 for s, t in zip(c.src[at].tolist(), c.transport[at].tolist())]
         verdicts = ["no-key" if s else "unsigned" for s in c.signed[at].tolist()]
         names: dict[bytes, str] = {}
         out: dict[int, tuple[Any, ...]] = {}

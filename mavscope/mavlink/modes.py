@@ -126,6 +126,17 @@ class Modes:
         return self.name(autopilot, mav_type, base, main & 0xFFFFFFFF)
 
 
+_last: list[Modes] = []  # the Modes of the Dialect last asked for
+
+
+def modes_for(dialect: Dialect) -> Modes:
+    """The Modes of `dialect`, made once for the Dialect last asked for (every capture of a run shares its
+    dialect; a Modes is never changed once made)."""
+    if not _last or _last[0].dialect is not dialect:
+        _last[:] = [Modes(dialect)]
+    return _last[0]
+
+
 def px4_mode_name(main: int, sub: int) -> str:
     """PX4's main/sub mode as "AUTO.MISSION", "POSCTL.ORBIT", "OFFBOARD" (unknown numbers as numbers)."""
     main_name = PX4_MAIN_MODES.get(main, f"main {main}")
