@@ -230,7 +230,7 @@ def write_entry(directory: Path, key: str, record: Record) -> None:
 
 
 def _is_entry_name(name: str) -> bool:
-    stem, dot, ext = name.partition(".")
+    stem, _, ext = name.partition(".")
     return ext == "json" and len(stem) == 64 and all(c in "0123456789abcdef" for c in stem)
 
 
