@@ -164,9 +164,12 @@ def _render(env: Env, command: str, rows: list[dict[str, object]], status: ExitS
 
     con = console(env)
     t = Table(title=f"mavscope {command} over {len(rows)} capture(s)", title_justify="left")
+    # a capture's path is what a reader greps for: whole on its line where it takes up to a third of the width
+    longest = max((len(str(r["file"])) for r in rows), default=0)
     for col, just in (("capture", "left"), ("status", "left"), ("frames", "right"), ("summary", "left"),
                       ("problems", "left")):
-        t.add_column(col, justify=just, overflow="fold")  # type: ignore[arg-type]
+        t.add_column(col, justify=just, overflow="fold",  # type: ignore[arg-type]
+                     min_width=max(7, min(longest, con.width // 3)) if col == "capture" else None)
     for r in rows:
         frames, problems = r["frames"], r["problems"]
         t.add_row(Text(str(r["file"])), str(r["status"]), "-" if frames is None else str(frames),

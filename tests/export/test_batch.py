@@ -35,7 +35,9 @@ def test_verify_over_captures_as_each_alone(cli: Cli, jobs: str) -> None:
 
 
 def test_a_directory_text_summary_and_stats(cli: Cli) -> None:
-    status, out, err = cli("batch", str(CAPTURES), "--", "stats")
+    # the capture column folds a path longer than a third of the width: wide enough for any clone's path here
+    wide = {"COLUMNS": str(max(160, 3 * len(str(CAPTURES / "stats_loss.pcap"))))}
+    status, out, err = cli("batch", str(CAPTURES), "--", "stats", environ=wide)
     # by name: README.md, expected.json and the generator's *.truth.json are not captures (batch sniffs content)
     files = [p for p in CAPTURES.iterdir() if p.is_file()]
     captures = [p for p in files if p.suffix in (".pcap", ".pcapng", ".tlog", ".raw")]
@@ -47,6 +49,7 @@ def test_a_directory_text_summary_and_stats(cli: Cli) -> None:
     found = sum(any(f["severity"] in ("warn", "error") for f in cli.json("stats", str(p))["findings"])
                 for p in captures)  # (audit's rule: notes are information)
     assert 0 < found < len(captures) and status == 1
+    assert all(any(str(p) in ln for ln in out.splitlines()) for p in captures)  # every path whole on a line
     assert (f"{len(captures) - found} ok, {found} with findings, 0 error(s); 1 with problems on stderr; "
             "exit status 1 (findings)") in out  # damaged.pcap's cut record (captures/README.md)
 
@@ -94,3 +97,18 @@ def test_every_run_refused_and_usage(cli: Cli) -> None:
                           (("batch", str(SOME[0]), "--", "read"), "runs verify, audit, stats")):
         status, _, err = cli(*argv)
         assert status == 2 and message in err
+
+
+def test_a_long_path_stays_whole_where_it_takes_a_third_of_the_width(cli: Cli, tmp_path: Path) -> None:
+    """Piped output is 160 columns wide ($COLUMNS otherwise): a 50-character path was folded at 32 to give
+    the summary and problems columns room."""
+    deep = tmp_path / ("d" * max(1, 50 - len(str(tmp_path)) - len("/x.pcap") - 1))
+    deep.mkdir()
+    path = deep / "x.pcap"
+    path.write_bytes((CAPTURES / "stats_loss.pcap").read_bytes())
+    width = max(160, 3 * len(str(path)))
+    _, out, _ = cli("batch", str(path), str(CAPTURES / "damaged.pcap"), "--", "stats", environ={"COLUMNS": str(width)})
+    assert any(str(path) in ln for ln in out.splitlines())
+    _, narrow, _ = cli("batch", str(path), "--", "stats", environ={"COLUMNS": "60"})
+    assert all(len(ln) <= 60 for ln in narrow.splitlines())  # folded, never wider than asked
+    assert "".join(ln.split("│")[1].strip() for ln in narrow.splitlines() if ln.startswith("│")).startswith(str(path))
