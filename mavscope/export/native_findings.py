@@ -34,7 +34,7 @@ from mavscope.endpoint import Endpoint
 from mavscope.export.native_columns import Chunk
 from mavscope.export.pure import Analyses
 from mavscope.mavlink.dialect import MessageDef, char_text
-from mavscope.mavlink.frame import CrcStatus, Frame, Signature, new_frame
+from mavscope.mavlink.frame import CrcStatus, Frame, Signature, SignatureStatus, new_frame
 
 _TRANSPORT = {1: "udp", 2: "tlog"}  # columns.h MS_TRANSPORT_*
 
@@ -69,6 +69,23 @@ def _param_value_layout(position: int, md: MessageDef) -> tuple[int, int, int, i
         offsets.append(fd.offset)
     value, count_at, id_at, type_at = offsets
     return (position, md.length, value, count_at, id_at, type_at)
+
+
+def _payload_rows(parts: Sequence[tuple[int, Any, Any, int]], position: int, length: int,
+                  ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The window's rows of the message at `position` of the table (`length` bytes each): the index of
+    each in the chunk and their payloads (count x length), or None when the window has none."""
+    part = next((p for p in parts if p[0] == position), None)
+    if part is None:
+        return None
+    _, rows, frames, count = part
+    at = np.frombuffer(frames, np.uint32, count=count).astype(np.int64)
+    return at, np.frombuffer(rows, np.uint8, count=count * length).reshape(count, length)
+
+
+def _times(c: Chunk, idx: np.ndarray) -> list[float | None]:
+    """The capture times of chunk rows `idx` as a Frame holds them (None where the capture gave none)."""
+    return [t if ok else None for t, ok in zip(c.time[idx].tolist(), c.time_ok[idx].tolist())]
 
 
 def window_rows(n: int, pos: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
@@ -117,7 +134,7 @@ class Window:
         raw, at, end = c.raw, c.raw_at[idx].tolist(), c.raw_at[idx + 1].tolist()
         ends = list(self.ends) + [None]  # an id of -1 (no endpoint): the None at the end
         messages = self.messages
-        times = [t if ok else None for t, ok in zip(c.time[idx].tolist(), c.time_ok[idx].tolist())]
+        times = _times(c, idx)
         transports = [_TRANSPORT[t] for t in c.transport[idx].tolist()]
         signed = c.signed[idx].tolist()
         cols = [a[idx].tolist() for a in (c.record, c.index, c.offset, c.version, c.len, c.iflags, c.cflags, c.seq,
@@ -192,24 +209,23 @@ class NativeFeed:
         """The native PARAM_VALUEs of the window, read from their payload rows (no Frame built): their
         index in the chunk, and their row -> the arguments of `ParamTracker.param_value` as its `feed`
         finds them."""
-        part = None
-        if self.param_value is not None:
-            position, length, v_at, n_at, id_at, t_at = self.param_value
-            part = next((p for p in parts if p[0] == position), None)
-        if part is None:
+        if self.param_value is None:
             return np.empty(0, np.int64), {}
-        _, rows, frames, count = part
-        at = np.frombuffer(frames, np.uint32, count=count).astype(np.int64)
-        payload = np.frombuffer(rows, np.uint8, count=count * length).reshape(count, length)
+        position, length, v_at, n_at, id_at, t_at = self.param_value
+        got = _payload_rows(parts, position, length)
+        if got is None:
+            return np.empty(0, np.int64), {}
+        at, payload = got
         raw = np.ascontiguousarray(payload[:, v_at:v_at + 4]).view("V4").ravel().tolist()
         total = np.ascontiguousarray(payload[:, n_at:n_at + 2]).view("<u2").ravel().tolist()
         ids = np.ascontiguousarray(payload[:, id_at:id_at + 16]).view("V16").ravel().tolist()
         kind = payload[:, t_at].tolist()
         c, ends = w.c, w.ends
-        times = [t if ok else None for t, ok in zip(c.time[at].tolist(), c.time_ok[at].tolist())]
+        times = _times(c, at)
         links = [ends[s].text if s >= 0 else _TRANSPORT[t]
                  for s, t in zip(c.src[at].tolist(), c.transport[at].tolist())]
-        verdicts = ["no-key" if s else "unsigned" for s in c.signed[at].tolist()]
+        no_key = SignatureStatus.NO_KEY.value  # a native frame's only verdict (the tracker's `_verdict`)
+        verdicts = [no_key if s else "unsigned" for s in c.signed[at].tolist()]
         names: dict[bytes, str] = {}
         out: dict[int, tuple[Any, ...]] = {}
         for row, sysid, compid, record, when, link, verdict, pid, value, ptype, n in zip(
@@ -233,12 +249,11 @@ class NativeFeed:
         if self.heartbeat is None:
             return np.empty(0, np.int64)
         position, length, t_at, a_at = self.heartbeat
-        part = next((p for p in parts if p[0] == position), None)
-        if part is None:
+        got = _payload_rows(parts, position, length)
+        if got is None:
             return np.empty(0, np.int64)
-        _, rows, frames, count = part
-        at = np.frombuffer(frames, np.uint32, count=count).astype(np.int64)
-        payload = np.frombuffer(rows, np.uint8, count=count * length).reshape(count, length)
+        at, payload = got
+        count = len(at)
         autopilot, kind = payload[:, a_at], payload[:, t_at]
         says = np.where((autopilot == MAV_AUTOPILOT_INVALID) | (kind == MAV_TYPE_GCS), 0,
                         np.where(autopilot == MAV_AUTOPILOT_PX4, 1, 2))
