@@ -19,55 +19,18 @@ PY="${PYTHON:-.venv/bin/python}"
 OUT=fuzz/build
 mkdir -p "$OUT/corpus"
 
-"$PY" - "$OUT/table.bin" "$OUT/summary.bin" "$OUT/plan.bin" <<'PYEOF'
-import sys
-from mavscope.mavlink.dialect import load_dialect
-from mavscope.native import build_table
-from mavscope.native_plan import build_plan
-from mavscope.native_summary import build_summary_table
-dialect = load_dialect()
-open(sys.argv[1], "wb").write(build_table(dialect))
-open(sys.argv[2], "wb").write(build_summary_table(dialect))
-open(sys.argv[3], "wb").write(build_plan(dialect))
-PYEOF
+# the default dialect's tables and the seed corpus (scripts/fuzz_native_inputs.py says what the seeds are)
+"$PY" scripts/fuzz_native_inputs.py "$OUT" "$OUT/corpus"
 
 SRC=src/mavscope_native
+# the C core: every source but the CPython module's glue (module*.c)
+CORE=()
+for f in "$SRC"/*.c; do
+    case "$(basename "$f")" in module*) ;; *) CORE+=("$f") ;; esac
+done
 "$CLANG" -std=c11 -g -O1 -Wall -Wextra -fno-omit-frame-pointer \
     -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined \
-    -I"$SRC" fuzz/fuzz_native.c \
-    "$SRC"/walk.c "$SRC"/capture.c "$SRC"/capture_pcap.c "$SRC"/capture_pcapng.c "$SRC"/capture_tlog.c \
-    "$SRC"/netlayers.c "$SRC"/mavlink.c "$SRC"/table.c "$SRC"/decode.c "$SRC"/fmt.c "$SRC"/buf.c "$SRC"/summary.c \
-    "$SRC"/plan.c "$SRC"/acc.c "$SRC"/acc_dump.c "$SRC"/seq.c "$SRC"/expert.c "$SRC"/control.c "$SRC"/gnss.c \
-    "$SRC"/recv.c "$SRC"/columns.c "$SRC"/sha256.c "$SRC"/signing.c -ffp-contract=off -lm -o "$OUT/fuzz_native"
-
-# Seeds: every bundled capture under the selector of its own format (0 pcap, 1 pcapng, 2 tlog, 3 raw),
-# with and without native signed frames (bit 2), with every CRC taken (bit 3), judged with keys (a
-# preset sender, bits 4-6, bit 2 clear), and as hostile files (bit 7: small read windows, shrinking, a
-# failed read); and 600 frames of the bench capture (benchmarks/bench_capture.py, two senders signing).
-# libFuzzer's -max_len bounds the size.
-"$PY" - "$OUT/corpus" <<'PYEOF'
-import hashlib, pathlib, sys, tempfile
-sys.path.insert(0, "benchmarks")
-from bench_capture import generate
-from mavscope.capture.detect import detect_kind
-corpus = pathlib.Path(sys.argv[1])
-sel = {"pcap": 0, "pcapng": 1, "tlog": 2, "raw": 3}
-bench = pathlib.Path(tempfile.mkdtemp()) / "bench.pcap"
-generate(bench, 600)
-for path in sorted(pathlib.Path("captures").glob("*")) + [bench]:
-    if path.suffix in (".md", ".json"):
-        continue
-    data = path.read_bytes()
-    base = sel[detect_kind(path)]
-    for extra in (0, 4, 8, 12, 0x10, 0x18, 0x70):
-        for piece in (data[:4096], data[:65536]):
-            blob = bytes([base | extra]) + piece
-            (corpus / hashlib.sha1(blob).hexdigest()).write_bytes(blob)
-    # hostile files (bit 7): a 64-byte read window; a file that shrinks after 2 reads to 2/7; a failed read
-    for control in (0x00, 0x10, 0x38):
-        blob = bytes([base | 0x80, control]) + data[:16384]
-        (corpus / hashlib.sha1(blob).hexdigest()).write_bytes(blob)
-PYEOF
+    -I"$SRC" fuzz/fuzz_native.c "${CORE[@]}" -ffp-contract=off -lm -o "$OUT/fuzz_native"
 
 export MAVSCOPE_FUZZ_TABLE="$PWD/$OUT/table.bin"
 export MAVSCOPE_FUZZ_SUMMARY="$PWD/$OUT/summary.bin"
@@ -89,11 +52,7 @@ PROFDATA="$(command -v llvm-profdata-14 || command -v llvm-profdata || true)"
 LLVMCOV="$(command -v llvm-cov-14 || command -v llvm-cov || true)"
 if [ -n "$PROFDATA" ] && [ -n "$LLVMCOV" ]; then
     "$CLANG" -std=c11 -O1 -fsanitize=fuzzer -fprofile-instr-generate -fcoverage-mapping -I"$SRC" \
-        fuzz/fuzz_native.c "$SRC"/walk.c "$SRC"/capture.c "$SRC"/capture_pcap.c "$SRC"/capture_pcapng.c \
-        "$SRC"/capture_tlog.c "$SRC"/netlayers.c "$SRC"/mavlink.c "$SRC"/table.c "$SRC"/decode.c "$SRC"/fmt.c \
-        "$SRC"/buf.c "$SRC"/summary.c "$SRC"/plan.c "$SRC"/acc.c "$SRC"/acc_dump.c "$SRC"/seq.c "$SRC"/expert.c \
-        "$SRC"/control.c "$SRC"/gnss.c "$SRC"/recv.c "$SRC"/columns.c "$SRC"/sha256.c "$SRC"/signing.c \
-        -lm -o "$OUT/fuzz_native_cov"
+        fuzz/fuzz_native.c "${CORE[@]}" -lm -o "$OUT/fuzz_native_cov"
     rm -f "$OUT"/cov.profraw
     (cd "$OUT" && LLVM_PROFILE_FILE=cov.profraw ./fuzz_native_cov -runs=0 corpus >/dev/null 2>&1) || true
     "$PROFDATA" merge -sparse "$OUT/cov.profraw" -o "$OUT/cov.profdata"

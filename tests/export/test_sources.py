@@ -24,10 +24,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from mavscope.errors import UsageError
-from mavscope.export import ExportOptions, message_schema, record_batches, register_source, table_of
+from mavscope.export import ExportOptions, record_batches, register_source
 from mavscope.export import native as native_source
-from mavscope.export.schema import FIXED_SCHEMAS, MESSAGE_PREFIX
-from mavscope.export.source import SOURCES, dialect_for, source_name
+from mavscope.export.source import SOURCES, source_name
 from mavscope.mavlink.dialect import Dialect
 from mavscope.pipeline.options import PipelineOptions
 from tests.conftest import CAPTURES, Cli
@@ -36,65 +35,13 @@ from tests.native.build import KEY_SPEC
 from tests.native.engines import capture_file
 from tests.native.test_generated import DAMAGED_FILES, FEWER, SETTINGS, capture
 from tests.support.dataset import arrow_table
+from tests.support.sources import same_tables
 
 PATHS = sorted(p for p in CAPTURES.iterdir() if p.suffix not in (".md", ".json"))
 DEMO_KEY = "passphrase:mavscope-demo"  # the generator signs the bundled captures' GCS frames with it
 KEYS = {"none": PipelineOptions(), "key": PipelineOptions(keys=(DEMO_KEY,)),
         "leaked": PipelineOptions(use_leaked_keys=True)}
-OTHERS = sorted(s for s in SOURCES if s != "python")
 needs_native = pytest.mark.skipif(native_source._native is None, reason="the native extension is not built")
-
-
-def _bits(t: pa.DataType) -> pa.DataType | None:
-    """The unsigned integer type of the same width as a float type (lists of floats too)."""
-    if pa.types.is_float32(t):
-        return pa.uint32()
-    if pa.types.is_float64(t):
-        return pa.uint64()
-    if pa.types.is_list(t):
-        inner = _bits(t.value_type)
-        return None if inner is None else pa.list_(inner)
-    return None
-
-
-def _rows(table: pa.Table) -> list[dict[str, object]]:
-    """The table's rows, floats as their bit patterns (so NaN equals NaN when its bits do)."""
-    cols = []
-    for f, col in zip(table.schema, table.columns):
-        bits = _bits(f.type)
-        cols.append(col if bits is None else pa.chunked_array([c.view(bits) for c in col.chunks], bits))
-    return pa.table(cols, names=table.column_names).to_pylist()
-
-
-def tables(path: str | Path, source: str, pipeline: PipelineOptions | None = None,
-           rows: int = 65_536) -> dict[str, list[dict[str, object]]]:
-    """Every table of the capture from `source`: each batch checked against its declared schema."""
-    out: dict[str, list[pa.RecordBatch]] = {}
-    pipeline = pipeline or PipelineOptions()
-    dialect = dialect_for(pipeline)
-    captures = []
-    for b in record_batches(path, ExportOptions(pipeline=pipeline, source=source, batch_rows=rows)):
-        table = table_of(b)
-        want = (message_schema(table[len(MESSAGE_PREFIX):], dialect) if table.startswith(MESSAGE_PREFIX)
-                else FIXED_SCHEMAS[table]())
-        assert b.schema.equals(want, check_metadata=True), (source, table)
-        if source != "python" and (table == "frames" or table.startswith(MESSAGE_PREFIX)):
-            assert b.num_rows <= rows, (table, b.num_rows)
-        if table == "captures":
-            captures += b.column("batch_source").to_pylist()
-            b = b.drop_columns(["exported_at", "batch_source"])
-        out.setdefault(table, []).append(b)
-    assert captures == [source]
-    return {t: _rows(pa.Table.from_batches(bs)) for t, bs in out.items()}
-
-
-def same_tables(path: str | Path, pipeline: PipelineOptions | None = None, rows: int = 65_536) -> None:
-    want = tables(path, "python", pipeline)
-    for source in OTHERS:
-        got = tables(path, source, pipeline, rows)
-        assert sorted(got) == sorted(want), source
-        for name in want:
-            assert got[name] == want[name], (source, name)
 
 
 @pytest.fixture

@@ -39,6 +39,13 @@ def analyses_seeds() -> list[bytes]:
     return [bytes(range(256)) * 8, bytes(range(255, -1, -1)) * 8, b"\x00\x01\x02\x03" * 600, b"\x07" * 3000]
 
 
+def export_seeds() -> list[bytes]:
+    """The `export` target's inputs: a mode byte (keys, window, batch size: every combination across the
+    seeds) and the first 6,000 bytes of a bundled capture (a cut capture is damage the sources must agree on)."""
+    paths = sorted(p for p in (ROOT / "captures").iterdir() if p.suffix in (".pcap", ".pcapng", ".tlog", ".raw"))
+    return [bytes([i % 16]) + p.read_bytes()[:6000] for i, p in enumerate(paths)]
+
+
 def write(corpus: Path) -> None:
     """Fill corpus/<target>/ with the seeds of each target."""
     cap = corpus / "capture"
@@ -47,7 +54,8 @@ def write(corpus: Path) -> None:
         if p.suffix in (".pcap", ".pcapng", ".tlog", ".raw"):
             shutil.copyfile(p, cap / p.name)
     for target, seeds in (("filter", [f.encode() for f in FILTERS]), ("keys", [k.encode() for k in KEY_SPECS]),
-                          ("tcp", tcp_seeds()), ("analyses", analyses_seeds())):
+                          ("tcp", tcp_seeds()), ("analyses", analyses_seeds()),
+                          ("export", export_seeds())):
         d = corpus / target
         d.mkdir(parents=True, exist_ok=True)
         for i, s in enumerate(seeds):

@@ -26,6 +26,8 @@ with atheris.instrument_imports():
     from mavscope.capture.detect import open_capture
     from mavscope.endpoint import Endpoint
     from mavscope.errors import MavscopeError
+    from mavscope.export import native as native_export
+    from mavscope.export.source import record_batches  # noqa: F401  (instrumented before the comparison imports it)
     from mavscope.fields.summary import summary_info
     from mavscope.fields.tree import frame_items
     from mavscope.filter import compile_filter
@@ -37,6 +39,8 @@ with atheris.instrument_imports():
     from mavscope.pipeline.session import make_security_stage
     from mavscope.security.audit import audit
     from mavscope.transport.tcp import TcpReassembler
+
+from tests.support.sources import same_tables
 
 DIALECT = load_dialect()
 SECURITY = PipelineOptions(keys=("passphrase:mavscope-demo",), ciphers=("2=aes-128-ctr:hex:" + "00" * 16,),
@@ -193,8 +197,34 @@ def analyses(data: bytes) -> None:
     audit(frames)
 
 
+EXPORT_KEYS = (PipelineOptions(), PipelineOptions(keys=("passphrase:mavscope-demo",)),
+               PipelineOptions(use_leaked_keys=True))
+
+
+def export(data: bytes) -> None:
+    """A capture file of any content into the dataset's tables by every batch source: each gives the
+    pure-Python source's schemas and rows (tests/support/sources.py). The first byte picks the keys, the
+    native source's window (whole, or 7 frames so handed-back frames fall inside and between windows) and
+    the batch size."""
+    if not data or native_export._native is None:
+        return
+    mode, body = data[0], data[1:]
+    saved = native_export.WINDOW_FRAMES
+    fd, path = tempfile.mkstemp(suffix=".cap")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(body)
+        if mode & 4:
+            native_export.WINDOW_FRAMES = 7
+        same_tables(path, EXPORT_KEYS[mode % 3], rows=5 if mode & 8 else 65_536)
+    finally:
+        native_export.WINDOW_FRAMES = saved
+        os.unlink(path)
+
+
 TARGETS: dict[str, Callable[[bytes], None]] = {
     "capture": capture, "tcp": tcp, "filter": display_filter, "keys": key_spec, "analyses": analyses,
+    "export": export,
 }
 
 
