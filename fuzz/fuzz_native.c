@@ -531,6 +531,12 @@ static void check_dump(const ms_acc *a, const ms_buf *b) {
         skip(&r, 3);
         skip_fn(&r);
     }
+    n = take(&r, 4); /* the messages of the events' frames: every owner an event */
+    for (uint64_t i = 0; i < n; i++) {
+        if (take(&r, 4) >= a->ev.n)
+            abort();
+        skip(&r, 12);
+    }
     n = take(&r, 4);
     for (uint64_t i = 0; i < n; i++) {
         skip(&r, 20);

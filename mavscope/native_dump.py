@@ -208,9 +208,11 @@ def _experts(r: _Reader, dialect: Dialect, links: dict[tuple[int, int], _Link],
     for addr, lk in links.items():
         seq.seqs.senders[addr] = lk.channels
         seq.counts[addr] = lk.received
-    events = [(r.one("H"), r.one("B"), r.frames()) for _ in range(r.one("I"))]
-    for sender, what, fn in events:
-        seq.events[((sender >> 8, sender & 0xFF), SEQ_EVENTS[what])] = fn
+    events = [((sender >> 8, sender & 0xFF), SEQ_EVENTS[what], fn)
+              for sender, what, fn in ((r.one("H"), r.one("B"), r.frames()) for _ in range(r.one("I")))]
+    for addr, what, fn in events:
+        seq.events[(addr, what)] = fn
+    event_labels = r.pairs()
     named = [(r.take("IqQ"), r.frames()) for _ in range(r.one("I"))]
     names: list[list[tuple[int, int]]] = [[] for _ in named]
     for owner, value, count in r.pairs():
@@ -232,6 +234,9 @@ def _experts(r: _Reader, dialect: Dialect, links: dict[tuple[int, int], _Link],
             out[label(code)] += count
         return out
 
+    for owner, code, count in event_labels:
+        addr, what, _ = events[owner]
+        seq.messages.setdefault((addr, what), Counter())[label(code)] += count
     rep = _one(ex, ReplayedCommands)
     assert isinstance(rep, ReplayedCommands)
     for table, order in ((rep.copies, copies), (rep.replays, replays)):

@@ -35,6 +35,13 @@ MAV_TYPE_GCS = 6
 BURST_MIN = 3  # bad-CRC frames...
 BURST_WINDOW_S = 1.0  # ...each within this long of the previous one make a burst
 COPIES_KEPT = 65_536  # commanding frames remembered for replay detection (the oldest go first)
+# Messages a ground station may number on a counter of their own, apart from its other messages: both real
+# GCS tlogs we hold show it (QGroundControl with ArduSub; Mission Planner through MAVProxy with ArduPlane):
+# REQUEST_DATA_STREAM numbered 1..7, one per stream, burst after burst. Commanding messages never qualify:
+# a second counter there is another sender until shown otherwise.
+OWN_COUNTER = frozenset({"REQUEST_DATA_STREAM"})
+OWN_COUNTER_MIN = 3  # frames stepping back before a message's own counter is named
+WHICH_SHOWN = 3  # messages named in a sequence finding
 
 Link = tuple[int, int]
 Fields = dict[str, object]
@@ -90,26 +97,54 @@ class SequenceAnomalies:
     """Per link: frames lost for good in large gaps (the same count as the Links table's), duplicates,
     late frames, and many backward steps (two sequence counters under one system/component id). Each
     channel the sender is heard on (source and destination endpoints) has its own counter, as MAVLink
-    keeps one per channel: a ground station talking to two vehicles over two links repeats no number."""
+    keeps one per channel: a ground station talking to two vehicles over two links repeats no number.
+    The findings name the messages of the frames they list. Where every frame of a link that steps back
+    is a message of OWN_COUNTER, that message has a counter of its own: one `seq-own-counter` note says
+    so instead of duplicates, late frames and two counters."""
 
     def __init__(self) -> None:
         self.seqs = SeqChannels()
         self.counts: Counter[Link] = Counter()
         self.events: dict[tuple[Link, str], FrameNumbers] = {}
+        self.messages: dict[tuple[Link, str], Counter[str]] = {}  # the messages of each event's frames
 
     def add(self, f: Frame, fields: Fields | None) -> None:
         key = (f.sysid, f.compid)
         self.counts[key] += 1
         what, _ = self.seqs.feed(f)
-        self.event(key, what, f.record)
+        self.event(key, what, f.record, f.msgname or str(f.msgid))
 
-    def event(self, key: Link, what: str, record: int) -> None:
-        """What sender `key`'s frame in `record` was on its channel (`SeqTracker.feed`), in capture order."""
+    def event(self, key: Link, what: str, record: int, message: str) -> None:
+        """What sender `key`'s frame in `record` (of `message`) was on its channel (`SeqTracker.feed`), in
+        capture order."""
         if what in ("duplicate", "late", "unchanged"):
             ev = self.events.get((key, what))
             if ev is None:
                 ev = self.events[(key, what)] = _frames()
+                self.messages[(key, what)] = Counter()
             ev.add(record)
+            self.messages[(key, what)][message] += 1
+
+    def _back(self, key: Link) -> tuple[list[int], Counter[str]]:
+        """The frames of sender `key` listed as duplicates or late (the first MAX_FRAMES), their messages."""
+        nums: list[int] = []
+        messages: Counter[str] = Counter()
+        for what in ("duplicate", "late"):
+            ev = self.events.get((key, what))
+            if ev is not None:
+                nums += ev.nums
+                messages += self.messages.get((key, what), Counter())
+        return sorted(nums)[:MAX_FRAMES], messages
+
+    def _own_counter(self, key: Link) -> str | None:
+        """The message numbered on a counter of its own by sender `key`: every frame of it that steps back
+        (OWN_COUNTER_MIN or more) is that message, one of OWN_COUNTER."""
+        seq = self.seqs.totals(key)
+        _, messages = self._back(key)
+        if len(messages) != 1 or seq.reordered + seq.duplicates - seq.repeats < OWN_COUNTER_MIN:
+            return None
+        (message,) = messages
+        return message if message in OWN_COUNTER else None
 
     def findings(self) -> list[Finding]:
         out: list[Finding] = []
@@ -127,29 +162,54 @@ class SequenceAnomalies:
                                f"{len(gaps)} gap(s) of {GAP_MIN} or more{more}, the largest {largest.remaining} "
                                f"(seq {largest.before} -> {largest.after}); {totals(trackers).lost} lost in all, "
                                "as in the Links table", sorted(g.record for g in gaps)))
+        own = {key: m for key in self.counts if (m := self._own_counter(key)) is not None}
+        for key, message in own.items():
+            seq = self.seqs.totals(key)
+            nums, _ = self._back(key)
+            out.append(finding("seq-own-counter",
+                               f"link {key[0]}/{key[1]}: {seq.duplicates + seq.reordered} frames out of sequence, "
+                               f"all {message} ({seq.duplicates} repeat a number already seen, {seq.reordered} fill "
+                               f"a gap): {message} numbered on a counter of its own, as ground stations do "
+                               "(QGroundControl, Mission Planner/MAVProxy tlogs); not frames lost, late or from "
+                               "another sender", nums))
         for (key, what), ev in self.events.items():
             sysid, compid = key
             seq = self.seqs.totals(key)
-            if what == "duplicate" and seq.duplicates:
+            which = _which(self.messages.get((key, what), Counter()))
+            if what == "duplicate" and seq.duplicates and key not in own:
                 out.append(finding("seq-duplicate", f"link {sysid}/{compid}: {seq.duplicates} frames repeat a "
-                                                    "sequence number already seen on their channel", ev.nums))
+                                                    f"sequence number already seen on their channel{which}",
+                                   ev.nums))
             elif what == "unchanged":
                 out.append(finding("seq-unchanged", unchanged_message(key, ev.count), ev.nums))
-            elif what == "late":
-                out.append(finding("seq-reordered", f"link {sysid}/{compid}: {ev.count} frames arrived after later "
-                                                    "ones", ev.nums))
+            elif what == "late" and key not in own:
+                out.append(finding("seq-reordered", f"link {sysid}/{compid}: {ev.count} frames came after later "
+                                                    f"ones in sequence, filling a gap{which}", ev.nums))
         for key, total in self.counts.items():
             seq = self.seqs.totals(key)
             back = seq.reordered + seq.duplicates - seq.repeats  # steps back (not the same number again)
-            if back >= 5 and back * 20 >= total:
-                dup, late = self.events.get((key, "duplicate")), self.events.get((key, "late"))
-                nums = sorted((dup.nums if dup else []) + (late.nums if late else []))[:MAX_FRAMES]
+            if back >= 5 and back * 20 >= total and key not in own:
+                nums, messages = self._back(key)
                 out.append(finding("seq-interleaved",
                                    f"link {key[0]}/{key[1]}: {back} of {total} frames step back in sequence: two "
                                    "sequence counters under one system/component id on one channel (two senders, "
                                    "or one sender's two MAVLink channels where the capture cannot tell them apart, "
-                                   "as in a tlog)", nums))
+                                   f"as in a tlog){_which(messages)}", nums))
         return out
+
+
+def _which(messages: Counter[str]) -> str:
+    """` (all M)`, or ` (M1, M2, M3 and k more)` most frequent first: the messages of a finding's frames.
+    Named, not counted: a restarted counter's first frames are listed with the duplicates they seemed
+    until the restart showed (SeqTracker), so counts here would not add up to the finding's."""
+    if not messages:
+        return ""
+    if len(messages) == 1:
+        (m, n), = messages.items()
+        return f" (all {m})" if n > 1 else f" ({m})"
+    top = [m for m, _ in sorted(messages.items(), key=lambda mc: (-mc[1], mc[0]))]
+    more = f" and {len(top) - WHICH_SHOWN} more" if len(top) > WHICH_SHOWN else ""
+    return f" ({', '.join(top[:WHICH_SHOWN])}{more})"
 
 
 def unchanged_message(sender: Link, count: int) -> str:

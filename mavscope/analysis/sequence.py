@@ -4,8 +4,9 @@ SEQ is an 8-bit counter per sender. `SeqTracker.feed(seq)` classifies each frame
 one: `next` (+1), `gap` (ahead by d < 128: d - 1 frames missing), `late` (behind, filling a slot still
 missing: one frame less lost), `duplicate` (behind or equal, filling nothing). Gaps of more than 127
 cannot be told from late frames and count as late. Loss is what stays missing: a frame that comes late
-or from a second counter of the same sender (Mission Planner sends REQUEST_DATA_STREAM on its own) is
-not lost, so the Links table and the `seq-gap` findings tell the same story.
+or from a second counter of the same sender (ground stations send REQUEST_DATA_STREAM on one of
+its own: the expert's `seq-own-counter`) is not lost, so the Links table and the `seq-gap` findings
+tell the same story.
 
 `position` is the frame's place in the sender's unwrapped sequence (it never wraps): a late frame is
 placed behind the newest one, not after it. Replay detection compares positions, so a frame repeated

@@ -185,6 +185,7 @@ void ms_acc_free(ms_acc *a) {
     pairs_free(&a->link_endpoints);
     pairs_free(&a->conv_systems);
     pairs_free(&a->names);
+    pairs_free(&a->ev_labels);
     free(a->ev.v);
     free(a->named.v);
     free(a->copies.v);

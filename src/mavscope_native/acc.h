@@ -240,6 +240,7 @@ typedef struct {
     ms_pairs link_endpoints, conv_systems;
     /* SequenceAnomalies */
     MS_VEC(ms_event) ev;
+    ms_pairs ev_labels; /* (event index, label) -> count: the messages of each event's frames */
     /* ReplayedCommands: copies and replays (names: label -> count), the copies seen (LRU) */
     MS_VEC(ms_named) named; /* shared by ReplayedCommands, UnsignedCommands and intrusions */
     ms_pairs names;         /* (named index, label) -> count */

@@ -15,6 +15,7 @@
  *             u8 has_time; f64 first, last
  *   pairs     (conversation systems: conversation, sender)
  *   events    u32 n; per event u16 sender; u8 what; fn
+ *   pairs     (the messages of the events' frames: event, label)
  *   named     u32 n; per entry u32 key; i64 holder; u64 since; fn
  *   pairs     (counted names: entry, label)
  *   copies, replays, candidates, intrusions: each u32 n, i32 entries[n]
@@ -167,6 +168,7 @@ int ms_acc_dump(const ms_acc *a, ms_buf *b) {
         u8(b, a->ev.v[i].what);
         fn(b, &a->ev.v[i].fn);
     }
+    pairs(b, &a->ev_labels);
     un(b, a->named.n, 4);
     for (uint32_t i = 0; i < a->named.n; i++) {
         un(b, a->named.v[i].key, 4);

@@ -377,6 +377,8 @@ int ms_expert_add(ms_acc *a, const ms_acc_frame *f, ms_link *lk, int step) {
             lk->events[what] = (int32_t)a->ev.n++;
         }
         ms_fn_add(&a->ev.v[lk->events[what]].fn, f->record, (uint32_t)a->plan->k[MS_K_MAX_FRAMES]);
+        if ((r = ms_pairs_count(&a->ev_labels, (uint32_t)lk->events[what], label_of(f), 1)) != 0)
+            return r;
     }
     if (pm != NULL || f->msgid == 0)
         if ((r = command_sources(a, f, pm, fields)) != 0)

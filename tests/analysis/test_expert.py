@@ -116,3 +116,64 @@ def test_a_second_counter_is_interleaving_not_loss(cli: Cli, tmp_path: Path) -> 
     assert link["lost"] == 0  # every frame of both counters is in the file
     found = {f["code"] for f in doc["findings"]}
     assert "seq-gap" not in found and "replayed-command" not in found
+
+
+def _bursts(tmp_path: Path, second: list[object]) -> tuple[str, list[int]]:
+    """A GCS (255/190): 120 HEARTBEATs and MANUAL_CONTROLs on its main counter and, after every 20th of them
+    from the 10th, the messages of `second` numbered 1, 2, 3... (a counter that starts over each time, as
+    the real GCS tlogs number REQUEST_DATA_STREAM: tests/crosscheck/test_real_findings.py). The main counter
+    is 3 to 110 ahead of them (behind by less than 128: SeqTracker's window): each of those frames steps
+    back, filling no gap. Returns the tlog and the record numbers of the second counter's frames."""
+    main = flows.Sender(255, 190)
+    entries: list[tuple[float, bytes]] = []
+    records = []
+    for i in range(120):
+        t = flows.T0 + i * 0.05
+        entries.append((t, main.pack(flows.heartbeat(gcs=True) if i % 10 == 0 else flows.manual_control(x=i))))
+        if i % 20 == 10:
+            burst = flows.Sender(255, 190, seq=1)
+            for k, msg in enumerate(second):
+                entries.append((t + 0.001 * (k + 1), burst.pack(msg)))
+                records.append(len(entries))
+    return flows.write_tlog(tmp_path, entries), records
+
+
+def _both_paths(cli: Cli, path: str) -> dict[str, list[dict]]:
+    """The findings of `stats`, the same from the native engine and the pure-Python path."""
+    native = cli.json("stats", path)["findings"]
+    assert cli.json("stats", path, environ={"MAVSCOPE_PURE": "1"})["findings"] == native
+    out: dict[str, list[dict]] = {}
+    for f in native:
+        if f["message"].startswith("link 255/190"):
+            out.setdefault(f["code"], []).append(f)
+    return out
+
+
+STREAMS = [flows.v2.MAVLink_request_data_stream_message(1, 1, k, 4, 1) for k in range(1, 8)]
+
+
+def test_request_data_stream_on_a_counter_of_its_own_is_one_note(cli: Cli, tmp_path: Path) -> None:
+    """Mission Planner's and QGroundControl's pattern: 6 bursts of 7 REQUEST_DATA_STREAMs numbered 1..7."""
+    path, records = _bursts(tmp_path, STREAMS)
+    found = _both_paths(cli, path)
+    assert set(found) == {"seq-own-counter"}  # no seq-duplicate, seq-reordered, seq-interleaved
+    (own,) = found["seq-own-counter"]
+    assert own["severity"] == "note" and own["frames"] == records[:len(own["frames"])]
+    assert "42 frames out of sequence, all REQUEST_DATA_STREAM (42 repeat a number already seen, 0 fill" \
+           in own["message"]
+
+
+def test_commands_on_a_second_counter_stay_two_counters(cli: Cli, tmp_path: Path) -> None:
+    """The same pattern with COMMAND_LONGs, HEARTBEATs, or REQUEST_DATA_STREAMs but for one HEARTBEAT: another
+    sender under the GCS's id until shown otherwise (an injector keeping its own counter), a warning."""
+    commands = [flows.command_long(400, float(k % 2)) for k in range(7)]
+    for second, named in ((commands, "(all COMMAND_LONG)"), ([flows.heartbeat(gcs=True)] * 7, "(all HEARTBEAT)"),
+                          (STREAMS[:6] + [flows.heartbeat(gcs=True)], "(REQUEST_DATA_STREAM, HEARTBEAT)")):
+        sub = tmp_path / named.strip("()").replace(", ", "-").replace(" ", "_")
+        sub.mkdir()
+        found = _both_paths(cli, _bursts(sub, second)[0])
+        assert "seq-own-counter" not in found, named
+        (two,) = found["seq-interleaved"]
+        assert two["severity"] == "warn" and "42 of 162 frames step back" in two["message"], two["message"]
+        assert two["message"].endswith(named), two["message"]
+        assert found["seq-duplicate"][0]["message"].endswith(named)

@@ -7,6 +7,9 @@ hand and decoded by pymavlink (`_frames`), by the rule each finding states in do
 - seq-reordered: a frame fills a number skipped before; seq-duplicate: a copy of the frame before, or a
   frame behind the counter that fills nothing; seq-unchanged: the previous frame's number, other bytes;
 - seq-interleaved: frames stepping back are 5 or more and at least 5 % of the sender's;
+- seq-own-counter, in place of the three above: the frames counted by seq-duplicate and seq-reordered
+  (and those a restarted counter took back) are all REQUEST_DATA_STREAM, 3 or more of them stepping back
+  (a ground station numbering it apart: on the plane and ArduSub tlogs, 35 frames numbered 1..7 in bursts);
 - command-without-heartbeat: a commanding message to another system, not a ground station, before the
   sender's first HEARTBEAT; new-commander: a second system id commanding a vehicle.
 For the pcaps and the two raw streams the expectations are written out with the numbers of the
@@ -98,11 +101,14 @@ def _sequence_findings(frames: list[F]) -> set[tuple[str, str]]:
         remaining: dict[int, int] = {}  # gap of 10 or more -> how many of its numbers never came
         late = copies = behind = unchanged = 0
         run: list[int] = []
+        names: set[str] = set()  # the messages of the frames listed as copies, behind (a run's too) or late
         for f in lst[1:]:
             delta = (f.seq - top) % 256
+            name = f.msg.get_type() if f.msg is not None else "?"
             if delta == 0:
                 if f.raw == prev:
                     copies += 1
+                    names.add(name)
                 else:
                     unchanged += 1
                 run = []
@@ -119,9 +125,11 @@ def _sequence_findings(frames: list[F]) -> set[tuple[str, str]]:
                 if g in remaining:
                     remaining[g] -= 1
                 late += 1
+                names.add(name)
                 run = []
             else:
                 behind += 1
+                names.add(name)
                 run = run + [f.seq] if run and (f.seq - run[-1]) % 256 == 1 else [f.seq]
                 if len(run) >= 10:  # a restarted counter: followed from its last number
                     behind -= len(run)
@@ -130,12 +138,15 @@ def _sequence_findings(frames: list[F]) -> set[tuple[str, str]]:
             prev = f.raw
         if any(n >= 10 for n in remaining.values()):
             out.add(("seq-gap", link))
+        if unchanged:
+            out.add(("seq-unchanged", link))
+        if names == {"REQUEST_DATA_STREAM"} and late + behind >= 3:
+            out.add(("seq-own-counter", link))
+            continue
         if late:
             out.add(("seq-reordered", link))
         if copies + behind:
             out.add(("seq-duplicate", link))
-        if unchanged:
-            out.add(("seq-unchanged", link))
         if late + behind >= 5 and (late + behind) * 20 >= len(lst):
             out.add(("seq-interleaved", link))
     return out
