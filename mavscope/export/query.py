@@ -15,7 +15,7 @@ from pathlib import Path
 import duckdb
 import pyarrow as pa
 
-from mavscope.errors import UsageError
+from mavscope.errors import DatasetError, UsageError
 from mavscope.export.dataset import PART, open_dataset, tables
 from mavscope.export.schema import CAPTURES, FIXED_SCHEMAS, FIXED_TABLES, MESSAGE_PREFIX, PARTITION
 
@@ -53,20 +53,33 @@ def connect(datasets: Iterable[Path]) -> duckdb.DuckDBPyConnection:
             if any((root / table).glob(f"{PARTITION}=*/{PART}")):
                 found.setdefault(table, []).append(str(root / table / f"{PARTITION}=*" / PART))
     con = duckdb.connect(":memory:")
-    if CAPTURES in found:
-        con.execute(f"CREATE VIEW {_ident(CAPTURES)} AS SELECT * FROM {_reader(found[CAPTURES])}")
-    committed = f"WHERE {PARTITION} IN (SELECT {PARTITION} FROM {_ident(CAPTURES)})"
-    for table in sorted(set(found) | set(FIXED_TABLES)):
-        if table == CAPTURES and table in found:
-            continue
-        view = _ident(view_name(table))
-        if table in found:
-            con.execute(f"CREATE VIEW {view} AS SELECT * FROM {_reader(found[table])} {committed}")
-        else:  # an empty table of its schema, so that a query over it runs
-            empty = FIXED_SCHEMAS[table]().empty_table()
-            con.register(f"{EMPTY}{table}", empty)
-            con.execute(f"CREATE VIEW {view} AS SELECT * FROM {_ident(EMPTY + table)}")
+    try:
+        if CAPTURES in found:
+            _view(con, CAPTURES, f"SELECT * FROM {_reader(found[CAPTURES])}")
+        committed = f"WHERE {PARTITION} IN (SELECT {PARTITION} FROM {_ident(CAPTURES)})"
+        for table in sorted(set(found) | set(FIXED_TABLES)):
+            if table == CAPTURES and table in found:
+                continue
+            if table in found:
+                _view(con, table, f"SELECT * FROM {_reader(found[table])} {committed}")
+            else:  # an empty table of its schema, so that a query over it runs
+                empty = FIXED_SCHEMAS[table]().empty_table()
+                con.register(f"{EMPTY}{table}", empty)
+                _view(con, table, f"SELECT * FROM {_ident(EMPTY + table)}")
+    except BaseException:
+        con.close()
+        raise
     return con
+
+
+def _view(con: duckdb.DuckDBPyConnection, table: str, select: str) -> None:
+    """The view of `table` (DatasetError where DuckDB cannot read its files: a damaged or foreign Parquet
+    file names itself in DuckDB's message)."""
+    try:
+        con.execute(f"CREATE VIEW {_ident(view_name(table))} AS {select}")
+    except duckdb.Error as e:
+        first = next((ln for ln in str(e).splitlines() if ln.strip()), str(e))  # not DuckDB's echo of our SQL
+        raise DatasetError(f"sql: cannot read the dataset's {table} table: {first}") from None
 
 
 def views(con: duckdb.DuckDBPyConnection) -> list[str]:

@@ -106,3 +106,30 @@ def test_a_missing_view_is_named_with_those_there_are(cli: Cli, tmp_path: Path) 
         "views: anomalies, captures, findings, frames")
     status, _, err = cli("sql", "SELECT count(*) FROM HEARTBEAT JOIN nothing USING (capture_id)", str(SIGNED))
     assert status == 2 and "no view nothing " in err and "HEARTBEAT, " in err
+
+
+def test_a_damaged_dataset_is_a_one_line_error(cli: Cli, tmp_path: Path) -> None:
+    """A Parquet file of the dataset emptied, cut (its footer kept), bit-flipped or replaced by a directory, and
+    a manifest that is not JSON: one line naming the table (and the file where DuckDB names it), exit 2; a
+    DuckDB traceback before (stop 20)."""
+    root = tmp_path / "ds"
+    assert cli("export", str(SIGNED), "--parquet", str(root))[0] == 0
+    (part,) = (root / "frames").glob("capture_id=*/part-0.parquet")
+    data = part.read_bytes()
+    flipped = bytearray(data)
+    for i in range(200, len(flipped) - 3000, 97):
+        flipped[i] ^= 0x5A
+    for damage, named in ((b"", part.name), (data[: len(data) // 2] + data[-2000:], None), (bytes(flipped), None),
+                          (None, part.name)):
+        if damage is None:
+            part.unlink()
+            part.mkdir()
+        else:
+            part.write_bytes(damage)
+        status, out, err = cli("sql", "SELECT count(*) FROM frames", str(root))
+        assert status == 2 and out == "" and err.count("\n") == 1, err
+        assert err.startswith("mavscope: sql: cannot read the dataset's frames table: "), err
+        assert named is None or named in err, err
+    (root / "_mavscope_dataset.json").write_text('{"format":')
+    status, _, err = cli("sql", "SELECT 1", str(root))
+    assert status == 2 and err.count("\n") == 1 and "not a mavscope dataset manifest (invalid JSON)" in err
