@@ -92,7 +92,7 @@ def bar(env: Env, total: int, what: str) -> Iterator[Callable[[int], None]]:
 def gather(env: Env, paths: list[str], dialects: tuple[str, ...]) -> list[str]:
     """The captures among `paths` (UsageError when a path does not exist); files passed over in directories
     are counted on stderr."""
-    from mavscope.export.inputs import find_captures
+    from mavscope.export.inputs import MAX_FILES, find_captures
     from mavscope.mavlink.dialect import load_dialect
 
     found = find_captures(paths, load_dialect(dialects))  # (batch needs no pyarrow: not export.source's cache)
@@ -103,6 +103,9 @@ def gather(env: Env, paths: list[str], dialects: tuple[str, ...]) -> list[str]:
         which = (": " + ", ".join(passed) if len(passed) <= NAMED_PASSED_OVER else f" (e.g. {passed[0]})")
         env.stderr.write(f"mavscope: {len(passed)} file(s) in the directories are not captures and were "
                          f"passed over{which}\n")
+    if found.stopped:
+        env.stderr.write(f"mavscope: stopped looking in the directories after {MAX_FILES:,} files: the files "
+                         "after those are not read\n")
     return found.captures
 
 

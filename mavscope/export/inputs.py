@@ -3,7 +3,7 @@
 A file named on the command line is a capture, whatever it holds (as `read` takes it). A file found
 by walking a directory is one when its content says so: a pcap, pcapng or tlog; or a raw byte stream
 whose first 64 KiB hold a MAVLink frame with a valid CRC (so that READMEs, notes and other files
-that happen to sit beside the captures are passed over, and counted).
+that happen to sit beside the captures are passed over, and counted); so is what is no regular file.
 """
 
 from __future__ import annotations
@@ -25,8 +25,11 @@ MAX_FILES = 1_000_000  # files looked at under the directories given, at most
 @dataclass
 class Inputs:
     captures: list[str] = field(default_factory=list)
-    passed_over: list[str] = field(default_factory=list)  # files in the directories that are not captures
+    # entries of the directories that are not captures: other files, and what is no regular file (a FIFO,
+    # which a read would wait on for ever, a socket, a device, a dangling or a directory's symbolic link)
+    passed_over: list[str] = field(default_factory=list)
     missing: list[str] = field(default_factory=list)  # paths given that do not exist
+    stopped: bool = False  # MAX_FILES entries looked at: the walk stopped there
 
 
 def _holds_mavlink(path: str, framer: Framer) -> bool:
@@ -63,16 +66,17 @@ def find_captures(paths: Iterable[str], dialect: Dialect) -> Inputs:
         if os.path.isdir(p):
             for folder, dirs, files in os.walk(p):
                 dirs[:] = sorted(d for d in dirs if not d.startswith((".", "_")))
-                for name in sorted(files):
+                links = [d for d in dirs if os.path.islink(os.path.join(folder, d))]  # os.walk does not follow
+                for name in sorted(files + links):
                     if name.startswith((".", "_")):
                         continue
                     seen += 1
                     if seen > MAX_FILES:
+                        out.stopped = True
                         return out
                     full = os.path.join(folder, name)
-                    if not os.path.isfile(full):
-                        continue
-                    (out.captures if is_capture(full, framer) else out.passed_over).append(full)
+                    regular = os.path.isfile(full)  # (through a link to one too)
+                    (out.captures if regular and is_capture(full, framer) else out.passed_over).append(full)
         elif os.path.exists(p):
             out.captures.append(p)
         else:

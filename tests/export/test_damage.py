@@ -6,9 +6,16 @@ walking the pcap, tlog or pcapng structure with `struct`, not by asking mavscope
 from __future__ import annotations
 
 import json
+import os
 import struct
+import threading
 from pathlib import Path
 
+import pytest
+
+from mavscope.export import inputs as inputs_module
+from mavscope.export.inputs import Inputs, find_captures
+from mavscope.mavlink.dialect import Dialect
 from tests.conftest import CAPTURES, Cli
 
 UDP = CAPTURES / "px4_sitl_udp.pcap"
@@ -143,6 +150,32 @@ def test_files_passed_over_are_named_when_few(cli: Cli, tmp_path: Path) -> None:
         (folder / f"more{k}.txt").write_text("no\n")
     _, _, err = cli("batch", str(folder), "--json", "--", "stats")
     assert f"6 file(s) in the directories are not captures and were passed over (e.g. {folder / 'README.md'})" in err
+
+
+def test_what_is_no_regular_file_is_passed_over_and_said(cli: Cli, tmp_path: Path, dialect: Dialect,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """A FIFO (a read would wait for ever: the walk runs in a thread held to 30 s), a dangling symbolic link
+    and a link to a directory (os.walk follows none) are passed over and named, no longer skipped unsaid; a
+    walk cut at MAX_FILES says so."""
+    folder = tmp_path / "flights"
+    (folder / "sub").mkdir(parents=True)
+    (folder / "flight.pcap").write_bytes(UDP.read_bytes())
+    os.mkfifo(folder / "pipe.pcap")
+    (folder / "dangling.tlog").symlink_to(tmp_path / "nowhere")
+    (folder / "sub" / "loop").symlink_to(folder)
+    found: list[Inputs] = []
+    walk = threading.Thread(target=lambda: found.append(find_captures([str(folder)], dialect)), daemon=True)
+    walk.start()
+    walk.join(30)
+    assert found, "the walk blocked on the FIFO"
+    (inputs,) = found
+    assert inputs.captures == [str(folder / "flight.pcap")] and not inputs.stopped
+    assert inputs.passed_over == [str(folder / n) for n in ("dangling.tlog", "pipe.pcap", "sub/loop")]
+    monkeypatch.setattr(inputs_module, "MAX_FILES", 2)
+    _, out, err = cli("batch", str(folder), "--json", "--", "stats")
+    assert [r["file"] for r in json.loads(out)["captures"]] == [str(folder / "flight.pcap")]
+    assert f"1 file(s) in the directories are not captures and were passed over: {folder / 'dangling.tlog'}" in err
+    assert "stopped looking in the directories after 2 files: the files after those are not read" in err
 
 
 def test_audit_and_verify_say_the_damage_as_read_does(cli: Cli, tmp_path: Path) -> None:
