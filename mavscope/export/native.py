@@ -116,15 +116,20 @@ class _Pending:
 
     def _cut_message(self, msgid: int, k: int) -> pa.RecordBatch:
         parts = self.messages[msgid]
-        table = pa.Table.from_batches(parts, schema=parts[0].schema)
-        head = table.slice(0, k).combine_chunks()
-        rest = table.slice(k).to_batches()
+        first = parts[0]
+        if first.num_rows >= k:  # as _cut_frames: the first part's rows as they are (most cuts; no copy)
+            head = first.slice(0, k) if first.num_rows > k else first
+            rest = ([first.slice(k)] if first.num_rows > k else []) + parts[1:]
+        else:
+            table = pa.Table.from_batches(parts, schema=first.schema)
+            head = table.slice(0, k).combine_chunks().to_batches()[0]
+            rest = table.slice(k).to_batches()
         self.counts[msgid] -= k
         if rest:
             self.messages[msgid] = rest
         else:
             del self.messages[msgid], self.counts[msgid]
-        return head.to_batches()[0]
+        return head
 
     def flush(self) -> Iterator[pa.RecordBatch]:
         if self.frames_held:
