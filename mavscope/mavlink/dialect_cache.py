@@ -98,6 +98,15 @@ def parse_xml(path: Path) -> Record:
     from pymavlink.generator import mavparse
 
     try:
+        declares_entities = b"<!ENTITY" in path.read_bytes()
+    except OSError as e:
+        raise DialectError(f"{path}: cannot read dialect: {e.strerror or e}") from None
+    if declares_entities:
+        # no MAVLink dialect declares one; expat stops an expansion bomb only after some 8 MB of it, which
+        # mavparse's character handler (a string grown a piece at a time) took 35 s to take in
+        raise DialectError(f"{path}: cannot parse dialect: it declares XML entities (<!ENTITY), which MAVLink "
+                           "dialects do not use")
+    try:
         # mavparse prints warnings about upstream XML to stdout; keep our output clean.
         with contextlib.redirect_stdout(io.StringIO()):
             xml = mavparse.MAVXML(str(path), "2.0")

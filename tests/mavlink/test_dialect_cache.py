@@ -277,6 +277,35 @@ def test_a_broken_xml_is_reported_and_never_cached(tmp_path: Path) -> None:
     assert len(entries(cache)) == 17  # all.xml's files, not the broken one
 
 
+def test_a_dialect_declaring_entities_is_refused_before_pymavlink_parses_it(tmp_path: Path,
+                                                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """An entity expansion bomb in a dialect file: expat stops it after some 8 MB of expansion, which took
+    pymavlink's character handler 35 s (stop 20). No MAVLink dialect declares an entity: refused unread by
+    pymavlink, one line; a DOCTYPE without entities still parses."""
+    from pymavlink.generator import mavparse
+
+    folder = tmp_path / "dissectors"
+    folder.mkdir()
+    laughs = "".join(f'<!ENTITY l{i} "{f"&l{i - 1};" * 10}">' for i in range(1, 10))
+    (folder / "bomb.xml").write_text(f'<?xml version="1.0"?>\n<!DOCTYPE m [<!ENTITY l0 "lol">{laughs}]>\n'
+                                     '<mavlink><messages><message id="60000" name="BOMB"><description>&l9;'
+                                     '</description><field type="uint8_t" name="a">a</field></message></messages>'
+                                     "</mavlink>\n")
+    parsed: list[str] = []
+    real = mavparse.MAVXML
+    monkeypatch.setattr(mavparse, "MAVXML", lambda path, *a: parsed.append(os.path.basename(path)) or real(path, *a))
+    with pytest.raises(DialectError) as refused:
+        load(folder, None)
+    assert str(refused.value) == (f"{(folder / 'bomb.xml').resolve()}: cannot parse dialect: it declares XML "
+                                  "entities (<!ENTITY), which MAVLink dialects do not use")
+    assert "bomb.xml" not in parsed
+    (folder / "bomb.xml").unlink()
+    user = user_dialect(folder)
+    user.write_text(user.read_text().replace('<?xml version="1.0"?>', '<?xml version="1.0"?>\n<!DOCTYPE mavlink>'))
+    assert "TEST_MODE" in load(folder, None).enums
+    assert "user.xml" in parsed
+
+
 @pytest.mark.parametrize(("environ", "expected"), [
     ({NO_CACHE_ENV: "1", CACHE_ENV: "/c"}, None),
     ({CACHE_ENV: "/c", "XDG_CACHE_HOME": "/x", "HOME": "/h"}, Path("/c")),
