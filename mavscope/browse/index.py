@@ -37,9 +37,9 @@ from mavscope.endpoint import Endpoint
 from mavscope.fields.summary import summary_info
 from mavscope.fields.tree import frame_items
 from mavscope.mavlink.dialect import Dialect
-from mavscope.mavlink.frame import CrcStatus, Frame, Security, decode_payload
+from mavscope.mavlink.frame import CrcStatus, Frame, Security, decode_payload, frame_number
 from mavscope.mavlink.framing import build_frame
-from mavscope.notes import Note
+from mavscope.notes import Note, is_capture_damage, problem_line
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.wire import HEADER_V1, HEADER_V2, STX_V2
 
@@ -408,6 +408,19 @@ class FrameIndex:
 
     def summary(self, n: int) -> str:
         return self.detail(n).summary
+
+    def problems(self) -> tuple[int, str | None]:
+        """The damage to the capture met so far, as `read` reports it on stderr: how many problems (the
+        anomalies' notes, the frames' notes of capture damage) and the first in capture order, as `read`
+        writes it ("record 4: offset 301: ..."); (0, None) for none."""
+        with self.lock:
+            found = [(a.record, f"record {a.record}", n) for a in self.anomalies for n in a.notes]
+            found += [(self._record[i], f"frame {frame_number(self._record[i], self._index[i])}", n)
+                      for i, notes in self._notes.items() for n in notes if is_capture_damage(n)]
+        if not found:
+            return 0, None
+        _, where, first = min(found, key=lambda f: f[0])
+        return len(found), problem_line(where, first)
 
     def find_record(self, record: int) -> int | None:
         """The first row of capture record `record` (binary search: records are in capture order)."""

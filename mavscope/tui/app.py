@@ -176,6 +176,8 @@ class MavscopeApp(App[None]):
         if msg.progress.done and self.indexed_at is None:
             self.indexed_at = time.perf_counter() - self._mounted_at
             self._report_messages()
+            if (notice := self.status.set_problems(len(self.index), *self.index.problems())) is not None:
+                self.notify(notice, title="mavscope", severity="warning", timeout=10)
         self.status.progress = msg.progress
         if self.source.live:
             self.status.live = True

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import struct
 from array import array
+from pathlib import Path
 
 import pytest
 
@@ -17,6 +19,7 @@ from mavscope.tui.screens.keys import KeyDialog
 from mavscope.tui.screens.mission import MissionScreen
 from mavscope.tui.screens.stats import StatsScreen
 from mavscope.tui.widgets.hex_view import ASCII_START, byte_column
+from tests.conftest import Cli
 from tests.support.tui import CAPTURES, SIZE, ready, run, type_text, wait_for
 
 PX4 = CAPTURES / "px4_sitl_udp.pcap"
@@ -402,3 +405,28 @@ def test_a_payload_filter_selects_the_frames_pymavlink_decodes_so(engine: str, m
             assert [app.index.row(n).record for n in expected] == [msgs[k].index for k in expected]
 
     run(scenario())
+
+
+def test_problems_reading_the_capture_are_said_once_it_is_indexed(cli: Cli, tmp_path: Path) -> None:
+    """A damaged capture does not pass in silence in the TUI either, nor an empty list unexplained: once
+    indexed, a notification gives the count of problems and the first as `read` writes it on stderr, and
+    the status line keeps the count (stop 20: nothing said; a capture of no frame showed an empty list)."""
+    empty = tmp_path / "other-link.pcap"  # one record of a link type mavscope does not decode (DLT 147: USER0)
+    empty.write_bytes(struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, 147)
+                      + struct.pack("<IIII", 1, 0, 4, 4) + b"\xfd\x00\x00\x00")
+
+    async def scenario(path: Path, head: str | None) -> None:
+        _, _, err = cli("read", path)
+        lines = [ln.split(": ", 2)[2] for ln in err.splitlines() if ln.startswith(f"mavscope: {path}: ")]
+        app = create_app(path)
+        async with app.run_test(size=SIZE) as pilot:
+            await wait_for(pilot, lambda: app.indexed_at is not None)
+            said = [n.message for n in app._notifications]
+            if head is None:
+                assert lines == [] and said == [] and app.status.problems == 0
+            else:
+                assert said == [f"{head}; the first: {lines[0]}"] and app.status.problems == len(lines)
+
+    run(scenario(CAPTURES / "damaged.pcap", "1 problem(s) reading the capture"))
+    run(scenario(empty, "no MAVLink frames found in this capture"))
+    run(scenario(PX4, None))

@@ -39,6 +39,7 @@ def test_damaged_capture_shows_red_verdicts(snap_compare) -> None:  # type: igno
         await ready(pilot)
         bad = next(i for i in range(len(app.index)) if app.index.row(i).crc_status is CrcStatus.BAD)
         app.packet_list.move_to(bad)
+        await wait_for(pilot, lambda: len(app._notifications) == 1)  # the cut record, said once indexed
         await pilot.pause()
 
     assert snap_compare(create_app(CAPTURES / "damaged.pcap"), run_before=run_before, terminal_size=SIZE)

@@ -27,6 +27,17 @@ class StatusBar(Static):
         self.activity = ""  # another task running ("re-checking with 1 key")
         self.keys = ""
         self.live = False
+        self.problems = 0  # problems reading the capture (FrameIndex.problems), shown once it is indexed
+
+    def set_problems(self, frames: int, problems: int, first: str | None) -> str | None:
+        """Take the problems reading the capture met (FrameIndex.problems): what the TUI says once it is
+        indexed when it held no frame or reading it met problems, as `read` says it on stderr (a damaged
+        capture never passes in silence, nor an empty list unexplained); None when there is nothing to say."""
+        self.problems = problems
+        if not problems and frames:
+            return None
+        head = f"{problems:,} problem(s) reading the capture" if frames else "no MAVLink frames found in this capture"
+        return f"{head}; the first: {first}" if first is not None else head
 
     def update_status(self) -> None:
         text = Text(self.capture, style="bold")
@@ -36,6 +47,8 @@ class StatusBar(Static):
         elif p is not None:
             if p.done:
                 text.append(f"  {p.frames:,} frames")
+                if self.problems:
+                    text.append(f", {self.problems:,} problem(s) reading it", style="yellow")
             elif p.cancelled:
                 text.append(f"  {p.frames:,} frames (indexing stopped)", style="yellow")
             else:
