@@ -413,14 +413,19 @@ class FrameIndex:
         """The damage to the capture met so far, as `read` reports it on stderr: how many problems (the
         anomalies' notes, the frames' notes of capture damage) and the first in capture order, as `read`
         writes it ("record 4: offset 301: ..."); (0, None) for none."""
+        count, first = 0, None  # first: (record, where, note), "where" made for it alone (no list: O(1) memory)
         with self.lock:
-            found = [(a.record, f"record {a.record}", n) for a in self.anomalies for n in a.notes]
-            found += [(self._record[i], f"frame {frame_number(self._record[i], self._index[i])}", n)
-                      for i, notes in self._notes.items() for n in notes if is_capture_damage(n)]
-        if not found:
-            return 0, None
-        _, where, first = min(found, key=lambda f: f[0])
-        return len(found), problem_line(where, first)
+            for a in self.anomalies:
+                count += len(a.notes)
+                if a.notes and (first is None or a.record < first[0]):
+                    first = (a.record, f"record {a.record}", a.notes[0])
+            for i, notes in self._notes.items():
+                for n in notes:
+                    if is_capture_damage(n):
+                        count += 1
+                        if first is None or self._record[i] < first[0]:
+                            first = (self._record[i], f"frame {frame_number(self._record[i], self._index[i])}", n)
+        return count, None if first is None else problem_line(first[1], first[2])
 
     def find_record(self, record: int) -> int | None:
         """The first row of capture record `record` (binary search: records are in capture order)."""
