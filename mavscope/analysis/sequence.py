@@ -30,7 +30,9 @@ sender), and sums a sender's channels for the Links table and the findings.
 
 State is bounded: at most 127 missing slots, and the large gaps remembered for findings are capped; at most
 MAX_CHANNELS channels per sender and MAX_EXTRA channels beyond each sender's first in all (more share one
-counter, as before channels were told apart).
+counter, as before channels were told apart). A tracker is small (a capture can make some 70,000 of them,
+one per sender and channel, two per sender with the expert's): its missing slots are one byte each, made at
+its first gap.
 """
 
 from __future__ import annotations
@@ -50,7 +52,7 @@ MAX_EXTRA = 4096  # channels beyond each sender's first, in all
 SHARED = ("*", "*")  # the channel the channels beyond those limits share
 
 
-@dataclass
+@dataclass(slots=True)
 class Gap:
     """A run of missing sequence numbers, found when the frame after it arrived."""
 
@@ -61,7 +63,10 @@ class Gap:
     remaining: int  # still missing (late frames fill it)
 
 
-@dataclass
+MISSING_NOT, MISSING_SMALL = 0, 1  # a slot of `SeqTracker.missing`; 2 + i: in the large gap `gaps[i]`
+
+
+@dataclass(slots=True)
 class SeqTracker:
     """Sequence-number bookkeeping for one sender. `feed(seq, record)` returns what the number was."""
 
@@ -74,7 +79,7 @@ class SeqTracker:
     resets: int = 0  # the counter restarted (a reboot) or moved to another channel
     position: int = 0  # of the frame fed last
     newest: int = 0  # position of the newest frame (the one `last` belongs to)
-    missing: dict[int, Gap | None] = field(default_factory=dict)  # seq -> its large gap (None: a small one)
+    missing: bytearray | None = None  # per seq: MISSING_NOT, MISSING_SMALL or 2 + its large gap's index in `gaps`
     gaps: list[Gap] = field(default_factory=list)  # large gaps, the first GAPS_KEPT
     large_gaps: int = 0  # how many large gaps in all
     run: int = 0  # backward frames in a row, each following the previous one
@@ -104,24 +109,27 @@ class SeqTracker:
             self.position = self.newest
             return "duplicate", 0
         if d < LATE_WINDOW:
-            gap = None
+            mark = MISSING_SMALL
             if d - 1 >= GAP_MIN:
                 self.large_gaps += 1
-                gap = Gap(record, self.last, seq, d - 1, d - 1)
                 if len(self.gaps) < GAPS_KEPT:
-                    self.gaps.append(gap)
-            for k in range(1, d):
-                s = (self.last + k) % 256
-                self.missing.pop(s, None)
-                self.missing[s] = gap
+                    mark = 2 + len(self.gaps)
+                    self.gaps.append(Gap(record, self.last, seq, d - 1, d - 1))
+            missing = self.missing
+            if missing is None:
+                missing = self.missing = bytearray(256)
+            for k in range(1, d):  # ahead of `last`: no slot of an earlier gap (those are at most 127 behind)
+                missing[(self.last + k) % 256] = mark
             self.lost += d - 1
             self._advance(seq, d)
             return "gap", d - 1
         self.position = self.newest - (256 - d)
-        if seq in self.missing:
-            gap = self.missing.pop(seq)
-            if gap is not None:
-                gap.remaining -= 1
+        missing = self.missing
+        mark = MISSING_NOT if missing is None else missing[seq]
+        if mark != MISSING_NOT:
+            missing[seq] = MISSING_NOT  # type: ignore[index]  # a mark is only read from an array
+            if mark >= 2:
+                self.gaps[mark - 2].remaining -= 1
             self.lost -= 1
             self.reordered += 1
             return "late", -1
@@ -132,21 +140,21 @@ class SeqTracker:
             self.duplicates -= self.run
             self.resets += 1
             self.run = 0
-            self.missing.clear()  # the old counter's missing frames stay lost
+            self.missing = None  # the old counter's missing frames stay lost
             self._advance(seq, 256)
             return "reset", 0
         return "duplicate", 0
 
     def _advance(self, seq: int, d: int) -> None:
+        """`seq` is the newest, `d` steps on: the slots now LATE_WINDOW or more behind it are no longer
+        missing (they were at most 127 behind the last: those now 128 to 127 + d behind)."""
         self.last = seq
         self.newest += d
         self.position = self.newest
-        last = seq
-        while self.missing:
-            s = next(iter(self.missing))
-            if (last - s) % 256 < LATE_WINDOW:
-                break
-            del self.missing[s]
+        missing = self.missing
+        if missing is not None:
+            for k in range(min(d, 256 - LATE_WINDOW)):
+                missing[(seq - LATE_WINDOW - k) % 256] = MISSING_NOT
 
     @property
     def lost_in_large_gaps(self) -> int:

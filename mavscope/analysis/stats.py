@@ -46,25 +46,38 @@ class _Timed:
 class RateHistogram:
     """Frames counted in time bins from `origin`: at most RATE_BINS bins, whose width (1 s at first)
     doubles whenever a frame falls beyond them, so memory stays bounded whatever the capture's span (two
-    records 56 years apart make 35 doublings, not 1.8e9 seconds)."""
+    records 56 years apart make 35 doublings, not 1.8e9 seconds). `bins` holds bin `start` onwards: a stream
+    that begins late in the capture keeps no empty bins before its first frame (65,000 streams of a few
+    frames each would otherwise hold 256 bins apiece)."""
 
-    __slots__ = ("origin", "width", "bins")
+    __slots__ = ("origin", "width", "start", "bins")
 
     def __init__(self, origin: float) -> None:
         self.origin = origin
         self.width = 1.0
+        self.start = 0
         self.bins: list[int] = []
 
     def add(self, t: float) -> None:
         i = int((t - self.origin) / self.width) if t > self.origin else 0
+        bins = self.bins
         while i >= RATE_BINS:
             self.width *= 2
-            self.bins = [sum(self.bins[k : k + 2]) for k in range(0, len(self.bins), 2)]
+            if self.start % 2:
+                bins.insert(0, 0)
+                self.start -= 1
+            bins = self.bins = [sum(bins[k : k + 2]) for k in range(0, len(bins), 2)]
+            self.start //= 2
             i //= 2
-        bins = self.bins
-        if i >= len(bins):
-            bins.extend([0] * (i + 1 - len(bins)))
-        bins[i] += 1
+        if not bins:
+            self.start = i
+        elif i < self.start:
+            bins[:0] = [0] * (self.start - i)
+            self.start = i
+        j = i - self.start
+        if j >= len(bins):
+            bins.extend([0] * (j + 1 - len(bins)))
+        bins[j] += 1
 
     def series(self, span: float, buckets: int) -> list[float]:
         """Frames per second in at most `buckets` equal slices of `span` seconds from the origin, each slice
@@ -73,11 +86,12 @@ class RateHistogram:
         n = max(1, min(buckets, nbins))
         counts = [0] * n
         widths = [0] * n
+        start, end = self.start, self.start + len(self.bins)
         for i in range(nbins):
             k = i * n // nbins
             widths[k] += 1
-            if i < len(self.bins):
-                counts[k] += self.bins[i]
+            if start <= i < end:
+                counts[k] += self.bins[i - start]
         return [c / (w * self.width) for c, w in zip(counts, widths)]
 
 
