@@ -64,14 +64,15 @@ def print_findings(con, findings: Sequence[Finding]) -> None:  # type: ignore[no
     if not findings:
         return
     from rich.table import Table
-    from rich.text import Text
+
+    from mavscope.output.console import text
 
     t = Table(title="Expert findings", title_justify="left")
     for col in ("severity", "code", "frames", "message"):
         t.add_column(col)
     for f in findings:
         nums = ", ".join(map(str, f.frames[:8])) + (" …" if len(f.frames) > 8 else "")
-        t.add_row(f.severity.value, f.code, nums, Text(f.message))
+        t.add_row(f.severity.value, f.code, nums, text(f.message))
     con.print(t)
 
 

@@ -160,7 +160,8 @@ def _status_name(status: int) -> str:
 
 def _render(env: Env, command: str, rows: list[dict[str, object]], status: ExitStatus) -> None:
     from rich.table import Table
-    from rich.text import Text
+
+    from mavscope.output.console import text
 
     con = console(env)
     t = Table(title=f"mavscope {command} over {len(rows)} capture(s)", title_justify="left")
@@ -172,8 +173,8 @@ def _render(env: Env, command: str, rows: list[dict[str, object]], status: ExitS
                      min_width=max(7, min(longest, con.width // 3)) if col == "capture" else None)
     for r in rows:
         frames, problems = r["frames"], r["problems"]
-        t.add_row(Text(str(r["file"])), str(r["status"]), "-" if frames is None else str(frames),
-                  Text(str(r["summary"])), Text(f"{problems} line(s): {r['first_problem']}" if problems else "-"))
+        t.add_row(text(str(r["file"])), str(r["status"]), "-" if frames is None else str(frames),
+                  text(str(r["summary"])), text(f"{problems} line(s): {r['first_problem']}" if problems else "-"))
     con.print(t)
     counts = {n: sum(r["status"] == n for r in rows) for n in ("ok", "findings", "error")}
     damaged = sum(bool(r["problems"]) for r in rows)

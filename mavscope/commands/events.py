@@ -47,21 +47,22 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                          "findings": [f.to_json() for f in findings]})
         return ExitStatus.OK
     from rich.table import Table
-    from rich.text import Text
+
+    from mavscope.output.console import text
 
     con = console(env)
-    t = Table(title=Text(f"Events ({path})"), title_justify="left")
+    t = Table(title=text(f"Events ({path})"), title_justify="left")
     for col, just in (("frame", "right"), ("time", "left"), ("kind", "left"), ("from", "left"), ("event", "left")):
         t.add_column(col, justify=just)  # type: ignore[arg-type]
     shown = doc["events"]
     for e in shown:  # type: ignore[attr-defined]
         sender = e["from"]
-        t.add_row(str(e["frame"]), iso(e["time"]), Text(e["kind"], style=KIND_STYLE.get(e["kind"], "")),
-                  f"{sender[0]}/{sender[1]}", Text(e["text"]))  # Text: the capture's words are no markup
+        t.add_row(str(e["frame"]), iso(e["time"]), text(e["kind"], style=KIND_STYLE.get(e["kind"], "")),
+                  f"{sender[0]}/{sender[1]}", text(e["text"]))  # the capture's words, escaped
     if shown:
         con.print(t)
     else:
-        con.print(Text(f"No event in {path}" + (" matches the display filter." if select.active else ".")))
+        con.print(text(f"No event in {path}" + (" matches the display filter." if select.active else ".")))
     counts = ", ".join(f"{k} {n}" for k, n in doc["counts"].items())  # type: ignore[attr-defined]
     con.print(f"{len(shown)} events listed; in the capture: {counts or 'none'}")  # type: ignore[arg-type]
     for kind, n in doc["dropped"].items():  # type: ignore[attr-defined]

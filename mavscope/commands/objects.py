@@ -93,14 +93,15 @@ def _state(o: dict) -> str:
 
 def _print(env: Env, path: str, doc: dict, out: str | None) -> None:
     from rich.table import Table
-    from rich.text import Text
+
+    from mavscope.output.console import text
 
     con = console(env)
     objs: list[dict] = doc["objects"]
     if not objs:
         con.print(f"No object (MAVLink FTP file, log or image) in {path}.", markup=False)
     else:
-        t = Table(title=Text(f"Objects in {path}"), title_justify="left")
+        t = Table(title=text(f"Objects in {path}"), title_justify="left")
         for col in ("#", "kind", "path / name", "from -> to", "size", "state", "frames", "signatures", "sha256"):
             t.add_column(col, justify="right" if col in ("#", "size") else "left")
         if out:
@@ -114,7 +115,7 @@ def _print(env: Env, path: str, doc: dict, out: str | None) -> None:
                    frames, _signatures(o["signatures"]), o["sha256"][:16]]
             if out:
                 row.append(o["file"] or "-")
-            t.add_row(*(Text(c) for c in row))
+            t.add_row(*(text(c) for c in row))
         con.print(t)
         s = doc["summary"]
         con.print(f"{s['objects']} object(s), {s['complete']} complete, {s['bytes']:,} bytes; started "

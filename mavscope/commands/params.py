@@ -144,7 +144,8 @@ def _answer(e: dict) -> str:
 
 def _print(env: Env, doc: dict) -> None:
     from rich.table import Table
-    from rich.text import Text
+
+    from mavscope.output.console import text
 
     con = console(env)
     comps: list[dict] = doc["components"]
@@ -175,7 +176,7 @@ def _print(env: Env, doc: dict) -> None:
                    f"{e['from'][0]}/{e['from'][1]} -> {e['component'][0]}/{e['component'][1]}", name,
                    value_text(e["value"]), value_text(e["previous"]), e["source"], e["link"], e["signature"],
                    _answer(e) + (f", {e['retries']} retries" if e["retries"] else "")]
-            t.add_row(*(Text(c) for c in row))
+            t.add_row(*(text(c) for c in row))
         con.print(t)
         con.print(f"{doc['sets']} set(s), {doc['confirmed']} confirmed; {doc['unexplained']} change(s) nothing in "
                   "the capture explains; ! marks security-relevant parameters",
@@ -192,7 +193,7 @@ def _print(env: Env, doc: dict) -> None:
         rows += [(n, value_text(v), "-") for n, v in d["only_here"].items()]
         rows += [(n, "-", value_text(v)) for n, v in d["only_there"].items()]
         for n, here, there in rows:
-            t.add_row(*(Text(c) for c in (n, here, there, d["security"].get(n, ""))))
+            t.add_row(*(text(c) for c in (n, here, there, d["security"].get(n, ""))))
         if t.row_count:
             con.print(t)
     for f in doc["findings"]:

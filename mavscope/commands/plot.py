@@ -86,14 +86,13 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                          "series": [s.to_json() for s in plotter.series],
                          "image": args.out})
         return ExitStatus.OK
-    from rich.text import Text
-
+    from mavscope.output.console import text
     from mavscope.output.plotting import chart, summary
 
     con = console(env)
     width = args.width if args.width > 0 else con.width
     for s in plotter.series:
-        con.print(Text(summary(s, x_label)) if args.out else chart(s, width, max(2, args.height), x_label))
+        con.print(text(summary(s, x_label)) if args.out else chart(s, width, max(2, args.height), x_label))
     if args.out:
-        con.print(Text(f"wrote {args.out}"))
+        con.print(text(f"wrote {args.out}"))
     return ExitStatus.OK

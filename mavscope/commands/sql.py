@@ -156,19 +156,19 @@ def _csv(env: Env, names: list[str], batches: Iterator[pa.RecordBatch]) -> None:
 def _text(env: Env, schema: pa.Schema, batches: Iterator[pa.RecordBatch]) -> None:
     import pyarrow as pa
     from rich.table import Table
-    from rich.text import Text
 
     from mavscope.commands.common import console
+    from mavscope.output.console import text
 
     t = Table(show_edge=False)
     for f in schema:
         number = pa.types.is_integer(f.type) or pa.types.is_floating(f.type) or pa.types.is_decimal(f.type)
-        t.add_column(Text(f.name), overflow="fold", justify="right" if number else "left")
+        t.add_column(text(f.name), overflow="fold", justify="right" if number else "left")
     shown = total = 0
     for row in _tuples(batches):
         total += 1
         if shown < TEXT_ROWS:
-            t.add_row(*(Text("NULL" if v is None else _cell(v)) for v in row))
+            t.add_row(*(text("NULL" if v is None else _cell(v)) for v in row))
             shown += 1
     con = console(env)
     con.print(t)

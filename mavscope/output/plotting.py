@@ -13,6 +13,7 @@ from rich.text import Text
 
 from mavscope.analysis.series import Series
 from mavscope.errors import UsageError
+from mavscope.output.console import visible
 
 BRAILLE = 0x2800
 DOTS = ((0x01, 0x08), (0x02, 0x10), (0x04, 0x20), (0x40, 0x80))  # [row][col] bit of a braille cell
@@ -34,7 +35,7 @@ def summary(s: Series, x_label: str) -> str:
 
 def chart(s: Series, width: int, height: int, x_label: str = "s") -> Text:
     """The series in `width` x `height` character cells (y labels included), under its summary line."""
-    out = Text(summary(s, x_label) + "\n", style="bold")
+    out = Text(visible(summary(s, x_label)) + "\n", style="bold")  # a field name the user gave
     if not s.count:
         return out
     lo, hi = (s.low, s.high) if s.high > s.low else (s.low - 1, s.high + 1)

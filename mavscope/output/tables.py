@@ -16,15 +16,16 @@ BARS = "▁▂▃▄▅▆▇█"
 
 
 def console(out: IO[str], environ: Mapping[str, str]):  # type: ignore[no-untyped-def]
-    """A rich Console writing to `out`: colour only on a terminal, wide tables when piped ($COLUMNS)."""
-    from rich.console import Console
+    """A rich Console writing to `out`: colour only on a terminal, wide tables when piped ($COLUMNS); no markup,
+    and a capture's control characters escaped (mavscope.output.console)."""
+    from mavscope.output.console import SafeConsole as Console
 
     try:
         tty = out.isatty()
     except (AttributeError, ValueError):
         tty = False
     if tty:
-        return Console(file=out)
+        return Console(file=out, emoji=False)
     width = environ.get("COLUMNS", "")
     return Console(file=out, no_color=True, color_system=None, highlight=False, emoji=False,
                    width=int(width) if width.isascii() and width.isdigit() else 160)

@@ -430,3 +430,30 @@ def test_problems_reading_the_capture_are_said_once_it_is_indexed(cli: Cli, tmp_
     run(scenario(CAPTURES / "damaged.pcap", "1 problem(s) reading the capture"))
     run(scenario(empty, "no MAVLink frames found in this capture"))
     run(scenario(PX4, None))
+
+
+def test_the_events_screen_shows_a_statustexts_escape_sequences_escaped(tmp_path: Path) -> None:
+    """A STATUSTEXT carrying an SGR colour, an OSC 8 hyperlink and BEL (made with pymavlink) shows them as
+    Python's repr writes them, never as bytes for the terminal; a closing tag of rich markup stays text."""
+    from pymavlink.dialects.v20 import ardupilotmega as apm
+    from textual.widgets import DataTable
+
+    mav = apm.MAVLink(None, srcSystem=1, srcComponent=1)
+    words = b"\x1b[31mRED\x1b]8;;http://e.example\x07x [/bold]"
+    path = tmp_path / "words.tlog"
+    path.write_bytes(b"".join(struct.pack(">Q", 1_700_000_000_000_000 + i) + m.pack(mav) for i, m in enumerate(
+        [apm.MAVLink_heartbeat_message(2, 3, 0, 0, 4, 3), apm.MAVLink_statustext_message(6, words, 0, 0)])))
+
+    async def scenario() -> None:
+        app = create_app(path)
+        async with app.run_test(size=SIZE) as pilot:
+            await ready(pilot)
+            await pilot.press("v")
+            await wait_for(pilot, lambda: app.screen.result is not None)
+            table = app.screen.query_one(DataTable)
+            cells = [str(getattr(c, "plain", c)) for r in range(table.row_count) for c in table.get_row_at(r)]
+            shown = [c for c in cells if "RED" in c]
+            assert shown and "\\x1b[31mRED\\x1b]8;;http://e.example\\x07x [/bold]" in shown[0]
+            assert not any("\x1b" in c or "\x07" in c for c in cells)
+
+    run(scenario())
