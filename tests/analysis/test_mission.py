@@ -37,7 +37,7 @@ def test_transfers_match_the_truth(cli: Cli) -> None:
     assert upload["items"][2]["params"][:2] == [5.0, 2.0]
     abandoned = got[3]
     assert abandoned["complete"] is False and abandoned["reason"].startswith("abandoned")
-    assert abandoned["missing"] == [1, 2] and len(abandoned["items"]) == 1
+    assert abandoned["missing"] == [[1, 2]] and len(abandoned["items"]) == 1
     assert all(isinstance(n, int) for t in got for n in t["frames"])
 
 

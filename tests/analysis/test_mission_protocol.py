@@ -75,7 +75,7 @@ def test_nack_nothing_follows_is_the_result(cli: Cli, tmp_path: Path) -> None:
     upload(x, 2)
     refused, accepted = cli.json("mission", x.tlog(tmp_path / "nack.tlog"))["transfers"]
     assert (refused["outcome"], refused["result"], refused["complete"]) == ("nack", "MAV_MISSION_UNSUPPORTED", False)
-    assert refused["reason"].startswith("NACK MAV_MISSION_UNSUPPORTED from 1/1") and refused["missing"] == [1, 2]
+    assert refused["reason"].startswith("NACK MAV_MISSION_UNSUPPORTED from 1/1") and refused["missing"] == [[1, 2]]
     assert accepted["complete"] and accepted["count"] == 2
 
 
@@ -163,7 +163,8 @@ def test_vehicle_only_stream_is_a_download(cli: Cli, tmp_path: Path, heartbeat: 
     (t,) = cli.json("mission", x.raw(tmp_path / "px4.raw"))["transfers"]
     assert (t["direction"], t["direction_basis"]) == ("download", "heartbeat" if heartbeat else "component-id")
     assert (t["from"], t["to"], t["outcome"], t["result"]) == ([1, 1], [1, 2], "cancelled", "MAV_MISSION_ERROR")
-    assert t["missing"] == [2, 3] and t["resent_items"] == [1] and t["receiver_silent"] is True
+    assert t["missing"] == [[2, 3]] and t["missing_count"] == 2
+    assert t["resent_items"] == [1] and t["receiver_silent"] is True
     assert t["reason"].startswith("cancelled by the sender 1/1 with MAV_MISSION_ERROR after items 0..1 of 4")
 
 
@@ -325,3 +326,40 @@ def test_the_copy_the_receiver_asked_for_is_the_item_and_late_frames_stay_late(c
     assert zero["x"] == pytest.approx(edited[0], abs=1e-7) and zero["frames"][1:] == [asked, stray]
     assert (t["resent_items"], t["resent_changed"]) == ([0], [0])
     assert t["late_frames"] == [again, reack] and [a["role"] for a in t["acks"]] == ["final", "late"]
+
+
+def test_a_count_of_65535_costs_what_its_items_cost(cli: Cli, tmp_path: Path) -> None:
+    """Hostile: MISSION_COUNTs of 65,535 (the field's largest) with two items each. `missing` once listed
+    every absent seq, worked out over all 65,535 at each use: 2,143 such transfers in a 300 KB tlog took
+    `mission --json` 168 s and a JSON of millions of numbers. Runs of seqs now, from the items alone; the
+    runs below follow from the items sent (5 and 7) and the count."""
+    x = Exchange()
+    for _ in range(50):
+        x.send("gcs", "MISSION_COUNT", *VEH, 65535, 0)
+        item_int(x, "gcs", VEH, 5, 16, *WAYPOINTS[0])
+        item_int(x, "gcs", VEH, 7, 16, *WAYPOINTS[1])
+        item_int(x, "gcs", VEH, 70000 % 65536, 16, *WAYPOINTS[2])  # seq 4464: inside the count too
+    status, out, err = cli("mission", x.tlog(tmp_path / "big.tlog"), "--json")
+    assert status == 0, err
+    transfers = json.loads(out)["transfers"]
+    assert len(transfers) == 50
+    for t in transfers:
+        assert t["missing"] == [[0, 4], [6, 6], [8, 4463], [4465, 65534]]
+        assert t["missing_count"] == 65535 - 3
+    assert len(out) < 50 * 8000  # each transfer's JSON: its items and four runs
+
+
+def test_more_open_transfers_than_followed_close_the_oldest(cli: Cli, tmp_path: Path) -> None:
+    """Hostile: a ground station starts uploads to 1,100 vehicles (sysid 1..250, compid 1..5) that nothing
+    answers. Every mission frame is compared with every open transfer, so at most OPEN_MAX (1,024) stay
+    open: the 76 oldest are closed as `evicted`, the rest at the capture's end; none is lost."""
+    from mavscope.analysis.mission.model import OPEN_MAX
+
+    x = Exchange()
+    targets = [(1 + i % 250, 1 + i // 250) for i in range(OPEN_MAX + 76)]
+    for t in targets:
+        x.send("gcs", "MISSION_COUNT", *t, 3, 0, dt=0.0001)
+    doc = cli.json("mission", x.tlog(tmp_path / "many.tlog"))
+    assert [tuple(t["to"]) for t in doc["transfers"]] == targets
+    assert [t["closed"] for t in doc["transfers"]] == ["evicted"] * 76 + ["end"] * OPEN_MAX
+    assert all(t["outcome"] == "abandoned" for t in doc["transfers"])

@@ -105,7 +105,8 @@ def test_transfers_match_the_independent_derivation(name: str, docs: dict[str, d
     assert [(t["mission_type_id"], t["direction"], t["from"], t["to"], t["count"], t["outcome"], t["result"])
             for t in got] == want
     for i, t in enumerate(got):
-        assert t["missing"] == MISSING.get((name, i), [])
+        want = MISSING.get((name, i), [])
+        assert [s for a, b in t["missing"] for s in range(a, b + 1)] == want and t["missing_count"] == len(want)
         assert t["complete"] is (t["outcome"] == "complete")
     # no false alarm: no duplicate, no ACK without its exchange, no frame outside a transfer
     assert docs[name]["duplicates"] == 0

@@ -8,6 +8,7 @@ from mavscope.analysis.mission.model import (
     CANCELLED,
     COMPLETE,
     NACK,
+    OPEN_MAX,
     UNACKNOWLEDGED,
     Addr,
     Event,
@@ -28,18 +29,24 @@ def addr(a: Addr) -> str:
 
 def ranges(seqs: list[int]) -> str:
     """"0..92, 95" for [0, 1, ..., 92, 95]."""
-    return ", ".join(str(a) if a == b else f"{a}..{b}" for a, b in runs(seqs))
+    return run_text(runs(seqs))
+
+
+def run_text(spans: list[list[int]]) -> str:
+    """"0..92, 95" for [[0, 92], [95, 95]]."""
+    return ", ".join(str(a) if a == b else f"{a}..{b}" for a, b in spans)
 
 
 _WHY = {"restarted": "a new MISSION_COUNT or MISSION_REQUEST_LIST between the two systems followed",
         "timeout": "no frame of it for longer than the protocol timeout",
+        "evicted": f"more transfers were open at once than mavscope follows ({OPEN_MAX:,}): the oldest was closed",
         "end": "the capture ends"}
 
 
 def reason(t: Transfer, dialect: Dialect) -> str:
     missing = t.missing
     got = f"{len(t.items)} of {t.count} items"
-    miss = f"items missing from the capture: {ranges(missing)}" if missing else ""
+    miss = f"items missing from the capture: {run_text(missing)}" if missing else ""
     silent = f"; {addr(t.receiver)} sent no frame in this capture" if t.receiver_silent else ""
     if t.outcome == COMPLETE:
         text = "accepted"

@@ -20,6 +20,7 @@ TRANSFER_TIMEOUT = 10.0
 
 # Outcomes of a transfer (Transfer.outcome)
 COMPLETE = "complete"  # the receiver accepted it and every item is in the capture
+OPEN_MAX = 1024  # transfers open at once: every mission frame looks at each (more: the oldest is closed, "evicted")
 ACCEPTED_MISSING = "accepted-items-missing"  # accepted, but some items are not in the capture
 UNACKNOWLEDGED = "unacknowledged"  # every item is in the capture, no MISSION_ACK closed it
 NACK = "nack"  # the receiver refused it (its last ACK was an error and nothing followed)
@@ -92,15 +93,29 @@ class Transfer:
     last: float | None = None  # time of the last frame of the transfer
     end: float | None = None
     result: int | None = None
-    closed: str = ""  # "ack", "nack", "cancelled", "restarted", "timeout", "end"
+    closed: str = ""  # "ack", "nack", "cancelled", "restarted", "timeout", "end", "evicted"
     outcome: str = ""
     complete: bool = False
     reason: str = ""
     receiver_silent: bool = False  # the receiver sent no frame at all in the capture
 
     @property
-    def missing(self) -> list[int]:
-        return [s for s in range(self.count) if s not in self.items]
+    def missing(self) -> list[list[int]]:
+        """[[first, last], ...]: the runs of seqs below `count` with no item in the capture. Worked out from
+        the items, not from every seq: a MISSION_COUNT of 65,535 costs no more than the items it got."""
+        out: list[list[int]] = []
+        nxt = 0
+        for s in sorted(s for s in self.items if 0 <= s < self.count):
+            if s > nxt:
+                out.append([nxt, s - 1])
+            nxt = s + 1
+        if nxt < self.count:
+            out.append([nxt, self.count - 1])
+        return out
+
+    @property
+    def missing_count(self) -> int:
+        return sum(b - a + 1 for a, b in self.missing)
 
     @property
     def nacks(self) -> list[Ack]:

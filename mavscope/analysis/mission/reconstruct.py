@@ -26,6 +26,7 @@ from mavscope.analysis.mission.describe import reason
 from mavscope.analysis.mission.model import (
     MAV_MISSION_ACCEPTED,
     MAV_MISSION_TYPE_ALL,
+    OPEN_MAX,
     TRANSFER_TIMEOUT,
     Ack,
     Addr,
@@ -51,6 +52,7 @@ DUPLICATE_WINDOW = 2.0  # seconds: a byte copy later than this is a new transmis
 DUPLICATE_FRAMES = 64  # frames of the sender: a byte copy further back is a new transmission
 RECENT = 8  # mission frames remembered per sender for duplicate detection
 RECENTLY_CLOSED = 16  # closed transfers kept for late frames when the capture has no times
+ORPHANS_ACTIVE = 1024  # stray-frame events still gathering frames (the oldest stops first; it stays listed)
 
 
 def _num(fields: dict[str, object], name: str, default: int = 0) -> int:
@@ -224,6 +226,8 @@ class MissionTracker:
         t.touch(f.record, f.time)
         self.transfers.append(t)
         self.open.append(t)
+        if len(self.open) > OPEN_MAX:
+            self._close(self.open[0], "evicted")
         return t
 
     def _request_list(self, f: Frame, me: Addr, tgt: Addr, mtype: int) -> object:
@@ -291,6 +295,8 @@ class MissionTracker:
         ev = self.orphans.get(key)
         if ev is None:
             ev = self.orphans[key] = self._event(self._new_event("orphan", f, me, tgt, mtype))
+            if len(self.orphans) > ORPHANS_ACTIVE:  # every frame looks at each: keep the work per frame bounded
+                del self.orphans[next(iter(self.orphans))]
         else:
             ev.frames.append(f.record)
             ev.last = f.time

@@ -18,10 +18,11 @@ from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Label
 
 from mavscope.analysis.mission import TRACKED_MESSAGES, Event, Transfer, analyse, event_text, pick
-from mavscope.analysis.mission.describe import ranges
+from mavscope.analysis.mission.describe import run_text
 from mavscope.analysis.selection import Selection
 from mavscope.mavlink.frame import Frame, decode_payload
 from mavscope.mavlink.semantics import float_text, is_global
+from mavscope.output.console import visible
 from mavscope.tui.screens.analysis import AnalysisScreen
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
 from mavscope.tui.widgets.track_plot import TrackPlot
@@ -109,7 +110,7 @@ class MissionScreen(AnalysisScreen):
             mtype = (mtypes.name_of(ev.mission_type) if mtypes else None) or str(ev.mission_type)
             ok = ev.confirmed or (ev.ack is not None and ev.ack.result == 0)
             table.add_row("", ev.kind, f"{ev.sender[0]}/{ev.sender[1]}", f"{ev.target[0]}/{ev.target[1]}",
-                          mtype.replace("MAV_MISSION_TYPE_", ""), "", Text(event_text(ev, dialect),
+                          mtype.replace("MAV_MISSION_TYPE_", ""), "", Text(visible(event_text(ev, dialect)),
                                                                            style=GREEN if ok else ORANGE),
                           f"{ev.frames[0]}…{ev.frames[-1]}", key=f"e{i}")
         if not res.transfers:
@@ -162,7 +163,7 @@ class MissionScreen(AnalysisScreen):
         title = f"Items of transfer {i + 1}: {t.direction} {t.sender[0]}/{t.sender[1]} → " \
                 f"{t.receiver[0]}/{t.receiver[1]}, {len(t.items)} of {t.count}"
         if t.missing:
-            title += f", missing {ranges(t.missing)}"
+            title += f", missing {run_text(t.missing)}"
         title += f": {t.reason}"
         self.query_one("#items-title", Label).update(title)
         self.query_one(TrackPlot).set_data(res.track, waypoints)
