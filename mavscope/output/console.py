@@ -20,16 +20,6 @@ from typing import Any
 from rich.console import Console
 from rich.text import Text
 
-_NAMED = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
-
-
-def _escape(ch: str) -> str:
-    named = _NAMED.get(ch)
-    if named is not None:
-        return named
-    n = ord(ch)
-    return f"\\x{n:02x}" if n < 0x100 else f"\\u{n:04x}" if n < 0x10000 else f"\\U{n:08x}"
-
 
 def visible(s: str, *, keep_newlines: bool = False) -> str:
     """`s` with every character Python's `repr` would escape (controls such as ESC, format characters such
@@ -38,7 +28,7 @@ def visible(s: str, *, keep_newlines: bool = False) -> str:
     if s.isprintable():
         return s
     return "".join(
-        ch if ch.isprintable() or ch == " " or (keep_newlines and ch == "\n") else _escape(ch) for ch in s
+        ch if ch.isprintable() or ch == " " or (keep_newlines and ch == "\n") else repr(ch)[1:-1] for ch in s
     )
 
 

@@ -115,7 +115,7 @@ class Transfer:
 
     @property
     def missing_count(self) -> int:
-        return sum(b - a + 1 for a, b in self.missing)
+        return self.count - sum(1 for s in self.items if 0 <= s < self.count)
 
     @property
     def nacks(self) -> list[Ack]:
