@@ -10,6 +10,7 @@ unanswered; ACKs that match no command are listed apart.
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
@@ -57,17 +58,67 @@ def _name(dialect: Dialect, enum: str, value: int | None) -> str | None:
     return None if value is None else enum_name(dialect, enum, value)
 
 
+Key = tuple[str, int, tuple[int, int], tuple[int, int]]  # (message, command id, sender, target)
+
+
 class CommandMatcher:
     """Commands and their ACKs in one pass: `add(frame, fields)` per COMMAND_LONG / COMMAND_INT /
     COMMAND_ACK frame (decoded `fields`) in capture order returns the commands that frame completed (an
     ACK answers at most one); `finish()` the ones still unanswered. At most PENDING_MAX commands wait for
-    their ACK (the oldest is given up as unanswered), so the state is bounded whatever the capture."""
+    their ACK (the oldest is given up as unanswered), so the state is bounded whatever the capture.
+
+    A frame costs the same however many commands wait: a retry is found by its key (message, command,
+    sender, target), and an ACK's candidates, oldest first, under the command and the target it can answer
+    (the sending system or 0, the sending component or 0), narrowed to the sender the ACK names, if any."""
 
     def __init__(self, dialect: Dialect) -> None:
         self.dialect = dialect
-        self.pending: list[Command] = []
+        self._pending: OrderedDict[Key, Command] = OrderedDict()  # in the order first sent
+        self._order: dict[Key, int] = {}  # key -> its place in that order (the oldest candidate wins)
+        self._sent = 0
+        # (command id, target system, target component[, sender system or -1[, sender component]]) -> those
+        # waiting: the groups an ACK looks in, by what it says of the sender
+        self._by: dict[tuple[int, ...], OrderedDict[Key, Command]] = {}
         self.orphans: list[dict[str, object]] = []  # ACKs that answer no command (the first ORPHANS_KEPT)
         self.orphan_count = 0
+
+    @staticmethod
+    def _groups(key: Key) -> tuple[tuple[int, ...], ...]:
+        _, cmd_id, (ssys, scomp), (tsys, tcomp) = key
+        return ((cmd_id, tsys, tcomp), (cmd_id, tsys, tcomp, ssys), (cmd_id, tsys, tcomp, ssys, scomp),
+                (cmd_id, tsys, tcomp, -1, scomp))
+
+    def _wait(self, key: Key, c: Command) -> None:
+        self._pending[key] = c
+        self._order[key] = self._sent
+        self._sent += 1
+        for g in self._groups(key):
+            self._by.setdefault(g, OrderedDict())[key] = c
+
+    def _done(self, key: Key) -> Command:
+        c = self._pending.pop(key)
+        del self._order[key]
+        for g in self._groups(key):
+            group = self._by[g]
+            del group[key]
+            if not group:
+                del self._by[g]
+        return c
+
+    def _answered(self, cmd_id: int, sysid: int, compid: int, to_sys: int, to_comp: int) -> Key | None:
+        """The oldest waiting command an ACK of `cmd_id` from sysid/compid, addressed to to_sys/to_comp
+        (0: not said), answers."""
+        best: Key | None = None
+        for tsys in {0, sysid}:
+            for tcomp in {0, compid}:
+                sender = (to_sys or -1, to_comp) if to_comp else (to_sys,) if to_sys else ()
+                group = self._by.get((cmd_id, tsys, tcomp, *sender))
+                if group is None:
+                    continue
+                key = next(iter(group))
+                if best is None or self._order[key] < self._order[best]:
+                    best = key
+        return best
 
     def add(self, f: Frame, fields: dict[str, object]) -> tuple[Command | None, list[Command]]:
         """(the new command this frame sent, or None; the commands it completed or pushed out unanswered)."""
@@ -76,8 +127,8 @@ class CommandMatcher:
         if name != "COMMAND_ACK":
             cmd_id = int(fields["command"])  # type: ignore[call-overload]
             target = (int(fields["target_system"]), int(fields["target_component"]))  # type: ignore[call-overload]
-            same = next((c for c in self.pending if c.message == name and c.command == cmd_id and c.sender == me
-                         and c.target == target), None)
+            key: Key = (name, cmd_id, me, target)
+            same = self._pending.get(key)
             if same is not None:
                 same.retries += 1
                 same.frames.append(f.record)
@@ -91,40 +142,36 @@ class CommandMatcher:
                 params["y"] = int_coordinate(int(params["y"]), frame)  # type: ignore[call-overload, arg-type]
             src = None if f.src is None else f.src.text
             c = Command(name, cmd_id, me, target, params, f.time, [f.record], src=src)
-            self.pending.append(c)
-            dropped = [self.pending.pop(0)] if len(self.pending) > PENDING_MAX else []
+            self._wait(key, c)
+            dropped = [self._done(next(iter(self._pending)))] if len(self._pending) > PENDING_MAX else []
             return c, dropped
         cmd_id = int(fields["command"])  # type: ignore[call-overload]
         result = int(fields["result"])  # type: ignore[call-overload]
-        to_sys, to_comp = fields.get("target_system", 0), fields.get("target_component", 0)
-        match = None
-        for c in self.pending:
-            if c.command != cmd_id or c.target[0] not in (0, f.sysid) or c.target[1] not in (0, f.compid):
-                continue
-            if to_sys and to_sys != c.sender[0]:
-                continue
-            if to_comp and to_comp != c.sender[1]:
-                continue
-            match = c
-            break
-        if match is None:
+        to_sys = int(fields.get("target_system", 0) or 0)  # type: ignore[call-overload]
+        to_comp = int(fields.get("target_component", 0) or 0)  # type: ignore[call-overload]
+        found = self._answered(cmd_id, f.sysid, f.compid, to_sys, to_comp)
+        if found is None:
             self.orphan_count += 1
             if len(self.orphans) < ORPHANS_KEPT:
                 self.orphans.append({"frame": f.record, "command": _name(self.dialect, "MAV_CMD", cmd_id),
                                      "result": _name(self.dialect, "MAV_RESULT", result), "from": [f.sysid, f.compid],
                                      "time": f.time})
             return None, []
+        match = self._pending[found]
         if result == MAV_RESULT_IN_PROGRESS:
             match.progress.append(int(fields.get("progress", 0) or 0))  # type: ignore[call-overload]
             match.frames.append(f.record)
             return None, []
         match.result, match.ack_frame, match.ack_time = result, f.record, f.time
-        self.pending.remove(match)
+        self._done(found)
         return None, [match]
 
     def finish(self) -> list[Command]:
         """The commands no ACK answered."""
-        out, self.pending = self.pending, []
+        out = list(self._pending.values())
+        self._pending.clear()
+        self._order.clear()
+        self._by.clear()
         return out
 
 
