@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from typing import TYPE_CHECKING
 
 from mavscope.analysis.selection import Selection
 from mavscope.cli import Env
@@ -25,6 +26,9 @@ from mavscope.mavlink.frame import Frame
 from mavscope.notes import Finding
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.pipeline.session import Session
+
+if TYPE_CHECKING:
+    from mavscope.output.grid import Cell
 
 
 def add_analysis_options(p: argparse.ArgumentParser) -> None:
@@ -63,17 +67,14 @@ def print_findings(con, findings: Sequence[Finding]) -> None:  # type: ignore[no
     """The expert findings as a table on the rich console `con` (nothing when there are none)."""
     if not findings:
         return
-    from rich.table import Table
-
     from mavscope.output.console import text
+    from mavscope.output.grid import columns, print_table
 
-    t = Table(title="Expert findings", title_justify="left")
-    for col in ("severity", "code", "frames", "message"):
-        t.add_column(col)
-    for f in findings:
+    def row(f: Finding) -> list[Cell]:
         nums = ", ".join(map(str, f.frames[:8])) + (" …" if len(f.frames) > 8 else "")
-        t.add_row(f.severity.value, f.code, nums, text(f.message))
-    con.print(t)
+        return [f.severity.value, f.code, nums, text(f.message)]
+
+    print_table(con, columns("severity", "code", "frames", "message"), findings, row, title="Expert findings")
 
 
 @contextmanager

@@ -15,13 +15,16 @@ import io
 import multiprocessing
 from collections.abc import Callable, Mapping
 from concurrent.futures import ProcessPoolExecutor
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import orjson
 
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.common import console, whole_number, write_json
 from mavscope.errors import UsageError
+
+if TYPE_CHECKING:
+    from mavscope.output.grid import Cell
 
 COMMANDS = ("verify", "audit", "stats")
 Outcome = tuple[int, str, str]  # exit status, stdout, stderr of one run
@@ -159,23 +162,21 @@ def _status_name(status: int) -> str:
 
 
 def _render(env: Env, command: str, rows: list[dict[str, object]], status: ExitStatus) -> None:
-    from rich.table import Table
-
     from mavscope.output.console import text
+    from mavscope.output.grid import Column, print_table
 
     con = console(env)
-    t = Table(title=f"mavscope {command} over {len(rows)} capture(s)", title_justify="left")
     # a capture's path is what a reader greps for: whole on its line where it takes up to a third of the width
     longest = max((len(str(r["file"])) for r in rows), default=0)
-    for col, just in (("capture", "left"), ("status", "left"), ("frames", "right"), ("summary", "left"),
-                      ("problems", "left")):
-        t.add_column(col, justify=just, overflow="fold",  # type: ignore[arg-type]
-                     min_width=max(7, min(longest, con.width // 3)) if col == "capture" else None)
-    for r in rows:
+    cols = [Column("capture", fold=True, min_width=max(7, min(longest, con.width // 3))), Column("status", fold=True),
+            Column("frames", right=True, fold=True), Column("summary", fold=True), Column("problems", fold=True)]
+
+    def row(r: dict[str, object]) -> list[Cell]:
         frames, problems = r["frames"], r["problems"]
-        t.add_row(text(str(r["file"])), str(r["status"]), "-" if frames is None else str(frames),
-                  text(str(r["summary"])), text(f"{problems} line(s): {r['first_problem']}" if problems else "-"))
-    con.print(t)
+        return [text(str(r["file"])), str(r["status"]), "-" if frames is None else str(frames),
+                text(str(r["summary"])), text(f"{problems} line(s): {r['first_problem']}" if problems else "-")]
+
+    print_table(con, cols, rows, row, title=f"mavscope {command} over {len(rows)} capture(s)")
     counts = {n: sum(r["status"] == n for r in rows) for n in ("ok", "findings", "error")}
     damaged = sum(bool(r["problems"]) for r in rows)
     con.print(f"{counts['ok']} ok, {counts['findings']} with findings, {counts['error']} error(s); {damaged} with "

@@ -9,6 +9,7 @@ from mavscope.analysis.command_log import command_json, reconstruct
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
 from mavscope.commands.common import console, write_json
+from mavscope.output.grid import columns, print_table
 from mavscope.output.tables import fmt, iso, param_text
 
 
@@ -30,26 +31,25 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     if args.json:
         write_json(env, {"file": path, "commands": docs, "unanswered": unanswered, "unmatched_acks": orphans})
         return ExitStatus.OK
-    from rich.table import Table
-
     con = console(env)
-    t = Table(title=f"Commands ({path})", title_justify="left")
-    for col in ("frame", "time", "from", "to", "command", "parameters", "result", "latency ms", "retries"):
-        t.add_column(col, justify="right" if col in ("frame", "latency ms", "retries") else "left")
-    for d in docs:  # the fields command_json writes, with their types
+
+    def row(d: dict[str, object]) -> list[str]:  # the fields command_json writes, with their types
         labels = cast("dict[str, str]", d["param_labels"])
         values = cast("dict[str, object]", d["params"])
         sender, target = cast("list[int]", d["from"]), cast("list[int]", d["to"])
         names = cast("dict[str, str]", d["param_names"])
         params = ", ".join(f"{labels.get(k, k)} {names.get(k) or param_text(v)}" for k, v in values.items()
                            if k in labels or (v not in (0, 0.0, None) and k != "confirmation"))
-        t.add_row(str(cast("list[int]", d["frames"])[0]), iso(cast("float | None", d["time"])),
-                  "{}/{}".format(*sender), "{}/{}".format(*target),
-                  str(d["command"]).removeprefix("MAV_CMD_"), params,
-                  str(d["result"]).removeprefix("MAV_RESULT_") if d["answered"] else "UNANSWERED",
-                  fmt(d["latency_ms"], 1), str(d["retries"]))
+        return [str(cast("list[int]", d["frames"])[0]), iso(cast("float | None", d["time"])),
+                "{}/{}".format(*sender), "{}/{}".format(*target),
+                str(d["command"]).removeprefix("MAV_CMD_"), params,
+                str(d["result"]).removeprefix("MAV_RESULT_") if d["answered"] else "UNANSWERED",
+                fmt(d["latency_ms"], 1), str(d["retries"])]
+
     if docs:
-        con.print(t)
+        print_table(con, columns("frame", "time", "from", "to", "command", "parameters", "result", "latency ms",
+                                 "retries", right=("frame", "latency ms", "retries")),
+                    docs, row, title=f"Commands ({path})")
     else:
         con.print(f"No command in {path} matches the display filter." if select.active
                   else f"No COMMAND_LONG or COMMAND_INT in {path}.")

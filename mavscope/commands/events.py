@@ -3,13 +3,18 @@
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING, cast
 
 from mavscope.analysis.events import KINDS, MAX_PER_KIND, EventLog
 from mavscope.analysis.expert import Expert
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass, print_findings
 from mavscope.commands.common import console, write_json
+from mavscope.output.grid import columns, print_table
 from mavscope.output.tables import iso
+
+if TYPE_CHECKING:
+    from mavscope.output.grid import Cell
 
 KIND_STYLE = {"arming": "bold yellow", "mode": "cyan", "failsafe": "bold red", "reboot": "magenta",
               "link": "red", "signing": "magenta", "command": "green", "statustext": "", "mission": "blue",
@@ -46,25 +51,23 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         write_json(env, {"file": path, "filter": args.display_filter, **doc,
                          "findings": [f.to_json() for f in findings]})
         return ExitStatus.OK
-    from rich.table import Table
-
     from mavscope.output.console import text
 
     con = console(env)
-    t = Table(title=text(f"Events ({path})"), title_justify="left")
-    for col, just in (("frame", "right"), ("time", "left"), ("kind", "left"), ("from", "left"), ("event", "left")):
-        t.add_column(col, justify=just)  # type: ignore[arg-type]
-    shown = doc["events"]
-    for e in shown:  # type: ignore[attr-defined]
+    shown = cast("list[dict]", doc["events"])
+
+    def row(e: dict) -> list[Cell]:  # the capture's words, escaped
         sender = e["from"]
-        t.add_row(str(e["frame"]), iso(e["time"]), text(e["kind"], style=KIND_STYLE.get(e["kind"], "")),
-                  f"{sender[0]}/{sender[1]}", text(e["text"]))  # the capture's words, escaped
+        return [str(e["frame"]), iso(e["time"]), text(e["kind"], style=KIND_STYLE.get(e["kind"], "")),
+                f"{sender[0]}/{sender[1]}", text(e["text"])]
+
     if shown:
-        con.print(t)
+        print_table(con, columns("frame", "time", "kind", "from", "event", right=("frame",)), shown, row,
+                    title=f"Events ({path})")
     else:
         con.print(text(f"No event in {path}" + (" matches the display filter." if select.active else ".")))
     counts = ", ".join(f"{k} {n}" for k, n in doc["counts"].items())  # type: ignore[attr-defined]
-    con.print(f"{len(shown)} events listed; in the capture: {counts or 'none'}")  # type: ignore[arg-type]
+    con.print(f"{len(shown)} events listed; in the capture: {counts or 'none'}")
     for kind, n in doc["dropped"].items():  # type: ignore[attr-defined]
         con.print(f"{n} more {kind} events not listed (at most {MAX_PER_KIND} per kind)")
     print_findings(con, findings)

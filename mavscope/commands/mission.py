@@ -11,6 +11,7 @@ from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
 from mavscope.commands.common import console, not_the_capture, write_json
 from mavscope.errors import UsageError
+from mavscope.output.grid import columns, print_table
 from mavscope.output.tables import fmt, iso, param_text
 
 STATE = {"complete": "complete", "unacknowledged": "unacknowledged"}  # every other outcome: INCOMPLETE
@@ -53,8 +54,6 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     if args.json:
         write_json(env, {"file": path, **doc})
         return ExitStatus.OK
-    from rich.table import Table
-
     con = console(env)
     transfers: list[dict] = doc["transfers"]  # type: ignore[assignment]
     events: list[dict] = doc["events"]  # type: ignore[assignment]
@@ -74,18 +73,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                   f"started {iso(d['start'])}{extra}", highlight=False)
         if not d["items"]:
             continue
-        t = Table(title_justify="left")
-        for col in ("seq", "command", "frame", "parameters", "x / lat", "y / lon", "z", "frames"):
-            t.add_column(col, justify="right" if col in ("seq", "z") else "left")
-        for it in d["items"]:
-            labels = it["param_labels"]
-            params = ", ".join(f"{labels[i] or f'param{i + 1}'} {param_text(v)}" for i, v in enumerate(it["params"])
-                               if labels[i] or (v not in (0, 0.0, None)))
-            unit = {"deg": "°", "m": " m"}.get(it["units"], "")
-            t.add_row(str(it["seq"]), it["command"].removeprefix("MAV_CMD_"), it["frame"].removeprefix("MAV_FRAME_"),
-                      params, _coord(it["x"], unit), _coord(it["y"], unit), fmt(it["z"], 2),
-                      ", ".join(map(str, it["frames"])))
-        con.print(t)
+        print_table(con, columns("seq", "command", "frame", "parameters", "x / lat", "y / lon", "z", "frames",
+                                 right=("seq", "z")), d["items"], _item_row)
     for n, e in enumerate(events, 1):
         con.print(f"Event {n}: {e['text']}; at {iso(e['time'])}; frames {', '.join(map(str, e['frames']))}",
                   highlight=False)
@@ -98,3 +87,12 @@ def _coord(v: float | None, unit: str) -> str:
     if v is None:
         return "-"
     return f"{v:.7f}{unit}" if unit else fmt(v, 2)
+
+
+def _item_row(it: dict) -> list[str]:
+    labels = it["param_labels"]
+    params = ", ".join(f"{labels[i] or f'param{i + 1}'} {param_text(v)}" for i, v in enumerate(it["params"])
+                       if labels[i] or (v not in (0, 0.0, None)))
+    unit = {"deg": "°", "m": " m"}.get(it["units"], "")
+    return [str(it["seq"]), it["command"].removeprefix("MAV_CMD_"), it["frame"].removeprefix("MAV_FRAME_"), params,
+            _coord(it["x"], unit), _coord(it["y"], unit), fmt(it["z"], 2), ", ".join(map(str, it["frames"]))]

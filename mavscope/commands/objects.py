@@ -5,6 +5,7 @@ from the frames; with --out, written into DIR with a manifest.json."""
 from __future__ import annotations
 
 import argparse
+from typing import TYPE_CHECKING
 
 import orjson
 
@@ -14,8 +15,12 @@ from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
 from mavscope.commands.common import console, write_json
 from mavscope.errors import UsageError
+from mavscope.output.grid import columns, print_table
 from mavscope.output.objects_out import ObjectWriter
 from mavscope.output.tables import iso
+
+if TYPE_CHECKING:
+    from mavscope.output.grid import Cell
 
 MIB = 1024 * 1024
 DEFAULTS = Limits()
@@ -92,8 +97,6 @@ def _state(o: dict) -> str:
 
 
 def _print(env: Env, path: str, doc: dict, out: str | None) -> None:
-    from rich.table import Table
-
     from mavscope.output.console import text
 
     con = console(env)
@@ -101,22 +104,21 @@ def _print(env: Env, path: str, doc: dict, out: str | None) -> None:
     if not objs:
         con.print(f"No object (MAVLink FTP file, log or image) in {path}.", markup=False)
     else:
-        t = Table(title=text(f"Objects in {path}"), title_justify="left")
-        for col in ("#", "kind", "path / name", "from -> to", "size", "state", "frames", "signatures", "sha256"):
-            t.add_column(col, justify="right" if col in ("#", "size") else "left")
-        if out:
-            t.add_column("file")
-        for o in objs:
+        names = ["#", "kind", "path / name", "from -> to", "size", "state", "frames", "signatures", "sha256"]
+
+        def row(o: dict) -> list[Cell]:
             frames = f"{o['frame_count']} ({o['first_frame']}-{o['last_frame']})"
             sender = tuple(o["sender"]) if o["sender"] else None
             receiver = tuple(o["receiver"]) if o["receiver"] else None
-            row = [str(o["number"]), f"{o['kind']} {'↓' if o['direction'] == 'download' else '↑'}",
-                   o["path"] or o["name"], f"{party(sender)} -> {party(receiver)}", f"{o['size']:,}", _state(o),
-                   frames, _signatures(o["signatures"]), o["sha256"][:16]]
+            cells = [str(o["number"]), f"{o['kind']} {'↓' if o['direction'] == 'download' else '↑'}",
+                     o["path"] or o["name"], f"{party(sender)} -> {party(receiver)}", f"{o['size']:,}", _state(o),
+                     frames, _signatures(o["signatures"]), o["sha256"][:16]]
             if out:
-                row.append(o["file"] or "-")
-            t.add_row(*(text(c) for c in row))
-        con.print(t)
+                cells.append(o["file"] or "-")
+            return [text(c) for c in cells]
+
+        print_table(con, columns(*names, *(["file"] if out else []), right=("#", "size")), objs, row,
+                    title=f"Objects in {path}")
         s = doc["summary"]
         con.print(f"{s['objects']} object(s), {s['complete']} complete, {s['bytes']:,} bytes; started "
                   f"{iso(objs[0]['start'])}", highlight=False, markup=False)

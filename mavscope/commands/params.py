@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import os
+from typing import TYPE_CHECKING
 
 from mavscope import __version__
 from mavscope.analysis.params import (
@@ -25,7 +26,11 @@ from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
 from mavscope.commands.common import console, not_the_capture, write_json
 from mavscope.errors import UsageError
+from mavscope.output.grid import columns, print_table
 from mavscope.output.tables import iso
+
+if TYPE_CHECKING:
+    from mavscope.output.grid import Cell
 
 MAX_TEXT_FILE = 16 * 1024 * 1024  # a parameter file larger than this is taken for a capture
 
@@ -142,9 +147,18 @@ def _answer(e: dict) -> str:
     return "no answer"
 
 
-def _print(env: Env, doc: dict) -> None:
-    from rich.table import Table
+def _timeline_row(e: dict) -> list[Cell]:
+    from mavscope.output.console import text
 
+    name = e["name"] + (" !" if e["security"] else "")
+    cells = [str(e["frame"]), iso(e["time"]), e["kind"],
+             f"{e['from'][0]}/{e['from'][1]} -> {e['component'][0]}/{e['component'][1]}", name,
+             value_text(e["value"]), value_text(e["previous"]), e["source"], e["link"], e["signature"],
+             _answer(e) + (f", {e['retries']} retries" if e["retries"] else "")]
+    return [text(c) for c in cells]
+
+
+def _print(env: Env, doc: dict) -> None:
     from mavscope.output.console import text
 
     con = console(env)
@@ -166,18 +180,9 @@ def _print(env: Env, doc: dict) -> None:
                   f"{'' if x['complete'] else ' (incomplete)'}; frames {x['first_frame']}-{x['last_frame']}"
                   + "".join(f"; {p}" for p in x.get("problems", [])), highlight=False, markup=False)
     if doc["timeline"]:
-        t = Table(title="Timeline (sets with their answer, changes with what explains them)", title_justify="left")
-        for col in ("frame", "time", "kind", "from -> to", "parameter", "value", "was", "via", "link", "signature",
-                    "answer"):
-            t.add_column(col, justify="right" if col == "frame" else "left")
-        for e in doc["timeline"]:
-            name = e["name"] + (" !" if e["security"] else "")
-            row = [str(e["frame"]), iso(e["time"]), e["kind"],
-                   f"{e['from'][0]}/{e['from'][1]} -> {e['component'][0]}/{e['component'][1]}", name,
-                   value_text(e["value"]), value_text(e["previous"]), e["source"], e["link"], e["signature"],
-                   _answer(e) + (f", {e['retries']} retries" if e["retries"] else "")]
-            t.add_row(*(text(c) for c in row))
-        con.print(t)
+        print_table(con, columns("frame", "time", "kind", "from -> to", "parameter", "value", "was", "via", "link",
+                                 "signature", "answer", right=("frame",)), doc["timeline"], _timeline_row,
+                    title="Timeline (sets with their answer, changes with what explains them)")
         con.print(f"{doc['sets']} set(s), {doc['confirmed']} confirmed; {doc['unexplained']} change(s) nothing in "
                   "the capture explains; ! marks security-relevant parameters",
                   highlight=False, markup=False)
@@ -186,16 +191,12 @@ def _print(env: Env, doc: dict) -> None:
         con.print(f"Compared with {d['other']} ({d['other_kind']}, component {d['other_component']}): "
                   f"{len(d['changed'])} changed, {len(d['only_here'])} only here, {len(d['only_there'])} only there",
                   highlight=False, markup=False)
-        t = Table(title_justify="left")
-        for col in ("parameter", "here", "there", "security"):
-            t.add_column(col)
         rows = [(n, value_text(a), value_text(b)) for n, (a, b) in d["changed"].items()]
         rows += [(n, value_text(v), "-") for n, v in d["only_here"].items()]
         rows += [(n, "-", value_text(v)) for n, v in d["only_there"].items()]
-        for n, here, there in rows:
-            t.add_row(*(text(c) for c in (n, here, there, d["security"].get(n, ""))))
-        if t.row_count:
-            con.print(t)
+        if rows:
+            print_table(con, columns("parameter", "here", "there", "security"), rows,
+                        lambda r: [text(c) for c in (*r, d["security"].get(r[0], ""))])
     for f in doc["findings"]:
         con.print(f"[{f['severity']}] {f['code']}: {f['message']}", highlight=False, markup=False)
     if "out" in doc:

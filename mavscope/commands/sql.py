@@ -155,22 +155,21 @@ def _csv(env: Env, names: list[str], batches: Iterator[pa.RecordBatch]) -> None:
 
 def _text(env: Env, schema: pa.Schema, batches: Iterator[pa.RecordBatch]) -> None:
     import pyarrow as pa
-    from rich.table import Table
 
     from mavscope.commands.common import console
     from mavscope.output.console import text
+    from mavscope.output.grid import Column, print_table
 
-    t = Table(show_edge=False)
-    for f in schema:
-        number = pa.types.is_integer(f.type) or pa.types.is_floating(f.type) or pa.types.is_decimal(f.type)
-        t.add_column(text(f.name), overflow="fold", justify="right" if number else "left")
-    shown = total = 0
+    cols = [Column(f.name, fold=True, right=pa.types.is_integer(f.type) or pa.types.is_floating(f.type)
+                   or pa.types.is_decimal(f.type)) for f in schema]
+    rows: list[tuple] = []
+    total = 0
     for row in _tuples(batches):
         total += 1
-        if shown < TEXT_ROWS:
-            t.add_row(*(text("NULL" if v is None else _cell(v)) for v in row))
-            shown += 1
+        if len(rows) < TEXT_ROWS:
+            rows.append(row)
+    shown = len(rows)
     con = console(env)
-    con.print(t)
+    print_table(con, cols, rows, lambda r: [text("NULL" if v is None else _cell(v)) for v in r], edge=False)
     more = f" ({shown} shown: --csv or --json for all)" if total > shown else ""
     con.print(f"{total} row(s){more}", highlight=False)

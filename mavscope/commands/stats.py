@@ -14,6 +14,7 @@ from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass, print_findings
 from mavscope.commands.common import console, whole_number, write_json
 from mavscope.notes import Finding
+from mavscope.output.grid import columns, print_table
 from mavscope.output.tables import fmt, iso, sparkline
 
 SPARK_WIDTH = 40
@@ -40,40 +41,36 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         doc["filter"] = args.display_filter
         write_json(env, doc)
         return ExitStatus.OK
-    from rich.table import Table
-
     con = console(env)
     busiest = sorted(stats.streams, key=lambda k: -stats.streams[k].count)[: max(0, args.sparklines)]
     spark = set(busiest)
-    t = Table(title=f"Messages ({path})", title_justify="left")
-    for col, just in (("sysid/compid", "right"), ("message", "left"), ("count", "right"), ("rate Hz", "right"),
-                      ("bytes", "right"), ("rate per second", "left")):
-        t.add_column(col, justify=just)  # type: ignore[arg-type]
-    for m in cast("list[dict]", doc["messages"]):
+
+    def message(m: dict) -> list[str]:
         key = (m["sysid"], m["compid"], m["msgname"])
         line = sparkline(stats.rate_series(key, SPARK_WIDTH)) if key in spark else ""
         rate = "burst" if m["burst"] else fmt(m["rate_hz"], 2)
-        t.add_row(f"{m['sysid']}/{m['compid']}", str(m["msgname"]), str(m["count"]), rate, str(m["bytes"]), line)
-    con.print(t)
+        return [f"{m['sysid']}/{m['compid']}", str(m["msgname"]), str(m["count"]), rate, str(m["bytes"]), line]
 
-    t = Table(title="Links (sysid, compid)", title_justify="left")
-    for col in ("sysid/compid", "received", "lost", "loss %", "dup", "late", "v1", "v2", "CRC", "signature",
-                "endpoints"):
-        t.add_column(col, justify="left" if col in ("CRC", "signature", "endpoints") else "right")
-    for lk in cast("list[dict]", doc["links"]):
-        t.add_row(f"{lk['sysid']}/{lk['compid']}", str(lk["received"]), str(lk["lost"]), fmt(lk["loss_pct"], 2),
-                  str(lk["duplicates"]), str(lk["reordered"]), str(lk["v1"]), str(lk["v2"]),
-                  _counts(lk["crc"]), _counts(lk["signature"]), ", ".join(lk["endpoints"]))
-    con.print(t)
+    def link(lk: dict) -> list[str]:
+        return [f"{lk['sysid']}/{lk['compid']}", str(lk["received"]), str(lk["lost"]), fmt(lk["loss_pct"], 2),
+                str(lk["duplicates"]), str(lk["reordered"]), str(lk["v1"]), str(lk["v2"]),
+                _counts(lk["crc"]), _counts(lk["signature"]), ", ".join(lk["endpoints"])]
 
-    t = Table(title="Conversations", title_justify="left")
-    for col in ("transport", "A", "B", "frames", "A→B", "B→A", "bytes", "start", "duration s", "systems"):
-        t.add_column(col, justify="right" if col in ("frames", "A→B", "B→A", "bytes", "duration s") else "left")
-    for c in cast("list[dict]", doc["conversations"]):
-        t.add_row(str(c["transport"]), str(c["a"]), str(c["b"]) or "-", str(c["frames"]), str(c["frames_a_to_b"]),
-                  str(c["frames_b_to_a"]), str(c["bytes"]), iso(c["start"]), fmt(c["duration"]),
-                  ", ".join(f"{s}/{k}" for s, k in cast("list[list[int]]", c["systems"])))
-    con.print(t)
+    def conversation(c: dict) -> list[str]:
+        return [str(c["transport"]), str(c["a"]), str(c["b"]) or "-", str(c["frames"]), str(c["frames_a_to_b"]),
+                str(c["frames_b_to_a"]), str(c["bytes"]), iso(c["start"]), fmt(c["duration"]),
+                ", ".join(f"{s}/{k}" for s, k in cast("list[list[int]]", c["systems"]))]
+
+    print_table(con, columns("sysid/compid", "message", "count", "rate Hz", "bytes", "rate per second",
+                             right=("sysid/compid", "count", "rate Hz", "bytes")),
+                cast("list[dict]", doc["messages"]), message, title=f"Messages ({path})")
+    print_table(con, columns("sysid/compid", "received", "lost", "loss %", "dup", "late", "v1", "v2", "CRC",
+                             "signature", "endpoints",
+                             right=("sysid/compid", "received", "lost", "loss %", "dup", "late", "v1", "v2")),
+                cast("list[dict]", doc["links"]), link, title="Links (sysid, compid)")
+    print_table(con, columns("transport", "A", "B", "frames", "A→B", "B→A", "bytes", "start", "duration s", "systems",
+                             right=("frames", "A→B", "B→A", "bytes", "duration s")),
+                cast("list[dict]", doc["conversations"]), conversation, title="Conversations")
 
     tot = cast("dict", doc["totals"])
     shown = f" (-Y matched {tot['matched']}; rows with a matched frame shown)" if "matched" in tot else ""

@@ -8,6 +8,7 @@ from mavscope.analysis.timeline import reconstruct
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
 from mavscope.commands.common import console, write_json
+from mavscope.output.grid import columns, print_table
 from mavscope.output.tables import fmt, iso
 
 
@@ -27,6 +28,12 @@ def _drift(clock: dict) -> str:
     return f"{clock['drift_ppm']:+.1f}" + (f" ± {err:.1f}" if err is not None else "")
 
 
+def _clock_row(c: dict) -> list[str]:
+    return [str(c["component"]), c["source"], c["kind"], str(c["samples"]),
+            f"{c['offset_s']:+.6f}" if c["kind"] == "unix" else "-", _drift(c), fmt(c["jitter_ms"]),
+            iso(c.get("zero_at"))]
+
+
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     with analysis_pass(args, env) as frames:
         path, select = frames.session.name, frames.selection
@@ -36,20 +43,13 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         doc["file"] = path
         write_json(env, doc)
         return ExitStatus.OK
-    from rich.table import Table
-
     con = console(env)
     con.print(f"Capture {path}: {iso(doc['start'])} to {iso(doc['end'])} ({fmt(doc['duration'])} s); "  # type: ignore[arg-type]
               "offsets are clock minus capture time at the first frame")
     for s in doc["systems"]:  # type: ignore[attr-defined]
-        t = Table(title=f"System {s['sysid']}", title_justify="left")
-        for col in ("comp", "clock", "kind", "samples", "offset s", "drift ppm", "jitter ms", "reads zero at"):
-            t.add_column(col, justify="left" if col in ("clock", "kind", "reads zero at") else "right")
-        for c in s["clocks"]:
-            t.add_row(str(c["component"]), c["source"], c["kind"], str(c["samples"]),
-                      f"{c['offset_s']:+.6f}" if c["kind"] == "unix" else "-",
-                      _drift(c), fmt(c["jitter_ms"]), iso(c.get("zero_at")))
-        con.print(t)
+        print_table(con, columns("comp", "clock", "kind", "samples", "offset s", "drift ppm", "jitter ms",
+                                 "reads zero at", right=("comp", "samples", "offset s", "drift ppm", "jitter ms")),
+                    s["clocks"], _clock_row, title=f"System {s['sysid']}")
         for c in s["clocks"]:
             if c["restarts"]:
                 at = ", ".join(iso(x) for x in c["restarted_at"][:3]) + (" ..." if c["restarts"] > 3 else "")

@@ -18,6 +18,7 @@ from mavscope.commands.common import (
 )
 from mavscope.errors import UsageError
 from mavscope.mavlink.frame import frame_number
+from mavscope.output.grid import columns, print_table
 from mavscope.security.verify import StreamRow, VerifyReport
 
 SHOWN = 20
@@ -61,18 +62,18 @@ def _skew_text(r: StreamRow) -> str:
 
 
 def _render(env: Env, path: str, report: VerifyReport) -> None:
-    from rich.table import Table
-
     con = console(env)
-    t = Table(title=f"Signatures ({path})", title_justify="left")
-    for col in ("sysid/compid", "links", "frames", "signed", "valid", "invalid", "replay", "no-key", "unsigned",
-                "injected", "v1", "keys", "skew s"):
-        t.add_column(col, justify="left" if col in ("links", "keys") else "right")
-    for (sysid, compid), r in sorted(report.rows.items()):
-        t.add_row(f"{sysid}/{compid}", ",".join(map(str, sorted(r.links))) or "-", str(r.frames), str(r.signed),
-                  str(r.valid), str(r.invalid), str(r.replay), str(r.no_key), str(r.unsigned), str(r.injected),
-                  str(r.v1), ",".join(sorted(r.keys)) or "-", _skew_text(r))
-    con.print(t)
+
+    def row(item: tuple[tuple[int, int], StreamRow]) -> list[str]:
+        (sysid, compid), r = item
+        return [f"{sysid}/{compid}", ",".join(map(str, sorted(r.links))) or "-", str(r.frames), str(r.signed),
+                str(r.valid), str(r.invalid), str(r.replay), str(r.no_key), str(r.unsigned), str(r.injected),
+                str(r.v1), ",".join(sorted(r.keys)) or "-", _skew_text(r)]
+
+    names = ("sysid/compid", "links", "frames", "signed", "valid", "invalid", "replay", "no-key", "unsigned",
+             "injected", "v1", "keys", "skew s")
+    print_table(con, columns(*names, right=[n for n in names if n not in ("links", "keys")]),
+                sorted(report.rows.items()), row, title=f"Signatures ({path})")
     for record, index, message in report.problems[:SHOWN]:
         con.print(f"frame {frame_number(record, index)}: {message}", highlight=False)
     if report.problem_count > SHOWN:
