@@ -38,6 +38,7 @@ from mavscope.analysis.mission.model import (
     role,
     same,
 )
+from mavscope.analysis.mission.state import Deadlines, Timed, narrow, open_events, open_transfers
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
 from mavscope.mavlink.semantics import int_coordinate
@@ -79,10 +80,12 @@ class MissionTracker:
         self.dialect = dialect
         self.transfers: list[Transfer] = []
         self.events: list[Event] = []
-        self.open: list[Transfer] = []
+        self.open = open_transfers()
         self.closed: deque[Transfer] = deque(maxlen=RECENTLY_CLOSED)
         self.lists: dict[tuple[Addr, int, int], Event] = {}  # (asker, target sysid, type) -> REQUEST_LIST
-        self.clears: list[Event] = []
+        self.listed = open_events()  # the same REQUEST_LIST events, indexed
+        self.clears = open_events()
+        self.deadlines = Deadlines(TRANSFER_TIMEOUT)  # what is followed, by how long it has been silent
         self.set_current: dict[int, Event] = {}  # target sysid -> MISSION_SET_CURRENT awaiting MISSION_CURRENT
         self.orphans: dict[tuple[Addr, Addr, int], Event] = {}
         self.heartbeats: dict[Addr, tuple[int, int]] = {}
@@ -136,6 +139,10 @@ class MissionTracker:
         mtype = _num(fields, "mission_type")
         owner = self._dispatch(f, name, fields, me, tgt, mtype)
         recent.append((f.raw, n, f.time, owner))
+        if isinstance(owner, (Transfer, Event)):  # the one object a frame can have touched (its `last`)
+            self.deadlines.push(owner)
+            self.deadlines.compact(len(self.open) + len(self.lists) + len(self.clears) + len(self.set_current)
+                                   + len(self.orphans), self._followed)
 
     def _dispatch(self, f: Frame, name: str, fields: dict[str, object], me: Addr, tgt: Addr,
                   mtype: int) -> object:
@@ -158,25 +165,47 @@ class MissionTracker:
     def _stale(self, last: float | None, now: float | None) -> bool:
         return last is not None and now is not None and now - last > TRANSFER_TIMEOUT
 
+    def _followed(self) -> list[Timed]:
+        return [*self.open, *self.lists.values(), *self.clears, *self.set_current.values(), *self.orphans.values()]
+
+    def _live(self, x: Timed) -> bool:
+        """Whether `x` is still followed (a transfer open, an event awaiting its answer or more frames)."""
+        if isinstance(x, Transfer):
+            return x in self.open
+        ev = cast("Event", x)
+        if ev.kind == "request-list":
+            return self.lists.get((ev.sender, ev.target[0], ev.mission_type)) is ev
+        if ev.kind == "clear-all":
+            return ev in self.clears
+        if ev.kind == "set-current":
+            return self.set_current.get(ev.target[0]) is ev
+        return ev.kind == "orphan" and self.orphans.get((ev.sender, ev.target, ev.mission_type)) is ev
+
     def _expire(self, now: float | None) -> None:
-        """Close what has been silent for longer than TRANSFER_TIMEOUT."""
+        """Close what has been silent for longer than TRANSFER_TIMEOUT (transfers in the order they opened)."""
         if now is None:
             return
-        for t in [t for t in self.open if self._stale(t.last, now)]:
+        due = self.deadlines.due(now, self._live)
+        for t in sorted((x for x in due if isinstance(x, Transfer)), key=lambda t: t.order):
             self._close(t, "timeout")
-        for key, ev in list(self.lists.items()):
-            if self._stale(ev.last, now):
-                self._event(self.lists.pop(key))
-        self.clears = [ev for ev in self.clears if not self._stale(ev.last, now)]
-        for sysid, ev in list(self.set_current.items()):
-            if self._stale(ev.last, now):
-                self._settle(self.set_current.pop(sysid))
-        self.orphans = {k: ev for k, ev in self.orphans.items() if not self._stale(ev.last, now)}
+        for ev in (x for x in due if isinstance(x, Event)):
+            if ev.kind == "request-list":
+                self._unlist(ev)
+                self._event(ev)
+            elif ev.kind == "clear-all":
+                self.clears.remove(ev)
+            elif ev.kind == "set-current":
+                self._settle(self.set_current.pop(ev.target[0]))
+            else:
+                del self.orphans[(ev.sender, ev.target, ev.mission_type)]
+
+    def _unlist(self, ev: Event) -> None:
+        del self.lists[(ev.sender, ev.target[0], ev.mission_type)]
+        self.listed.remove(ev)
 
     def _close(self, t: Transfer, how: str) -> None:
         t.close(how)
-        if t in self.open:
-            self.open.remove(t)
+        self.open.remove(t)
         self.closed.append(t)
 
     def _event(self, ev: Event) -> Event:
@@ -191,10 +220,7 @@ class MissionTracker:
 
     def _find(self, mtype: int, sender: Addr, receiver: Addr) -> Transfer | None:
         """The latest open transfer of `mtype` from `sender` to `receiver`."""
-        for t in reversed(self.open):
-            if t.mission_type == mtype and same(t.sender, sender) and same(t.receiver, receiver):
-                return t
-        return None
+        return self.open.latest(mtype, sender, receiver)
 
     def _late(self, f: Frame, mtype: int, a: Addr, b: Addr) -> Transfer | None:
         """A transfer between `a` and `b` that ended shortly before `f` (its frames may still trickle in)."""
@@ -213,25 +239,25 @@ class MissionTracker:
             t.count_resent += 1  # the same COUNT again: the receiver did not answer yet
             t.touch(f.record, f.time)
             return t
-        for old in [o for o in self.open if o.mission_type == mtype and (
-                (same(o.sender, me) and same(o.receiver, tgt)) or (same(o.sender, tgt) and same(o.receiver, me)))]:
+        for old in self.open.between(mtype, me, tgt):
             self._close(old, "restarted")
         self.order += 1
         t = Transfer(me, tgt, mtype, count, f.time, self.order)
-        asked = next((k for k in self.lists if k[1] == me[0] and k[2] == mtype and same(k[0], tgt)), None)
-        if asked is not None:
-            ev = self.lists.pop(asked)
+        # the first REQUEST_LIST of this type to this system (any component) from the COUNT's target
+        ev = self.listed.first(mtype, tgt, (me[0], 0))
+        if ev is not None:
+            self._unlist(ev)
             t.direction, t.direction_basis, t.receiver = "download", "request-list", ev.sender
             t.frames.extend(ev.frames)
         t.touch(f.record, f.time)
         self.transfers.append(t)
-        self.open.append(t)
+        self.open.add(t)
         if len(self.open) > OPEN_MAX:
-            self._close(self.open[0], "evicted")
+            self._close(self.open.oldest(), "evicted")
         return t
 
     def _request_list(self, f: Frame, me: Addr, tgt: Addr, mtype: int) -> object:
-        for old in [o for o in self.open if o.mission_type == mtype and same(o.receiver, me) and same(o.sender, tgt)]:
+        for old in self.open.matching(mtype, tgt, me):
             if not old.requests and not old.items and not old.acks:
                 old.touch(f.record, f.time)  # asked again before requesting anything: the COUNT was lost
                 return old
@@ -240,6 +266,7 @@ class MissionTracker:
         ev = self.lists.get(key)
         if ev is None:
             ev = self.lists[key] = self._new_event("request-list", f, me, tgt, mtype)
+            self.listed.add(ev)
         else:
             ev.frames.append(f.record)
             ev.last = f.time
@@ -257,7 +284,7 @@ class MissionTracker:
         if t is None:
             return self._stray(f, name, me, tgt, mtype, seq)
         if t.receiver[1] == 0:
-            t.receiver = me  # the COUNT went to component 0: the component that answers is the receiver
+            narrow(self.open, t, me)  # the COUNT went to component 0: the component that answers is the receiver
         self._continue(t, f)
         t.requests.append(seq)
         t.max_request = max(t.max_request, seq)
@@ -269,7 +296,7 @@ class MissionTracker:
         if t is None:
             return self._stray(f, name, me, tgt, mtype, seq)
         if t.receiver[1] == 0 and tgt[1] != 0:
-            t.receiver = tgt
+            narrow(self.open, t, tgt)
         self._continue(t, f)
         item = _item(name, fields, f.record)
         old = t.items.get(seq)
@@ -309,17 +336,10 @@ class MissionTracker:
         ack = Ack(me, result, f.record, f.time)
         # The operations this ACK can answer, between exactly these two systems, for this mission type;
         # the latest one started wins.
-        cands: list[tuple[int, object]] = []
-        for t in self.open:
-            if t.mission_type == mtype and ((same(me, t.receiver) and same(tgt, t.sender))
-                                            or (same(me, t.sender) and same(tgt, t.receiver))):
-                cands.append((t.order, t))
-        for ev in self.clears:
-            if same(me, ev.target) and same(tgt, ev.sender) and ev.mission_type in (mtype, MAV_MISSION_TYPE_ALL):
-                cands.append((ev.order, ev))
-        for key, ev in self.lists.items():
-            if same(me, ev.target) and same(tgt, ev.sender) and key[2] == mtype:
-                cands.append((ev.order, ev))
+        cands: list[tuple[int, object]] = [
+            (x.order, x) for x in (self.open.latest(mtype, tgt, me), self.open.latest(mtype, me, tgt),
+                                   *(self.clears.latest(m, tgt, me) for m in {mtype, MAV_MISSION_TYPE_ALL}),
+                                   self.listed.latest(mtype, tgt, me)) if x is not None]
         if not cands:
             late = self._late(f, mtype, me, tgt)
             if late is not None:
@@ -337,13 +357,12 @@ class MissionTracker:
             if target.kind == "clear-all":
                 self.clears.remove(target)
                 return target
-            # a MISSION_REQUEST_LIST answered with an ACK instead of a COUNT (refused)
-            self.lists = {k: v for k, v in self.lists.items() if v is not target}
+            self._unlist(target)  # a MISSION_REQUEST_LIST answered with an ACK instead of a COUNT (refused)
             return self._event(target)
         t = cast("Transfer", target)
         from_receiver = same(me, t.receiver) and me != t.sender
         if from_receiver and t.receiver[1] == 0:
-            t.receiver = me
+            narrow(self.open, t, me)
         t.acks.append(ack)
         t.touch(f.record, f.time)
         if result == MAV_MISSION_ACCEPTED and from_receiver:
@@ -361,13 +380,13 @@ class MissionTracker:
     # -- other operations ----------------------------------------------------------------------------
 
     def _clear_all(self, f: Frame, me: Addr, tgt: Addr, mtype: int) -> Event:
-        for ev in self.clears:
-            if ev.sender == me and same(ev.target, tgt) and ev.mission_type == mtype:
-                ev.frames.append(f.record)  # sent again: no answer yet
-                ev.last = f.time
-                return ev
+        ev = self.clears.first(mtype, me, tgt, exact_sender=True)
+        if ev is not None:
+            ev.frames.append(f.record)  # sent again: no answer yet
+            ev.last = f.time
+            return ev
         ev = self._event(self._new_event("clear-all", f, me, tgt, mtype))
-        self.clears.append(ev)
+        self.clears.add(ev)
         return ev
 
     def _set_current(self, f: Frame, me: Addr, tgt: Addr, seq: int) -> Event:
@@ -395,17 +414,20 @@ class MissionTracker:
     # -- output --------------------------------------------------------------------------------------
 
     def finish(self) -> MissionLog:
-        for t in list(self.open):
+        for t in self.open:
             self._close(t, "timeout" if self._stale(t.last, self.now) else "end")
         for ev in self.lists.values():
             self._event(ev)
         self.lists.clear()
+        self.listed = open_events()
         for ev in self.set_current.values():
             self._settle(ev)
         self.set_current.clear()
         self.events.sort(key=lambda ev: ev.order)
-        for t in self.transfers:
-            t.receiver_silent = not any(same(a, t.receiver) for a in self.counts)
+        systems = {a[0] for a in self.counts}
+        for t in self.transfers:  # `same` with any sender, in a few lookups
+            r = t.receiver
+            t.receiver_silent = not (r in self.counts or (r[0], 0) in self.counts if r[1] else r[0] in systems)
             if not t.direction:
                 t.direction, t.direction_basis = self._direction(t)
             t.reason = reason(t, self.dialect)

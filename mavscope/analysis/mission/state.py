@@ -1,0 +1,187 @@
+"""The reconstruction's bookkeeping at a cost per frame that does not grow with what is open.
+
+A hostile capture can keep OPEN_MAX transfers and ORPHANS_ACTIVE stray-frame events open at once (250 x 250
+systems exchanging MISSION_COUNTs); scanning them at every frame, to find a frame's transfer and to close
+what fell silent, took 200,000 such frames 88 s. Here:
+
+- `PartyIndex` indexes the open transfers (and the events awaiting an answer) by mission type, sender and
+  receiver, component 0 matching any component (`model.same`), so a frame finds its transfers in a few
+  lookups;
+- `Deadlines` hands back what has been silent for longer than a timeout, oldest silence first, from a heap
+  of (last time, object) entries pushed whenever an object's time changes; entries of objects gone or
+  touched since are dropped as they surface, and the heap is rebuilt from the live objects when stale
+  entries outnumber them (a capture whose clock runs backwards never lets old entries surface).
+
+Both give exactly what a scan of every open object would: the tests hold them to it.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from bisect import bisect_left, insort
+from collections.abc import Callable, Iterable, Iterator
+from typing import Generic, Protocol, TypeVar
+
+from mavscope.analysis.mission.model import Event, Transfer
+from mavscope.mavlink.frame import Addr
+
+ANY = -1  # the index's component key that any component matches
+
+
+class Party(Protocol):
+    """A transfer or an event: a mission type, two ends, and the order it began in."""
+
+    mission_type: int
+    sender: Addr
+    order: int
+
+
+def _order(t: Party) -> int:
+    return t.order
+
+
+def _transfer_ends(t: Transfer) -> Addr:
+    return t.receiver
+
+
+def _event_ends(ev: Event) -> Addr:
+    return ev.target
+
+
+P = TypeVar("P", bound=Party)
+
+
+class PartyIndex(Generic[P]):
+    """Transfers (the receiver their other end) or events (the target), oldest first, found by mission
+    type and both ends, component 0 matching any component (`model.same`)."""
+
+    def __init__(self, other_end: Callable[[P], Addr]) -> None:
+        self._other = other_end
+        self._all: dict[int, P] = {}  # by order: the order they began in
+        self._by: dict[tuple[int, int, int, int, int], list[P]] = {}  # each sorted by order
+
+    def __len__(self) -> int:
+        return len(self._all)
+
+    def __iter__(self) -> Iterator[P]:
+        return iter(list(self._all.values()))
+
+    def __contains__(self, x: P) -> bool:
+        return self._all.get(x.order) is x
+
+    def oldest(self) -> P:
+        return next(iter(self._all.values()))
+
+    def _keys(self, x: P) -> Iterator[tuple[int, int, int, int, int]]:
+        (ssys, scomp), (rsys, rcomp) = x.sender, self._other(x)
+        for sk in (scomp, ANY):
+            for rk in (rcomp, ANY):
+                yield x.mission_type, ssys, rsys, sk, rk
+
+    def add(self, x: P) -> None:
+        self._all[x.order] = x
+        self._file(x)
+
+    def remove(self, x: P) -> None:
+        if self._all.get(x.order) is x:
+            del self._all[x.order]
+            self._unfile(x)
+
+    def _file(self, x: P) -> None:
+        for key in self._keys(x):
+            insort(self._by.setdefault(key, []), x, key=_order)
+
+    def _unfile(self, x: P) -> None:
+        for key in self._keys(x):
+            bucket = self._by[key]
+            del bucket[bisect_left(bucket, x.order, key=_order)]
+            if not bucket:
+                del self._by[key]
+
+    def _buckets(self, mtype: int, sender: Addr, other: Addr, exact_sender: bool) -> Iterator[list[P]]:
+        """The buckets of what `same` matches to both ends (`exact_sender`: the sender's component equal):
+        disjoint, their union exact."""
+        sks = (sender[1],) if exact_sender else (ANY,) if sender[1] == 0 else (sender[1], 0)
+        for sk in sks:
+            for rk in ((ANY,) if other[1] == 0 else (other[1], 0)):
+                bucket = self._by.get((mtype, sender[0], other[0], sk, rk))
+                if bucket:
+                    yield bucket
+
+    def matching(self, mtype: int, sender: Addr, other: Addr, exact_sender: bool = False) -> list[P]:
+        """Those of `mtype` from `sender` to `other`, oldest first."""
+        out = [x for b in self._buckets(mtype, sender, other, exact_sender) for x in b]
+        out.sort(key=_order)
+        return out
+
+    def latest(self, mtype: int, sender: Addr, other: Addr) -> P | None:
+        """The one of `mtype` from `sender` to `other` that began last."""
+        return max((b[-1] for b in self._buckets(mtype, sender, other, False)), key=_order, default=None)
+
+    def first(self, mtype: int, sender: Addr, other: Addr, exact_sender: bool = False) -> P | None:
+        """The one of `mtype` from `sender` to `other` that began first."""
+        return min((b[0] for b in self._buckets(mtype, sender, other, exact_sender)), key=_order, default=None)
+
+    def between(self, mtype: int, a: Addr, b: Addr) -> list[P]:
+        """Those of `mtype` between `a` and `b`, either way, oldest first."""
+        both = {x.order: x for x in (*self.matching(mtype, a, b), *self.matching(mtype, b, a))}
+        return [both[k] for k in sorted(both)]
+
+
+def open_transfers() -> PartyIndex[Transfer]:
+    return PartyIndex(_transfer_ends)
+
+
+def open_events() -> PartyIndex[Event]:
+    return PartyIndex(_event_ends)
+
+
+def narrow(index: PartyIndex[Transfer], t: Transfer, receiver: Addr) -> None:
+    """Set the receiver of `t` (open or not) to `receiver`, which `same` matches with the one it had; an
+    open transfer keeps its place among the open ones."""
+    if t not in index:
+        t.receiver = receiver
+        return
+    index._unfile(t)
+    t.receiver = receiver
+    index._file(t)
+
+
+class Timed(Protocol):
+    last: float | None
+
+
+class Deadlines:
+    """Objects with a time of last activity (`last`), handed back once silent for longer than `timeout`."""
+
+    def __init__(self, timeout: float) -> None:
+        self.timeout = timeout
+        self._heap: list[tuple[float, int, Timed]] = []
+        self._pushed = 0
+
+    def push(self, obj: Timed) -> None:
+        """Call whenever `obj.last` changes (and when it is first followed). A time that is not finite never
+        goes stale (as `now - last > timeout` says), so it is not pushed."""
+        if obj.last is not None and math.isfinite(obj.last):
+            self._pushed += 1
+            heapq.heappush(self._heap, (obj.last, self._pushed, obj))
+
+    def due(self, now: float, live: Callable[[Timed], bool]) -> list[Timed]:
+        """The live objects whose `now - last > timeout`, by their last time; each is handed back once (the
+        caller ends following them, or pushes them again)."""
+        heap, out, seen = self._heap, [], set()
+        while heap and now - heap[0][0] > self.timeout:
+            last, _, obj = heapq.heappop(heap)
+            if obj.last == last and id(obj) not in seen and live(obj):
+                seen.add(id(obj))
+                out.append(obj)
+        return out
+
+    def compact(self, count: int, live: Callable[[], Iterable[Timed]]) -> None:
+        """With `count` objects followed, rebuild the heap from them (`live()`) when stale entries are most
+        of it: amortised, a constant cost per push."""
+        if len(self._heap) > 4 * count + 4096:
+            self._heap = []
+            for obj in live():
+                self.push(obj)
