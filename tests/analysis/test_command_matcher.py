@@ -6,8 +6,6 @@ that scan alone: every frame looked at up to 4,096 waiting commands)."""
 
 from __future__ import annotations
 
-import sys
-from collections.abc import Callable
 from types import SimpleNamespace
 from typing import Any
 
@@ -18,6 +16,7 @@ from hypothesis import strategies as st
 from mavscope.analysis import command_log
 from mavscope.analysis.command_log import PENDING_MAX, Command, CommandMatcher
 from mavscope.mavlink.dialect import Dialect
+from tests.support.cost import lines_run
 
 
 class Reference:
@@ -103,23 +102,6 @@ def test_the_matcher_is_its_definition(events: list[tuple], cap: int, dialect: D
         [(c["frames"], c["retries"], c["progress"]) for c in ref.pending]
 
 
-def _lines(fn: Callable[[], object]) -> int:
-    """Python lines `fn` runs, in every function it calls: the work done, counted, not timed."""
-    n = 0
-
-    def trace(frame: Any, event: str, arg: object) -> Any:
-        nonlocal n
-        n += event == "line"
-        return trace
-
-    sys.settrace(trace)
-    try:
-        fn()
-    finally:
-        sys.settrace(None)
-    return n
-
-
 @pytest.mark.parametrize("frame", [
     ("cmd", "COMMAND_LONG", 400, (255, 190), (200, 1)),  # new: pushes the oldest out
     ("cmd", "COMMAND_LONG", 400, (255, 190), (9, 9)),  # a retry of the newest
@@ -134,4 +116,4 @@ def test_a_frame_costs_the_same_however_many_commands_wait(frame: tuple, dialect
     for i in range(PENDING_MAX - 1):
         _feed(m, ("cmd", "COMMAND_LONG", 400, (255, 190), (1 + i // 255, 1 + i % 255), i))
     _feed(m, ("cmd", "COMMAND_LONG", 400, (255, 190), (9, 9), PENDING_MAX))
-    assert _lines(lambda: _feed(m, (*frame, PENDING_MAX + 1))) < 120  # the scan took 4,096 and more
+    assert lines_run(lambda: _feed(m, (*frame, PENDING_MAX + 1))) < 120  # the scan took 4,096 and more

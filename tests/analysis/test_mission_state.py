@@ -8,10 +8,7 @@ systems took `mission` 88 s in those scans. The whole tracker was also compared 
 from __future__ import annotations
 
 import struct
-import sys
-from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -23,6 +20,7 @@ from mavscope.analysis.mission.state import Deadlines, narrow, open_events, open
 from mavscope.mavlink.dialect import Dialect
 from mavscope.pipeline.options import PipelineOptions
 from mavscope.pipeline.session import open_session
+from tests.support.cost import lines_run
 
 ADDRS = st.tuples(st.sampled_from([1, 2]), st.sampled_from([0, 1, 190]))
 TYPES = st.sampled_from([0, 1])
@@ -114,23 +112,6 @@ def test_deadlines_stay_small_when_the_clock_runs_backwards() -> None:
     assert d.due(20.0, lambda x: True) == [o]
 
 
-def _lines(fn: Callable[[], object]) -> int:
-    """Python lines `fn` runs, in every function it calls: the work done, counted, not timed."""
-    n = 0
-
-    def trace(frame: Any, event: str, arg: object) -> Any:
-        nonlocal n
-        n += event == "line"
-        return trace
-
-    sys.settrace(trace)
-    try:
-        fn()
-    finally:
-        sys.settrace(None)
-    return n
-
-
 def test_a_frame_costs_the_same_however_many_transfers_are_open(tmp_path: Path, dialect: Dialect) -> None:
     """OPEN_MAX transfers open (MISSION_COUNTs between as many pairs of systems), then frames that look for
     theirs: an item, a request, an ACK, a COUNT of a new pair (which closes the oldest), a CLEAR_ALL."""
@@ -155,4 +136,4 @@ def test_a_frame_costs_the_same_however_many_transfers_are_open(tmp_path: Path, 
         tracker.feed(f)
     assert len(tracker.open) == OPEN_MAX
     for f in frames[OPEN_MAX:]:
-        assert _lines(lambda: tracker.feed(f)) < 400  # a scan of the open transfers ran 1,024 lines and more
+        assert lines_run(lambda: tracker.feed(f)) < 400  # a scan of the open transfers ran 1,024 lines and more
