@@ -109,9 +109,9 @@ class CommandMatcher:
         """The oldest waiting command an ACK of `cmd_id` from sysid/compid, addressed to to_sys/to_comp
         (0: not said), answers."""
         best: Key | None = None
+        sender = (to_sys or -1, to_comp) if to_comp else (to_sys,) if to_sys else ()
         for tsys in {0, sysid}:
             for tcomp in {0, compid}:
-                sender = (to_sys or -1, to_comp) if to_comp else (to_sys,) if to_sys else ()
                 group = self._by.get((cmd_id, tsys, tcomp, *sender))
                 if group is None:
                     continue

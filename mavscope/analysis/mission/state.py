@@ -41,11 +41,11 @@ def _order(t: Party) -> int:
     return t.order
 
 
-def _transfer_ends(t: Transfer) -> Addr:
+def _receiver(t: Transfer) -> Addr:
     return t.receiver
 
 
-def _event_ends(ev: Event) -> Addr:
+def _target(ev: Event) -> Addr:
     return ev.target
 
 
@@ -130,11 +130,11 @@ class PartyIndex(Generic[P]):
 
 
 def open_transfers() -> PartyIndex[Transfer]:
-    return PartyIndex(_transfer_ends)
+    return PartyIndex(_receiver)
 
 
 def open_events() -> PartyIndex[Event]:
-    return PartyIndex(_event_ends)
+    return PartyIndex(_target)
 
 
 def narrow(index: PartyIndex[Transfer], t: Transfer, receiver: Addr) -> None:
