@@ -5,7 +5,6 @@ from the frames; with --out, written into DIR with a manifest.json."""
 from __future__ import annotations
 
 import argparse
-from typing import TYPE_CHECKING
 
 import orjson
 
@@ -18,9 +17,6 @@ from mavscope.errors import UsageError
 from mavscope.output.grid import columns, print_table
 from mavscope.output.objects_out import ObjectWriter
 from mavscope.output.tables import iso
-
-if TYPE_CHECKING:
-    from mavscope.output.grid import Cell
 
 MIB = 1024 * 1024
 DEFAULTS = Limits()
@@ -97,8 +93,6 @@ def _state(o: dict) -> str:
 
 
 def _print(env: Env, path: str, doc: dict, out: str | None) -> None:
-    from mavscope.output.console import text
-
     con = console(env)
     objs: list[dict] = doc["objects"]
     if not objs:
@@ -106,7 +100,7 @@ def _print(env: Env, path: str, doc: dict, out: str | None) -> None:
     else:
         names = ["#", "kind", "path / name", "from -> to", "size", "state", "frames", "signatures", "sha256"]
 
-        def row(o: dict) -> list[Cell]:
+        def row(o: dict) -> list[str]:
             frames = f"{o['frame_count']} ({o['first_frame']}-{o['last_frame']})"
             sender = tuple(o["sender"]) if o["sender"] else None
             receiver = tuple(o["receiver"]) if o["receiver"] else None
@@ -115,10 +109,10 @@ def _print(env: Env, path: str, doc: dict, out: str | None) -> None:
                      frames, _signatures(o["signatures"]), o["sha256"][:16]]
             if out:
                 cells.append(o["file"] or "-")
-            return [text(c) for c in cells]
+            return cells
 
         print_table(con, columns(*names, *(["file"] if out else []), right=("#", "size")), objs, row,
-                    title=f"Objects in {path}")
+                    title=f"Objects in {path}", words=True)
         s = doc["summary"]
         con.print(f"{s['objects']} object(s), {s['complete']} complete, {s['bytes']:,} bytes; started "
                   f"{iso(objs[0]['start'])}", highlight=False, markup=False)

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import argparse
 import os
-from typing import TYPE_CHECKING
 
 from mavscope import __version__
 from mavscope.analysis.params import (
@@ -28,9 +27,6 @@ from mavscope.commands.common import console, not_the_capture, write_json
 from mavscope.errors import UsageError
 from mavscope.output.grid import columns, print_table
 from mavscope.output.tables import iso
-
-if TYPE_CHECKING:
-    from mavscope.output.grid import Cell
 
 MAX_TEXT_FILE = 16 * 1024 * 1024  # a parameter file larger than this is taken for a capture
 
@@ -147,20 +143,15 @@ def _answer(e: dict) -> str:
     return "no answer"
 
 
-def _timeline_row(e: dict) -> list[Cell]:
-    from mavscope.output.console import text
-
+def _timeline_row(e: dict) -> list[str]:
     name = e["name"] + (" !" if e["security"] else "")
-    cells = [str(e["frame"]), iso(e["time"]), e["kind"],
-             f"{e['from'][0]}/{e['from'][1]} -> {e['component'][0]}/{e['component'][1]}", name,
-             value_text(e["value"]), value_text(e["previous"]), e["source"], e["link"], e["signature"],
-             _answer(e) + (f", {e['retries']} retries" if e["retries"] else "")]
-    return [text(c) for c in cells]
+    return [str(e["frame"]), iso(e["time"]), e["kind"],
+            f"{e['from'][0]}/{e['from'][1]} -> {e['component'][0]}/{e['component'][1]}", name,
+            value_text(e["value"]), value_text(e["previous"]), e["source"], e["link"], e["signature"],
+            _answer(e) + (f", {e['retries']} retries" if e["retries"] else "")]
 
 
 def _print(env: Env, doc: dict) -> None:
-    from mavscope.output.console import text
-
     con = console(env)
     comps: list[dict] = doc["components"]
     if not comps and not doc["timeline"]:
@@ -182,7 +173,7 @@ def _print(env: Env, doc: dict) -> None:
     if doc["timeline"]:
         print_table(con, columns("frame", "time", "kind", "from -> to", "parameter", "value", "was", "via", "link",
                                  "signature", "answer", right=("frame",)), doc["timeline"], _timeline_row,
-                    title="Timeline (sets with their answer, changes with what explains them)")
+                    title="Timeline (sets with their answer, changes with what explains them)", words=True)
         con.print(f"{doc['sets']} set(s), {doc['confirmed']} confirmed; {doc['unexplained']} change(s) nothing in "
                   "the capture explains; ! marks security-relevant parameters",
                   highlight=False, markup=False)
@@ -196,7 +187,7 @@ def _print(env: Env, doc: dict) -> None:
         rows += [(n, "-", value_text(v)) for n, v in d["only_there"].items()]
         if rows:
             print_table(con, columns("parameter", "here", "there", "security"), rows,
-                        lambda r: [text(c) for c in (*r, d["security"].get(r[0], ""))])
+                        lambda r: (*r, d["security"].get(r[0], "")), words=True)
     for f in doc["findings"]:
         con.print(f"[{f['severity']}] {f['code']}: {f['message']}", highlight=False, markup=False)
     if "out" in doc:

@@ -157,7 +157,6 @@ def _text(env: Env, schema: pa.Schema, batches: Iterator[pa.RecordBatch]) -> Non
     import pyarrow as pa
 
     from mavscope.commands.common import console
-    from mavscope.output.console import text
     from mavscope.output.grid import Column, print_table
 
     cols = [Column(f.name, fold=True, right=pa.types.is_integer(f.type) or pa.types.is_floating(f.type)
@@ -170,6 +169,6 @@ def _text(env: Env, schema: pa.Schema, batches: Iterator[pa.RecordBatch]) -> Non
             rows.append(row)
     shown = len(rows)
     con = console(env)
-    print_table(con, cols, rows, lambda r: [text("NULL" if v is None else _cell(v)) for v in r], edge=False)
+    print_table(con, cols, rows, lambda r: ["NULL" if v is None else _cell(v) for v in r], edge=False, words=True)
     more = f" ({shown} shown: --csv or --json for all)" if total > shown else ""
     con.print(f"{total} row(s){more}", highlight=False)

@@ -49,17 +49,19 @@ def columns(*names: str, right: Sequence[str] = ()) -> list[Column]:
 
 
 def print_table(con: Any, cols: Sequence[Column], items: Sequence[T], row: Callable[[T], Sequence[Cell]], *,
-                title: Cell = "", edge: bool = True) -> None:
+                title: Cell = "", edge: bool = True, words: bool = False) -> None:
     """The table of `items` on the console `con`, a row each as `row` makes it (called once or, in the plain
-    layout, twice an item: it must depend on the item alone). No items: the headings alone."""
+    layout, twice an item: it must depend on the item alone). No items: the headings alone. `words`: every
+    str cell is the capture's words, shown as `console.text` shows them (never highlighted, a line break
+    escaped) rather than as rich renders a str."""
     if len(items) <= RICH_ROWS:
-        _rich(con, cols, items, row, title, edge)
+        _rich(con, cols, items, row, title, edge, words)
     else:
         _plain(con, cols, items, row, title)
 
 
 def _rich(con: Any, cols: Sequence[Column], items: Sequence[T], row: Callable[[T], Sequence[Cell]], title: Cell,
-          edge: bool) -> None:
+          edge: bool, words: bool) -> None:
     from rich.table import Table
 
     from mavscope.output.console import text
@@ -70,7 +72,8 @@ def _rich(con: Any, cols: Sequence[Column], items: Sequence[T], row: Callable[[T
         t.add_column(text(c.name), justify="right" if c.right else "left", min_width=c.min_width,
                      overflow="fold" if c.fold else "ellipsis")
     for item in items:
-        t.add_row(*row(item))
+        cells = row(item)
+        t.add_row(*((text(c) if isinstance(c, str) else c for c in cells) if words else cells))
     con.print(t)
 
 

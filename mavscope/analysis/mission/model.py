@@ -20,7 +20,7 @@ TRANSFER_TIMEOUT = 10.0
 
 # Outcomes of a transfer (Transfer.outcome)
 COMPLETE = "complete"  # the receiver accepted it and every item is in the capture
-OPEN_MAX = 1024  # transfers open at once: every mission frame looks at each (more: the oldest is closed, "evicted")
+OPEN_MAX = 1024  # transfers followed at once (more: the oldest is closed, "evicted")
 ACCEPTED_MISSING = "accepted-items-missing"  # accepted, but some items are not in the capture
 UNACKNOWLEDGED = "unacknowledged"  # every item is in the capture, no MISSION_ACK closed it
 NACK = "nack"  # the receiver refused it (its last ACK was an error and nothing followed)

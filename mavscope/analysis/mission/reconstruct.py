@@ -322,7 +322,7 @@ class MissionTracker:
         ev = self.orphans.get(key)
         if ev is None:
             ev = self.orphans[key] = self._event(self._new_event("orphan", f, me, tgt, mtype))
-            if len(self.orphans) > ORPHANS_ACTIVE:  # every frame looks at each: keep the work per frame bounded
+            if len(self.orphans) > ORPHANS_ACTIVE:
                 del self.orphans[next(iter(self.orphans))]
         else:
             ev.frames.append(f.record)

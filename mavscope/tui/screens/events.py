@@ -13,7 +13,7 @@ from textual.widgets import DataTable, Label
 from mavscope.analysis.events import Event, EventLog
 from mavscope.analysis.selection import Selection
 from mavscope.mavlink.frame import Frame
-from mavscope.output.console import visible
+from mavscope.output.console import text
 from mavscope.tui.screens.analysis import AnalysisScreen
 from mavscope.tui.verdicts import BLUE, DIM, GREEN, ORANGE, RED
 
@@ -52,7 +52,7 @@ class EventsScreen(AnalysisScreen):
             when = f"{e.time - base:.3f}" if e.time is not None and base is not None else "-"
             table.add_row(Text(str(e.frame), justify="right"), Text(when, justify="right"),
                           Text(e.kind, style=KIND_STYLE.get(e.kind, "")), f"{e.sender[0]}/{e.sender[1]}",
-                          Text(visible(e.text)), key=str(i))
+                          text(e.text), key=str(i))
         counts = ", ".join(f"{k} {n}" for k, n in self.counts.items()) or "none"
         dropped = "; not listed: " + ", ".join(f"{k} {n}" for k, n in self.dropped.items()) if self.dropped else ""
         self.query_one("#events-title", Label).update(

@@ -12,7 +12,7 @@ from mavscope.analysis.expert import expert_findings
 from mavscope.analysis.selection import Selection
 from mavscope.mavlink.frame import Frame
 from mavscope.notes import Finding, Severity
-from mavscope.output.console import visible
+from mavscope.output.console import text
 from mavscope.tui.screens.analysis import AnalysisScreen
 from mavscope.tui.verdicts import BLUE, DIM, ORANGE, RED
 
@@ -40,7 +40,7 @@ class ExpertScreen(AnalysisScreen):
         for i, f in enumerate(findings):
             frames = ", ".join(map(str, f.frames[:8])) + ("…" if len(f.frames) > 8 else "")
             table.add_row(Text(f.severity.value, style=SEVERITY_STYLE.get(f.severity, "")), f.code,
-                          Text(visible(f.message)), frames, key=str(i))  # a message is no markup
+                          text(f.message), frames, key=str(i))  # a message is no markup
         counts = {s: sum(1 for f in findings if f.severity is s) for s in Severity}
         summary = ", ".join(f"{n} {s.value}" for s, n in counts.items() if n) or "no findings"
         self.query_one("#expert-title", Label).update(f"{summary}.  Enter: go to the finding's first frame")

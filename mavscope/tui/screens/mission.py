@@ -22,7 +22,7 @@ from mavscope.analysis.mission.describe import run_text
 from mavscope.analysis.selection import Selection
 from mavscope.mavlink.frame import Frame, decode_payload
 from mavscope.mavlink.semantics import float_text, is_global
-from mavscope.output.console import visible
+from mavscope.output.console import text
 from mavscope.tui.screens.analysis import AnalysisScreen
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
 from mavscope.tui.widgets.track_plot import TrackPlot
@@ -110,8 +110,8 @@ class MissionScreen(AnalysisScreen):
             mtype = (mtypes.name_of(ev.mission_type) if mtypes else None) or str(ev.mission_type)
             ok = ev.confirmed or (ev.ack is not None and ev.ack.result == 0)
             table.add_row("", ev.kind, f"{ev.sender[0]}/{ev.sender[1]}", f"{ev.target[0]}/{ev.target[1]}",
-                          mtype.replace("MAV_MISSION_TYPE_", ""), "", Text(visible(event_text(ev, dialect)),
-                                                                           style=GREEN if ok else ORANGE),
+                          mtype.replace("MAV_MISSION_TYPE_", ""), "",
+                          text(event_text(ev, dialect), style=GREEN if ok else ORANGE),
                           f"{ev.frames[0]}…{ev.frames[-1]}", key=f"e{i}")
         if not res.transfers:
             self.query_one("#items-title", Label).update("Items: no mission transfer in these frames")

@@ -19,7 +19,7 @@ from textual.widgets import DataTable, Label, Static
 from mavscope.analysis.objects import TRACKED_MESSAGES, ObjectLog, ObjectRecord, ObjectTracker, party
 from mavscope.analysis.selection import Selection
 from mavscope.mavlink.frame import Frame
-from mavscope.output.console import visible
+from mavscope.output.console import text as escaped
 from mavscope.tui.screens.analysis import AnalysisScreen
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
 
@@ -110,7 +110,7 @@ class ObjectsScreen(AnalysisScreen):
         table.add_columns("#", "Kind", "Path / name", "From → to", "Size", "State", "Frames", "Signed")
         for i, r in enumerate(log.objects):
             table.add_row(str(r.number), r.kind + (" ↓" if r.direction == "download" else " ↑"),
-                          Text(visible(r.path or r.name)), f"{party(r.sender)} → {party(r.receiver)}",
+                          escaped(r.path or r.name), f"{party(r.sender)} → {party(r.receiver)}",
                           Text(f"{r.size:,}", justify="right"), state(r), f"{r.frame_count}",
                           "yes" if r.signed_frames else "no", key=str(i))
         title = f"{len(log.objects)} object(s), {sum(r.complete for r in log.objects)} complete"
