@@ -34,13 +34,17 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="keep at most N MiB of one object (default %(default)s)")
     p.add_argument("--max-memory-mb", type=int, default=DEFAULTS.max_total // MIB, metavar="N",
                    help="hold at most N MiB of object data at once (default %(default)s)")
+    p.add_argument("--max-holes-mb", type=int, default=DEFAULTS.max_holes // MIB, metavar="N",
+                   help="fill at most N MiB of holes (bytes never received) with zeros, all objects together "
+                        "(default %(default)s)")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
-    if args.max_object_mb < 1 or args.max_memory_mb < 1:
-        raise UsageError("objects: --max-object-mb and --max-memory-mb must be at least 1")
-    limits = Limits(max_object=args.max_object_mb * MIB, max_total=args.max_memory_mb * MIB)
+    if min(args.max_object_mb, args.max_memory_mb, args.max_holes_mb) < 1:
+        raise UsageError("objects: --max-object-mb, --max-memory-mb and --max-holes-mb must be at least 1")
+    limits = Limits(max_object=args.max_object_mb * MIB, max_total=args.max_memory_mb * MIB,
+                    max_holes=args.max_holes_mb * MIB)
     writer = ObjectWriter(args.out) if args.out else None
     files: dict[int, str] = {}
     try:

@@ -9,7 +9,11 @@ gap; the written file holds zeros there.
 
 Memory is bounded: every buffer is charged to a `Budget` shared by all objects of a capture, a piece
 beyond `max_object` bytes from the start of its object is cut, and an object fragmented into more than
-`max_ranges` pieces takes no new piece. What a limit cut is counted (`dropped`) and said (`problems`).
+`max_ranges` pieces takes no new piece. So is the work a frame can cause: a piece placed past the end of
+the buffer leaves a hole of zeros before it, which would otherwise cost up to `max_object` bytes of
+memory, hashing and disk for a frame of a few hundred bytes. Holes are charged to the budget's `holes`
+allowance, shared by the capture's objects and given back only when data fills them; a piece whose hole
+the allowance cannot pay for is not kept. What a limit cut is counted (`dropped`) and said (`problems`).
 """
 
 from __future__ import annotations
@@ -18,14 +22,28 @@ from bisect import bisect_left, bisect_right
 
 
 class Budget:
-    """Bytes held by every object's buffer, at most `limit`."""
+    """Bytes held by every object's buffer, at most `limit`; bytes of holes (never received, held as zeros)
+    made by all objects together, at most `holes`."""
 
-    __slots__ = ("limit", "held", "refused")
+    __slots__ = ("limit", "held", "refused", "holes", "zeros")
 
-    def __init__(self, limit: int) -> None:
+    def __init__(self, limit: int, holes: int) -> None:
         self.limit = limit
         self.held = 0
         self.refused = 0  # bytes of data not kept because the budget was spent
+        self.holes = holes
+        self.zeros = 0  # bytes of holes charged and not filled since
+
+    def hole(self, n: int) -> bool:
+        """Charge a hole of `n` bytes; False (nothing charged) when the allowance cannot pay for it."""
+        if self.zeros + n > self.holes:
+            return False
+        self.zeros += n
+        return True
+
+    def filled(self, n: int) -> None:
+        """`n` bytes of holes were filled by data."""
+        self.zeros = max(0, self.zeros - n)
 
     def take(self, n: int) -> bool:
         if self.held + n > self.limit:
@@ -85,12 +103,19 @@ class Content:
             self.dropped += len(data)
             self.problems.add(f"more than {self.max_ranges:,} separate pieces: later pieces were not kept")
             return 0
-        if end > len(self.buf):
-            grow = end - len(self.buf)
+        length = len(self.buf)
+        if end > length:
+            grow = end - length
             if not self.budget.take(grow):
                 self.dropped += len(data)
                 self.budget.refused += len(data)
                 self.problems.add("the memory limit for objects was reached: later data was not kept")
+                return 0
+            if offset > length and not self.budget.hole(offset - length):
+                self.budget.give(grow)
+                self.dropped += len(data)
+                self.problems.add(f"the limit of {self.budget.holes:,} bytes of holes (data never received) was "
+                                  "reached: pieces past a hole were not kept")
                 return 0
             self.buf.extend(bytes(grow))
         new = 0
@@ -114,6 +139,8 @@ class Content:
         if pos < end:
             self.buf[pos:end] = data[pos - offset :]
             new += end - pos
+        if offset < length:  # the new bytes below the buffer's old end filled holes
+            self.budget.filled(new - max(0, end - max(length, offset)))
         if lo < hi:
             start, stop = min(offset, self.starts[lo]), max(end, self.ends[hi - 1])
         else:

@@ -4,6 +4,7 @@ records, the FTP operations, and what the limits made the reconstruction give up
 
 from __future__ import annotations
 
+import heapq
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -47,10 +48,13 @@ class Op:
 class Context:
     def __init__(self, limits: Limits) -> None:
         self.limits = limits
-        self.budget = Budget(limits.max_total)
+        self.budget = Budget(limits.max_total, limits.max_holes)
         self.tick = 0  # frames seen (the activity clock of the open transfers)
         self.order = 0  # transfers started
         self.open: dict[int, tuple[Transfer, Callable[[], None]]] = {}  # id -> (transfer, how to close it)
+        # (last_seen, order, id) of the open transfers as they were when pushed: stale entries (a transfer
+        # seen since, or finished) are skipped or pushed again when they surface (`_least_active`)
+        self._idle: list[tuple[int, int, int]] = []
         self.records: list[ObjectRecord] = []  # every finished object (bytes dropped once taken)
         self.fresh: list[int] = []  # positions in `records` of those finished since the last take()
         self.ops: list[Op] = []
@@ -65,12 +69,29 @@ class Context:
         t.order = self.order
         t.last_seen = self.tick
         if len(self.open) >= self.limits.max_open:
-            oldest, closer = min(self.open.values(), key=lambda v: v[0].last_seen)
+            oldest, closer = self._least_active()
             oldest.problem(f"closed early: more than {self.limits.max_open} transfers were in progress at once")
             self.given_up["transfers closed early (too many in progress at once)"] += 1
             closer()
         self.open[id(t)] = (t, lambda: close(t))
+        heapq.heappush(self._idle, (t.last_seen, t.order, id(t)))
+        if len(self._idle) > 4 * len(self.open) + 4096:  # mostly finished transfers: rebuild
+            self._idle = [(v.last_seen, v.order, k) for k, (v, _) in self.open.items()]
+            heapq.heapify(self._idle)
         return t
+
+    def _least_active(self) -> tuple[Transfer, Callable[[], None]]:
+        """The open transfer seen least recently (the one started first among equals), as `min` over
+        `open` would find it; each stale entry costs one pop, and a push only if the transfer is still open."""
+        while True:
+            seen, order, key = heapq.heappop(self._idle)
+            entry = self.open.get(key)
+            if entry is None or entry[0].order != order:  # finished (its id may be another transfer's now)
+                continue
+            if entry[0].last_seen != seen:
+                heapq.heappush(self._idle, (entry[0].last_seen, order, key))
+                continue
+            return entry
 
     def finish(self, t: Transfer, *, size: int, gaps: list[tuple[int, int]], end_known: bool, complete: bool,
                received: int, extension: str = "", label: str | None = None, gap_unit: str = "bytes",
@@ -87,10 +108,16 @@ class Context:
                 data = data[:size]
         if data is None:
             held = len(content.buf)
-            extra = size - held
+            extra = size - held  # zeros after the last byte received: a hole too
+            why = None
             if extra > 0 and not self.budget.take(extra):
-                t.problem(f"the memory limit for objects was reached: only its first {held:,} bytes were kept")
-                self.given_up["objects cut short: the memory limit for objects was reached"] += 1
+                why = "the memory limit for objects"
+            elif extra > 0 and not self.budget.hole(extra):
+                self.budget.give(extra)
+                why = f"the limit of {self.budget.holes:,} bytes of holes"
+            if why is not None:
+                t.problem(f"{why} was reached: only its first {held:,} bytes were kept")
+                self.given_up[f"objects cut short: {why} was reached"] += 1
                 size, complete = held, False
             data = content.data(size)
             content.release()

@@ -31,6 +31,7 @@ class Limits:
 
     max_object: int = 64 * 1024 * 1024  # bytes from the start of one object
     max_total: int = 256 * 1024 * 1024  # bytes held by all objects not yet handed over
+    max_holes: int = 256 * 1024 * 1024  # bytes never received that objects hold as zeros, all objects together
     max_open: int = 256  # transfers in progress at once; the least recently active one is closed early
     max_objects: int = 50_000  # objects reported; later ones are counted, not kept
     max_ranges: int = 65_536  # separate pieces of one object
