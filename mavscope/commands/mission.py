@@ -11,7 +11,7 @@ from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
 from mavscope.commands.common import console, not_the_capture, write_json
 from mavscope.errors import UsageError
-from mavscope.output.grid import columns, print_table
+from mavscope.output.grid import columns, many, print_lines, print_table
 from mavscope.output.tables import fmt, iso, param_text
 
 STATE = {"complete": "complete", "unacknowledged": "unacknowledged"}  # every other outcome: INCOMPLETE
@@ -59,6 +59,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     events: list[dict] = doc["events"]  # type: ignore[assignment]
     if not transfers and not events:
         con.print(f"No mission transfer in {path}.")
+    plain = many(len(transfers) + len(events) + sum(len(d["items"]) for d in transfers))
     for n, d in enumerate(transfers, 1):
         state = STATE.get(d["outcome"], "INCOMPLETE")
         extra = ""
@@ -68,16 +69,15 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
             extra += f"; {len(d['duplicate_frames'])} duplicate frame(s) ignored"
         if d["frames"]:
             extra += f"; frames {d['frames'][0]}-{d['frames'][-1]}"
-        con.print(f"Transfer {n}: {d['direction']} {d['mission_type']} from {d['from'][0]}/{d['from'][1]} "
-                  f"to {d['to'][0]}/{d['to'][1]}, {d['count']} items, {state}: {d['reason']}; "
-                  f"started {iso(d['start'])}{extra}", highlight=False)
+        print_lines(con, [f"Transfer {n}: {d['direction']} {d['mission_type']} from {d['from'][0]}/{d['from'][1]} "
+                          f"to {d['to'][0]}/{d['to'][1]}, {d['count']} items, {state}: {d['reason']}; "
+                          f"started {iso(d['start'])}{extra}"], plain=plain)
         if not d["items"]:
             continue
         print_table(con, columns("seq", "command", "frame", "parameters", "x / lat", "y / lon", "z", "frames",
-                                 right=("seq", "z")), d["items"], _item_row)
-    for n, e in enumerate(events, 1):
-        con.print(f"Event {n}: {e['text']}; at {iso(e['time'])}; frames {', '.join(map(str, e['frames']))}",
-                  highlight=False)
+                                 right=("seq", "z")), d["items"], _item_row, plain=plain)
+    print_lines(con, (f"Event {n}: {e['text']}; at {iso(e['time'])}; frames {', '.join(map(str, e['frames']))}"
+                      for n, e in enumerate(events, 1)), plain=plain)
     if args.plan:
         con.print(f"Plan written to {args.plan}")
     return ExitStatus.OK

@@ -12,11 +12,15 @@ line (never cut, nothing hidden), and one long cell cannot widen every line of t
 `visible` shows (a capture's control characters escaped), line breaks escaped too: one row is one line, for
 grep and for a reader. Styles (the colour of an event's kind) are rich's alone. rich is imported when a
 table is printed (a command writing JSON never loads it).
+
+Lines a command prints one per thing the capture holds (a mission transfer, an unmatched ACK) cost rich
+about as much as a row; `print_lines` writes them plain past RICH_ROWS too, and a command printing many
+small tables and lines (`mission`) decides once for all of them with `many`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeAlias, TypeVar
 
@@ -48,16 +52,41 @@ def columns(*names: str, right: Sequence[str] = ()) -> list[Column]:
     return [Column(n, right=n in right) for n in names]
 
 
+def many(rows: int) -> bool:
+    """Whether output of `rows` rows and lines is written plain."""
+    return rows > RICH_ROWS
+
+
 def print_table(con: Any, cols: Sequence[Column], items: Sequence[T], row: Callable[[T], Sequence[Cell]], *,
-                title: Cell = "", edge: bool = True, words: bool = False) -> None:
+                title: Cell = "", edge: bool = True, words: bool = False, plain: bool | None = None) -> None:
     """The table of `items` on the console `con`, a row each as `row` makes it (called once or, in the plain
     layout, twice an item: it must depend on the item alone). No items: the headings alone. `words`: every
     str cell is the capture's words, shown as `console.text` shows them (never highlighted, a line break
-    escaped) rather than as rich renders a str."""
-    if len(items) <= RICH_ROWS:
+    escaped) rather than as rich renders a str. `plain`: the layout (None: plain past RICH_ROWS rows)."""
+    if not (many(len(items)) if plain is None else plain):
         _rich(con, cols, items, row, title, edge, words)
     else:
         _plain(con, cols, items, row, title)
+
+
+def print_lines(con: Any, lines: Iterable[str], *, plain: bool) -> None:
+    """Lines of text, each shown as `visible` shows it: by rich (wrapped to the console's width, never
+    highlighted), or `plain`, written as they are in chunks of _CHUNK lines."""
+    if not plain:
+        for line in lines:
+            con.print(line, highlight=False)
+        return
+    from mavscope.output.console import visible
+
+    chunk: list[str] = []
+    for line in lines:
+        chunk.append(visible(line))
+        if len(chunk) >= _CHUNK:
+            con.file.write("\n".join(chunk) + "\n")
+            chunk.clear()
+    if chunk:
+        con.file.write("\n".join(chunk) + "\n")
+    con.file.flush()
 
 
 def _rich(con: Any, cols: Sequence[Column], items: Sequence[T], row: Callable[[T], Sequence[Cell]], title: Cell,

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from mavscope.output import grid
 from mavscope.output.grid import PAD_LIMIT, RICH_ROWS, Column, print_table
 from mavscope.output.tables import console
-from tests.analysis.mission_exchange import Exchange
+from tests.analysis.mission_exchange import Exchange, item_int
 from tests.conftest import Cli
 
 
@@ -99,7 +99,8 @@ def test_plain_layout_streams_in_bounded_memory() -> None:
 
 def test_commands_past_rich_rows_are_one_line_each(cli: Cli, tmp_path: Path) -> None:
     """RICH_ROWS + 200 commands, each to its own target (none a retry of another), the first half
-    acknowledged ACCEPTED by their targets: every command is its line, in the order sent, record first."""
+    acknowledged ACCEPTED by their targets: every command is its line, in the order sent, record first.
+    Then RICH_ROWS + 1 ACKs no command waits for: a line each, however narrow the console."""
     x = Exchange()
     n = RICH_ROWS + 200
     records = []
@@ -109,6 +110,10 @@ def test_commands_past_rich_rows_are_one_line_each(cli: Cli, tmp_path: Path) -> 
     for i in range(n // 2):
         x.veh.srcSystem, x.veh.srcComponent = 1 + i // 200, 1 + i % 200
         x.send("veh", "COMMAND_ACK", 400, 0, 0, 0, 255, 190)
+    orphans = []
+    for i in range(RICH_ROWS + 1):  # ACKs from systems no command went to: each its own line
+        x.veh.srcSystem, x.veh.srcComponent = 20 + i // 200, 1 + i % 200
+        orphans.append((x.send("veh", "COMMAND_ACK", 400, 4, 0, 0, 255, 190), x.veh.srcSystem, x.veh.srcComponent))
     status, out, err = cli("commands", x.tlog(tmp_path / "many.tlog"))
     assert status == 0, err
     lines = out.splitlines()
@@ -117,4 +122,32 @@ def test_commands_past_rich_rows_are_one_line_each(cli: Cli, tmp_path: Path) -> 
     assert [int(r.split()[0]) for r in rows] == records
     assert all(r.startswith(" ") for r in rows[:9])  # the record column is right-aligned
     assert [("ACCEPTED" in r, "UNANSWERED" in r) for r in rows] == [(i < n // 2, i >= n // 2) for i in range(n)]
-    assert lines[3 + n] == f"{n} commands, {n - n // 2} unanswered, 0 ACKs matching no command"
+    assert lines[3 + n] == f"{n} commands, {n - n // 2} unanswered, {len(orphans)} ACKs matching no command"
+    # result 4 is MAV_RESULT_FAILED
+    assert lines[4 + n:] == [f"  frame {r}: ACK MAV_CMD_COMPONENT_ARM_DISARM MAV_RESULT_FAILED from {s}/{c}"
+                             for r, s, c in orphans]
+
+
+def test_mission_past_rich_rows_is_one_line_a_transfer_and_an_item(cli: Cli, tmp_path: Path) -> None:
+    """RICH_ROWS // 2 + 100 uploads of 1 item each (MISSION_COUNT, MISSION_REQUEST_INT, MISSION_ITEM_INT,
+    MISSION_ACK ACCEPTED, built with pymavlink; command 16 is MAV_CMD_NAV_WAYPOINT) are more than RICH_ROWS
+    transfers and items together: each transfer is its line, then its heading, rule and item line; nothing
+    wraps whatever the line's length."""
+    x = Exchange()
+    n = RICH_ROWS // 2 + 100
+    for i in range(n):
+        x.send("gcs", "MISSION_COUNT", 1, 1, 1, 0)
+        x.send("veh", "MISSION_REQUEST_INT", 255, 190, 0, 0)
+        item_int(x, "gcs", (1, 1), 0, 16, 47.0 + i * 1e-4, 8.0, 10.0 + i)
+        x.send("veh", "MISSION_ACK", 255, 190, 0, 0)
+        x.wait(5)  # each upload its own transfer
+    status, out, err = cli("mission", x.tlog(tmp_path / "uploads.tlog"))
+    assert status == 0, err
+    lines = out.splitlines()
+    assert len(lines) == 4 * n
+    for i in range(n):
+        head, cols, rule, item = lines[4 * i: 4 * i + 4]
+        assert head.startswith(f"Transfer {i + 1}: upload ") and head.endswith(f"frames {4 * i + 1}-{4 * i + 4}")
+        assert ", 1 items, complete: " in head
+        assert cols.split()[:3] == ["seq", "command", "frame"] and set(rule) <= {"-", " "}
+        assert item.split()[:2] == ["0", "NAV_WAYPOINT"] and f"{47.0 + i * 1e-4:.7f}°" in item
