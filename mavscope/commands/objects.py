@@ -14,7 +14,7 @@ from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
 from mavscope.commands.common import console, write_json
 from mavscope.errors import UsageError
-from mavscope.output.grid import columns, print_table
+from mavscope.output.grid import columns, many, print_lines, print_table
 from mavscope.output.objects_out import ObjectWriter
 from mavscope.output.tables import iso
 
@@ -96,6 +96,13 @@ def _state(o: dict) -> str:
     return text if o["end_known"] else text + ", end unknown"
 
 
+def _operation(op: dict) -> str:
+    what = op["opcode"] + (f" {op['path']!r}" if op["path"] else "") + (
+        f" -> {op['new_path']!r}" if op["new_path"] else "")
+    return (f"FTP {what} from {op['client'][0]}/{op['client'][1]}: {op['result'] or 'no answer'}"
+            f"{'; ' + op['detail'] if op['detail'] else ''} (frame {op['frame']})")
+
+
 def _print(env: Env, path: str, doc: dict, out: str | None) -> None:
     con = console(env)
     objs: list[dict] = doc["objects"]
@@ -120,11 +127,7 @@ def _print(env: Env, path: str, doc: dict, out: str | None) -> None:
         s = doc["summary"]
         con.print(f"{s['objects']} object(s), {s['complete']} complete, {s['bytes']:,} bytes; started "
                   f"{iso(objs[0]['start'])}", highlight=False, markup=False)
-    for op in doc["operations"]:
-        what = op["opcode"] + (f" {op['path']!r}" if op["path"] else "") + (
-            f" -> {op['new_path']!r}" if op["new_path"] else "")
-        con.print(f"FTP {what} from {op['client'][0]}/{op['client'][1]}: {op['result'] or 'no answer'}"
-                  f"{'; ' + op['detail'] if op['detail'] else ''} (frame {op['frame']})", highlight=False, markup=False)
+    print_lines(con, (_operation(op) for op in doc["operations"]), plain=many(len(doc["operations"])))
     orphans = doc["image_orphans"]["frames"]
     if orphans:
         con.print(f"{orphans} ENCAPSULATED_DATA frame(s) with no image announced before them (not kept)",

@@ -8,7 +8,7 @@ from mavscope.analysis.timeline import reconstruct
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
 from mavscope.commands.common import console, write_json
-from mavscope.output.grid import columns, print_table
+from mavscope.output.grid import columns, many, print_lines, print_table
 from mavscope.output.tables import fmt, iso
 
 
@@ -34,6 +34,12 @@ def _clock_row(c: dict) -> list[str]:
             iso(c.get("zero_at"))]
 
 
+def _restarts(c: dict) -> str:
+    at = ", ".join(iso(x) for x in c["restarted_at"][:3]) + (" ..." if c["restarts"] > 3 else "")
+    return (f"  {c['source']} of component {c['component']} restarted {c['restarts']} time(s) (at {at}): offset, "
+            "drift and zero are those of its last run")
+
+
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     with analysis_pass(args, env) as frames:
         path, select = frames.session.name, frames.selection
@@ -46,18 +52,16 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     con = console(env)
     con.print(f"Capture {path}: {iso(doc['start'])} to {iso(doc['end'])} ({fmt(doc['duration'])} s); "  # type: ignore[arg-type]
               "offsets are clock minus capture time at the first frame")
-    for s in doc["systems"]:  # type: ignore[attr-defined]
+    systems: list[dict] = doc["systems"]  # type: ignore[assignment]
+    plain = many(sum(len(s["clocks"]) + len(s["round_trips"]) for s in systems))  # a layout for every table
+    for s in systems:
         print_table(con, columns("comp", "clock", "kind", "samples", "offset s", "drift ppm", "jitter ms",
                                  "reads zero at", right=("comp", "samples", "offset s", "drift ppm", "jitter ms")),
-                    s["clocks"], _clock_row, title=f"System {s['sysid']}")
-        for c in s["clocks"]:
-            if c["restarts"]:
-                at = ", ".join(iso(x) for x in c["restarted_at"][:3]) + (" ..." if c["restarts"] > 3 else "")
-                con.print(f"  {c['source']} of component {c['component']} restarted {c['restarts']} time(s) "
-                          f"(at {at}): offset, drift and zero are those of its last run", highlight=False)
-        for r in s["round_trips"]:
-            con.print(f"  {r['kind']} round trips to system {r['peer']}: {r['count']}, "
-                      f"min {r['min_ms']:.3f} ms, mean {r['mean_ms']:.3f} ms, max {r['max_ms']:.3f} ms")
+                    s["clocks"], _clock_row, title=f"System {s['sysid']}", plain=plain)
+        print_lines(con, (_restarts(c) for c in s["clocks"] if c["restarts"]), plain=plain)
+        print_lines(con, (f"  {r['kind']} round trips to system {r['peer']}: {r['count']}, min {r['min_ms']:.3f} ms, "
+                          f"mean {r['mean_ms']:.3f} ms, max {r['max_ms']:.3f} ms" for r in s["round_trips"]),
+                    plain=plain)
     if not doc["systems"]:
         con.print("No clock information (the capture has no timestamps or no timed messages).")
     return ExitStatus.OK

@@ -13,12 +13,14 @@ from pathlib import Path
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from pymavlink.dialects.v20 import ardupilotmega as v2
 
 from mavscope.output import grid
 from mavscope.output.grid import PAD_LIMIT, RICH_ROWS, Column, print_table
 from mavscope.output.tables import console
 from tests.analysis.mission_exchange import Exchange, item_int
 from tests.conftest import Cli
+from tests.support.flows import T0, Sender, write_tlog
 
 
 def _width(s: str) -> int:
@@ -151,3 +153,25 @@ def test_mission_past_rich_rows_is_one_line_a_transfer_and_an_item(cli: Cli, tmp
         assert ", 1 items, complete: " in head
         assert cols.split()[:3] == ["seq", "command", "frame"] and set(rule) <= {"-", " "}
         assert item.split()[:2] == ["0", "NAV_WAYPOINT"] and f"{47.0 + i * 1e-4:.7f}°" in item
+
+
+def test_timeline_past_rich_rows_lays_out_every_system_plain(cli: Cli, tmp_path: Path) -> None:
+    """6 systems x 200 components, each sending one GLOBAL_POSITION_INT (built with pymavlink) whose
+    time_boot_ms is its own: 1,200 boot clocks of one sample, 200 per system, so no table has more than
+    RICH_ROWS rows but all of them together do. Each system is its title, heading, rule and one line a
+    component in component order; rich's 250 small tables took timeline 29.5 s on 50,000 such clocks."""
+    entries = []
+    for i in range(1200):
+        sysid, compid = 1 + i // 200, 1 + i % 200
+        msg = v2.MAVLink_global_position_int_message(1000 * (i + 1), 0, 0, 0, 0, 0, 0, 0, 0)
+        entries.append((T0 + i * 0.01, Sender(sysid, compid).pack(msg)))
+    status, out, err = cli("timeline", write_tlog(tmp_path, entries))
+    assert status == 0, err
+    lines = out.splitlines()
+    start = lines.index("System 1")  # after the capture's line (rich's: wrapped to the console's width)
+    assert lines[0].startswith("Capture ") and start <= 3
+    for k in range(6):
+        block = lines[start + 203 * k: start + 203 * (k + 1)]
+        assert block[0] == f"System {k + 1}" and block[1].split()[:3] == ["comp", "clock", "kind"]
+        assert [r.split()[:4] for r in block[3:]] == [[str(c), "time_boot_ms", "boot", "1"] for c in range(1, 201)]
+    assert len(lines) == start + 6 * 203
