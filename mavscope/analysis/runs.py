@@ -14,3 +14,17 @@ def runs(numbers: Iterable[int]) -> list[list[int]]:
         else:
             out.append([n, n])
     return out
+
+
+def missing_runs(present: Iterable[int], count: int) -> list[list[int]]:
+    """[[first, last], ...]: the runs of 0..count-1 not in `present`. Worked out from what is present, not
+    from every number: a count of 65,535 costs no more than the numbers present."""
+    out: list[list[int]] = []
+    nxt = 0
+    for n in sorted(n for n in present if 0 <= n < count):
+        if n > nxt:
+            out.append([nxt, n - 1])
+        nxt = n + 1
+    if nxt < count:
+        out.append([nxt, count - 1])
+    return out

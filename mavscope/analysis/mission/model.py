@@ -7,6 +7,7 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass, field
 
+from mavscope.analysis.runs import missing_runs
 from mavscope.mavlink.frame import Addr
 from mavscope.mavlink.semantics import finite
 
@@ -101,17 +102,8 @@ class Transfer:
 
     @property
     def missing(self) -> list[list[int]]:
-        """[[first, last], ...]: the runs of seqs below `count` with no item in the capture. Worked out from
-        the items, not from every seq: a MISSION_COUNT of 65,535 costs no more than the items it got."""
-        out: list[list[int]] = []
-        nxt = 0
-        for s in sorted(s for s in self.items if 0 <= s < self.count):
-            if s > nxt:
-                out.append([nxt, s - 1])
-            nxt = s + 1
-        if nxt < self.count:
-            out.append([nxt, self.count - 1])
-        return out
+        """[[first, last], ...]: the runs of seqs below `count` with no item in the capture."""
+        return missing_runs(self.items, self.count)
 
     @property
     def missing_count(self) -> int:

@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 from mavscope.analysis.objects.context import Context
 from mavscope.analysis.objects.model import DOWNLOAD, IMAGE, Addr, Transfer, int_field
-from mavscope.analysis.runs import runs
+from mavscope.analysis.runs import missing_runs
 from mavscope.fields.containers.others import ENCAP
 from mavscope.mavlink.frame import Frame
 
@@ -97,8 +97,7 @@ class ImageTracker:
     def _finish(self, t: Transfer) -> None:
         d = t.details
         seen: set[int] = d.pop("_seen", set())
-        missing = [n for n in range(d["packets"]) if n not in seen]
-        d["missing_packets"] = runs(missing[:4096])
+        d["missing_packets"] = missing_runs(seen, d["packets"])
         size = t.end_at or 0
         gaps = t.content.gaps(size)
         self.ctx.finish(t, size=size, gaps=gaps, end_known=True, complete=not gaps, received=t.content.received,
