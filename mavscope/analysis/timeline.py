@@ -36,9 +36,11 @@ RESTART_BACK = 1.0  # seconds a clock must step back to have restarted (less is 
 RESTARTS_LISTED = 20  # capture times of restarts listed per clock (all of them are counted)
 ROUND_TRIPS_LISTED = 1000  # round-trip times listed per pair (all of them are counted)
 PENDING_REQUESTS = 4096  # TIMESYNC/PING requests waiting for their answer (the oldest go first)
+MAX_CLOCKS = 16_384  # clocks followed: a capture names up to 65,280 senders x 256 signing links (the later
+# ones are counted, not followed: a real capture has tens)
 
 
-@dataclass
+@dataclass(slots=True)
 class Clock:
     """One clock's samples, as running sums of the least-squares fit (x: capture time from the first
     sample, y: reading - capture time)."""
@@ -136,6 +138,7 @@ class Timeline:
     end: float | None
     clocks: dict[tuple[int, int, str], Clock]
     round_trips: dict[tuple[str, int, int], RoundTrips]
+    unfollowed: int = 0  # readings of clocks beyond the first MAX_CLOCKS (not followed)
 
     def to_json(self, select: Selection | None = None) -> dict[str, object]:
         """The `timeline --json` document (the systems `select` selects; all without it)."""
@@ -166,7 +169,7 @@ class Timeline:
             })
         return {"start": self.start, "end": self.end,
                 "duration": None if self.start is None or self.end is None else self.end - self.start,
-                "systems": [systems[k] for k in sorted(systems)]}
+                "systems": [systems[k] for k in sorted(systems)], "unfollowed_readings": self.unfollowed}
 
 
 class _Pending(OrderedDict[object, tuple[int, float, int]]):
@@ -185,11 +188,16 @@ def reconstruct(frames: Iterable[Frame]) -> Timeline:
     ts_requests = _Pending()  # ts1 -> (requester sysid, time, record)
     ping_requests = _Pending()  # (sysid, seq, time_usec) -> (sysid, time, record)
     start = end = None
+    unfollowed = 0
 
     def sample(f: Frame, source: str, t: float, value: float) -> None:
+        nonlocal unfollowed
         key = (f.sysid, f.compid, source)
         c = clocks.get(key)
         if c is None:
+            if len(clocks) >= MAX_CLOCKS:
+                unfollowed += 1
+                return
             c = clocks[key] = Clock(f.sysid, f.compid, source)
         c.add(t, value)
 
@@ -244,4 +252,4 @@ def reconstruct(frames: Iterable[Frame]) -> Timeline:
                 req2 = ping_requests.get((target, seq, tu))
                 if req2 is not None:
                     trip("PING", target, f.sysid).add((t - req2[1]) * 1000, req2[2], f.record)
-    return Timeline(start, end, clocks, trips)
+    return Timeline(start, end, clocks, trips, unfollowed)

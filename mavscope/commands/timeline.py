@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from mavscope.analysis import timeline as clocks
 from mavscope.analysis.timeline import reconstruct
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
@@ -62,6 +63,9 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         print_lines(con, (f"  {r['kind']} round trips to system {r['peer']}: {r['count']}, min {r['min_ms']:.3f} ms, "
                           f"mean {r['mean_ms']:.3f} ms, max {r['max_ms']:.3f} ms" for r in s["round_trips"]),
                     plain=plain)
+    if doc["unfollowed_readings"]:
+        con.print(f"{doc['unfollowed_readings']:,} readings of clocks beyond the first {clocks.MAX_CLOCKS:,} were not "
+                  "followed")
     if not doc["systems"]:
         con.print("No clock information (the capture has no timestamps or no timed messages).")
     return ExitStatus.OK

@@ -96,3 +96,23 @@ def test_a_reboot_restarts_the_boot_clock_instead_of_bending_the_fit(cli: Cli, r
     clock = next(c for s in doc["systems"] if s["sysid"] == 1 for c in s["clocks"] if c["source"] == "time_boot_ms")
     assert clock["restarts"] == 1 and clock["restarted_at"] == pytest.approx(falls)
     assert abs(clock["drift_ppm"]) < 1000 and clock["jitter_ms"] < 1000
+
+
+def test_clocks_past_the_limit_are_counted_not_followed(cli: Cli, tmp_path: Path,
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A capture can name 65,280 senders x 256 signing links, a clock each (200,000 signed HEARTBEATs with
+    random link ids held 380 MB of clocks). With the limit at 3: systems 1-5 each send two
+    GLOBAL_POSITION_INTs (pymavlink), in two rounds; the clocks of 1-3 are followed (2 samples each), the
+    4 readings of 4 and 5 are counted."""
+    monkeypatch.setattr("mavscope.analysis.timeline.MAX_CLOCKS", 3)
+    entries = []
+    for k in range(10):
+        sysid = 1 + k % 5
+        msg = flows.v2.MAVLink_global_position_int_message(1000 * (k + 1), 0, 0, 0, 0, 0, 0, 0, 0)
+        entries.append((flows.T0 + k, flows.Sender(sysid, 1, seq=k // 5).pack(msg)))
+    path = flows.write_tlog(tmp_path, entries)
+    doc = cli.json("timeline", path)
+    assert [(s["sysid"], [c["samples"] for c in s["clocks"]]) for s in doc["systems"]] == [(1, [2]), (2, [2]), (3, [2])]
+    assert doc["unfollowed_readings"] == 4
+    status, out, _ = cli("timeline", path)
+    assert status == 0 and "4 readings of clocks beyond the first 3 were not followed" in out
