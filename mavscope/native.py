@@ -189,13 +189,17 @@ class _Writer:
     The walk runs in C without the GIL, and a write(2) to a file releases it too: with two cores the
     JSON text of the next batch is made while the last one is copied to the file. The walker's batches
     come in bytearrays of a small pool (`buffer()`), given back once written, so the process does not
-    map fresh memory for every batch; the pool's size bounds what waits to be written. An error of `out`
-    (a closed pipe) is raised again in the producing thread by `put`, `buffer` or `close`.
+    map fresh memory for every batch. What waits to be written is bounded: `depth` pooled bytearrays, and
+    at most QUEUED chunks in all (the Python pipeline's lines come as bytes, a chunk per handed-back record,
+    which a slow reader of `out` would otherwise let pile up). An error of `out` (a closed pipe) is raised
+    again in the producing thread by `put`, `buffer` or `close`.
     """
+
+    QUEUED = 64
 
     def __init__(self, out: IO[bytes], depth: int = 8) -> None:
         self.out = out
-        self.queue: queue.Queue[bytes | bytearray | None] = queue.Queue()
+        self.queue: queue.Queue[bytes | bytearray | None] = queue.Queue(max(self.QUEUED, depth + 1))
         self.free: queue.Queue[bytearray] = queue.Queue()
         for _ in range(depth):
             self.free.put(bytearray())
@@ -251,6 +255,8 @@ class LineSink:
     `problems`). Counts the frames written (`frames`); with `count`, stops after that many (`left`
     reaches 0: `done`)."""
 
+    LINES = 512
+
     def __init__(self, stage: SecurityStage, problems: Reporter, render: Callable[[Frame], bytes],
                  put: Callable[[bytes | bytearray], object], count: int | None = None) -> None:
         self.run = stage.run
@@ -266,6 +272,9 @@ class LineSink:
         return not self.left
 
     def python(self, items: Iterator[Frame | Anomaly] | list[Frame | Anomaly] | list[Anomaly]) -> None:
+        """The lines of the frames the Python pipeline makes of `items`, put in chunks of at most LINES lines
+        (the frames a capture's end releases from TCP reassembly can be many: 100,000 segments out of
+        order held 400 MB of lines when they were put at once)."""
         lines: list[bytes] = []
         problems, render = self.problems, self.render
         for item in self.run(items):
@@ -278,9 +287,15 @@ class LineSink:
             self.left -= 1
             if not self.left:
                 break
+            if len(lines) >= self.LINES:
+                self._put(lines)
+                lines = []
         if lines:
-            self.frames += len(lines)
-            self.put(b"".join(lines))
+            self._put(lines)
+
+    def _put(self, lines: list[bytes]) -> None:
+        self.frames += len(lines)
+        self.put(b"".join(lines))
 
     def native(self, text: bytes | bytearray) -> None:
         left = self.left

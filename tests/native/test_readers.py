@@ -155,3 +155,41 @@ def test_tlog_text_runs_end_at_frames_written_natively(tmp_path: Path, cli: Cli)
         for _ in walk.batches():
             pass
         assert walk.stats()["frames_native"] == 3
+
+
+def test_frames_released_at_once_are_written_in_chunks(tmp_path: Path, dialect: Dialect) -> None:
+    """2,000 HEARTBEATs (pymavlink) in one TCP stream, sent after its SYN as 2,000 segments last first:
+    reassembly holds them all until the first segment comes, then releases 2,000 frames from one record.
+    They were put as one chunk of 2,000 lines (100,000 segments out of order held 400 MB of lines); now
+    no write holds more than LineSink.LINES lines, and the output is the pure path's, line for line."""
+    from mavscope.native import LineSink
+
+    mav = mav2()
+    frames = []
+    for _ in range(2000):
+        frames.append(heartbeat(mav))
+        mav.seq = (mav.seq + 1) % 256
+    offsets = [sum(len(f) for f in frames[:k]) for k in range(len(frames))]
+
+    def segment(seq: int, payload: bytes, flags: int = 0x18) -> bytes:
+        return nh.link("ethernet", nh.ipv4(b"\x0a\0\0\x02", b"\x0a\0\0\x01", 6,
+                                           nh.tcp(40000, 5760, seq, payload, flags)), False)
+
+    records = [(1_700_000_000, 0, segment(999, b"", 0x02))]  # the SYN: the stream starts at 1000
+    records += [(1_700_000_000, 1 + k, segment(1000 + offsets[k], frames[k])) for k in reversed(range(2000))]
+    path = tmp_path / "reversed.pcap"
+    path.write_bytes(nh.pcap(records, nh.LINKTYPES["ethernet"]))
+    writes: list[int] = []
+    real_put = LineSink._put
+
+    def put(self: LineSink, lines: list[bytes]) -> None:
+        writes.append(len(lines))
+        real_put(self, lines)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(LineSink, "_put", put)
+        out, err, _ = native_output(path, dialect)
+    expected, expected_err = pure_output(path, dialect)
+    assert out == expected and err == expected_err
+    assert out.count(b'"HEARTBEAT"') == 2000 and sum(writes) == 2000
+    assert max(writes) <= LineSink.LINES
