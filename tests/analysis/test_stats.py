@@ -255,3 +255,26 @@ def test_seq_channels_are_per_endpoint_pair_and_bounded() -> None:
     # nothing (duplicates), and 2 is the number of the frame before with other bytes (unchanged)
     assert sum(tr.duplicates + tr.unchanged for e, tr in chans.items() if e != ("*", "*")) == 0
     assert (t.lost, t.duplicates, t.unchanged) == (0, 4 * 2, 4)
+
+
+def test_a_link_with_many_endpoints_lists_eight_in_its_cell(cli: Cli, tmp_path: Path) -> None:
+    """One vehicle (1/1) sending a HEARTBEAT (pymavlink) from each of 12 UDP ports, 10.0.0.2:5001-5012:
+    the JSON lists all 12, the text table's cell the first 8 in the JSON's order and "and 4 more" (a
+    capture can give one link an endpoint per frame: rich wrapped a cell of 200,000 for 6 s)."""
+    from tests.native import build as nh
+    from tests.support.pmav import heartbeat, mav2
+
+    mav = mav2()
+    records = []
+    for k in range(12):
+        datagram = nh.udp(5001 + k, 14550, heartbeat(mav))
+        mav.seq += 1
+        records.append((1_700_000_000 + k, 0, nh.link("ethernet", nh.ipv4(b"\x0a\0\0\x02", b"\x0a\0\0\x01", 17,
+                                                                            datagram), False)))
+    path = tmp_path / "ports.pcap"
+    path.write_bytes(nh.pcap(records, nh.LINKTYPES["ethernet"]))
+    [link] = cli.json("stats", path)["links"]
+    assert sorted(link["endpoints"]) == sorted(f"10.0.0.2:{5001 + k}" for k in range(12))
+    status, out, _ = cli("stats", path, environ={"COLUMNS": "400"})
+    assert status == 0
+    assert f"{', '.join(link['endpoints'][:8])} and 4 more (--json lists them)" in out
