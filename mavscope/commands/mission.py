@@ -12,7 +12,7 @@ from mavscope.commands.analysis_common import add_analysis_options, analysis_pas
 from mavscope.commands.common import console, not_the_capture, write_json
 from mavscope.errors import UsageError
 from mavscope.output.grid import columns, many, print_lines, print_table
-from mavscope.output.tables import fmt, iso, param_text
+from mavscope.output.tables import fmt, iso, listed, param_text
 
 STATE = {"complete": "complete", "unacknowledged": "unacknowledged"}  # every other outcome: INCOMPLETE
 
@@ -95,4 +95,4 @@ def _item_row(it: dict) -> list[str]:
                        if labels[i] or (v not in (0, 0.0, None)))
     unit = {"deg": "°", "m": " m"}.get(it["units"], "")
     return [str(it["seq"]), it["command"].removeprefix("MAV_CMD_"), it["frame"].removeprefix("MAV_FRAME_"), params,
-            _coord(it["x"], unit), _coord(it["y"], unit), fmt(it["z"], 2), ", ".join(map(str, it["frames"]))]
+            _coord(it["x"], unit), _coord(it["y"], unit), fmt(it["z"], 2), listed(it["frames"])]

@@ -15,10 +15,9 @@ from mavscope.commands.analysis_common import add_analysis_options, analysis_pas
 from mavscope.commands.common import console, whole_number, write_json
 from mavscope.notes import Finding
 from mavscope.output.grid import columns, print_table
-from mavscope.output.tables import fmt, iso, sparkline
+from mavscope.output.tables import fmt, iso, listed, sparkline
 
 SPARK_WIDTH = 40
-ENDPOINTS_SHOWN = 8  # endpoints of a link in the text table
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -55,12 +54,12 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     def link(lk: dict) -> list[str]:
         return [f"{lk['sysid']}/{lk['compid']}", str(lk["received"]), str(lk["lost"]), fmt(lk["loss_pct"], 2),
                 str(lk["duplicates"]), str(lk["reordered"]), str(lk["v1"]), str(lk["v2"]),
-                _counts(lk["crc"]), _counts(lk["signature"]), _endpoints(lk["endpoints"])]
+                _counts(lk["crc"]), _counts(lk["signature"]), listed(lk["endpoints"])]
 
     def conversation(c: dict) -> list[str]:
         return [str(c["transport"]), str(c["a"]), str(c["b"]) or "-", str(c["frames"]), str(c["frames_a_to_b"]),
                 str(c["frames_b_to_a"]), str(c["bytes"]), iso(c["start"]), fmt(c["duration"]),
-                ", ".join(f"{s}/{k}" for s, k in cast("list[list[int]]", c["systems"]))]
+                listed([f"{s}/{k}" for s, k in cast("list[list[int]]", c["systems"])])]
 
     print_table(con, columns("sysid/compid", "message", "count", "rate Hz", "bytes", "rate per second",
                              right=("sysid/compid", "count", "rate Hz", "bytes")),
@@ -81,13 +80,6 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
               f"signature {_counts(tot['signature'])}")
     print_findings(con, findings)
     return ExitStatus.OK
-
-
-def _endpoints(endpoints: list[str]) -> str:
-    """A link's endpoints in its table cell: the first ENDPOINTS_SHOWN, and how many more (a capture can give
-    one link an endpoint per frame: rich wrapped a cell of 200,000 of them for 6 s)."""
-    more = len(endpoints) - ENDPOINTS_SHOWN
-    return ", ".join(endpoints[:ENDPOINTS_SHOWN]) + (f" and {more:,} more (--json lists them)" if more > 0 else "")
 
 
 def _pure(args: argparse.Namespace, env: Env) -> tuple[Stats, list[Finding], str, Selection]:

@@ -51,6 +51,17 @@ def fmt(value: object, digits: int = 3) -> str:
     return str(value)
 
 
+SHOWN = 8  # entries of a list a table cell shows
+
+
+def listed(values: Sequence[object], shown: int = SHOWN) -> str:
+    """A list in a table cell: its first `shown` entries and how many more (--json lists them all). A
+    capture can make such a list as long as it has frames (a link's endpoints, an item's frames): rich
+    wrapped a cell of 200,000 endpoints for 6 s."""
+    more = len(values) - shown
+    return ", ".join(map(str, values[:shown])) + (f" and {more:,} more (--json lists them)" if more > 0 else "")
+
+
 def param_text(v: object) -> str:
     """A command or mission parameter: 9 significant digits (degrees to the centimetre), and None (a NaN
     in the frame: JSON carries it as null; PX4 and QGC send NaN for "unchanged") as NaN."""

@@ -309,7 +309,8 @@ class MissionTracker:
         if t.max_request > seq:  # the receiver had moved on: this copy answers nothing, the earlier one stays
             old.frames.append(f.record)
         else:  # a copy the receiver asked for again: it replaces the earlier one
-            item.frames = old.frames + item.frames
+            old.frames.extend(item.frames)  # in place: a copy per resend was quadratic in the resends
+            item.frames = old.frames
             t.items[seq] = item
         return t
 

@@ -11,7 +11,7 @@ from textual.widgets import DataTable, Label
 from mavscope.analysis.selection import Selection
 from mavscope.analysis.stats import Stats, compute_stats
 from mavscope.mavlink.frame import Frame
-from mavscope.output.tables import sparkline
+from mavscope.output.tables import listed, sparkline
 from mavscope.tui.screens.analysis import AnalysisScreen
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
 
@@ -52,7 +52,7 @@ class StatsScreen(AnalysisScreen):
             links.add_row(f"{lk['sysid']}/{lk['compid']}", Text(f"{lk['received']:,}", justify="right"),
                           Text(f"{lk['lost']:,}", justify="right"), _pct(lk["loss_pct"]),  # type: ignore[arg-type]
                           Text(str(lk["duplicates"]), justify="right"), Text(str(lk["reordered"]), justify="right"),
-                          crc, sig, ", ".join(lk["endpoints"]))  # type: ignore[arg-type]
+                          crc, sig, listed(lk["endpoints"]))  # type: ignore[arg-type]
         rates = self.query_one("#rates", DataTable)
         duration = stats.duration
         rates.add_columns("Sys/Comp", "Message", "Count", "Rate", "Bytes",
