@@ -457,3 +457,29 @@ def test_the_events_screen_shows_a_statustexts_escape_sequences_escaped(tmp_path
             assert not any("\x1b" in c or "\x07" in c for c in cells)
 
     run(scenario())
+
+
+def test_analysis_tables_list_the_first_rows_and_say_how_many_there_are(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With the limit at 3 rows, the statistics screen's message rates of px4_sitl_udp.pcap (17 streams)
+    list 3 and the title says 3 of 17 and where the rest is; the mission screen's items (4) list 3. Textual
+    laid out 200,000 mission transfers for 30 s when every one was a row."""
+    monkeypatch.setattr("mavscope.tui.screens.analysis.TABLE_ROWS", 3)
+
+    async def scenario() -> None:
+        app = create_app(PX4)
+        async with app.run_test(size=SIZE) as pilot:
+            await ready(pilot)
+            await pilot.press("s")
+            await wait_for(pilot, lambda: app.screen.result is not None)
+            messages = app.screen.result.messages_json()
+            assert len(messages) == 17 and app.screen.query_one("#rates").row_count == 3
+            title = str(app.screen.query_one("#rates-title").content)
+            assert title.endswith("(the first 3 of 17 listed: `mavscope stats --json` has them all)")
+            await pilot.press("escape")
+            await pilot.press("m")
+            await wait_for(pilot, lambda: app.screen.result is not None)
+            [t] = app.screen.result.transfers
+            assert len(t.items) == 4 and app.screen.query_one("#items").row_count == 3
+            assert "(the first 3 of 4 listed" in str(app.screen.query_one("#items-title").content)
+
+    run(scenario())

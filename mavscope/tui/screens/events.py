@@ -14,7 +14,7 @@ from mavscope.analysis.events import Event, EventLog
 from mavscope.analysis.selection import Selection
 from mavscope.mavlink.frame import Frame
 from mavscope.output.console import text
-from mavscope.tui.screens.analysis import AnalysisScreen
+from mavscope.tui.screens.analysis import AnalysisScreen, first_rows
 from mavscope.tui.verdicts import BLUE, DIM, GREEN, ORANGE, RED
 
 KIND_STYLE = {"arming": ORANGE, "mode": BLUE, "failsafe": RED, "reboot": ORANGE, "link": RED, "signing": ORANGE,
@@ -48,7 +48,8 @@ class EventsScreen(AnalysisScreen):
         table = self.query_one("#events", DataTable)
         table.add_columns("Frame", "Time", "Kind", "From", "Event")
         base = self.index.time_base
-        for i, e in enumerate(events):
+        listed, cut = first_rows(events, "events")
+        for i, e in enumerate(listed):
             when = f"{e.time - base:.3f}" if e.time is not None and base is not None else "-"
             table.add_row(Text(str(e.frame), justify="right"), Text(when, justify="right"),
                           Text(e.kind, style=KIND_STYLE.get(e.kind, "")), f"{e.sender[0]}/{e.sender[1]}",
@@ -56,7 +57,7 @@ class EventsScreen(AnalysisScreen):
         counts = ", ".join(f"{k} {n}" for k, n in self.counts.items()) or "none"
         dropped = "; not listed: " + ", ".join(f"{k} {n}" for k, n in self.dropped.items()) if self.dropped else ""
         self.query_one("#events-title", Label).update(
-            Text(f"{len(events)} events ({counts}{dropped}).  Enter: go to the event's frame"))
+            Text(f"{len(events)} events ({counts}{dropped}){cut}.  Enter: go to the event's frame"))
         table.focus()
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:

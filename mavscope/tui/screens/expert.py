@@ -13,7 +13,7 @@ from mavscope.analysis.selection import Selection
 from mavscope.mavlink.frame import Frame
 from mavscope.notes import Finding, Severity
 from mavscope.output.console import text
-from mavscope.tui.screens.analysis import AnalysisScreen
+from mavscope.tui.screens.analysis import AnalysisScreen, first_rows
 from mavscope.tui.verdicts import BLUE, DIM, ORANGE, RED
 
 SEVERITY_STYLE = {Severity.ERROR: RED, Severity.WARN: ORANGE, Severity.NOTE: BLUE, Severity.CHAT: DIM}
@@ -37,13 +37,14 @@ class ExpertScreen(AnalysisScreen):
         findings: list[Finding] = result  # type: ignore[assignment]
         table = self.query_one("#findings", DataTable)
         table.add_columns("Severity", "Code", "Finding", "Frames")
-        for i, f in enumerate(findings):
+        listed, cut = first_rows(findings, "stats")
+        for i, f in enumerate(listed):
             frames = ", ".join(map(str, f.frames[:8])) + ("…" if len(f.frames) > 8 else "")
             table.add_row(Text(f.severity.value, style=SEVERITY_STYLE.get(f.severity, "")), f.code,
                           text(f.message), frames, key=str(i))  # a message is no markup
         counts = {s: sum(1 for f in findings if f.severity is s) for s in Severity}
         summary = ", ".join(f"{n} {s.value}" for s, n in counts.items() if n) or "no findings"
-        self.query_one("#expert-title", Label).update(f"{summary}.  Enter: go to the finding's first frame")
+        self.query_one("#expert-title", Label).update(f"{summary}{cut}.  Enter: go to the finding's first frame")
         table.focus()
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:

@@ -23,7 +23,7 @@ from mavscope.analysis.selection import Selection
 from mavscope.mavlink.frame import Frame, decode_payload
 from mavscope.mavlink.semantics import float_text, is_global
 from mavscope.output.console import text
-from mavscope.tui.screens.analysis import AnalysisScreen
+from mavscope.tui.screens.analysis import AnalysisScreen, first_rows
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
 from mavscope.tui.widgets.track_plot import TrackPlot
 
@@ -54,7 +54,7 @@ class MissionScreen(AnalysisScreen):
     def compose_body(self) -> ComposeResult:
         with Horizontal():
             with Vertical(id="mission-left"):
-                yield Label("Transfers and operations (Enter: show a transfer's items)")
+                yield Label("Transfers and operations (Enter: show a transfer's items)", id="transfers-title")
                 yield DataTable(id="transfers", cursor_type="row", zebra_stripes=True)
                 yield Label("Items", id="items-title")
                 yield DataTable(id="items", cursor_type="row", zebra_stripes=True)
@@ -99,14 +99,16 @@ class MissionScreen(AnalysisScreen):
         table.add_columns("#", "Direction", "From", "To", "Type", "Items", "Result", "Frames")
         dialect = self.index.dialect
         mtypes = dialect.enums.get("MAV_MISSION_TYPE")
-        for i, t in enumerate(res.transfers):
+        transfers, cut = first_rows(res.transfers, "mission")
+        events, events_cut = first_rows(res.events, "mission")
+        for i, t in enumerate(transfers):
             style = GREEN if t.complete else (ORANGE if t.outcome in ("unacknowledged", "abandoned") else RED)
             mtype = (mtypes.name_of(t.mission_type) if mtypes else None) or str(t.mission_type)
             table.add_row(str(i + 1), t.direction, f"{t.sender[0]}/{t.sender[1]}",
                           f"{t.receiver[0]}/{t.receiver[1]}", mtype.replace("MAV_MISSION_TYPE_", ""),
                           f"{len(t.items)}/{t.count}", Text(t.reason, style=style),
                           f"{t.frames[0]}…{t.frames[-1]}" if t.frames else "", key=str(i))
-        for i, ev in enumerate(res.events):
+        for i, ev in enumerate(events):
             mtype = (mtypes.name_of(ev.mission_type) if mtypes else None) or str(ev.mission_type)
             ok = ev.confirmed or (ev.ack is not None and ev.ack.result == 0)
             table.add_row("", ev.kind, f"{ev.sender[0]}/{ev.sender[1]}", f"{ev.target[0]}/{ev.target[1]}",
@@ -115,8 +117,11 @@ class MissionScreen(AnalysisScreen):
                           f"{ev.frames[0]}…{ev.frames[-1]}", key=f"e{i}")
         if not res.transfers:
             self.query_one("#items-title", Label).update("Items: no mission transfer in these frames")
-        chosen = [i for i in (pick(res.transfers, 0), pick(res.transfers, 1), pick(res.transfers, 2)) if i is not None]
-        best = chosen[0] if chosen else len(res.transfers) - 1
+        if cut or events_cut:
+            self.query_one("#transfers-title", Label).update(
+                f"Transfers{cut} and operations{events_cut} (Enter: show a transfer's items)")
+        chosen = [i for i in (pick(transfers, 0), pick(transfers, 1), pick(transfers, 2)) if i is not None]
+        best = chosen[0] if chosen else len(transfers) - 1
         if best >= 0:
             table.move_cursor(row=best)
             self.show_transfer(best)
@@ -139,7 +144,8 @@ class MissionScreen(AnalysisScreen):
         table.clear(columns=True)
         table.add_columns("Seq", "Command", "Latitude", "Longitude", "Altitude", "Parameters", "Frame", "Frames")
         waypoints = []
-        for seq in sorted(t.items):
+        seqs, cut = first_rows(sorted(t.items), "mission")
+        for seq in seqs:
             it = t.items[seq]
             name = (cmds.name_of(it.command) if cmds else None) or str(it.command)
             labels = {idx: (label, units) for idx, label, units in dialect.command_params(it.command)}
@@ -162,8 +168,10 @@ class MissionScreen(AnalysisScreen):
                 waypoints.append((seq, it.x, it.y))
         title = f"Items of transfer {i + 1}: {t.direction} {t.sender[0]}/{t.sender[1]} → " \
                 f"{t.receiver[0]}/{t.receiver[1]}, {len(t.items)} of {t.count}"
-        if t.missing:
-            title += f", missing {run_text(t.missing)}"
-        title += f": {t.reason}"
+        missing = t.missing
+        if missing:
+            more = f" and {len(missing) - 8:,} more runs" if len(missing) > 8 else ""
+            title += f", missing {run_text(missing[:8])}{more}"
+        title += f": {t.reason}{cut}"
         self.query_one("#items-title", Label).update(title)
         self.query_one(TrackPlot).set_data(res.track, waypoints)

@@ -20,7 +20,7 @@ from mavscope.analysis.objects import TRACKED_MESSAGES, ObjectLog, ObjectRecord,
 from mavscope.analysis.selection import Selection
 from mavscope.mavlink.frame import Frame
 from mavscope.output.console import text as escaped
-from mavscope.tui.screens.analysis import AnalysisScreen
+from mavscope.tui.screens.analysis import AnalysisScreen, first_rows
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
 
 PREVIEW_BYTES = 2048
@@ -108,17 +108,21 @@ class ObjectsScreen(AnalysisScreen):
         log: ObjectLog = result  # type: ignore[assignment]
         table = self.query_one("#objects", DataTable)
         table.add_columns("#", "Kind", "Path / name", "From → to", "Size", "State", "Frames", "Signed")
-        for i, r in enumerate(log.objects):
+        listed, cut = first_rows(log.objects, "objects")
+        for i, r in enumerate(listed):
             table.add_row(str(r.number), r.kind + (" ↓" if r.direction == "download" else " ↑"),
                           escaped(r.path or r.name), f"{party(r.sender)} → {party(r.receiver)}",
                           Text(f"{r.size:,}", justify="right"), state(r), f"{r.frame_count}",
                           "yes" if r.signed_frames else "no", key=str(i))
-        title = f"{len(log.objects)} object(s), {sum(r.complete for r in log.objects)} complete"
+        title = f"{len(log.objects)} object(s), {sum(r.complete for r in log.objects)} complete{cut}"
         if not log.objects:
             title = "No file (MAVLink FTP), log or image in these frames"
         self.query_one("#objects-title", Label).update(title + "  (Enter: go to the first frame)")
+        ops, ops_cut = first_rows(log.operations, "objects")
         notes = [f"FTP {op.opcode} {op.path or ''} from {party(op.client)}: {op.result or 'no answer'}"
-                 f"{'; ' + op.detail if op.detail else ''} (frame {op.frame})" for op in log.operations]
+                 f"{'; ' + op.detail if op.detail else ''} (frame {op.frame})" for op in ops]
+        if ops_cut:
+            notes.append(f"FTP operations{ops_cut}")
         notes += [f"[{f.severity.value}] {f.code}: {f.message}" for f in log.findings]
         if log.image_orphans:
             notes.append(f"{log.image_orphans} ENCAPSULATED_DATA frame(s) before any image was announced")

@@ -12,7 +12,7 @@ from mavscope.analysis.selection import Selection
 from mavscope.analysis.stats import Stats, compute_stats
 from mavscope.mavlink.frame import Frame
 from mavscope.output.tables import listed, sparkline
-from mavscope.tui.screens.analysis import AnalysisScreen
+from mavscope.tui.screens.analysis import AnalysisScreen, first_rows
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
 
 SPARK_WIDTH = 30
@@ -32,7 +32,7 @@ class StatsScreen(AnalysisScreen):
     """
 
     def compose_body(self) -> ComposeResult:
-        yield Label("Loss per link (sequence gaps per sysid/compid)")
+        yield Label("Loss per link (sequence gaps per sysid/compid)", id="links-title")
         yield DataTable(id="links", zebra_stripes=True, cursor_type="row")
         yield Label("Message rates", id="rates-title")
         yield DataTable(id="rates", zebra_stripes=True, cursor_type="row")
@@ -46,7 +46,8 @@ class StatsScreen(AnalysisScreen):
         links = self.query_one("#links", DataTable)
         links.add_columns("Sys/Comp", "Received", "Lost", "Loss", "Duplicates", "Reordered", "CRC", "Signature",
                           "Endpoints")
-        for lk in stats.links_json(selection):
+        link_rows, links_cut = first_rows(stats.links_json(selection), "stats")
+        for lk in link_rows:
             crc = ", ".join(f"{k} {v}" for k, v in lk["crc"].items())  # type: ignore[attr-defined]
             sig = ", ".join(f"{k} {v}" for k, v in lk["signature"].items())  # type: ignore[attr-defined]
             links.add_row(f"{lk['sysid']}/{lk['compid']}", Text(f"{lk['received']:,}", justify="right"),
@@ -57,7 +58,8 @@ class StatsScreen(AnalysisScreen):
         duration = stats.duration
         rates.add_columns("Sys/Comp", "Message", "Count", "Rate", "Bytes",
                           f"Frames per second over {duration or 0:.0f} s")
-        for m in stats.messages_json(selection):
+        message_rows, messages_cut = first_rows(stats.messages_json(selection), "stats")
+        for m in message_rows:
             key = (m["sysid"], m["compid"], m["msgname"])
             rate = "burst" if m["burst"] else ("-" if m["rate_hz"] is None else f"{m['rate_hz']:.2f} Hz")
             rates.add_row(f"{m['sysid']}/{m['compid']}", m["msgname"], Text(f"{m['count']:,}", justify="right"),
@@ -67,5 +69,7 @@ class StatsScreen(AnalysisScreen):
         t = stats.totals_json()
         self.query_one("#rates-title", Label).update(
             f"Message rates: {t['frames']:,} frames, {t['bytes']:,} bytes over {duration or 0:.1f} s, "
-            f"{t['links']} links, {t['messages']} message types")
+            f"{t['links']} links, {t['messages']} message types{messages_cut}")
+        if links_cut:
+            self.query_one("#links-title", Label).update(f"Loss per link (sequence gaps per sysid/compid){links_cut}")
         rates.focus()
