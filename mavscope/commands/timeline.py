@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 
 from mavscope.analysis import timeline as clocks
-from mavscope.analysis.timeline import reconstruct
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
 from mavscope.commands.common import console, write_json
@@ -44,7 +43,7 @@ def _restarts(c: dict) -> str:
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     with analysis_pass(args, env) as frames:
         path, select = frames.session.name, frames.selection
-        timeline = reconstruct(frames)
+        timeline = clocks.reconstruct(frames)
     doc = timeline.to_json(select)
     if args.json:
         doc["file"] = path

@@ -78,14 +78,20 @@ def print_lines(con: Any, lines: Iterable[str], *, plain: bool) -> None:
         return
     from mavscope.output.console import visible
 
+    _write(con, (visible(line) for line in lines))
+
+
+def _write(con: Any, lines: Iterable[str]) -> None:
+    """Lines to the console's file, _CHUNK at a time."""
+    write = con.file.write
     chunk: list[str] = []
     for line in lines:
-        chunk.append(visible(line))
+        chunk.append(line)
         if len(chunk) >= _CHUNK:
-            con.file.write("\n".join(chunk) + "\n")
+            write("\n".join(chunk) + "\n")
             chunk.clear()
     if chunk:
-        con.file.write("\n".join(chunk) + "\n")
+        write("\n".join(chunk) + "\n")
     con.file.flush()
 
 
@@ -134,16 +140,6 @@ def _plain(con: Any, cols: Sequence[Column], items: Sequence[T], row: Callable[[
                 out.append(" " * pad + s if cols[j].right else s + " " * pad)
         return "  ".join(out).rstrip()
 
-    write = con.file.write
-    if title:
-        write(_cell(title) + "\n")
-    write(line(heads) + "\n" + line(["-" * w for w in widths]) + "\n")
-    chunk: list[str] = []
-    for item in items:
-        chunk.append(line([_cell(c) for c in row(item)]))
-        if len(chunk) >= _CHUNK:
-            write("\n".join(chunk) + "\n")
-            chunk.clear()
-    if chunk:
-        write("\n".join(chunk) + "\n")
-    con.file.flush()
+    head = [_cell(title)] if title else []
+    _write(con, (*head, line(heads), line(["-" * w for w in widths])))
+    _write(con, (line([_cell(c) for c in row(item)]) for item in items))
