@@ -193,3 +193,34 @@ def test_frames_released_at_once_are_written_in_chunks(tmp_path: Path, dialect: 
     assert out == expected and err == expected_err
     assert out.count(b'"HEARTBEAT"') == 2000 and sum(writes) == 2000
     assert max(writes) <= LineSink.LINES
+
+
+def test_the_writer_holds_at_most_queued_chunks_for_a_slow_reader() -> None:
+    """An output that takes nothing until released: 500 chunks put by another thread wait at most
+    _Writer.QUEUED at once (the producer blocks), and all of them are written, in order, once it reads."""
+    import io
+    import threading
+    import time
+
+    from mavscope.native import _Writer
+
+    gate = threading.Event()
+
+    class Slow(io.BytesIO):
+        def write(self, b: bytes) -> int:  # type: ignore[override]
+            gate.wait()
+            return super().write(b)
+
+    out = Slow()
+    writer = _Writer(out)
+    producer = threading.Thread(target=lambda: [writer.put(b"%03d," % k) for k in range(500)])
+    producer.start()
+    deadline = time.monotonic() + 30
+    while writer.queue.qsize() < _Writer.QUEUED and time.monotonic() < deadline:
+        time.sleep(0.01)
+    # full (it was never full: unbounded), and the producer blocked with 500 - QUEUED - 1 chunks to go
+    assert writer.queue.full() and writer.queue.qsize() == _Writer.QUEUED and producer.is_alive()
+    gate.set()
+    producer.join()
+    writer.close()
+    assert out.getvalue() == b"".join(b"%03d," % k for k in range(500))
