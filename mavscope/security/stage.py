@@ -60,12 +60,35 @@ NOTE_CODES = frozenset({"signature-skew", "unsigned-in-signed-stream", "v1-in-si
                         "key-exchange", "nonce-reuse"})
 
 
+class SignedSenders(set[tuple[int, int]]):
+    """The senders seen signing, (sysid, compid): a set that also keeps those added, in order (`log`), and
+    counts its clears (`epoch`), so that the native walker, which must know them before each batch, reads
+    only the new ones (reading the whole set before every batch was quadratic: docs/native.md)."""
+
+    __slots__ = ("log", "epoch")
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.log: list[tuple[int, int]] = []
+        self.epoch = 0
+
+    def add(self, sender: tuple[int, int]) -> None:
+        if sender not in self:
+            set.add(self, sender)
+            self.log.append(sender)
+
+    def clear(self) -> None:
+        set.clear(self)
+        self.log = []
+        self.epoch += 1
+
+
 class SecurityStage:
     """One instance per capture: it keeps the replay state, the senders seen signing, the epochs."""
 
     def __init__(self, material: KeyMaterial | None = None,
                  signing_store: Callable[[], SigningStore] = DictSigningStore) -> None:
-        self.signed_senders: set[tuple[int, int]] = set()  # one set for good: run() holds it
+        self.signed_senders = SignedSenders()  # one set for good: run() holds it
         self._new_store = signing_store  # where each verifier keeps its replay state
         self._incoming: list[tuple[KeyMaterial, Callable[[SecurityStage], object] | None]] = []
         self._incoming_lock = threading.Lock()
@@ -163,11 +186,11 @@ class SecurityStage:
                 status = v.status
                 key_name = v.key.name if v.key is not None else None
                 reason, detail, skew = v.reason, v.detail, v.skew
-                if status is SignatureStatus.VALID:
+                if status is SignatureStatus.VALID and sender not in self.signed_senders:
                     self.signed_senders.add(sender)
                 if v.skew is not None and abs(v.skew) > NEW_STREAM_WINDOW:
                     notes.append(note("signature-skew", _skew_text(sig.link_id, v.skew), frame.offset))
-            elif frame.crc_status is _OK:
+            elif frame.crc_status is _OK and sender not in self.signed_senders:
                 self.signed_senders.add(sender)
         elif sender in self.signed_senders and frame.msgid != RADIO_STATUS:
             what = f"{frame.msgname or frame.msgid} from {sender[0]}/{sender[1]}, which sends signed frames"

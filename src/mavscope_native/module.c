@@ -713,7 +713,10 @@ typedef struct {
     PyObject *table;     /* TableObject, kept alive while the walker points into it */
     PyObject *endpoints; /* the Dissector's mavlink_endpoints */
     PyObject *endpoint;  /* endpoint(packed: bytes, port: int) -> an element of `endpoints` */
-    PyObject *senders;   /* set[tuple[int, int]] */
+    PyObject *senders;   /* set[tuple[int, int]]: the security stage's SignedSenders, or a plain set */
+    int signers_loaded;  /* the bitmap was loaded from `senders` (then: its epoch and how much of its log) */
+    long long signers_epoch;
+    Py_ssize_t signers_pos;
     PyObject *summary;   /* SummaryObject or NULL (JSON Lines) */
     PyObject *stats;     /* StatsObject or NULL */
     PyObject *columns;   /* ColumnsObject or NULL: column mode */
@@ -930,8 +933,20 @@ static PyObject *handback_tuple(const ms_record *rec) {
                          (unsigned long long)rec->offset, (unsigned long long)rec->orig_len, tnotes);
 }
 
-/* Load the bitmap of senders seen signing from the Python set (items other than two ints 0..255 are
- * ignored: the security stage only stores (sysid, compid)). */
+/* Mark one item of the senders' set in the bitmap (items other than two ints 0..255 are ignored: the
+ * security stage only stores (sysid, compid)). */
+static void set_signer(WalkerObject *self, PyObject *key) {
+    if (PyTuple_Check(key) && PyTuple_GET_SIZE(key) == 2) {
+        long a = PyLong_AsLong(PyTuple_GET_ITEM(key, 0));
+        long b = PyLong_AsLong(PyTuple_GET_ITEM(key, 1));
+        if (PyErr_Occurred())
+            PyErr_Clear();
+        else if (a >= 0 && a <= 255 && b >= 0 && b <= 255)
+            ms_signer_set(&self->walker, (unsigned)((a << 8) | b));
+    }
+}
+
+/* Load the bitmap of senders seen signing from the whole Python set. */
 static int load_signers(WalkerObject *self) {
     memset(self->walker.signers, 0, sizeof self->walker.signers);
     PyObject *it = PyObject_GetIter(self->senders);
@@ -939,18 +954,50 @@ static int load_signers(WalkerObject *self) {
         return -1;
     PyObject *key;
     while ((key = PyIter_Next(it)) != NULL) {
-        if (PyTuple_Check(key) && PyTuple_GET_SIZE(key) == 2) {
-            long a = PyLong_AsLong(PyTuple_GET_ITEM(key, 0));
-            long b = PyLong_AsLong(PyTuple_GET_ITEM(key, 1));
-            if (PyErr_Occurred())
-                PyErr_Clear();
-            else if (a >= 0 && a <= 255 && b >= 0 && b <= 255)
-                ms_signer_set(&self->walker, (unsigned)((a << 8) | b));
-        }
+        set_signer(self, key);
         Py_DECREF(key);
     }
     Py_DECREF(it);
     return PyErr_Occurred() ? -1 : 0;
+}
+
+/* Bring the bitmap up to date before a batch. The security stage's SignedSenders keeps the senders Python
+ * added, in order (`log`), and counts its clears (`epoch`): only the log's new entries are read, unless it
+ * was cleared since. A plain set is read whole. (Reading the whole set before every batch was quadratic: a
+ * batch ends at each record handed back, and with a key every new signing stream is one.) */
+static int sync_signers(WalkerObject *self) {
+    PyObject *log = PyObject_GetAttrString(self->senders, "log");
+    PyObject *epoch_obj = log != NULL ? PyObject_GetAttrString(self->senders, "epoch") : NULL;
+    long long epoch = epoch_obj != NULL ? PyLong_AsLongLong(epoch_obj) : -1;
+    Py_XDECREF(epoch_obj);
+    if (log == NULL || !PyList_Check(log) || epoch < 0) {
+        Py_XDECREF(log);
+        PyErr_Clear();
+        self->signers_loaded = 0;
+        return load_signers(self);
+    }
+    int r = 0;
+    if (!self->signers_loaded || epoch != self->signers_epoch || PyList_GET_SIZE(log) < self->signers_pos) {
+        r = load_signers(self);
+    } else {
+        /* the size read again each step, the item held while it is read: a conversion could run code */
+        for (Py_ssize_t i = self->signers_pos; i < PyList_GET_SIZE(log); i++) {
+            PyObject *key = PyList_GET_ITEM(log, i);
+            Py_INCREF(key);
+            set_signer(self, key);
+            Py_DECREF(key);
+        }
+    }
+    const Py_ssize_t n = PyList_GET_SIZE(log);
+    Py_DECREF(log);
+    if (r != 0) {
+        self->signers_loaded = 0;
+        return -1;
+    }
+    self->signers_loaded = 1;
+    self->signers_epoch = epoch;
+    self->signers_pos = n;
+    return 0;
 }
 
 /* Push what the batch added into the Python sets. */
@@ -1006,7 +1053,7 @@ static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds)
         Py_RETURN_NONE;
     if (limit < 1)
         limit = 1;
-    if (load_signers(self) != 0)
+    if (sync_signers(self) != 0)
         return NULL;
     ColumnsObject *cols = (ColumnsObject *)self->columns;
     if (cols != NULL && (cols->busy || cols->cols.failed)) {
