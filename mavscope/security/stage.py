@@ -63,7 +63,9 @@ NOTE_CODES = frozenset({"signature-skew", "unsigned-in-signed-stream", "v1-in-si
 class SignedSenders(set[tuple[int, int]]):
     """The senders seen signing, (sysid, compid): a set that also keeps those added, in order (`log`), and
     counts its clears (`epoch`), so that the native walker, which must know them before each batch, reads
-    only the new ones (reading the whole set before every batch was quadratic: docs/native.md)."""
+    only the new ones (reading the whole set before every batch was quadratic: docs/native.md). Only `add`
+    and `clear` keep the log; the stage changes the set through them alone. `add` ignores a sender already
+    there, so the log holds each sender once per epoch."""
 
     __slots__ = ("log", "epoch")
 
@@ -186,6 +188,8 @@ class SecurityStage:
                 status = v.status
                 key_name = v.key.name if v.key is not None else None
                 reason, detail, skew = v.reason, v.detail, v.skew
+                # the membership test first: a signed frame's sender is nearly always known, and the C test
+                # is cheaper than calling SignedSenders.add (which tests again, for its log)
                 if status is SignatureStatus.VALID and sender not in self.signed_senders:
                     self.signed_senders.add(sender)
                 if v.skew is not None and abs(v.skew) > NEW_STREAM_WINDOW:
