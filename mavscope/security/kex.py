@@ -9,7 +9,8 @@ Each side sends its public key with a key id; the receiver derives, per exchange
     aes-gcm key = HKDF-SHA256(shared, salt, info("mavscope aes-gcm key"), 32)   (the profile's master key)
 
 Re-keying: a peer public key with a new key id opens epoch `key_id`; frames are verified with the
-key of the newest epoch first (then older ones, so frames in flight across a re-key still verify), and
+key of the newest epoch first (then older ones, so frames in flight across a re-key still verify; the
+verifier tries at most `signing.CAPTURE_KEYS` keys that came from the capture on a new stream), and
 the aes-gcm key is chosen by the nonce's session id, which is the epoch's key id.
 """
 
@@ -43,10 +44,6 @@ def derive_epoch_keys(shared: bytes, key_id: int, pub_a: bytes, pub_b: bytes) ->
     return (hkdf_sha256(shared, KEX_SALT, LABEL_SIGNING + tail), hkdf_sha256(shared, KEX_SALT, LABEL_AES_GCM + tail))
 
 
-def shared_secret(private: bytes, peer_public: bytes) -> bytes:
-    return X25519PrivateKey.from_private_bytes(private).exchange(X25519PublicKey.from_public_bytes(peer_public))
-
-
 class Epoch(NamedTuple):
     key_id: int
     signing: SigningKey
@@ -62,6 +59,7 @@ class KeyExchangeTracker:
         self.own = {public_key(p): p for p in private_keys}
         self.epochs: dict[int, Epoch] = {}
         self.seen: set[tuple[int, bytes]] = set()
+        self._private: X25519PrivateKey | None = None  # the first own key, parsed once
 
     def observe(self, fields: dict[str, object], sysid: int, compid: int, record: int) -> tuple[Epoch | None, str]:
         """Handle one exchange message: (the new epoch or None, a description for the note)."""
@@ -80,8 +78,10 @@ class KeyExchangeTracker:
         if key_id in self.epochs:
             return None, f"key exchange {key_id}: a second peer key for an existing key id (ignored)"
         own_pub, own_priv = next(iter(self.own.items()))
+        if self._private is None:
+            self._private = X25519PrivateKey.from_private_bytes(own_priv)
         try:
-            shared = shared_secret(own_priv, pub)
+            shared = self._private.exchange(X25519PublicKey.from_public_bytes(pub))
         except ValueError:  # an all-zero or other low-order point: X25519 gives the all-zero secret
             return None, (f"key exchange {key_id}: peer public key is a low-order point (all-zero shared secret): "
                           "no keys derived; a peer sending it forces a predictable key")

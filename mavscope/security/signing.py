@@ -26,6 +26,10 @@ from mavscope.security.keys import SigningKey
 from mavscope.wire import SIGNATURE_LEN
 
 NEW_STREAM_WINDOW = 60.0  # seconds, as the C library's new-stream rule
+# Keys the capture itself gives (key exchanges, leaked keys) tried on a frame its stream's key does not
+# verify. Every such frame costs one MAC per key tried: unbounded, a capture of n exchanges and n forged
+# frames cost n * n MACs.
+CAPTURE_KEYS = 32
 
 Stream = tuple[int, int, int]  # (sysid, compid, link_id)
 
@@ -82,13 +86,25 @@ class DictSigningStore:
 
 
 class SignatureVerifier:
-    """Checks signed frames against a set of keys, keeping replay state per stream in `store`."""
+    """Checks signed frames against a set of keys, keeping replay state per stream in `store`.
+
+    Keys the capture gave (`add_key(..., from_capture=True)`) are tried at most `CAPTURE_KEYS` at a time:
+    when another comes, the one that least recently verified a frame of a new stream (or came first) is
+    no longer tried; the streams it verified keep it (each stream's key is tried first)."""
 
     def __init__(self, keys: list[SigningKey] | None = None, store: SigningStore | None = None) -> None:
         self.keys: list[SigningKey] = list(keys or [])
+        self._tried = set(self.keys)  # the same keys, to look up (a key equals another of its secret)
         self.store: SigningStore = DictSigningStore() if store is None else store
         self._slots: dict[int, int] = {}  # id(key) -> its slot in the store
         self._by_slot: dict[int, SigningKey] = {}  # and back (holding the keys: their ids stay theirs)
+        self._from_capture: dict[int, SigningKey] = {}  # id(key) -> key, least recently matched first
+
+    def with_store(self, store: SigningStore) -> SignatureVerifier:
+        """A verifier of the same keys, the capture's among them still counted as such, over `store`."""
+        new = SignatureVerifier(self.keys, store)
+        new._from_capture = dict(self._from_capture)
+        return new
 
     def _slot(self, key: SigningKey) -> int:
         slot = self._slots.get(id(key))
@@ -97,13 +113,25 @@ class SignatureVerifier:
             self._by_slot[slot] = key
         return slot
 
-    def add_key(self, key: SigningKey, first: bool = False) -> None:
-        if key in self.keys:
-            return
+    def add_key(self, key: SigningKey, first: bool = False, from_capture: bool = False) -> SigningKey | None:
+        """Try `key` from now on (`first`: before the others). With `from_capture`, the key of the capture
+        that this one puts out of the keys tried, if it makes more than CAPTURE_KEYS."""
+        if key in self._tried:
+            return None
+        self._tried.add(key)
         if first:
             self.keys.insert(0, key)
         else:
             self.keys.append(key)
+        if not from_capture:
+            return None
+        self._from_capture[id(key)] = key
+        if len(self._from_capture) <= CAPTURE_KEYS:
+            return None
+        oldest = self._from_capture.pop(next(iter(self._from_capture)))
+        self.keys = [k for k in self.keys if k is not oldest]
+        self._tried.discard(oldest)
+        return oldest
 
     def match(self, raw: bytes, hint: SigningKey | None = None) -> SigningKey | None:
         """The key whose MAC matches the signed frame `raw` (`hint` tried first), or None."""
@@ -120,6 +148,8 @@ class SignatureVerifier:
             h = key._hash.copy()
             h.update(data)
             if compare_digest(h.digest()[:6], value):
+                if id(key) in self._from_capture:  # it stays among the keys tried the longest
+                    self._from_capture[id(key)] = self._from_capture.pop(id(key))
                 return key
         return None
 

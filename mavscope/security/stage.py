@@ -48,7 +48,7 @@ from mavscope.security.keys import (
     KeyMaterial,
     SigningKey,
 )
-from mavscope.security.signing import NEW_STREAM_WINDOW, DictSigningStore, SignatureVerifier, SigningStore
+from mavscope.security.signing import CAPTURE_KEYS, NEW_STREAM_WINDOW, DictSigningStore, SignatureVerifier, SigningStore
 from mavscope.wire import IFLAG_SIGNED
 
 SETUP_SIGNING = 256
@@ -117,7 +117,6 @@ class SecurityStage:
         self.session_keys: dict[tuple[bytes, int], bytes] = {}
         self.nonces: dict[tuple[bytes, int, int], tuple[int, bytes]] = {}
         self.signed_senders.clear()
-        self.leaked: list[SigningKey] = []
 
     def use_signing_store(self, new: Callable[[], SigningStore]) -> None:
         """Keep the replay state in stores made by `new` from now on (the native engine's SigningState,
@@ -125,11 +124,17 @@ class SecurityStage:
         if len(self.verifier.store):
             raise RuntimeError("the signing state already holds streams")
         self._new_store = new
-        self.verifier = SignatureVerifier(self.verifier.keys, new())
+        self.verifier = self.verifier.with_store(new())
 
-    def add_signing_key(self, key: SigningKey, first: bool = False) -> None:
-        self.verifier.add_key(key, first)
+    def add_signing_key(self, key: SigningKey, first: bool = False, from_capture: bool = False) -> str:
+        """Verify with `key` from now on; for a key of the capture, what became of the keys tried (text
+        for the frame's note: "" or the key no longer tried, see `SignatureVerifier`)."""
+        retired = self.verifier.add_key(key, first, from_capture)
         self.check_signatures = True
+        if retired is None:
+            return ""
+        return (f"; key {retired.name} is no longer tried on new streams (at most {CAPTURE_KEYS} keys from the "
+                "capture are; streams it verified keep it)")
 
     def replace_material(self, material: KeyMaterial,
                          then: Callable[[SecurityStage], object] | None = None) -> None:
@@ -232,15 +237,13 @@ class SecurityStage:
             used = ""
             if self.material.use_leaked_keys and len(secret) == 32:
                 key = SigningKey(f"leaked-{frame.record}", secret)
-                self.leaked.append(key)
-                self.add_signing_key(key)
-                used = f"; it verifies later frames as key {key.name}"
+                used = f"; it verifies later frames as key {key.name}" + self.add_signing_key(key, from_capture=True)
             notes.append(note("key-leak", f"SETUP_SIGNING to {target} carries a signing key in clear{used}",
                               frame.offset))
         else:
             epoch, text = self.kex.observe(fields, frame.sysid, frame.compid, frame.record)
             if epoch is not None:
-                self.add_signing_key(epoch.signing, first=True)
+                text += self.add_signing_key(epoch.signing, first=True, from_capture=True)
             notes.append(note("key-exchange", text, frame.offset))
 
     # --- decryption -------------------------------------------------------------------------
