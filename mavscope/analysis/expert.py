@@ -42,6 +42,10 @@ COPIES_KEPT = 65_536  # commanding frames remembered for replay detection (the o
 OWN_COUNTER = frozenset({"REQUEST_DATA_STREAM"})
 OWN_COUNTER_MIN = 3  # frames stepping back before a message's own counter is named
 WHICH_SHOWN = 3  # messages named in a sequence finding
+# (sender, event, message) counts kept in all for the sequence findings' names: a capture can name a new
+# message (an unknown id) in every frame. The native accumulator's cap of such pairs (MS_CAP_PAIRS, past
+# which it hands over to this path) is the same, so both paths name the same messages.
+MAX_NAMED = 1 << 18
 
 Link = tuple[int, int]
 Fields = dict[str, object]
@@ -107,6 +111,8 @@ class SequenceAnomalies:
         self.counts: Counter[Link] = Counter()
         self.events: dict[tuple[Link, str], FrameNumbers] = {}
         self.messages: dict[tuple[Link, str], Counter[str]] = {}  # the messages of each event's frames
+        self.named = 0  # their entries in all
+        self.cut: set[tuple[Link, str]] = set()  # events whose later messages are not named (MAX_NAMED)
 
     def add(self, f: Frame, fields: Fields | None) -> None:
         key = (f.sysid, f.compid)
@@ -123,10 +129,18 @@ class SequenceAnomalies:
                 ev = self.events[(key, what)] = _frames()
                 self.messages[(key, what)] = Counter()
             ev.add(record)
-            self.messages[(key, what)][message] += 1
+            names = self.messages[(key, what)]
+            if message in names:
+                names[message] += 1
+            elif self.named < MAX_NAMED:
+                self.named += 1
+                names[message] = 1
+            else:
+                self.cut.add((key, what))
 
-    def _back(self, key: Link) -> tuple[list[int], Counter[str]]:
-        """The frames of sender `key` listed as duplicates or late (the first MAX_FRAMES), their messages."""
+    def _back(self, key: Link) -> tuple[list[int], Counter[str], bool]:
+        """The frames of sender `key` listed as duplicates or late (the first MAX_FRAMES), their messages,
+        and whether some of those are not named (MAX_NAMED)."""
         nums: list[int] = []
         messages: Counter[str] = Counter()
         for what in ("duplicate", "late"):
@@ -134,14 +148,14 @@ class SequenceAnomalies:
             if ev is not None:
                 nums += ev.nums
                 messages += self.messages.get((key, what), Counter())
-        return sorted(nums)[:MAX_FRAMES], messages
+        return sorted(nums)[:MAX_FRAMES], messages, (key, "duplicate") in self.cut or (key, "late") in self.cut
 
     def _own_counter(self, key: Link) -> str | None:
         """The message numbered on a counter of its own by sender `key`: every frame of it that steps back
         (OWN_COUNTER_MIN or more) is that message, one of OWN_COUNTER."""
         seq = self.seqs.totals(key)
-        _, messages = self._back(key)
-        if len(messages) != 1 or seq.reordered + seq.duplicates - seq.repeats < OWN_COUNTER_MIN:
+        _, messages, cut = self._back(key)
+        if cut or len(messages) != 1 or seq.reordered + seq.duplicates - seq.repeats < OWN_COUNTER_MIN:
             return None
         (message,) = messages
         return message if message in OWN_COUNTER else None
@@ -165,7 +179,7 @@ class SequenceAnomalies:
         own = {key: m for key in self.counts if (m := self._own_counter(key)) is not None}
         for key, message in own.items():
             seq = self.seqs.totals(key)
-            nums, _ = self._back(key)
+            nums, _, _ = self._back(key)
             out.append(finding("seq-own-counter",
                                f"link {key[0]}/{key[1]}: {seq.duplicates + seq.reordered} frames out of sequence, "
                                f"all {message} ({seq.duplicates} repeat a number already seen, {seq.reordered} fill "
@@ -175,7 +189,7 @@ class SequenceAnomalies:
         for (key, what), ev in self.events.items():
             sysid, compid = key
             seq = self.seqs.totals(key)
-            which = _which(self.messages.get((key, what), Counter()))
+            which = _which(self.messages.get((key, what), Counter()), (key, what) in self.cut)
             if what == "duplicate" and seq.duplicates and key not in own:
                 out.append(finding("seq-duplicate", f"link {sysid}/{compid}: {seq.duplicates} frames repeat a "
                                                     f"sequence number already seen on their channel{which}",
@@ -189,19 +203,23 @@ class SequenceAnomalies:
             seq = self.seqs.totals(key)
             back = seq.reordered + seq.duplicates - seq.repeats  # steps back (not the same number again)
             if back >= 5 and back * 20 >= total and key not in own:
-                nums, messages = self._back(key)
+                nums, messages, cut = self._back(key)
                 out.append(finding("seq-interleaved",
                                    f"link {key[0]}/{key[1]}: {back} of {total} frames step back in sequence: two "
                                    "sequence counters under one system/component id on one channel (two senders, "
                                    "or one sender's two MAVLink channels where the capture cannot tell them apart, "
-                                   f"as in a tlog){_which(messages)}", nums))
+                                   f"as in a tlog){_which(messages, cut)}", nums))
         return out
 
 
-def _which(messages: Counter[str]) -> str:
-    """` (all M)`, or ` (M1, M2, M3 and k more)` most frequent first: the messages of a finding's frames.
-    Named, not counted: a restarted counter's first frames are listed with the duplicates they seemed
-    until the restart showed (SeqTracker), so counts here would not add up to the finding's."""
+def _which(messages: Counter[str], cut: bool = False) -> str:
+    """` (all M)`, or ` (M1, M2, M3 and k more)` most frequent first: the messages of a finding's frames
+    (`cut`: more were not named, MAX_NAMED: "and more"). Named, not counted: a restarted counter's first
+    frames are listed with the duplicates they seemed until the restart showed (SeqTracker), so counts here
+    would not add up to the finding's."""
+    if cut:
+        top = [m for m, _ in sorted(messages.items(), key=lambda mc: (-mc[1], mc[0]))][:WHICH_SHOWN]
+        return f" ({', '.join(top)} and more)" if top else " (messages not named: too many)"
     if not messages:
         return ""
     if len(messages) == 1:

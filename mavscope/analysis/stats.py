@@ -27,6 +27,11 @@ from mavscope.mavlink.semantics import message_label
 RATE_BINS = 256  # a stream's frame times are counted in at most this many bins (bounded whatever the span)
 RATE_MIN_FRAMES = 3  # a rate needs this many frames...
 RATE_MIN_SPAN = 1.0  # ...over at least this many seconds; fewer seconds make a burst
+# Rows followed at most. Links are at most 65,536 (one per sender), but a capture can name a new
+# (sender, message) stream or a new pair of endpoints in every frame: 200,000 such frames held 590 MB.
+# Frames of later streams and conversations count in the totals and their link, and as unfollowed.
+MAX_STREAMS = 65_536
+MAX_CONVERSATIONS = 65_536
 
 
 @dataclass(kw_only=True)
@@ -161,6 +166,8 @@ class Stats:
     crc: Counter[str]
     versions: Counter[int]
     signature: Counter[str]
+    unfollowed_streams: int = 0  # frames of (sender, message) streams beyond the first MAX_STREAMS
+    unfollowed_conversations: int = 0  # frames of conversations beyond the first MAX_CONVERSATIONS
 
     @property
     def duration(self) -> float | None:
@@ -216,6 +223,8 @@ class Stats:
             "lost": sum(totals(lk.channels.values()).lost for lk in self.links.values()),
             "v1": self.versions.get(1, 0), "v2": self.versions.get(2, 0),
             "crc": dict(sorted(self.crc.items())), "signature": dict(sorted(self.signature.items())),
+            "unfollowed_stream_frames": self.unfollowed_streams,
+            "unfollowed_conversation_frames": self.unfollowed_conversations,
         }
 
     def to_json(self, select: Selection | None = None) -> dict[str, object]:
@@ -250,6 +259,8 @@ class StatsBuilder:
         self.nbytes = 0
         self.first: float | None = None
         self.last: float | None = None
+        self.unfollowed_streams = 0
+        self.unfollowed_conversations = 0
 
     def add(self, f: Frame) -> None:
         self.total += 1
@@ -263,15 +274,18 @@ class StatsBuilder:
         name = message_label(f.msgid, f.msgdef)
         key = (f.sysid, f.compid, name)
         s = self.streams.get(key)
-        if s is None:
+        if s is None and len(self.streams) < MAX_STREAMS:
             s = self.streams[key] = _Stream()
-        s.count += 1
-        s.bytes += size
-        s.see(t)
-        if t is not None:
-            if s.rates is None:
-                s.rates = RateHistogram(self.first)  # type: ignore[arg-type]  # set with the first time
-            s.rates.add(t)
+        if s is None:
+            self.unfollowed_streams += 1
+        else:
+            s.count += 1
+            s.bytes += size
+            s.see(t)
+            if t is not None:
+                if s.rates is None:
+                    s.rates = RateHistogram(self.first)  # type: ignore[arg-type]  # set with the first time
+                s.rates.add(t)
         lk = self.links.get(key[:2])
         if lk is None:
             lk = self.links[key[:2]] = _Link()
@@ -297,6 +311,9 @@ class StatsBuilder:
         ck = (f.transport, a, b) if a <= b else (f.transport, b, a)
         c = self.convs.get(ck)
         if c is None:
+            if len(self.convs) >= MAX_CONVERSATIONS:
+                self.unfollowed_conversations += 1
+                return
             c = self.convs[ck] = _Conversation(ck[1], ck[2], f.transport)
         if a == c.a:
             c.frames_ab += 1
@@ -309,7 +326,7 @@ class StatsBuilder:
 
     def result(self) -> Stats:
         return Stats(self.streams, self.links, self.convs, self.total, self.nbytes, self.first, self.last, self.crc,
-                     self.versions, self.sigs)
+                     self.versions, self.sigs, self.unfollowed_streams, self.unfollowed_conversations)
 
 
 def compute_stats(frames: Iterable[Frame]) -> Stats:

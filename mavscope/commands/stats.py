@@ -9,6 +9,7 @@ from typing import cast
 
 from mavscope.analysis.expert import Expert
 from mavscope.analysis.selection import Selection
+from mavscope.analysis import stats as model
 from mavscope.analysis.stats import Stats, StatsBuilder
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass, print_findings
@@ -78,6 +79,12 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
               f"{tot['links']} links, {tot['messages']} message types, {tot['lost']} lost; "
               f"v1 {tot['v1']}, v2 {tot['v2']}; CRC {_counts(tot['crc'])}; "
               f"signature {_counts(tot['signature'])}")
+    for key, rows, what, limit in (
+            ("unfollowed_stream_frames", "Messages", "(sender, message) streams", model.MAX_STREAMS),
+            ("unfollowed_conversation_frames", "Conversations", "conversations", model.MAX_CONVERSATIONS)):
+        if tot[key]:
+            con.print(f"{tot[key]:,} frames are not in the {rows} table: their {what} came after the first "
+                      f"{limit:,} (the totals and the links count them)")
     print_findings(con, findings)
     return ExitStatus.OK
 
