@@ -95,3 +95,18 @@ def test_many_key_exchanges_keep_the_newest_epochs_and_say_which_key_left(cli: C
     said = [n["message"] for r in rows[:epochs] for n in r["notes"] if "no longer tried" in n["message"]]
     assert [s.split("; key ")[1].split()[0] for s in said] == ["ecdh-1", "ecdh-2"]
     assert all(own.hex() not in s and signing[1].hex() not in s for s in said)
+
+
+def test_many_leaked_keys_keep_the_newest(cli: Cli, tmp_path: Path) -> None:
+    """CAPTURE_KEYS + 1 SETUP_SIGNING frames (pymavlink), each leaking another key, then HEARTBEATs on new
+    streams signed with the first and the last leaked key: the first is no longer tried."""
+    leaked = [hashlib.sha256(b"leak %d" % n).digest() for n in range(CAPTURE_KEYS + 1)]
+    gcs = signer(None)
+    frames = [bytes(gcs.setup_signing_encode(1, 1, k, EPOCH_2026).pack(gcs)) for k in leaked]
+    for link, k in enumerate((leaked[0], leaked[-1]), 1):
+        frames.append(bytes(heartbeat(signer(k, sysid=1, compid=1, link_id=link, timestamp=EPOCH_2026 + 5))))
+    rows = cli.jsonl(write_raw(tmp_path, frames), "--use-leaked-keys")
+    assert statuses(rows[-2:]) == ["invalid", "valid"]
+    assert rows[-1]["signature"]["key"] == f"leaked-{CAPTURE_KEYS + 1}"
+    said = [n["message"] for r in rows for n in r["notes"] if "no longer tried" in n["message"]]
+    assert len(said) == 1 and "key leaked-1 is no longer tried" in said[0]
