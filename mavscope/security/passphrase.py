@@ -208,10 +208,11 @@ def crack_qgc(raw: bytes, words: Iterable[bytes], iterations: int = QGC_ITERATIO
 
 
 class _Raw:
-    """A stand-in target: only `raw` is read."""
+    """A stand-in target: only `raw` and `record` are read."""
 
     def __init__(self, raw: bytes) -> None:
         self.raw = raw
+        self.record = 0
 
 
 def _crack_raw(raw: bytes, words: Iterable[bytes], derivation: str, iterations: int) -> CrackResult:

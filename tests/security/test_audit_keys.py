@@ -77,3 +77,16 @@ def test_v1_frames_from_a_signing_sender_are_not_injections(cli: Cli, tmp_path: 
     assert status == 0 and "signing is not in force: 4 MAVLink v1 frame(s)" in out
     rows = cli.jsonl(write_raw(tmp_path, [first, *later], "v1b.raw"), "--key", "hex:" + key.hex())
     assert [n["code"] for r in rows for n in r["notes"]] == ["v1-in-signed-stream"] * 4
+
+
+def test_crack_one_frame_finds_its_passphrase() -> None:
+    """`crack_sha256` (the benchmark's entry) on one frame pymavlink signed with SHA-256("hunter2"): it
+    once raised AttributeError (its stand-in target had no record number)."""
+    import hashlib
+
+    from mavscope.security.passphrase import crack_sha256
+    from tests.support.security import heartbeat, signer
+
+    raw = bytes(heartbeat(signer(hashlib.sha256(b"hunter2").digest())))
+    result = crack_sha256(raw, [b"password", b"hunter2", b"letmein"])
+    assert result.found == {(0, 0, 0): ("hunter2", 0)} and result.guesses == 2
