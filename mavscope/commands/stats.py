@@ -7,9 +7,9 @@ import io
 import os
 from typing import cast
 
+from mavscope.analysis import stats as model
 from mavscope.analysis.expert import Expert
 from mavscope.analysis.selection import Selection
-from mavscope.analysis import stats as model
 from mavscope.analysis.stats import Stats, StatsBuilder
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass, print_findings

@@ -28,9 +28,9 @@ def test_streams_past_the_limit_count_in_totals_links_and_as_unfollowed(
     two streams followed, the last three message types are 3 frames not in the Messages table."""
     monkeypatch.setattr(stats, "MAX_STREAMS", 2)
     s = flows.Sender(1, 1)
+    gps = v2.MAVLink_gps_raw_int_message(0, 0, 0, 0, 0, 0, 0, 0, 0, 0)
     msgs = [flows.heartbeat(), v2.MAVLink_sys_status_message(0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0),
-            v2.MAVLink_attitude_message(0, 0, 0, 0, 0, 0, 0), v2.MAVLink_gps_raw_int_message(0, 0, 0, 0, 0, 0, 0, 0, 0, 0),
-            v2.MAVLink_gps_raw_int_message(0, 0, 0, 0, 0, 0, 0, 0, 0, 0), flows.heartbeat()]
+            v2.MAVLink_attitude_message(0, 0, 0, 0, 0, 0, 0), gps, gps, flows.heartbeat()]
     path = flows.write_tlog(tmp_path, [(flows.T0 + i, s.pack(m)) for i, m in enumerate(msgs)])
     doc = cli.json("stats", path, environ=PURE)
     assert [(m["msgname"], m["count"]) for m in doc["messages"]] == [("HEARTBEAT", 2), ("SYS_STATUS", 1)]
