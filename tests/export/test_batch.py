@@ -35,8 +35,9 @@ def test_verify_over_captures_as_each_alone(cli: Cli, jobs: str) -> None:
 
 
 def test_a_directory_text_summary_and_stats(cli: Cli) -> None:
-    # the capture column folds a path longer than a third of the width: wide enough for any clone's path here
-    wide = {"COLUMNS": str(max(160, 3 * len(str(CAPTURES / "stats_loss.pcap"))))}
+    # the capture column folds a path longer than a third of the width: wide enough for the longest capture
+    # path of this clone (sized by stats_loss.pcap alone, key_exchange_udp.pcap folded under /tmp/tmp.*)
+    wide = {"COLUMNS": str(max(160, 3 * max(len(str(p)) for p in CAPTURES.iterdir())))}
     status, out, err = cli("batch", str(CAPTURES), "--", "stats", environ=wide)
     # by name: README.md, expected.json and the generator's *.truth.json are not captures (batch sniffs content)
     files = [p for p in CAPTURES.iterdir() if p.is_file()]
