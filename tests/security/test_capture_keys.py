@@ -3,7 +3,7 @@ tried at most CAPTURE_KEYS at a time (stop 25).
 
 A frame its stream's key does not verify is tried with every key. Each key exchange used to add one for
 good, so a capture of n exchanges and n forged signed frames cost n * n MACs: 10,000 of each took
-`verify` 30 s, 100,000 of each would take about an hour (now 1.7 s and 12.5 s). The expected keys here come from
+`verify` 30 s, 100,000 of each would take about an hour (now 1.5 s and 10.2 s). The expected keys here come from
 scripts/capgen/kex.py (the exchange written from its specification with `cryptography`) and pymavlink's
 signer, not from mavscope.
 """
