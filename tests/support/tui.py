@@ -35,6 +35,12 @@ async def ready(pilot) -> None:  # type: ignore[no-untyped-def]
                    and app.tree.detail is not None)
 
 
+async def open_analysis(pilot, *keys: str) -> None:  # type: ignore[no-untyped-def]
+    """Press `keys` (the last opens an analysis screen) and wait until the screen has its result."""
+    await pilot.press(*keys)
+    await wait_for(pilot, lambda: pilot.app.screen.result is not None)
+
+
 async def type_text(pilot, text: str) -> None:  # type: ignore[no-untyped-def]
     keys = {" ": "space", "=": "equals_sign", "!": "exclamation_mark", '"': "quotation_mark", ".": "full_stop",
             "/": "slash", "<": "less_than_sign", ">": "greater_than_sign", "(": "left_parenthesis",

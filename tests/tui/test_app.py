@@ -20,7 +20,7 @@ from mavscope.tui.screens.mission import MissionScreen
 from mavscope.tui.screens.stats import StatsScreen
 from mavscope.tui.widgets.hex_view import ASCII_START, byte_column
 from tests.conftest import Cli
-from tests.support.tui import CAPTURES, SIZE, ready, run, type_text, wait_for
+from tests.support.tui import CAPTURES, SIZE, open_analysis, ready, run, type_text, wait_for
 
 PX4 = CAPTURES / "px4_sitl_udp.pcap"
 
@@ -231,8 +231,7 @@ def test_expert_findings_enter_jumps_to_the_frame() -> None:
         app = create_app(CAPTURES / "commands_ack.pcap")
         async with app.run_test(size=SIZE) as pilot:
             await ready(pilot)
-            await pilot.press("e")
-            await wait_for(pilot, lambda: app.screen.result is not None)
+            await open_analysis(pilot, "e")
             findings = app.screen.result
             assert any(f.code == "key-leak" for f in findings)
             await pilot.press("enter")  # the first (most severe) finding
@@ -448,8 +447,7 @@ def test_the_events_screen_shows_a_statustexts_escape_sequences_escaped(tmp_path
         app = create_app(path)
         async with app.run_test(size=SIZE) as pilot:
             await ready(pilot)
-            await pilot.press("v")
-            await wait_for(pilot, lambda: app.screen.result is not None)
+            await open_analysis(pilot, "v")
             table = app.screen.query_one(DataTable)
             cells = [str(getattr(c, "plain", c)) for r in range(table.row_count) for c in table.get_row_at(r)]
             shown = [c for c in cells if "RED" in c]
@@ -469,15 +467,13 @@ def test_analysis_tables_list_the_first_rows_and_say_how_many_there_are(monkeypa
         app = create_app(PX4)
         async with app.run_test(size=SIZE) as pilot:
             await ready(pilot)
-            await pilot.press("s")
-            await wait_for(pilot, lambda: app.screen.result is not None)
+            await open_analysis(pilot, "s")
             messages = app.screen.result.messages_json()
             assert len(messages) == 17 and app.screen.query_one("#rates").row_count == 3
             title = str(app.screen.query_one("#rates-title").content)
             assert title.endswith("(the first 3 of 17 listed: `mavscope stats --json` has them all)")
             await pilot.press("escape")
-            await pilot.press("m")
-            await wait_for(pilot, lambda: app.screen.result is not None)
+            await open_analysis(pilot, "m")
             [t] = app.screen.result.transfers
             assert len(t.items) == 4 and app.screen.query_one("#items").row_count == 3
             assert "(the first 3 of 4 listed" in str(app.screen.query_one("#items-title").content)

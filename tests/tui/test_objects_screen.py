@@ -11,7 +11,7 @@ from textual.widgets import DataTable, Static
 from mavscope.tui.app import create_app
 from mavscope.tui.screens.objects import ObjectsScreen
 from scripts.capgen.objects import LUA_SCRIPT
-from tests.support.tui import CAPTURES, SIZE, ready, run, type_text, wait_for
+from tests.support.tui import CAPTURES, SIZE, open_analysis, ready, run, type_text, wait_for
 
 LUA = CAPTURES / "ftp_lua_upload.pcap"
 TRUTH = json.loads((CAPTURES / "ftp_lua_upload.truth.json").read_text())
@@ -56,15 +56,13 @@ def test_objects_screen_under_a_filter_and_with_nothing_to_show() -> None:
             await type_text(pilot, "ftp.opcode == CreateFile")
             await pilot.press("enter")
             await wait_for(pilot, lambda: app.packet_list.count == 2)
-            await pilot.press("escape", "o")
-            await wait_for(pilot, lambda: app.screen.result is not None)
+            await open_analysis(pilot, "escape", "o")
             assert [o.kind for o in app.screen.result.objects] == ["ftp-write", "ftp-write"]  # the two uploads
             await pilot.press("escape")
         app = create_app(CAPTURES / "px4_sitl_udp.pcap")
         async with app.run_test(size=SIZE) as pilot:
             await ready(pilot)
-            await pilot.press("o")
-            await wait_for(pilot, lambda: app.screen.result is not None)
+            await open_analysis(pilot, "o")
             assert app.screen.result.objects == []
             assert "No file" in str(app.screen.query_one("#objects-title").render())
 
