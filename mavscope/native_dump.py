@@ -142,12 +142,12 @@ def _counter(names: Iterable[str], counts: Iterable[int]) -> Counter[str]:
 def rebuild(dump: bytes, dialect: Dialect) -> tuple[Stats, Expert]:
     """The Stats and the Expert (its detectors' state) of an accumulator's dump."""
     r = _Reader(dump)
-    if r.bytes(4) != b"MSSD" or r.one("I") != 1:
+    if r.bytes(4) != b"MSSD" or r.one("I") != 2:
         raise ValueError("not a statistics dump")
     total, nbytes, has_first, first, last = r.take("QQBdd")
     crc = _counter((c.value for c in CRC), r.take("4Q"))
     sigs = _counter(SIGNATURES, r.take("6Q"))
-    v1, v2 = r.take("QQ")
+    v1, v2, unfollowed_streams, unfollowed_convs = r.take("QQQQ")
     strings = r.strings = [r.bytes(r.one("I")).decode() for _ in range(r.one("I"))]
     origin = first if has_first else None
 
@@ -195,7 +195,7 @@ def rebuild(dump: bytes, dialect: Dialect) -> tuple[Stats, Expert]:
     for owner, value, _count in r.pairs():
         convs[keys[owner]].systems.add((value >> 8, value & 0xFF))
     stats = Stats(streams, links, convs, total, nbytes, first if has_first else None, last if has_first else None,
-                  crc, Counter({v: n for v, n in ((1, v1), (2, v2)) if n}), sigs)
+                  crc, Counter({v: n for v, n in ((1, v1), (2, v2)) if n}), sigs, unfollowed_streams, unfollowed_convs)
     return stats, _experts(r, dialect, links, events_of)
 
 

@@ -27,18 +27,23 @@ from mavscope.mavlink.dialect import Dialect, EnumDef, MessageDef
 PLAN_MAGIC = b"MSSP"
 PLAN_VERSION = 1
 
-# plan.h MS_K_*, in order
-INT_CONSTANTS: tuple[int, ...] = (
-    sequence.GAP_MIN, sequence.GAPS_KEPT, sequence.RESET_RUN, sequence.MAX_CHANNELS, sequence.MAX_EXTRA,
-    sequence.LATE_WINDOW, stats.RATE_BINS, expert.COPIES_KEPT, vehicles.MAX_SENDERS, framelist.MAX_FRAMES,
-    expert.MAV_TYPE_GCS, control.MAV_CMD_DO_SET_MODE, control.MAV_CMD_COMPONENT_ARM_DISARM,
-    control.MAV_MISSION_TYPE_MISSION, control.MAV_MISSION_TYPE_ALL, control.MAV_LANDED_STATE_IN_AIR,
-    control.MAV_LANDED_STATE_TAKEOFF, control.MAV_LANDED_STATE_UNDEFINED, modes.MAV_AUTOPILOT_ARDUPILOTMEGA,
-    modes.MAV_AUTOPILOT_INVALID, modes.MAV_AUTOPILOT_PX4, modes.MAV_MODE_FLAG_SAFETY_ARMED,
-    modes.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, modes.PX4_MAIN_AUTO, modes.PX4_MAIN_POSCTL, gnss.GPS_FIX_TYPE_NO_GPS,
-    gnss.GPS_FIX_TYPE_NO_FIX, gnss.GPS_FIX_TYPE_2D, gnss.GPS_FIX_TYPE_3D, gnss.UNKNOWN_SATS, gnss.UNKNOWN_VEL,
-    gnss.MIN_SATS, gnss.UNIX_MIN_US,
-)
+
+def int_constants() -> tuple[int, ...]:
+    """plan.h MS_K_*, in order: read from the analyses' modules when a plan is built."""
+    return (
+        sequence.GAP_MIN, sequence.GAPS_KEPT, sequence.RESET_RUN, sequence.MAX_CHANNELS, sequence.MAX_EXTRA,
+        sequence.LATE_WINDOW, stats.RATE_BINS, expert.COPIES_KEPT, vehicles.MAX_SENDERS, framelist.MAX_FRAMES,
+        expert.MAV_TYPE_GCS, control.MAV_CMD_DO_SET_MODE, control.MAV_CMD_COMPONENT_ARM_DISARM,
+        control.MAV_MISSION_TYPE_MISSION, control.MAV_MISSION_TYPE_ALL, control.MAV_LANDED_STATE_IN_AIR,
+        control.MAV_LANDED_STATE_TAKEOFF, control.MAV_LANDED_STATE_UNDEFINED, modes.MAV_AUTOPILOT_ARDUPILOTMEGA,
+        modes.MAV_AUTOPILOT_INVALID, modes.MAV_AUTOPILOT_PX4, modes.MAV_MODE_FLAG_SAFETY_ARMED,
+        modes.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, modes.PX4_MAIN_AUTO, modes.PX4_MAIN_POSCTL,
+        gnss.GPS_FIX_TYPE_NO_GPS, gnss.GPS_FIX_TYPE_NO_FIX, gnss.GPS_FIX_TYPE_2D, gnss.GPS_FIX_TYPE_3D,
+        gnss.UNKNOWN_SATS, gnss.UNKNOWN_VEL, gnss.MIN_SATS, gnss.UNIX_MIN_US, stats.MAX_STREAMS,
+        stats.MAX_CONVERSATIONS, expert.MAX_NAMED,
+    )
+
+
 # plan.h MS_D_*, in order
 FLOAT_CONSTANTS: tuple[float, ...] = (
     control.MODE_WINDOW_S, control.STATE_FRESH_S, control.ALT_FLYING_M, gnss.EARTH_RADIUS_M, gnss.JUMP_MIN_M,
@@ -176,11 +181,12 @@ def _build(dialect: Dialect) -> bytes:
         raise Unplannable("too many mode enums")
     g = gnss.GnssAnomalies(dialect)
     bits = (*g.ekf_bits, *g.est_bits)
-    if not all(0 <= b < 1 << 64 for b in bits) or not all(-(1 << 63) <= k < 1 << 63 for k in INT_CONSTANTS):
+    ints = int_constants()
+    if not all(0 <= b < 1 << 64 for b in bits) or not all(-(1 << 63) <= k < 1 << 63 for k in ints):
         raise Unplannable("constants")
     return b"".join((
-        PLAN_MAGIC, struct.pack("<IH", PLAN_VERSION, len(INT_CONSTANTS)),
-        struct.pack(f"<{len(INT_CONSTANTS)}q", *INT_CONSTANTS),
+        PLAN_MAGIC, struct.pack("<IH", PLAN_VERSION, len(ints)),
+        struct.pack(f"<{len(ints)}q", *ints),
         struct.pack("<H", len(FLOAT_CONSTANTS)), struct.pack(f"<{len(FLOAT_CONSTANTS)}d", *FLOAT_CONSTANTS),
         struct.pack("<I", len(messages)), *messages,
         _bitmap(m.aerial, 256), _bitmap(m.gcs, 256), _bitmap(m.not_vehicles, 256), bytes(types),

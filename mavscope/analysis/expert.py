@@ -43,8 +43,8 @@ OWN_COUNTER = frozenset({"REQUEST_DATA_STREAM"})
 OWN_COUNTER_MIN = 3  # frames stepping back before a message's own counter is named
 WHICH_SHOWN = 3  # messages named in a sequence finding
 # (sender, event, message) counts kept in all for the sequence findings' names: a capture can name a new
-# message (an unknown id) in every frame. The native accumulator's cap of such pairs (MS_CAP_PAIRS, past
-# which it hands over to this path) is the same, so both paths name the same messages.
+# message (an unknown id) in every frame. The native accumulator hands over to this path past the same
+# number (its plan's MS_K_MAX_NAMED), so both paths name the same messages.
 MAX_NAMED = 1 << 18
 
 Link = tuple[int, int]

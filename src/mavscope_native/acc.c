@@ -107,7 +107,7 @@ int ms_pairs_count(ms_pairs *p, uint32_t owner, uint32_t value, uint64_t add) {
         p->v[at].count += add;
         return 0;
     }
-    int g = ms_vec_grow((void **)&p->v, &p->cap, p->n + 1, sizeof *p->v, MS_CAP_PAIRS);
+    int g = ms_vec_grow((void **)&p->v, &p->cap, p->n + 1, sizeof *p->v, p->limit);
     if (g != 0)
         return g;
     if (ms_map_put(&p->index, key, p->n) != 0)
@@ -146,6 +146,10 @@ int ms_acc_init(ms_acc *a, const ms_plan *plan) {
     a->last_stream = -1;
     a->rec_conv = -1;
     a->rec_src = a->rec_dst = -3;
+    a->link_endpoints.limit = a->conv_systems.limit = MS_CAP_ENDS;
+    /* the sequence findings' counted names: past expert.MAX_NAMED the pure path cuts their list */
+    a->ev_labels.limit = plan->k[MS_K_MAX_NAMED] < MS_CAP_PAIRS ? (uint32_t)plan->k[MS_K_MAX_NAMED] : MS_CAP_PAIRS;
+    a->names.limit = MS_CAP_PAIRS;
     a->link_of = malloc(65536 * sizeof *a->link_of);
     a->hb_of = malloc(65536 * sizeof *a->hb_of);
     if (a->link_of == NULL || a->hb_of == NULL) {
@@ -305,26 +309,32 @@ static int rates_add(ms_acc *a, ms_stream *s, double t) {
     return 0;
 }
 
-static ms_stream *stream(ms_acc *a, const ms_acc_frame *f) {
+/* The frame's (sender, message) stream in *out: NULL past the first MS_K_MAX_STREAMS (StatsBuilder counts
+ * the frame as unfollowed). 0, 1 when a cap filled (`full` set), -1 out of memory. */
+static int stream(ms_acc *a, const ms_acc_frame *f, ms_stream **out) {
     uint64_t key = (uint64_t)f->sysid << 32 | (uint64_t)f->compid << 24 | f->msgid;
-    if (a->last_stream >= 0 && a->streams.v[a->last_stream].key == key)
-        return &a->streams.v[a->last_stream];
+    *out = NULL;
+    if (a->last_stream >= 0 && a->streams.v[a->last_stream].key == key) {
+        *out = &a->streams.v[a->last_stream];
+        return 0;
+    }
     uint32_t at;
     if (!ms_map_get(&a->stream_index, key, &at)) {
+        if (a->streams.n >= a->plan->k[MS_K_MAX_STREAMS])
+            return 0;
         int g = MS_VGROW(a, a->streams, MS_CAP_STREAMS);
-        if (g != 0) {
-            a->full = g > 0;
-            return NULL;
-        }
+        if (g != 0)
+            return g > 0 ? (a->full = 1) : -1;
         at = a->streams.n;
         if (ms_map_put(&a->stream_index, key, at) != 0)
-            return NULL;
+            return -1;
         memset(&a->streams.v[at], 0, sizeof a->streams.v[at]);
         a->streams.v[at].key = key;
         a->streams.n++;
     }
     a->last_stream = (int32_t)at;
-    return &a->streams.v[at];
+    *out = &a->streams.v[at];
+    return 0;
 }
 
 static ms_link *link_for(ms_acc *a, unsigned sender) {
@@ -390,14 +400,16 @@ static int str_less_eq(const ms_acc *a, int32_t x, int32_t y) {
     return c < 0 || (c == 0 && nx <= ny);
 }
 
-/* The conversation of the frame: a = str(src or transport), b = str(dst or ""), in order. */
-static ms_conv *conversation(ms_acc *a, const ms_acc_frame *f, int *forward) {
+/* The conversation of the frame in *out: a = str(src or transport), b = str(dst or ""), in order; NULL
+ * past the first MS_K_MAX_CONVERSATIONS (unfollowed). 0, 1 when a cap filled (`full` set), -1 nomem. */
+static int conversation(ms_acc *a, const ms_acc_frame *f, int *forward, ms_conv **out) {
     static const char *const NAMES[MS_TR_N] = {"udp", "tcp", "tlog", "raw"};
     int32_t x = f->src, y = f->dst < 0 ? 0 : f->dst;
+    *out = NULL;
     if (x < 0) {
         x = ms_acc_intern(a, NAMES[f->transport], strlen(NAMES[f->transport]));
         if (x < 0)
-            return NULL;
+            return x == -1 ? -1 : 1;
     }
     int32_t lo = x, hi = y;
     if (!str_less_eq(a, x, y)) {
@@ -408,14 +420,14 @@ static ms_conv *conversation(ms_acc *a, const ms_acc_frame *f, int *forward) {
     uint64_t key = (uint64_t)f->transport << 62 | (uint64_t)lo << 31 | (uint64_t)hi;
     uint32_t at;
     if (!ms_map_get(&a->conv_index, key, &at)) {
+        if (a->convs.n >= a->plan->k[MS_K_MAX_CONVERSATIONS])
+            return 0;
         int g = MS_VGROW(a, a->convs, MS_CAP_CONVS);
-        if (g != 0) {
-            a->full = g > 0;
-            return NULL;
-        }
+        if (g != 0)
+            return g > 0 ? (a->full = 1) : -1;
         at = a->convs.n;
         if (ms_map_put(&a->conv_index, key, at) != 0)
-            return NULL;
+            return -1;
         ms_conv *c = &a->convs.v[at];
         memset(c, 0, sizeof *c);
         c->a = lo;
@@ -423,7 +435,8 @@ static ms_conv *conversation(ms_acc *a, const ms_acc_frame *f, int *forward) {
         c->transport = (uint8_t)f->transport;
         a->convs.n++;
     }
-    return &a->convs.v[at];
+    *out = &a->convs.v[at];
+    return 0;
 }
 
 #define SEE(o, f)                      \
@@ -457,13 +470,19 @@ int ms_acc_add(ms_acc *a, const ms_acc_frame *f) {
         }
         a->last = f->time;
     }
-    ms_stream *s = stream(a, f);
-    CHECK(s);
-    s->count++;
-    s->bytes += size;
-    SEE(s, f);
-    if (f->has_time && rates_add(a, s, f->time) != 0)
-        return -1;
+    ms_stream *s;
+    int r = stream(a, f, &s);
+    if (r != 0)
+        return r;
+    if (s == NULL) {
+        a->unfollowed_streams++;
+    } else {
+        s->count++;
+        s->bytes += size;
+        SEE(s, f);
+        if (f->has_time && rates_add(a, s, f->time) != 0)
+            return -1;
+    }
     ms_link *lk = link_for(a, sender);
     CHECK(lk);
     lk->received++;
@@ -488,7 +507,7 @@ int ms_acc_add(ms_acc *a, const ms_acc_frame *f) {
     SEE(lk, f);
     const uint32_t link_index = (uint32_t)(lk - a->links.v);
     if (f->src >= 0) {
-        int r = ms_pairs_count(&a->link_endpoints, link_index, (uint32_t)f->src, 0);
+        r = ms_pairs_count(&a->link_endpoints, link_index, (uint32_t)f->src, 0);
         if (r != 0)
             return r > 0 ? (a->full = 1) : -1;
     }
@@ -498,24 +517,30 @@ int ms_acc_add(ms_acc *a, const ms_acc_frame *f) {
         c = &a->convs.v[a->rec_conv];
         forward = a->rec_forward;
     } else {
-        c = conversation(a, f, &forward);
-        CHECK(c);
-        a->rec_conv = (int32_t)(c - a->convs.v);
-        a->rec_src = f->src;
-        a->rec_dst = f->dst;
-        a->rec_forward = forward;
+        if ((r = conversation(a, f, &forward, &c)) != 0)
+            return r;
+        if (c != NULL) {
+            a->rec_conv = (int32_t)(c - a->convs.v);
+            a->rec_src = f->src;
+            a->rec_dst = f->dst;
+            a->rec_forward = forward;
+        }
     }
-    if (forward) {
-        c->frames_ab++;
-        c->bytes_ab += size;
+    if (c == NULL) {
+        a->unfollowed_convs++;
     } else {
-        c->frames_ba++;
-        c->bytes_ba += size;
+        if (forward) {
+            c->frames_ab++;
+            c->bytes_ab += size;
+        } else {
+            c->frames_ba++;
+            c->bytes_ba += size;
+        }
+        SEE(c, f);
+        r = ms_pairs_count(&a->conv_systems, (uint32_t)(c - a->convs.v), sender, 0);
+        if (r != 0)
+            return r > 0 ? (a->full = 1) : -1;
     }
-    SEE(c, f);
-    int r = ms_pairs_count(&a->conv_systems, (uint32_t)(c - a->convs.v), sender, 0);
-    if (r != 0)
-        return r > 0 ? (a->full = 1) : -1;
     r = ms_expert_add(a, f, lk, step);
     if (r > 0)
         a->full = 1;

@@ -22,13 +22,15 @@
 #include "plan.h"
 #include "seq.h"
 
-#define MS_CAP_STRINGS (1u << 16)  /* endpoint texts */
-#define MS_CAP_STREAMS (1u << 14)  /* (sysid, compid, message) */
-#define MS_CAP_LINKS (1u << 14)    /* (sysid, compid) */
-#define MS_CAP_CHANNELS (1u << 15) /* sequence trackers per sender and channel */
-#define MS_CAP_CONVS (1u << 16)
-#define MS_CAP_PAIRS (1u << 18)    /* a link's endpoints, a conversation's systems, counted names */
-#define MS_CAP_ITEMS (1u << 16)    /* events, findings in the making, reported keys */
+#define MS_CAP_STRINGS (1u << 20)  /* endpoint texts */
+#define MS_CAP_STREAMS (1u << 16)  /* (sysid, compid, message): past the plan's MS_K_MAX_STREAMS, unfollowed */
+#define MS_CAP_LINKS (1u << 16)    /* (sysid, compid): every sender there can be */
+#define MS_CAP_CHANNELS (1u << 17) /* sequence trackers per sender and channel: each sender's first and
+                                      the plan's MS_K_MAX_EXTRA (4,096) more */
+#define MS_CAP_CONVS (1u << 16)    /* past the plan's MS_K_MAX_CONVERSATIONS, unfollowed */
+#define MS_CAP_PAIRS (1u << 18)    /* counted names (the sequence findings': also the plan's MS_K_MAX_NAMED) */
+#define MS_CAP_ENDS (1u << 22)     /* a link's endpoints, a conversation's systems */
+#define MS_CAP_ITEMS (1u << 18)    /* events (3 per sender at most), findings in the making, reported keys */
 #define MS_FN_MAX 64               /* frame numbers kept per finding (framelist.MAX_FRAMES, checked) */
 #define MS_MODE_MAX 320            /* a flight mode's name */
 
@@ -113,7 +115,7 @@ typedef struct {
 
 typedef struct {
     ms_pair *v;
-    uint32_t n, cap;
+    uint32_t n, cap, limit; /* limit: MS_CAP_PAIRS or MS_CAP_ENDS */
     ms_map index; /* owner << 32 | value -> position in v */
 } ms_pairs;
 
@@ -215,6 +217,7 @@ typedef MS_VEC(int32_t) ms_ivec;
 typedef struct {
     const ms_plan *plan;
     int full; /* a cap was reached: the caller runs the pure path */
+    uint64_t unfollowed_streams, unfollowed_convs; /* frames beyond MS_K_MAX_STREAMS, MS_K_MAX_CONVERSATIONS */
     ms_seq_rules rules;
     /* totals */
     uint64_t total, nbytes, crc[MS_CRC_N], sig[MS_SIG_N], v1, v2;

@@ -1,8 +1,9 @@
 /* ms_acc_dump: the accumulator's whole state as one byte string for mavscope/native_stats.py, which reads it
  * with `struct` in this order (little-endian; "fn" is a FrameNumbers: u64 count, u32 n, u64 x n):
  *
- *   "MSSD" u32 1
- *   totals    u64 frames, bytes; u8 has_time; f64 first, last; u64 crc[4]; u64 signature[6]; u64 v1, v2
+ *   "MSSD" u32 2
+ *   totals    u64 frames, bytes; u8 has_time; f64 first, last; u64 crc[4]; u64 signature[6]; u64 v1, v2;
+ *             u64 unfollowed streams, unfollowed conversations (their frames)
  *   strings   u32 n; per string u32 length, bytes
  *   streams   u32 n; per stream u64 key; u64 count, bytes; u8 has_time; f64 first, last;
  *             u8 has_rates; f64 width; u32 nbins; u64 bins[nbins]
@@ -90,7 +91,7 @@ static void seq(ms_buf *b, const ms_seq *s) {
 
 int ms_acc_dump(const ms_acc *a, ms_buf *b) {
     ms_buf_put(b, "MSSD", 4);
-    un(b, 1, 4);
+    un(b, 2, 4);
     un(b, a->total, 8);
     un(b, a->nbytes, 8);
     u8(b, a->has_first);
@@ -102,6 +103,8 @@ int ms_acc_dump(const ms_acc *a, ms_buf *b) {
         un(b, a->sig[i], 8);
     un(b, a->v1, 8);
     un(b, a->v2, 8);
+    un(b, a->unfollowed_streams, 8);
+    un(b, a->unfollowed_convs, 8);
     un(b, a->nstr, 4);
     for (uint32_t i = 0; i < a->nstr; i++) {
         un(b, a->str_len[i], 4);

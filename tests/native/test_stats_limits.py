@@ -9,14 +9,19 @@ the pure path's (the reference); the native pass must not give up on them.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import pytest
 
+from mavscope import native_dump
+from mavscope.analysis import expert, stats
 from mavscope.analysis.expert import COPIES_KEPT
 from mavscope.analysis.sequence import MAX_CHANNELS, MAX_EXTRA
 from mavscope.analysis.vehicles import MAX_SENDERS
 from mavscope.mavlink.dialect import load_dialect
+from tests.conftest import Cli
 from tests.native import build as nh
-from tests.native.engines import capture_file
+from tests.native.engines import PURE, capture_file
 from tests.native.stats_engines import native_stats_of, pure_stats
 from tests.native.stories import BY_NAME, pack
 
@@ -104,3 +109,57 @@ def test_a_dump_of_nothing() -> None:
     found = check(nh.pcap([(1_700_000_000, 0, b"\0" * 20)], nh.LINKTYPES["ethernet"]))
     assert found["json"]["totals"]["frames"] == 0  # type: ignore[index]
     assert found["findings"] == []
+
+
+@pytest.fixture
+def caps(monkeypatch: pytest.MonkeyPatch) -> Callable[..., None]:
+    """Lowers the analyses' caps named (module attribute = value) for the test; the native plan, compiled
+    from those modules when it is built, is built afresh."""
+    monkeypatch.setattr(native_dump, "_plans", [])
+
+    def lower(**values: int) -> None:
+        for name, value in values.items():
+            module = {"MAX_STREAMS": stats, "MAX_CONVERSATIONS": stats, "MAX_NAMED": expert}[name]
+            monkeypatch.setattr(module, name, value)
+
+    return lower
+
+
+def test_more_streams_and_conversations_than_stats_follows(caps: Callable[..., None]) -> None:
+    """MAX_STREAMS 5 and MAX_CONVERSATIONS 3: 4 senders x 2 messages from 4 UDP ports, twice. By hand: the
+    first 5 (sender, message) streams are followed, the other 3 streams' frames (2 each) are unfollowed, 6;
+    the first 3 endpoint pairs are followed, the fourth one's frames (2 a round) are unfollowed, 4. The
+    native pass no longer gives up there: it counts them as the pure path does."""
+    caps(MAX_STREAMS=5, MAX_CONVERSATIONS=3)
+    records = []
+    for rnd in range(2):
+        for sysid in range(1, 5):
+            for k, name in enumerate(("HEARTBEAT", "ATTITUDE")):
+                f = frame(name, {"type": 2, "autopilot": 3}, rnd * 2 + k, sysid, 1)
+                ip = nh.ipv4(bytes([10, 0, 0, sysid]), bytes([10, 0, 1, 1]), 17, nh.udp(14550 + sysid, 14560, f))
+                records.append((1_700_000_000 + len(records), 0, nh.link("ethernet", ip, False)))
+    data = nh.pcap(records, nh.LINKTYPES["ethernet"])
+    with capture_file(data) as path:
+        native = native_stats_of(path, DIALECT)
+        assert native is not None
+    totals = check(data)["json"]["totals"]  # type: ignore[index]
+    assert (totals["unfollowed_stream_frames"], totals["unfollowed_conversation_frames"]) == (6, 4)
+
+
+def test_more_named_messages_than_the_sequence_findings_keep_runs_the_pure_path(
+        caps: Callable[..., None], cli: Cli) -> None:
+    """MAX_NAMED 2: one sender's frames step back to 6 numbers seen (not one after the other: no restarted
+    counter) with 3 messages, so the third is not named. The native
+    accumulator hands over to the pure path there (its table of counted names is full), and `stats` prints
+    what the pure path prints: "(... and more)"."""
+    caps(MAX_NAMED=2)
+    names = ("HEARTBEAT", "ATTITUDE", "SYS_STATUS")
+    entries = [frame(names[i % 3], {}, i, 1, 1) for i in range(30)]
+    entries += [frame(names[i % 3], {}, seq, 1, 1) for i, seq in enumerate((5, 3, 7, 1, 9, 2))]  # duplicates
+    data = nh.tlog([(T0 + i * 1000, f) for i, f in enumerate(entries)])
+    with capture_file(data) as path:
+        assert native_stats_of(path, DIALECT) is None
+        pure = cli("stats", path, "--json", environ=PURE)
+        native = cli("stats", path, "--json", environ={})
+    assert native == pure
+    assert "and more)" in pure.out
