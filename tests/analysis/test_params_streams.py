@@ -9,12 +9,11 @@ vehicles, n the channel from 0) or MAVn_ (GCS.cpp, n from 1). The table below is
 
 Synthetic flows are built by pymavlink (tests/support/ftpflows.py); the plane tlog's expectations are
 derived from the tlog read by pymavlink record by record (tests/support/pymavlink_reader.py) and from the
-FTP reads of /work/research/real-truth/truth.json (derive.py, pymavlink alone).
+FTP reads as tests/support/real_truth.py derives them from pymavlink's messages.
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import pytest
@@ -24,6 +23,7 @@ from mavscope.analysis.events.records import param_event
 from mavscope.analysis.params import analyse
 from mavscope.mavlink.dialect import Dialect
 from tests.conftest import Cli
+from tests.support import real_truth
 from tests.support.ftpflows import Flow, frames_of
 from tests.support.pymavlink_reader import read
 
@@ -31,7 +31,6 @@ from tests.support.pymavlink_reader import read
 AP_STREAMS = {1: "RAW_SENS", 2: "EXT_STAT", 3: "RC_CHAN", 4: "RAW_CTRL", 6: "POSITION", 10: "EXTRA1", 11: "EXTRA2",
               12: "EXTRA3"}
 PLANE = "ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog"
-TRUTH = Path("/work/research/real-truth/truth.json")
 
 
 def pv(name: str, value: float, ptype: int = 4) -> object:  # MAV_PARAM_TYPE_INT16 is 4
@@ -88,7 +87,8 @@ def test_plane_stream_rates_are_explained(cli: Cli, real_captures: Path) -> None
             requests += [(m.index + 1, s, value) for s in suffixes]
     assert len({r[0] for r in requests}) == 52  # the 52 REQUEST_DATA_STREAM of the capture, all to 1/1
     # each complete param.pck read: from its OpenFileRO to the end-of-file NAK (the last data sent)
-    reads = [(r["open_index"] + 1, r["eof_nak"]["index"] + 1) for r in _truth_reads() if r.get("eof_nak")]
+    reads = [(r["open_index"] + 1, r["eof_nak"]["index"] + 1) for r in real_truth.ftp_reads(read(path))
+             if r.get("eof_nak")]
     doc = cli.json("params", path)
     stream_rates = [e for e in doc["timeline"] if e["name"].startswith("SR0_")]
     assert len(stream_rates) == 34
@@ -112,9 +112,3 @@ def test_plane_stream_rates_are_explained(cli: Cli, real_captures: Path) -> None
     assert status == 0
     param_lines = [line for line in out.splitlines() if " SR0_" in line and "changed to" in line]
     assert len(param_lines) == 34 and not any("no set to explain it" in line for line in param_lines)
-
-
-def _truth_reads() -> list[dict]:  # type: ignore[type-arg]
-    if not TRUTH.is_file():
-        pytest.skip(f"{TRUTH} (independent answers derived with pymavlink) is absent")
-    return json.loads(TRUTH.read_text(encoding="utf-8"))["captures"][PLANE]["ftp"]["file_reads"]

@@ -2,9 +2,8 @@
 ArduPilot (Rover/boat, Plane, Copter) SITL, ArduSub, PX4, Mission Planner, QGroundControl, MAVProxy.
 
 Independent sources:
-- /work/research/real-truth/truth.json (derive.py, pymavlink 2.4.50 alone): commands with their ACK,
-  parameter sets and their confirmation, MAVLink FTP file reads, signing streams (the tests that need it
-  skip where it is absent).
+- tests/support/real_truth.py (pymavlink's messages and the protocols' rules, no mavscope import): commands
+  with their ACK, parameter sets and their confirmation, MAVLink FTP file reads, signing streams.
 - pymavlink read here (tests/support/pymavlink_reader.py): the vehicle HEARTBEATs, from which the arming
   and custom-mode transitions are counted in the test, the STATUSTEXT frames, whose chunks are joined
   by the protocol's rule (same id; a chunk shorter than 50 characters ends the text), and the PARAM_VALUE
@@ -18,7 +17,6 @@ origin is set (offsets from 0, 0), and the rover's 25x SITL speed-up are all nor
 
 from __future__ import annotations
 
-import json
 import struct
 from pathlib import Path
 
@@ -29,9 +27,9 @@ from mavscope.analysis.expert import expert_findings
 from mavscope.capture.detect import open_capture
 from mavscope.mavlink.dialect import Dialect
 from mavscope.pipeline.dissect import Anomaly, Dissector
+from tests.support import real_truth
 from tests.support.pymavlink_reader import Msg, read, read_pcap
 
-TRUTH = Path("/work/research/real-truth/truth.json")
 NEW = {"second-gcs-control", "unexpected-mode-change", "unexpected-mission-clear", "in-flight-disarm",
        "gnss-position-jump", "gnss-fix-collapse", "ekf-gnss-alarm", "gnss-time-jump"}
 # MAV_TYPEs that are no vehicle (common.xml: GCS, onboard controller, gimbal, ADS-B, camera, ...)
@@ -55,12 +53,6 @@ def _analyse(path: Path, dialect: Dialect) -> tuple:  # type: ignore[type-arg]
 
 def _pymavlink(path: Path) -> list[Msg]:
     return read_pcap(path) if path.suffix == ".pcap" else read(path)
-
-
-def _truth(name: str) -> dict:  # type: ignore[type-arg]
-    if not TRUTH.is_file():
-        pytest.skip(f"{TRUTH} (independent answers derived with pymavlink) is absent")
-    return json.loads(TRUTH.read_text(encoding="utf-8"))["captures"][name]
 
 
 @pytest.mark.parametrize("name", CAPTURES)
@@ -109,25 +101,26 @@ def test_transition_counts(real_captures: Path, dialect: Dialect) -> None:
 @pytest.mark.parametrize("name", ["ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog",
                                   "ap_rover_mission_fence_rally_params.tlog", "ap_sitl_attack1_signed_knownkey.pcap",
                                   "ardusub_log_tools_small.tlog", "px4_2018_params_offboard.tlog"])
-def test_commands_as_truth_json(real_captures: Path, dialect: Dialect, name: str) -> None:
+def test_commands_as_pymavlink_reads_them(real_captures: Path, dialect: Dialect, name: str) -> None:
     result, _ = _analyse(real_captures / name, dialect)
-    want = sorted((c["attempts"][0]["time"], c["command"], c["ack"]["result"] if c["ack"] else None)
-                  for c in _truth(name)["commands"]["commands"])
+    want = sorted((c["attempts"][0], c["command"], c["ack"]["result"] if c["ack"] else None)
+                  for c in real_truth.commands(_pymavlink(real_captures / name)))
     got = sorted((e.time, e.details["command_id"], e.details["result_id"]) for e in result.events
                  if e.kind == "command" and e.details.get("message") != "SET_MODE")
     assert got == [(pytest.approx(t), c, r) for t, c, r in want]
 
 
-def test_parameter_sets_as_truth_json(real_captures: Path, dialect: Dialect) -> None:
+def test_parameter_sets_as_pymavlink_reads_them(real_captures: Path, dialect: Dialect) -> None:
     name = "ap_rover_mission_fence_rally_params.tlog"
     result, _ = _analyse(real_captures / name, dialect)
-    want = [(s["time"], s["name"], s["value"], s["confirmed"]) for s in _truth(name)["params"]["sets"]]
+    truth = real_truth.param_sets(_pymavlink(real_captures / name))
+    want = [(s["time"], s["name"], s["value"], s["confirmed"]) for s in truth]
     sets = [e for e in result.events if e.kind == "param" and e.details["what"] == "set"]
     got = [(e.time, e.details["name"], e.details["value"], e.details["confirmed"]) for e in sets]
     assert len(want) == 55 and got == [(pytest.approx(t), n, pytest.approx(v), c) for t, n, v, c in want]
-    # truth.json's latency_s: from the set to the PARAM_VALUE that confirmed it
+    # latency_s: from the set to the PARAM_VALUE that confirmed it
     assert [e.details["latency_ms"] for e in sets] == [pytest.approx(s["latency_s"] * 1000, abs=0.002)
-                                                       for s in _truth(name)["params"]["sets"]]
+                                                       for s in truth]
 
 
 def test_parameter_changes_no_set_explains(real_captures: Path, dialect: Dialect) -> None:
@@ -155,12 +148,12 @@ def test_parameter_changes_no_set_explains(real_captures: Path, dialect: Dialect
     assert want and got == [(pytest.approx(t), s, n, pytest.approx(v)) for t, s, n, v in want]
 
 
-def test_ftp_opens_as_truth_json(real_captures: Path, dialect: Dialect) -> None:
-    """Each OpenFileRO of truth.json: an accepted one is a file event of the file read (session, size
+def test_ftp_opens_as_pymavlink_reads_them(real_captures: Path, dialect: Dialect) -> None:
+    """Each OpenFileRO: an accepted one is a file event of the file read (session, size
     announced), a refused one a file event of the operation with the server's NAK."""
     name = "ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog"
     result, _ = _analyse(real_captures / name, dialect)
-    reads = _truth(name)["ftp"]["file_reads"]
+    reads = real_truth.ftp_reads(_pymavlink(real_captures / name))
     want = [(r["open_time"], r["path"], r.get("session"), r.get("announced_size"),
              f"NAK {r['open_nak']}" if r.get("open_nak") else None) for r in reads]
     files = [e for e in result.events if e.kind == "file"]
@@ -178,11 +171,11 @@ def test_ftp_opens_as_truth_json(real_captures: Path, dialect: Dialect) -> None:
 def test_signed_attack_story(real_captures: Path, dialect: Dialect) -> None:
     name = "ap_sitl_attack1_signed_knownkey.pcap"
     result, _ = _analyse(real_captures / name, dialect)
-    signing = _truth(name)["signing"]["streams"]
+    signing = real_truth.signing_streams(_pymavlink(real_captures / name))
     assert sorted(f"{e.sender[0]}/{e.sender[1]} link {e.details['link_id']}" for e in result.events
                   if e.kind == "signing") == sorted(signing)
     (cmd,) = [e for e in result.events if e.kind == "command"]
-    # truth.json: MAV_CMD_DO_SET_MODE 217 / 9 from 255/230 to 1/0, ACCEPTED 5 ms later; ArduCopter mode 9 is LAND
+    # pymavlink: MAV_CMD_DO_SET_MODE 217 / 9 from 255/230 to 1/0, ACCEPTED 5 ms later; ArduCopter mode 9 is LAND
     assert (cmd.sender, cmd.target, cmd.details["command_id"], cmd.details["result_id"], cmd.details["mode"]) == \
         ((255, 230), (1, 0), 176, 0, "LAND")
     (mode,) = [e for e in result.events if e.kind == "mode"]
