@@ -51,6 +51,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="do not sync each file to disk before its capture is committed (faster on slow disks; "
                         "a power loss may then lose files of a committed capture, a process crash cannot)")
     p.add_argument("--json", action="store_true", help="print the result per capture as JSON")
+    p.add_argument("--unsafe-csv", dest="guard", action="store_false",
+                   help="with -T csv: write text that begins with = + - @ as it is (by default it gets a leading ' "
+                        "so that a spreadsheet does not run a sender's text as a formula)")
     add_dialect_option(p)
     add_key_options(p)
     p.set_defaults(run=run)
@@ -202,17 +205,18 @@ def _parquet(args: argparse.Namespace, env: Env, captures: list[str], out: str, 
 
 def _csv(args: argparse.Namespace, env: Env, captures: list[str], out: Path, options: ExportOptions) -> ExitStatus:
     from mavscope.errors import MavscopeError
-    from mavscope.export.csvout import csv_folder, write_capture_csv
+    from mavscope.export.csvout import csv_folder, guarded_note, write_capture_csv
     from mavscope.export.dataset import CaptureResult
 
     taken: set[str] = set()
     failed = 0
     written: list[tuple[str, Path, dict[str, int]]] = []
+    guarded = 0
     report = Reporter(env)
     for path in captures:
         folder = csv_folder(out, path, taken)
         try:
-            got = write_capture_csv(path, folder, options, warn=warner(env))
+            got = write_capture_csv(path, folder, options, warn=warner(env), guard=args.guard)
         except MavscopeError as e:
             env.stderr.write(f"mavscope: {e}\n")
             failed += 1
@@ -220,10 +224,13 @@ def _csv(args: argparse.Namespace, env: Env, captures: list[str], out: Path, opt
         report(CaptureResult(path, None, "exported", frames=got.frames, problems=got.problems,
                              first_problem=got.first_problem))
         written.append((path, folder, got.counts))
+        guarded += got.guarded
     report.close()
+    if guarded:
+        env.stderr.write(guarded_note("export", guarded) + "\n")
     if args.json:
         write_json(env, {"out": str(out), "failed": failed, "captures": [
-            {"path": p, "folder": str(f), "messages": c} for p, f, c in written]})
+            {"path": p, "folder": str(f), "messages": c} for p, f, c in written], "guarded_cells": guarded})
     else:
         files = sum(len(c) for _, _, c in written)
         env.stdout.write(f"wrote {files} CSV file(s) for {len(written)} capture(s) under {out}"

@@ -37,6 +37,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     out = p.add_mutually_exclusive_group()
     out.add_argument("--json", action="store_true", help="the rows as a JSON array of objects")
     out.add_argument("--csv", action="store_true", help="the rows as CSV with a header line")
+    p.add_argument("--unsafe-csv", dest="guard", action="store_false",
+                   help="with --csv: write text that begins with = + - @ as it is (by default it gets a leading ' so "
+                        "that a spreadsheet does not run a sender's text as a formula)")
     add_dialect_option(p)
     add_key_options(p)
     p.set_defaults(run=run)
@@ -59,7 +62,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
             if args.json:
                 _json(env, batches)
             elif args.csv:
-                _csv(env, schema.names, batches)
+                _csv(env, schema.names, batches, args.guard)
             else:
                 _text(env, schema, batches)
         finally:
@@ -146,11 +149,24 @@ def _cell(v: object) -> str:
     return str(_plain(v))
 
 
-def _csv(env: Env, names: list[str], batches: Iterator[pa.RecordBatch]) -> None:
+def _csv(env: Env, names: list[str], batches: Iterator[pa.RecordBatch], guard: bool) -> None:
+    """CSV rows; `guard`: text cells a spreadsheet would run as formulas get a leading ' (counted on
+    stderr), as `export -T csv` writes them (mavscope.export.csvout)."""
+    from mavscope.export.csvout import formula_like, guarded_note
+
     w = csv.writer(env.stdout, lineterminator="\n")
     w.writerow(names)
+    guarded = 0
     for row in _tuples(batches):
-        w.writerow([_cell(v) for v in row])
+        cells = [_cell(v) for v in row]
+        if guard:
+            for i, v in enumerate(row):
+                if isinstance(v, str) and formula_like(v):
+                    cells[i] = "'" + cells[i]
+                    guarded += 1
+        w.writerow(cells)
+    if guarded:
+        env.stderr.write(guarded_note("sql", guarded) + "\n")
 
 
 def _text(env: Env, schema: pa.Schema, batches: Iterator[pa.RecordBatch]) -> None:

