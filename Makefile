@@ -18,8 +18,11 @@ $(STAMP): pyproject.toml $(NATIVE_SRC) | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e .
 	touch $@
 
+# MAVProxy for the cross-checks that use its decoders (pure Python modules); without its dependencies,
+# which are its GUI's (OpenCV, VTK: hundreds of MB) and which those modules do not import
 $(TSTAMP): pyproject.toml $(NATIVE_SRC) | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m pip install --quiet --no-deps 'MAVProxy==1.8.75'
 	touch $(STAMP) $@
 
 demo: $(STAMP)

@@ -2,11 +2,12 @@
 (../shared/real-captures, PROVENANCE.md there), against answers derived without mavscope.
 
 Two independent sources:
-- EXPECTED below is hard-coded from /work/research/real-truth/truth.json ("missions"), which
-  derive.py's mission_transfers() computed with pymavlink 2.4.50 alone (a state machine over the decoded
+- EXPECTED below is written out from a derivation with pymavlink alone (a state machine over the decoded
   frames: a transfer opens at MISSION_COUNT, is a download when the receiver sent MISSION_REQUEST_LIST or
   the sender is a vehicle by HEARTBEAT, and closes at MISSION_ACK ACCEPTED from the receiver or any ACK from
-  the sender). Where mavscope's grouping deliberately differs, the comment says why.
+  the sender), to be read with the captures; `test_expected_is_the_derivation` runs that derivation again
+  (tests/support/real_truth.py, `mission_transfers`) and holds EXPECTED to it. Where mavscope's grouping
+  deliberately differs, the comment says why.
 - Items, coordinates, resent items, MISSION_SET_CURRENT answers and the .plan's HEARTBEAT numbers and home
   are derived at test time from the frames pymavlink decodes (tests/support/pymavlink_reader.py).
 """
@@ -25,8 +26,8 @@ from tests.conftest import ROOT, Cli
 from tests.support.pymavlink_reader import Msg, read
 
 # (mission_type, direction, from, to, count, outcome, final MISSION_ACK result or None)
-# outcome: "complete" = truth's final_ack type 0 from the requester with no missing item; "unacknowledged"
-# = truth's final_ack None with every item received; "cancelled" = truth's acks_from_supplier.
+# outcome: "complete" = the final MISSION_ACK MAV_MISSION_ACCEPTED from the receiver, no item missing;
+# "unacknowledged" = no final ACK, every item received; "cancelled" = an ACK from the sender.
 G250, G255, V = [250, 250], [255, 190], [1, 1]
 OK = "MAV_MISSION_ACCEPTED"
 EXPECTED: dict[str, list[tuple[int, str, list[int], list[int], int, str, str | None]]] = {
@@ -51,18 +52,19 @@ EXPECTED: dict[str, list[tuple[int, str, list[int], list[int], int, str, str | N
     "ardusub_log_tools_small.tlog": [
         (0, "download", V, G255, 0, "complete", OK), (1, "download", V, G255, 0, "complete", OK)],
     # PX4 (a vehicle by HEARTBEAT) sends MISSION_COUNT 0 to 1/240 twice; 1/240 sends nothing in the capture.
-    # truth.json lists one transfer with the second COUNT as a retry (derive.py has no time limit); the two
+    # the derivation lists one transfer with the second COUNT as a retry (it has no time limit); the two
     # COUNTs are 237.23 s apart (its count_frames times 1497166782.0072 and 1497167019.238484), far beyond
     # any party's protocol timeout (PX4 5 s, ArduPilot 8 s), so mavscope reports two downloads.
     "px4_2018_params_offboard.tlog": [
         (0, "download", V, [1, 240], 0, "unacknowledged", None),
         (0, "download", V, [1, 240], 0, "unacknowledged", None)],
     # One direction of a PX4 fixed-wing download: MISSION_COUNT 125 to 1/2, 145 MISSION_ITEM_INT covering
-    # items 0..92, then the vehicle's own MISSION_ACK MAV_MISSION_ERROR (truth: acks_from_supplier).
+    # items 0..92, then the vehicle's own MISSION_ACK MAV_MISSION_ERROR (the derivation: an ACK from the sender).
     "px4_fw_mission_download_raw.bin": [
         (0, "download", V, [1, 2], 125, "cancelled", "MAV_MISSION_ERROR")],
 }
-MISSING = {("px4_fw_mission_download_raw.bin", 0): list(range(93, 125))}  # truth: missing_item_seqs
+MISSING = {("px4_fw_mission_download_raw.bin", 0): list(range(93, 125))}  # the derivation's missing items
+SPLIT = {"px4_2018_params_offboard.tlog"}  # (above: one derived transfer whose COUNTs are minutes apart)
 
 
 @pytest.fixture(scope="module")
@@ -91,6 +93,37 @@ def segments(msgs: list[Msg]) -> list[dict[str, Any]]:
         elif key in current:
             current[key]["items"][m.msg.seq].append(m.msg)
     return out
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_expected_is_the_derivation(name: str, frames: dict[str, list[Msg]]) -> None:
+    from pymavlink.dialects.v20 import all as mavlink
+
+    from tests.support.real_truth import mission_transfers
+
+    results = mavlink.enums["MAV_MISSION_RESULT"]
+    rows = []
+    for t in mission_transfers(frames[name]):
+        ack = t["final_ack"]
+        if ack is None:
+            outcome = "unacknowledged" if not t["missing"] else "incomplete"
+        elif ack["from"] == "sender":
+            outcome = "cancelled"
+        else:
+            outcome = "complete" if ack["result"] == 0 and not t["missing"] else "failed"
+        row = (t["mission_type"], t["direction"], list(t["from"]), list(t["to"]), t["count"], outcome,
+               None if ack is None else results[ack["result"]].name)
+        if name in SPLIT:  # each COUNT its own transfer: the retries are minutes apart
+            times = t["count_times"]
+            assert len(times) == 2 and times[1] - times[0] > 200
+            rows += [row] * len(times)
+        else:
+            assert len(t["count_times"]) == 1
+            rows.append(row)
+        if t["missing"]:
+            assert MISSING[(name, len(rows) - 1)] == t["missing"]
+    assert rows == EXPECTED[name]
+    assert len([k for k in MISSING if k[0] == name]) == sum(bool(t["missing"]) for t in mission_transfers(frames[name]))
 
 
 def degrees(msg: Any) -> tuple[float, float]:
@@ -124,7 +157,7 @@ def test_items_and_coordinates_match_pymavlink(name: str, docs: dict[str, dict[s
         assert (t["from"], t["to"], t["mission_type_id"], t["count"]) == (list(src), list(tgt), mtype, seg["count"])
         assert [i["seq"] for i in t["items"]] == sorted(seg["items"])
         assert t["resent_items"] == sorted(s for s, copies in seg["items"].items() if len(copies) > 1)
-        assert t["resent_changed"] == []  # truth.json: every resend has same_item_content
+        assert t["resent_changed"] == []  # every copy of an item is the same (checked below)
         assert sum(len(i["frames"]) for i in t["items"]) == sum(len(c) for c in seg["items"].values())
         for item in t["items"]:
             copies = seg["items"][item["seq"]]
@@ -138,20 +171,26 @@ def test_items_and_coordinates_match_pymavlink(name: str, docs: dict[str, dict[s
             assert item["z"] is None if math.isnan(first.z) else item["z"] == pytest.approx(first.z)  # NaN: null
 
 
-def test_rover_item_0_is_home_as_the_vehicle_reports_it(docs: dict[str, dict[str, Any]]) -> None:
-    # truth.json home.mission_item0: the vehicle replaces the uploaded item 0 with its home.
+def test_rover_item_0_is_home_as_the_vehicle_reports_it(docs: dict[str, dict[str, Any]],
+                                                        frames: dict[str, list[Msg]]) -> None:
+    # The vehicle replaces the uploaded item 0 with its home: item 0 of each upload and download, as
+    # pymavlink decodes it (test_items_and_coordinates_match_pymavlink holds the items to its frames).
     got = docs["ap_rover_mission_fence_rally_params.tlog"]["transfers"]
     home = [(t["direction"], t["items"][0]["x"], t["items"][0]["y"]) for t in got if t["items"]]
     assert home == [("upload", 40.071377, -105.22979), ("download", 40.0714771, -105.229489),
                     ("upload", 40.071289, -105.230057), ("download", 40.0714469, -105.2294918)]
+    zeros = [seg["items"][0][0] for seg in segments(frames["ap_rover_mission_fence_rally_params.tlog"]) if seg["count"]]
+    assert [(z.x / 1e7, z.y / 1e7) for z in zeros] == [(x, y) for _, x, y in home]
 
 
 def test_rover_set_current_answered_by_mission_current(docs: dict[str, dict[str, Any]],
                                                       frames: dict[str, list[Msg]]) -> None:
-    # truth.json set_current_and_clear_all: 6 MISSION_SET_CURRENT seq 0 from 250/250 to 1/1, no
-    # MISSION_CLEAR_ALL. Whether MISSION_CURRENT from system 1 then reported the seq asked for (before the
-    # next MISSION_SET_CURRENT) is read from pymavlink's frames here.
+    # 6 MISSION_SET_CURRENT seq 0 from 250/250 to 1/1, no MISSION_CLEAR_ALL. Whether MISSION_CURRENT from
+    # system 1 then reported the seq asked for (before the next MISSION_SET_CURRENT) is read from
+    # pymavlink's frames here.
     msgs = frames["ap_rover_mission_fence_rally_params.tlog"]
+    assert [(m.src, m.msg.target_system) for m in msgs if m.name == "MISSION_SET_CURRENT"] == [((250, 250), 1)] * 6
+    assert not any(m.name == "MISSION_CLEAR_ALL" for m in msgs)
     asked = [i for i, m in enumerate(msgs) if m.name == "MISSION_SET_CURRENT"]
     want = []
     for n, i in enumerate(asked):

@@ -1,17 +1,16 @@
-"""`mavscope objects` on real captures, against answers derived independently of mavscope
-(research/real-truth: derive.py with pymavlink 2.4.50 and struct, TRUTH.md sections 8 and 8b; the numbers
-are copied here because the tests must not read that folder):
+"""`mavscope objects` on real captures, against answers derived independently of mavscope: READS and the
+numbers below are written out for reading, and `test_written_out_answers_are_the_derivation` derives
+them again from pymavlink's messages by the protocols' rules (tests/support/real_truth.py: `ftp_reads`,
+`images`; no mavscope import):
 
 - ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog: three gapless FTP reads of @PARAM/param.pck from
   ArduPlane 1/1, each ending exactly at the EOF NAK offset; Mission Planner's first open NAKed
-  InvalidSession. Frame numbers are tlog records (TRUTH's 0-based index + 1; this tlog holds no text).
+  InvalidSession. Frame numbers are tlog records (the derivation's 0-based index + 1; this tlog holds no
+  text).
 - px4flow_v1_encapsulated_data.tlog: 177 DATA_TRANSMISSION_HANDSHAKE, each opening an image of 4096 bytes
   in 17 packets of 253; 175 complete, 2 not (the first misses packets 5-11 and holds 2 duplicates, the
   last misses 9-16); 14 ENCAPSULATED_DATA before the first handshake. The SHA-256 of the images
-  (zero-filled where packets are missing), in order, joined with spaces, hash to IMAGES_DIGEST:
-  `python -c "import json,hashlib; i=json.load(open('truth.json'))['captures'][
-  'px4flow_v1_encapsulated_data.tlog']['images']['images']; print(hashlib.sha256(' '.join(x['sha256']
-  for x in i).encode()).hexdigest())"`.
+  (zero-filled where packets are missing), in order, joined with spaces, hash to IMAGES_DIGEST.
 """
 
 from __future__ import annotations
@@ -25,7 +24,7 @@ from tests.conftest import Cli
 
 PLANE = "ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog"
 PX4FLOW = "px4flow_v1_encapsulated_data.tlog"
-# (requester, path, session, announced size, length, sha256, OpenFileRO frame, data ACKs): TRUTH.md section 8
+# (requester, path, session, announced size, length, sha256, OpenFileRO frame, data ACKs)
 READS = [
     ([255, 230], "@PARAM/param.pck?withdefaults=1", 1, 17100, 16169,
      "0a50b2aa1e5edffb61853ac593b36ba63082f1b9b1cce2ed6566545d36d3ab94", 64, 203),
@@ -70,3 +69,25 @@ def test_px4flow_images(cli: Cli, real_captures: Path) -> None:
     assert (last["details"]["missing_packets"], last["details"]["duplicate_packets"]) == ([[9, 16]], 0)
     assert doc["image_orphans"]["frames"] == 14
     assert all(o["sender"] == [81, 50] for o in images)
+
+
+def test_written_out_answers_are_the_derivation(real_captures: Path) -> None:
+    from tests.support.pymavlink_reader import read
+    from tests.support.real_truth import ftp_reads, images
+
+    reads = ftp_reads(read(capture(real_captures, PLANE)))
+    opened = [r for r in reads if "session" in r]
+    assert [(list(r["client"]), r["path"], r["session"], r["announced_size"], r["length"], r["sha256"],
+             r["open_index"] + 1, r["data_acks"]) for r in opened] == READS
+    assert all(r["gaps"] == [] and r["eof_nak"] is not None for r in opened)
+    assert [(r["path"], r["client"], r["open_nak"]) for r in reads if "open_nak" in r] == [
+        ("@PARAM/param.pck", (255, 190), "InvalidSession")]
+
+    got = images(read(capture(real_captures, PX4FLOW)))
+    imgs = got["images"]
+    assert hashlib.sha256(" ".join(i["sha256"] for i in imgs).encode()).hexdigest() == IMAGES_DIGEST
+    assert len(imgs) == 177 and sum(not i["missing"] for i in imgs) == 175 and got["orphans"] == 14
+    assert {(i["size"], i["packets"], i["payload"], i["width"], i["sender"]) for i in imgs} == {
+        (4096, 17, 253, 64, (81, 50))}
+    assert (imgs[0]["missing"], imgs[0]["duplicates"]) == (list(range(5, 12)), 2)
+    assert (imgs[-1]["missing"], imgs[-1]["duplicates"]) == (list(range(9, 17)), 0)

@@ -1,20 +1,14 @@
 """`mavscope params` on real captures, against decoders and readers that are not mavscope's.
 
 - The plane tlog's three @PARAM/param.pck reads, exported by `mavscope objects --out`, decoded by
-  pymavlink's `mavftp.MAVFTP.ftp_param_decode` (MAVProxy's decoder, moved into pymavlink). MAVProxy's own
-  decoder gives the same, recorded here as a derived expectation: with MAVProxy 1.8.75,
-
-      /work/research/venv/bin/python -c "import sys,struct,hashlib; from MAVProxy.modules.lib.param_ftp
-      import ftp_param_decode as d; p=d(open(sys.argv[1],'rb').read()); print(None if p is None else (len(
-      p.params), hashlib.sha256('\\n'.join(sorted(f'{n.decode()}={struct.pack(\\"<f\\",v).hex() if t==4 else
-      int(v)}:{t}' for n,v,t in p.params)).encode()).hexdigest()))" FILE
-
-  printed `paramftp: bad count 1435 should be 1425` and None for the first read (its header says 1425 and
-  it holds 1435: research/real-truth/TRUTH.md section 8), (1435, MAVPROXY[1]) and (1435, MAVPROXY[2]) for
-  the other two.
+  pymavlink's `mavftp.MAVFTP.ftp_param_decode` (MAVProxy's decoder, moved into pymavlink) and by MAVProxy's
+  own (`MAVProxy.modules.lib.param_ftp`, MAVProxy 1.8.75, which `make test` installs). MAVProxy's decoder
+  prints `paramftp: bad count 1435 should be 1425` and gives None for the first read (its header says
+  1425 and it holds 1435); MAVPROXY below holds the digests (`digest`) it gives for the other two, written
+  out for reading and compared with both decoders at test time.
 - The rover's 55 PARAM_SETs and the PX4 and ArduSub PARAM_VALUE/PARAM_EXT_VALUE, read by pymavlink record by
-  record (tests/support/pymavlink_reader.py). TRUTH.md section 9: rover 55 sets, 55 confirmed; PX4 739
-  names; ArduSub 887 names and 14 PARAM_EXT_VALUE.
+  record (tests/support/pymavlink_reader.py): rover 55 sets, 55 confirmed; PX4 739 names; ArduSub 887
+  names and 14 PARAM_EXT_VALUE.
 """
 
 from __future__ import annotations
@@ -133,3 +127,18 @@ def test_ardusub_param_ext(cli: Cli, real_captures: Path) -> None:
     got = {(c["sysid"], c["compid"]): set(c["parameters"]) for c in doc["components"]}
     assert got == names
     assert len(names[(1, 1)]) == 887 and len(names[(1, 100)]) == 14
+
+
+def test_mavproxys_own_decoder_agrees(cli: Cli, real_captures: Path, tmp_path: Path,
+                                      capsys: pytest.CaptureFixture[str]) -> None:
+    param_ftp = pytest.importorskip("MAVProxy.modules.lib.param_ftp",
+                                    reason="MAVProxy is not installed (make test installs it)")
+    path = capture(real_captures, PLANE)
+    objects = cli.json("objects", path, "--out", tmp_path)["objects"]
+    capsys.readouterr()
+    got = []
+    for obj in objects:
+        decoded = param_ftp.ftp_param_decode((tmp_path / obj["file"]).read_bytes())
+        got.append(None if decoded is None else (len(decoded.params), digest(decoded.params)))
+    assert got == [None, (1435, MAVPROXY[1]), (1435, MAVPROXY[2])]
+    assert "paramftp: bad count 1435 should be 1425" in capsys.readouterr().out

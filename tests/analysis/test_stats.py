@@ -205,10 +205,19 @@ def test_seq_tracker_tells_an_uncounted_frame_from_a_copy() -> None:
 def test_mavproxys_synthetic_param_values_are_neither_duplicates_nor_losses(cli: Cli, real_captures: Path) -> None:
     """ArduPlane SITL tlog: after its FTP parameter download MAVProxy wrote 1,435 PARAM_VALUE frames into the
     tlog under header 1/190, every one with seq 14 and its own parameter (MAVProxy's mavproxy_param.py
-    log_params(); counted by /work/research/real-truth with pymavlink: 1,435 frames, 1,434 naive repeats of
-    the same seq, 1,435 distinct param_ids). Mission Planner (255/190) has 28 frames behind its counter that
-    fill no gap (REQUEST_DATA_STREAM on a second counter) and 7 late ones: those stay duplicates/late."""
-    doc = cli.json("stats", real_captures / "ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog")
+    log_params(); counted here with pymavlink: 1,435 frames, 1,434 repeats of the same seq, 1,435 distinct
+    param_ids). Mission Planner (255/190) has 28 frames behind its counter that fill no gap
+    (REQUEST_DATA_STREAM on a second counter) and 7 late ones: those stay duplicates/late."""
+    from tests.support.pymavlink_reader import read
+
+    path = real_captures / "ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog"
+    if not path.is_file():
+        pytest.skip(f"{path} is absent")
+    synthetic = [m for m in read(path) if m.src == (1, 190)]
+    assert len(synthetic) == 1435 and {m.name for m in synthetic} == {"PARAM_VALUE"}
+    assert {m.msg.get_seq() for m in synthetic} == {14}
+    assert len({m.msg.param_id for m in synthetic}) == 1435
+    doc = cli.json("stats", path)
     links = {(lk["sysid"], lk["compid"]): lk for lk in doc["links"]}
     assert (links[(1, 190)]["received"], links[(1, 190)]["unchanged_seq"], links[(1, 190)]["duplicates"],
             links[(1, 190)]["lost"]) == (1435, 1434, 0, 0)

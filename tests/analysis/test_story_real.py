@@ -85,7 +85,7 @@ def test_heartbeat_transitions(real_captures: Path, dialect: Dialect, name: str)
 
 
 def test_transition_counts(real_captures: Path, dialect: Dialect) -> None:
-    """What the HEARTBEATs say, as TRUTH.md and NOTES.md describe the captures (and the loop above checks)."""
+    """What the HEARTBEATs say, written out for reading (the loop above derives them from pymavlink)."""
     counts = {}
     for name in ("ap_rover_mission_fence_rally_params.tlog", "ardusub_log_tools_small.tlog",
                  "px4_2018_params_offboard.tlog", "ap_sitl_attack1_signed_knownkey.pcap"):

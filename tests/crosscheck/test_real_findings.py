@@ -12,8 +12,11 @@ hand and decoded by pymavlink (`_frames`), by the rule each finding states in do
   (a ground station numbering it apart: on the plane and ArduSub tlogs, 35 frames numbered 1..7 in bursts);
 - command-without-heartbeat: a commanding message to another system, not a ground station, before the
   sender's first HEARTBEAT; new-commander: a second system id commanding a vehicle.
-For the pcaps and the two raw streams the expectations are written out with the numbers of the
-independent derivation (/work/research/real-truth/TRUTH.md: pymavlink and by hand), and why.
+For the pcaps and the two raw streams the expectations are written out, with the numbers that explain
+them, and derived again the same way from the frames pymavlink's parser finds in the UDP datagrams and
+TCP streams scapy reads (`_stream_frames`), plus signature-ahead by its rule: a signing stream's first
+signature time (10 µs units since 2015-01-01) more than a minute ahead of the packet's time and more than
+an hour further ahead than every other stream's first frame.
 """
 
 from __future__ import annotations
@@ -36,11 +39,10 @@ TLOGS = ["ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog", "ap_rover_mission_f
          "ardusub_log_tools_small.tlog", "bluerobotics_mavlink_server_blueos_00025.tlog",
          "px4_2018_params_offboard.tlog", "px4flow_v1_encapsulated_data.tlog"]
 WRITTEN_OUT = {
-    # seq: TRUTH.md "Sequence loss": 1/1 272 frames, 255/230 1, no gaps. The injected COMMAND_LONG's sender
-    # 255/230 sends no HEARTBEAT (TRUTH.md "Vehicles / HEARTBEAT": only 1/1): a true positive. Its signature
-    # timestamp is 86,398 s ahead of the capture clock while the vehicle's stream (1/1 link 0) starts 1.1 to
-    # 10.9 s behind it (TRUTH.md "Signing"; PROVENANCE.md: "a future-timestamp attack"): signature-ahead, a
-    # true positive too (a warning: audit's exit status 1).
+    # seq: 1/1 272 frames, 255/230 1, no gaps. The injected COMMAND_LONG's sender 255/230 sends no
+    # HEARTBEAT (only 1/1 does): a true positive. Its signature timestamp is 86,398 s ahead of the capture
+    # clock while the vehicle's stream (1/1 link 0) starts 1.1 to 10.9 s behind it (PROVENANCE.md: "a
+    # future-timestamp attack"): signature-ahead, a true positive too (a warning: audit's exit status 1).
     "ap_sitl_attack1_signed_knownkey.pcap": {("command-without-heartbeat", "255/230"), ("signature-ahead", "255/230")},
     # 1/1: 8 frames, 5 forward gaps, 41 missing, the largest 12 (seq 134 -> 147): an excerpt of a longer
     # recording. 255/190 sends MANUAL_CONTROL (target 1) and no HEARTBEAT is in the excerpt but the camera's
@@ -196,6 +198,61 @@ def test_tlog_findings_are_those_the_capture_shows(cli: Cli, real_captures: Path
     assert _reported(cli, real_captures / name) == expected
 
 
+def _parse(data: bytes, time: float | None, out: list[F], signed: list[tuple[float | None, bytes]]) -> None:
+    """The frames pymavlink's robust parser finds in `data`; the header fields from the frame's bytes
+    (pymavlink gives a message it has no definition for sender 0/0)."""
+    mav = mavlink.MAVLink(None)
+    mav.robust_parsing = True
+    for m in mav.parse_buffer(data) or []:
+        if isinstance(m, mavlink.MAVLink_bad_data):
+            continue
+        raw = bytes(m.get_msgbuf())
+        h = 4 if raw[0] == 0xFD else 2
+        out.append(F((raw[h + 1], raw[h + 2]), raw[h], raw, m))
+        if raw[0] == 0xFD and raw[2] & 1:
+            signed.append((time, raw))
+
+
+def _stream_frames(path: Path) -> tuple[list[F], list[tuple[float | None, bytes]]]:
+    """A raw stream's frames, or a capture's: each UDP datagram parsed alone, each TCP direction's payloads
+    joined in capture order (these captures hold no retransmission); and the signed frames with the time
+    of their packet."""
+    out: list[F] = []
+    signed: list[tuple[float | None, bytes]] = []
+    if path.suffix not in (".pcap", ".pcapng"):
+        _parse(path.read_bytes(), None, out, signed)
+        return out, signed
+    from scapy.layers.inet import IP, TCP, UDP
+    from scapy.utils import rdpcap
+
+    streams: dict[tuple[Any, ...], bytes] = defaultdict(bytes)
+    for pkt in rdpcap(str(path)):
+        if UDP in pkt:
+            _parse(bytes(pkt[UDP].payload), float(pkt.time), out, signed)
+        elif TCP in pkt and IP in pkt:
+            streams[(pkt[IP].src, pkt[TCP].sport, pkt[IP].dst, pkt[TCP].dport)] += bytes(pkt[TCP].payload)
+    for data in streams.values():
+        _parse(data, None, out, signed)
+    return out, signed
+
+
+SIGNING_EPOCH = 1_420_070_400  # 2015-01-01T00:00:00Z
+
+
+def _signature_findings(signed: list[tuple[float | None, bytes]]) -> set[tuple[str, str]]:
+    first: dict[tuple[int, int, int], float] = {}  # (sysid, compid, link id) -> first frame's lead in seconds
+    for time, raw in signed:
+        sig = raw[-13:]
+        stamp = SIGNING_EPOCH + int.from_bytes(sig[1:7], "little") / 1e5
+        if time is not None:
+            first.setdefault((raw[5], raw[6], sig[0]), stamp - time)
+    return {("signature-ahead", f"{k[0]}/{k[1]}") for k, lead in first.items()
+            if len(first) > 1 and lead > 60 and all(lead > other + 3600 for o, other in first.items() if o != k)}
+
+
 @pytest.mark.parametrize("name", sorted(WRITTEN_OUT))
 def test_findings_on_the_other_captures(cli: Cli, real_captures: Path, name: str) -> None:
+    frames, signed = _stream_frames(real_captures / name)
+    derived = _sequence_findings(frames) | _command_findings(frames) | _signature_findings(signed)
+    assert derived == WRITTEN_OUT[name]
     assert _reported(cli, real_captures / name, WRITTEN_OUT[name]) == WRITTEN_OUT[name]

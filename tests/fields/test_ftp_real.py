@@ -1,7 +1,8 @@
 """MAVLink FTP on a real capture: ArduPlane SITL serving `@PARAM/param.pck` to MAVProxy and Mission Planner
 (497 FILE_TRANSFER_PROTOCOL frames). pymavlink reads the tlog on its own and the test decodes each FTP
 header with `struct`; mavscope's fields and filters must agree frame by frame. The counts per sender and
-opcode, and the NAKs, are the independently derived ones of research/real-truth/TRUTH.md (section 8)."""
+opcode, and the NAKs, are written out from that reading (pymavlink and struct, no mavscope), and
+`test_counts_per_sender_and_opcode` and `test_naks_as_struct_reads_them` derive them again."""
 
 from __future__ import annotations
 
@@ -23,7 +24,6 @@ from mavscope.pipeline.dissect import Dissector
 NAME = "ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog"
 OPNAMES = {1: "TerminateSession", 2: "ResetSessions", 4: "OpenFileRO", 15: "BurstReadFile", 128: "ACK", 129: "NAK"}
 PATH_OPCODES = {3, 4, 6, 8, 9, 10, 11, 12, 13, 14}
-# TRUTH.md, section 8
 BY_SENDER_AND_OPCODE = {
     "1/1 ACK(BurstReadFile)": 473, "1/1 ACK(OpenFileRO)": 3, "1/1 ACK(ResetSessions)": 1,
     "1/1 ACK(TerminateSession)": 4, "1/1 NAK(BurstReadFile)": 3, "1/1 NAK(OpenFileRO)": 1,
@@ -121,3 +121,9 @@ def test_naks(capture: tuple[list[Frame], list[Ref]], dialect: Dialect) -> None:
     naks = {f.record: tuple(field(n).get(f) for n in ("ftp.session", "ftp.req_opcode", "ftp.offset", "ftp.error"))
             for f in frames if flt.matches(f)}
     assert naks == NAKS
+
+
+def test_naks_as_struct_reads_them(capture: tuple[list[Frame], list[Ref]]) -> None:
+    frames, refs = capture
+    assert {f.record: (r.session, r.req_opcode, r.offset, r.error) for f, r in zip(frames, refs)
+            if r.opcode == 129} == NAKS

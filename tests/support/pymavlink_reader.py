@@ -4,8 +4,8 @@ the cross-checks on real captures.
 A tlog is read record by record: 8 bytes of big-endian microseconds, then one frame whose length its
 header gives; pymavlink's `MAVLink.decode()` checks the CRC (with CRC_EXTRA) and unpacks it. Bytes that
 do not start such a record (ArduPilot autotest tlogs hold SITL console text as one-byte records) are
-skipped one at a time, as /work/research/real-truth/frames.py does (pymavlink's own tlog reader, mavutil,
-is not record-based and loses real frames next to such text). A raw stream goes through pymavlink's
+skipped one at a time (pymavlink's own tlog reader, mavutil, is not record-based and loses real frames
+next to such text). A raw stream goes through pymavlink's
 streaming parser with robust parsing.
 """
 

@@ -1,6 +1,6 @@
-"""Sequence loss of one sender, computed apart from mavscope: a port of `_walk()` in the independent
-derivation of the real captures' facts (/work/research/real-truth/derive.py, written against pymavlink
-without reading mavscope's sequence code). Only the robust rule is kept.
+"""Sequence loss of one sender, computed apart from mavscope: ported from the derivation of the real
+captures' facts that was written against pymavlink without reading mavscope's sequence code (its
+`_walk()`). Only the robust rule is kept.
 
 An unwrapped counter `top` and a set of missing positions; for each frame, delta = (seq - top) mod 256:
 0 is the same number again; 1..127 moves forward (the skipped positions become missing); 128..255 is
