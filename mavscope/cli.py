@@ -22,6 +22,7 @@ from typing import IO
 
 from mavscope import __version__
 from mavscope.errors import MavscopeError, UsageError
+from mavscope.visible import visible
 
 # Subcommands, in the order `mavscope --help` lists them: name -> (module in mavscope/commands/, one-line
 # help). The help is given here, once: the module's register() leaves it out (_Commands adds it).
@@ -63,6 +64,12 @@ class Env:
     stdout: IO[str] = field(default_factory=lambda: sys.stdout)
     stderr: IO[str] = field(default_factory=lambda: sys.stderr)
     environ: dict[str, str] = field(default_factory=lambda: dict(os.environ))
+
+    def say(self, line: str, prefix: str = "mavscope: ") -> None:
+        """One line on stderr, every character a capture or a file name could bring in escaped
+        (`visible`): a file name with a line break cannot write a line that looks like one of ours, nor
+        an escape sequence reach the terminal."""
+        self.stderr.write(prefix + visible(line) + "\n")
 
     @property
     def stdout_bytes(self) -> IO[bytes]:
@@ -164,7 +171,7 @@ def main(argv: Sequence[str] | None = None, env: Env | None = None) -> int:
             return ExitStatus.ERROR
         return int(args.run(args, env))
     except MavscopeError as exc:
-        env.stderr.write(f"mavscope: {exc}\n")
+        env.say(str(exc))
         return ExitStatus.ERROR
     except BrokenPipeError:
         # `mavscope read x | head`: the reader went away; not an error worth a traceback.

@@ -139,7 +139,7 @@ def write_json(env: Env, doc: object) -> None:
 def warner(env: Env) -> Callable[[str], None]:
     """Where the pipeline's warnings go: one line each on stderr."""
     def warn(message: str) -> None:
-        env.stderr.write(f"mavscope: {message}\n")
+        env.say(f"{message}")
     return warn
 
 
@@ -150,8 +150,8 @@ def capture_session(args: argparse.Namespace, env: Env, dialect: Dialect | None 
                       warn=warner(env)) as session:
         yield session
         if session.frame_count == 0 and session.reader.position >= session.reader.size:
-            env.stderr.write(f"mavscope: no MAVLink frames found in {session.name} ({session.reader.size} bytes, "
-                             f"detected as {session.reader.kind})\n")
+            env.say(f"no MAVLink frames found in {session.name} ({session.reader.size} bytes, "
+                    f"detected as {session.reader.kind})")
 
 
 class Problems:
@@ -171,7 +171,7 @@ class Problems:
         n = self.counts.get(code, 0) + 1
         self.counts[code] = n
         if n <= self.LIMIT:
-            self.env.stderr.write(f"mavscope: {self.name}: {problem_line(where, note)}\n")
+            self.env.say(f"{self.name}: {problem_line(where, note)}")
 
     def anomaly(self, item: Anomaly) -> None:
         for note in item.notes:
@@ -186,8 +186,7 @@ class Problems:
         """One line per code whose lines were cut short."""
         for code, n in self.counts.items():
             if n > self.LIMIT:
-                self.env.stderr.write(f"mavscope: {self.name}: {n - self.LIMIT} more {code} problems not shown "
-                                      f"({n} in all)\n")
+                self.env.say(f"{self.name}: {n - self.LIMIT} more {code} problems not shown ({n} in all)")
         self.counts.clear()
 
 

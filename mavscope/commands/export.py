@@ -104,11 +104,10 @@ def gather(env: Env, paths: list[str], dialects: tuple[str, ...]) -> list[str]:
     passed = found.passed_over
     if passed:
         which = (": " + ", ".join(passed) if len(passed) <= NAMED_PASSED_OVER else f" (e.g. {passed[0]})")
-        env.stderr.write(f"mavscope: {len(passed)} file(s) in the directories are not captures and were "
-                         f"passed over{which}\n")
+        env.say(f"{len(passed)} file(s) in the directories are not captures and were passed over{which}")
     if found.stopped:
-        env.stderr.write(f"mavscope: stopped looking in the directories after {MAX_FILES:,} files: the files "
-                         "after those are not read\n")
+        env.say(f"stopped looking in the directories after {MAX_FILES:,} files: the files after those are not "
+                "read")
     return found.captures
 
 
@@ -128,7 +127,7 @@ class Reporter:
 
     def __call__(self, r: CaptureResult) -> None:
         if r.status == "failed" and self.errors:
-            self.env.stderr.write(f"mavscope: {r.error}\n")
+            self.env.say(f"{r.error}")
         if r.status != "exported":
             return
         said = [f"{r.problems} problem(s) reading it, the first: {r.first_problem}"] if r.problems else []
@@ -137,12 +136,12 @@ class Reporter:
         if said:
             self.damaged += 1
             if self.damaged <= self.SHOWN:
-                self.env.stderr.write(f"mavscope: {r.path}: {'; '.join(said)}\n")
+                self.env.say(f"{r.path}: {'; '.join(said)}")
 
     def close(self) -> None:
         if self.damaged > self.SHOWN:
-            self.env.stderr.write(f"mavscope: {self.damaged - self.SHOWN} more capture(s) with problems or without "
-                                  f"frames not shown ({self.damaged} in all; `mavscope read FILE` lists them)\n")
+            self.env.say(f"{self.damaged - self.SHOWN} more capture(s) with problems or without frames not shown "
+                         f"({self.damaged} in all; `mavscope read FILE` lists them)")
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
@@ -218,7 +217,7 @@ def _csv(args: argparse.Namespace, env: Env, captures: list[str], out: Path, opt
         try:
             got = write_capture_csv(path, folder, options, warn=warner(env), guard=args.guard)
         except MavscopeError as e:
-            env.stderr.write(f"mavscope: {e}\n")
+            env.say(f"{e}")
             failed += 1
             continue
         report(CaptureResult(path, None, "exported", frames=got.frames, problems=got.problems,
@@ -227,7 +226,7 @@ def _csv(args: argparse.Namespace, env: Env, captures: list[str], out: Path, opt
         guarded += got.guarded
     report.close()
     if guarded:
-        env.stderr.write(guarded_note("export", guarded) + "\n")
+        env.say(guarded_note("export", guarded), prefix="")
     if args.json:
         write_json(env, {"out": str(out), "failed": failed, "captures": [
             {"path": p, "folder": str(f), "messages": c} for p, f, c in written], "guarded_cells": guarded})

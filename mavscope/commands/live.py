@@ -210,7 +210,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
             for sig in (signal.SIGINT, signal.SIGTERM):
                 restore.append((sig, signal.signal(sig, on_signal)))
         # the handlers are in place before the line that tells a script it may signal
-        env.stderr.write(f"mavscope: live: {describe(source)}\n")
+        env.say(f"live: {describe(source)}")
         env.stderr.flush()
 
         def idle() -> None:
@@ -268,8 +268,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
             printer.flush()
         finally:
             if isinstance(source, UdpSource) and source.forward is not None:
-                env.stderr.write(f"mavscope: live: relayed {source.forwarded} datagrams "
-                                 f"({source.forward_errors} could not be relayed)\n")
-            env.stderr.write(summary(source, shown, stopper.undecoded) + "\n")
+                env.say(f"live: relayed {source.forwarded} datagrams ({source.forward_errors} could not be relayed)")
+            env.say(summary(source, shown, stopper.undecoded), prefix="")
             env.stderr.flush()
     return ExitStatus.OK

@@ -49,7 +49,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         except OSError as exc:
             raise UsageError(f"mission: --plan {args.plan}: {exc.strerror or exc}") from None
         for warning in export.warnings:
-            env.stderr.write(f"mavscope: mission: --plan: warning: {warning}\n")
+            env.say(f"mission: --plan: warning: {warning}")
         doc["plan"] = {"file": args.plan, **export.json()}
     if args.json:
         write_json(env, {"file": path, **doc})

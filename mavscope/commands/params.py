@@ -125,7 +125,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         out = _export(args.out, log, path)
         doc["out"] = out
         for name in out["left_out"]:  # type: ignore[attr-defined]
-            env.stderr.write(f"mavscope: params: --out: {name!r} left out (a name a parameter file cannot hold)\n")
+            env.say(f"params: --out: {name!r} left out (a name a parameter file cannot hold)")
     if args.json:
         write_json(env, doc)
         return ExitStatus.OK

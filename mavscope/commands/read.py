@@ -92,7 +92,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         if out_file is not None:
             written = write_records(path, args.write, shown_records, out_file)
     if written is not None and written.warning:
-        env.stderr.write(f"mavscope: warning: -w {args.write}: {written.warning}\n")
+        env.say(f"warning: -w {args.write}: {written.warning}")
     return ExitStatus.OK
 
 
@@ -158,7 +158,7 @@ def _run_native(args: argparse.Namespace, env: Env) -> ExitStatus:
         problems.close()
     out_b.flush()
     if stats["frames"] == 0:
-        env.stderr.write(f"mavscope: no MAVLink frames found in {name} ({stats['size']} bytes, detected as {kind})\n")
+        env.say(f"no MAVLink frames found in {name} ({stats['size']} bytes, detected as {kind})")
     return ExitStatus.OK
 
 

@@ -166,7 +166,7 @@ def _csv(env: Env, names: list[str], batches: Iterator[pa.RecordBatch], guard: b
                     guarded += 1
         w.writerow(cells)
     if guarded:
-        env.stderr.write(guarded_note("sql", guarded) + "\n")
+        env.say(guarded_note("sql", guarded), prefix="")
 
 
 def _text(env: Env, schema: pa.Schema, batches: Iterator[pa.RecordBatch]) -> None:

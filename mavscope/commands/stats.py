@@ -139,7 +139,7 @@ def _native(args: argparse.Namespace, env: Env) -> tuple[Stats, list[Finding], s
     problems.close()
     env.stderr.write(held.stderr.getvalue())  # type: ignore[attr-defined]
     if result.frames == 0:
-        env.stderr.write(f"mavscope: no MAVLink frames found in {name} ({result.size} bytes, detected as {kind})\n")
+        env.say(f"no MAVLink frames found in {name} ({result.size} bytes, detected as {kind})")
     return result.stats, result.findings, name, Selection()
 
 

@@ -68,7 +68,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         return ExitStatus.OK
     con = console(env)
     if not result.tracks:
-        env.stderr.write(f"mavscope: track: no positions in {path} (GLOBAL_POSITION_INT or GPS_RAW_INT with a fix)\n")
+        env.say(f"track: no positions in {path} (GLOBAL_POSITION_INT or GPS_RAW_INT with a fix)")
     for t in result.tracks:
         thin = f" (every {t.stride}th of {t.seen})" if t.stride > 1 else ""
         con.print(f"system {t.sysid}/{t.compid}: {len(t.points)} points{thin} from {t.source}, "

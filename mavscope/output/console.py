@@ -20,16 +20,9 @@ from typing import Any
 from rich.console import Console
 from rich.text import Text
 
+from mavscope.visible import visible
 
-def visible(s: str, *, keep_newlines: bool = False) -> str:
-    """`s` with every character Python's `repr` would escape (controls such as ESC, format characters such
-    as a right-to-left override, separators, surrogates, unassigned ones) written as `repr` writes it:
-    `\\x1b`, `\\u202e`, `\\n`. Printable text, spaces and other scripts stay as they are."""
-    if s.isprintable():
-        return s
-    return "".join(
-        ch if ch.isprintable() or ch == " " or (keep_newlines and ch == "\n") else repr(ch)[1:-1] for ch in s
-    )
+__all__ = ["SafeConsole", "text", "visible"]
 
 
 def text(s: str, style: str = "") -> Text:

@@ -99,3 +99,49 @@ def test_commands_make_no_rich_text_of_their_own() -> None:
     offenders = [str(p.relative_to(root)) for p in sorted((root / "commands").glob("*.py"))
                  if re.search(r"\bText\(|rich\.text", p.read_text())]
     assert offenders == []
+
+
+# A capture's file name is the analyst's input only in part: it may come with evidence from elsewhere.
+# It goes into every problem line on stderr and into the header of a parameter file.
+NAME = "x\x1b[2J\nmavscope: [warn] forged\u202e.pcap"
+
+
+@pytest.mark.parametrize("command", [("read",), ("stats",), ("stats", "--json"), ("events",), ("export", "--parquet")])
+def test_a_file_name_on_stderr_is_escaped(cli: Cli, tmp_path: Path, command: tuple[str, ...]) -> None:
+    from tests.conftest import CAPTURES
+
+    path = tmp_path / NAME
+    path.write_bytes((CAPTURES / "damaged.pcap").read_bytes())  # damage: a problem line per kind on stderr
+    extra = [str(tmp_path / "ds")] if command[-1] == "--parquet" else []
+    status, _out, err = cli(*command[:1], str(path), *command[1:], *extra)
+    assert status == 0, err
+    assert visible(NAME) in err  # the lines name the file, escaped
+    _clean(err)
+    assert all(line.startswith("mavscope: ") for line in err.splitlines())
+    status, _out, err = cli(*command[:1], str(tmp_path / ("missing" + NAME)), *command[1:], *extra)
+    assert status == 2 and err.count("\n") == 1 and visible(NAME) in err  # the error's one line
+    _clean(err)
+
+
+def test_a_file_name_cannot_add_a_line_to_a_parameter_file(cli: Cli, tmp_path: Path) -> None:
+    mav = apm.MAVLink(None, srcSystem=1, srcComponent=1)
+    entries = [apm.MAVLink_heartbeat_message(2, 3, 0, 0, 4, 3),
+               apm.MAVLink_param_value_message(b"FS_GCS_ENABLE", 1, 9, 1, 0)]
+    name = "cap\nARMING_CHECK,0\n.tlog"
+    path = tmp_path / name
+    path.write_bytes(b"".join((1_700_000_000_000_000 + i).to_bytes(8, "big") + m.pack(mav)  # a tlog
+                              for i, m in enumerate(entries)))
+    for suffix in (".param", ".params"):
+        out = tmp_path / ("p" + suffix)
+        status, _, err = cli("params", str(path), "--out", str(out))
+        assert status == 0, err
+        lines = out.read_text().splitlines()
+        assert not any(line.startswith("ARMING_CHECK") for line in lines)
+        assert f"from {visible(name)}" in "\n".join(lines)
+        # pymavlink's loader (MAVProxy's) reads back the one parameter there is
+        if suffix == ".param":
+            from pymavlink import mavparm
+
+            loaded = mavparm.MAVParmDict()
+            loaded.load(str(out), use_excludes=False)
+            assert dict(loaded) == {"FS_GCS_ENABLE": 1.0}

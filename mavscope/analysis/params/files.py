@@ -19,6 +19,7 @@ from collections.abc import Iterable
 
 from mavscope.analysis.params.model import Component
 from mavscope.analysis.params.values import REAL32, Value, value_text
+from mavscope.visible import visible
 
 NAME = re.compile(r"^[A-Za-z0-9_]{1,16}$")
 QGC_HEADER = "# Vehicle-Id Component-Id Name Value Type"
@@ -34,7 +35,7 @@ def writable(name: str) -> bool:
 
 def param_file(params: dict[str, Value], header: Iterable[str] = ()) -> tuple[str, list[str]]:
     """A Mission Planner/MAVProxy `.param` file, and the names left out."""
-    lines = [f"# {h}" for h in header]
+    lines = [f"# {visible(h)}" for h in header]  # (a capture's file name may hold a line break)
     left_out = []
     for name in sorted(params):
         v = params[name]
@@ -49,7 +50,8 @@ def qgc_file(components: Iterable[Component], header: Iterable[str] = ()) -> tup
     """A QGroundControl `.params` file of every parameter of `components`, and the names left out."""
     comps = list(components)
     vehicle = comps[0].addr[0] if comps else 1
-    lines = [f"# Onboard parameters for Vehicle {vehicle}", "#"] + [f"# {h}" for h in header] + ["#", QGC_HEADER]
+    lines = [f"# Onboard parameters for Vehicle {vehicle}", "#"]
+    lines += [f"# {visible(h)}" for h in header] + ["#", QGC_HEADER]  # (as param_file's)
     left_out = []
     for c in comps:
         for name in sorted(c.params):
