@@ -171,7 +171,10 @@ def main(argv: Sequence[str] | None = None, env: Env | None = None) -> int:
             return ExitStatus.ERROR
         return int(args.run(args, env))
     except MavscopeError as exc:
-        env.say(str(exc))
+        first, *more = exc.lines()
+        env.say(first)
+        for line in more:
+            env.say(line, prefix="")
         return ExitStatus.ERROR
     except BrokenPipeError:
         # `mavscope read x | head`: the reader went away; not an error worth a traceback.

@@ -10,6 +10,10 @@ from __future__ import annotations
 class MavscopeError(Exception):
     """Base class of every error mavscope raises on purpose."""
 
+    def lines(self) -> list[str]:
+        """The error as the lines stderr shows (one, but for errors that point into text they quote)."""
+        return [str(self)]
+
 
 class UsageError(MavscopeError):
     """The command line or an API call was given something it cannot use."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from mavscope.errors import MavscopeError
+from mavscope.visible import visible
 
 MAX_DEPTH = 64  # parentheses nested deeper than this are refused (no RecursionError on hostile input)
 
@@ -18,6 +19,17 @@ class FilterError(MavscopeError):
         super().__init__(self.render())
 
     def render(self) -> str:
-        shown = "".join(" " if c in "\t\r\n\v\f" else c for c in self.text)
-        caret = " " * self.position + "^" + "~" * (self.length - 1)
-        return f"filter error: {self.message}\n  {shown}\n  {caret}"
+        return "\n".join(self.lines())
+
+    def lines(self) -> list[str]:
+        """The message, the filter's text, and a caret under the problem. White space shows as a space and
+        any other character `repr` escapes as its escape (a filter may be pasted from anywhere), the caret
+        moved to match."""
+        shown = ["  "]
+        for c in self.text:
+            shown.append(" " if c in "\t\r\n\v\f" else visible(c))
+        end = self.position + self.length
+        before = sum(len(s) for s in shown[1 : self.position + 1])  # (shown[i + 1] is character i)
+        under = sum(len(s) for s in shown[self.position + 1 : end + 1]) + max(0, end - len(self.text))
+        caret = " " * before + "^" + "~" * (under - 1)
+        return [f"filter error: {self.message}", "".join(shown), "  " + caret]

@@ -145,3 +145,15 @@ def test_a_file_name_cannot_add_a_line_to_a_parameter_file(cli: Cli, tmp_path: P
             loaded = mavparm.MAVParmDict()
             loaded.load(str(out), use_excludes=False)
             assert dict(loaded) == {"FS_GCS_ENABLE": 1.0}
+
+
+def test_a_filter_error_quotes_the_filter_escaped_with_the_caret_under_the_problem(cli: Cli) -> None:
+    from tests.conftest import CAPTURES
+
+    status, out, err = cli("read", str(CAPTURES / "px4_sitl_udp.pcap"), "-Y", 'STATUSTEXT.text == "\x1b[31m" && foo')
+    assert status == 2 and out == ""
+    _clean(err)
+    # \x1b shows as 4 characters: "foo" starts 3 columns further right than in the text given
+    assert err.splitlines() == ['mavscope: filter error: unknown field "foo"',
+                                '  STATUSTEXT.text == "\\x1b[31m" && foo',
+                                "  " + " " * 33 + "^~~"]
