@@ -139,7 +139,7 @@ def write_json(env: Env, doc: object) -> None:
 def warner(env: Env) -> Callable[[str], None]:
     """Where the pipeline's warnings go: one line each on stderr."""
     def warn(message: str) -> None:
-        env.say(f"{message}")
+        env.say(message)
     return warn
 
 

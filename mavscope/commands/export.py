@@ -127,7 +127,7 @@ class Reporter:
 
     def __call__(self, r: CaptureResult) -> None:
         if r.status == "failed" and self.errors:
-            self.env.say(f"{r.error}")
+            self.env.say(str(r.error))
         if r.status != "exported":
             return
         said = [f"{r.problems} problem(s) reading it, the first: {r.first_problem}"] if r.problems else []
@@ -217,7 +217,7 @@ def _csv(args: argparse.Namespace, env: Env, captures: list[str], out: Path, opt
         try:
             got = write_capture_csv(path, folder, options, warn=warner(env), guard=args.guard)
         except MavscopeError as e:
-            env.say(f"{e}")
+            env.say(str(e))
             failed += 1
             continue
         report(CaptureResult(path, None, "exported", frames=got.frames, problems=got.problems,
