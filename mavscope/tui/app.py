@@ -35,6 +35,7 @@ from mavscope.tui.widgets.hex_view import HexView
 from mavscope.tui.widgets.packet_list import PacketList
 from mavscope.tui.widgets.status_bar import StatusBar
 from mavscope.tui.workers import fill_index, scan_filter
+from mavscope.visible import visible
 
 PANES = ("#packets", "#tree", "#hex")
 MAIN_SCREEN_ACTIONS = frozenset({"cycle", "filter", "stats", "mission", "objects", "expert", "events", "plot", "keys",
@@ -118,7 +119,7 @@ class MavscopeApp(App[None]):
         return self.query_one(StatusBar)
 
     def on_mount(self) -> None:
-        self.title = f"mavscope: {self.source.path}"
+        self.title = f"mavscope: {visible(str(self.source.path))}"
         self._mounted_at = time.perf_counter()
         self.packet_list.border_title = "Frames (Enter: details)"
         self.tree.border_title = "Detail"
@@ -139,8 +140,8 @@ class MavscopeApp(App[None]):
     def on_worker_state_changed(self, event: Worker.StateChanged) -> None:
         if event.state is WorkerState.ERROR:
             err = event.worker.error
-            self.notify(f"{event.worker.name}: {type(err).__name__}: {err}", title="mavscope: error",
-                        severity="error", timeout=30)
+            self.notify(visible(f"{event.worker.name}: {type(err).__name__}: {err}"), title="mavscope: error",
+                        severity="error", timeout=30, markup=False)
 
     # --- indexing -----------------------------------------------------------------------------
 
@@ -177,12 +178,13 @@ class MavscopeApp(App[None]):
             self.indexed_at = time.perf_counter() - self._mounted_at
             self._report_messages()
             if (notice := self.status.set_problems(len(self.index), *self.index.problems())) is not None:
-                self.notify(notice, title="mavscope", severity="warning", timeout=10)
+                self.notify(visible(notice, keep_newlines=True), title="mavscope", severity="warning", timeout=10,
+                            markup=False)
         self.status.progress = msg.progress
         if self.source.live:
             self.status.live = True
             self.status.capture = self.source.path
-            self.title = f"mavscope: {self.source.path}"
+            self.title = f"mavscope: {visible(str(self.source.path))}"
         if self.packet_list.stale:  # a bounded live index dropped its oldest rows
             self.packet_list.drop_lines()
         if self.display_filter is None:
@@ -206,7 +208,8 @@ class MavscopeApp(App[None]):
     def _report_messages(self) -> None:
         text = self.source.messages()
         if text:
-            self.notify(text, title="mavscope", severity="warning", timeout=10)
+            self.notify(visible(text, keep_newlines=True), title="mavscope", severity="warning", timeout=10,
+                        markup=False)
 
     def _swap_index(self, index: FrameIndex) -> None:
         self._report_messages()
@@ -415,7 +418,7 @@ class MavscopeApp(App[None]):
         try:
             screen = PlotScreen(self.index, self._view(), item.name)
         except MavscopeError as exc:
-            self.notify(str(exc).removeprefix("plot: "), title="plot", severity="warning")
+            self.notify(visible(str(exc).removeprefix("plot: ")), title="plot", severity="warning", markup=False)
             return
         self.push_screen(screen)
 

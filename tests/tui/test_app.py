@@ -479,3 +479,20 @@ def test_analysis_tables_list_the_first_rows_and_say_how_many_there_are(monkeypa
             assert "(the first 3 of 4 listed" in str(app.screen.query_one("#items-title").content)
 
     run(scenario())
+
+
+def test_a_file_name_with_escapes_is_shown_escaped(tmp_path: Path) -> None:
+    """The title and the status bar name the capture; a file name may hold ESC and rich's markup."""
+    name = "x\x1b]0;owned\x07[bold]y.pcap"
+    path = tmp_path / name
+    path.write_bytes((CAPTURES / "damaged.pcap").read_bytes())  # damage: a notice of problems
+
+    async def scenario() -> None:
+        app = create_app(path)
+        async with app.run_test(size=SIZE) as pilot:
+            await ready(pilot)
+            assert app.title == "mavscope: " + str(tmp_path / "x\\x1b]0;owned\\x07[bold]y.pcap")
+            status = app.status.render()
+            assert "\\x1b]0;owned\\x07[bold]y.pcap" in str(status) and "\x1b" not in str(status)
+
+    run(scenario())

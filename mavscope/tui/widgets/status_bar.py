@@ -6,6 +6,7 @@ from rich.text import Text
 from textual.widgets import Static
 
 from mavscope.browse.rows import Progress
+from mavscope.visible import visible
 
 
 def _bar(fraction: float, width: int = 12) -> str:
@@ -40,7 +41,7 @@ class StatusBar(Static):
         return f"{head}; the first: {first}" if first is not None else head
 
     def update_status(self) -> None:
-        text = Text(self.capture, style="bold")
+        text = Text(visible(self.capture), style="bold")  # (a file name may hold an escape sequence)
         p = self.progress
         if p is not None and self.live:
             text.append(f"  live: {p.frames:,} frames kept", style="green")
