@@ -10,6 +10,7 @@ depend on every earlier frame); in follow mode the running security stage takes 
 
 from __future__ import annotations
 
+import importlib
 import os
 import time
 from array import array
@@ -380,30 +381,25 @@ class MavscopeApp(App[None]):
 
         self.push_screen(KeyDialog())
 
-    def action_stats(self) -> None:
-        from mavscope.tui.screens.stats import StatsScreen
+    def _analysis(self, module: str, screen: str) -> None:
+        """Open an analysis screen over the rows in view (its module imported when first asked for)."""
+        cls = getattr(importlib.import_module(f"mavscope.tui.screens.{module}"), screen)
+        self.push_screen(cls(self.index, self._view()))
 
-        self.push_screen(StatsScreen(self.index, self._view()))
+    def action_stats(self) -> None:
+        self._analysis("stats", "StatsScreen")
 
     def action_mission(self) -> None:
-        from mavscope.tui.screens.mission import MissionScreen
-
-        self.push_screen(MissionScreen(self.index, self._view()))
+        self._analysis("mission", "MissionScreen")
 
     def action_objects(self) -> None:
-        from mavscope.tui.screens.objects import ObjectsScreen
-
-        self.push_screen(ObjectsScreen(self.index, self._view()))
+        self._analysis("objects", "ObjectsScreen")
 
     def action_expert(self) -> None:
-        from mavscope.tui.screens.expert import ExpertScreen
-
-        self.push_screen(ExpertScreen(self.index, self._view()))
+        self._analysis("expert", "ExpertScreen")
 
     def action_events(self) -> None:
-        from mavscope.tui.screens.events import EventsScreen
-
-        self.push_screen(EventsScreen(self.index, self._view()))
+        self._analysis("events", "EventsScreen")
 
     def action_plot(self) -> None:
         """Plot the field under the detail tree's cursor (a number field of the payload or the header)."""
