@@ -217,15 +217,14 @@ def _which(messages: Counter[str], cut: bool = False) -> str:
     (`cut`: more were not named, MAX_NAMED: "and more"). Named, not counted: a restarted counter's first
     frames are listed with the duplicates they seemed until the restart showed (SeqTracker), so counts here
     would not add up to the finding's."""
+    top = [m for m, _ in sorted(messages.items(), key=lambda mc: (-mc[1], mc[0]))]
     if cut:
-        top = [m for m, _ in sorted(messages.items(), key=lambda mc: (-mc[1], mc[0]))][:WHICH_SHOWN]
-        return f" ({', '.join(top)} and more)" if top else " (messages not named: too many)"
+        return f" ({', '.join(top[:WHICH_SHOWN])} and more)" if top else " (messages not named: too many)"
     if not messages:
         return ""
     if len(messages) == 1:
         (m, n), = messages.items()
         return f" (all {m})" if n > 1 else f" ({m})"
-    top = [m for m, _ in sorted(messages.items(), key=lambda mc: (-mc[1], mc[0]))]
     more = f" and {len(top) - WHICH_SHOWN} more" if len(top) > WHICH_SHOWN else ""
     return f" ({', '.join(top[:WHICH_SHOWN])}{more})"
 

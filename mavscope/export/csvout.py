@@ -45,11 +45,6 @@ def formula_like(s: str) -> bool:
     return s.startswith(FORMULA_STARTS) and not (s[0] in "+-" and _number(s))
 
 
-def guard_cell(s: str) -> str:
-    """`s` as a spreadsheet shows text: a leading `'` when it would read it as a formula."""
-    return "'" + s if formula_like(s) else s
-
-
 def guarded_note(command: str, cells: int) -> str:
     """The line a command writes on stderr when it guarded `cells` text cells."""
     return (f"{command}: {cells:,} text cell(s) began with = + - @, a tab or a carriage return, which a spreadsheet "
@@ -70,7 +65,7 @@ class CsvCapture:
     frames: int = 0
     problems: int = 0  # the problems `read` reports on stderr
     first_problem: str = ""
-    guarded: int = 0  # text cells written with a leading ' (`guard_cell`)
+    guarded: int = 0  # text cells written with a leading ' (`formula_like`)
 
 
 def write_capture_csv(path: str, folder: Path, options: ExportOptions | None = None, *,
@@ -108,9 +103,10 @@ def write_capture_csv(path: str, folder: Path, options: ExportOptions | None = N
             values = [rows.column(_SKIP + j).to_pylist() for j in range(len(cols.fields))]
             if guard:
                 for v in values:
-                    if v and any(isinstance(x, str) and formula_like(x) for x in v):
-                        guarded += sum(isinstance(x, str) and formula_like(x) for x in v)
-                        v[:] = [guard_cell(x) if isinstance(x, str) else x for x in v]
+                    for k, x in enumerate(v):
+                        if isinstance(x, str) and formula_like(x):
+                            v[k] = "'" + x
+                            guarded += 1
             for i, t in enumerate(times):
                 writer.writerow(["" if t is None else f"{t:.8f}"] + [_text(v[i]) for v in values])
             counts[name] = counts.get(name, 0) + len(times)

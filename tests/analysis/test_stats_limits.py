@@ -9,7 +9,6 @@ how it was built. The pure path runs (the native one hands captures past its own
 
 from __future__ import annotations
 
-import struct
 from pathlib import Path
 
 import pytest
@@ -17,6 +16,7 @@ from pymavlink.dialects.v20 import ardupilotmega as v2
 
 from mavscope.analysis import expert, stats
 from tests.conftest import Cli
+from tests.native import build as nh
 from tests.support import flows
 
 PURE = {"MAVSCOPE_PURE": "1"}
@@ -44,14 +44,11 @@ def test_streams_past_the_limit_count_in_totals_links_and_as_unfollowed(
 
 def udp_pcap(tmp: Path, datagrams: list[tuple[int, bytes]]) -> str:
     """Ethernet/IPv4/UDP records 127.0.0.1:port -> 127.0.0.1:14550, one per (port, payload)."""
-    out = [struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, 1)]
-    for i, (port, data) in enumerate(datagrams):
-        udp = struct.pack("!HHHH", port, 14550, 8 + len(data), 0) + data
-        ip = struct.pack("!BBHHHBBH4s4s", 0x45, 0, 20 + len(udp), 0, 0, 64, 17, 0, b"\x7f\0\0\1", b"\x7f\0\0\1")
-        pkt = b"\0" * 12 + b"\x08\x00" + ip + udp
-        out.append(struct.pack("<IIII", 1_773_482_400 + i, 0, len(pkt), len(pkt)) + pkt)
+    lo = b"\x7f\0\0\1"
+    records = [(1_773_482_400 + i, 0, nh.link("ethernet", nh.ipv4(lo, lo, 17, nh.udp(port, 14550, data)), False))
+               for i, (port, data) in enumerate(datagrams)]
     path = tmp / "c.pcap"
-    path.write_bytes(b"".join(out))
+    path.write_bytes(nh.pcap(records, nh.LINKTYPES["ethernet"]))
     return str(path)
 
 

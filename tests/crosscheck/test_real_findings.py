@@ -30,6 +30,7 @@ import pytest
 from pymavlink.dialects.v20 import all as mavlink
 
 from tests.conftest import Cli
+from tests.support.pymavlink_reader import header
 
 COMMANDING = {"COMMAND_LONG", "COMMAND_INT", "SET_MODE", "MISSION_COUNT", "MISSION_CLEAR_ALL", "MISSION_SET_CURRENT",
               "MISSION_ITEM", "MISSION_ITEM_INT", "PARAM_SET", "PARAM_EXT_SET", "SET_POSITION_TARGET_LOCAL_NED",
@@ -199,16 +200,14 @@ def test_tlog_findings_are_those_the_capture_shows(cli: Cli, real_captures: Path
 
 
 def _parse(data: bytes, time: float | None, out: list[F], signed: list[tuple[float | None, bytes]]) -> None:
-    """The frames pymavlink's robust parser finds in `data`; the header fields from the frame's bytes
-    (pymavlink gives a message it has no definition for sender 0/0)."""
+    """The frames pymavlink's robust parser finds in `data` (their header as the frame's bytes give it)."""
     mav = mavlink.MAVLink(None)
     mav.robust_parsing = True
     for m in mav.parse_buffer(data) or []:
         if isinstance(m, mavlink.MAVLink_bad_data):
             continue
         raw = bytes(m.get_msgbuf())
-        h = 4 if raw[0] == 0xFD else 2
-        out.append(F((raw[h + 1], raw[h + 2]), raw[h], raw, m))
+        out.append(F(*header(m), raw, m))
         if raw[0] == 0xFD and raw[2] & 1:
             signed.append((time, raw))
 

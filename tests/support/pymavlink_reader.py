@@ -29,6 +29,18 @@ class Msg(NamedTuple):
 DAY_US = 86_400 * 10**6
 
 
+def header(m: Any) -> tuple[tuple[int, int], int]:
+    """((sysid, compid), seq) of a message, from its frame's bytes: pymavlink gives a message it has no
+    definition for (UNKNOWN_n) sender 0/0."""
+    raw = m.get_msgbuf()
+    h = 4 if raw[0] == 0xFD else 2
+    return (raw[h + 1], raw[h + 2]), raw[h]
+
+
+def sender(m: Any) -> tuple[int, int]:
+    return header(m)[0]
+
+
 def read(path: Path) -> list[Msg]:
     data = path.read_bytes()
     if path.suffix == ".tlog":
@@ -38,7 +50,7 @@ def read(path: Path) -> list[Msg]:
     out: list[Msg] = []
     for m in mav.parse_buffer(data) or []:
         if not isinstance(m, mavlink.MAVLink_bad_data):
-            out.append(Msg(len(out), None, (m.get_srcSystem(), m.get_srcComponent()), m.get_type(), m))
+            out.append(Msg(len(out), None, sender(m), m.get_type(), m))
     return out
 
 
@@ -60,7 +72,7 @@ def _tlog(data: bytes) -> list[Msg]:
         if m is None or isinstance(m, mavlink.MAVLink_bad_data):
             o += 1
             continue
-        out.append(Msg(len(out), ts / 1e6, (m.get_srcSystem(), m.get_srcComponent()), m.get_type(), m))
+        out.append(Msg(len(out), ts / 1e6, sender(m), m.get_type(), m))
         last = ts
         o += 8 + size
     return out
@@ -80,5 +92,5 @@ def read_pcap(path: Path) -> list[Msg]:
         mav.robust_parsing = True
         for m in mav.parse_buffer(bytes(pkt[UDP].payload)) or []:
             if not isinstance(m, mavlink.MAVLink_bad_data):
-                out.append(Msg(number, float(pkt.time), (m.get_srcSystem(), m.get_srcComponent()), m.get_type(), m))
+                out.append(Msg(number, float(pkt.time), sender(m), m.get_type(), m))
     return out
