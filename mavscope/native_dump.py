@@ -15,10 +15,10 @@ from collections import Counter
 from collections.abc import Iterable
 from typing import Any, TypeVar
 
-from mavscope.analysis import control, expert, gnss
+from mavscope.analysis import commanders, control, gnss
+from mavscope.analysis.commanders import Commanded, CommandSources
 from mavscope.analysis.expert import (
     BadCrcBursts,
-    CommandSources,
     Expert,
     KeyLeaks,
     ReplayedCommands,
@@ -83,8 +83,13 @@ class Accumulator:
         return bool(self.acc.full())
 
     def result(self, dialect: Dialect) -> tuple[Stats, Expert]:
-        """The Stats and the Expert of everything accumulated (not `full`)."""
-        stats, ex = rebuild(self.acc.dump(), dialect)
+        """The Stats and the Expert of everything accumulated (not `full`). The accumulator is let go once
+        dumped (its C state freed, when the walker that was fed from it is gone too): the C tables and the
+        Python objects rebuilt from them are not held at once (on a capture naming all 65,536 senders, each
+        about 5 KB per sender)."""
+        dump = self.acc.dump()
+        self.acc = None
+        stats, ex = rebuild(dump, dialect)
         ex.detectors[ex.detectors.index(_one(ex, BadCrcBursts))] = self.bursts
         ex.detectors[ex.detectors.index(_one(ex, KeyLeaks))] = self.leaks
         return stats, ex
@@ -142,7 +147,7 @@ def _counter(names: Iterable[str], counts: Iterable[int]) -> Counter[str]:
 def rebuild(dump: bytes, dialect: Dialect) -> tuple[Stats, Expert]:
     """The Stats and the Expert (its detectors' state) of an accumulator's dump."""
     r = _Reader(dump)
-    if r.bytes(4) != b"MSSD" or r.one("I") != 2:
+    if r.bytes(4) != b"MSSD" or r.one("I") != 3:
         raise ValueError("not a statistics dump")
     total, nbytes, has_first, first, last = r.take("QQBdd")
     crc = _counter((c.value for c in CRC), r.take("4Q"))
@@ -260,12 +265,18 @@ def _experts(r: _Reader, dialect: Dialect, links: dict[tuple[int, int], _Link],
     for _ in range(r.one("I")):
         kind, target, sender, msgid, a, b, record = r.take("BBHIiiQ")
         addr, name = (sender >> 8, sender & 0xFF), dialect.messages[msgid].name
-        if kind == 0:
-            cs.out.append((target, expert.new_commander(addr, target, name, (a >> 8, a & 0xFF), record)))
-        elif kind == 1:
-            cs.out.append((target, expert.unexpected_command_source(addr, name, strings[a], strings[b], record)))
+        if kind == 1:
+            cs.out.append((target, commanders.unexpected_command_source(addr, name, strings[a], strings[b], record)))
         else:
-            cs.out.append((target, expert.command_without_heartbeat(addr, name, target, record)))
+            cs.out.append((target, commanders.command_without_heartbeat(addr, name, target, record)))
+    for _ in range(r.one("I")):
+        target, first, count, nshown = r.take("BHIB")
+        c = cs.commanded[target] = Commanded((first >> 8, first & 0xFF))
+        c.count = count
+        for _ in range(nshown):
+            sender, msgid = r.take("HI")
+            c.shown.append(((sender >> 8, sender & 0xFF), dialect.messages[msgid].name))
+        c.frames = r.frames()
     for _ in range(r.one("I")):
         kind, vehicle, sender, holder, flag, why, code, record, since, asked, alt = r.take("BBBBBBIQQQd")
         old = r.bytes(r.one("H")).decode()

@@ -3,7 +3,7 @@
 src/mavscope_native/acc.h ports StatsBuilder and the expert detectors that see every frame to C; what
 they know besides their code comes from here as one byte string (its layout: plan.h), never written by
 hand in C: the analyses' constants (read from their modules), the messages they test by name (their ids
-in the loaded dialect, with the roles of Expert.decode, expert.COMMANDING, control.WANTS, gnss.WANTS), the
+in the loaded dialect, with the roles of Expert.decode, commanders.COMMANDING, control.WANTS, gnss.WANTS), the
 offset and type of each field they read, the MAV_TYPE classes and mode names of mavlink/modes.py, the
 control commands of ControlSources and the EKF flag bits of GnssAnomalies.
 
@@ -19,7 +19,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Iterable
 
-from mavscope.analysis import control, expert, framelist, gnss, sequence, stats, vehicles
+from mavscope.analysis import commanders, control, expert, framelist, gnss, sequence, stats, vehicles
 from mavscope.analysis.expert import Expert
 from mavscope.mavlink import modes
 from mavscope.mavlink.dialect import Dialect, EnumDef, MessageDef
@@ -33,14 +33,14 @@ def int_constants() -> tuple[int, ...]:
     return (
         sequence.GAP_MIN, sequence.GAPS_KEPT, sequence.RESET_RUN, sequence.MAX_CHANNELS, sequence.MAX_EXTRA,
         sequence.LATE_WINDOW, stats.RATE_BINS, expert.COPIES_KEPT, vehicles.MAX_SENDERS, framelist.MAX_FRAMES,
-        expert.MAV_TYPE_GCS, control.MAV_CMD_DO_SET_MODE, control.MAV_CMD_COMPONENT_ARM_DISARM,
+        commanders.MAV_TYPE_GCS, control.MAV_CMD_DO_SET_MODE, control.MAV_CMD_COMPONENT_ARM_DISARM,
         control.MAV_MISSION_TYPE_MISSION, control.MAV_MISSION_TYPE_ALL, control.MAV_LANDED_STATE_IN_AIR,
         control.MAV_LANDED_STATE_TAKEOFF, control.MAV_LANDED_STATE_UNDEFINED, modes.MAV_AUTOPILOT_ARDUPILOTMEGA,
         modes.MAV_AUTOPILOT_INVALID, modes.MAV_AUTOPILOT_PX4, modes.MAV_MODE_FLAG_SAFETY_ARMED,
         modes.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, modes.PX4_MAIN_AUTO, modes.PX4_MAIN_POSCTL,
         gnss.GPS_FIX_TYPE_NO_GPS, gnss.GPS_FIX_TYPE_NO_FIX, gnss.GPS_FIX_TYPE_2D, gnss.GPS_FIX_TYPE_3D,
         gnss.UNKNOWN_SATS, gnss.UNKNOWN_VEL, gnss.MIN_SATS, gnss.UNIX_MIN_US, stats.MAX_STREAMS,
-        stats.MAX_CONVERSATIONS, expert.MAX_NAMED,
+        stats.MAX_CONVERSATIONS, expert.MAX_NAMED, commanders.COMMANDERS_SHOWN,
     )
 
 
@@ -164,7 +164,8 @@ def _build(dialect: Dialect) -> bytes:
     ex = Expert(dialect)
     messages = []
     for md in sorted(dialect.messages.values(), key=lambda m: m.id):
-        roles = ((ROLE_DECODE if md.name in ex.decode else 0) | (ROLE_COMMANDING if md.name in expert.COMMANDING else 0)
+        roles = ((ROLE_DECODE if md.name in ex.decode else 0)
+                 | (ROLE_COMMANDING if md.name in commanders.COMMANDING else 0)
                  | (ROLE_CONTROL if md.name in control.WANTS else 0) | (ROLE_GNSS if md.name in gnss.WANTS else 0))
         if roles or md.id == 0:
             messages.append(_message(md, roles))

@@ -74,6 +74,7 @@ def native_stats(path: str | os.PathLike[str], dialect: Dialect, stage: Security
             if record is not None:
                 python(dissector.feed(record))
         counters = walk.stats()
+    del walk  # the walker holds the accumulator: gone, the accumulator's C state goes once dumped
     if not acc.full():
         python(dissector.finish())
     if acc.full():

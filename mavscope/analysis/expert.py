@@ -14,24 +14,16 @@ from collections import Counter, OrderedDict
 from collections.abc import Callable, Iterable, Sequence
 from typing import Protocol
 
+from mavscope.analysis.commanders import COMMANDING, CommandSources, Fields, Link, target_of
 from mavscope.analysis.control import ControlSources
 from mavscope.analysis.framelist import MAX_FRAMES
 from mavscope.analysis.framelist import frame_numbers as _frames
 from mavscope.analysis.gnss import GnssAnomalies
 from mavscope.analysis.sequence import GAP_MIN, SeqChannels, SeqTracker, totals
-from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, SignatureStatus, decode_payload
 from mavscope.notes import Finding, FrameNumbers, finding, sort_findings
 
-# Messages that tell a vehicle what to do (their target_system is the vehicle commanded).
-COMMANDING = frozenset({
-    "COMMAND_LONG", "COMMAND_INT", "SET_MODE", "MISSION_COUNT", "MISSION_CLEAR_ALL", "MISSION_SET_CURRENT",
-    "MISSION_ITEM", "MISSION_ITEM_INT", "PARAM_SET", "PARAM_EXT_SET", "SET_POSITION_TARGET_LOCAL_NED",
-    "SET_POSITION_TARGET_GLOBAL_INT", "SET_ATTITUDE_TARGET", "MANUAL_CONTROL", "RC_CHANNELS_OVERRIDE",
-    "SETUP_SIGNING", "SET_HOME_POSITION", "SET_GPS_GLOBAL_ORIGIN", "FILE_TRANSFER_PROTOCOL",
-})
-MAV_TYPE_GCS = 6
 BURST_MIN = 3  # bad-CRC frames...
 BURST_WINDOW_S = 1.0  # ...each within this long of the previous one make a burst
 COPIES_KEPT = 65_536  # commanding frames remembered for replay detection (the oldest go first)
@@ -46,15 +38,6 @@ WHICH_SHOWN = 3  # messages named in a sequence finding
 # message (an unknown id) in every frame. The native accumulator hands over to this path past the same
 # number (its plan's MS_K_MAX_NAMED), so both paths name the same messages.
 MAX_NAMED = 1 << 18
-
-Link = tuple[int, int]
-Fields = dict[str, object]
-
-
-def _target(fields: Fields) -> object:
-    """The system a commanding message addresses: `target_system`, or MANUAL_CONTROL's `target`."""
-    return fields.get("target_system", fields.get("target"))
-
 
 def _link(f: Frame) -> str:
     return f"{f.sysid}/{f.compid}"
@@ -236,68 +219,6 @@ def unchanged_message(sender: Link, count: int) -> str:
             "writes the parameters it fetched over FTP into its tlog under one number)")
 
 
-class CommandSources:
-    """Who commands each vehicle: a second system id commanding it (after the first), the same id
-    commanding from another network endpoint, commands from a system that never sent a HEARTBEAT.
-    Commands to a ground station (HEARTBEAT type GCS) are not about a vehicle: they are set aside until
-    the end, when every HEARTBEAT has been seen."""
-
-    clean: frozenset[str | int] = COMMANDING | {0}  # message id 0: the HEARTBEATs, by id as `add` tells them
-
-    def __init__(self) -> None:
-        self.gcs: set[int] = set()
-        self.heartbeat_seen: set[Link] = set()
-        self.first_commander: dict[int, Link] = {}
-        self.reported: set[tuple[str, object]] = set()
-        self.endpoints: dict[Link, Endpoint] = {}
-        self.out: list[tuple[int, Finding]] = []  # (target system, finding)
-
-    def add(self, f: Frame, fields: Fields | None) -> None:
-        if f.msgid == 0:
-            self.heartbeat_seen.add((f.sysid, f.compid))
-            if fields is not None and fields.get("type") == MAV_TYPE_GCS:
-                self.gcs.add(f.sysid)
-            return
-        if fields is None or f.msgdef is None or f.msgdef.name not in COMMANDING:
-            return
-        target = _target(fields)
-        if not isinstance(target, int) or target in self.gcs or target == f.sysid:
-            return
-        sender = (f.sysid, f.compid)
-        name = f.msgdef.name
-        est = self.first_commander.setdefault(target, sender)
-        if est[0] != sender[0] and ("new", (target, sender)) not in self.reported:
-            self.reported.add(("new", (target, sender)))
-            self.out.append((target, new_commander(sender, target, name, est, f.record)))
-        if f.src is not None:
-            known = self.endpoints.setdefault(sender, f.src)
-            if known != f.src and ("src", (sender, f.src)) not in self.reported:
-                self.reported.add(("src", (sender, f.src)))
-                self.out.append((target, unexpected_command_source(sender, name, str(f.src), str(known), f.record)))
-        if sender not in self.heartbeat_seen and ("hb", sender) not in self.reported:
-            self.reported.add(("hb", sender))
-            self.out.append((target, command_without_heartbeat(sender, name, target, f.record)))
-
-    def findings(self) -> list[Finding]:
-        return [fd for target, fd in self.out if target not in self.gcs]
-
-
-# CommandSources' findings (the native accumulator's events are written by these too)
-def new_commander(sender: Link, target: int, name: str, est: Link, record: int) -> Finding:
-    return finding("new-commander", f"system {sender[0]}/{sender[1]} commands system {target} ({name}), which "
-                                    f"{est[0]}/{est[1]} commanded until then", (record,))
-
-
-def unexpected_command_source(sender: Link, name: str, src: str, known: str, record: int) -> Finding:
-    return finding("unexpected-command-source", f"{name} from {sender[0]}/{sender[1]} arrives from {src}; its "
-                                                f"commands came from {known} until then", (record,))
-
-
-def command_without_heartbeat(sender: Link, name: str, target: int, record: int) -> Finding:
-    return finding("command-without-heartbeat", f"{sender[0]}/{sender[1]} sends {name} to system {target} before "
-                                                "any HEARTBEAT of its own", (record,))
-
-
 class ReplayedCommands:
     """Commanding frames repeated byte for byte (sequence number included) where the sender's sequence
     cannot explain it, aggregated per link; and frames the security layer judged signature replays.
@@ -391,7 +312,7 @@ class UnsignedCommands:
         md = f.msgdef
         if fields is None or md is None or md.name not in COMMANDING:
             return
-        target = _target(fields)
+        target = target_of(fields)
         key = (f.sysid, f.compid, target if isinstance(target, int) else -1)
         if key not in self.candidates:
             self.candidates[key] = _frames()

@@ -198,6 +198,8 @@ void ms_acc_free(ms_acc *a) {
     free(a->candidates.v);
     ms_map_free(&a->candidate_index);
     ms_map_free(&a->reported);
+    for (int i = 0; i < 256; i++)
+        free(a->commanded[i].senders);
     ms_map_free(&a->cs_endpoints);
     free(a->cmd_events.v);
     free(a->hbs.v);

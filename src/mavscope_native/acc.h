@@ -133,13 +133,24 @@ typedef struct {
     uint64_t since;
 } ms_named;
 
+/* CommandSources.commanded: the new commanders of one vehicle (analysis/commanders.py Commanded) */
+typedef struct {
+    uint8_t *senders; /* [8192] bitmap of sysid << 8 | compid; NULL until the first */
+    uint32_t count;
+    uint32_t nshown;
+    uint16_t shown_sender[MS_SHOWN_MAX];
+    uint32_t shown_msgid[MS_SHOWN_MAX];
+    int32_t first; /* the vehicle's first commander */
+    ms_fnums fn;
+} ms_commanded;
+
 /* CommandSources.out */
 typedef struct {
-    uint8_t kind; /* 0 new-commander, 1 unexpected-command-source, 2 command-without-heartbeat */
+    uint8_t kind; /* 1 unexpected-command-source, 2 command-without-heartbeat */
     uint8_t target;
     uint16_t sender;
     uint32_t msgid;
-    int32_t a, b; /* new: the established sender; src: the frame's endpoint and the known one */
+    int32_t a, b; /* src: the frame's endpoint and the known one */
     uint64_t record;
 } ms_cmd_event;
 
@@ -256,6 +267,7 @@ typedef struct {
     /* CommandSources */
     uint8_t heartbeat_seen[8192], cs_gcs[32];
     int32_t first_commander[256];
+    ms_commanded commanded[256];
     ms_map reported, cs_endpoints;
     MS_VEC(ms_cmd_event) cmd_events;
     /* Systems and ControlSources */

@@ -1,7 +1,7 @@
 /* ms_acc_dump: the accumulator's whole state as one byte string for mavscope/native_stats.py, which reads it
  * with `struct` in this order (little-endian; "fn" is a FrameNumbers: u64 count, u32 n, u64 x n):
  *
- *   "MSSD" u32 2
+ *   "MSSD" u32 3
  *   totals    u64 frames, bytes; u8 has_time; f64 first, last; u64 crc[4]; u64 signature[6]; u64 v1, v2;
  *             u64 unfollowed streams, unfollowed conversations (their frames)
  *   strings   u32 n; per string u32 length, bytes
@@ -22,7 +22,8 @@
  *   copies, replays, candidates, intrusions: each u32 n, i32 entries[n]
  *   signing   32 bytes (bitmap of sysids)
  *   commands  32 bytes (CommandSources.gcs); u32 n; per event u8 kind, target; u16 sender; u32 msgid;
- *             i32 a, b; u64 record
+ *             i32 a, b; u64 record; then u32 n; per vehicle with new commanders (by sysid) u8 target;
+ *             u16 first; u32 count; u8 nshown; per shown u16 sender, u32 msgid; fn
  *   control   u32 n; per event u8 kind, vehicle, sender, holder, flag, why; u32 label;
  *             u64 record, since, req_record; f64 alt; u16 length, old mode; u16 length, new mode
  *   episodes  u32 n; per episode u8 code, kind; u16 sender; u8 flags; fn; f64 worst; f64 a[4]; i64 n[4]
@@ -91,7 +92,7 @@ static void seq(ms_buf *b, const ms_seq *s) {
 
 int ms_acc_dump(const ms_acc *a, ms_buf *b) {
     ms_buf_put(b, "MSSD", 4);
-    un(b, 2, 4);
+    un(b, 3, 4);
     un(b, a->total, 8);
     un(b, a->nbytes, 8);
     u8(b, a->has_first);
@@ -196,6 +197,24 @@ int ms_acc_dump(const ms_acc *a, ms_buf *b) {
         un(b, (uint32_t)e->a, 4);
         un(b, (uint32_t)e->b, 4);
         un(b, e->record, 8);
+    }
+    uint32_t vehicles = 0;
+    for (int t = 0; t < 256; t++)
+        vehicles += a->commanded[t].count > 0;
+    un(b, vehicles, 4);
+    for (int t = 0; t < 256; t++) {
+        const ms_commanded *c = &a->commanded[t];
+        if (c->count == 0)
+            continue;
+        u8(b, (unsigned)t);
+        un(b, (uint16_t)c->first, 2);
+        un(b, c->count, 4);
+        u8(b, c->nshown);
+        for (uint32_t i = 0; i < c->nshown; i++) {
+            un(b, c->shown_sender[i], 2);
+            un(b, c->shown_msgid[i], 4);
+        }
+        fn(b, &c->fn);
     }
     un(b, a->ctl_events.n, 4);
     for (uint32_t i = 0; i < a->ctl_events.n; i++) {

@@ -5,7 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from mavscope.analysis.expert import DETECTORS, KeyLeaks, expert_findings
+from mavscope.capture.detect import open_capture
 from mavscope.mavlink.dialect import Dialect
+from mavscope.pipeline.dissect import Anomaly, Dissector
 from tests.conftest import Cli
 from tests.support import flows
 from tests.support.captures import frames, truth
@@ -177,3 +179,31 @@ def test_commands_on_a_second_counter_stay_two_counters(cli: Cli, tmp_path: Path
         assert two["severity"] == "warn" and "42 of 162 frames step back" in two["message"], two["message"]
         assert two["message"].endswith(named), two["message"]
         assert found["seq-duplicate"][0]["message"].endswith(named)
+
+
+def test_new_commanders_of_a_vehicle_are_one_finding(dialect: Dialect, tmp_path: Path) -> None:
+    """Built here: vehicle 1 (HEARTBEAT), commanded first by 255/190; then 254/190 (twice), 253/1, 255/191
+    (the first commander's system: not new), vehicle 1 itself (not a command to another), and 250/1 to a
+    ground station (HEARTBEAT type GCS: not about a vehicle). New commanders of vehicle 1: 254/190 and
+    253/1, first in records 4 and 6 (records count tlog entries from 1). Vehicle 2 has one new commander,
+    252/1 in record 10, named in the sentence of a single commander."""
+    from tests.support.flows import T0, Sender, command_long, heartbeat, write_tlog
+
+    vehicle, gcs = Sender(1, 1), Sender(249, 190)
+    s = {k: Sender(*k) for k in ((255, 190), (254, 190), (253, 1), (255, 191), (250, 1), (252, 1))}
+    entries = [vehicle.pack(heartbeat()), gcs.pack(heartbeat(gcs=True)),           # 1, 2
+               s[(255, 190)].pack(command_long()), s[(254, 190)].pack(command_long()),  # 3, 4
+               s[(254, 190)].pack(command_long()), s[(253, 1)].pack(command_long()),    # 5, 6
+               s[(255, 191)].pack(command_long()), vehicle.pack(command_long()),        # 7, 8
+               s[(255, 190)].pack(command_long(target=2)), s[(252, 1)].pack(command_long(target=2)),  # 9, 10
+               s[(250, 1)].pack(command_long(target=249)), s[(255, 190)].pack(command_long(target=249))]  # 11, 12
+    path = write_tlog(tmp_path, [(T0 + i * 0.1, f) for i, f in enumerate(entries)])
+    with open_capture(path) as r:
+        fs = [f for f in Dissector(dialect).run(r) if type(f) is not Anomaly]
+    found = codes(expert_findings(fs, dialect))
+    one, two = sorted(found["new-commander"], key=lambda f: f.frames)
+    assert one.frames == (4, 6)
+    assert one.message == ("2 senders command system 1 after 255/190, which commanded it first: 254/190 "
+                           "(COMMAND_LONG), 253/1 (COMMAND_LONG)")
+    assert two.frames == (10,)
+    assert two.message == "system 252/1 commands system 2 (COMMAND_LONG), which 255/190 commanded until then"

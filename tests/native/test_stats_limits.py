@@ -19,6 +19,7 @@ import pytest
 from mavscope import native_dump
 from mavscope.analysis import expert, stats
 from mavscope.analysis.expert import COPIES_KEPT
+from mavscope.analysis.framelist import MAX_FRAMES
 from mavscope.analysis.sequence import MAX_CHANNELS, MAX_EXTRA
 from mavscope.analysis.vehicles import MAX_SENDERS
 from mavscope.mavlink.dialect import load_dialect
@@ -83,6 +84,30 @@ def test_more_senders_than_the_analyses_follow() -> None:
     found = check(data)
     codes = {f["code"] for f in found["findings"]}  # type: ignore[attr-defined,index]
     assert {"second-gcs-control", "gnss-position-jump"} <= codes
+
+
+def test_commanders_sprayed_at_three_vehicles() -> None:
+    """7,620 senders each command one of vehicles 1-3 (round robin): one `new-commander` finding per
+    vehicle, whose count and first frames are worked out here from the list built (a sender is new when its
+    system id is not the vehicle's first commander's, nor the vehicle's own); the same on both engines."""
+    senders = [(s, c) for s in range(2, 256) for c in range(1, 31)]
+    entries, first, new = [], {}, {}  # type: ignore[var-annotated]
+    for i, (s, c) in enumerate(senders):
+        target = 1 + i % 3
+        entries.append(frame("COMMAND_LONG", {"target_system": target, "command": 400, "param1": 1.0}, i, s, c))
+        if s == target:
+            continue
+        est = first.setdefault(target, (s, c))
+        if est[0] != s:
+            new.setdefault(target, []).append(len(entries))  # records count from 1
+    found = check(nh.tlog([(T0 + i * 1000, f) for i, f in enumerate(entries)]))
+    got = {int(f["message"].split()[4]): f for f in found["findings"]  # type: ignore[attr-defined,index]
+           if f["code"] == "new-commander"}
+    assert sorted(got) == [1, 2, 3]
+    for target, records in new.items():
+        assert got[target]["message"].startswith(f"{len(records)} senders command system {target} after "
+                                                 f"{first[target][0]}/{first[target][1]},")
+        assert got[target]["frames"] == records[:MAX_FRAMES]
 
 
 def test_more_channels_than_the_sequence_counters_follow() -> None:
