@@ -131,7 +131,8 @@ def geojson(tracks: Tracks, dialect: Dialect) -> dict[str, object]:
         feature({"type": "Point", "coordinates": [lon, lat]}, kind="fence-circle", inclusion=c["inclusion"],
                 radius_m=c["circle"]["radius"], name="fence circle " + ("inclusion" if c["inclusion"] else "exclusion"))
     for i, (lat, lon, alt) in enumerate(fence["rally"], 1):
-        feature({"type": "Point", "coordinates": [lon, lat, alt]}, kind="rally", name=f"rally {i}")
+        feature({"type": "Point", "coordinates": [lon, lat] if alt is None else [lon, lat, alt]}, kind="rally",
+                name=f"rally {i}")
     return {"type": "FeatureCollection", "features": features}
 
 
@@ -177,7 +178,7 @@ def kml(tracks: Tracks, dialect: Dialect) -> str:
     if home is not None:
         points.append(("home", *home))
     fence = _fence(tracks)
-    points += [(f"rally {i}", lat, lon, alt) for i, (lat, lon, alt) in enumerate(fence["rally"], 1)]
+    points += [(f"rally {i}", lat, lon, alt or 0.0) for i, (lat, lon, alt) in enumerate(fence["rally"], 1)]
     points += [(f"fence circle {'inclusion' if c['inclusion'] else 'exclusion'} r={c['circle']['radius']} m",
                 *c["circle"]["center"], 0.0) for c in fence["circles"]]
     for name, lat, lon, z in points:

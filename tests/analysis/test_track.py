@@ -147,6 +147,46 @@ def test_fence_and_rally_in_every_format(tmp_path: Path, cli: Cli) -> None:
                                                                             "fence circle exclusion"]
 
 
+@pytest.mark.parametrize("bad", [math.nan, math.inf])
+def test_fence_and_rally_that_are_not_numbers(tmp_path: Path, cli: Cli, bad: float) -> None:
+    """MISSION_ITEM (float coordinates) uploads built here: a polygon whose vertex count is `bad`, a
+    3-vertex polygon with one `bad` latitude, a circle at a `bad` centre, a breach return point with a `bad`
+    longitude, a rally point at `bad` and one at 47.0, 8.0 with a `bad` altitude. Each place that is not a
+    number is left out of the .plan with a warning (the vertex count crashed `int()`, the rally altitude
+    the KML writer); only the last rally point remains, and every file is strict JSON or parses as XML."""
+    ex = Exchange()
+    ex.heartbeats(vehicle_type=2, autopilot=3)
+    fence = [(5001, bad, 47.0, 8.0), (5001, 3.0, bad, 8.0), (5001, 3.0, 47.1, 8.0), (5001, 3.0, 47.1, 8.1),
+             (5004, 50.0, bad, 8.0), (5000, 0.0, 47.0, bad)]
+    ex.send("gcs", "MISSION_COUNT", 1, 1, len(fence), 1)
+    for seq, (cmd, p1, lat, lon) in enumerate(fence):
+        ex.send("veh", "MISSION_REQUEST_INT", 255, 190, seq, 1)
+        ex.send("gcs", "MISSION_ITEM", 1, 1, seq, 0, cmd, 0, 1, p1, 0, 0, 0, lat, lon, 0.0, 1)
+    ex.send("veh", "MISSION_ACK", 255, 190, 0, 1)
+    ex.send("gcs", "MISSION_COUNT", 1, 1, 2, 2)
+    for seq, (lat, lon, alt) in enumerate([(bad, bad, bad), (47.0, 8.0, bad)]):
+        ex.send("veh", "MISSION_REQUEST_INT", 255, 190, seq, 2)
+        ex.send("gcs", "MISSION_ITEM", 1, 1, seq, 0, 5100, 0, 1, 0, 0, 0, 0, lat, lon, alt, 2)
+    ex.send("veh", "MISSION_ACK", 255, 190, 0, 2)
+    ex.send("veh", "GLOBAL_POSITION_INT", 1000, 469970000, 80030000, 500_000, 20_000, 0, 0, 0, 0)
+    path = ex.tlog(tmp_path / "bad.tlog")
+    plan, gj, kml, gpx = (tmp_path / f"f.{x}" for x in ("plan", "geojson", "kml", "gpx"))
+    status, _, err = cli("mission", path, "--plan", plan)
+    assert status == 0, err
+    assert err.count("left out") == 5, err  # the count, the polygon, the circle, the return, rally item 0
+    strict = {"parse_constant": lambda c: pytest.fail(f"{c} in a JSON file")}
+    doc = json.loads(plan.read_text(), **strict)  # type: ignore[arg-type]
+    assert doc["geoFence"] == {"circles": [], "polygons": [], "version": 2}
+    assert doc["rallyPoints"]["points"] == [[47.0, 8.0, None]]
+    status, _, err = cli("track", path, "--geojson", gj, "--kml", kml, "--gpx", gpx)
+    assert status == 0, err
+    feats = json.loads(gj.read_text(), **strict)["features"]  # type: ignore[arg-type]
+    assert [f["geometry"]["coordinates"] for f in feats if f["properties"]["kind"] == "rally"] == [[8.0, 47.0]]
+    assert [n.text for n in ET.parse(kml).getroot().iter(f"{KML}name") if n.text and "rally" in n.text] == ["rally 1"]
+    assert [w.attrib for w in ET.parse(gpx).getroot().findall(f"{GPX}wpt")] == [{"lat": "47.0000000",
+                                                                                 "lon": "8.0000000"}]
+
+
 def test_tracks_are_bounded(tmp_path: Path, dialect: Dialect, monkeypatch: pytest.MonkeyPatch) -> None:
     """Past MAX_POINTS a track keeps every second point, and from then on every second position."""
     monkeypatch.setattr(track_mod, "MAX_POINTS", 40)

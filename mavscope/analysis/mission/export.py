@@ -9,6 +9,7 @@ items (so `doJumpId` is the item's seq there, seq + 1 elsewhere).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from mavscope.analysis.mission.describe import event_text, result_name
@@ -144,34 +145,68 @@ def _simple_item(it: Item, jump_id: int) -> dict[str, object]:
     return doc
 
 
+def _position(it: Item) -> list[float] | None:
+    """The item's latitude and longitude, None when either is not a finite number (MISSION_ITEM's floats
+    can be NaN or infinite: no point of a .plan, a GeoJSON, a KML or a GPX file)."""
+    x, y = it.x, it.y
+    return [x, y] if math.isfinite(x) and math.isfinite(y) else None
+
+
+def _vertex_count(p: float) -> int | None:
+    """A polygon vertex's param1, the polygon's vertex count: None unless a whole number 1..65535."""
+    return int(p) if math.isfinite(p) and p == int(p) and 1 <= p <= 65535 else None
+
+
 def _fence(t: Transfer, warnings: list[str]) -> dict[str, object]:
     circles: list[object] = []
     polygons: list[object] = []
     doc: dict[str, object] = {"circles": circles, "polygons": polygons, "version": 2}
-    poly: list[list[float]] = []
+    poly: list[list[float] | None] = []
     want, inclusion, last = 0, True, -1
+
+    def close() -> None:
+        if len(poly) < want:
+            warnings.append(f"fence polygon ending at item {last} has {len(poly)} of {want} vertices: left out")
+        elif any(v is None for v in poly):
+            warnings.append(f"fence polygon ending at item {last} has a vertex that is not a position: left out")
+        else:
+            polygons.append({"inclusion": inclusion, "polygon": list(poly), "version": 1})
+        poly.clear()
+
     for seq in sorted(t.items):
         it = t.items[seq]
         if it.command in (POLY_IN, POLY_OUT):
             if poly and (seq != last + 1 or (it.command == POLY_IN) != inclusion):
-                warnings.append(f"fence polygon ending at item {last} has {len(poly)} of {want} vertices: left out")
-                poly = []
+                close()
             if not poly:
-                want, inclusion = int(it.params[0]), it.command == POLY_IN
-            poly.append([it.x, it.y])
+                count = _vertex_count(it.params[0])
+                if count is None:
+                    warnings.append(f"fence item {seq}: vertex count {it.params[0]} is not a whole number of 1 to "
+                                    "65535: left out")
+                    last = seq
+                    continue
+                want, inclusion = count, it.command == POLY_IN
+            poly.append(_position(it))
+            last = seq
             if len(poly) >= want:
-                polygons.append({"inclusion": inclusion, "polygon": poly, "version": 1})
-                poly = []
-        elif it.command in (CIRCLE_IN, CIRCLE_OUT):
-            circles.append({"circle": {"center": [it.x, it.y], "radius": finite(it.params[0])},
-                            "inclusion": it.command == CIRCLE_IN, "version": 1})
-        elif it.command == FENCE_RETURN:
-            doc["breachReturn"] = [it.x, it.y, finite(it.z)]
+                close()
+            continue
+        if poly:  # a polygon's vertices are consecutive items
+            close()
+        if it.command in (CIRCLE_IN, CIRCLE_OUT, FENCE_RETURN):
+            where, radius = _position(it), finite(it.params[0])
+            if where is None or (it.command != FENCE_RETURN and radius is None):
+                warnings.append(f"fence item {seq}: its position or radius is not a finite number: left out")
+            elif it.command == FENCE_RETURN:
+                doc["breachReturn"] = [*where, finite(it.z)]
+            else:
+                circles.append({"circle": {"center": where, "radius": radius},
+                                "inclusion": it.command == CIRCLE_IN, "version": 1})
         else:
             warnings.append(f"fence item {seq}: command {it.command} has no place in a .plan: left out")
         last = seq
     if poly:
-        warnings.append(f"fence polygon ending at item {last} has {len(poly)} of {want} vertices: left out")
+        close()
     return doc
 
 
@@ -223,10 +258,13 @@ def to_plan(log: MissionLog, dialect: Dialect) -> PlanExport | None:
     points: list[object] = []
     if ri is not None:
         for seq, it in sorted(transfers[ri].items.items()):
-            if it.command == RALLY_POINT:
-                points.append([it.x, it.y, finite(it.z)])
-            else:
+            where = _position(it)
+            if it.command != RALLY_POINT:
                 warnings.append(f"rally item {seq}: command {it.command} is not a rally point: left out")
+            elif where is None:
+                warnings.append(f"rally item {seq}: its position is not a finite number: left out")
+            else:
+                points.append([*where, finite(it.z)])
     plan = {
         "fileType": "Plan",
         "geoFence": fence,
