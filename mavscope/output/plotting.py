@@ -38,10 +38,12 @@ def chart(s: Series, width: int, height: int, x_label: str = "s") -> Text:
     out = Text(visible(summary(s, x_label)) + "\n", style="bold")  # a field name the user gave
     if not s.count:
         return out
-    lo, hi = (s.low, s.high) if s.high > s.low else (s.low - 1, s.high + 1)
-    span = hi - lo
+    pad = max(1.0, abs(s.low) * 2 ** -40)  # a constant: one unit either side, or enough to be a different float
+    lo, hi = (s.low, s.high) if s.high > s.low else (s.low - pad, s.high + pad)
+    h2, l2 = hi / 2, lo / 2  # halves: the span of -1e308 .. 1e308 overflows, its half does not
+    span = h2 - l2
     rows = max(2, height)
-    labels = {0: _num(hi), rows - 1: _num(lo), rows // 2: _num((hi + lo) / 2)}
+    labels = {0: _num(hi), rows - 1: _num(lo), rows // 2: _num(h2 + l2)}
     gutter = max(len(v) for v in labels.values()) + 2
     cols = max(4, width - gutter)
     dw, dh = 2 * cols, 4 * rows
@@ -49,7 +51,8 @@ def chart(s: Series, width: int, height: int, x_label: str = "s") -> Text:
     cells = [[0] * cols for _ in range(rows)]
 
     def row_of(v: float) -> int:
-        return max(0, min(dh - 1, int(round((hi - v) / span * (dh - 1)))))
+        r = (h2 - v / 2) / span * (dh - 1)  # a mean of huge values can be infinite: an edge of the chart
+        return max(0, min(dh - 1, int(round(r)))) if math.isfinite(r) else (dh - 1 if r > 0 else 0)
 
     def put(x: int, low: float, high: float) -> None:
         for y in range(row_of(high), row_of(low) + 1):
@@ -68,9 +71,11 @@ def chart(s: Series, width: int, height: int, x_label: str = "s") -> Text:
         if prev is not None:  # a line from the previous column with values, through any empty ones
             px, pv = prev
             for gx in range(px + 1, x):
-                v = pv + (avg - pv) * (gx - px) / (x - px)
+                t = (gx - px) / (x - px)
+                v = pv * (1 - t) + avg * t  # not pv + (avg - pv) * t: avg - pv can overflow
                 put(gx, v, v)
-            joint = pv + (avg - pv) * (x - 1 - px) / (x - px)
+            t = (x - 1 - px) / (x - px)
+            joint = pv * (1 - t) + avg * t
             low, high = min(low, joint), max(high, joint)
         put(x, low, high)
         prev = (x, avg)

@@ -113,3 +113,16 @@ def test_nan_values_are_counted_not_plotted(cli: Cli) -> None:
     assert (s["count"], s["not_finite"]) == (len(values) - nans, nans)
     _, out, _ = cli("plot", str(path), "MISSION_ITEM_INT.param4")
     assert f"{len(values) - nans} values ({nans} NaN or infinite left out)" in out
+
+
+@pytest.mark.parametrize("values", [[1e20, 1e20, 1e20], [-1e308, 1e308], [5e-324, 5e-324], [-2.0 ** 60] * 2])
+def test_terminal_chart_of_extreme_values(values: list[float]) -> None:
+    """A constant too large for +-1 to widen (1e20: the span stayed 0, ZeroDivisionError), and values whose
+    span overflows a float (-1e308 .. 1e308: inf / inf); the chart draws them, the extremes on its edges."""
+    from mavscope.output.plotting import chart
+
+    s = Series("x")
+    for i, v in enumerate(values):
+        s.add(float(i), v)
+    lines = chart(s, 40, 6).plain.splitlines()
+    assert len(lines) == 8 and any("\u2801" <= c <= "\u28ff" for c in "".join(lines[1:7]))  # dots drawn
