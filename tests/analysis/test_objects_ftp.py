@@ -155,6 +155,18 @@ def test_listing_with_a_missing_entry_and_operations(tmp_path: Path, dialect: Di
     assert "'/APM/../etc/passwd'" in unsafe.message
 
 
+def test_listing_names_cannot_add_lines_to_the_listing_file(tmp_path: Path, dialect: Dialect) -> None:
+    """Entry names sent with a newline, a tab and an OSC 8 hyperlink (ESC ] ... BEL): the entries keep the
+    names as sent, the .listing.txt mavscope writes shows their controls as escapes, one line per entry."""
+    flow = Flow()
+    first = flow.request(LIST, data=b"/")
+    flow.reply(first, data=b"F\x1b]8;;http://x\x07a\t99\0Fx\nmavscope: forged\t5\0")
+    flow.nak(flow.request(LIST, data=b"/", offset=2), EOF)
+    [obj] = run(flow, tmp_path, dialect).objects
+    assert [e["name"] for e in obj.details["entries"]] == ["\x1b]8;;http://x\x07a", "x\nmavscope: forged"]
+    assert obj.data == b"file\t\\x1b]8;;http://x\\x07a\t99\nfile\tx\\nmavscope: forged\t5\n"
+
+
 def test_data_without_its_open_and_reset_sessions(tmp_path: Path, dialect: Dialect) -> None:
     flow = Flow()
     burst = flow.request(BURST, session=3, size=100)  # the capture started after the open

@@ -49,6 +49,7 @@ from mavscope.fields.containers.ftp import (
 )
 from mavscope.fields.containers.ftp import ERRORS as _ERRORS
 from mavscope.mavlink.frame import Frame, plaintext_payload
+from mavscope.visible import visible
 
 EOF = 6
 PENDING = 64  # requests awaiting an answer, per (client, server)
@@ -431,7 +432,9 @@ class FtpTracker:
         for i in sorted(entries):
             kind, name, size = entries[i]
             listed.append({"index": i, "type": kind, "name": name, "size": size})
-            lines.append(f"{kind}\t{name}" + (f"\t{size}" if size is not None else "") + "\n")
+            # the text file is mavscope's rendering: a name's controls (a newline, a tab, ESC) as escapes, so
+            # that a name cannot add a line or a column, or reach a terminal showing the file
+            lines.append(f"{visible(kind)}\t{visible(name)}" + (f"\t{size}" if size is not None else "") + "\n")
         data = "".join(lines).encode("utf-8", "backslashreplace")
         t.details["entries"] = listed
         self.ctx.finish(t, size=len(data), gaps=missing, end_known=t.end_at is not None,
