@@ -105,9 +105,21 @@ def test_plane_stream_rates_are_explained(cli: Cli, real_captures: Path) -> None
             during = [f for f, _v in mine if start <= f <= end]
             assert during and e["cause_frame"] == during[-1], e
             assert e["explanation"].startswith(f"the value from before REQUEST_DATA_STREAM frame {during[-1]}")
-    others = [e for e in doc["timeline"] if not e["name"].startswith("SR0_")]
+    # MIS_TOTAL by AP_Mission's rule (tests/analysis/test_params_missions.py): the last MISSION_COUNT (type 0)
+    # or MISSION_CLEAR_ALL (type 0 or 255) to system 1 before the change, the value one it takes it to
+    missions = [(m.index + 1, m.msg.count if m.name == "MISSION_COUNT" else 1) for m in read(path)
+                if m.name in ("MISSION_COUNT", "MISSION_CLEAR_ALL") and m.msg.target_system == 1
+                and m.msg.mission_type in ((0,) if m.name == "MISSION_COUNT" else (0, 255))]
+    totals = [e for e in doc["timeline"] if e["name"] == "MIS_TOTAL"]
+    for e in totals:
+        last = [(f, top) for f, top in missions if f < e["frame"]][-1:]
+        explained = bool(last) and 0 <= e["value"] <= last[0][1]
+        assert e["cause_frame"] == (last[0][0] if explained else None), e
+    assert [e["frame"] for e in totals if e["cause_frame"]] == [4977]  # Mission Planner's upload of 0 items
+    others = [e for e in doc["timeline"] if not e["name"].startswith("SR0_") and e["name"] != "MIS_TOTAL"]
     assert others and all(e["explanation"] is None and e["cause_frame"] is None for e in others)
-    assert doc["unexplained"] == len(others) and doc["findings"] == []  # no security-relevant parameter moved
+    assert doc["unexplained"] == len(others) + len(totals) - 1
+    assert doc["findings"] == []  # no security-relevant parameter moved
     status, out, _ = cli("events", path)
     assert status == 0
     param_lines = [line for line in out.splitlines() if " SR0_" in line and "changed to" in line]

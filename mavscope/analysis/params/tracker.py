@@ -24,6 +24,8 @@ from mavscope.analysis.objects import FTP_READ, FTP_WRITE, Limits, ObjectRecord,
 from mavscope.analysis.objects.model import int_field
 from mavscope.analysis.params import pck
 from mavscope.analysis.params.export import param_findings
+from mavscope.analysis.params.missions import MESSAGES as MISSION_MESSAGES
+from mavscope.analysis.params.missions import MissionRequests
 from mavscope.analysis.params.model import Addr, Component, Param, ParamChange, ParamLog
 from mavscope.analysis.params.security import category, disables
 from mavscope.analysis.params.streams import StreamRequests
@@ -50,7 +52,7 @@ PARAM_ACK_ACCEPTED, PARAM_ACK_IN_PROGRESS = 0, 3
 ACK_NAMES = {0: "PARAM_ACK_ACCEPTED", 1: "PARAM_ACK_VALUE_UNSUPPORTED", 2: "PARAM_ACK_FAILED",
              3: "PARAM_ACK_IN_PROGRESS"}
 MESSAGES = frozenset({"PARAM_VALUE", "PARAM_SET", "PARAM_EXT_VALUE", "PARAM_EXT_SET", "PARAM_EXT_ACK", "HEARTBEAT",
-                      "AUTOPILOT_VERSION", "FILE_TRANSFER_PROTOCOL", "REQUEST_DATA_STREAM"})
+                      "AUTOPILOT_VERSION", "FILE_TRANSFER_PROTOCOL", "REQUEST_DATA_STREAM"}) | MISSION_MESSAGES
 
 
 @dataclass
@@ -118,6 +120,7 @@ class ParamTracker:
         self.given_up: Counter[str] = Counter()
         self.now: float | None = None
         self.streams = StreamRequests()
+        self.missions = MissionRequests()
 
     # -- frames --------------------------------------------------------------------------------------
 
@@ -181,6 +184,8 @@ class ParamTracker:
             self._ext_ack(f, fields)
         elif name == "REQUEST_DATA_STREAM":
             self.streams.feed(f.record, fields)
+        elif name in MISSION_MESSAGES:
+            self.missions.feed(f.record, name, fields)
 
     def param_value(self, addr: Addr, record: int, when: float | None, link: str, verdict: str, name: str,
                     raw: bytes, ptype: int, count: int) -> None:
@@ -267,7 +272,8 @@ class ParamTracker:
         if not same(old.value, value):
             old.changes += 1
             if not explained:
-                cause = self.streams.explain(addr, name, value, record, read_from)
+                cause = (self.streams.explain(addr, name, value, record, read_from)
+                         or self.missions.explain(addr, name, value, record))
                 self._append(_Entry(when, record, "change", source, sender, addr, name, value, old.value, ptype,
                                     link, verdict, cause_frame=None if cause is None else cause.frame,
                                     explanation=None if cause is None else cause.text))
