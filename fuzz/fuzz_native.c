@@ -487,7 +487,7 @@ static void skip_pairs(rd *r) {
 
 static void check_dump(const ms_acc *a, const ms_buf *b) {
     rd r = {(const uint8_t *)b->data, (const uint8_t *)b->data + b->len};
-    if (take(&r, 4) != 0x4453534Du || take(&r, 4) != 2) /* "MSSD" */
+    if (take(&r, 4) != 0x4453534Du || take(&r, 4) != 3) /* "MSSD" */
         abort();
     const uint64_t total = take(&r, 8);
     skip(&r, 8 + 1 + 16 + 8 * MS_CRC_N + 8 * MS_SIG_N + 16);
@@ -555,6 +555,17 @@ static void check_dump(const ms_acc *a, const ms_buf *b) {
     n = take(&r, 4);
     for (uint64_t i = 0; i < n; i++)
         skip(&r, 24);
+    n = take(&r, 4); /* the vehicles with new commanders: each counted, its shown ones within the plan's */
+    if (n > 256)
+        abort();
+    for (uint64_t i = 0; i < n; i++) {
+        skip(&r, 3);
+        const uint64_t count = take(&r, 4), shown = take(&r, 1);
+        if (count == 0 || shown > count || shown > (uint64_t)plan.k[MS_K_COMMANDERS_SHOWN])
+            abort();
+        skip(&r, 6 * shown);
+        skip_fn(&r);
+    }
     n = take(&r, 4);
     for (uint64_t i = 0; i < n; i++) {
         skip(&r, 6 + 4 + 24 + 8);
