@@ -84,9 +84,9 @@ class Accumulator:
 
     def result(self, dialect: Dialect) -> tuple[Stats, Expert]:
         """The Stats and the Expert of everything accumulated (not `full`). The accumulator is let go once
-        dumped (its C state freed, when the walker that was fed from it is gone too): the C tables and the
-        Python objects rebuilt from them are not held at once (on a capture naming all 65,536 senders, each
-        about 5 KB per sender)."""
+        dumped (its C state freed, when the walker that was fed from it is gone too), so that the C tables
+        and the Python objects rebuilt from them are not held at once: about 5 KB a sender each, 330 MB of C
+        state on a capture naming 62,000 senders."""
         dump = self.acc.dump()
         self.acc = None
         stats, ex = rebuild(dump, dialect)
