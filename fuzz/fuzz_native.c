@@ -560,11 +560,14 @@ static void check_dump(const ms_acc *a, const ms_buf *b) {
         abort();
     for (uint64_t i = 0; i < n; i++) {
         skip(&r, 3);
-        const uint64_t count = take(&r, 4), shown = take(&r, 1);
-        if (count == 0 || shown > count || shown > (uint64_t)plan.k[MS_K_COMMANDERS_SHOWN])
+        const uint64_t shown = take(&r, 1);
+        if (shown == 0 || shown > (uint64_t)plan.k[MS_K_COMMANDERS_SHOWN])
             abort();
         skip(&r, 6 * shown);
-        skip_fn(&r);
+        const uint64_t count = take(&r, 8), listed = take(&r, 4); /* fn: every commander counted */
+        if (count < shown || listed > MS_FN_MAX)
+            abort();
+        skip(&r, 8 * listed);
     }
     n = take(&r, 4);
     for (uint64_t i = 0; i < n; i++) {

@@ -270,9 +270,8 @@ def _experts(r: _Reader, dialect: Dialect, links: dict[tuple[int, int], _Link],
         else:
             cs.out.append((target, commanders.command_without_heartbeat(addr, name, target, record)))
     for _ in range(r.one("I")):
-        target, first, count, nshown = r.take("BHIB")
+        target, first, nshown = r.take("BHB")
         c = cs.commanded[target] = Commanded((first >> 8, first & 0xFF))
-        c.count = count
         for _ in range(nshown):
             sender, msgid = r.take("HI")
             c.shown.append(((sender >> 8, sender & 0xFF), dialect.messages[msgid].name))

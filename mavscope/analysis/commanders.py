@@ -36,14 +36,14 @@ def target_of(fields: Fields) -> object:
 
 class Commanded:
     """The new commanders of one vehicle: the senders (a bitmap of sysid << 8 | compid), the first
-    COMMANDERS_SHOWN of them with the message each first sent, the first frame of each."""
+    COMMANDERS_SHOWN of them with the message each first sent, the first frame of each (`frames.count`:
+    how many there are)."""
 
-    __slots__ = ("first", "senders", "count", "shown", "frames")
+    __slots__ = ("first", "senders", "shown", "frames")
 
     def __init__(self, first: Link) -> None:
         self.first = first  # the vehicle's first commander
         self.senders = bytearray(8192)
-        self.count = 0
         self.shown: list[tuple[Link, str]] = []
         self.frames = frame_numbers()
 
@@ -53,7 +53,6 @@ class Commanded:
         if self.senders[bit >> 3] >> (bit & 7) & 1:
             return
         self.senders[bit >> 3] |= 1 << (bit & 7)
-        self.count += 1
         if len(self.shown) < COMMANDERS_SHOWN:
             self.shown.append((sender, name))
         self.frames.add(record)
@@ -112,13 +111,14 @@ class CommandSources:
 # CommandSources' findings (the native accumulator's state is written by these too)
 def new_commanders(target: int, c: Commanded) -> Finding:
     """The `new-commander` finding of vehicle `target`: its one new commander, or how many and the first."""
-    if c.count == 1:
+    count = c.frames.count
+    if count == 1:
         ((sender, name),) = c.shown
         return finding("new-commander", f"system {sender[0]}/{sender[1]} commands system {target} ({name}), which "
                                         f"{c.first[0]}/{c.first[1]} commanded until then", c.frames.nums)
     named = ", ".join(f"{s}/{k} ({name})" for (s, k), name in c.shown)
-    more = f" and {c.count - len(c.shown)} more" if c.count > len(c.shown) else ""
-    return finding("new-commander", f"{c.count} senders command system {target} after {c.first[0]}/{c.first[1]}, "
+    more = f" and {count - len(c.shown)} more" if count > len(c.shown) else ""
+    return finding("new-commander", f"{count} senders command system {target} after {c.first[0]}/{c.first[1]}, "
                                     f"which commanded it first: {named}{more}", c.frames.nums)
 
 

@@ -152,19 +152,16 @@ def _cell(v: object) -> str:
 def _csv(env: Env, names: list[str], batches: Iterator[pa.RecordBatch], guard: bool) -> None:
     """CSV rows; `guard`: text cells a spreadsheet would run as formulas get a leading ' (counted on
     stderr), as `export -T csv` writes them (mavscope.export.csvout)."""
-    from mavscope.export.csvout import formula_like, guarded_note
+    from mavscope.export.csvout import guard_cells, guarded_note
 
     w = csv.writer(env.stdout, lineterminator="\n")
     w.writerow(names)
     guarded = 0
     for row in _tuples(batches):
-        cells = [_cell(v) for v in row]
+        values = list(row)
         if guard:
-            for i, v in enumerate(row):
-                if isinstance(v, str) and formula_like(v):
-                    cells[i] = "'" + cells[i]
-                    guarded += 1
-        w.writerow(cells)
+            guarded += guard_cells(values)
+        w.writerow([_cell(v) for v in values])
     if guarded:
         env.say(guarded_note("sql", guarded), prefix="")
 

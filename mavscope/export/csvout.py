@@ -45,6 +45,17 @@ def formula_like(s: str) -> bool:
     return s.startswith(FORMULA_STARTS) and not (s[0] in "+-" and _number(s))
 
 
+def guard_cells(values: list[object]) -> int:
+    """Give each text value of `values` that a spreadsheet would run as a formula a leading `'`, in place;
+    how many were changed."""
+    changed = 0
+    for k, x in enumerate(values):
+        if isinstance(x, str) and formula_like(x):
+            values[k] = "'" + x
+            changed += 1
+    return changed
+
+
 def guarded_note(command: str, cells: int) -> str:
     """The line a command writes on stderr when it guarded `cells` text cells."""
     return (f"{command}: {cells:,} text cell(s) began with = + - @, a tab or a carriage return, which a spreadsheet "
@@ -102,11 +113,7 @@ def write_capture_csv(path: str, folder: Path, options: ExportOptions | None = N
             times = rows.column("_time").to_pylist()
             values = [rows.column(_SKIP + j).to_pylist() for j in range(len(cols.fields))]
             if guard:
-                for v in values:
-                    for k, x in enumerate(v):
-                        if isinstance(x, str) and formula_like(x):
-                            v[k] = "'" + x
-                            guarded += 1
+                guarded += sum(guard_cells(v) for v in values)
             for i, t in enumerate(times):
                 writer.writerow(["" if t is None else f"{t:.8f}"] + [_text(v[i]) for v in values])
             counts[name] = counts.get(name, 0) + len(times)

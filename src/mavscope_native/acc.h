@@ -136,12 +136,10 @@ typedef struct {
 /* CommandSources.commanded: the new commanders of one vehicle (analysis/commanders.py Commanded) */
 typedef struct {
     uint8_t *senders; /* [8192] bitmap of sysid << 8 | compid; NULL until the first */
-    uint32_t count;
     uint32_t nshown;
     uint16_t shown_sender[MS_SHOWN_MAX];
     uint32_t shown_msgid[MS_SHOWN_MAX];
-    int32_t first; /* the vehicle's first commander */
-    ms_fnums fn;
+    ms_fnums fn; /* the first frame of each; fn.count: how many */
 } ms_commanded;
 
 /* CommandSources.out */

@@ -23,7 +23,7 @@
  *   signing   32 bytes (bitmap of sysids)
  *   commands  32 bytes (CommandSources.gcs); u32 n; per event u8 kind, target; u16 sender; u32 msgid;
  *             i32 a, b; u64 record; then u32 n; per vehicle with new commanders (by sysid) u8 target;
- *             u16 first; u32 count; u8 nshown; per shown u16 sender, u32 msgid; fn
+ *             u16 first commander; u8 nshown; per shown u16 sender, u32 msgid; fn (its count: how many)
  *   control   u32 n; per event u8 kind, vehicle, sender, holder, flag, why; u32 label;
  *             u64 record, since, req_record; f64 alt; u16 length, old mode; u16 length, new mode
  *   episodes  u32 n; per episode u8 code, kind; u16 sender; u8 flags; fn; f64 worst; f64 a[4]; i64 n[4]
@@ -200,15 +200,14 @@ int ms_acc_dump(const ms_acc *a, ms_buf *b) {
     }
     uint32_t vehicles = 0;
     for (int t = 0; t < 256; t++)
-        vehicles += a->commanded[t].count > 0;
+        vehicles += a->commanded[t].senders != NULL;
     un(b, vehicles, 4);
     for (int t = 0; t < 256; t++) {
         const ms_commanded *c = &a->commanded[t];
-        if (c->count == 0)
+        if (c->senders == NULL)
             continue;
         u8(b, (unsigned)t);
-        un(b, (uint16_t)c->first, 2);
-        un(b, c->count, 4);
+        un(b, (uint16_t)a->first_commander[t], 2);
         u8(b, c->nshown);
         for (uint32_t i = 0; i < c->nshown; i++) {
             un(b, c->shown_sender[i], 2);

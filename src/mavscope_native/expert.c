@@ -258,18 +258,13 @@ static int cmd_event(ms_acc *a, int kind, unsigned target, unsigned sender, uint
 }
 
 /* Commanded.add: `sender` commands vehicle `target`, counted the first time (0, -1 out of memory) */
-static int commanded(ms_acc *a, unsigned target, unsigned est, unsigned sender, const ms_acc_frame *f) {
+static int commanded(ms_acc *a, unsigned target, unsigned sender, const ms_acc_frame *f) {
     ms_commanded *c = &a->commanded[target];
-    if (c->senders == NULL) {
-        c->senders = calloc(8192, 1);
-        if (c->senders == NULL)
-            return -1;
-        c->first = (int32_t)est;
-    }
+    if (c->senders == NULL && (c->senders = calloc(8192, 1)) == NULL)
+        return -1;
     if (ms_bit(c->senders, sender))
         return 0;
     c->senders[sender >> 3] |= (uint8_t)(1u << (sender & 7));
-    c->count++;
     if (c->nshown < (uint32_t)a->plan->k[MS_K_COMMANDERS_SHOWN]) {
         c->shown_sender[c->nshown] = (uint16_t)sender;
         c->shown_msgid[c->nshown++] = f->msgid;
@@ -302,7 +297,7 @@ static int command_sources(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg *
         a->first_commander[target] = (int32_t)sender;
     const unsigned est = (unsigned)a->first_commander[target];
     int r;
-    if ((est >> 8) != f->sysid && commanded(a, target, est, sender, f) != 0)
+    if ((est >> 8) != f->sysid && commanded(a, target, sender, f) != 0)
         return -1;
     if (f->src >= 0) {
         uint32_t known;

@@ -433,8 +433,9 @@ class FtpTracker:
             kind, name, size = entries[i]
             listed.append({"index": i, "type": kind, "name": name, "size": size})
             # the text file is mavscope's rendering: a name's controls (a newline, a tab, ESC) as escapes, so
-            # that a name cannot add a line or a column, or reach a terminal showing the file
-            lines.append(f"{visible(kind)}\t{visible(name)}" + (f"\t{size}" if size is not None else "") + "\n")
+            # that a name cannot add a line or a column, or reach a terminal showing the file (`kind` is one
+            # of ENTRY_KINDS' words)
+            lines.append(f"{kind}\t{visible(name)}" + (f"\t{size}" if size is not None else "") + "\n")
         data = "".join(lines).encode("utf-8", "backslashreplace")
         t.details["entries"] = listed
         self.ctx.finish(t, size=len(data), gaps=missing, end_known=t.end_at is not None,

@@ -14,17 +14,15 @@ State is bounded: the last request per system.
 
 from __future__ import annotations
 
+import math
+
+from mavscope.analysis.objects.model import int_field
 from mavscope.analysis.params.streams import Cause
-from mavscope.analysis.params.values import Value, same
+from mavscope.analysis.params.values import Value
 
 PARAM = "MIS_TOTAL"
 MISSION, ALL = 0, 255  # MAV_MISSION_TYPE_MISSION, MAV_MISSION_TYPE_ALL
 MESSAGES = frozenset({"MISSION_COUNT", "MISSION_CLEAR_ALL"})
-
-
-def _int(fields: dict[str, object], name: str, default: int = 0) -> int:
-    v = fields.get(name, default)
-    return v if isinstance(v, int) else default
 
 
 class MissionRequests:
@@ -34,11 +32,11 @@ class MissionRequests:
         self.last: dict[int, tuple[int, str, int]] = {}  # system -> (frame, message, the largest value it leaves)
 
     def feed(self, record: int, message: str, fields: dict[str, object]) -> None:
-        mtype = _int(fields, "mission_type", MISSION)
+        mtype = int_field(fields, "mission_type")  # 0, the mission, where MAVLink 1 has no such field
         if message == "MISSION_COUNT" and mtype == MISSION:
-            self.last[_int(fields, "target_system")] = (record, message, _int(fields, "count"))
+            self.last[int_field(fields, "target_system")] = (record, message, int_field(fields, "count"))
         elif message == "MISSION_CLEAR_ALL" and mtype in (MISSION, ALL):
-            self.last[_int(fields, "target_system")] = (record, message, 1)
+            self.last[int_field(fields, "target_system")] = (record, message, 1)
 
     def explain(self, addr: tuple[int, int], name: str, value: Value, record: int) -> Cause | None:
         """The upload or clear that explains system `addr[0]` reporting MIS_TOTAL = `value` in frame
@@ -46,11 +44,17 @@ class MissionRequests:
         if name != PARAM:
             return None
         last = self.last.get(addr[0])
-        if last is None or last[0] >= record or not any(same(value, v) for v in range(last[2] + 1)):
+        if last is None or last[0] >= record or not _whole(value, last[2]):
             return None
         frame, message, top = last
         if message == "MISSION_CLEAR_ALL":
             return Cause(frame, f"set by the mission clear, {message} frame {frame}")
-        if same(value, top):
+        if value == top:
             return Cause(frame, f"set by the mission upload of {top} items, {message} frame {frame}")
         return Cause(frame, f"the items written so far of the mission upload of {top} items, {message} frame {frame}")
+
+
+def _whole(value: Value, top: int) -> bool:
+    """Whether `value` is a whole number 0..top (a count: exact as a float32 too, for any count of 16 bits)."""
+    return (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            and value == int(value) and 0 <= value <= top)
