@@ -487,7 +487,7 @@ static void skip_pairs(rd *r) {
 
 static void check_dump(const ms_acc *a, const ms_buf *b) {
     rd r = {(const uint8_t *)b->data, (const uint8_t *)b->data + b->len};
-    if (take(&r, 4) != 0x4453534Du || take(&r, 4) != 3) /* "MSSD" */
+    if (take(&r, 4) != 0x4453534Du || take(&r, 4) != 4) /* "MSSD" */
         abort();
     const uint64_t total = take(&r, 8);
     skip(&r, 8 + 1 + 16 + 8 * MS_CRC_N + 8 * MS_SIG_N + 16);
@@ -515,10 +515,20 @@ static void check_dump(const ms_acc *a, const ms_buf *b) {
         skip(&r, 24 + 8 * MS_CRC_N + 8 * MS_SIG_N + 1 + 16 + 12);
         uint64_t chans = take(&r, 4);
         for (uint64_t c = 0; c < chans; c++) {
-            skip(&r, 8 + 48);
+            skip(&r, 8);
+            const int64_t lost = (int64_t)take(&r, 8);
+            skip(&r, 32);
+            const int64_t shared = (int64_t)take(&r, 8), full = (int64_t)take(&r, 8), steps = (int64_t)take(&r, 8);
+            skip(&r, 8 + 4 + 8);
+            if (shared < 0 || shared > lost || full < 0 || full > steps)
+                abort(); /* the numbers other ids used are among those missing; full steps among the jumps */
             uint64_t gaps = take(&r, 1);
-            for (uint64_t g = 0; g < gaps; g++)
-                skip(&r, 12);
+            for (uint64_t g = 0; g < gaps; g++) {
+                skip(&r, 11);
+                const uint64_t remaining = take(&r, 1);
+                if (take(&r, 1) > remaining)
+                    abort();
+            }
         }
     }
     if (counted + unfollowed != total || received != total)

@@ -147,7 +147,7 @@ def _counter(names: Iterable[str], counts: Iterable[int]) -> Counter[str]:
 def rebuild(dump: bytes, dialect: Dialect) -> tuple[Stats, Expert]:
     """The Stats and the Expert (its detectors' state) of an accumulator's dump."""
     r = _Reader(dump)
-    if r.bytes(4) != b"MSSD" or r.one("I") != 3:
+    if r.bytes(4) != b"MSSD" or r.one("I") != 4:
         raise ValueError("not a statistics dump")
     total, nbytes, has_first, first, last = r.take("QQBdd")
     crc = _counter((c.value for c in CRC), r.take("4Q"))
@@ -180,12 +180,18 @@ def rebuild(dump: bytes, dialect: Dialect) -> tuple[Stats, Expert]:
         addr = (sender >> 8, sender & 0xFF)
         events_of.append((addr, r.take("3i")))
         for _ in range(r.one("I")):
-            src, dst, lost, dup, rep, unch, reord, large, ngaps = r.take("iiqqqqqQB")
+            src, dst, lost, dup, rep, unch, reord, shared, full, steps, first_full, partner, large, ngaps = \
+                r.take("iiqqqqqqqqqiQB")
             tr = SeqTracker(lost=lost, duplicates=dup, repeats=rep, unchanged=unch, reordered=reord,
-                            large_gaps=large)
-            tr.gaps = [Gap(*r.take("QBBBB")) for _ in range(ngaps)]
+                            large_gaps=large, shared=shared, full_steps=full, gap_steps=steps, partner=partner,
+                            first_full=first_full)
+            tr.gaps = [Gap(*r.take("QBBBBB")) for _ in range(ngaps)]
             lk.channels[(strings[src] if src >= 0 else ends[src], strings[dst] if dst >= 0 else ends[dst])] = tr
         links[addr] = lk
+    for lk in links.values():  # each tracker's mate: its partner's tracker on the same channel
+        for chan, tr in lk.channels.items():
+            if tr.partner >= 0 and (mate := links.get((tr.partner >> 8, tr.partner & 0xFF))) is not None:
+                tr.mate = mate.channels.get(chan)
     addrs = list(links)
     for owner, value, _count in r.pairs():
         links[addrs[owner]].endpoints.add(strings[value])

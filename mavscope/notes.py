@@ -147,6 +147,9 @@ CODES: dict[str, Code] = {
              "many backward sequence steps on one channel: two senders may share a system/component id"),
         Code("seq-own-counter", _NOTE, Group.SEQUENCE, _C,
              "a ground station numbers REQUEST_DATA_STREAM on a counter of its own"),
+        Code("seq-shared-counter", _NOTE, Group.SEQUENCE, _C,
+             "several system/component ids number their frames on one counter: the numbers one skips, the "
+             "others used"),
         Code("new-commander", _WARN, Group.SECURITY, _C, "a second system commands a vehicle"),
         Code("unexpected-command-source", _WARN, Group.SECURITY, _C,
              "commands from a known sender arrive from another network endpoint"),

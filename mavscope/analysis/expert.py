@@ -147,18 +147,21 @@ class SequenceAnomalies:
         out: list[Finding] = []
         for (sysid, compid), chans in self.seqs.senders.items():
             trackers = list(chans.values())
-            gaps = [g for tr in trackers for g in tr.gaps if g.remaining >= GAP_MIN]
+            shared = [tr for tr in trackers if tr.counter_shared]
+            if shared:
+                out.append(_shared_counter((sysid, compid), shared, totals(trackers).lost))
+            gaps = [(tr.missed_in(g), g) for tr in trackers for g in tr.gaps if tr.missed_in(g) >= GAP_MIN]
             if not gaps:
                 continue
             large = sum(tr.large_gaps for tr in trackers)
             kept = sum(len(tr.gaps) for tr in trackers)
-            largest = max(gaps, key=lambda g: g.remaining)
+            size, largest = max(gaps, key=lambda mg: mg[0])
             more = f" (and {large - kept} more not listed)" if large > kept else ""
             out.append(finding("seq-gap",
-                               f"link {sysid}/{compid}: {sum(g.remaining for g in gaps)} frames lost in "
-                               f"{len(gaps)} gap(s) of {GAP_MIN} or more{more}, the largest {largest.remaining} "
+                               f"link {sysid}/{compid}: {sum(m for m, _ in gaps)} frames lost in "
+                               f"{len(gaps)} gap(s) of {GAP_MIN} or more{more}, the largest {size} "
                                f"(seq {largest.before} -> {largest.after}); {totals(trackers).lost} lost in all, "
-                               "as in the Links table", sorted(g.record for g in gaps)))
+                               "as in the Links table", sorted(g.record for _, g in gaps)))
         own = {key: m for key in self.counts if (m := self._own_counter(key)) is not None}
         for key, message in own.items():
             seq = self.seqs.totals(key)
@@ -193,6 +196,23 @@ class SequenceAnomalies:
                                    "or one sender's two MAVLink channels where the capture cannot tell them apart, "
                                    f"as in a tlog){_which(messages, cut)}", nums))
         return out
+
+
+def _shared_counter(key: Link, trackers: list[SeqTracker], lost: int) -> Finding:
+    """`seq-shared-counter`: sender `key` numbers its frames on one counter with other ids on its channel
+    (`trackers`: its channels where it does, SeqTracker.counter_shared). The frames: each channel's first jump
+    over numbers all used by another id."""
+    partners = sorted({tr.partner for tr in trackers if tr.partner >= 0})
+    named = ", ".join(f"{p >> 8}/{p & 0xFF}" for p in partners)
+    skipped = sum(tr.shared for tr in trackers)
+    full = sum(tr.full_steps for tr in trackers)
+    jumps = sum(tr.gap_steps for tr in trackers)
+    return finding("seq-shared-counter",
+                   f"link {key[0]}/{key[1]}: {full} of its {jumps} jumps in sequence skip only numbers another id "
+                   f"on its channel used ({named} first): one counter numbers the frames of several ids, as one "
+                   f"program sending as several does (BlueOS's mavlink-server, a companion computer); the "
+                   f"{skipped} numbers the others used are not frames lost ({lost} lost in all, as in the Links "
+                   "table)", sorted(tr.first_full for tr in trackers))
 
 
 def _which(messages: Counter[str], cut: bool = False) -> str:

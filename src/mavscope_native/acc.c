@@ -177,6 +177,8 @@ void ms_acc_free(ms_acc *a) {
     for (uint32_t i = 0; i < a->chans.n; i++)
         ms_seq_free(&a->chans.v[i].seq);
     free(a->chans.v);
+    free(a->counters.v);
+    ms_map_free(&a->counter_index);
     free(a->convs.v);
     free(a->link_of);
     free(a->hb_of);
@@ -359,43 +361,6 @@ static ms_link *link_for(ms_acc *a, unsigned sender) {
     return lk;
 }
 
-/* SeqChannels.tracker: the sender's tracker for the frame's channel. */
-static ms_seq *channel(ms_acc *a, ms_link *lk, int32_t src, int32_t dst) {
-    int32_t shared = -1;
-    for (int32_t i = lk->chan_head; i >= 0; i = a->chans.v[i].next) {
-        ms_chan *c = &a->chans.v[i];
-        if (c->src == src && c->dst == dst)
-            return &c->seq;
-        if (c->src == MS_SHARED)
-            shared = i;
-    }
-    if (lk->nchan && (lk->nchan >= (uint32_t)a->plan->k[MS_K_MAX_CHANNELS] ||
-                      a->extra >= (uint64_t)a->plan->k[MS_K_MAX_EXTRA])) {
-        if (shared >= 0)
-            return &a->chans.v[shared].seq;
-        src = dst = MS_SHARED;
-    }
-    int g = MS_VGROW(a, a->chans, MS_CAP_CHANNELS);
-    if (g != 0) {
-        a->full = g > 0;
-        return NULL;
-    }
-    a->extra += lk->nchan ? 1 : 0;
-    int32_t at = (int32_t)a->chans.n++;
-    ms_chan *c = &a->chans.v[at];
-    c->src = src;
-    c->dst = dst;
-    c->next = -1;
-    ms_seq_init(&c->seq);
-    if (lk->chan_tail >= 0)
-        a->chans.v[lk->chan_tail].next = at;
-    else
-        lk->chan_head = at;
-    lk->chan_tail = at;
-    lk->nchan++;
-    return &c->seq;
-}
-
 static int str_less_eq(const ms_acc *a, int32_t x, int32_t y) {
     size_t nx = a->str_len[x], ny = a->str_len[y];
     int c = memcmp(a->text + a->str_off[x], a->text + a->str_off[y], nx < ny ? nx : ny);
@@ -501,9 +466,9 @@ int ms_acc_add(ms_acc *a, const ms_acc_frame *f) {
     a->crc[f->crc]++;
     lk->sig[f->sig]++;
     a->sig[f->sig]++;
-    ms_seq *tr = channel(a, lk, f->src < 0 ? -1 : f->src, f->dst < 0 ? -1 : f->dst);
-    CHECK(tr);
-    int step = ms_seq_feed(tr, &a->rules, f->seq, f->record, f->raw, f->raw_len);
+    ms_chan *ch = ms_channel(a, lk, f->src < 0 ? -1 : f->src, f->dst < 0 ? -1 : f->dst);
+    CHECK(ch);
+    int step = ms_channel_feed(a, ch, f);
     if (step < 0)
         return -1;
     SEE(lk, f);

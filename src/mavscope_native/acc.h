@@ -96,9 +96,21 @@ typedef struct {
 typedef struct {
     int32_t src, dst; /* -1: "" (no endpoint); MS_SHARED both: the shared channel ("*", "*") */
     int32_t next;
+    int32_t counter;  /* index in counters (SeqTracker.channel), -1: none (the shared channel) */
+    int32_t slot;     /* SeqTracker.slot */
+    uint64_t at;      /* SeqTracker.at */
+    uint16_t sender;
     ms_seq seq;
 } ms_chan;
 #define MS_SHARED (-2)
+
+/* sequence.ChannelCounter: one channel's frames, whoever sent them */
+typedef struct {
+    uint64_t frames;
+    int32_t ring[MS_RING]; /* index in chans, -1 */
+    uint16_t senders[MS_RING];
+    uint32_t next;
+} ms_counter;
 
 typedef struct {
     int32_t a, b; /* intern ids (the transport's name or "" where there is no endpoint) */
@@ -247,6 +259,8 @@ typedef struct {
     int32_t *link_of; /* [65536] sender -> index in links, -1 */
     MS_VEC(ms_chan) chans;
     uint32_t extra; /* SeqChannels.extra */
+    MS_VEC(ms_counter) counters;
+    ms_map counter_index; /* (src, dst) -> index in counters (SeqChannels.counters) */
     MS_VEC(ms_conv) convs;
     ms_map conv_index;
     ms_pairs link_endpoints, conv_systems;
@@ -329,6 +343,10 @@ typedef struct {
 } ms_val;
 
 ms_val ms_get(const ms_acc_frame *f, const ms_plan_msg *pm, int slot);
+/* channels.c: SeqChannels.tracker (NULL: a cap filled, `full` set, or memory ran out) and .feed (MS_STEP_*,
+ * -1 nomem) */
+ms_chan *ms_channel(ms_acc *a, ms_link *lk, int32_t src, int32_t dst);
+int ms_channel_feed(ms_acc *a, ms_chan *ch, const ms_acc_frame *f);
 int ms_expert_add(ms_acc *a, const ms_acc_frame *f, ms_link *lk, int step);
 int ms_control_add(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg *pm);
 int ms_gnss_add(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg *pm);

@@ -1,7 +1,7 @@
 /* ms_acc_dump: the accumulator's whole state as one byte string for mavscope/native_stats.py, which reads it
  * with `struct` in this order (little-endian; "fn" is a FrameNumbers: u64 count, u32 n, u64 x n):
  *
- *   "MSSD" u32 3
+ *   "MSSD" u32 4
  *   totals    u64 frames, bytes; u8 has_time; f64 first, last; u64 crc[4]; u64 signature[6]; u64 v1, v2;
  *             u64 unfollowed streams, unfollowed conversations (their frames)
  *   strings   u32 n; per string u32 length, bytes
@@ -9,8 +9,9 @@
  *             u8 has_rates; f64 width; u32 nbins; u64 bins[nbins]
  *   links     u32 n; per link u16 sender; u64 received, bytes, v1, v2; u64 crc[4]; u64 signature[6];
  *             u8 has_time; f64 first, last; i32 events[3]; u32 nchan; per channel i32 src, dst;
- *             i64 lost, duplicates, repeats, unchanged, reordered; u64 large_gaps; u8 ngaps;
- *             per gap u64 record; u8 before, after, size, remaining
+ *             i64 lost, duplicates, repeats, unchanged, reordered, shared, full_steps, gap_steps,
+ *             first_full; i32 partner; u64 large_gaps; u8 ngaps;
+ *             per gap u64 record; u8 before, after, size, remaining, shared
  *   pairs     u32 n; per pair u32 owner, value; u64 count   (link endpoints: link, string)
  *   convs     u32 n; per conversation u8 transport; i32 a, b; u64 frames_ab, frames_ba, bytes_ab, bytes_ba;
  *             u8 has_time; f64 first, last
@@ -79,6 +80,11 @@ static void seq(ms_buf *b, const ms_seq *s) {
     un(b, (uint64_t)s->repeats, 8);
     un(b, (uint64_t)s->unchanged, 8);
     un(b, (uint64_t)s->reordered, 8);
+    un(b, (uint64_t)s->shared, 8);
+    un(b, (uint64_t)s->full_steps, 8);
+    un(b, (uint64_t)s->gap_steps, 8);
+    un(b, (uint64_t)s->first_full, 8);
+    un(b, (uint32_t)s->partner, 4);
     un(b, s->large_gaps, 8);
     u8(b, s->ngaps);
     for (unsigned i = 0; i < s->ngaps; i++) {
@@ -87,12 +93,13 @@ static void seq(ms_buf *b, const ms_seq *s) {
         u8(b, s->gaps[i].after);
         u8(b, s->gaps[i].size);
         u8(b, s->gaps[i].remaining);
+        u8(b, s->gaps[i].shared);
     }
 }
 
 int ms_acc_dump(const ms_acc *a, ms_buf *b) {
     ms_buf_put(b, "MSSD", 4);
-    un(b, 3, 4);
+    un(b, 4, 4);
     un(b, a->total, 8);
     un(b, a->nbytes, 8);
     u8(b, a->has_first);

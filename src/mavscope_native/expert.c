@@ -328,7 +328,7 @@ static int command_sources(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg *
 
 /* ReplayedCommands.add */
 static int replayed_commands(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg *pm, ms_link *lk) {
-    int step = ms_seq_feed(&lk->replay_seq, &a->rules, f->seq, f->record, NULL, 0);
+    int step = ms_seq_feed(&lk->replay_seq, &a->rules, f->seq, f->record, NULL, 0, 0, -1);
     if (step < 0)
         return -1;
     const uint32_t key = lk->sender;

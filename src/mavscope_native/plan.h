@@ -21,6 +21,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#define MS_RING 8      /* sequence.RING: the size of acc.h ms_counter's ring */
 #define MS_SHOWN_MAX 8 /* the largest MS_K_COMMANDERS_SHOWN (acc.h ms_commanded's arrays) */
 
 /* integer constants (mavscope.analysis: sequence, stats, expert, commanders, vehicles, control, gnss,
@@ -33,7 +34,7 @@ enum {
     MS_K_AUTOPILOT_INVALID, MS_K_AUTOPILOT_PX4, MS_K_FLAG_SAFETY_ARMED, MS_K_FLAG_CUSTOM_MODE,
     MS_K_PX4_MAIN_AUTO, MS_K_PX4_MAIN_POSCTL, MS_K_FIX_NO_GPS, MS_K_FIX_NO_FIX, MS_K_FIX_2D, MS_K_FIX_3D,
     MS_K_UNKNOWN_SATS, MS_K_UNKNOWN_VEL, MS_K_MIN_SATS, MS_K_UNIX_MIN_US, MS_K_MAX_STREAMS,
-    MS_K_MAX_CONVERSATIONS, MS_K_MAX_NAMED, MS_K_COMMANDERS_SHOWN,
+    MS_K_MAX_CONVERSATIONS, MS_K_MAX_NAMED, MS_K_COMMANDERS_SHOWN, MS_K_RING,
     MS_K_COUNT
 };
 

@@ -8,6 +8,8 @@
 void ms_seq_init(ms_seq *s) {
     memset(s, 0, sizeof *s);
     s->last = -1;
+    s->first_full = -1;
+    s->partner = -1;
 }
 
 void ms_seq_free(ms_seq *s) {
@@ -37,10 +39,14 @@ static void unlink_key(ms_missing *m, unsigned k) {
 }
 
 /* dict.pop(k, None) then d[k] = gap: k goes to the end. */
-static void push_back(ms_missing *m, unsigned k, int gap) {
+static void push_back(ms_missing *m, unsigned k, int gap, int taken) {
     if (has(m, k))
         unlink_key(m, k);
     m->present[k >> 3] |= (uint8_t)(1u << (k & 7));
+    if (taken)
+        m->taken[k >> 3] |= (uint8_t)(1u << (k & 7));
+    else
+        m->taken[k >> 3] &= (uint8_t)~(1u << (k & 7));
     m->gap[k] = (int8_t)gap;
     if (m->tail < 0) {
         m->head = m->tail = (int16_t)k;
@@ -71,7 +77,8 @@ static void advance(ms_seq *s, unsigned seq, int d) {
     }
 }
 
-int ms_seq_feed(ms_seq *s, const ms_seq_rules *r, unsigned seq, uint64_t record, const uint8_t *raw, size_t raw_len) {
+int ms_seq_feed(ms_seq *s, const ms_seq_rules *r, unsigned seq, uint64_t record, const uint8_t *raw, size_t raw_len,
+                unsigned taken, int32_t partner) {
     /* previous, self.last_raw = self.last_raw, raw; `changed`: raw is not None and previous is not None
      * and raw != previous (only looked at when the number repeats) */
     unsigned d = s->last < 0 ? 0 : (seq - (unsigned)s->last) & 0xFF;
@@ -124,6 +131,7 @@ int ms_seq_feed(ms_seq *s, const ms_seq_rules *r, unsigned seq, uint64_t record,
                 g->before = (uint8_t)s->last;
                 g->after = (uint8_t)seq;
                 g->size = g->remaining = (uint8_t)(d - 1);
+                g->shared = (uint8_t)taken;
                 gap = s->ngaps++;
             }
         }
@@ -134,7 +142,18 @@ int ms_seq_feed(ms_seq *s, const ms_seq_rules *r, unsigned seq, uint64_t record,
                 clear(s->missing);
             }
             for (unsigned k = 1; k < d; k++)
-                push_back(s->missing, ((unsigned)s->last + k) & 0xFF, gap);
+                push_back(s->missing, ((unsigned)s->last + k) & 0xFF, gap, k <= taken);
+        }
+        s->gap_steps++;
+        if (taken) {
+            s->shared += taken;
+            if (taken == d - 1) {
+                s->full_steps++;
+                if (s->first_full < 0) {
+                    s->partner = partner;
+                    s->first_full = (int64_t)record;
+                }
+            }
         }
         s->lost += (int64_t)d - 1;
         advance(s, seq, (int)d);
@@ -143,9 +162,15 @@ int ms_seq_feed(ms_seq *s, const ms_seq_rules *r, unsigned seq, uint64_t record,
     s->position = s->newest - (256 - (int64_t)d);
     if (s->missing != NULL && has(s->missing, seq)) {
         int gap = s->missing->gap[seq];
+        int was_taken = (s->missing->taken[seq >> 3] >> (seq & 7)) & 1;
         unlink_key(s->missing, seq);
-        if (gap >= 0)
+        if (was_taken)
+            s->shared--;
+        if (gap >= 0) {
             s->gaps[gap].remaining--;
+            if (was_taken)
+                s->gaps[gap].shared--;
+        }
         s->lost--;
         s->reordered++;
         return MS_STEP_LATE;

@@ -16,10 +16,12 @@ typedef struct {
     uint64_t record;
     uint8_t before, after;
     uint8_t size, remaining;
+    uint8_t shared; /* of `remaining`, numbers another id on the channel used */
 } ms_gap;
 
 typedef struct {
     uint8_t present[32];
+    uint8_t taken[32]; /* TAKEN: another id on the channel used the number */
     int8_t gap[256];   /* index into the tracker's gaps, -1: a small gap (or one not kept) */
     uint8_t next[256], prev[256];
     int16_t head, tail; /* -1: empty */
@@ -37,6 +39,8 @@ typedef struct {
     uint8_t *last_raw; /* MS_RAW_MAX bytes once a frame's bytes were given */
     uint16_t last_raw_len;
     uint8_t has_last_raw;
+    int64_t shared, full_steps, gap_steps, first_full; /* first_full: -1, none */
+    int32_t partner; /* -1: none */
 } ms_seq;
 
 typedef struct {
@@ -45,8 +49,10 @@ typedef struct {
 
 void ms_seq_init(ms_seq *s);
 void ms_seq_free(ms_seq *s);
-/* Feed one sequence number (`raw`: the frame's bytes, or NULL as Python's raw=None). Returns MS_STEP_*,
+/* Feed one sequence number (`raw`: the frame's bytes, or NULL as Python's raw=None; `taken`, `partner`: of a
+ * jump ahead, the first numbers skipped another id on the channel used, and its sender). Returns MS_STEP_*,
  * or -1 when memory ran out. */
-int ms_seq_feed(ms_seq *s, const ms_seq_rules *r, unsigned seq, uint64_t record, const uint8_t *raw, size_t raw_len);
+int ms_seq_feed(ms_seq *s, const ms_seq_rules *r, unsigned seq, uint64_t record, const uint8_t *raw, size_t raw_len,
+                unsigned taken, int32_t partner);
 
 #endif

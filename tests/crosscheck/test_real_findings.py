@@ -10,6 +10,10 @@ hand and decoded by pymavlink (`_frames`), by the rule each finding states in do
 - seq-own-counter, in place of the three above: the frames counted by seq-duplicate and seq-reordered
   (and those a restarted counter took back) are all REQUEST_DATA_STREAM, 3 or more of them stepping back
   (a ground station numbering it apart: on the plane and ArduSub tlogs, 35 frames numbered 1..7 in bursts);
+- seq-shared-counter: a sender's jump ahead (2 to 127) is full when another id, heard since the sender's
+  frame before, last sent the number just before it; 3 or more full jumps, half of the sender's jumps or
+  more, and the same of the id that made its first full jump (BlueOS's 1/194 and 255/240, ArduSub's 1/194
+  and 1/220: one program's ids on one counter);
 - command-without-heartbeat: a commanding message to another system, not a ground station, before the
   sender's first HEARTBEAT; new-commander: a second system id commanding a vehicle.
 For the pcaps and the two raw streams the expectations are written out, with the numbers that explain
@@ -22,7 +26,7 @@ an hour further ahead than every other stream's first frame.
 from __future__ import annotations
 
 import json
-from collections import defaultdict
+from collections import Counter, defaultdict
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -155,6 +159,32 @@ def _sequence_findings(frames: list[F]) -> set[tuple[str, str]]:
     return out
 
 
+def _shared_counters(frames: list[F]) -> set[tuple[str, str]]:
+    newest: dict[tuple[int, int], int] = {}  # each sender's newest number (moved by its steps ahead only)
+    heard: dict[tuple[int, int], int] = {}  # the index of each sender's frame heard last
+    full: Counter[tuple[int, int]] = Counter()
+    jumps: Counter[tuple[int, int]] = Counter()
+    partner: dict[tuple[int, int], tuple[int, int]] = {}  # the id that made each sender's first full jump
+    for i, f in enumerate(frames):
+        if f.src in newest:
+            delta = (f.seq - newest[f.src]) % 256
+            if 2 <= delta < 128:
+                jumps[f.src] += 1
+                used = [o for o, n in newest.items()
+                        if o != f.src and heard[o] > heard[f.src] and n == (f.seq - 1) % 256]
+                if used:
+                    full[f.src] += 1
+                    partner.setdefault(f.src, used[0])
+        if f.src not in newest or 0 < (f.seq - newest[f.src]) % 256 < 128:
+            newest[f.src] = f.seq
+        heard[f.src] = i
+
+    def skips_others(s: tuple[int, int]) -> bool:
+        return full[s] >= 3 and 2 * full[s] >= jumps[s]
+
+    return {("seq-shared-counter", f"{s[0]}/{s[1]}") for s in full if skips_others(s) and skips_others(partner[s])}
+
+
 def _command_findings(frames: list[F]) -> set[tuple[str, str]]:
     decoded = [f for f in frames if f.msg is not None and not isinstance(f.msg, mavlink.MAVLink_bad_data)]
     gcs = {f.src[0] for f in decoded if f.msg.get_type() == "HEARTBEAT" and f.msg.type == 6}
@@ -195,7 +225,7 @@ def _reported(cli: Cli, path: Path, expected: set[tuple[str, str]] | None = None
 @pytest.mark.parametrize("name", TLOGS)
 def test_tlog_findings_are_those_the_capture_shows(cli: Cli, real_captures: Path, name: str) -> None:
     frames = _frames((real_captures / name).read_bytes())
-    expected = _sequence_findings(frames) | _command_findings(frames)
+    expected = _sequence_findings(frames) | _shared_counters(frames) | _command_findings(frames)
     assert _reported(cli, real_captures / name) == expected
 
 

@@ -67,3 +67,27 @@ def walk_channels(channels: Iterable[Sequence[int]]) -> Walk:
     """One sender's walks, one per channel, summed."""
     walks = [walk(seqs) for seqs in channels]
     return Walk(*(sum(w[i] for w in walks) for i in range(len(Walk._fields))))
+
+
+def walk_merged(frames: Sequence[tuple[tuple[int, int], int]]) -> dict[tuple[int, int], int]:
+    """Ids numbering their frames on one counter (one program sending as several, on one channel), walked
+    as that one counter: `frames` are the group's (sender, seq) in capture order. Each position still
+    missing at the end is charged to the sender of the frame that revealed it (the first frame past it),
+    so each frame lost from the shared counter counts once. Returns sender -> positions charged (every
+    sender of `frames` present)."""
+    charged: dict[int, tuple[int, int]] = {}  # missing position -> the sender that revealed it
+    top: int | None = None
+    for sender, s in frames:
+        if top is None:
+            top = s
+            continue
+        delta = (s - top) % 256
+        if 0 < delta < 128:
+            charged.update((p, sender) for p in range(top + 1, top + delta))
+            top += delta
+        elif delta >= 128:
+            charged.pop(top - (256 - delta), None)  # a late frame fills its position
+    out = {sender: 0 for sender, _ in frames}
+    for sender in charged.values():
+        out[sender] += 1
+    return out
