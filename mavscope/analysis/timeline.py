@@ -3,10 +3,11 @@ fields, TIMESYNC and PING, with offset and drift estimates and round-trip times.
 
 Each clock a frame reveals becomes a sample (capture time, clock reading). Per (system, component,
 source) a least-squares line through (capture time, reading - capture time) gives the offset (at the
-capture's first frame) and the drift (its slope, in parts per million) with its standard error. The
-fit is accumulated online (Welford's sums), so a clock costs the same memory whatever the capture's
-length. A drift is given only from enough samples over enough time (DRIFT_MIN_SAMPLES over
-DRIFT_MIN_SPAN seconds): four samples in half a second do not measure a drift of -9105.9 ppm.
+capture's first frame) and the drift (its slope, in parts per million) with its standard error. The fit is
+accumulated online (Welford's sums), so a clock costs the same memory whatever the capture's length. A
+drift is given only from enough samples over enough time (DRIFT_MIN_SAMPLES over DRIFT_MIN_SPAN seconds):
+four samples in half a second do not measure a drift of -9105.9 ppm. Without one, the line is flat: the
+offset is the samples' mean.
 
 A clock that steps back by more than RESTART_BACK seconds restarted (a reboot: `time_boot_ms` starts
 again from zero; or a wall clock set back): one line cannot go through both runs, so the fit starts over
@@ -89,8 +90,11 @@ class Clock:
 
     def fit(self, at: float) -> tuple[float, float, float, float | None]:
         """(offset at capture time `at` in s, drift in ppm, RMS residual in ms, drift standard error in ppm
-        or None with fewer than three samples)."""
-        slope = self.sxy / self.sxx if self.sxx > 0 else 0.0
+        or None with fewer than three samples). Where the samples do not measure a drift (`measures_drift`)
+        the line is flat: the offset is their mean, not the intercept of a slope they cannot tell (ArduPilot's
+        signing clock over 2.3 s, stepping 8.7 s forward at the end, put it at -11.8 s, below every sample:
+        -10.1 s to -1.4 s)."""
+        slope = self.sxy / self.sxx if self.sxx > 0 and self.measures_drift else 0.0
         intercept = self.mean_y - slope * self.mean_x
         resid = max(0.0, self.syy - slope * self.sxy)  # sum of squared residuals
         rms = math.sqrt(resid / self.n) if self.n else 0.0

@@ -116,3 +116,32 @@ def test_clocks_past_the_limit_are_counted_not_followed(cli: Cli, tmp_path: Path
     assert doc["unfollowed_readings"] == 4
     status, out, _ = cli("timeline", path)
     assert status == 0 and "4 readings of clocks beyond the first 3 were not followed" in out
+
+
+def test_an_unmeasured_drift_does_not_bend_the_offset(cli: Cli, real_captures: Path) -> None:
+    """ap_sitl_attack1_signed_knownkey.pcap, read by scapy and pymavlink: ArduPilot's signing clock (system
+    1, link 0) against capture time over 2.3 s, 272 samples, too short to measure a drift. Its offsets run
+    from -10.1 s to -1.4 s (the clock steps forward near the end); a line through them put the offset at the
+    first frame at -11.8 s, below every sample. With no drift measured the offset is their mean."""
+    from pymavlink.dialects.v20 import all as mavlink
+    from scapy.layers.inet import UDP
+    from scapy.utils import rdpcap
+
+    epoch = 1_420_070_400  # 2015-01-01T00:00:00Z, the signing timestamps' origin (10 µs units)
+    offsets = []
+    for pkt in rdpcap(str(real_captures / "ap_sitl_attack1_signed_knownkey.pcap")):
+        if UDP not in pkt:
+            continue
+        mav = mavlink.MAVLink(None)
+        mav.robust_parsing = True
+        for m in mav.parse_buffer(bytes(pkt[UDP].payload)) or []:
+            raw = bytes(m.get_msgbuf())
+            if isinstance(m, mavlink.MAVLink_bad_data) or raw[0] != 0xFD or not raw[2] & 1:
+                continue
+            if raw[5] == 1 and raw[-13] == 0:  # system 1, link 0
+                offsets.append(int.from_bytes(raw[-12:-6], "little") / 1e5 + epoch - float(pkt.time))
+    assert len(offsets) == 272 and min(offsets) < -10 and max(offsets) > -1.5
+    doc = cli.json("timeline", real_captures / "ap_sitl_attack1_signed_knownkey.pcap")
+    clock = clocks(doc, 1)["signature link 0"]
+    assert clock["drift_ppm"] is None
+    assert clock["offset_s"] == pytest.approx(sum(offsets) / len(offsets), abs=1e-5)
