@@ -241,3 +241,32 @@ def test_command_texts_name_what_was_asked(tmp_path: Path, dialect: Dialect) -> 
     assert [e.text for e in cmds] == ["255/190 -> 1/1 COMPONENT_ARM_DISARM (param1 2.0): FAILED in 10.0 ms",
                                       "255/190 -> 1/1 DO_SET_MODE to RTL: no ACK in the capture",
                                       "255/190 -> 1 SET_MODE LAND"]
+
+
+REAL_TLOGS = ["ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog", "ap_rover_mission_fence_rally_params.tlog",
+              "ardusub_log_tools_small.tlog", "bluerobotics_mavlink_server_blueos_00025.tlog",
+              "px4_2018_params_offboard.tlog", "px4flow_v1_encapsulated_data.tlog"]
+
+
+@pytest.mark.parametrize("name", REAL_TLOGS)
+def test_reboots_on_real_tlogs_are_where_the_boot_clock_falls(cli: Cli, real_captures: Path, name: str) -> None:
+    """Read with pymavlink alone (tests/support/pymavlink_reader.py): per sender, the time_boot_ms of its
+    SYSTEM_TIME, ATTITUDE, GLOBAL_POSITION_INT and RC_CHANNELS (0 left out: ground stations send it),
+    in capture order; a fall of a second or more is a reboot. PX4 in 2017 sent no SYSTEM_TIME: its reboot
+    (px4_2018_params_offboard.tlog, 944,625 ms to 3,238 ms, in RC_CHANNELS first) was missed when only
+    SYSTEM_TIME was read. The rover's shows in ATTITUDE before SYSTEM_TIME."""
+    from tests.support.pymavlink_reader import read
+
+    last: dict[tuple[int, int], int] = {}
+    expected = []
+    for m in read(real_captures / name):
+        if m.name in ("SYSTEM_TIME", "ATTITUDE", "GLOBAL_POSITION_INT", "RC_CHANNELS") and m.msg.time_boot_ms:
+            before = last.get(m.src)
+            if before is not None and m.msg.time_boot_ms <= before - 1000:
+                expected.append((list(m.src), before, m.msg.time_boot_ms))
+            last[m.src] = m.msg.time_boot_ms
+    doc = cli.json("events", real_captures / name)
+    got = [(e["from"], e["details"]["before_ms"], e["details"]["after_ms"]) for e in doc["events"]
+           if e["kind"] == "reboot"]
+    assert got == expected
+    assert bool(expected) == (name in ("ap_rover_mission_fence_rally_params.tlog", "px4_2018_params_offboard.tlog"))

@@ -26,6 +26,9 @@ from mavscope.mavlink.frame import Frame
 from mavscope.mavlink.semantics import enum_name
 
 REBOOT_BACK_MS = 1000  # the boot clock stepping back this far or more is a reboot
+# messages whose time_boot_ms is the sender's boot clock, streamed by ArduPilot and PX4 alike: PX4 in 2017
+# sent no SYSTEM_TIME, and came back from its reboot with RC_CHANNELS (px4_2018_params_offboard.tlog)
+BOOT_CLOCKS = frozenset({"SYSTEM_TIME", "ATTITUDE", "GLOBAL_POSITION_INT", "RC_CHANNELS"})
 STATUSTEXT_CHUNK = 50  # bytes of text in one STATUSTEXT: a shorter chunk ends a multi-chunk message
 CHUNKS_MAX = 64  # chunks joined into one message at most (the rest starts a new one)
 PARTIALS_MAX = 256  # multi-chunk messages being joined at once (the oldest is emitted first)
@@ -39,10 +42,10 @@ def _short(name: str, prefix: str) -> str:
 class VehicleStates:
     """From each vehicle's HEARTBEATs: its first appearance and type changes (`vehicle`), arming and
     disarming (`arming`), flight mode changes (`mode`, named per autopilot and vehicle type), entering
-    and leaving MAV_STATE_CRITICAL / EMERGENCY / FLIGHT_TERMINATION (`failsafe`); from SYSTEM_TIME, a boot
+    and leaving MAV_STATE_CRITICAL / EMERGENCY / FLIGHT_TERMINATION (`failsafe`); from BOOT_CLOCKS, a boot
     clock that steps back (`reboot`)."""
 
-    wants = frozenset({"HEARTBEAT", "SYSTEM_TIME"})
+    wants = frozenset({"HEARTBEAT"}) | BOOT_CLOCKS
 
     def __init__(self, systems: Systems, dialect: Dialect) -> None:
         self.systems = systems
