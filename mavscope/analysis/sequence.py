@@ -259,15 +259,11 @@ class ChannelCounter:
         self.ring: list[SeqTracker | None] = [None] * RING
         self.senders = [-1] * RING
 
-    def taken(self, tr: SeqTracker, seq: int) -> tuple[int, int, SeqTracker | None]:
-        """Of `tr`'s jump ahead to `seq` (its last number plus d, 1 < d < LATE_WINDOW), the first numbers
-        skipped another id used: k where another id heard since `tr`'s last frame last used its last
-        number plus k (the highest such k below d), that id's sender (-1: none) and tracker."""
-        last = tr.last
-        d = 0 if last is None else (seq - last) % 256
+    def taken(self, tr: SeqTracker, last: int, d: int) -> tuple[int, int, SeqTracker | None]:
+        """Of `tr`'s jump ahead by `d` (1 < d < LATE_WINDOW) from its last number `last`, the first numbers
+        skipped another id used: k where another id heard since `tr`'s last frame last used `last` plus k
+        (the highest such k below d), that id's sender (-1: none) and tracker."""
         best, partner, mate = 0, -1, None
-        if d < 2 or d >= LATE_WINDOW or last is None:
-            return best, partner, mate
         for i, other in enumerate(self.ring):
             if other is None or other is tr or other.at <= tr.at or other.last is None:
                 continue
@@ -337,8 +333,9 @@ class SeqChannels:
         if ch is None:
             return tr.feed(f.seq, f.record, f.raw)
         taken, partner, mate = 0, -1, None
-        if tr.last is not None and 1 < (f.seq - tr.last) % 256 < LATE_WINDOW:
-            taken, partner, mate = ch.taken(tr, f.seq)
+        last = tr.last
+        if last is not None and 1 < (d := (f.seq - last) % 256) < LATE_WINDOW:
+            taken, partner, mate = ch.taken(tr, last, d)
         out = tr.feed(f.seq, f.record, f.raw, taken, partner, mate)
         ch.frames = tr.at = ch.frames + 1  # the channel heard one more frame, this one of tr's
         if tr.slot < 0 or ch.ring[tr.slot] is not tr:
