@@ -20,6 +20,7 @@ from mavscope.analysis.commanders import Commanded, CommandSources
 from mavscope.analysis.expert import (
     BadCrcBursts,
     Expert,
+    HiddenFrames,
     KeyLeaks,
     ReplayedCommands,
     SequenceAnomalies,
@@ -59,12 +60,12 @@ def plan_for(dialect: Dialect) -> bytes | None:
 
 class Accumulator:
     """A `_native.Stats` the walker feeds, and what the Python side adds to it: the frames of the records
-    handed back (`add`, in capture order) and the two detectors only such frames can feed (BadCrcBursts:
-    bad CRCs; KeyLeaks: SETUP_SIGNING and key material the walker never takes)."""
+    handed back (`add`, in capture order) and the detectors only such frames can feed (BadCrcBursts: bad
+    CRCs; KeyLeaks: SETUP_SIGNING and key material the walker never takes; HiddenFrames: the framer's notes)."""
 
     def __init__(self, acc: Any) -> None:
         self.acc = acc
-        self.bursts, self.leaks = BadCrcBursts(), KeyLeaks()
+        self.bursts, self.leaks, self.hidden = BadCrcBursts(), KeyLeaks(), HiddenFrames()
         self.frames = 0  # frames added
 
     def add(self, f: Frame) -> None:
@@ -75,6 +76,7 @@ class Accumulator:
                      f.signature is not None, plaintext_payload(f))
         self.bursts.add(f, None)
         self.leaks.add(f, None)
+        self.hidden.add(f, None)
         self.frames += 1
 
     def full(self) -> bool:
@@ -92,6 +94,7 @@ class Accumulator:
         stats, ex = rebuild(dump, dialect)
         ex.detectors[ex.detectors.index(_one(ex, BadCrcBursts))] = self.bursts
         ex.detectors[ex.detectors.index(_one(ex, KeyLeaks))] = self.leaks
+        ex.detectors[ex.detectors.index(_one(ex, HiddenFrames))] = self.hidden
         return stats, ex
 
 

@@ -4,7 +4,7 @@ The walker (src/mavscope_native/walk.c with `stats=`) takes the clean records as
 does and puts their frames into the C accumulator (acc.h: StatsBuilder and the expert detectors that see
 every frame, ported step for step); every record it hands back goes through the Python pipeline
 (Dissector.feed, the security stage) and its frames into the same accumulator (`_native.Stats.add`), in
-capture order, and into the two detectors that only such frames can feed (BadCrcBursts, KeyLeaks). At
+capture order, and into the detectors that only such frames can feed (BadCrcBursts, KeyLeaks, HiddenFrames). At
 the end the accumulator's state (`dump()`, layout in acc_dump.c) becomes the very Python objects the
 pure path builds (Stats with its _Stream, _Link, _Conversation, RateHistogram, SeqTracker; the Expert's
 detectors), whose own code then writes the rows, the JSON and the findings' sentences.

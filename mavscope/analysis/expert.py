@@ -370,6 +370,31 @@ class KeyLeaks:
                                     "clear in this capture", self.frames.nums)]
 
 
+class HiddenFrames:
+    """Frames only MAVLink's C library reads, inside frames it drops (mavscope.mavlink.hidden): the framer's
+    `hidden-frame` notes, summed up with what the frames are."""
+
+    clean: frozenset[str | int] = frozenset()  # a clean frame carries no note
+
+    def __init__(self) -> None:
+        self.frames = _frames()
+        self.what: Counter[str] = Counter()
+
+    def add(self, f: Frame, fields: Fields | None) -> None:
+        if any(n.code == "hidden-frame" for n in f.notes):
+            self.frames.add(f.record)
+            self.what[f"{f.msgname or f'message {f.msgid}'} from {_link(f)}"] += 1
+
+    def findings(self) -> list[Finding]:
+        if not self.frames.count:
+            return []
+        what = ", ".join(f"{n} {w}" for w, n in sorted(self.what.items(), key=lambda kv: (-kv[1], kv[0]))[:5])
+        more = " ..." if len(self.what) > 5 else ""
+        return [finding("hidden-frame", f"{self.frames.count} frame(s) that MAVLink's C library (ArduPilot, PX4, "
+                                        f"QGroundControl) reads inside frames it drops for unknown incompat flags, "
+                                        f"and pymavlink and Wireshark do not show: {what}{more}", self.frames.nums)]
+
+
 class Detector(Protocol):
     """`add` gets the decoded payload of commanding frames and HEARTBEATs, and of the messages named in the
     detector's `wants` attribute where it has one.
@@ -386,7 +411,7 @@ class Detector(Protocol):
 
 # Factories: each is called with no argument, or with the dialect when it is in DIALECT_DETECTORS.
 DETECTORS: list[Callable[..., Detector]] = [BadCrcBursts, SequenceAnomalies, CommandSources, ReplayedCommands,
-                                            UnsignedCommands, KeyLeaks, ControlSources, GnssAnomalies]
+                                            UnsignedCommands, KeyLeaks, ControlSources, GnssAnomalies, HiddenFrames]
 DIALECT_DETECTORS: frozenset[Callable[..., Detector]] = frozenset({ControlSources, GnssAnomalies})
 
 

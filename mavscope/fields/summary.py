@@ -124,6 +124,8 @@ def summary_info(frame: Frame, dialect: Dialect, fields: dict[str, object] | Non
         parts.append(f"[unknown incompat flags 0x{frame.incompat_flags:02x}]")
     if any(n.code == "skipped-bytes" for n in frame.notes):
         parts.append("[after skipped bytes]")
+    if any(n.code == "hidden-frame" for n in frame.notes):
+        parts.append("[hidden: MAVLink's C library reads it]")
     if frame.signature is not None:
         parts.append(f"[signed link {frame.signature.link_id}]")
     return " ".join(parts)

@@ -26,6 +26,7 @@ from fastcrc import crc16
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import MessageDef
 from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, KNOWN_IFLAGS, CrcStatus, Frame, Signature, new_frame
+from mavscope.mavlink.hidden import hidden_frames, hidden_note, merged
 from mavscope.notes import Note, note
 from mavscope.wire import HEADER_V1, HEADER_V2, IFLAG_SIGNED, SIGNATURE_LEN, STX_V1, STX_V2, frame_size
 
@@ -367,10 +368,11 @@ class StreamFramer:
                 self.pending = []
             return [], orphans
         found, skipped, resume = self.framer.scan(buf, 0, len(buf), final)
+        hidden = hidden_frames(self.framer.candidate, buf, found, skipped, resume, len(buf), final)
         out = []
         orphans = []
         sk = 0
-        for pos, size, status, crc in found:
+        for (pos, size, status, crc), h in merged(found, hidden):
             if status is OK:
                 self.trusted = True
             while sk < len(skipped) and skipped[sk][0] < pos:
@@ -382,6 +384,8 @@ class StreamFramer:
             span = None
             if first_rec != last_rec:
                 span = tuple(sorted({r for start, r, _ in self.segs if pos <= start < pos + size} | {first_rec}))
+            if h is not None:
+                self.pending.append(hidden_note(h, off))
             notes = tuple(self.pending)
             self.pending = []
             out.append((buf, pos, size, status, crc, off, span, notes))

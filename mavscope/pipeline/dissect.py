@@ -27,6 +27,7 @@ from mavscope.mavlink.framing import (
     unpack_signature,
     unpack_v2,
 )
+from mavscope.mavlink.hidden import hidden_frames, hidden_note, merged
 from mavscope.notes import Note
 from mavscope.pipeline.textrun import TextRun, is_text_entry
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, Payload
@@ -193,15 +194,19 @@ class Dissector:
         pending: list[Note] = list(p.notes)
         sk = 0
         messages = self.messages
-        for pos, size, status, crc in found:
+        hidden = hidden_frames(self.framer.candidate, data, found, skipped, len(data), len(data))
+        for (pos, size, status, crc), h in merged(found, hidden):
             while sk < len(skipped) and skipped[sk][0] < pos:
                 s_pos, s_count = skipped[sk]
                 sk += 1
                 pending.append(skipped_note(s_count, None if base is None else base + s_pos))
             self._index += 1
+            offset = None if base is None else base + pos
+            if h is not None:
+                pending.append(hidden_note(h, offset))
             frame = build_frame(
                 data, pos, size, status, crc, messages, self._record, self._index, self._time, p.transport,
-                p.src, p.dst, None if base is None else base + pos, tuple(pending) if pending else (), None,
+                p.src, p.dst, offset, tuple(pending) if pending else (), None,
             )
             pending = []
             yield frame

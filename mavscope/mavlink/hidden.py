@@ -1,0 +1,167 @@
+"""Frames MAVLink's C library reads where the framer shows other bytes: what the framer's view would hide.
+
+The framer reads a frame by its LEN byte and resynchronises byte by byte after damage. MAVLink's C library
+(mavlink_helpers.h) reads byte by byte and takes other turns:
+- it drops a v2 frame at its INCOMPAT_FLAGS byte when a flag other than SIGNED is set (MAVLINK_IFLAG_MASK),
+  and looks for an STX from the next byte on, inside what the framer shows as that frame (pymavlink and
+  Wireshark skip the frame whole);
+- it reads any other frame to its end, CRC good or bad (an unknown message id counts as bad), where the
+  framer may have found a frame that started inside it, or shown it cut short by one.
+Two entry points end a bad frame differently, and receivers use both:
+- `mavlink_parse_char` (PX4, QGroundControl, MAVSDK) stops at the CRC, so a signed bad frame's signature
+  bytes are read afresh, and starts a frame at its last byte when that byte is 0xFD;
+- `mavlink_frame_char_buffer` (ArduPilot's GCS_MAVLINK) reads a signed bad frame's signature too, and
+  starts afresh after it.
+So a frame the vehicle reads and acts on can lie inside bytes the framer shows as another frame or as
+skipped bytes. `hidden_frames` walks a datagram as each entry point does from each place where its view and
+the framer's part, until they meet again, and returns the CRC-valid frames either reads that the framer
+does not have. The datagram ends a walk: a receiver that starts each datagram afresh (tests/support/
+cparser.py runs the C library so) reads nothing more. A stream (TCP, a serial dump) walks the bytes the
+framer has decided each time it is given more; a walk those bytes do not decide (it needs bytes still to
+come) is not made, so a frame hidden across that point is missed: holding the framer back until they come
+made a stream of STX bytes fed a byte at a time cost tens of thousands of steps a byte. A walk starts where
+the one before it met the framer again or later, so each position is walked once per entry point: the
+work is linear in the size.
+"""
+
+from __future__ import annotations
+
+import re
+from bisect import bisect_left
+from collections.abc import Callable, Sequence
+from enum import Enum
+
+from mavscope.mavlink.frame import CrcStatus
+from mavscope.notes import Note, note
+from mavscope.wire import HEADER_V1, HEADER_V2, IFLAG_SIGNED, STX_V2, frame_size
+
+_STX = re.compile(b"[\xfd\xfe]")
+OK, TRUNCATED = CrcStatus.OK, CrcStatus.TRUNCATED
+Scanned = tuple[int, int, CrcStatus, "int | None"]  # (pos, size, status, crc), as Framer.scan gives them
+# Framer.candidate: (size, CRC verdict, CRC) of the frame at pos in buf[:end]
+Candidate = Callable[[bytes, int, int], "tuple[int, CrcStatus, int | None] | None"]
+
+
+class Receiver(Enum):
+    """MAVLink's C library's two entry points, named by the receivers that use them."""
+
+    PARSE_CHAR = "PX4 and QGroundControl (mavlink_parse_char)"
+    FRAME_CHAR = "ArduPilot (mavlink_frame_char_buffer)"
+
+
+# A hidden frame: what Framer.scan gives for it; where the receiver last parted from the framer before
+# reading it, and how (the incompat flags of the frame it dropped there, or None: it read a damaged frame
+# there to its end); and the receivers that read it
+Hidden = tuple[Scanned, int, "int | None", tuple[Receiver, ...]]
+
+
+def dropped_by_receivers(buf: bytes, pos: int, size: int) -> bool:
+    """Whether MAVLink's C library drops the frame at `pos` at its incompat flags byte."""
+    return size >= 3 and buf[pos] == STX_V2 and bool(buf[pos + 2] & ~IFLAG_SIGNED)
+
+
+def _bad_end(buf: bytes, q: int, receiver: Receiver) -> int:
+    """Where `receiver` is idle again after the bad frame at `q` (whole in the buffer)."""
+    if receiver is Receiver.FRAME_CHAR:
+        return q + frame_size(buf, q)
+    stop = q + (HEADER_V2 if buf[q] == STX_V2 else HEADER_V1) + buf[q + 1] + 2  # the CRC ends it
+    return stop - 1 if buf[stop - 1] == STX_V2 else stop
+
+
+def _parts(buf: bytes, f: Scanned, end: int, receiver: Receiver) -> bool:
+    """Whether `receiver` reads frame `f` of the framer otherwise than the framer shows it."""
+    pos, size, status, _ = f
+    if dropped_by_receivers(buf, pos, size):
+        return True
+    if status is TRUNCATED:  # cut short by a frame after it: the receiver reads on over that frame
+        return size >= 3 and pos + frame_size(buf, pos) <= end
+    return status is not OK and _bad_end(buf, pos, receiver) != pos + size
+
+
+def _walk(candidate: Candidate, buf: bytes, found: Sequence[Scanned], skipped: Sequence[tuple[int, int]],
+          limit: int, end: int, final: bool, receiver: Receiver) -> list[Hidden]:
+    origins = sorted([f[0] for f in found if _parts(buf, f, end, receiver)] + [s for s, _ in skipped])
+    if not origins:
+        return []
+    starts = {f[0] for f in found}
+    clean = starts - set(origins)  # where the receiver, idle, reads what the framer shows
+    stx = [m.start() for m in _STX.finditer(buf, origins[0], limit)]
+    out: list[Hidden] = []
+    reach = 0  # where the walks so far met the framer again: the receiver is not idle at an origin before it
+    for origin in origins:
+        if origin < reach:
+            continue
+        kept = len(out)
+        p = at = origin
+        how: int | None = None
+        while True:
+            if p > limit and not final:  # past where the framer has decided, out of step: undecided
+                del out[kept:]
+                return out
+            i = bisect_left(stx, p)
+            if i == len(stx):
+                reach = limit  # idle up to where the framer has decided: in step there
+                break
+            q = stx[i]
+            if q in clean:
+                reach = q  # in step with the framer again
+                break
+            dropped = q + 3 <= end and buf[q] == STX_V2 and buf[q + 2] & ~IFLAG_SIGNED
+            if not dropped and (q + 3 > end or q + frame_size(buf, q) > end):
+                if not final:  # the stream's next bytes would decide it: undecided
+                    del out[kept:]
+                    return out
+                reach = end  # the receiver waits for bytes that are not there
+                break
+            if dropped:
+                at, how = q, buf[q + 2]
+                p = q + 3
+                continue
+            size, status, crc = candidate(buf, q, end)  # type: ignore[misc]  # whole: checked above
+            if status is OK:
+                if q not in starts:
+                    out.append(((q, size, status, crc), at, how, (receiver,)))
+                p = q + size
+            else:
+                at, how = q, None
+                p = _bad_end(buf, q, receiver)
+    return out
+
+
+def hidden_frames(candidate: Candidate, buf: bytes, found: Sequence[Scanned], skipped: Sequence[tuple[int, int]],
+                  limit: int, end: int, final: bool = True) -> list[Hidden]:
+    """The frames MAVLink's C library reads that the framer's view (`found` and `skipped`, from Framer.scan
+    over buf up to `limit`) does not have, by position. They start before `limit` and end by `end` (a
+    datagram: both its length; a stream, not `final`, has bytes past where the framer has decided, and a
+    walk that needs bytes past `end` or goes on past `limit` is left undecided, with what follows it).
+
+    `candidate` is the Framer's, which judges a frame with its dialect's CRC_EXTRA."""
+    by_pos: dict[int, Hidden] = {}
+    for receiver in Receiver:
+        for h in _walk(candidate, buf, found, skipped, limit, end, final, receiver):
+            seen = by_pos.get(h[0][0])
+            by_pos[h[0][0]] = h if seen is None else (*seen[:3], seen[3] + h[3])
+    return sorted(by_pos.values())
+
+
+def merged(found: Sequence[Scanned], hidden: Sequence[Hidden]) -> list[tuple[Scanned, Hidden | None]]:
+    """The framer's frames (with None) and the hidden ones (with themselves), by position."""
+    out: list[tuple[Scanned, Hidden | None]] = [(f, None) for f in found]
+    if hidden:
+        out.extend((h[0], h) for h in hidden)
+        out.sort(key=lambda item: item[0][0])
+    return out
+
+
+def hidden_note(h: Hidden, offset: int | None) -> Note:
+    """The note on hidden frame `h` (at file offset `offset`)."""
+    (pos, _, _, _), at, iflags, receivers = h
+    who = "MAVLink's C library (ArduPilot, PX4, QGroundControl)" if len(receivers) == len(Receiver) else (
+        " and ".join(r.value for r in receivers))
+    if iflags is not None:
+        how = (f"it drops the frame {pos - at} bytes before this one at its incompat flags 0x{iflags:02x} and reads on "
+               "from there, where pymavlink and Wireshark skip that frame whole")
+    else:
+        how = (f"it reads the damaged frame {pos - at} bytes before this one to its end, where mavscope found other "
+               "frames")
+    return note("hidden-frame", f"{who} reads this frame: {how}", offset)
