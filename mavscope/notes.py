@@ -114,10 +114,11 @@ CODES: dict[str, Code] = {
         Code("length-mismatch", _WARN, Group.MALFORMED, _F, "payload length does not fit the message definition"),
         Code("unknown-incompat-flags", _WARN, Group.PROTOCOL, _F, "incompatibility flags mavscope does not know"),
         Code("hidden-frame", _ERROR, Group.SECURITY, _B,
-             "frame MAVLink's C library reads inside a frame it drops for its incompat flags",
-             "frames that MAVLink's C library (ArduPilot, PX4, QGroundControl) reads inside frames it drops for "
-             "unknown incompat flags, where pymavlink and Wireshark show only the dropped frame: what a vehicle "
-             "reads, hidden from length-based tools"),
+             "frame MAVLink's C library reads inside bytes the framer shows as other frames or skipped",
+             "frames that MAVLink's C library (ArduPilot, PX4, QGroundControl) reads inside bytes the framer "
+             "shows as other frames or skipped: inside frames it drops for unknown incompat flags (pymavlink and "
+             "Wireshark show only those), or past damaged frames it reads whole: what a vehicle reads, hidden "
+             "from length-based tools"),
         Code("encrypted-payload", _NOTE, Group.SECURITY, _F, "payload encrypted (incompat flag bits 5-7)"),
         # security stage (notes), and the audit's summaries of them (findings)
         Code("unsigned-in-signed-stream", _WARN, Group.SECURITY, _B,

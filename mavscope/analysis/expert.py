@@ -371,8 +371,8 @@ class KeyLeaks:
 
 
 class HiddenFrames:
-    """Frames only MAVLink's C library reads, inside frames it drops (mavscope.mavlink.hidden): the framer's
-    `hidden-frame` notes, summed up with what the frames are."""
+    """Frames MAVLink's C library reads where the framer shows other bytes (mavscope.mavlink.hidden): the
+    framer's `hidden-frame` notes, summed up with what the frames are."""
 
     clean: frozenset[str | int] = frozenset()  # a clean frame carries no note
 
@@ -391,8 +391,8 @@ class HiddenFrames:
         what = ", ".join(f"{n} {w}" for w, n in sorted(self.what.items(), key=lambda kv: (-kv[1], kv[0]))[:5])
         more = " ..." if len(self.what) > 5 else ""
         return [finding("hidden-frame", f"{self.frames.count} frame(s) that MAVLink's C library (ArduPilot, PX4, "
-                                        f"QGroundControl) reads inside frames it drops for unknown incompat flags, "
-                                        f"and pymavlink and Wireshark do not show: {what}{more}", self.frames.nums)]
+                                        f"QGroundControl) reads inside bytes the framer shows as other frames or "
+                                        f"skipped: {what}{more}", self.frames.nums)]
 
 
 class Detector(Protocol):
