@@ -16,7 +16,7 @@ import pytest
 
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame
-from tests.support.cparser import CParser, c_parser
+from tests.support.cparser import CParser, require_c_parser
 from tests.support.ftpflows import frames_of
 
 PCAPS = ("ap_sitl_attack1_signed_knownkey.pcap", "ipal_transcriber_MAVLink.pcap")
@@ -25,10 +25,7 @@ RAW = ("gomavlib_signed_testvectors_key4F_DERIVED.raw", "px4_fw_mission_download
 
 @pytest.fixture(scope="module")
 def cparser() -> CParser:
-    p = c_parser()
-    if p is None:
-        pytest.skip("no C compiler to build MAVLink's C parser with")
-    return p
+    return require_c_parser()
 
 
 def _frames(path: Path, dialect: Dialect) -> list[Frame]:

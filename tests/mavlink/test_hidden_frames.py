@@ -22,7 +22,7 @@ from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame
 from mavscope.pipeline.dissect import Dissector
 from tests.support import pmav
-from tests.support.cparser import CParser, c_parser
+from tests.support.cparser import CParser, require_c_parser
 
 ENCAPSULATED_DATA = 131  # 255-byte payload: room for a whole frame
 STATUSTEXT = 253  # its id's low byte is 0xFD: an STX inside the header
@@ -30,10 +30,7 @@ STATUSTEXT = 253  # its id's low byte is 0xFD: an STX inside the header
 
 @pytest.fixture(scope="module")
 def cparser() -> CParser:
-    p = c_parser()
-    if p is None:
-        pytest.skip("no C compiler to build MAVLink's C parser with")
-    return p
+    return require_c_parser()
 
 
 def frame_v2(msgid: int, payload: bytes, iflags: int = 0, seq: int = 7, sysid: int = 1, compid: int = 1,

@@ -140,3 +140,13 @@ def c_parser() -> CParser | None:
                    capture_output=True)
     return CParser(exe)
 
+
+
+def require_c_parser() -> CParser:
+    """The built parser, or the test skips (no C compiler)."""
+    import pytest
+
+    p = c_parser()
+    if p is None:
+        pytest.skip("no C compiler to build MAVLink's C parser with")
+    return p
