@@ -31,9 +31,9 @@ from bisect import bisect_left
 from collections.abc import Callable, Sequence
 from enum import Enum
 
-from mavscope.mavlink.frame import CrcStatus
+from mavscope.mavlink.frame import KNOWN_IFLAGS, CrcStatus
 from mavscope.notes import Note, note
-from mavscope.wire import HEADER_V1, HEADER_V2, IFLAG_SIGNED, STX_V2, frame_size
+from mavscope.wire import HEADER_V1, HEADER_V2, STX_V2, frame_size
 
 _STX = re.compile(b"[\xfd\xfe]")
 OK, TRUNCATED = CrcStatus.OK, CrcStatus.TRUNCATED
@@ -57,7 +57,7 @@ Hidden = tuple[Scanned, int, "int | None", tuple[Receiver, ...]]
 
 def dropped_by_receivers(buf: bytes, pos: int, size: int) -> bool:
     """Whether MAVLink's C library drops the frame at `pos` at its incompat flags byte."""
-    return size >= 3 and buf[pos] == STX_V2 and bool(buf[pos + 2] & ~IFLAG_SIGNED)
+    return size >= 3 and buf[pos] == STX_V2 and bool(buf[pos + 2] & ~KNOWN_IFLAGS)
 
 
 def _bad_end(buf: bytes, q: int, receiver: Receiver) -> int:
@@ -78,14 +78,10 @@ def _parts(buf: bytes, f: Scanned, end: int, receiver: Receiver) -> bool:
     return status is not OK and _bad_end(buf, pos, receiver) != pos + size
 
 
-def _walk(candidate: Candidate, buf: bytes, found: Sequence[Scanned], skipped: Sequence[tuple[int, int]],
-          limit: int, end: int, final: bool, receiver: Receiver) -> list[Hidden]:
-    origins = sorted([f[0] for f in found if _parts(buf, f, end, receiver)] + [s for s, _ in skipped])
-    if not origins:
-        return []
-    starts = {f[0] for f in found}
+def _walk(candidate: Candidate, buf: bytes, starts: set[int], origins: list[int], stx: list[int], limit: int,
+          end: int, final: bool, receiver: Receiver) -> list[Hidden]:
+    """The walks of one receiver from `origins` (sorted), over the STX positions `stx` of buf[:limit]."""
     clean = starts - set(origins)  # where the receiver, idle, reads what the framer shows
-    stx = [m.start() for m in _STX.finditer(buf, origins[0], limit)]
     out: list[Hidden] = []
     reach = 0  # where the walks so far met the framer again: the receiver is not idle at an origin before it
     for origin in origins:
@@ -106,7 +102,7 @@ def _walk(candidate: Candidate, buf: bytes, found: Sequence[Scanned], skipped: S
             if q in clean:
                 reach = q  # in step with the framer again
                 break
-            dropped = q + 3 <= end and buf[q] == STX_V2 and buf[q + 2] & ~IFLAG_SIGNED
+            dropped = dropped_by_receivers(buf, q, end - q)
             if not dropped and (q + 3 > end or q + frame_size(buf, q) > end):
                 if not final:  # the stream's next bytes would decide it: undecided
                     del out[kept:]
@@ -136,9 +132,19 @@ def hidden_frames(candidate: Candidate, buf: bytes, found: Sequence[Scanned], sk
     walk that needs bytes past `end` or goes on past `limit` is left undecided, with what follows it).
 
     `candidate` is the Framer's, which judges a frame with its dialect's CRC_EXTRA."""
+    # Only a frame the framer shows damaged or with unknown flags, or skipped bytes, can part the two views:
+    # with none (nearly every datagram and stream piece that gets here) there is nothing to walk.
+    suspects = [f for f in found if f[2] is not OK or dropped_by_receivers(buf, f[0], f[1])]
+    if not suspects and not skipped:
+        return []
+    starts = {f[0] for f in found}
+    by_receiver = {r: sorted([f[0] for f in suspects if _parts(buf, f, end, r)] + [s for s, _ in skipped])
+                   for r in Receiver}
+    first = min((o[0] for o in by_receiver.values() if o), default=limit)
+    stx = [m.start() for m in _STX.finditer(buf, first, limit)]
     by_pos: dict[int, Hidden] = {}
-    for receiver in Receiver:
-        for h in _walk(candidate, buf, found, skipped, limit, end, final, receiver):
+    for receiver, origins in by_receiver.items():
+        for h in _walk(candidate, buf, starts, origins, stx, limit, end, final, receiver) if origins else ():
             seen = by_pos.get(h[0][0])
             by_pos[h[0][0]] = h if seen is None else (*seen[:3], seen[3] + h[3])
     return sorted(by_pos.values())
