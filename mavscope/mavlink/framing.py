@@ -26,7 +26,7 @@ from fastcrc import crc16
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import MessageDef
 from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, KNOWN_IFLAGS, CrcStatus, Frame, Signature, new_frame
-from mavscope.mavlink.hidden import hidden_frames, hidden_note, merged
+from mavscope.mavlink.hidden import Hidden, hidden_frames, hidden_note, merged
 from mavscope.notes import Note, note
 from mavscope.wire import HEADER_V1, HEADER_V2, IFLAG_SIGNED, SIGNATURE_LEN, STX_V1, STX_V2, frame_size
 
@@ -326,7 +326,7 @@ def skipped_note(count: int, offset: int | None) -> Note:
 class StreamFramer:
     """Frames of one byte stream (a TCP direction, a raw file), fed in order, possibly in pieces."""
 
-    __slots__ = ("framer", "buf", "segs", "trusted", "key", "pending")
+    __slots__ = ("framer", "buf", "segs", "trusted", "key", "pending", "blind")
 
     def __init__(self, framer: Framer, key: Hashable) -> None:
         self.framer = framer
@@ -336,6 +336,9 @@ class StreamFramer:
         self.segs: list[tuple[int, int, int | None]] = []
         self.trusted = False
         self.pending: list[Note] = []
+        # MAVLink's C library's view of the stream is unknown past a walk its bytes did not decide
+        # (mavscope.mavlink.hidden): no frame is called hidden after that
+        self.blind = False
 
     def _locate(self, pos: int) -> tuple[int, int | None]:
         """Record and file offset of buffer position `pos`."""
@@ -368,7 +371,9 @@ class StreamFramer:
                 self.pending = []
             return [], orphans
         found, skipped, resume = self.framer.scan(buf, 0, len(buf), final)
-        hidden = hidden_frames(self.framer.candidate, buf, found, skipped, resume, len(buf), final)
+        hidden: list[Hidden] = []
+        if not self.blind:
+            hidden, self.blind = hidden_frames(self.framer.candidate, buf, found, skipped, resume, len(buf), final)
         out = []
         orphans = []
         sk = 0

@@ -17,9 +17,11 @@ skipped bytes. `hidden_frames` walks a datagram as each entry point does from ea
 the framer's part, until they meet again, and returns the CRC-valid frames either reads that the framer
 does not have. The datagram ends a walk: a receiver that starts each datagram afresh (tests/support/
 cparser.py runs the C library so) reads nothing more. A stream (TCP, a serial dump) walks the bytes the
-framer has decided each time it is given more; a walk those bytes do not decide (it needs bytes still to
-come) is not made, so a frame hidden across that point is missed: holding the framer back until they come
-made a stream of STX bytes fed a byte at a time cost tens of thousands of steps a byte. A walk starts where
+framer has decided each time it is given more. A walk those bytes do not decide (it needs bytes still to
+come) leaves the receiver's state unknown from there, so the stream is walked no further (StreamFramer's
+`blind`): a frame hidden past that point is missed, never one claimed that the receiver does not read.
+Holding the framer back until the bytes come made a stream of STX bytes fed a byte at a time cost tens of
+thousands of steps a byte. A walk starts where
 the one before it met the framer again or later, so each position is walked once per entry point: the
 work is linear in the size.
 """
@@ -64,8 +66,11 @@ def _bad_end(buf: bytes, q: int, receiver: Receiver) -> int:
     """Where `receiver` is idle again after the bad frame at `q` (whole in the buffer)."""
     if receiver is Receiver.FRAME_CHAR:
         return q + frame_size(buf, q)
-    stop = q + (HEADER_V2 if buf[q] == STX_V2 else HEADER_V1) + buf[q + 1] + 2  # the CRC ends it
-    return stop - 1 if buf[stop - 1] == STX_V2 else stop
+    v2 = buf[q] == STX_V2
+    stop = q + (HEADER_V2 if v2 else HEADER_V1) + buf[q + 1] + 2  # the CRC ends it
+    # The frame it starts at a last byte of 0xFD keeps the bad frame's layout: after a v1 frame, a v1
+    # frame whose STX is 0xFD, which is no frame mavscope can show (a gap this model leaves)
+    return stop - 1 if v2 and buf[stop - 1] == STX_V2 else stop
 
 
 def _parts(buf: bytes, f: Scanned, end: int, receiver: Receiver) -> bool:
@@ -79,7 +84,7 @@ def _parts(buf: bytes, f: Scanned, end: int, receiver: Receiver) -> bool:
 
 
 def _walk(candidate: Candidate, buf: bytes, starts: set[int], origins: list[int], stx: list[int], limit: int,
-          end: int, final: bool, receiver: Receiver) -> list[Hidden]:
+          end: int, final: bool, receiver: Receiver) -> tuple[list[Hidden], bool]:
     """The walks of one receiver from `origins` (sorted), over the STX positions `stx` of buf[:limit]."""
     clean = starts - set(origins)  # where the receiver, idle, reads what the framer shows
     out: list[Hidden] = []
@@ -93,7 +98,7 @@ def _walk(candidate: Candidate, buf: bytes, starts: set[int], origins: list[int]
         while True:
             if p > limit and not final:  # past where the framer has decided, out of step: undecided
                 del out[kept:]
-                return out
+                return out, True
             i = bisect_left(stx, p)
             if i == len(stx):
                 reach = limit  # idle up to where the framer has decided: in step there
@@ -106,7 +111,7 @@ def _walk(candidate: Candidate, buf: bytes, starts: set[int], origins: list[int]
             if not dropped and (q + 3 > end or q + frame_size(buf, q) > end):
                 if not final:  # the stream's next bytes would decide it: undecided
                     del out[kept:]
-                    return out
+                    return out, True
                 reach = end  # the receiver waits for bytes that are not there
                 break
             if dropped:
@@ -121,33 +126,39 @@ def _walk(candidate: Candidate, buf: bytes, starts: set[int], origins: list[int]
             else:
                 at, how = q, None
                 p = _bad_end(buf, q, receiver)
-    return out
+    return out, False
 
 
 def hidden_frames(candidate: Candidate, buf: bytes, found: Sequence[Scanned], skipped: Sequence[tuple[int, int]],
-                  limit: int, end: int, final: bool = True) -> list[Hidden]:
+                  limit: int, end: int, final: bool = True) -> tuple[list[Hidden], bool]:
     """The frames MAVLink's C library reads that the framer's view (`found` and `skipped`, from Framer.scan
     over buf up to `limit`) does not have, by position. They start before `limit` and end by `end` (a
     datagram: both its length; a stream, not `final`, has bytes past where the framer has decided, and a
-    walk that needs bytes past `end` or goes on past `limit` is left undecided, with what follows it).
+    walk that needs bytes past `end` or goes on past `limit` is left undecided, with what follows it: the
+    second value says so, and the receiver's state past that point is then unknown).
 
     `candidate` is the Framer's, which judges a frame with its dialect's CRC_EXTRA."""
     # Only a frame the framer shows damaged or with unknown flags, or skipped bytes, can part the two views:
     # with none (nearly every datagram and stream piece that gets here) there is nothing to walk.
     suspects = [f for f in found if f[2] is not OK or dropped_by_receivers(buf, f[0], f[1])]
     if not suspects and not skipped:
-        return []
+        return [], False
     starts = {f[0] for f in found}
     by_receiver = {r: sorted([f[0] for f in suspects if _parts(buf, f, end, r)] + [s for s, _ in skipped])
                    for r in Receiver}
     first = min((o[0] for o in by_receiver.values() if o), default=limit)
     stx = [m.start() for m in _STX.finditer(buf, first, limit)]
     by_pos: dict[int, Hidden] = {}
+    undecided = False
     for receiver, origins in by_receiver.items():
-        for h in _walk(candidate, buf, starts, origins, stx, limit, end, final, receiver) if origins else ():
+        if not origins:
+            continue
+        hidden, open_ = _walk(candidate, buf, starts, origins, stx, limit, end, final, receiver)
+        undecided |= open_
+        for h in hidden:
             seen = by_pos.get(h[0][0])
             by_pos[h[0][0]] = h if seen is None else (*seen[:3], seen[3] + h[3])
-    return sorted(by_pos.values())
+    return sorted(by_pos.values()), undecided
 
 
 def merged(found: Sequence[Scanned], hidden: Sequence[Hidden]) -> list[tuple[Scanned, Hidden | None]]:

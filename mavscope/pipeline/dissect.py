@@ -194,7 +194,7 @@ class Dissector:
         pending: list[Note] = list(p.notes)
         sk = 0
         messages = self.messages
-        hidden = hidden_frames(self.framer.candidate, data, found, skipped, len(data), len(data))
+        hidden, _ = hidden_frames(self.framer.candidate, data, found, skipped, len(data), len(data))
         for (pos, size, status, crc), h in merged(found, hidden):
             while sk < len(skipped) and skipped[sk][0] < pos:
                 s_pos, s_count = skipped[sk]

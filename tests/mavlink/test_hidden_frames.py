@@ -248,20 +248,17 @@ def test_every_frame_the_c_library_reads_is_shown(dialect: Dialect, cparser: CPa
 
 @settings(max_examples=100, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @given(data=datagrams(), chunk=st.integers(1, 97))
-def test_a_stream_shows_them_too(dialect: Dialect, cparser: CParser, data: bytes, chunk: int) -> None:
-    """A raw stream, which the C library reads as one run of bytes. Given whole, every frame it reads is
-    shown; fed in pieces, a frame hidden across the point where the framer had decided when the next
-    piece came is not found (mavscope.mavlink.hidden), but every frame called hidden is one it reads,
-    and none twice."""
+def test_a_stream_claims_only_what_the_c_library_reads(dialect: Dialect, cparser: CParser, data: bytes,
+                                                       chunk: int) -> None:
+    """A raw stream, which the C library reads as one run of bytes, given whole or in pieces: every frame
+    called hidden is one it reads, and no frame comes twice. A stream is walked only as far as its bytes
+    decide the C library's view (mavscope.mavlink.hidden), so a frame past that point can be missed."""
     reads = cparser.frames_of(data)
     for size in (len(data), chunk):
         records = [Record(i + 1, None, LINKTYPE_MAVLINK_RAW, data[off : off + size], off, len(data[off : off + size]))
                    for i, off in enumerate(range(0, len(data), size))]
         frames = [i for i in Dissector(dialect).run(records) if isinstance(i, Frame)]
-        if size == len(data):
-            shown = {(f.offset, len(f.raw)) for f in frames if f.crc_status is CrcStatus.OK}
-            assert reads <= shown, (data.hex(), reads - shown)
-        assert {(f.offset, len(f.raw)) for f in hidden(frames)} <= reads
+        assert {(f.offset, len(f.raw)) for f in hidden(frames)} <= reads, data.hex()
         assert len({(f.offset, len(f.raw)) for f in frames}) == len(frames)
 
 
