@@ -26,7 +26,7 @@ from fastcrc import crc16
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import MessageDef
 from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, KNOWN_IFLAGS, CrcStatus, Frame, Signature, new_frame
-from mavscope.mavlink.hidden import Hidden, hidden_frames, hidden_note, merged
+from mavscope.mavlink.hidden import Receiver, Scanned, Walking, hidden_frames, hidden_note, merged
 from mavscope.notes import Note, note
 from mavscope.wire import HEADER_V1, HEADER_V2, IFLAG_SIGNED, SIGNATURE_LEN, STX_V1, STX_V2, frame_size
 
@@ -326,19 +326,23 @@ def skipped_note(count: int, offset: int | None) -> Note:
 class StreamFramer:
     """Frames of one byte stream (a TCP direction, a raw file), fed in order, possibly in pieces."""
 
-    __slots__ = ("framer", "buf", "segs", "trusted", "key", "pending", "blind")
+    __slots__ = ("framer", "buf", "start", "segs", "trusted", "key", "pending", "walking", "shown", "claimed")
 
     def __init__(self, framer: Framer, key: Hashable) -> None:
         self.framer = framer
         self.key = key
         self.buf = b""
+        self.start = 0  # where in buf the framer goes on (the bytes before it are kept for `walking`)
         # (start position in buf, record number, file offset of that position or None)
         self.segs: list[tuple[int, int, int | None]] = []
         self.trusted = False
         self.pending: list[Note] = []
-        # MAVLink's C library's view of the stream is unknown past a walk its bytes did not decide
-        # (mavscope.mavlink.hidden): no frame is called hidden after that
-        self.blind = False
+        # MAVLink's C library's receivers out of step with the framer where the framer stopped, to go on
+        # with the next piece (mavscope.mavlink.hidden); the framer's frames and the hidden frames already
+        # given in the bytes kept for them
+        self.walking: dict[Receiver, Walking] = {}
+        self.shown: list[Scanned] = []
+        self.claimed: list[int] = []
 
     def _locate(self, pos: int) -> tuple[int, int | None]:
         """Record and file offset of buffer position `pos`."""
@@ -370,10 +374,9 @@ class StreamFramer:
             if final:
                 self.pending = []
             return [], orphans
-        found, skipped, resume = self.framer.scan(buf, 0, len(buf), final)
-        hidden: list[Hidden] = []
-        if not self.blind:
-            hidden, self.blind = hidden_frames(self.framer.candidate, buf, found, skipped, resume, len(buf), final)
+        found, skipped, resume = self.framer.scan(buf, self.start, len(buf), final)
+        hidden, walking = hidden_frames(self.framer.candidate, buf, found, skipped, resume, len(buf), final,
+                                        self.walking, self.shown, self.claimed)
         out = []
         orphans = []
         sk = 0
@@ -400,18 +403,30 @@ class StreamFramer:
         if not self.trusted:
             # Not (yet) known to be MAVLink: a stream of something else is not reported at all.
             out = [o for o in out if o[3] is OK]
-        if resume >= len(buf):
+        # Keep the bytes from where the framer goes on, or from where a receiver out of step reads on
+        # (a frame it is in, at most a frame's worth before): the next piece's walk starts there
+        self.walking = {} if final else walking
+        keep = min([resume, *(w[0] for w in self.walking.values())])
+        self.start = resume - keep
+        if self.walking:
+            self.shown = [(f[0] - keep, *f[1:]) for f in (*self.shown, *found) if f[0] >= keep]
+            self.claimed = [h[0][0] - keep for h in hidden if h[0][0] >= keep] + [c - keep for c in self.claimed
+                                                                                   if c >= keep]
+            self.walking = {r: (w[0] - keep, w[1] - keep, w[2]) for r, w in self.walking.items()}
+        else:
+            self.shown, self.claimed = [], []
+        if keep >= len(buf):
             self.buf = b""
             self.segs = []
         else:
-            self.buf = buf[resume:]
+            self.buf = buf[keep:]
             segs = []
             for start, r, o in self.segs:
-                if start <= resume:
-                    base = (r, None if o is None else o + (resume - start))
+                if start <= keep:
+                    base = (r, None if o is None else o + (keep - start))
                     segs = [(0, *base)]
                 else:
-                    segs.append((start - resume, r, o))
+                    segs.append((start - keep, r, o))
             self.segs = segs
         if final:
             orphans, self.pending = self.pending, []

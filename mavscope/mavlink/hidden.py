@@ -16,13 +16,12 @@ So a frame the vehicle reads and acts on can lie inside bytes the framer shows a
 skipped bytes. `hidden_frames` walks a datagram as each entry point does from each place where its view and
 the framer's part, until they meet again, and returns the CRC-valid frames either reads that the framer
 does not have. The datagram ends a walk: a receiver that starts each datagram afresh (tests/support/
-cparser.py runs the C library so) reads nothing more. A stream (TCP, a serial dump) walks the bytes the
-framer has decided each time it is given more. A walk those bytes do not decide (it needs bytes still to
-come) leaves the receiver's state unknown from there, so the stream is walked no further (StreamFramer's
-`blind`): a frame hidden past that point is missed, never one claimed that the receiver does not read.
-Holding the framer back until the bytes come made a stream of STX bytes fed a byte at a time cost tens of
-thousands of steps a byte. A walk starts where
-the one before it met the framer again or later, so each position is walked once per entry point: the
+cparser.py runs the C library so) reads nothing more. A stream (TCP, a serial dump) comes in pieces, and
+the framer decides its bytes up to a point each time it is given more. A walk that needs bytes past that
+point stops there and hands back where the receiver is (`Walking`); the next piece's walk goes on from it,
+over the bytes the stream keeps for it (at most a frame's worth before the framer's point) and the frames
+it showed there before (`shown`, `claimed`). A walk starts where the one before it met the framer again or
+later, and a carried walk goes on where it stopped, so each position is walked once per entry point: the
 work is linear in the size.
 """
 
@@ -30,7 +29,7 @@ from __future__ import annotations
 
 import re
 from bisect import bisect_left
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from enum import Enum
 
 from mavscope.mavlink.frame import KNOWN_IFLAGS, CrcStatus
@@ -55,6 +54,9 @@ class Receiver(Enum):
 # reading it, and how (the incompat flags of the frame it dropped there, or None: it read a damaged frame
 # there to its end); and the receivers that read it
 Hidden = tuple[Scanned, int, "int | None", tuple[Receiver, ...]]
+# A receiver out of step with the framer where the bytes so far end: where it reads on from (idle, or at the
+# STX of the frame it is in), where it last parted from the framer, and how (as in Hidden)
+Walking = tuple[int, int, "int | None"]
 
 
 def dropped_by_receivers(buf: bytes, pos: int, size: int) -> bool:
@@ -78,27 +80,28 @@ def _parts(buf: bytes, f: Scanned, end: int, receiver: Receiver) -> bool:
     pos, size, status, _ = f
     if dropped_by_receivers(buf, pos, size):
         return True
-    if status is TRUNCATED:  # cut short by a frame after it: the receiver reads on over that frame
-        return size >= 3 and pos + frame_size(buf, pos) <= end
+    if status is TRUNCATED:  # cut short (by a frame after it, or by the end): the receiver reads on over
+        return size >= 3  # what follows, or waits for the bytes that finish it
     return status is not OK and _bad_end(buf, pos, receiver) != pos + size
 
 
-def _walk(candidate: Candidate, buf: bytes, starts: set[int], origins: list[int], stx: list[int], limit: int,
-          end: int, final: bool, receiver: Receiver) -> tuple[list[Hidden], bool]:
-    """The walks of one receiver from `origins` (sorted), over the STX positions `stx` of buf[:limit]."""
-    clean = starts - set(origins)  # where the receiver, idle, reads what the framer shows
+def _walk(candidate: Candidate, buf: bytes, starts: set[int], clean: set[int], origins: list[int], stx: list[int],
+          limit: int, end: int, final: bool, receiver: Receiver, carried: Walking | None
+          ) -> tuple[list[Hidden], Walking | None]:
+    """The walks of one receiver: the one `carried` from the stream's last piece, then from `origins`
+    (sorted), over the STX positions `stx` of buf[:limit]. With the receiver's state where the bytes did
+    not decide it (None: in step with the framer at the end)."""
     out: list[Hidden] = []
     reach = 0  # where the walks so far met the framer again: the receiver is not idle at an origin before it
-    for origin in origins:
-        if origin < reach:
+    walks = [(o, o, None) for o in origins]
+    if carried is not None:
+        walks.insert(0, carried)
+    for p, at, how in walks:
+        if p < reach:
             continue
-        kept = len(out)
-        p = at = origin
-        how: int | None = None
         while True:
-            if p > limit and not final:  # past where the framer has decided, out of step: undecided
-                del out[kept:]
-                return out, True
+            if p > limit and not final:  # past where the framer has decided, out of step: the next piece's
+                return out, (p, at, how)
             i = bisect_left(stx, p)
             if i == len(stx):
                 reach = limit  # idle up to where the framer has decided: in step there
@@ -109,11 +112,9 @@ def _walk(candidate: Candidate, buf: bytes, starts: set[int], origins: list[int]
                 break
             dropped = dropped_by_receivers(buf, q, end - q)
             if not dropped and (q + 3 > end or q + frame_size(buf, q) > end):
-                if not final:  # the stream's next bytes would decide it: undecided
-                    del out[kept:]
-                    return out, True
-                reach = end  # the receiver waits for bytes that are not there
-                break
+                # In the frame at q, waiting for bytes past the end: the stream's next piece brings them
+                # (every origin left lies before that frame's end); a datagram's receiver reads no more
+                return out, (q, at, how)
             if dropped:
                 at, how = q, buf[q + 2]
                 p = q + 3
@@ -126,35 +127,48 @@ def _walk(candidate: Candidate, buf: bytes, starts: set[int], origins: list[int]
             else:
                 at, how = q, None
                 p = _bad_end(buf, q, receiver)
-    return out, False
+    return out, None
 
 
 def hidden_frames(candidate: Candidate, buf: bytes, found: Sequence[Scanned], skipped: Sequence[tuple[int, int]],
-                  limit: int, end: int, final: bool = True) -> tuple[list[Hidden], bool]:
+                  limit: int, end: int, final: bool = True, carried: Mapping[Receiver, Walking] | None = None,
+                  shown: Sequence[Scanned] = (), claimed: Collection[int] = ()
+                  ) -> tuple[list[Hidden], dict[Receiver, Walking]]:
     """The frames MAVLink's C library reads that the framer's view (`found` and `skipped`, from Framer.scan
-    over buf up to `limit`) does not have, by position. They start before `limit` and end by `end` (a
-    datagram: both its length; a stream, not `final`, has bytes past where the framer has decided, and a
-    walk that needs bytes past `end` or goes on past `limit` is left undecided, with what follows it: the
-    second value says so, and the receiver's state past that point is then unknown).
+    over buf up to `limit`) does not have, by position, and the receivers whose state the bytes leave
+    undecided (a walk needs bytes past `end`, or goes on past `limit` in a stream not `final`), with where
+    each reads on. Each frame starts before `limit` and ends by `end` (a datagram: both its length; a
+    stream has bytes past where the framer has decided).
 
-    `candidate` is the Framer's, which judges a frame with its dialect's CRC_EXTRA."""
-    # Only a frame the framer shows damaged or with unknown flags, or skipped bytes, can part the two views:
-    # with none (nearly every datagram and stream piece that gets here) there is nothing to walk.
+    A stream's next piece passes what this one handed back as `carried`, with buf keeping the bytes from
+    the earliest carried position on, the framer's frames shown before in those bytes (`shown`) and the
+    positions of hidden frames given before (`claimed`). `candidate` is the Framer's, which judges a frame
+    with its dialect's CRC_EXTRA."""
+    # Only a frame the framer shows damaged, cut short or with unknown flags, or skipped bytes, can part
+    # the two views: with none (nearly every datagram and stream piece that gets here) and no walk carried
+    # over, there is nothing to walk.
     suspects = [f for f in found if f[2] is not OK or dropped_by_receivers(buf, f[0], f[1])]
-    if not suspects and not skipped:
-        return [], False
+    if not suspects and not skipped and not carried:
+        return [], {}
+    carried = carried or {}
     starts = {f[0] for f in found}
+    starts.update(f[0] for f in shown)
+    known = starts | set(claimed) if claimed else starts  # a frame at one of these is not news
     by_receiver = {r: sorted([f[0] for f in suspects if _parts(buf, f, end, r)] + [s for s, _ in skipped])
                    for r in Receiver}
-    first = min((o[0] for o in by_receiver.values() if o), default=limit)
+    first = min([o[0] for o in by_receiver.values() if o] + [w[0] for w in carried.values()], default=limit)
     stx = [m.start() for m in _STX.finditer(buf, first, limit)]
     by_pos: dict[int, Hidden] = {}
-    undecided = False
+    undecided: dict[Receiver, Walking] = {}
     for receiver, origins in by_receiver.items():
-        if not origins:
+        walking = carried.get(receiver)
+        if not origins and walking is None:
             continue
-        hidden, open_ = _walk(candidate, buf, starts, origins, stx, limit, end, final, receiver)
-        undecided |= open_
+        # where the receiver, idle, reads what the framer shows
+        clean = starts.difference(origins, (f[0] for f in shown if _parts(buf, f, end, receiver)))
+        hidden, left = _walk(candidate, buf, known, clean, origins, stx, limit, end, final, receiver, walking)
+        if left is not None:
+            undecided[receiver] = left
         for h in hidden:
             seen = by_pos.get(h[0][0])
             by_pos[h[0][0]] = h if seen is None else (*seen[:3], seen[3] + h[3])
