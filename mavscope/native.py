@@ -86,7 +86,8 @@ class NativeWalk:
     times relative to `t0`, instead of JSON Lines; with `stats` (a `_native.Stats`, mavscope.native_stats)
     there is no text: the frames go to that accumulator.
     `endpoints` and `signed_senders` are the Python sets both paths share (the dissector's
-    `mavlink_endpoints` and the security stage's `signed_senders`). `signed_nokey()` is asked before
+    `mavlink_endpoints` and the security stage's `signed_senders`), `receivers` the dissector's (a
+    datagram to a destination whose receivers are in a frame is handed back). `signed_nokey()` is asked before
     each batch whether signed frames may be written natively (no signing key configured: `no-key`).
     The walker stops after each handed-back record, so what Python does with it (keys learnt, senders
     seen signing) holds for the records after it.
@@ -94,7 +95,8 @@ class NativeWalk:
 
     def __init__(self, path: str | os.PathLike[str] | None, dialect: Dialect, endpoints: set[Endpoint],
                  signed_senders: set[tuple[int, int]], kind: str | None = None, window: int = WINDOW,
-                 summary: object | None = None, t0: float | None = None, stats: object | None = None) -> None:
+                 summary: object | None = None, t0: float | None = None, stats: object | None = None,
+                 receivers: Mapping[Endpoint, object] | None = None) -> None:
         if _native is None:
             raise RuntimeError("mavscope._native is not built")
         self._file: IO[bytes] | None = None
@@ -106,7 +108,8 @@ class NativeWalk:
             fd = self._file.fileno()
         try:
             self.walker = _native.Walker(fd, self.opened_size, _KINDS[self.kind], table_for(dialect), endpoints,
-                                         Endpoint.from_packed, signed_senders, window, summary, t0, stats)
+                                         Endpoint.from_packed, signed_senders, window, summary, t0, stats,
+                                         receivers=receivers)
         except BaseException:
             self.close_file()
             raise
@@ -390,7 +393,7 @@ def write_lines(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityS
     signing = share_signing(stage)
     try:
         with NativeWalk(path, dialect, dissector.mavlink_endpoints, stage.signed_senders, kind, window,
-                        summary, t0) as walk:
+                        summary, t0, receivers=dissector.receivers) as walk:
             drive(walk, dissector, stage, sink, buffers, progress, signing)
             stats = walk.stats()
         if not sink.done:

@@ -85,7 +85,8 @@ def write_live(source: LiveSource, dialect: Dialect, stage: SecurityStage, out: 
                 if on_t0 is not None and t0 is not None:
                     on_t0(t0)
                 walk = NativeWalk(None, dialect, dissector.mavlink_endpoints, stage.signed_senders,
-                                  summary=summary_for(dialect) if summary else None, t0=t0)
+                                  summary=summary_for(dialect) if summary else None, t0=t0,
+                                  receivers=dissector.receivers)
                 walk.feed(pcap_header() + chunk.records)
             else:
                 walk.feed(chunk.records)

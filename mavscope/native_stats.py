@@ -63,7 +63,7 @@ def native_stats(path: str | os.PathLike[str], dialect: Dialect, stage: Security
             acc.add(item)
 
     with NativeWalk(path, dialect, dissector.mavlink_endpoints, stage.signed_senders, kind, window,
-                    stats=acc.acc) as walk:
+                    stats=acc.acc, receivers=dissector.receivers) as walk:
         for walked, _text, record in walk.batches(nokey):
             if acc.full():
                 break

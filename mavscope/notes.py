@@ -119,6 +119,8 @@ CODES: dict[str, Code] = {
              "shows as other frames or skipped: inside frames it drops for unknown incompat flags (pymavlink and "
              "Wireshark show only those), or past damaged frames it reads whole: what a vehicle reads, hidden "
              "from length-based tools"),
+        Code("split-frame", _WARN, Group.PROTOCOL, _F,
+             "frame split over datagrams to one destination, which the receivers' parser reads whole"),
         Code("encrypted-payload", _NOTE, Group.SECURITY, _F, "payload encrypted (incompat flag bits 5-7)"),
         # security stage (notes), and the audit's summaries of them (findings)
         Code("unsigned-in-signed-stream", _WARN, Group.SECURITY, _B,

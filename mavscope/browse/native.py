@@ -125,7 +125,8 @@ def native_build(index: Any, path: str, dialect: Dialect, stage: SecurityStage, 
 
     try:
         walker = _native.Walker(f.fileno(), size, _KINDS[kind], table_for(dialect), dissector.mavlink_endpoints,
-                                Endpoint.from_packed, stage.signed_senders, WINDOW, columns=cols)
+                                Endpoint.from_packed, stage.signed_senders, WINDOW, columns=cols,
+                                receivers=dissector.receivers)
         try:
             step, walked, told = walker.next, walker.walked, None
             first = True

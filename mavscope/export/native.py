@@ -266,7 +266,8 @@ class _Export:
             cols = _native.Columns(self.table, WINDOW_FRAMES)
             walker = _native.Walker(f.fileno(), size, _KINDS[self.kind], self.table, self.dissector.mavlink_endpoints,
                                     Endpoint.from_packed, self.stage.signed_senders, WINDOW, columns=cols,
-                                    stats=None if self.acc is None else self.acc.acc)
+                                    stats=None if self.acc is None else self.acc.acc,
+                                    receivers=self.dissector.receivers)
             try:
                 yield from self._walk(walker, cols, progress)
                 stats = walker.stats()

@@ -126,6 +126,8 @@ def summary_info(frame: Frame, dialect: Dialect, fields: dict[str, object] | Non
         parts.append("[after skipped bytes]")
     if any(n.code == "hidden-frame" for n in frame.notes):
         parts.append("[hidden: MAVLink's C library reads it]")
+    if any(n.code == "split-frame" for n in frame.notes):
+        parts.append("[split over datagrams: the receivers read it whole]")
     if frame.signature is not None:
         parts.append(f"[signed link {frame.signature.link_id}]")
     return " ".join(parts)

@@ -57,6 +57,8 @@ Hidden = tuple[Scanned, int, "int | None", tuple[Receiver, ...]]
 # A receiver out of step with the framer where the bytes so far end: where it reads on from (idle, or at the
 # STX of the frame it is in), where it last parted from the framer, and how (as in Hidden)
 Walking = tuple[int, int, "int | None"]
+ACROSS = -1  # `how` where the receiver parted from the framer at a frame a datagram's end cut short (it reads
+# that frame on into the next datagram to the same destination: mavscope.mavlink.receivers)
 
 
 def dropped_by_receivers(buf: bytes, pos: int, size: int) -> bool:
@@ -93,7 +95,7 @@ def _walk(candidate: Candidate, buf: bytes, starts: set[int], clean: set[int], o
     not decide it (None: in step with the framer at the end)."""
     out: list[Hidden] = []
     reach = 0  # where the walks so far met the framer again: the receiver is not idle at an origin before it
-    walks = [(o, o, None) for o in origins]
+    walks: list[Walking] = [(o, o, None) for o in origins]
     if carried is not None:
         walks.insert(0, carried)
     for p, at, how in walks:
@@ -153,7 +155,10 @@ def hidden_frames(candidate: Candidate, buf: bytes, found: Sequence[Scanned], sk
     carried = carried or {}
     starts = {f[0] for f in found}
     starts.update(f[0] for f in shown)
-    known = starts | set(claimed) if claimed else starts  # a frame at one of these is not news
+    # a frame read where the framer shows it with a good CRC, or where one was given before, is not news (where
+    # it shows a frame cut short by a datagram's end, a receiver reading on into the next one may read it whole)
+    known = {f[0] for f in (*shown, *found) if f[2] is OK}
+    known.update(claimed)
     by_receiver = {r: sorted([f[0] for f in suspects if _parts(buf, f, end, r)] + [s for s, _ in skipped])
                    for r in Receiver}
     first = min([o[0] for o in by_receiver.values() if o] + [w[0] for w in carried.values()], default=limit)
@@ -189,7 +194,10 @@ def hidden_note(h: Hidden, offset: int | None) -> Note:
     (pos, _, _, _), at, iflags, receivers = h
     who = "MAVLink's C library (ArduPilot, PX4, QGroundControl)" if len(receivers) == len(Receiver) else (
         " and ".join(r.value for r in receivers))
-    if iflags is not None:
+    if iflags == ACROSS:
+        how = (f"it reads the frame that began {pos - at} bytes before this one, in an earlier datagram to this "
+               "destination, on into this one, and reads on from its end, where mavscope found other frames")
+    elif iflags is not None:
         how = (f"it drops the frame {pos - at} bytes before this one at its incompat flags 0x{iflags:02x} and reads on "
                "from there, where pymavlink and Wireshark skip that frame whole")
     else:

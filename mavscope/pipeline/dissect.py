@@ -27,16 +27,20 @@ from mavscope.mavlink.framing import (
     unpack_signature,
     unpack_v2,
 )
-from mavscope.mavlink.hidden import hidden_frames, hidden_note, merged
+from mavscope.mavlink.hidden import ACROSS, hidden_note, merged
+from mavscope.mavlink.receivers import MAX_WAITING, Waiting, across, split_note
 from mavscope.notes import Note
 from mavscope.pipeline.textrun import TextRun, is_text_entry
-from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, Payload
+from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
 from mavscope.transport.decap import Decapsulator
 from mavscope.wire import SIGNATURE_LEN, STX_V2
 
 # Ports MAVLink uses by convention (DOMAIN.md). Datagrams on them are taken for MAVLink even when no
 # frame in them has a valid CRC; on any other port, a valid frame must have been seen first.
 MAVLINK_PORTS = frozenset({14550, 14540, 14555, 14557, 14560, 14580, 18570, 5760, 5761, 5762, 5763})
+
+
+_CUT = frozenset({"record-snapped", "record-truncated", "malformed-packet"})  # notes of a payload cut short
 
 
 @final  # never subclassed: consumers tell it from a Frame with `type(item) is Anomaly`
@@ -59,6 +63,10 @@ class Dissector:
         self.streams: dict[Hashable, StreamFramer] = {}
         # endpoints that have carried a CRC-valid frame: their datagrams are MAVLink even when damaged
         self.mavlink_endpoints: set[Endpoint] = set()
+        # UDP destinations whose receivers (MAVLink's C library) are in a frame where the last datagram to
+        # them ended (mavscope.mavlink.receivers): the next datagram to them goes on with it. The native
+        # walker hands a datagram to one of them back here.
+        self.receivers: dict[Endpoint, Waiting] = {}
         self._record = 0
         self._index = 0
         self._raw_frames = 0  # frames of a raw byte stream so far (they are numbered 1..N)
@@ -102,7 +110,7 @@ class Dissector:
             data = p.data
             n = len(data)
             pos = 0
-            if not p.notes:
+            if not p.notes and not (self.receivers and p.dst in self.receivers):
                 src = p.src
                 base = p.offset
                 while pos + 12 <= n and data[pos] == STX_V2:
@@ -178,12 +186,16 @@ class Dissector:
     def _datagram(self, p: Payload, start: int) -> Iterator[Frame | Anomaly]:
         """The general path: scan a datagram from `start` (the frames before it were clean)."""
         data = p.data
+        waiting = self.receivers.pop(p.dst, None) if self.receivers and p.dst is not None else None
         if not data:
+            if waiting is not None:
+                self.receivers[p.dst] = waiting  # type: ignore[index]  # (p.dst is not None)
             if p.notes:
                 yield Anomaly(p.record, p.notes)
             return
         found, skipped, _ = self.framer.scan(data, start, len(data), True)
-        if not start and not any(f[2] is OK for f in found) and not self._trusted(p):
+        # (a receiver in a frame is given MAVLink: it reads the datagram on with it)
+        if not start and waiting is None and not any(f[2] is OK for f in found) and not self._trusted(p):
             # No valid frame and no reason to expect MAVLink here: some other protocol.
             if p.notes:
                 yield Anomaly(p.record, p.notes)
@@ -194,19 +206,37 @@ class Dissector:
         pending: list[Note] = list(p.notes)
         sk = 0
         messages = self.messages
-        hidden, _ = hidden_frames(self.framer.candidate, data, found, skipped, len(data), len(data))
+        buf, t, hidden, left = across(self.framer.candidate, data, found, skipped, waiting, self._record, base)
+        if left is not None and p.transport == TRANSPORT_UDP and p.dst is not None and not any(
+                n.code in _CUT for n in p.notes):  # (a capture that lost the datagram's end: state unknown)
+            if len(self.receivers) >= MAX_WAITING:
+                del self.receivers[next(iter(self.receivers))]
+            self.receivers[p.dst] = left
+        if t:  # by position in data: below 0 for a frame that began in an earlier datagram
+            hidden = [((h[0][0] - t, *h[0][1:]), h[1] - t, h[2], h[3]) for h in hidden]
         for (pos, size, status, crc), h in merged(found, hidden):
             while sk < len(skipped) and skipped[sk][0] < pos:
                 s_pos, s_count = skipped[sk]
                 sk += 1
                 pending.append(skipped_note(s_count, None if base is None else base + s_pos))
             self._index += 1
-            offset = None if base is None else base + pos
-            if h is not None:
+            span = None
+            if h is None:
+                offset = None if base is None else base + pos
+                frame_buf = data
+            elif pos < 0:
+                frame_buf, pos = buf, pos + t
+                offset, records = waiting.locate(pos)  # type: ignore[union-attr]  # (t > 0: there is one)
+                span = (*records, self._record)
+                pending.append(split_note(h, -h[0][0], records, offset))
+                if h[1] != h[0][0] or h[2] != ACROSS:  # the receiver parted from the framer before it, too
+                    pending.append(hidden_note(h, offset))
+            else:
+                frame_buf, offset = data, None if base is None else base + pos
                 pending.append(hidden_note(h, offset))
             frame = build_frame(
-                data, pos, size, status, crc, messages, self._record, self._index, self._time, p.transport,
-                p.src, p.dst, offset, tuple(pending) if pending else (), None,
+                frame_buf, pos, size, status, crc, messages, self._record, self._index, self._time, p.transport,
+                p.src, p.dst, offset, tuple(pending) if pending else (), span,
             )
             pending = []
             yield frame

@@ -17,7 +17,8 @@ TRANSPORT_RAW = "raw"
 class Payload(NamedTuple):
     """Bytes that may hold MAVLink, with where they came from.
 
-    Datagram payloads (UDP, one tlog entry) have `stream` None: frames never continue past them.
+    Datagram payloads (UDP, one tlog entry) have `stream` None: the framer's frames never continue past
+    them (a receiver's parser may: mavscope.mavlink.receivers).
     Stream payloads (TCP in one direction, a raw byte stream) carry a hashable `stream` key; the bytes
     are the next in-order bytes of that stream, and a frame may continue in the next Payload of the
     same stream.

@@ -8,7 +8,11 @@
  *     .full() -> bool, .dump() -> bytes
  *   Walker(fd: int, size: int, kind: int, table, endpoints: set, endpoint: Callable[[bytes, int], object],
  *          signed_senders: set[tuple[int, int]], window: int = 1 << 20, summary: Summary | None = None,
- *          t0: float | None = None, stats: Stats | None = None, columns: Columns | None = None)
+ *          t0: float | None = None, stats: Stats | None = None, columns: Columns | None = None,
+ *          receivers: dict | None = None)
+ *                                        with `receivers` (the Dissector's: Endpoint -> Waiting): a datagram
+ *                                        to one of its destinations is handed back (read after each record
+ *                                        handed back, the only thing that changes it)
  *                                        with `summary`: summary lines (relative to t0) instead of JSON;
  *                                        with `stats`: no text, the frames go to the accumulator
  *                                        (with `columns` too: the export's findings; once `full` the
@@ -720,6 +724,8 @@ typedef struct {
     PyObject *summary;   /* SummaryObject or NULL (JSON Lines) */
     PyObject *stats;     /* StatsObject or NULL */
     PyObject *columns;   /* ColumnsObject or NULL: column mode */
+    PyObject *receivers; /* the Dissector's receivers (dict: Endpoint -> Waiting), or NULL */
+    int waiting_stale;   /* Python may have changed `receivers` (it was handed a record) since they were read */
     ms_buf out;
 } WalkerObject;
 
@@ -740,6 +746,7 @@ static void Walker_dealloc(WalkerObject *self) {
     Py_XDECREF(self->endpoints);
     Py_XDECREF(self->endpoint);
     Py_XDECREF(self->senders);
+    Py_XDECREF(self->receivers);
     Py_XDECREF(self->summary);
     Py_XDECREF(self->stats);
     Py_XDECREF(self->columns);
@@ -748,16 +755,20 @@ static void Walker_dealloc(WalkerObject *self) {
 
 static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
     static char *kwlist[] = {"fd", "size", "kind", "table", "endpoints", "endpoint", "signed_senders", "window",
-                             "summary", "t0", "stats", "columns", NULL};
+                             "summary", "t0", "stats", "columns", "receivers", NULL};
     PyObject *table, *endpoints, *endpoint, *senders, *summary = Py_None, *t0 = Py_None, *stats = Py_None;
-    PyObject *columns = Py_None;
+    PyObject *columns = Py_None, *receivers = Py_None;
     int fd, kind;
     unsigned long long size;
     Py_ssize_t window = MS_WINDOW;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|nOOOO", kwlist, &fd, &size, &kind, &TableType, &table,
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|nOOOOO", kwlist, &fd, &size, &kind, &TableType, &table,
                                      &PySet_Type, &endpoints, &endpoint, &PySet_Type, &senders, &window,
-                                     &summary, &t0, &stats, &columns))
+                                     &summary, &t0, &stats, &columns, &receivers))
         return -1;
+    if (receivers != Py_None && !PyDict_Check(receivers)) {
+        PyErr_SetString(PyExc_TypeError, "receivers must be a dict (the Dissector's receivers) or None");
+        return -1;
+    }
     if (stats != Py_None && (!PyObject_TypeCheck(stats, &StatsType) || ((StatsObject *)stats)->table != table ||
                              !((StatsObject *)stats)->ok || summary != Py_None)) {
         PyErr_SetString(PyExc_TypeError, "stats must be a Stats of the same table (without summary), or None");
@@ -808,6 +819,11 @@ static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
     self->endpoint = endpoint;
     Py_INCREF(senders);
     self->senders = senders;
+    if (receivers != Py_None) {
+        Py_INCREF(receivers);
+        self->receivers = receivers;
+        self->waiting_stale = 1;
+    }
     ms_buf_init(&self->out);
     ms_source src = {fed_read, &self->fed};
     if (fd != -1)
@@ -1026,6 +1042,48 @@ static int push_state(WalkerObject *self) {
     return 0;
 }
 
+/* Read the destinations Python's receivers wait on into the walker (after a handed-back record, the only
+ * thing that changes them; Python keeps at most mavscope.mavlink.receivers.MAX_WAITING). */
+static int sync_waiting(WalkerObject *self) {
+    ms_walker *w = &self->walker;
+    w->n_waiting = 0;
+    PyObject *keys = PyDict_Keys(self->receivers);
+    if (keys == NULL)
+        return -1;
+    Py_ssize_t n = PyList_GET_SIZE(keys);
+    if (n > 0 && ms_walker_waiting_room(w, (size_t)n) != 0) {
+        Py_DECREF(keys);
+        PyErr_NoMemory();
+        return -1;
+    }
+    for (Py_ssize_t i = 0; i < n; i++) {
+        PyObject *key = PyList_GET_ITEM(keys, i);
+        PyObject *packed = PyObject_GetAttrString(key, "packed");
+        PyObject *port = packed != NULL ? PyObject_GetAttrString(key, "port") : NULL;
+        long pv = port != NULL ? PyLong_AsLong(port) : -1;
+        int bad = port == NULL || (pv == -1 && PyErr_Occurred()) || !PyBytes_Check(packed);
+        Py_ssize_t len = bad ? 0 : PyBytes_GET_SIZE(packed);
+        if (!bad && (len == 4 || len == 16) && pv >= 0 && pv <= 65535) {
+            ms_endpoint *e = &w->waiting[w->n_waiting++];
+            memset(e, 0, sizeof *e);
+            e->v6 = len == 16;
+            memcpy(e->addr, PyBytes_AS_STRING(packed), (size_t)len);
+            e->port = (uint16_t)pv;
+        }
+        Py_XDECREF(packed);
+        Py_XDECREF(port);
+        if (bad) {
+            Py_DECREF(keys);
+            if (!PyErr_Occurred())
+                PyErr_SetString(PyExc_TypeError, "receivers' keys must be Endpoints");
+            return -1;
+        }
+    }
+    Py_DECREF(keys);
+    self->waiting_stale = 0;
+    return 0;
+}
+
 static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds) {
     static char *kwlist[] = {"signed_nokey", "limit", "into", "signing", NULL};
     int nokey = 0;
@@ -1054,6 +1112,8 @@ static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds)
     if (limit < 1)
         limit = 1;
     if (sync_signers(self) != 0)
+        return NULL;
+    if (self->waiting_stale && sync_waiting(self) != 0)
         return NULL;
     ColumnsObject *cols = (ColumnsObject *)self->columns;
     if (cols != NULL && (cols->busy || cols->cols.failed)) {
@@ -1118,6 +1178,7 @@ static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds)
         Py_DECREF(chunk);
     }
     if (r == MS_WALK_HANDBACK) {
+        self->waiting_stale = self->receivers != NULL;
         PyObject *t = handback_tuple(&rec);
         if (t == NULL || PyList_Append(list, t) != 0) {
             Py_XDECREF(t);

@@ -23,6 +23,7 @@ int ms_walker_init(ms_walker *w, ms_source src, uint64_t size, int kind, const m
 
 void ms_walker_free(ms_walker *w) {
     ms_reader_free(&w->reader);
+    free(w->waiting);
     free(w->new_signers);
     free(w->new_endpoints);
     free(w->seen);
@@ -46,6 +47,10 @@ static int grow(void **v, size_t *cap, size_t need, size_t item) {
     *v = p;
     *cap = c;
     return 0;
+}
+
+int ms_walker_waiting_room(ms_walker *w, size_t n) {
+    return grow((void **)&w->waiting, &w->cap_waiting, n, sizeof *w->waiting);
 }
 
 /* Record `e` as a source of valid MAVLink unless it was reported already. */
@@ -388,6 +393,18 @@ static int stats_record(ms_walker *w, const ms_record *rec, const uint8_t *d, si
     return count_frames(w, d, count);
 }
 
+/* Whether the datagram goes to a destination whose receivers are in a frame (w->waiting: at most a few
+ * hundred, and only while a datagram to them ended in a frame). */
+static int is_waiting(const ms_walker *w, const ms_udp *udp) {
+    const size_t alen = udp->v6 ? 16 : 4;
+    for (size_t i = 0; i < w->n_waiting; i++) {
+        const ms_endpoint *e = &w->waiting[i];
+        if (e->port == udp->dport && e->v6 == (uint8_t)udp->v6 && memcmp(e->addr, udp->dst, alen) == 0)
+            return 1;
+    }
+    return 0;
+}
+
 /* MS_WALK_FULL when the record was written (or had nothing), MS_WALK_HANDBACK, or MS_WALK_NOMEM. */
 static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
     if (rec->notes->n != 0 || w->reader.kind == MS_KIND_RAW)
@@ -413,6 +430,8 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
         d = data + udp.start;
         n = udp.len;
         is_udp = 1;
+        if (w->n_waiting != 0 && is_waiting(w, &udp))
+            return MS_WALK_HANDBACK; /* its receivers read it on with a frame the last datagram began */
     }
     if (n > UINT32_MAX)
         return MS_WALK_HANDBACK;

@@ -66,6 +66,9 @@ typedef struct {
     size_t n_new_signers, cap_new_signers;
     ms_endpoint *new_endpoints; /* sources of valid MAVLink first seen by this batch */
     size_t n_new_endpoints, cap_new_endpoints;
+    ms_endpoint *waiting;       /* UDP destinations whose receivers are in a frame where their last datagram
+                                   ended (Python's Dissector.receivers): their next datagram is handed back */
+    size_t n_waiting, cap_waiting;
     ms_endpoint *seen;          /* endpoints already reported (open addressing, `used` marks a slot) */
     uint8_t *seen_used;
     size_t nseen, capseen;
@@ -93,6 +96,8 @@ typedef struct {
 } ms_walker;
 
 int ms_walker_init(ms_walker *w, ms_source src, uint64_t size, int kind, const ms_table *table);
+/* Make room for n waiting destinations (w->waiting, w->n_waiting set by the caller): 0, or -1 (no memory). */
+int ms_walker_waiting_room(ms_walker *w, size_t n);
 void ms_walker_free(ms_walker *w);
 
 /* Walk records, appending JSON lines to `out`, until `out` holds at least `limit` bytes (MS_WALK_FULL),

@@ -247,7 +247,8 @@ def test_every_frame_the_c_library_reads_is_shown(dialect: Dialect, cparser: CPa
 
 
 @settings(max_examples=200, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
-@given(data=st.lists(datagrams(), min_size=1, max_size=3).map(b"".join), chunks=st.lists(st.integers(1, 97), min_size=1))
+@given(data=st.lists(datagrams(), min_size=1, max_size=3).map(b"".join),
+       chunks=st.lists(st.integers(1, 97), min_size=1))
 def test_a_stream_shows_what_the_c_library_reads(dialect: Dialect, cparser: CParser, data: bytes,
                                                  chunks: list[int]) -> None:
     """A raw stream, which the C library reads as one run of bytes, given whole or in pieces of any sizes

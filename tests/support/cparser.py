@@ -8,7 +8,8 @@ readers (pymavlink's Python parser, Wireshark) skip the whole frame instead, so 
 what a datagram holds. This module runs the real thing: a small program built from pymavlink's C headers
 (generator/C/include_v2.0) and a message table (CRC_EXTRA and lengths) written from pymavlink's own parse
 of the XML dialects (mavparse), with no mavscope code. Each datagram is parsed from a reset parser, as a
-receiver that takes one datagram at a time would start; what comes out is where each frame that passed
+receiver that takes one datagram at a time would start, or all of them one after another with one parser,
+as the receivers on a UDP port read them; what comes out is where each frame that passed
 (MAVLINK_FRAMING_OK) starts and its size.
 
 `c_parser()` builds the program once per test session (None when no C compiler is found: tests skip).
@@ -46,10 +47,13 @@ _MAIN = r"""
 #define MAVLINK_MESSAGE_CRCS {%s}
 #include "protocol.h"
 
-/* argv[1] "parse": mavlink_parse_char; "frame": mavlink_frame_char_buffer.
- * stdin: datagrams as (uint32 little-endian length, bytes); stdout: "datagram start size" per frame read */
+/* argv[1] "parse": mavlink_parse_char; "frame": mavlink_frame_char_buffer. argv[2] "keep": the parser
+ * goes on from one datagram to the next (a UDP port's receiver), else it starts each afresh.
+ * stdin: datagrams as (uint32 little-endian length, bytes); stdout: "datagram start size" per frame read,
+ * start below 0 for a frame that began in an earlier datagram */
 int main(int argc, char **argv) {
     const int frame = argc > 1 && strcmp(argv[1], "frame") == 0;
+    const int keep = argc > 2 && strcmp(argv[2], "keep") == 0;
     static uint8_t buf[1 << 20];
     uint8_t lenb[4];
     unsigned long n = 0;
@@ -58,8 +62,10 @@ int main(int argc, char **argv) {
                      | ((uint32_t)lenb[3] << 24);
         if (len > sizeof buf || fread(buf, 1, len, stdin) != len)
             return 2;
-        memset(mavlink_get_channel_status(0), 0, sizeof(mavlink_status_t));
-        memset(mavlink_get_channel_buffer(0), 0, sizeof(mavlink_message_t));
+        if (!keep || n == 0) {
+            memset(mavlink_get_channel_status(0), 0, sizeof(mavlink_status_t));
+            memset(mavlink_get_channel_buffer(0), 0, sizeof(mavlink_message_t));
+        }
         for (uint32_t i = 0; i < len; i++) {
             mavlink_message_t msg;
             mavlink_status_t status;
@@ -70,7 +76,7 @@ int main(int argc, char **argv) {
             if (r == MAVLINK_FRAMING_OK) {
                 unsigned size = msg.magic == MAVLINK_STX_MAVLINK1 ? 8u + msg.len
                               : 12u + msg.len + ((msg.incompat_flags & MAVLINK_IFLAG_SIGNED) ? 13u : 0u);
-                printf("%%lu %%lu %%u\n", n, (unsigned long)(i + 1 - size), size);
+                printf("%%lu %%ld %%u\n", n, (long)i + 1 - (long)size, size);
             }
         }
         n++;
@@ -110,14 +116,18 @@ class CParser:
     def __init__(self, exe: Path) -> None:
         self.exe = exe
 
-    def frames(self, datagrams: Sequence[bytes], entry: str | None = None) -> list[set[tuple[int, int]]]:
-        """For each datagram, the (start, size) of every frame the C library reads from it: through `entry`
-        ("parse": mavlink_parse_char, PX4 and QGroundControl; "frame": mavlink_frame_char_buffer, ArduPilot),
-        or through either (None)."""
+    def frames(self, datagrams: Sequence[bytes], entry: str | None = None, keep: bool = False
+               ) -> list[set[tuple[int, int]]]:
+        """For each datagram, the (start, size) of every frame the C library reads that ends in it: through
+        `entry` ("parse": mavlink_parse_char, PX4 and QGroundControl; "frame": mavlink_frame_char_buffer,
+        ArduPilot), or through either (None). With `keep` one parser reads the datagrams one after another,
+        as a UDP port's receiver does (a start below 0: the frame began in an earlier datagram); else
+        each datagram is parsed from a reset parser."""
         data = b"".join(struct.pack("<I", len(d)) + d for d in datagrams)
         found: list[set[tuple[int, int]]] = [set() for _ in datagrams]
         for e in ("parse", "frame") if entry is None else (entry,):
-            out = subprocess.run([str(self.exe), e], input=data, capture_output=True, check=True).stdout
+            out = subprocess.run([str(self.exe), e, "keep" if keep else "reset"], input=data, capture_output=True,
+                                 check=True).stdout
             for line in out.decode().splitlines():
                 n, start, size = (int(x) for x in line.split())
                 found[n].add((start, size))
