@@ -101,7 +101,22 @@ CODES: dict[str, Code] = {
         Code("unknown-linktype", _NOTE, Group.UNDECODED, _F, "link type mavscope does not decode"),
         # transport
         Code("malformed-packet", _WARN, Group.MALFORMED, _F, "link, IP, UDP or TCP header is malformed"),
-        Code("ip-fragment", _NOTE, Group.REASSEMBLY, _F, "IP fragment: not reassembled"),
+        Code("ip-fragment", _WARN, Group.REASSEMBLY, _F,
+             "IP fragments that never made a whole datagram (the receiver discards them)"),
+        Code("ip-fragment-dropped", _WARN, Group.REASSEMBLY, _F,
+             "IP fragment or datagram the receiver's kernel drops (bad length, past the end, too far apart, "
+             "too large, too many held)"),
+        Code("ip-fragment-duplicate", _CHAT, Group.REASSEMBLY, _F, "IP fragment repeating bytes already held"),
+        Code("ip-fragment-conflict", _WARN, Group.SECURITY, _B,
+             "IP fragment repeating held bytes with other bytes (the receiver keeps the first)",
+             "IP fragments that repeat bytes of their datagram with other bytes: Linux keeps the first and drops "
+             "the repeat, other IP stacks and inspection tools may keep the repeat; no sender does this by "
+             "itself: a way to show a monitor other bytes than the vehicle reads"),
+        Code("ip-fragment-overlap", _WARN, Group.SECURITY, _B,
+             "IP fragments overlapping: Linux discards the datagram, other stacks may read other bytes",
+             "IP fragments that overlap others of their datagram partly: Linux discards the datagram (RFC 5722), "
+             "other IP stacks and inspection tools may reassemble it with either fragment's bytes; no sender does "
+             "this by itself: a way to make a monitor and a vehicle read different datagrams"),
         Code("tcp-gap", _WARN, Group.REASSEMBLY, _F, "bytes missing from a TCP stream"),
         Code("tcp-retransmission", _CHAT, Group.REASSEMBLY, _F, "TCP retransmission dropped"),
         Code("tcp-suspicious-syn", _WARN, Group.SECURITY, _F,

@@ -9,7 +9,7 @@ command into an unanswered one.
 from __future__ import annotations
 
 import argparse
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import TYPE_CHECKING
 
@@ -42,10 +42,11 @@ class Pass:
     """One pass over a session's frames: every frame (anomalies reported on stderr as `read` does), each
     seen by the selection first."""
 
-    def __init__(self, session: Session, env: Env) -> None:
+    def __init__(self, session: Session, env: Env, anomaly: Callable[[Anomaly], None] | None = None) -> None:
         self.session = session
         self.env = env
         self.selection = Selection(session.display_filter)
+        self.anomaly = anomaly  # also given each anomaly
 
     def __iter__(self) -> Iterator[Frame]:
         see = self.selection.see
@@ -54,6 +55,8 @@ class Pass:
             for item in self.session.items:
                 if type(item) is Anomaly:
                     problems.anomaly(item)
+                    if self.anomaly is not None:
+                        self.anomaly(item)
                     continue
                 if item.notes:
                     problems.frame(item)

@@ -48,7 +48,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         words = read_wordlist(args.wordlist)
     audit = Audit()
     with capture_session(args, env, dialect) as session:
-        for frame in Pass(session, env):  # (damage and anomalies on stderr, as read says them)
+        for frame in Pass(session, env, audit.anomaly):  # (damage and anomalies on stderr, as read says them)
             audit.add(frame)
         frames = session.frame_count
     findings, recoveries = audit.result(words=words, qgc=args.qgc, known=known)

@@ -186,6 +186,7 @@ class _Export:
         for item in self.stage.run(items):
             if type(item) is Anomaly:
                 self.summary.anomaly(item)
+                self.analyses.anomaly(item)
                 b = self.anomalies.add(item)
                 if b is not None:
                     yield b

@@ -89,6 +89,10 @@ class Analyses:
         self.objects, self.params = ObjectTracker(), ParamTracker()
         self.objects.use_dialect(dialect)
 
+    def anomaly(self, item: Anomaly) -> None:
+        """What belongs to no frame, in capture order (the audit's IP fragment findings)."""
+        self.audit.anomaly(item)
+
     def add(self, f: Frame) -> None:
         """One frame, in capture order."""
         self.expert.add(f)
@@ -142,6 +146,8 @@ def python_source(path: str, capture_id: str, options: ExportOptions, progress: 
         for item in session.items:
             if type(item) is Anomaly:
                 summary.anomaly(item)
+                if want_findings:
+                    analyses.anomaly(item)
                 b = anomalies.add(item)
                 if b is not None:
                     yield b

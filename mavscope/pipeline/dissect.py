@@ -110,7 +110,7 @@ class Dissector:
             data = p.data
             n = len(data)
             pos = 0
-            if not p.notes and not (self.receivers and p.dst in self.receivers):
+            if not p.notes and p.span is None and not (self.receivers and p.dst in self.receivers):
                 src = p.src
                 base = p.offset
                 while pos + 12 <= n and data[pos] == STX_V2:
@@ -234,6 +234,8 @@ class Dissector:
             else:
                 frame_buf, offset = data, None if base is None else base + pos
                 pending.append(hidden_note(h, offset))
+            if span is None:  # reassembled from IP fragments: their records
+                span = p.span
             frame = build_frame(
                 frame_buf, pos, size, status, crc, messages, self._record, self._index, self._time, p.transport,
                 p.src, p.dst, offset, tuple(pending) if pending else (), span,

@@ -13,13 +13,14 @@ from collections.abc import Iterable
 
 from mavscope.mavlink.frame import EncryptionStatus, Frame, SignatureStatus
 from mavscope.notes import Finding, FrameNumbers, explanation, finding, sort_findings
+from mavscope.pipeline.dissect import Anomaly
 from mavscope.security.keystream import DAMAGED, Collector, Recovery, frames_text, keystream_audit
 from mavscope.security.passphrase import Stream, Targets, default_key_findings, passphrase_findings
 from mavscope.security.signing import NEW_STREAM_WINDOW
 
 # The notes of the security stage that the audit sums up, in the order it reports them first.
 _NOTE_CODES = ("key-leak", "hidden-frame", "unsigned-in-signed-stream", "v1-in-signed-stream", "nonce-reuse",
-               "signature-skew")
+               "signature-skew", "ip-fragment-overlap", "ip-fragment-conflict")
 RECORDS_LISTED = 10_000  # frame numbers kept per kind of verdict (all of them are counted)
 AHEAD_S = 3600.0  # a signing stream that starts this much further ahead of the capture clock than every other
 
@@ -51,6 +52,12 @@ class Audit:
     def add(self, f: Frame) -> None:
         self.add_untargeted(f)
         self.targets.add(f)
+
+    def anomaly(self, item: Anomaly) -> None:
+        """A record's notes that belong to no frame (the IP fragments that disagree, for one)."""
+        for n in item.notes:
+            if n.code in _NOTE_CODES:
+                self.by[n.code].add(item.record)
 
     def add_untargeted(self, f: Frame) -> None:
         """Everything `add` does but the signing streams' target frames (`Targets`), which a caller that

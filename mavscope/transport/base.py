@@ -32,3 +32,6 @@ class Payload(NamedTuple):
     record: int  # number of the Record these bytes arrived in
     offset: int | None  # file offset of data[0] where the bytes are contiguous in the file, else None
     notes: tuple[Note, ...] = ()  # anomalies the transport layer found (gaps, malformed headers)
+    # a datagram reassembled from IP fragments: the records of its fragments, in record order (a frame in
+    # it is shown with them all: `read -w` writes them, and the written capture reassembles it too)
+    span: tuple[int, ...] | None = None

@@ -8,7 +8,8 @@ from mavscope.capture.base import LINKTYPE_ETHERNET, LINKTYPE_MAVLINK_RAW, LINKT
 from mavscope.endpoint import Endpoint
 from mavscope.notes import Note, note
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
-from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, Endpoints, parse_ipv4, parse_ipv6
+from mavscope.transport.defrag import Defragmenter
+from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, Endpoints, FragmentInfo, parse_ipv4, parse_ipv6, walk_ipv6
 from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, strip_link
 from mavscope.transport.tcp import MAX_BUFFERED, TcpReassembler
 
@@ -38,6 +39,7 @@ class Decapsulator:
     def __init__(self, max_tcp_buffer: int = MAX_BUFFERED) -> None:
         self.endpoints = Endpoints()
         self.tcp = TcpReassembler(max_tcp_buffer)
+        self.defrag = Defragmenter()
         self._unknown_seen: set[int] = set()
         self._flows: dict[bytes, tuple[Endpoint, Endpoint]] = {}
 
@@ -55,7 +57,7 @@ class Decapsulator:
                 if names is None:
                     names = self._flow_names(flow)
                 return [_tuple_new(Payload, (TRANSPORT_UDP, names[0], names[1], data[42:34 + ulen], None,
-                                             number, offset + 42, ()))]
+                                             number, offset + 42, (), None))]
         return self._slow(rec)
 
     def _flow_names(self, flow: bytes) -> tuple[Endpoint, Endpoint]:
@@ -68,8 +70,12 @@ class Decapsulator:
         return names
 
     def flush(self) -> list[Payload]:
-        """End of capture: deliver the TCP bytes still buffered, with notes for the gaps skipped."""
-        return self.tcp.flush()
+        """End of capture: deliver the TCP bytes still buffered, with notes for the gaps skipped, and note
+        the IP datagrams whose fragments never all came."""
+        out = self.tcp.flush()
+        out.extend(Payload(TRANSPORT_UDP, None, None, b"", None, record, None, (n,))
+                   for record, n in self.defrag.flush())
+        return out
 
     def _slow(self, rec: Record) -> list[Payload]:
         number, _, linktype, data, roff, _, rnotes = rec
@@ -109,35 +115,60 @@ class Decapsulator:
         if isinstance(ip, str):
             return [], (note("malformed-packet", f"{ip} (packet byte {off})", roff + off),)
         proto, src, dst, l4, end, fragment = ip
-        if fragment is not None:
-            return [], (note("ip-fragment", f"{fragment}", roff + off),)
         v4 = et == ETHERTYPE_IPV4
+        if fragment is not None:
+            return self._fragment(fragment, proto, src, dst, data[l4:end], rec, roff + l4)
+        return self._layer4(v4, proto, src, dst, data, l4, end, number, roff + l4, None)
+
+    def _fragment(self, frag: FragmentInfo, proto: int, src: bytes, dst: bytes, data: bytes, rec: Record,
+                  offset: int) -> tuple[list[Payload], tuple[Note, ...]]:
+        """An IP fragment to the reassembler; the datagram it completes, decoded as one packet."""
+        whole, notes = self.defrag.add(frag, proto, src, dst, data, rec.number, rec.time, offset)
+        if whole is None:
+            return [], tuple(notes)
+        buf, proto, l4 = whole.data, whole.proto, 0
+        if frag.v6:  # the fragmentable part may start with extension headers before the upper layer
+            walked = walk_ipv6(buf, 0, len(buf), proto, fragments=False)
+            if isinstance(walked, str):
+                return [], (*notes, note("malformed-packet", f"reassembled from {_records(whole.records)}: {walked}",
+                                         None))
+            proto, l4, _ = walked
+        out, more = self._layer4(not frag.v6, proto, src, dst, buf, l4, len(buf), rec.number, None, whole.records)
+        return out, (*notes, *more)
+
+    def _layer4(self, v4: bool, proto: int, src: bytes, dst: bytes, data: bytes, l4: int, end: int, number: int,
+                offset: int | None, span: tuple[int, ...] | None) -> tuple[list[Payload], tuple[Note, ...]]:
+        """The UDP or TCP payload at data[l4:end] (`offset`: the file offset of data[l4], None for a datagram
+        reassembled from the fragments of the records in `span`)."""
         ep = self.endpoints
+        at = (lambda pos: None) if offset is None else (lambda pos: offset + pos - l4)  # noqa: E731
+        where = f" (reassembled from {_records(span)})" if span is not None else ""
         if proto == PROTO_UDP:
             if l4 + 8 > end:
-                return [], (note("malformed-packet", f"UDP header cut short at byte {l4}",
-                                 roff + l4),)
+                return [], (note("malformed-packet", f"UDP header cut short at byte {l4}{where}", at(l4)),)
             sport, dport, ulen = _UDP.unpack_from(data, l4)
             if ulen < 8:
                 if ulen or v4:
-                    return [], (note("malformed-packet", f"UDP length {ulen} < 8 at byte {l4}",
-                                     roff + l4),)
+                    return [], (note("malformed-packet", f"UDP length {ulen} < 8 at byte {l4}{where}", at(l4)),)
                 ulen = end - l4  # IPv6 jumbogram
             s = ep.v4_bytes(src, sport) if v4 else ep.v6(src, sport)
             d = ep.v4_bytes(dst, dport) if v4 else ep.v6(dst, dport)
             payload = data[l4 + 8:min(l4 + ulen, end)]
-            return [Payload(TRANSPORT_UDP, s, d, payload, None, number, roff + l4 + 8)], ()
+            return [Payload(TRANSPORT_UDP, s, d, payload, None, number, at(l4 + 8), (), span)], ()
         if proto == PROTO_TCP:
             if l4 + 20 > end:
-                return [], (note("malformed-packet", f"TCP header cut short at byte {l4}",
-                                 roff + l4),)
+                return [], (note("malformed-packet", f"TCP header cut short at byte {l4}{where}", at(l4)),)
             sport, dport, seq, doff, flags = _TCP.unpack_from(data, l4)
             hlen = (doff >> 4) * 4
             if hlen < 20 or l4 + hlen > end:
-                return [], (note("malformed-packet",
-                                 f"TCP header length {hlen} does not fit at byte {l4}", roff + l4),)
+                return [], (note("malformed-packet", f"TCP header length {hlen} does not fit at byte {l4}{where}",
+                                 at(l4)),)
             s = ep.v4_bytes(src, sport) if v4 else ep.v6(src, sport)
             d = ep.v4_bytes(dst, dport) if v4 else ep.v6(dst, dport)
-            pieces = self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, roff + l4 + hlen)
+            pieces = self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, at(l4 + hlen))
             return pieces, ()
         return [], ()
+
+
+def _records(records: tuple[int, ...]) -> str:
+    return f"record{'s' if len(records) > 1 else ''} {', '.join(map(str, records))}"

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import socket
 import struct
+from typing import NamedTuple
 
 from mavscope.endpoint import Endpoint
 
@@ -21,8 +22,27 @@ _IPV4 = struct.Struct("!BxHHHBBxx4s4s")  # vihl, total length, id, flags+fragmen
 _IPV6 = struct.Struct("!IHBB16s16s")  # version/class/flow, payload length, next header, hop limit, src, dst
 _FRAG6 = struct.Struct("!BxHI")
 
-# (proto, src address, dst address, L4 offset, L4 end, fragment description or None)
-IpResult = tuple[int, bytes, bytes, int, int, str | None]
+
+
+class FragmentInfo(NamedTuple):
+    """Where an IP fragment's bytes go in its datagram (mavscope.transport.defrag reassembles them)."""
+
+    v6: bool
+    ident: int  # the Identification field (16 bits in IPv4, 32 in IPv6)
+    offset: int  # in bytes
+    more: bool  # the MF / M flag: fragments follow
+    header_len: int  # IPv4: the header's length (with options); IPv6: the extension headers before it
+    length: int  # the fragment's bytes as its header counts them (more than were captured in a snapped record)
+
+    def describe(self) -> str:
+        more = " (more follow)" if self.more else ""
+        return f"IPv{6 if self.v6 else 4} fragment id {self.ident} at offset {self.offset}{more}"
+
+
+# (proto, src address, dst address, L4 offset, L4 end, fragment or None). For a fragment, proto is the
+# protocol of the datagram it belongs to and the bytes from the L4 offset to the end are the fragment's
+# (in IPv6, those after the Fragment header: the upper-layer header is in the first fragment only).
+IpResult = tuple[int, bytes, bytes, int, int, FragmentInfo | None]
 
 
 def parse_ipv4(data: bytes, off: int) -> IpResult | str:
@@ -50,13 +70,15 @@ def parse_ipv4(data: bytes, off: int) -> IpResult | str:
         end = min(off + total, n)
     fragment = None
     if frag & 0x3FFF:
-        more = " (more follow)" if frag & 0x2000 else ""
-        fragment = f"IPv4 fragment id {ident} at offset {(frag & 0x1FFF) * 8}{more}"
+        fragment = FragmentInfo(False, ident, (frag & 0x1FFF) * 8, bool(frag & 0x2000), ihl,
+                                (total or n - off) - ihl)
     return proto, src, dst, off + ihl, end, fragment
 
 
 def parse_ipv6(data: bytes, off: int) -> IpResult | str:
-    """Decode an IPv6 header at `off` and walk its extension headers to the upper-layer header."""
+    """Decode an IPv6 header at `off` and walk its extension headers to the upper-layer header, or to a
+    Fragment header that makes the packet a fragment (an atomic one, offset 0 and no more, is walked past:
+    RFC 8200 and Linux take it as a whole datagram)."""
     n = len(data)
     if off + 40 > n:
         return f"IPv6 header cut short: {n - off} of 40 bytes"
@@ -64,8 +86,21 @@ def parse_ipv6(data: bytes, off: int) -> IpResult | str:
     if vcf >> 28 != 6:
         return f"IPv6 header with version {vcf >> 28}"
     end = min(off + 40 + plen, n) if plen else n  # 0: jumbogram (hop-by-hop option) or offload
-    p = off + 40
-    fragment = None
+    walked = walk_ipv6(data, off + 40, end, nxt)
+    if isinstance(walked, str):
+        return walked
+    nxt, p, fragment = walked
+    if fragment is not None:
+        fragment = fragment._replace(length=(off + 40 + plen if plen else n) - p)
+    return nxt, src, dst, p, end, fragment
+
+
+def walk_ipv6(data: bytes, p: int, end: int, nxt: int,
+              fragments: bool = True) -> tuple[int, int, FragmentInfo | None] | str:
+    """Walk IPv6 extension headers from `p` (the first of type `nxt`) to the upper-layer header: (its
+    type, its offset, None), or (the type after a Fragment header, the offset after it, the fragment).
+    Without `fragments` (a reassembled datagram's fragmentable part) a Fragment header is an error."""
+    first = p
     for _ in range(MAX_EXT_HEADERS):
         if nxt in _EXT_SKIPPABLE:
             if p + 8 > end:
@@ -73,21 +108,22 @@ def parse_ipv6(data: bytes, off: int) -> IpResult | str:
             nxt, hlen = data[p], (data[p + 1] + 1) * 8
             p += hlen
         elif nxt == EXT_FRAGMENT:
+            if not fragments:
+                return f"IPv6 fragment header inside a reassembled datagram at byte {p}"
             if p + 8 > end:
                 return f"IPv6 fragment header cut short at byte {p}"
             nxt2, offm, ident = _FRAG6.unpack_from(data, p)
-            if offm & 0xFFF9:
-                more = " (more follow)" if offm & 1 else ""
-                fragment = f"IPv6 fragment id {ident} at offset {offm & 0xFFF8}{more}"
-            nxt = nxt2
             p += 8
+            if offm & 0xFFF9:
+                return nxt2, p, FragmentInfo(True, ident, offm & 0xFFF8, bool(offm & 1), p - 8 - first, end - p)
+            nxt = nxt2
         else:
             break
     else:
         return f"more than {MAX_EXT_HEADERS} IPv6 extension headers"
     if p > end:
         return f"IPv6 extension headers run past the packet end at byte {end}"
-    return nxt, src, dst, p, end, fragment
+    return nxt, p, None
 
 
 class Endpoints:

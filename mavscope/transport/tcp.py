@@ -124,7 +124,7 @@ class TcpReassembler:
             start = d.unwrap(seq)
             if start == d.next and not d.pending:  # the common case: the next bytes, nothing buffered
                 d.next = start + len(data)
-                out.append(_tuple_new(Payload, (TRANSPORT_TCP, src, dst, data, d.key, record, offset, ())))
+                out.append(_tuple_new(Payload, (TRANSPORT_TCP, src, dst, data, d.key, record, offset, (), None)))
             else:
                 self._add(d, start, data, record, offset, out)
         if flags & (TCP_FIN | TCP_RST):
@@ -278,7 +278,7 @@ class TcpReassembler:
         if end <= d.next:
             msg = f"TCP retransmission of {len(data)} bytes already delivered"
             out.append(_tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, b"", d.key, record, offset,
-                                            (note("tcp-retransmission", msg, offset),))))
+                                            (note("tcp-retransmission", msg, offset),), None)))
             return
         d.counter += 1
         if not d.pending:
@@ -315,7 +315,7 @@ class TcpReassembler:
             if end <= d.next:
                 msg = f"TCP retransmission of {len(data)} bytes already delivered"
                 out.append(_tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, b"", d.key, record, offset,
-                                                notes + (note("tcp-retransmission", msg, offset),))))
+                                                notes + (note("tcp-retransmission", msg, offset),), None)))
                 continue
             if start < d.next:
                 cut = d.next - start
@@ -325,4 +325,4 @@ class TcpReassembler:
                 if offset is not None:
                     offset += cut
             d.next = end
-            out.append(_tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, data, d.key, record, offset, notes)))
+            out.append(_tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, data, d.key, record, offset, notes, None)))

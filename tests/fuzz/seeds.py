@@ -46,6 +46,38 @@ def export_seeds() -> list[bytes]:
     return [bytes([i % 16]) + p.read_bytes()[:6000] for i, p in enumerate(paths)]
 
 
+def fragment_seed() -> bytes:
+    """A pcap of IP fragments (mavscope.transport.defrag): a UDP datagram of two HEARTBEATs in three IPv4
+    fragments sent last to first, then fragments that overlap, and an IPv6 datagram in two fragments."""
+    from mavscope.capture.base import LINKTYPE_ETHERNET
+    from mavscope.capture.writer import PcapWriter
+
+    hb = b"\xfd\x09\x00\x00\x00\x01\x01\x00\x00\x00" + bytes(9) + b"\x00\x00"
+    dgram = struct.pack("!HHHH", 14550, 14555, 8 + 2 * len(hb), 0) + hb * 2
+    eth = b"\x02\x00\x00\x00\x00\x01\x02\x00\x00\x00\x00\x02"
+
+    def v4(ident: int, off: int, more: bool, data: bytes) -> bytes:
+        return eth + b"\x08\x00" + struct.pack("!BBHHHBBH4s4s", 0x45, 0, 20 + len(data), ident,
+                                              (0x2000 if more else 0) | off // 8, 64, 17, 0, b"\x0a\0\0\x02",
+                                              b"\x0a\0\0\x01") + data
+
+    def v6(ident: int, off: int, more: bool, data: bytes) -> bytes:
+        return eth + b"\x86\xdd" + struct.pack("!IHBB16s16s", 6 << 28, 8 + len(data), 44, 64, bytes(15) + b"\x02",
+                                              bytes(15) + b"\x01") + struct.pack("!BxHI", 17, off | more, ident) + data
+
+    packets = [v4(1, 32, False, dgram[32:]), v4(1, 16, True, dgram[16:32]), v4(1, 0, True, dgram[:16]),
+               v4(2, 16, True, dgram[16:32]), v4(2, 0, True, dgram[:16]), v4(2, 8, True, dgram[8:24]),
+               v6(3, 0, True, dgram[:24]), v6(3, 24, False, dgram[24:])]
+    path = ROOT / ".cache" / "fuzz" / "fragments.tmp"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with PcapWriter(path, LINKTYPE_ETHERNET) as w:
+        for i, pkt in enumerate(packets):
+            w.write(1.0 + i / 100, pkt)
+    data = path.read_bytes()
+    path.unlink()
+    return data
+
+
 def write(corpus: Path) -> None:
     """Fill corpus/<target>/ with the seeds of each target."""
     cap = corpus / "capture"
@@ -53,6 +85,7 @@ def write(corpus: Path) -> None:
     for p in (ROOT / "captures").iterdir():
         if p.suffix in (".pcap", ".pcapng", ".tlog", ".raw"):
             shutil.copyfile(p, cap / p.name)
+    (cap / "ip_fragments.pcap").write_bytes(fragment_seed())
     for target, seeds in (("filter", [f.encode() for f in FILTERS]), ("keys", [k.encode() for k in KEY_SPECS]),
                           ("tcp", tcp_seeds()), ("analyses", analyses_seeds()),
                           ("export", export_seeds())):

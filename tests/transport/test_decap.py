@@ -101,15 +101,21 @@ def test_ipv6_extension_headers() -> None:
     assert p.data == MAV and str(p.src) == "[::1]:5"
 
 
-def test_fragments_are_noted() -> None:
+def test_lone_fragments_are_held_then_noted() -> None:
+    """A fragment is held for reassembly (mavscope.transport.defrag, tested in test_defrag.py); one whose
+    datagram never completes is noted at the end of the capture, on its record, naming the datagram."""
     d = Decapsulator()
     frag4 = IP(src="1.1.1.1", dst="2.2.2.2", flags="MF", id=77) / UDP(sport=1, dport=2) / MAV
-    p = one(d.feed(rec(Ether() / frag4)))
-    assert p.data == b"" and p.notes[0].code == "ip-fragment" and "77" in p.notes[0].message
-    later = IP(src="1.1.1.1", dst="2.2.2.2", frag=3, id=77, proto=17) / MAV
-    assert one(d.feed(rec(Ether() / later))).notes[0].code == "ip-fragment"
-    frag6 = IPv6(src="::1", dst="::2") / IPv6ExtHdrFragment(m=1, id=9) / UDP(sport=1, dport=2) / MAV
-    assert one(d.feed(rec(Ether() / frag6))).notes[0].code == "ip-fragment"
+    assert d.feed(rec(Ether() / frag4, number=1)) == []
+    later = IP(src="1.1.1.1", dst="2.2.2.2", frag=5, id=77, proto=17) / MAV  # bytes 24-39 never come
+    assert d.feed(rec(Ether() / later, number=2)) == []
+    frag6 = IPv6(src="::1", dst="::2") / IPv6ExtHdrFragment(m=1, id=9) / UDP(sport=1, dport=2) / (MAV + bytes(3))
+    assert d.feed(rec(Ether() / frag6, number=3)) == []
+    left = d.flush()
+    assert [(p.record, p.data, [n.code for n in p.notes]) for p in left] == [
+        (2, b"", ["ip-fragment"]), (3, b"", ["ip-fragment"])]
+    assert "IPv4 datagram id 77 from 1.1.1.1 to 2.2.2.2, fragments in records 1, 2" in left[0].notes[0].message
+    assert "IPv6 datagram id 9 from ::1 to ::2, fragments in record 3" in left[1].notes[0].message
 
 
 def test_malformed_headers_become_notes() -> None:
