@@ -19,8 +19,8 @@ net/ipv6/reassembly.c, net/ipv4/inet_fragment.c):
 - a datagram longer than 65,535 bytes is discarded;
 - a datagram not complete 30 s (IPv4) or 60 s (IPv6) after its first fragment is discarded, and so
   is one whose source sent more than 64 other IPv4 fragments between two of its fragments
-  (ipfrag_max_dist); no new datagram is started while the fragments held pass 4 MiB (each counted
-  with an overhead, as Linux counts its buffers: at most some 5,000 fragments are held).
+  (ipfrag_max_dist); while the fragments held pass 4 MiB (each counted with an overhead, as Linux
+  counts its buffers: at most some 5,000 fragments are held) every fragment is dropped.
 
 What the receiver drops is noted on the record that made it drop it (the registry's `ip-fragment*`
 codes), naming the records of the fragments: nothing vanishes and nothing is read that the receiver
@@ -121,6 +121,11 @@ class Defragmenter:
         notes: list[Note] = []
         if time is not None:
             self._expire(time, notes, offset)
+        if self.held > self.max_held:
+            notes.append(note("ip-fragment-dropped", f"{frag.describe()}: more than {self.max_held:,} bytes of "
+                              "fragments are held for reassembly, so the receiver drops every fragment until its "
+                              "timer discards some datagrams (Linux's ipfrag_high_thresh)", offset))
+            return None, notes
         key: Key = (frag.v6, src, dst, 0 if frag.v6 else proto, frag.ident)
         d = self.pending.get(key)
         if len(data) < frag.length:  # a snapped record: the receiver had bytes the capture does not
@@ -143,11 +148,6 @@ class Defragmenter:
                        "receiver starts it over at this fragment", offset)
             d = None
         if d is None:
-            if self.held > self.max_held:
-                notes.append(note("ip-fragment-dropped", f"{frag.describe()}: more than {self.max_held:,} bytes "
-                                  "of fragments are held for reassembly, so the receiver starts no new datagram "
-                                  "until some complete or expire (Linux's ipfrag_high_thresh)", offset))
-                return None, notes
             d = self.pending[key] = _Datagram(key, proto, time)
         d.dist = dist
         d.took(record)

@@ -18,6 +18,8 @@ import struct
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from pymavlink.dialects.v20 import common as mavlink
 from scapy.layers.inet import IP, UDP, fragment
 from scapy.layers.inet6 import IPv6, IPv6ExtHdrFragment, fragment6
@@ -38,7 +40,7 @@ GCS, VEHICLE = "10.0.0.2", "10.0.0.1"
 
 
 def frames_bytes() -> bytes:
-    """A HEARTBEAT, an ARM COMMAND_LONG, a HEARTBEAT and a disarm, as pymavlink packs them (120 bytes)."""
+    """A HEARTBEAT, an ARM COMMAND_LONG, a HEARTBEAT and a disarm, as pymavlink packs them."""
     gcs = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
     out = b""
     for arm in (1, 0):
@@ -252,15 +254,19 @@ def test_too_many_fragments_from_the_source_in_between(others: int) -> None:
         assert not whole and "ipfrag_max_dist" in out[0].notes[0].message and out[0].record == 2 + others
 
 
-def test_no_new_datagram_while_the_fragments_held_are_over_the_limit() -> None:
-    """ipfrag_high_thresh: over it, fragments of a new datagram are dropped; those of a datagram held
-    still complete it."""
+def test_every_fragment_is_dropped_while_the_fragments_held_are_over_the_limit() -> None:
+    """ipfrag_high_thresh: over it, inet_frag_find finds no datagram at all, so every fragment is dropped,
+    a datagram's own last one too, until the timer discards datagrams (30 s) and frees the hold."""
     d = Decapsulator()
     d.defrag = Defragmenter(max_held=1500)  # two fragments of 16 bytes and their overhead pass it
-    got = [d.feed(record(n, raw4(0, HEAD + A[8:], True, ident=n))) for n in (1, 2, 3)]
+    got = [d.feed(record(n, raw4(0, HEAD + A[8:], True, ident=n), 0.0)) for n in (1, 2, 3)]
     assert got[:2] == [[], []] and [n.code for n in got[2][0].notes] == ["ip-fragment-dropped"]
-    done = d.feed(record(4, raw4(16, B + LAST, False, ident=1)))
-    assert done[0].data == A[8:] + B + LAST and done[0].span == (1, 4)
+    late = d.feed(record(4, raw4(16, B + LAST, False, ident=1), 1.0))
+    assert [n.code for n in late[0].notes] == ["ip-fragment-dropped"] and not late[0].data
+    after = d.feed(record(5, raw4(0, HEAD + A[8:], True, ident=9), 31.0)) + d.feed(record(6, raw4(
+        16, B + LAST, False, ident=9), 31.0))
+    assert [n.code for p in after for n in p.notes] == ["ip-fragment", "ip-fragment"]  # the two expired
+    assert after[-1].data == A[8:] + B + LAST and after[-1].span == (5, 6)
 
 
 def test_a_datagram_over_65535_bytes_is_discarded() -> None:
@@ -329,3 +335,64 @@ def test_fragments_that_disagree_are_security_findings(cli, tmp_path: Path) -> N
         rows = [b.to_pylist() for b in record_batches(pcap, options)]
         assert sorted((r["code"], r["frames"]) for batch in rows for r in batch) == [
             ("ip-fragment-conflict", [6]), ("ip-fragment-overlap", [3])], source
+
+
+@settings(max_examples=150, deadline=None, derandomize=True)
+@given(st.data())
+def test_any_cut_in_any_order_with_repeats_gives_the_datagram(data: st.DataObject) -> None:
+    """Property: a datagram cut anywhere on 8-byte bounds, its fragments sent in any order, some sent twice
+    (same bytes) before the last, is the datagram again at the last record, with a chat note per repeat;
+    without one of its fragments it never is, and one `ip-fragment` note says so at the end. The expected
+    bytes are the datagram's own."""
+    v6 = data.draw(st.booleans(), "v6")
+    whole = HEAD[:4] + struct.pack("!H", 8 + len(frames_bytes())) + HEAD[6:] + frames_bytes()
+    cuts = sorted(data.draw(st.sets(st.integers(1, (len(whole) - 1) // 8), min_size=1, max_size=12), "cuts"))
+    bounds = [0, *(c * 8 for c in cuts), len(whole)]
+    pieces = [(a, whole[a:b], b == len(whole)) for a, b in zip(bounds, bounds[1:])]
+    order = data.draw(st.permutations(range(len(pieces))), "order")
+    repeats = data.draw(st.lists(st.sampled_from(range(len(pieces))), max_size=4), "repeats")
+    drop = data.draw(st.none() | st.sampled_from(range(len(pieces))), "drop")
+    sent = [i for i in order if i != drop]
+    dups = 0
+    for r in repeats:  # a repeat goes after its first sending and before the piece sent last
+        if r != drop and r != sent[-1]:
+            sent.insert(data.draw(st.integers(sent.index(r) + 1, len(sent) - 1), "at"), r)
+            dups += 1
+    make = raw6 if v6 else raw4
+    records = [record(n, make(pieces[i][0], pieces[i][1], not pieces[i][2])) for n, i in enumerate(sent, 1)]
+    out = run(records)
+    datagrams = [p for p in out if p.data]
+    assert all(n.code in ("ip-fragment-duplicate", "ip-fragment") for p in out for n in p.notes)
+    if drop is not None:
+        assert not datagrams and [p.notes[-1].code for p in out if p.notes][-1:] == ["ip-fragment"]
+        return
+    assert len(datagrams) == 1 and datagrams[0].data == whole[8:] and datagrams[0].record == len(sent)
+    assert sum(n.code == "ip-fragment-duplicate" for p in out for n in p.notes) == dups
+
+
+def fast4(ident: int, off: int, more: bool, data: bytes) -> bytes:
+    """An IPv4 fragment, packed by hand (the hypothesis test below builds thousands)."""
+    flags = (0x2000 if more else 0) | off // 8
+    return bytes(12) + b"\x08\x00" + struct.pack("!BBHHHBBH4s4s", 0x45, 0, 20 + len(data), ident, flags, 64, 17, 0,
+                                                bytes(4), bytes(4)) + data
+
+
+def fast6(ident: int, off: int, more: bool, data: bytes) -> bytes:
+    return bytes(12) + b"\x86\xdd" + struct.pack("!IHBB16s16s", 6 << 28, 8 + len(data), 44, 64, bytes(16),
+                                                bytes(16)) + struct.pack("!BxHI", 17, off | more, ident) + data
+
+
+@settings(max_examples=150, deadline=None, derandomize=True)
+@given(st.lists(st.tuples(st.integers(0, 3), st.integers(0, 40), st.integers(0, 24), st.booleans(), st.booleans(),
+                          st.floats(0, 100)), max_size=60))
+def test_hostile_fragments_never_raise_and_stay_within_the_hold(frags: list[tuple[int, int, int, bool, bool,
+                                                                                   float]]) -> None:
+    """Any mix of fragments (4 datagrams, offsets 0-320, lengths 0-24, both versions, times out of order):
+    no exception, and the bytes held never pass the limit by more than one fragment."""
+    d = Decapsulator()
+    d.defrag = Defragmenter(max_held=4000)
+    for n, (ident, off, size, more, v6, t) in enumerate(frags, 1):
+        d.feed(record(n, (fast6 if v6 else fast4)(ident, off * 8, more, bytes(range(size))), t))
+        assert d.defrag.held <= 4000 + 24 + 768
+    d.flush()
+    assert d.defrag.held == 0 and not d.defrag.pending
