@@ -119,6 +119,11 @@ CODES: dict[str, Code] = {
              "this by itself: a way to make a monitor and a vehicle read different datagrams"),
         Code("tcp-gap", _WARN, Group.REASSEMBLY, _F, "bytes missing from a TCP stream"),
         Code("tcp-retransmission", _CHAT, Group.REASSEMBLY, _F, "TCP retransmission dropped"),
+        Code("tcp-conflict", _WARN, Group.SECURITY, _B,
+             "TCP retransmission of delivered bytes with other bytes (the receiver keeps the first)",
+             "TCP retransmissions that repeat bytes already delivered with other bytes: the receiving host keeps "
+             "what it read first, a monitor that takes the retransmission sees other bytes; no TCP stack does "
+             "this by itself: a way to show a monitor another stream than the vehicle reads"),
         Code("tcp-suspicious-syn", _WARN, Group.SECURITY, _F,
              "SYN with a new sequence number in an established TCP stream"),
         # framing

@@ -34,6 +34,7 @@ MAX_BUFFERED = 1 << 20  # out-of-order bytes held per direction before the missi
 MAX_TOTAL_BUFFERED = 32 << 20  # ... and over all directions, counting SEGMENT_COST per buffered segment
 SEGMENT_COST = 200  # bytes a buffered segment costs beyond its data (its tuple, bytes header, heap slot)
 MAX_DIRECTIONS = 1 << 16  # directions (of any generation) tracked at once; about 0.5 KB each
+TAIL = 512  # bytes last delivered per direction that a retransmission is compared with (tcp-conflict)
 GENERATIONS = 2  # generations kept per direction of a 4-tuple: the established one and a newer one
 IDLE_RECORDS = 1_000_000  # a direction without a segment for this many records is released
 ENDED_KEPT = 1 << 16  # ended stream keys kept for pop_ended() (older ones are forgotten)
@@ -48,7 +49,7 @@ class _Direction:
     """Reassembly state of one generation of one direction of one connection."""
 
     __slots__ = ("src", "dst", "isn", "next", "gen", "key", "pending", "buffered", "counter", "syn", "data",
-                 "closed", "last")
+                 "closed", "last", "tail")
 
     def __init__(self, src: Endpoint, dst: Endpoint, isn: int, nxt: int, gen: int, syn: bool, record: int) -> None:
         self.src = src
@@ -65,6 +66,29 @@ class _Direction:
         self.data = False  # carried data: established
         self.closed = False  # a FIN or RST with a plausible sequence number was seen
         self.last = record  # the record of its latest segment
+        self.tail = b""  # the last TAIL bytes delivered: stream positions [next - len(tail), next)
+
+    def deliver(self, data: bytes) -> None:
+        """`data` goes out in order after the bytes delivered so far."""
+        self.next += len(data)
+        self.tail = data[-TAIL:] if len(data) >= TAIL else (self.tail + data)[-TAIL:]
+
+    def retransmitted(self, start: int, data: bytes, offset: int | None) -> Note:
+        """The note on bytes at `start` that were delivered already: a conflict when they differ from what
+        was delivered there (the part still in `tail` is compared), a chat note when they do not."""
+        lo = max(start, self.next - len(self.tail))
+        hi = min(start + len(data), self.next)
+        old = self.tail[lo - (self.next - len(self.tail)):hi - (self.next - len(self.tail))] if lo < hi else b""
+        new = data[lo - start:hi - start] if lo < hi else b""
+        n = min(start + len(data), self.next) - start
+        if old != new:
+            at = next(i for i in range(len(old)) if old[i] != new[i])
+            return note("tcp-conflict", f"TCP retransmission of {n} bytes already delivered, with other bytes (from "
+                        f"its byte {lo - start + at}): the receiver keeps what it read first; a reader that takes "
+                        "the retransmission sees other bytes", offset)
+        older = n - max(hi - lo, 0)
+        unchecked = f", {older} of them older than the last {TAIL} delivered (unchecked)" if older else ""
+        return note("tcp-retransmission", f"TCP retransmission of {n} bytes already delivered{unchecked}", offset)
 
     def unwrap(self, seq: int) -> int:
         """The unwrapped position of 32-bit sequence number `seq`, taken as the one nearest `next`."""
@@ -123,7 +147,7 @@ class TcpReassembler:
             d.data = True
             start = d.unwrap(seq)
             if start == d.next and not d.pending:  # the common case: the next bytes, nothing buffered
-                d.next = start + len(data)
+                d.deliver(data)
                 out.append(_tuple_new(Payload, (TRANSPORT_TCP, src, dst, data, d.key, record, offset, (), None)))
             else:
                 self._add(d, start, data, record, offset, out)
@@ -276,9 +300,8 @@ class TcpReassembler:
         """Deliver or buffer a segment that is not simply the next in order."""
         end = start + len(data)
         if end <= d.next:
-            msg = f"TCP retransmission of {len(data)} bytes already delivered"
             out.append(_tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, b"", d.key, record, offset,
-                                            (note("tcp-retransmission", msg, offset),), None)))
+                                            (d.retransmitted(start, data, offset),), None)))
             return
         d.counter += 1
         if not d.pending:
@@ -305,7 +328,7 @@ class TcpReassembler:
                 because = f" (given up: {why})" if why else ""
                 notes = (note("tcp-gap", f"{missing} bytes missing from the TCP stream {d.src} -> {d.dst}{because}",
                               offset),)
-                d.next = start
+                d.next, d.tail = start, b""
             heapq.heappop(pending)
             d.buffered -= len(data)
             self.total -= len(data) + SEGMENT_COST
@@ -313,16 +336,14 @@ class TcpReassembler:
                 del self._buffering[d.key]
             end = start + len(data)
             if end <= d.next:
-                msg = f"TCP retransmission of {len(data)} bytes already delivered"
                 out.append(_tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, b"", d.key, record, offset,
-                                                notes + (note("tcp-retransmission", msg, offset),), None)))
+                                                notes + (d.retransmitted(start, data, offset),), None)))
                 continue
             if start < d.next:
                 cut = d.next - start
-                msg = f"TCP retransmission: {cut} overlapping bytes trimmed"
-                notes += (note("tcp-retransmission", msg, offset),)
+                notes += (d.retransmitted(start, data, offset),)
                 data = data[cut:]
                 if offset is not None:
                     offset += cut
-            d.next = end
+            d.deliver(data)
             out.append(_tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, data, d.key, record, offset, notes, None)))

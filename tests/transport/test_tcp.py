@@ -55,6 +55,32 @@ def test_partial_overlap_is_trimmed_and_offset_moves() -> None:
     assert stream(more) == b"ghij" and more[0].offset == 502 and codes(more) == ["tcp-retransmission"]
 
 
+def test_a_retransmission_with_other_bytes_is_a_conflict() -> None:
+    """A receiving TCP (Linux's tcp_data_queue) drops bytes it has delivered: what it read first stays. A
+    retransmission carrying other bytes there is a `tcp-conflict` (a monitor taking the retransmission reads
+    another stream), whole or overlapping, and is compared over the last TAIL bytes delivered (by hand: the
+    segments below differ from what was delivered at the byte named)."""
+    r = TcpReassembler()
+    feed(r, 0, b"abcdef")
+    again = feed(r, 0, b"abcXef", record=2)
+    assert stream(again) == b"" and codes(again) == ["tcp-conflict"] and "from its byte 3" in again[0].notes[0].message
+    more = feed(r, 4, b"eFghij", record=3, offset=500)
+    assert stream(more) == b"ghij" and codes(more) == ["tcp-conflict"] and "from its byte 1" in more[0].notes[0].message
+    same = feed(r, 2, b"cdefgh", record=4)
+    assert codes(same) == ["tcp-retransmission"]
+    late = feed(r, 100, b"later", record=5) + feed(r, 10, b"k" * 90, record=6)  # out of order, then in order
+    assert stream(late) == b"k" * 90 + b"later" and not codes(late)
+    assert codes(feed(r, 10, b"k" * 89 + b"!", record=7)) == ["tcp-conflict"]
+
+
+def test_bytes_older_than_the_tail_are_not_compared() -> None:
+    r = TcpReassembler()
+    feed(r, 0, b"x" * 2000)
+    old = feed(r, 0, b"y" * 100, record=2)
+    assert codes(old) == ["tcp-retransmission"] and "100 of them older than the last 512" in old[0].notes[0].message
+    assert codes(feed(r, 1000, b"x" * 999 + b"y", record=3)) == ["tcp-conflict"]
+
+
 def test_gap_skipped_on_flush_with_byte_count() -> None:
     r = TcpReassembler()
     out = feed(r, 0, b"abc") + feed(r, 10, b"xyz")
@@ -130,3 +156,35 @@ def test_real_udp_capture(real_captures: Path) -> None:
     mav.robust_parsing = True
     frames = [m for p in payloads for m in mav.parse_buffer(p.data) or [] if not isinstance(m, mavall.MAVLink_bad_data)]
     assert len(frames) == 10
+
+
+def test_a_conflicting_retransmission_is_an_audit_finding(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """An ARM over TCP, then a 'retransmission' of its bytes carrying a disarm: the stream keeps the ARM
+    (pymavlink's packing of it, parsed back by pymavlink), the retransmission is a tcp-conflict, and `audit`
+    reports it (exit 1)."""
+    from pymavlink.dialects.v20 import common as mavlink
+    from scapy.layers.inet import IP, TCP
+    from scapy.layers.l2 import Ether
+    from scapy.utils import wrpcap
+
+    gcs = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    arm = gcs.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0).pack(gcs)
+    gcs.seq = 0
+    disarm = gcs.command_long_encode(1, 1, 400, 0, 0, 0, 0, 0, 0, 0, 0).pack(gcs)
+    assert len(arm) != len(disarm) or arm != disarm
+    mac = {"src": "02:00:00:00:00:02", "dst": "02:00:00:00:00:01"}
+    ip = IP(src="10.0.0.2", dst="10.0.0.1")
+    pkts = [Ether(**mac) / ip / TCP(sport=40000, dport=5760, flags="S", seq=999),
+            Ether(**mac) / ip / TCP(sport=40000, dport=5760, flags="PA", seq=1000) / arm,
+            Ether(**mac) / ip / TCP(sport=40000, dport=5760, flags="PA", seq=1000) / disarm]
+    pcap = tmp_path / "tcp_conflict.pcap"
+    wrpcap(str(pcap), pkts)
+    frames = cli.jsonl(pcap)
+    m = mavlink.MAVLink(None)
+    assert [(f["msgid"], f["fields"]["param1"]) for f in frames] == [
+        (x.get_msgId(), x.param1) for x in m.parse_buffer(arm)] == [(76, 1.0)]
+    status, out, err = cli("audit", pcap, "--json")
+    import json
+
+    assert status == 1 and [(f["code"], f["frames"]) for f in json.loads(out)["findings"]] == [("tcp-conflict", [3])]
+    assert "with other bytes" in err
