@@ -99,6 +99,10 @@ CODES: dict[str, Code] = {
              "record time before 1970 or after 9999 (as the file states it): reports show it as seconds"),
         Code("capture-garbage", _WARN, Group.CAPTURE, _F, "unparseable bytes in the capture file were skipped"),
         Code("unknown-linktype", _NOTE, Group.UNDECODED, _F, "link type mavscope does not decode"),
+        Code("wifi-undecoded", _NOTE, Group.UNDECODED, _F,
+             "802.11 data frame not decoded: encrypted (WPA2/WPA3), an 802.11 fragment or an A-MSDU"),
+        Code("wifi-bad-fcs", _NOTE, Group.CHECKSUM, _F,
+             "802.11 frame that failed its FCS check (the radio dropped it): not dissected"),
         # transport
         Code("malformed-packet", _WARN, Group.MALFORMED, _F, "link, IP, UDP or TCP header is malformed"),
         Code("ip-fragment", _WARN, Group.REASSEMBLY, _F,

@@ -14,7 +14,9 @@ from mavscope.notes import Note
 LINKTYPE_NULL = 0  # BSD loopback: 4-byte address family in host byte order
 LINKTYPE_ETHERNET = 1
 LINKTYPE_RAW = 101  # raw IPv4 or IPv6
+LINKTYPE_IEEE802_11 = 105  # 802.11 frames (a monitor-mode capture without a radio header)
 LINKTYPE_LOOP = 108  # OpenBSD loopback: 4-byte address family in network byte order
+LINKTYPE_IEEE802_11_RADIOTAP = 127  # 802.11 frames behind a radiotap header (monitor mode)
 LINKTYPE_LINUX_SLL = 113
 LINKTYPE_IPV4 = 228
 LINKTYPE_IPV6 = 229

@@ -10,7 +10,7 @@ from mavscope.notes import Note, note
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
 from mavscope.transport.defrag import Defragmenter
 from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, Endpoints, FragmentInfo, parse_ipv4, parse_ipv6, walk_ipv6
-from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, strip_link
+from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, Undecoded, strip_link
 from mavscope.transport.tcp import MAX_BUFFERED, TcpReassembler
 
 RAW_STREAM = (TRANSPORT_RAW,)  # the stream key of a raw byte-stream capture
@@ -105,6 +105,8 @@ class Decapsulator:
             return [], (note("unknown-linktype", f"link type {linktype} is not decoded", roff),)
         if isinstance(link, str):
             return [], (note("malformed-packet", f"{link}", roff),)
+        if isinstance(link, Undecoded):
+            return [], (note(link.code, link.message, roff),)
         et, off = link
         if et == ETHERTYPE_IPV4:
             ip = parse_ipv4(data, off)

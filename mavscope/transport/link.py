@@ -6,6 +6,8 @@ import struct
 
 from mavscope.capture.base import (
     LINKTYPE_ETHERNET,
+    LINKTYPE_IEEE802_11,
+    LINKTYPE_IEEE802_11_RADIOTAP,
     LINKTYPE_IPV4,
     LINKTYPE_IPV6,
     LINKTYPE_LINUX_SLL,
@@ -14,6 +16,7 @@ from mavscope.capture.base import (
     LINKTYPE_NULL,
     LINKTYPE_RAW,
 )
+from mavscope.transport.wifi import Undecoded, strip_80211, strip_radiotap
 
 ETHERTYPE_IPV4 = 0x0800
 ETHERTYPE_IPV6 = 0x86DD
@@ -30,7 +33,7 @@ _U16 = struct.Struct("!H").unpack_from
 _U32LE = struct.Struct("<I").unpack_from
 _U32BE = struct.Struct(">I").unpack_from
 
-LinkResult = tuple[int, int] | str | None
+LinkResult = tuple[int, int] | str | Undecoded | None
 
 
 def _family(af: int) -> int:
@@ -96,4 +99,8 @@ def strip_link(linktype: int, data: bytes) -> LinkResult:
         if n < 20:
             return f"Linux cooked v2 header needs 20 bytes, packet has {n}"
         return (_U16(data, 0)[0], 20)
+    if linktype == LINKTYPE_IEEE802_11_RADIOTAP:
+        return strip_radiotap(data)
+    if linktype == LINKTYPE_IEEE802_11:
+        return strip_80211(data)
     return None

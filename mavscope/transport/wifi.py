@@ -1,0 +1,103 @@
+"""802.11 (link type 105) and radiotap (127) headers: where IP starts in a Wi-Fi data frame.
+
+MAVLink telemetry often rides Wi-Fi (ESP8266/ESP32 bridges, companion computers' access points), and a
+capture in monitor mode has the radio's frames. A data frame of an open network carries LLC/SNAP and
+then IP; a protected frame is encrypted (WPA2/3: CCMP or GCMP, which mavscope does not decrypt), and a
+frame whose FCS failed never reached the receiver's network stack: both are said, never dissected.
+Layouts: IEEE 802.11-2016 section 9.2 (MAC header), RFC 1042 (LLC/SNAP), radiotap.org (the capture
+header: version 0, its length, the present bitmaps, the Flags field).
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import NamedTuple
+
+_U16LE = struct.Struct("<H").unpack_from
+_U32LE = struct.Struct("<I").unpack_from
+
+TYPE_DATA = 2
+FC_TO_DS, FC_FROM_DS, FC_MORE_FRAG, FC_PROTECTED, FC_ORDER = 0x01, 0x02, 0x04, 0x40, 0x80
+SNAP = b"\xaa\xaa\x03"
+
+RADIOTAP_TSFT, RADIOTAP_FLAGS, RADIOTAP_EXT = 0, 1, 31
+RT_FLAG_FCS, RT_FLAG_BAD_FCS = 0x10, 0x40
+MAX_PRESENT_WORDS = 64  # extended present bitmaps walked at most (radiotap sets no limit; 64 is 2,048 fields)
+
+
+
+class Undecoded(NamedTuple):
+    """A frame the radio layer does not hand on: its note's code and message."""
+
+    code: str  # "wifi-undecoded" or "wifi-bad-fcs" (mavscope.notes)
+    message: str
+
+
+# (ethertype or 0 for a frame that holds no IP, offset), a malformed header's message, or a frame not decoded
+Link = tuple[int, int] | str | Undecoded
+
+
+def strip_80211(data: bytes, off: int = 0) -> Link:
+    """Where the network header starts in the 802.11 frame at `off`."""
+    n = len(data)
+    if off + 10 > n:
+        return f"802.11 header cut short: {n - off} bytes"
+    fc0, fc1 = data[off], data[off + 1]
+    if fc0 & 3:
+        return f"802.11 protocol version {fc0 & 3}"
+    if (fc0 >> 2) & 3 != TYPE_DATA:
+        return (0, off)  # management and control frames carry no IP
+    subtype = fc0 >> 4
+    if subtype & 4:
+        return (0, off)  # Null, QoS Null, CF-Ack/Poll without data: no body
+    hlen = 24 + (6 if fc1 & FC_TO_DS and fc1 & FC_FROM_DS else 0)
+    qos = subtype & 8
+    if qos:
+        hlen += 2 + (4 if fc1 & FC_ORDER else 0)  # QoS Control, and HT Control with the Order bit
+    if off + hlen > n:
+        return f"802.11 header cut short: {n - off} of {hlen} bytes"
+    if fc1 & FC_PROTECTED:
+        return Undecoded("wifi-undecoded", "802.11 data frame protected (WPA2/WPA3 encryption): not decrypted")
+    fragment = _U16LE(data, off + 22)[0] & 0xF
+    if fc1 & FC_MORE_FRAG or fragment:
+        return Undecoded("wifi-undecoded", f"802.11 fragment {fragment}: 802.11 fragments are not reassembled")
+    if qos and data[off + hlen - (6 if fc1 & FC_ORDER else 2)] & 0x80:
+        return Undecoded("wifi-undecoded", "802.11 A-MSDU (several packets in one frame): not decoded")
+    body = off + hlen
+    if data[body:body + 3] != SNAP or body + 8 > n:
+        return (0, body)  # not LLC/SNAP: no IP
+    return ((data[body + 6] << 8) | data[body + 7], body + 8)
+
+
+def strip_radiotap(data: bytes) -> Link:
+    """Where the network header starts in a radiotap-headed 802.11 frame."""
+    n = len(data)
+    if n < 8:
+        return f"radiotap header cut short: {n} bytes"
+    if data[0] != 0:
+        return f"radiotap version {data[0]}"
+    rlen = _U16LE(data, 2)[0]
+    if rlen < 8 or rlen > n:
+        return f"radiotap length {rlen} does not fit the {n}-byte packet"
+    words: list[int] = []
+    pos = 4
+    while True:
+        if pos + 4 > rlen or len(words) == MAX_PRESENT_WORDS:
+            return f"radiotap present bitmaps run past the header ({rlen} bytes)"
+        word = _U32LE(data, pos)[0]
+        words.append(word)
+        pos += 4
+        if not word >> RADIOTAP_EXT & 1:
+            break
+    present = words[0]
+    if present >> RADIOTAP_FLAGS & 1:
+        if present >> RADIOTAP_TSFT & 1:
+            pos = (pos + 7) & ~7  # TSFT: 8 bytes, aligned to 8 from the header's start
+            pos += 8
+        if pos >= rlen:
+            return f"radiotap Flags field past the header ({rlen} bytes)"
+        flags = data[pos]
+        if flags & RT_FLAG_BAD_FCS:
+            return Undecoded("wifi-bad-fcs", "802.11 frame that failed its FCS check: the radio that received it "
+                             "dropped it, so its bytes are not dissected")
+    return strip_80211(data, rlen)

@@ -1,0 +1,135 @@
+"""802.11 and radiotap link types (mavscope.transport.wifi): MAVLink in monitor-mode Wi-Fi captures.
+
+The frames are scapy's (RadioTap, Dot11, Dot11QoS, LLC, SNAP); the MAVLink frames expected in each are
+pymavlink's parse of the UDP payload it carries, and tshark (with pymavlink's Lua dissector) finds the same
+frames in the same records. What is not decoded (a protected frame, an A-MSDU, an 802.11 fragment, a frame
+whose FCS failed) is one note on its record, as the layouts in IEEE 802.11-2016 section 9.2 and radiotap.org
+say of each.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from pymavlink.dialects.v20 import common as mavlink
+from scapy.layers.dot11 import Dot11, Dot11QoS, RadioTap
+from scapy.layers.inet import IP, UDP
+from scapy.layers.l2 import LLC, SNAP
+from scapy.packet import Packet, Raw
+from scapy.utils import wrpcap
+
+from mavscope.capture.base import LINKTYPE_IEEE802_11, LINKTYPE_IEEE802_11_RADIOTAP, Record
+from mavscope.transport.decap import Decapsulator
+
+AP, STA = "02:00:00:00:00:01", "02:00:00:00:00:02"
+
+
+def frames_bytes() -> bytes:
+    gcs = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    return gcs.heartbeat_encode(6, 8, 0, 0, 4).pack(gcs) + gcs.command_long_encode(
+        1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0).pack(gcs)
+
+
+def ip() -> Packet:
+    """IP and UDP with their lengths set, so that bytes after them (an FCS) are not theirs."""
+    n = len(frames_bytes())
+    return IP(src="192.168.4.2", dst="192.168.4.1", len=28 + n) / UDP(sport=14550, dport=14555, len=8 + n) / \
+        frames_bytes()
+
+
+def data(fc: str = "to_DS", subtype: int = 0) -> Packet:
+    return Dot11(type=2, subtype=subtype, FCfield=fc, addr1=AP, addr2=STA, addr3=AP, addr4=STA if "from_DS" in fc
+                 else None)
+
+
+READABLE = {  # what each readable frame is: the frames in it are pymavlink's parse of frames_bytes()
+    "data": RadioTap() / data() / LLC() / SNAP() / ip(),
+    "qos data": RadioTap() / data(subtype=8) / Dot11QoS() / LLC() / SNAP() / ip(),
+    "four addresses (a mesh or WDS hop)": RadioTap() / data("to_DS+from_DS") / LLC() / SNAP() / ip(),
+    "qos with HT control (order bit)": RadioTap() / data("to_DS+order", 8) / Dot11QoS() / Raw(bytes(4)) / LLC()
+    / SNAP() / ip(),
+    "radiotap with TSFT and Flags (FCS present, good)": RadioTap(present="TSFT+Flags", mac_timestamp=5, Flags="FCS")
+    / data() / LLC() / SNAP() / ip() / Raw(b"\x00\x00\x00\x00"),
+}
+UNREADABLE = {  # (frame, the code of its one note)
+    "protected": (RadioTap() / data("to_DS+protected") / Raw(bytes(90)), "wifi-undecoded"),
+    "a-msdu": (RadioTap() / data(subtype=8) / Dot11QoS(A_MSDU_Present=1) / Raw(bytes(90)), "wifi-undecoded"),
+    "802.11 fragment": (RadioTap() / data("to_DS+MF") / LLC() / SNAP() / ip(), "wifi-undecoded"),
+    "bad FCS": (RadioTap(present="Flags", Flags="FCS+badFCS") / data() / LLC() / SNAP() / ip(), "wifi-bad-fcs"),
+}
+SILENT = {"beacon": RadioTap() / Dot11(type=0, subtype=8) / Raw(b"beacon"),
+          "null data": RadioTap() / data(subtype=4), "not snap": RadioTap() / data() / Raw(b"\x01\x02\x03")}
+
+
+def pymavlink_frames() -> list[tuple[int, int, int]]:
+    return [(f.get_srcSystem(), f.get_srcComponent(), f.get_msgId())
+            for f in mavlink.MAVLink(None).parse_buffer(frames_bytes())]
+
+
+def feed(pkt: Packet, linktype: int = LINKTYPE_IEEE802_11_RADIOTAP) -> list:
+    raw = bytes(pkt)
+    return Decapsulator().feed(Record(1, 1.0, linktype, raw, 0, len(raw)))
+
+
+@pytest.mark.parametrize("name", READABLE)
+def test_data_frames_carry_their_udp(name: str) -> None:
+    out = feed(READABLE[name])
+    assert len(out) == 1 and out[0].data == frames_bytes() and not out[0].notes
+    assert (str(out[0].src), str(out[0].dst)) == ("192.168.4.2:14550", "192.168.4.1:14555")
+    bare = feed(READABLE[name][Dot11], LINKTYPE_IEEE802_11)  # link type 105: the same frame, no radio header
+    assert bare[0].data == frames_bytes()
+
+
+@pytest.mark.parametrize("name", UNREADABLE)
+def test_frames_not_decoded_are_one_note(name: str) -> None:
+    pkt, code = UNREADABLE[name]
+    out = feed(pkt)
+    assert len(out) == 1 and not out[0].data and [n.code for n in out[0].notes] == [code]
+
+
+@pytest.mark.parametrize("name", SILENT)
+def test_frames_without_ip_are_passed_over(name: str) -> None:
+    assert feed(SILENT[name]) == []
+
+
+def test_read_and_tshark_agree(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """`read` shows pymavlink's frames in every readable record, notes the others, and tshark's Lua
+    dissector finds the same frames in the same records; both engines give the same output."""
+    pcap = tmp_path / "wifi.pcap"
+    pkts = [*READABLE.values(), *(p for p, _ in UNREADABLE.values()), *SILENT.values()]
+    wrpcap(str(pcap), pkts)
+    got = cli.jsonl(pcap)
+    expected = [(n, *f) for n in range(1, len(READABLE) + 1) for f in pymavlink_frames()]
+    assert [(f["frame"], f["sysid"], f["compid"], f["msgid"]) for f in got] == expected
+    err = cli("read", pcap, "-q").err
+    assert err.count("not decrypted") == 1 and err.count("failed its FCS check") == 1
+    for argv in (("read", pcap, "-T", "jsonl"), ("stats", pcap, "--json")):
+        assert cli(*argv, environ={"MAVSCOPE_PURE": "0"}) == cli(*argv, environ={"MAVSCOPE_PURE": "1"})
+    from tests.support import tshark
+
+    try:
+        exe = tshark.find_tshark()
+        lua = tshark.generate_lua_dissector(tmp_path / "wlua", "all")
+        tshark.check_lua_loads(exe, lua)
+    except tshark.TsharkUnavailable as exc:
+        pytest.skip(f"tshark cross-check skipped: {exc}")
+    theirs = [(f.frame, f.sysid, f.compid, f.msgid) for f in tshark.run_lua_dissector(exe, lua, pcap, {14555}).frames()
+              if f.frame <= len(READABLE)]  # (tshark dissects the bad-FCS frame too: the radio dropped it)
+    assert theirs == expected
+
+
+@settings(max_examples=300, deadline=None, derandomize=True)
+@given(st.binary(max_size=120), st.sampled_from([LINKTYPE_IEEE802_11, LINKTYPE_IEEE802_11_RADIOTAP]))
+def test_any_bytes_never_raise(raw: bytes, linktype: int) -> None:
+    Decapsulator().feed(Record(1, 1.0, linktype, raw, 0, len(raw)))
+
+
+@settings(max_examples=200, deadline=None, derandomize=True)
+@given(st.integers(0, 200), st.binary(min_size=1, max_size=4))
+def test_cut_frames_never_raise(cut: int, junk: bytes) -> None:
+    for pkt in [*READABLE.values(), *(p for p, _ in UNREADABLE.values())]:
+        raw = bytes(pkt)[:cut] + junk
+        Decapsulator().feed(Record(1, 1.0, LINKTYPE_IEEE802_11_RADIOTAP, raw, 0, len(raw)))
