@@ -106,11 +106,11 @@ def test_lone_fragments_are_held_then_noted() -> None:
     datagram never completes is noted at the end of the capture, on its record, naming the datagram."""
     d = Decapsulator()
     frag4 = IP(src="1.1.1.1", dst="2.2.2.2", flags="MF", id=77) / UDP(sport=1, dport=2) / MAV
-    assert d.feed(rec(Ether() / frag4, number=1)) == []
+    assert d.feed(rec(Ether(src="02:00:00:00:00:02", dst="02:00:00:00:00:01") / frag4, number=1)) == []
     later = IP(src="1.1.1.1", dst="2.2.2.2", frag=5, id=77, proto=17) / MAV  # bytes 24-39 never come
-    assert d.feed(rec(Ether() / later, number=2)) == []
+    assert d.feed(rec(Ether(src="02:00:00:00:00:02", dst="02:00:00:00:00:01") / later, number=2)) == []
     frag6 = IPv6(src="::1", dst="::2") / IPv6ExtHdrFragment(m=1, id=9) / UDP(sport=1, dport=2) / (MAV + bytes(3))
-    assert d.feed(rec(Ether() / frag6, number=3)) == []
+    assert d.feed(rec(Ether(src="02:00:00:00:00:02", dst="02:00:00:00:00:01") / frag6, number=3)) == []
     left = d.flush()
     assert [(p.record, p.data, [n.code for n in p.notes]) for p in left] == [
         (2, b"", ["ip-fragment"]), (3, b"", ["ip-fragment"])]
