@@ -100,7 +100,7 @@ CODES: dict[str, Code] = {
         Code("capture-garbage", _WARN, Group.CAPTURE, _F, "unparseable bytes in the capture file were skipped"),
         Code("unknown-linktype", _NOTE, Group.UNDECODED, _F, "link type mavscope does not decode"),
         Code("wifi-undecoded", _NOTE, Group.UNDECODED, _F,
-             "802.11 data frame not decoded: encrypted (WPA2/WPA3), an 802.11 fragment or an A-MSDU"),
+             "802.11 data frame not decoded: encrypted (WPA2/WPA3) or an 802.11 fragment"),
         Code("wifi-bad-fcs", _NOTE, Group.CHECKSUM, _F,
              "802.11 frame that failed its FCS check (the radio dropped it): not dissected"),
         # transport

@@ -10,7 +10,7 @@ from mavscope.notes import Note, note
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
 from mavscope.transport.defrag import Defragmenter
 from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, Endpoints, FragmentInfo, parse_ipv4, parse_ipv6, walk_ipv6
-from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, Undecoded, strip_link
+from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, Subframes, Undecoded, strip_link
 from mavscope.transport.tcp import MAX_BUFFERED, TcpReassembler
 
 RAW_STREAM = (TRANSPORT_RAW,)  # the stream key of a raw byte-stream capture
@@ -96,7 +96,7 @@ class Decapsulator:
 
     def _decode(self, rec: Record) -> tuple[list[Payload], tuple[Note, ...]]:
         """Payloads and notes of one packet record (the slow, general path)."""
-        number, _, linktype, data, roff, _, _ = rec
+        _, _, linktype, data, roff, _, _ = rec
         link = strip_link(linktype, data)
         if link is None:
             if linktype in self._unknown_seen:
@@ -107,7 +107,21 @@ class Decapsulator:
             return [], (note("malformed-packet", f"{link}", roff),)
         if isinstance(link, Undecoded):
             return [], (note(link.code, link.message, roff),)
-        et, off = link
+        if isinstance(link, Subframes):  # several packets in one record: each decoded as a packet
+            out: list[Payload] = []
+            notes: tuple[Note, ...] = ()
+            for et, off, end in link.packets:
+                got, more = self._network(rec, data[:end], et, off)
+                out += got
+                notes += more
+            if link.problem is not None:
+                notes += (note("malformed-packet", link.problem, roff),)
+            return out, notes
+        return self._network(rec, data, *link)
+
+    def _network(self, rec: Record, data: bytes, et: int, off: int) -> tuple[list[Payload], tuple[Note, ...]]:
+        """The IP packet at `off` in `data` (the record's bytes, or their start up to a packet's end)."""
+        number, roff = rec.number, rec.offset
         if et == ETHERTYPE_IPV4:
             ip = parse_ipv4(data, off)
         elif et == ETHERTYPE_IPV6:

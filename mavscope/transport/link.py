@@ -16,7 +16,7 @@ from mavscope.capture.base import (
     LINKTYPE_NULL,
     LINKTYPE_RAW,
 )
-from mavscope.transport.wifi import Undecoded, strip_80211, strip_radiotap
+from mavscope.transport.wifi import Subframes, Undecoded, strip_80211, strip_radiotap
 
 ETHERTYPE_IPV4 = 0x0800
 ETHERTYPE_IPV6 = 0x86DD
@@ -33,7 +33,7 @@ _U16 = struct.Struct("!H").unpack_from
 _U32LE = struct.Struct("<I").unpack_from
 _U32BE = struct.Struct(">I").unpack_from
 
-LinkResult = tuple[int, int] | str | Undecoded | None
+LinkResult = tuple[int, int] | str | Undecoded | Subframes | None
 
 
 def _family(af: int) -> int:

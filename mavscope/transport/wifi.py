@@ -2,8 +2,9 @@
 
 MAVLink telemetry often rides Wi-Fi (ESP8266/ESP32 bridges, companion computers' access points), and a
 capture in monitor mode has the radio's frames. A data frame of an open network carries LLC/SNAP and
-then IP; a protected frame is encrypted (WPA2/3: CCMP or GCMP, which mavscope does not decrypt), and a
-frame whose FCS failed never reached the receiver's network stack: both are said, never dissected.
+then IP (or an A-MSDU: several such packets, each decoded); a protected frame is encrypted (WPA2/3:
+CCMP or GCMP, which mavscope does not decrypt), and a frame whose FCS failed never reached the
+receiver's network stack: both are said, never dissected.
 Layouts: IEEE 802.11-2016 section 9.2 (MAC header), RFC 1042 (LLC/SNAP), radiotap.org (the capture
 header: version 0, its length, the present bitmaps, the Flags field).
 """
@@ -33,8 +34,17 @@ class Undecoded(NamedTuple):
     message: str
 
 
-# (ethertype or 0 for a frame that holds no IP, offset), a malformed header's message, or a frame not decoded
-Link = tuple[int, int] | str | Undecoded
+class Subframes(NamedTuple):
+    """An A-MSDU: several packets in one frame, each (ethertype or 0, offset, end)."""
+
+    packets: tuple[tuple[int, int, int], ...]
+    problem: str | None  # a subframe that does not fit, where the walk stopped
+
+
+# (ethertype or 0 for a frame that holds no IP, offset), a malformed header's message, a frame not decoded,
+# or an A-MSDU's packets
+Link = tuple[int, int] | str | Undecoded | Subframes
+MAX_SUBFRAMES = 1024  # subframes of one A-MSDU read at most (7,935 bytes of 14-byte subframes: 567)
 
 
 def strip_80211(data: bytes, off: int = 0) -> Link:
@@ -61,12 +71,37 @@ def strip_80211(data: bytes, off: int = 0) -> Link:
     fragment = _U16LE(data, off + 22)[0] & 0xF
     if fc1 & FC_MORE_FRAG or fragment:
         return Undecoded("wifi-undecoded", f"802.11 fragment {fragment}: 802.11 fragments are not reassembled")
-    if qos and data[off + hlen - (6 if fc1 & FC_ORDER else 2)] & 0x80:
-        return Undecoded("wifi-undecoded", "802.11 A-MSDU (several packets in one frame): not decoded")
     body = off + hlen
-    if data[body:body + 3] != SNAP or body + 8 > n:
-        return (0, body)  # not LLC/SNAP: no IP
+    if qos and data[off + hlen - (6 if fc1 & FC_ORDER else 2)] & 0x80:
+        return _amsdu(data, body)
+    return _snap(data, body, n)
+
+
+def _snap(data: bytes, body: int, end: int) -> tuple[int, int]:
+    """The ethertype and offset of the packet after the LLC/SNAP header at `body` (0: not SNAP, no IP)."""
+    if data[body:body + 3] != SNAP or body + 8 > end:
+        return (0, body)
     return ((data[body + 6] << 8) | data[body + 7], body + 8)
+
+
+def _amsdu(data: bytes, pos: int) -> Subframes:
+    """The packets of the A-MSDU from `pos` (IEEE 802.11-2016 9.3.2.2.2: DA, SA, a big-endian length, the
+    MSDU, padding to 4 bytes but after the last)."""
+    n = len(data)
+    out: list[tuple[int, int, int]] = []
+    while pos < n:
+        if len(out) == MAX_SUBFRAMES:
+            return Subframes(tuple(out), f"802.11 A-MSDU of more than {MAX_SUBFRAMES} subframes")
+        if pos + 14 > n:
+            return Subframes(tuple(out), f"802.11 A-MSDU subframe header cut short at byte {pos}")
+        size = (data[pos + 12] << 8) | data[pos + 13]
+        start, end = pos + 14, pos + 14 + size
+        if end > n:
+            return Subframes(tuple(out), f"802.11 A-MSDU subframe of {size} bytes cut short at byte {n}")
+        et, off = _snap(data, start, end)
+        out.append((et, off, end))
+        pos = end + (-(end - pos) % 4)
+    return Subframes(tuple(out), None)
 
 
 def strip_radiotap(data: bytes) -> Link:

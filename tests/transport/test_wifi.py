@@ -56,7 +56,6 @@ READABLE = {  # what each readable frame is: the frames in it are pymavlink's pa
 }
 UNREADABLE = {  # (frame, the code of its one note)
     "protected": (RadioTap() / data("to_DS+protected") / Raw(bytes(90)), "wifi-undecoded"),
-    "a-msdu": (RadioTap() / data(subtype=8) / Dot11QoS(A_MSDU_Present=1) / Raw(bytes(90)), "wifi-undecoded"),
     "802.11 fragment": (RadioTap() / data("to_DS+MF") / LLC() / SNAP() / ip(), "wifi-undecoded"),
     "bad FCS": (RadioTap(present="Flags", Flags="FCS+badFCS") / data() / LLC() / SNAP() / ip(), "wifi-bad-fcs"),
 }
@@ -83,6 +82,28 @@ def test_data_frames_carry_their_udp(name: str) -> None:
     assert bare[0].data == frames_bytes()
 
 
+def amsdu(*packets: bytes) -> Packet:
+    """A QoS data frame whose body is an A-MSDU of `packets` (IEEE 802.11-2016 9.3.2.2.2, by hand: DA, SA,
+    a big-endian length, LLC/SNAP and the packet, padded to 4 bytes but the last)."""
+    body = b""
+    for i, pkt in enumerate(packets):
+        msdu = bytes(LLC() / SNAP(code=0x0800)) + pkt
+        sub = bytes.fromhex(AP.replace(":", "") + STA.replace(":", "")) + len(msdu).to_bytes(2, "big") + msdu
+        body += sub + (bytes(-len(sub) % 4) if i + 1 < len(packets) else b"")
+    return RadioTap() / data(subtype=8) / Dot11QoS(A_MSDU_Present=1) / Raw(body)
+
+
+def test_an_amsdu_carries_each_of_its_packets() -> None:
+    other = IP(src="192.168.4.3", dst="192.168.4.1") / UDP(sport=14551, dport=14555) / frames_bytes()[:21]
+    out = feed(amsdu(bytes(ip()), bytes(other)))
+    assert [(p.data, str(p.src)) for p in out] == [(frames_bytes(), "192.168.4.2:14550"),
+                                                  (frames_bytes()[:21], "192.168.4.3:14551")]
+    cut = bytes(amsdu(bytes(ip()), bytes(other)))[:-10]
+    out = Decapsulator().feed(Record(1, 1.0, LINKTYPE_IEEE802_11_RADIOTAP, cut, 0, len(cut)))
+    assert out[0].data == frames_bytes() and [n.code for n in out[0].notes] == ["malformed-packet"]
+    assert "A-MSDU subframe of 57 bytes cut short" in out[0].notes[0].message  # 8 + 20 + 8 + 21
+
+
 @pytest.mark.parametrize("name", UNREADABLE)
 def test_frames_not_decoded_are_one_note(name: str) -> None:
     pkt, code = UNREADABLE[name]
@@ -99,10 +120,13 @@ def test_read_and_tshark_agree(cli, tmp_path: Path) -> None:  # type: ignore[no-
     """`read` shows pymavlink's frames in every readable record, notes the others, and tshark's Lua
     dissector finds the same frames in the same records; both engines give the same output."""
     pcap = tmp_path / "wifi.pcap"
-    pkts = [*READABLE.values(), *(p for p, _ in UNREADABLE.values()), *SILENT.values()]
+    other = IP(src="192.168.4.3", dst="192.168.4.1") / UDP(sport=14551, dport=14555) / frames_bytes()[:21]
+    pkts = [*READABLE.values(), amsdu(bytes(ip()), bytes(other)), *(p for p, _ in UNREADABLE.values()),
+            *SILENT.values()]
     wrpcap(str(pcap), pkts)
     got = cli.jsonl(pcap)
-    expected = [(n, *f) for n in range(1, len(READABLE) + 1) for f in pymavlink_frames()]
+    expected = [(n, *f) for n in range(1, len(READABLE) + 2) for f in pymavlink_frames()]
+    expected.append((len(READABLE) + 1, *pymavlink_frames()[0]))  # the A-MSDU's second packet: the HEARTBEAT
     assert [(f["frame"], f["sysid"], f["compid"], f["msgid"]) for f in got] == expected
     err = cli("read", pcap, "-q").err
     assert err.count("not decrypted") == 1 and err.count("failed its FCS check") == 1
@@ -117,7 +141,7 @@ def test_read_and_tshark_agree(cli, tmp_path: Path) -> None:  # type: ignore[no-
     except tshark.TsharkUnavailable as exc:
         pytest.skip(f"tshark cross-check skipped: {exc}")
     theirs = [(f.frame, f.sysid, f.compid, f.msgid) for f in tshark.run_lua_dissector(exe, lua, pcap, {14555}).frames()
-              if f.frame <= len(READABLE)]  # (tshark dissects the bad-FCS frame too: the radio dropped it)
+              if f.frame <= len(READABLE) + 1]  # (tshark dissects the bad-FCS frame too: the radio dropped it)
     assert theirs == expected
 
 
