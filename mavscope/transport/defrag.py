@@ -16,7 +16,9 @@ net/ipv6/reassembly.c, net/ipv4/inet_fragment.c):
 - a last fragment that ends before bytes already held, a second last fragment with another end, a
   fragment past the last one's end and an empty fragment discard the datagram; a middle fragment
   whose length is not a multiple of 8 is cut to one (IPv4) or dropped (IPv6);
-- a datagram longer than 65,535 bytes is discarded;
+- a datagram longer than 65,535 bytes is discarded, and so is a first IPv6 fragment that does not hold
+  every header through the upper-layer one (RFC 8200 4.5: the tiny-fragment trick, which hides a UDP
+  header from a filter that looks at first fragments);
 - a datagram not complete 30 s (IPv4) or 60 s (IPv6) after its first fragment is discarded, and so
   is one whose source sent more than 64 other IPv4 fragments between two of its fragments
   (ipfrag_max_dist); while the fragments held pass 4 MiB (each counted with an overhead, as Linux
@@ -35,7 +37,7 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 from mavscope.notes import Note, note
-from mavscope.transport.ip import FragmentInfo
+from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, FragmentInfo, walk_ipv6
 
 TIMEOUT_V4 = 30.0  # net.ipv4.ipfrag_time
 TIMEOUT_V6 = 60.0  # net.ipv6.ip6frag_time
@@ -43,6 +45,9 @@ MAX_DIST = 64  # net.ipv4.ipfrag_max_dist
 MAX_HELD = 4 << 20  # net.ipv4.ipfrag_high_thresh, in bytes of buffer
 FRAGMENT_COST = 768  # what a fragment costs besides its bytes (about a small sk_buff's truesize overhead)
 MAX_DATAGRAM = 65535
+# the upper-layer header a first IPv6 fragment must hold (Linux's ipv6frag_thdr_truncated: TCP, UDP, ICMPv6;
+# one byte of any other)
+UPPER_HEADER = {PROTO_TCP: 20, PROTO_UDP: 8, 58: 8}
 MAX_SOURCES = 65536  # sources whose IPv4 fragments are counted for MAX_DIST before the count starts over
 RECORDS_NAMED = 8  # records a note names (the rest counted)
 RECORDS_KEPT = 64  # records a datagram keeps for its notes (the rest counted)
@@ -137,6 +142,10 @@ class Defragmenter:
                 d.took(record)
                 self._drop(d, notes, "ip-fragment", msg, offset)
             return None, notes
+        if frag.v6 and frag.offset == 0 and self._truncated(proto, data):
+            notes.append(note("ip-fragment-dropped", f"{frag.describe()}: a first fragment that does not hold its "
+                              "headers through the upper-layer header (RFC 8200 4.5): the receiver drops it", offset))
+            return None, notes
         dist = 0
         if not frag.v6:
             if src not in self._dist and len(self._dist) >= MAX_SOURCES:
@@ -152,6 +161,16 @@ class Defragmenter:
         d.dist = dist
         d.took(record)
         return self._insert(d, frag, proto, data, record, notes, offset), notes
+
+    @staticmethod
+    def _truncated(proto: int, data: bytes) -> bool:
+        """Whether a first IPv6 fragment (`data`: after its Fragment header) stops before the end of its
+        upper-layer header."""
+        walked = walk_ipv6(data, 0, len(data), proto, fragments=False)
+        if isinstance(walked, str):
+            return True
+        nxt, l4, _ = walked
+        return l4 + UPPER_HEADER.get(nxt, 1) > len(data)
 
     def flush(self) -> list[tuple[int, Note]]:
         """End of capture: (record, note) for each datagram never completed, at its last fragment's record."""

@@ -229,6 +229,23 @@ def test_a_middle_fragment_is_cut_to_eight_bytes_in_ipv4_and_dropped_in_ipv6() -
     assert codes(out) == [["ip-fragment-dropped"]] and out[1].data == A[8:] + B + LAST and out[1].span == (2, 3)
 
 
+def test_a_first_ipv6_fragment_must_hold_the_udp_header() -> None:
+    """RFC 8200 4.5 (Linux: ipv6frag_thdr_truncated): a first fragment holding only a Destination Options
+    header (8 bytes), with the UDP header in the next fragment, is dropped, so the datagram never completes.
+    Cut 8 bytes later, the first fragment holds both headers and the datagram is read, past its option."""
+    opts = bytes([17, 0, 1, 4, 0, 0, 0, 0])  # next header UDP, 8 bytes long, a PadN option
+    body = opts + HEAD + A[8:] + B + LAST
+
+    def frag6(off: int, chunk: bytes, more: bool) -> bytes:
+        return bytes(Ether(**MACS) / IPv6(src="fd00::2", dst="fd00::1") / IPv6ExtHdrFragment(
+            offset=off // 8, m=int(more), id=3, nh=60) / Raw(chunk))
+
+    out = run([record(1, frag6(0, body[:8], True)), record(2, frag6(8, body[8:], False))])
+    assert codes(out) == [["ip-fragment-dropped"], ["ip-fragment"]] and "upper-layer" in out[0].notes[0].message
+    out = run([record(1, frag6(0, body[:16], True)), record(2, frag6(16, body[16:], False))])
+    assert codes(out) == [] and out[0].data == A[8:] + B + LAST
+
+
 def test_a_datagram_not_complete_in_time_is_discarded() -> None:
     """ipfrag_time: 30 s from the first fragment (IPv4). The second fragment, 31 s later, finds the first
     gone and starts a datagram of its own, which never completes."""
