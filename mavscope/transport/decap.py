@@ -12,6 +12,7 @@ from mavscope.transport.defrag import Defragmenter
 from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, Endpoints, FragmentInfo, parse_ipv4, parse_ipv6, walk_ipv6
 from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, Subframes, Undecoded, strip_link
 from mavscope.transport.tcp import MAX_BUFFERED, TcpReassembler
+from mavscope.transport.tunnel import MAX_DEPTH, PROTO_GRE, TUNNEL_PROTOS, VXLAN_PORTS, gre, ip_in_ip, vxlan
 
 RAW_STREAM = (TRANSPORT_RAW,)  # the stream key of a raw byte-stream capture
 
@@ -56,6 +57,8 @@ class Decapsulator:
                 names = self._flows.get(flow)
                 if names is None:
                     names = self._flow_names(flow)
+                if names[1].port in VXLAN_PORTS:  # a tunnel's: the general path decodes what it carries
+                    return self._slow(rec)
                 return [_tuple_new(Payload, (TRANSPORT_UDP, names[0], names[1], data[42:34 + ulen], None,
                                              number, offset + 42, (), None))]
         return self._slow(rec)
@@ -111,17 +114,19 @@ class Decapsulator:
             out: list[Payload] = []
             notes: tuple[Note, ...] = ()
             for et, off, end in link.packets:
-                got, more = self._network(rec, data[:end], et, off)
+                got, more = self._network(rec, data[:end], et, off, roff)
                 out += got
                 notes += more
             if link.problem is not None:
                 notes += (note("malformed-packet", link.problem, roff),)
             return out, notes
-        return self._network(rec, data, *link)
+        return self._network(rec, data, *link, roff)
 
-    def _network(self, rec: Record, data: bytes, et: int, off: int) -> tuple[list[Payload], tuple[Note, ...]]:
-        """The IP packet at `off` in `data` (the record's bytes, or their start up to a packet's end)."""
-        number, roff = rec.number, rec.offset
+    def _network(self, rec: Record, data: bytes, et: int, off: int, base: int | None,
+                 span: tuple[int, ...] | None = None, depth: int = 0) -> tuple[list[Payload], tuple[Note, ...]]:
+        """The IP packet at `off` in `data` (the record's bytes, or their start up to a packet's end, or a
+        reassembled datagram: `span`); `base` is the file offset of data[0] (None in a reassembled one), `depth`
+        how many tunnels it is inside."""
         if et == ETHERTYPE_IPV4:
             ip = parse_ipv4(data, off)
         elif et == ETHERTYPE_IPV6:
@@ -129,15 +134,15 @@ class Decapsulator:
         else:
             return [], ()
         if isinstance(ip, str):
-            return [], (note("malformed-packet", f"{ip} (packet byte {off})", roff + off),)
+            return [], (note("malformed-packet", f"{ip} (packet byte {off})", _at(base, off)),)
         proto, src, dst, l4, end, fragment = ip
         v4 = et == ETHERTYPE_IPV4
         if fragment is not None:
-            return self._fragment(fragment, proto, src, dst, data[l4:end], rec, roff + l4)
-        return self._layer4(v4, proto, src, dst, data, l4, end, number, roff + l4, None)
+            return self._fragment(fragment, proto, src, dst, data[l4:end], rec, _at(base, l4), depth)
+        return self._layer4(v4, proto, src, dst, data, l4, end, rec, base, span, depth)
 
     def _fragment(self, frag: FragmentInfo, proto: int, src: bytes, dst: bytes, data: bytes, rec: Record,
-                  offset: int) -> tuple[list[Payload], tuple[Note, ...]]:
+                  offset: int | None, depth: int) -> tuple[list[Payload], tuple[Note, ...]]:
         """An IP fragment to the reassembler; the datagram it completes, decoded as one packet."""
         whole, notes = self.defrag.add(frag, proto, src, dst, data, rec.number, rec.time, offset)
         if whole is None:
@@ -149,41 +154,64 @@ class Decapsulator:
                 return [], (*notes, note("malformed-packet", f"reassembled from {_records(whole.records)}: {walked}",
                                          None))
             proto, l4, _ = walked
-        out, more = self._layer4(not frag.v6, proto, src, dst, buf, l4, len(buf), rec.number, None, whole.records)
+        out, more = self._layer4(not frag.v6, proto, src, dst, buf, l4, len(buf), rec, None, whole.records, depth)
         return out, (*notes, *more)
 
-    def _layer4(self, v4: bool, proto: int, src: bytes, dst: bytes, data: bytes, l4: int, end: int, number: int,
-                offset: int | None, span: tuple[int, ...] | None) -> tuple[list[Payload], tuple[Note, ...]]:
-        """The UDP or TCP payload at data[l4:end] (`offset`: the file offset of data[l4], None for a datagram
-        reassembled from the fragments of the records in `span`)."""
+    def _layer4(self, v4: bool, proto: int, src: bytes, dst: bytes, data: bytes, l4: int, end: int, rec: Record,
+                base: int | None, span: tuple[int, ...] | None,
+                depth: int) -> tuple[list[Payload], tuple[Note, ...]]:
+        """The UDP or TCP payload at data[l4:end], or the packet a tunnel carries there (`base`: the file offset
+        of data[0], None for a datagram reassembled from the fragments of the records in `span`)."""
         ep = self.endpoints
-        at = (lambda pos: None) if offset is None else (lambda pos: offset + pos - l4)  # noqa: E731
+        number = rec.number
         where = f" (reassembled from {_records(span)})" if span is not None else ""
         if proto == PROTO_UDP:
             if l4 + 8 > end:
-                return [], (note("malformed-packet", f"UDP header cut short at byte {l4}{where}", at(l4)),)
+                return [], (note("malformed-packet", f"UDP header cut short at byte {l4}{where}", _at(base, l4)),)
             sport, dport, ulen = _UDP.unpack_from(data, l4)
             if ulen < 8:
                 if ulen or v4:
-                    return [], (note("malformed-packet", f"UDP length {ulen} < 8 at byte {l4}{where}", at(l4)),)
+                    return [], (note("malformed-packet", f"UDP length {ulen} < 8 at byte {l4}{where}",
+                                     _at(base, l4)),)
                 ulen = end - l4  # IPv6 jumbogram
+            stop = min(l4 + ulen, end)
+            if dport in VXLAN_PORTS:
+                inner = vxlan(data, l4 + 8, stop)
+                if inner is not None:
+                    return self._inner(rec, data[:stop], inner, base, span, depth, "VXLAN")
             s = ep.v4_bytes(src, sport) if v4 else ep.v6(src, sport)
             d = ep.v4_bytes(dst, dport) if v4 else ep.v6(dst, dport)
-            payload = data[l4 + 8:min(l4 + ulen, end)]
-            return [Payload(TRANSPORT_UDP, s, d, payload, None, number, at(l4 + 8), (), span)], ()
+            return [Payload(TRANSPORT_UDP, s, d, data[l4 + 8:stop], None, number, _at(base, l4 + 8), (), span)], ()
         if proto == PROTO_TCP:
             if l4 + 20 > end:
-                return [], (note("malformed-packet", f"TCP header cut short at byte {l4}{where}", at(l4)),)
+                return [], (note("malformed-packet", f"TCP header cut short at byte {l4}{where}", _at(base, l4)),)
             sport, dport, seq, doff, flags = _TCP.unpack_from(data, l4)
             hlen = (doff >> 4) * 4
             if hlen < 20 or l4 + hlen > end:
                 return [], (note("malformed-packet", f"TCP header length {hlen} does not fit at byte {l4}{where}",
-                                 at(l4)),)
+                                 _at(base, l4)),)
             s = ep.v4_bytes(src, sport) if v4 else ep.v6(src, sport)
             d = ep.v4_bytes(dst, dport) if v4 else ep.v6(dst, dport)
-            pieces = self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, at(l4 + hlen))
+            pieces = self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, _at(base, l4 + hlen))
             return pieces, ()
+        if proto in TUNNEL_PROTOS:
+            inner = gre(data, l4, end) if proto == PROTO_GRE else ip_in_ip(proto, l4)
+            return self._inner(rec, data[:end], inner, base, span, depth, "GRE" if proto == PROTO_GRE else "IP-in-IP")
         return [], ()
+
+    def _inner(self, rec: Record, data: bytes, inner: tuple[int, int] | str, base: int | None,
+               span: tuple[int, ...] | None, depth: int, kind: str) -> tuple[list[Payload], tuple[Note, ...]]:
+        """The packet a tunnel carries (`inner`: its ethertype and offset in `data`, or what is wrong)."""
+        if isinstance(inner, str):
+            return [], (note("malformed-packet", f"{kind}: {inner}", base),)
+        if depth >= MAX_DEPTH:
+            return [], (note("malformed-packet", f"{kind} tunnel inside {MAX_DEPTH} others: not decoded", base),)
+        return self._network(rec, data, *inner, base, span, depth + 1)
+
+
+def _at(base: int | None, pos: int) -> int | None:
+    """The file offset of byte `pos` of a packet whose byte 0 lies at `base` (None: not in the file as such)."""
+    return None if base is None else base + pos
 
 
 def _records(records: tuple[int, ...]) -> str:

@@ -53,6 +53,23 @@ def _ip_version(data: bytes, off: int) -> int:
     return ETHERTYPE_IPV4 if v == 4 else ETHERTYPE_IPV6 if v == 6 else 0
 
 
+def ethernet_at(data: bytes, start: int) -> tuple[int, int] | str:
+    """(ethertype, offset of what follows) of the Ethernet header at `start`, past its VLAN tags."""
+    n = len(data)
+    if start + 14 > n:
+        return f"Ethernet header needs 14 bytes, packet has {n - start}"
+    et = (data[start + 12] << 8) | data[start + 13]
+    off = start + 14
+    while et in _VLAN_TYPES:
+        if off + 4 > n:
+            return f"802.1Q tag cut short at byte {off}"
+        et = (data[off + 2] << 8) | data[off + 3]
+        off += 4
+    if et < 0x0600:  # an 802.3 length field: LLC/SNAP, never IP for our purposes
+        return (0, off)
+    return (et, off)
+
+
 def strip_link(linktype: int, data: bytes) -> LinkResult:
     """Where the network header starts: (ethertype, offset).
 
@@ -62,18 +79,7 @@ def strip_link(linktype: int, data: bytes) -> LinkResult:
     """
     n = len(data)
     if linktype == LINKTYPE_ETHERNET:
-        if n < 14:
-            return f"Ethernet header needs 14 bytes, packet has {n}"
-        et = (data[12] << 8) | data[13]
-        off = 14
-        while et in _VLAN_TYPES:
-            if off + 4 > n:
-                return f"802.1Q tag cut short at byte {off}"
-            et = (data[off + 2] << 8) | data[off + 3]
-            off += 4
-        if et < 0x0600:  # an 802.3 length field: LLC/SNAP, never IP for our purposes
-            return (0, off)
-        return (et, off)
+        return ethernet_at(data, 0)
     if linktype == LINKTYPE_RAW:
         return (_ip_version(data, 0), 0)
     if linktype == LINKTYPE_IPV4:

@@ -141,6 +141,8 @@ int ms_net_decode(int64_t linktype, const uint8_t *d, size_t n, ms_udp *out) {
     }
     if (proto == 6)
         return MS_NET_HANDBACK; /* TCP: reassembly state lives in Python */
+    if (proto == 4 || proto == 41 || proto == 47)
+        return MS_NET_HANDBACK; /* IP-in-IP, IPv6-in-IP, GRE: the tunnel's packet (mavscope/transport/tunnel.py) */
     if (proto != 17)
         return MS_NET_SILENT;
     if (l4 + 8 > end)
@@ -157,6 +159,8 @@ int ms_net_decode(int64_t linktype, const uint8_t *d, size_t n, ms_udp *out) {
     out->v6 = v6;
     out->sport = ms_be16(d + l4);
     out->dport = ms_be16(d + l4 + 2);
+    if (out->dport == 4789 || out->dport == 8472)
+        return MS_NET_HANDBACK; /* VXLAN (tunnel.py VXLAN_PORTS): Python decodes what it carries */
     return MS_NET_UDP;
 }
 
