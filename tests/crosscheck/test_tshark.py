@@ -45,26 +45,6 @@ Key = tuple[int | None, ...]
 
 
 @pytest.fixture(scope="session")
-def tshark_exe() -> str:
-    """Path of tshark with Lua support, or skip every test that needs it."""
-    try:
-        return tshark.find_tshark()
-    except tshark.TsharkUnavailable as exc:
-        pytest.skip(f"tshark cross-check skipped: {exc}")
-
-
-@pytest.fixture(scope="session")
-def lua_dissector(tshark_exe: str, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """pymavlink's Wireshark Lua dissector for the ``all`` dialect, generated once per session."""
-    try:
-        lua = tshark.generate_lua_dissector(tmp_path_factory.mktemp("wlua"), "all")
-        tshark.check_lua_loads(tshark_exe, lua)
-    except tshark.TsharkUnavailable as exc:
-        pytest.skip(f"tshark cross-check skipped: {exc}")
-    return lua
-
-
-@pytest.fixture(scope="session")
 def dissect(tshark_exe: str, lua_dissector: Path) -> Callable[[Path], tshark.TsharkRun]:
     """Run the Lua dissector over a capture, at most once per capture per session."""
     cache: dict[Path, tshark.TsharkRun] = {}

@@ -134,21 +134,15 @@ def test_frames_of_a_fragmented_datagram(cli, tmp_path: Path) -> None:  # type: 
     assert [(f["msgid"], f["fields"].get("param1")) for f in again] == [(0, None), (76, 1.0), (0, None), (76, 0.0)]
 
 
-def test_tshark_reassembles_to_the_same_frames(tmp_path: Path) -> None:
+def test_tshark_reassembles_to_the_same_frames(tmp_path: Path, tshark_exe: str, lua_dissector: Path) -> None:
     from tests.support import tshark
 
-    try:
-        exe = tshark.find_tshark()
-        lua = tshark.generate_lua_dissector(tmp_path / "wlua", "all")
-        tshark.check_lua_loads(exe, lua)
-    except tshark.TsharkUnavailable as exc:
-        pytest.skip(f"tshark cross-check skipped: {exc}")
     payload = frames_bytes()
     pcap = tmp_path / "frag.pcap"
     _, frags4 = datagram(payload)
     _, frags6 = datagram(payload, v6=True)
     wrpcap(str(pcap), [Ether(b) for b in [*frags4[::-1], *frags6]])
-    run_ = tshark.run_lua_dissector(exe, lua, pcap, udp_ports={14555})
+    run_ = tshark.run_lua_dissector(tshark_exe, lua_dissector, pcap, udp_ports={14555})
     theirs = [(f.frame, f.seq, f.sysid, f.compid, f.msgid) for f in run_.frames()]
     items = Dissector(_dialect()).run(_read(pcap))
     ours = [(f.record, f.seq, f.sysid, f.compid, f.msgid) for f in items if isinstance(f, Frame)]

@@ -116,31 +116,35 @@ def test_frames_without_ip_are_passed_over(name: str) -> None:
     assert feed(SILENT[name]) == []
 
 
-def test_read_and_tshark_agree(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
-    """`read` shows pymavlink's frames in every readable record, notes the others, and tshark's Lua
-    dissector finds the same frames in the same records; both engines give the same output."""
-    pcap = tmp_path / "wifi.pcap"
+def every_kind(path: Path) -> tuple[Path, list[tuple[int, int, int, int]]]:
+    """A pcap of every frame above, and the (record, sysid, compid, msgid) of the frames pymavlink parses from
+    the readable ones' UDP payloads (the A-MSDU's second packet is the HEARTBEAT alone)."""
     other = IP(src="192.168.4.3", dst="192.168.4.1") / UDP(sport=14551, dport=14555) / frames_bytes()[:21]
     pkts = [*READABLE.values(), amsdu(bytes(ip()), bytes(other)), *(p for p, _ in UNREADABLE.values()),
             *SILENT.values()]
-    wrpcap(str(pcap), pkts)
-    got = cli.jsonl(pcap)
+    wrpcap(str(path), pkts)
     expected = [(n, *f) for n in range(1, len(READABLE) + 2) for f in pymavlink_frames()]
-    expected.append((len(READABLE) + 1, *pymavlink_frames()[0]))  # the A-MSDU's second packet: the HEARTBEAT
+    return path, expected + [(len(READABLE) + 1, *pymavlink_frames()[0])]
+
+
+def test_read_and_both_engines(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """`read` shows pymavlink's frames in every readable record and notes the others; both engines give
+    the same output."""
+    pcap, expected = every_kind(tmp_path / "wifi.pcap")
+    got = cli.jsonl(pcap)
     assert [(f["frame"], f["sysid"], f["compid"], f["msgid"]) for f in got] == expected
     err = cli("read", pcap, "-q").err
     assert err.count("not decrypted") == 1 and err.count("failed its FCS check") == 1
     for argv in (("read", pcap, "-T", "jsonl"), ("stats", pcap, "--json")):
         assert cli(*argv, environ={"MAVSCOPE_PURE": "0"}) == cli(*argv, environ={"MAVSCOPE_PURE": "1"})
+
+
+def test_tshark_finds_the_same_frames(tmp_path: Path, tshark_exe: str, lua_dissector: Path) -> None:
     from tests.support import tshark
 
-    try:
-        exe = tshark.find_tshark()
-        lua = tshark.generate_lua_dissector(tmp_path / "wlua", "all")
-        tshark.check_lua_loads(exe, lua)
-    except tshark.TsharkUnavailable as exc:
-        pytest.skip(f"tshark cross-check skipped: {exc}")
-    theirs = [(f.frame, f.sysid, f.compid, f.msgid) for f in tshark.run_lua_dissector(exe, lua, pcap, {14555}).frames()
+    pcap, expected = every_kind(tmp_path / "wifi.pcap")
+    theirs = [(f.frame, f.sysid, f.compid, f.msgid)
+              for f in tshark.run_lua_dissector(tshark_exe, lua_dissector, pcap, {14555}).frames()
               if f.frame <= len(READABLE) + 1]  # (tshark dissects the bad-FCS frame too: the radio dropped it)
     assert theirs == expected
 
