@@ -58,11 +58,8 @@ class _Direction:
         self.next = nxt  # next expected sequence number, unwrapped (a Python int that never wraps)
         self.gen = gen
         self.key: Hashable = (TRANSPORT_TCP, src, dst, gen)
-        # out-of-order segments: (unwrapped seq, minus the length, arrival counter, data, record, file offset):
-        # delivered by start, where they overlap the earlier start wins, and at one start the longest, then
-        # the first to arrive, as Linux's out-of-order queue keeps them (tcp_data_queue_ofo: a segment that
-        # covers one from the same start replaces it, one inside another is dropped)
-        self.pending: list[tuple[int, int, int, bytes, int, int | None]] = []
+        # out-of-order segments: (unwrapped seq, arrival counter, data, record, file offset)
+        self.pending: list[tuple[int, int, bytes, int, int | None]] = []
         self.buffered = 0
         self.counter = 0
         self.syn = syn  # started by a SYN (so `isn` is an initial sequence number)
@@ -309,7 +306,7 @@ class TcpReassembler:
         d.counter += 1
         if not d.pending:
             self._buffering[d.key] = d
-        heapq.heappush(d.pending, (start, -len(data), d.counter, data, record, offset))
+        heapq.heappush(d.pending, (start, d.counter, data, record, offset))
         d.buffered += len(data)
         self.total += len(data) + SEGMENT_COST
         self._drain(d, out, gaps=False)
@@ -322,7 +319,7 @@ class TcpReassembler:
         """
         pending = d.pending
         while pending:
-            start, _, _, data, record, offset = pending[0]
+            start, _, data, record, offset = pending[0]
             notes: tuple[Note, ...] = ()
             if start > d.next:
                 if not gaps and d.buffered <= self.max_buffered:

@@ -73,19 +73,6 @@ def test_a_retransmission_with_other_bytes_is_a_conflict() -> None:
     assert codes(feed(r, 10, b"k" * 89 + b"!", record=7)) == ["tcp-conflict"]
 
 
-def test_out_of_order_segments_from_one_start_the_longest_wins() -> None:
-    """Linux's tcp_data_queue_ofo: a segment that starts where a queued one starts and ends after it
-    replaces it ("skb covers skb1"); one that ends at or before it is dropped ("all the bits are present").
-    So at one start the longest is read, whichever came first; the bytes it replaced are a conflict."""
-    for first, second in ((b"abc", b"XYZW"), (b"XYZW", b"abc")):
-        r = TcpReassembler()
-        out = feed(r, 0, b"0123456789")
-        out += feed(r, 20, first, record=2) + feed(r, 20, second, record=3)
-        out += feed(r, 10, b"ABCDEFGHIJ", record=4)
-        assert stream(out) == b"0123456789ABCDEFGHIJXYZW", first
-        assert codes(out) == ["tcp-conflict"]
-
-
 def test_bytes_older_than_the_tail_are_not_compared() -> None:
     r = TcpReassembler()
     feed(r, 0, b"x" * 2000)
