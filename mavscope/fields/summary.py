@@ -131,3 +131,20 @@ def summary_info(frame: Frame, dialect: Dialect, fields: dict[str, object] | Non
     if frame.signature is not None:
         parts.append(f"[signed link {frame.signature.link_id}]")
     return " ".join(parts)
+
+
+RECORDS_SHOWN = 8  # records of a reassembled frame its heading names (a datagram may come in thousands)
+
+
+def frame_heading(f: Frame) -> str:
+    """The first line of a frame's detail (`read -V`, the TUI's tree): where the frame is."""
+    text = f"Frame {f.number}: {len(f.raw)} bytes, {f.transport}"
+    if f.src:
+        text += f" {f.src} → {f.dst}"
+    if f.offset is not None:
+        text += f", file offset {f.offset}"
+    if f.span:
+        more = len(f.span) - RECORDS_SHOWN
+        text += f", reassembled from records {', '.join(map(str, f.span[:RECORDS_SHOWN]))}" + (
+            f" and {more} more, to record {f.span[-1]}" if more > 0 else "")
+    return text

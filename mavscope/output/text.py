@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from mavscope.fields.summary import summary_info
+from mavscope.fields.summary import frame_heading, summary_info
 from mavscope.fields.tree import Item, frame_items
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
@@ -33,14 +33,7 @@ def tree_lines(items: tuple[Item, ...], indent: int = 0) -> list[str]:
 
 def detail_text(frame: Frame, dialect: Dialect) -> str:
     """Everything -V shows for a frame."""
-    ctx = [f"Frame {frame.number}: {len(frame.raw)} bytes, {frame.transport}"]
-    if frame.src:
-        ctx[0] += f" {frame.src} → {frame.dst}"
-    if frame.offset is not None:
-        ctx[0] += f", file offset {frame.offset}"
-    if frame.span:
-        ctx[0] += f", reassembled from records {', '.join(map(str, frame.span))}"
-    return "\n".join(ctx + tree_lines(frame_items(frame, dialect), 1))
+    return "\n".join([frame_heading(frame), *tree_lines(frame_items(frame, dialect), 1)])
 
 
 def hexdump(data: bytes, width: int = 16) -> str:

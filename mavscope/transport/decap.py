@@ -114,7 +114,7 @@ class Decapsulator:
             out: list[Payload] = []
             notes: tuple[Note, ...] = ()
             for et, off, end in link.packets:
-                got, more = self._network(rec, data[:end], et, off, roff)
+                got, more = self._network(rec, data, et, off, roff, limit=end)
                 out += got
                 notes += more
             if link.problem is not None:
@@ -123,14 +123,15 @@ class Decapsulator:
         return self._network(rec, data, *link, roff)
 
     def _network(self, rec: Record, data: bytes, et: int, off: int, base: int | None,
-                 span: tuple[int, ...] | None = None, depth: int = 0) -> tuple[list[Payload], tuple[Note, ...]]:
-        """The IP packet at `off` in `data` (the record's bytes, or their start up to a packet's end, or a
-        reassembled datagram: `span`); `base` is the file offset of data[0] (None in a reassembled one), `depth`
-        how many tunnels it is inside."""
+                 span: tuple[int, ...] | None = None, depth: int = 0,
+                 limit: int | None = None) -> tuple[list[Payload], tuple[Note, ...]]:
+        """The IP packet at `off` in `data` (the record's bytes, or a reassembled datagram: `span`), ending by
+        `limit` where given; `base` is the file offset of data[0] (None in a reassembled one), `depth` how many
+        tunnels it is inside."""
         if et == ETHERTYPE_IPV4:
-            ip = parse_ipv4(data, off)
+            ip = parse_ipv4(data, off, limit)
         elif et == ETHERTYPE_IPV6:
-            ip = parse_ipv6(data, off)
+            ip = parse_ipv6(data, off, limit)
         else:
             return [], ()
         if isinstance(ip, str):
@@ -149,9 +150,10 @@ class Decapsulator:
             return [], tuple(notes)
         buf, proto, l4 = whole.data, whole.proto, 0
         if frag.v6:  # the fragmentable part may start with extension headers before the upper layer
-            walked = walk_ipv6(buf, 0, len(buf), proto, fragments=False)
-            if isinstance(walked, str):
-                return [], (*notes, note("malformed-packet", f"reassembled from {_records(whole.records)}: {walked}",
+            walked = walk_ipv6(buf, 0, len(buf), proto)
+            if isinstance(walked, str) or walked[2] is not None:
+                why = walked if isinstance(walked, str) else "a fragment inside it, not reassembled again"
+                return [], (*notes, note("malformed-packet", f"reassembled from {_records(whole.records)}: {why}",
                                          None))
             proto, l4, _ = walked
         out, more = self._layer4(not frag.v6, proto, src, dst, buf, l4, len(buf), rec, None, whole.records, depth)

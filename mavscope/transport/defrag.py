@@ -16,12 +16,14 @@ net/ipv6/reassembly.c, net/ipv4/inet_fragment.c):
 - a last fragment that ends before bytes already held, a second last fragment with another end, a
   fragment past the last one's end and an empty fragment discard the datagram; a middle fragment
   whose length is not a multiple of 8 is cut to one (IPv4) or dropped (IPv6);
-- a datagram longer than 65,535 bytes is discarded, and so is a first IPv6 fragment that does not hold
+- a datagram longer than 65,535 bytes is discarded, so is one whose fragments mix ECN codepoints badly
+  (Not-ECT with ECT or CE: RFC 3168 5.3), and so is a first IPv6 fragment that does not hold
   every header through the upper-layer one (RFC 8200 4.5: the tiny-fragment trick, which hides a UDP
   header from a filter that looks at first fragments);
 - a datagram not complete 30 s (IPv4) or 60 s (IPv6) after its first fragment is discarded, and so
   is one whose source sent more than 64 other IPv4 fragments between two of its fragments
-  (ipfrag_max_dist); while the fragments held pass 4 MiB (each counted with an overhead, as Linux
+  (ipfrag_max_dist), counted from the first fragment that reached it, even one it dropped; while the
+  fragments held pass 4 MiB (each counted with an overhead, as Linux
   counts its buffers: at most some 5,000 fragments are held) every fragment is dropped.
 
 What the receiver drops is noted on the record that made it drop it (the registry's `ip-fragment*`
@@ -37,13 +39,14 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 from mavscope.notes import Note, note
-from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, FragmentInfo, walk_ipv6
+from mavscope.transport.ip import MAX_EXT_HEADERS, PROTO_TCP, PROTO_UDP, FragmentInfo, walk_ipv6
 
 TIMEOUT_V4 = 30.0  # net.ipv4.ipfrag_time
 TIMEOUT_V6 = 60.0  # net.ipv6.ip6frag_time
 MAX_DIST = 64  # net.ipv4.ipfrag_max_dist
 MAX_HELD = 4 << 20  # net.ipv4.ipfrag_high_thresh, in bytes of buffer
 FRAGMENT_COST = 768  # what a fragment costs besides its bytes (about a small sk_buff's truesize overhead)
+QUEUE_COST = 256  # what a datagram's queue costs (Linux charges its inet_frag_queue when it makes one)
 MAX_DATAGRAM = 65535
 # the upper-layer header a first IPv6 fragment must hold (Linux's ipv6frag_thdr_truncated: TCP, UDP, ICMPv6;
 # one byte of any other)
@@ -70,7 +73,9 @@ class _Datagram:
     proto: int
     start: float | None  # time of the first fragment (the receiver's timer starts there)
     dist: int = 0  # the source's IPv4 fragment count at this datagram's last fragment
-    cost: int = 0  # what its fragments count against MAX_HELD
+    cost: int = QUEUE_COST  # what it and its fragments count against MAX_HELD
+    ecn: int = 0  # its fragments' ECN codepoints, a bit each (Linux's IPFRAG_ECN_*: 1 << codepoint)
+    bad: list[int] = field(default_factory=list)  # records of its IPv4 fragments with a wrong header checksum
     length: int = 0  # the datagram's length as far as known (Linux's q.len)
     last_in: bool = False
     first_in: bool = False
@@ -100,6 +105,15 @@ def _describe(d: _Datagram) -> str:
     fam = socket.AF_INET6 if v6 else socket.AF_INET
     return (f"IPv{6 if v6 else 4} datagram id {ident} from {socket.inet_ntop(fam, src)} to "
             f"{socket.inet_ntop(fam, dst)}")
+
+
+def _checksums(d: _Datagram) -> str:
+    """What a note on fragments that disagree adds when some had a wrong IPv4 header checksum."""
+    if not d.bad:
+        return ""
+    return (f" (the IPv4 header checksum of {_records(d.bad)} is wrong: unless the capture was taken on their "
+            "sender, whose NIC fills it in, the receiver dropped them before reassembly and read the others' "
+            "bytes)")
 
 
 def _records(records: list[int], more_records: int = 0) -> str:
@@ -156,26 +170,35 @@ class Defragmenter:
                        f"fragments between two of its fragments (Linux's ipfrag_max_dist, {MAX_DIST}): the "
                        "receiver starts it over at this fragment", offset)
             d = None
-        if d is None:
+        if d is None:  # (the receiver makes the queue, and starts its timer, before it looks at the fragment)
             d = self.pending[key] = _Datagram(key, proto, time)
+            self.held += QUEUE_COST
         d.dist = dist
         d.took(record)
+        if frag.bad_checksum and len(d.bad) < RECORDS_KEPT:
+            d.bad.append(record)
         return self._insert(d, frag, proto, data, record, notes, offset), notes
 
     @staticmethod
     def _truncated(proto: int, data: bytes) -> bool:
         """Whether a first IPv6 fragment (`data`: after its Fragment header) stops before the end of its
         upper-layer header."""
-        walked = walk_ipv6(data, 0, len(data), proto, fragments=False)
-        if isinstance(walked, str):
-            return True
-        nxt, l4, _ = walked
-        return l4 + UPPER_HEADER.get(nxt, 1) > len(data)
+        p = 0
+        for _ in range(MAX_EXT_HEADERS):
+            walked = walk_ipv6(data, p, len(data), proto)
+            if isinstance(walked, str):
+                return True
+            proto, p, inner = walked
+            if inner is None:
+                return p + UPPER_HEADER.get(proto, 1) > len(data)
+            if inner.offset:  # ipv6_skip_exthdr stops at a Fragment header with an offset: not checked
+                return False
+        return True
 
     def flush(self) -> list[tuple[int, Note]]:
         """End of capture: (record, note) for each datagram never completed, at its last fragment's record."""
         out = [(d.last_record, self._incomplete(d, "the capture ends before it is complete", None))
-               for d in self.pending.values()]
+               for d in self.pending.values() if d.frags]  # (one holding none: each fragment was noted)
         self.pending.clear()
         self.held = 0
         return out
@@ -190,7 +213,6 @@ class Defragmenter:
         if frag.v6 and end > MAX_DATAGRAM:
             notes.append(note("ip-fragment-dropped", f"{what} ends past byte {MAX_DATAGRAM}: the receiver drops "
                               "it", offset))
-            self._settle(d)
             return None
         if not frag.more:
             if end < d.length or (d.last_in and end != d.length):
@@ -204,7 +226,6 @@ class Defragmenter:
                 if frag.v6:
                     notes.append(note("ip-fragment-dropped", f"{what}: a middle fragment whose length is not a "
                                       "multiple of 8; the receiver drops it", offset))
-                    self._settle(d)
                     return None
                 end &= ~7  # IPv4: cut to a multiple of 8
                 data = data[:end - start]
@@ -223,15 +244,15 @@ class Defragmenter:
             if placed == "overlap":
                 self._drop(d, notes, "ip-fragment-overlap", f"{what} overlaps a fragment held: Linux "
                            "discards the whole datagram (RFC 5722); other IP stacks may reassemble it with "
-                           "either fragment's bytes", offset)
+                           f"either fragment's bytes{_checksums(d)}", offset)
                 return None
             same = self._bytes_at(d, start, end) == data
             notes.append(note("ip-fragment-duplicate" if same else "ip-fragment-conflict",
                               f"{what} repeats bytes already held" + ("" if same else " with other bytes: the "
-                              "receiver keeps the first and drops this one"), offset))
-            self._settle(d)
+                              f"receiver keeps the first and drops this one{_checksums(d)}"), offset))
             return None
         insort(d.frags, (start, data, record), key=_start)
+        d.ecn |= 1 << frag.ecn
         d.meat += end - start
         d.cost += end - start + FRAGMENT_COST
         self.held += end - start + FRAGMENT_COST
@@ -245,13 +266,12 @@ class Defragmenter:
             notes.append(self._incomplete(d, f"it is {d.header_len + d.length} bytes long, over {MAX_DATAGRAM}: "
                                           "the receiver discards it", offset, "ip-fragment-dropped"))
             return None
+        if d.ecn & 1 and d.ecn != 1:  # Not-ECT beside ECT(0), ECT(1) or CE: ip_frag_ecn_table's 0xff
+            notes.append(self._incomplete(d, "its fragments mix ECN codepoints (Not-ECT with ECT or CE): the "
+                                          "receiver discards it (RFC 3168 5.3)", offset, "ip-fragment-dropped"))
+            return None
         records = tuple(sorted({r for _, _, r in d.frags}))
         return Reassembled(b"".join(b for _, b, _ in d.frags), d.proto, records)
-
-    def _settle(self, d: _Datagram) -> None:
-        """A fragment was dropped: a datagram it started (holding nothing) is not kept."""
-        if not d.frags:
-            self.pending.pop(d.key, None)
 
     @staticmethod
     def _place(d: _Datagram, start: int, end: int) -> str | None:
@@ -309,5 +329,9 @@ class Defragmenter:
             timeout = TIMEOUT_V6 if d.key[0] else TIMEOUT_V4
             if d.start is None or now - d.start <= timeout:
                 return
-            self._drop(d, notes, "ip-fragment", f"not complete {timeout:.0f} s after its first fragment: the "
-                       "receiver discards it", None)
+            if d.frags:
+                self._drop(d, notes, "ip-fragment", f"not complete {timeout:.0f} s after its first fragment: "
+                           "the receiver discards it", None)
+            else:  # its fragments were all dropped, each with its note
+                del self.pending[d.key]
+                self.held -= d.cost

@@ -18,7 +18,7 @@ EXT_DSTOPTS = 60
 _EXT_SKIPPABLE = frozenset((EXT_HOPOPTS, EXT_ROUTING, EXT_DSTOPTS))
 MAX_EXT_HEADERS = 16
 
-_IPV4 = struct.Struct("!BxHHHBBxx4s4s")  # vihl, total length, id, flags+fragment offset, ttl, proto, src, dst
+_IPV4 = struct.Struct("!BBHHHBBxx4s4s")  # vihl, tos, total length, id, flags+fragment offset, ttl, proto, src, dst
 _IPV6 = struct.Struct("!IHBB16s16s")  # version/class/flow, payload length, next header, hop limit, src, dst
 _FRAG6 = struct.Struct("!BxHI")
 
@@ -33,6 +33,9 @@ class FragmentInfo(NamedTuple):
     more: bool  # the MF / M flag: fragments follow
     header_len: int  # IPv4: the header's length (with options); IPv6: the extension headers before it
     length: int  # the fragment's bytes as its header counts them (more than were captured in a snapped record)
+    ecn: int = 0  # the ECN bits of its TOS / traffic class (Linux discards a datagram that mixes them badly)
+    bad_checksum: bool = False  # IPv4: its header checksum is wrong (a receiver drops it; a sender's capture
+    # shows it wrong where the NIC computes it)
 
     def describe(self) -> str:
         more = " (more follow)" if self.more else ""
@@ -45,16 +48,25 @@ class FragmentInfo(NamedTuple):
 IpResult = tuple[int, bytes, bytes, int, int, FragmentInfo | None]
 
 
-def parse_ipv4(data: bytes, off: int) -> IpResult | str:
+def checksum_ok(data: bytes, off: int, size: int) -> bool:
+    """Whether the IPv4 header of `size` bytes at `off` has the right checksum (its words sum to 0xFFFF)."""
+    total = sum(struct.unpack_from(f"!{size // 2}H", data, off))
+    while total >> 16:
+        total = (total & 0xFFFF) + (total >> 16)
+    return total == 0xFFFF
+
+
+def parse_ipv4(data: bytes, off: int, limit: int | None = None) -> IpResult | str:
     """Decode an IPv4 header at `off`; an error message (str) when it is malformed.
 
     The checksum is never checked (offloading makes it wrong in captures). The end of the layer-4
-    data honours the total length, which strips Ethernet padding, clamped to the captured bytes.
+    data honours the total length, which strips Ethernet padding, clamped to the captured bytes (or to
+    `limit`, where the packet's bytes end before the record's).
     """
-    n = len(data)
+    n = len(data) if limit is None else min(limit, len(data))
     if off + 20 > n:
         return f"IPv4 header cut short: {n - off} of 20 bytes"
-    vihl, total, ident, frag, _ttl, proto, src, dst = _IPV4.unpack_from(data, off)
+    vihl, tos, total, ident, frag, _ttl, proto, src, dst = _IPV4.unpack_from(data, off)
     if vihl >> 4 != 4:
         return f"IPv4 header with version {vihl >> 4}"
     ihl = (vihl & 15) * 4
@@ -71,35 +83,36 @@ def parse_ipv4(data: bytes, off: int) -> IpResult | str:
     fragment = None
     if frag & 0x3FFF:
         fragment = FragmentInfo(False, ident, (frag & 0x1FFF) * 8, bool(frag & 0x2000), ihl,
-                                (total or n - off) - ihl)
+                                (total or n - off) - ihl, tos & 3, not checksum_ok(data, off, ihl))
     return proto, src, dst, off + ihl, end, fragment
 
 
-def parse_ipv6(data: bytes, off: int) -> IpResult | str:
+def parse_ipv6(data: bytes, off: int, limit: int | None = None) -> IpResult | str:
     """Decode an IPv6 header at `off` and walk its extension headers to the upper-layer header, or to a
     Fragment header that makes the packet a fragment (an atomic one, offset 0 and no more, is walked past:
     RFC 8200 and Linux take it as a whole datagram)."""
-    n = len(data)
+    n = len(data) if limit is None else min(limit, len(data))
     if off + 40 > n:
         return f"IPv6 header cut short: {n - off} of 40 bytes"
     vcf, plen, nxt, _hops, src, dst = _IPV6.unpack_from(data, off)
     if vcf >> 28 != 6:
         return f"IPv6 header with version {vcf >> 28}"
     end = min(off + 40 + plen, n) if plen else n  # 0: jumbogram (hop-by-hop option) or offload
-    walked = walk_ipv6(data, off + 40, end, nxt)
+    walked = walk_ipv6(data, off + 40, end, nxt, jumbo=not plen)
     if isinstance(walked, str):
         return walked
     nxt, p, fragment = walked
     if fragment is not None:
-        fragment = fragment._replace(length=(off + 40 + plen if plen else n) - p)
+        fragment = fragment._replace(length=off + 40 + plen - p, ecn=vcf >> 20 & 3)
     return nxt, src, dst, p, end, fragment
 
 
 def walk_ipv6(data: bytes, p: int, end: int, nxt: int,
-              fragments: bool = True) -> tuple[int, int, FragmentInfo | None] | str:
+              jumbo: bool = False) -> tuple[int, int, FragmentInfo | None] | str:
     """Walk IPv6 extension headers from `p` (the first of type `nxt`) to the upper-layer header: (its
     type, its offset, None), or (the type after a Fragment header, the offset after it, the fragment).
-    Without `fragments` (a reassembled datagram's fragmentable part) a Fragment header is an error."""
+    An atomic Fragment header (offset 0, no more) is walked past; in a `jumbo` packet (payload length 0) a
+    Fragment header is an error (Linux drops it: a jumbogram cannot be fragmented)."""
     first = p
     for _ in range(MAX_EXT_HEADERS):
         if nxt in _EXT_SKIPPABLE:
@@ -108,10 +121,10 @@ def walk_ipv6(data: bytes, p: int, end: int, nxt: int,
             nxt, hlen = data[p], (data[p + 1] + 1) * 8
             p += hlen
         elif nxt == EXT_FRAGMENT:
-            if not fragments:
-                return f"IPv6 fragment header inside a reassembled datagram at byte {p}"
             if p + 8 > end:
                 return f"IPv6 fragment header cut short at byte {p}"
+            if jumbo:
+                return f"IPv6 fragment header at byte {p} in a packet of payload length 0 (a jumbogram)"
             nxt2, offm, ident = _FRAG6.unpack_from(data, p)
             p += 8
             if offm & 0xFFF9:

@@ -22,7 +22,7 @@ FC_TO_DS, FC_FROM_DS, FC_MORE_FRAG, FC_PROTECTED, FC_ORDER = 0x01, 0x02, 0x04, 0
 SNAP = b"\xaa\xaa\x03"
 
 RADIOTAP_TSFT, RADIOTAP_FLAGS, RADIOTAP_EXT = 0, 1, 31
-RT_FLAG_FCS, RT_FLAG_BAD_FCS = 0x10, 0x40
+RT_FLAG_FCS, RT_FLAG_DATAPAD, RT_FLAG_BAD_FCS = 0x10, 0x20, 0x40
 MAX_PRESENT_WORDS = 64  # extended present bitmaps walked at most (radiotap sets no limit; 64 is 2,048 fields)
 
 
@@ -47,9 +47,10 @@ Link = tuple[int, int] | str | Undecoded | Subframes
 MAX_SUBFRAMES = 1024  # subframes of one A-MSDU read at most (7,935 bytes of 14-byte subframes: 567)
 
 
-def strip_80211(data: bytes, off: int = 0) -> Link:
-    """Where the network header starts in the 802.11 frame at `off`."""
-    n = len(data)
+def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False) -> Link:
+    """Where the network header starts in the 802.11 frame at `off` (`pad`: the header padded to 4 bytes;
+    `fcs`: the frame ends with its 4-byte FCS; both as radiotap's Flags say)."""
+    n = len(data) - (4 if fcs else 0)
     if off + 10 > n:
         return f"802.11 header cut short: {n - off} bytes"
     fc0, fc1 = data[off], data[off + 1]
@@ -71,9 +72,9 @@ def strip_80211(data: bytes, off: int = 0) -> Link:
     fragment = _U16LE(data, off + 22)[0] & 0xF
     if fc1 & FC_MORE_FRAG or fragment:
         return Undecoded("wifi-undecoded", f"802.11 fragment {fragment}: 802.11 fragments are not reassembled")
-    body = off + hlen
+    body = off + ((hlen + 3) & ~3 if pad else hlen)
     if qos and data[off + hlen - (6 if fc1 & FC_ORDER else 2)] & 0x80:
-        return _amsdu(data, body)
+        return _amsdu(data, body, n)
     return _snap(data, body, n)
 
 
@@ -84,10 +85,9 @@ def _snap(data: bytes, body: int, end: int) -> tuple[int, int]:
     return ((data[body + 6] << 8) | data[body + 7], body + 8)
 
 
-def _amsdu(data: bytes, pos: int) -> Subframes:
-    """The packets of the A-MSDU from `pos` (IEEE 802.11-2016 9.3.2.2.2: DA, SA, a big-endian length, the
-    MSDU, padding to 4 bytes but after the last)."""
-    n = len(data)
+def _amsdu(data: bytes, pos: int, n: int) -> Subframes:
+    """The packets of the A-MSDU from `pos` to `n` (IEEE 802.11-2016 9.3.2.2.2: DA, SA, a big-endian length,
+    the MSDU, padding to 4 bytes but after the last)."""
     out: list[tuple[int, int, int]] = []
     while pos < n:
         if len(out) == MAX_SUBFRAMES:
@@ -135,4 +135,5 @@ def strip_radiotap(data: bytes) -> Link:
         if flags & RT_FLAG_BAD_FCS:
             return Undecoded("wifi-bad-fcs", "802.11 frame that failed its FCS check: the radio that received it "
                              "dropped it, so its bytes are not dissected")
+        return strip_80211(data, rlen, bool(flags & RT_FLAG_DATAPAD), bool(flags & RT_FLAG_FCS))
     return strip_80211(data, rlen)

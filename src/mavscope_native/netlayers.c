@@ -119,8 +119,8 @@ int ms_net_decode(int64_t linktype, const uint8_t *d, size_t n, ms_udp *out) {
                 nxt = d[p];
                 p += ((size_t)d[p + 1] + 1) * 8;
             } else if (nxt == 44) { /* fragment header */
-                if (p + 8 > end)
-                    return MS_NET_HANDBACK;
+                if (p + 8 > end || plen == 0)
+                    return MS_NET_HANDBACK; /* (in a jumbogram: Linux drops it, Python notes it) */
                 if (ms_be16(d + p + 2) & 0xFFF9)
                     return MS_NET_HANDBACK; /* a fragment: noted */
                 nxt = d[p];

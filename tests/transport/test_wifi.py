@@ -82,15 +82,26 @@ def test_data_frames_carry_their_udp(name: str) -> None:
     assert bare[0].data == frames_bytes()
 
 
-def amsdu(*packets: bytes) -> Packet:
+def amsdu(*packets: bytes, radio: Packet | None = None, fcs: bytes = b"") -> Packet:
     """A QoS data frame whose body is an A-MSDU of `packets` (IEEE 802.11-2016 9.3.2.2.2, by hand: DA, SA,
-    a big-endian length, LLC/SNAP and the packet, padded to 4 bytes but the last)."""
+    a big-endian length, LLC/SNAP and the packet, padded to 4 bytes but the last), then `fcs`."""
     body = b""
     for i, pkt in enumerate(packets):
         msdu = bytes(LLC() / SNAP(code=0x0800)) + pkt
         sub = bytes.fromhex(AP.replace(":", "") + STA.replace(":", "")) + len(msdu).to_bytes(2, "big") + msdu
         body += sub + (bytes(-len(sub) % 4) if i + 1 < len(packets) else b"")
-    return RadioTap() / data(subtype=8) / Dot11QoS(A_MSDU_Present=1) / Raw(body)
+    return (radio or RadioTap()) / data(subtype=8) / Dot11QoS(A_MSDU_Present=1) / Raw(body + fcs)
+
+
+def test_radiotap_padding_and_fcs() -> None:
+    """radiotap's Flags: 0x20, the 802.11 header is padded to 4 bytes (a 26-byte QoS header, then 2 bytes);
+    0x10, the frame ends with its 4-byte FCS, which is no A-MSDU subframe (tshark reads both so)."""
+    padded = RadioTap(present="Flags", Flags="pad") / data(subtype=8) / Dot11QoS() / Raw(b"\x00\x00") / LLC() \
+        / SNAP() / ip()
+    assert [p.data for p in feed(padded)] == [frames_bytes()]
+    with_fcs = amsdu(bytes(ip()), radio=RadioTap(present="Flags", Flags="FCS"), fcs=b"\x12\x34\x56\x78")
+    out = feed(with_fcs)
+    assert [p.data for p in out] == [frames_bytes()] and not out[0].notes
 
 
 def test_an_amsdu_carries_each_of_its_packets() -> None:

@@ -13,6 +13,7 @@ from textual.widgets import Tree
 from textual.widgets.tree import TreeNode
 
 from mavscope.browse.rows import Detail
+from mavscope.fields.summary import frame_heading
 from mavscope.fields.tree import Item
 from mavscope.notes import Severity
 from mavscope.tui.verdicts import BLUE, DIM, GREEN, ORANGE, RED
@@ -31,14 +32,7 @@ EXPANDED = ("mavlink.header", "mavlink.payload", "signature", "FILE_TRANSFER_PRO
 def frame_item(detail: Detail) -> Item:
     """The first line of the tree: where the frame is (generated: not a field on the wire)."""
     f = detail.frame
-    text = f"Frame {f.record}" + (f".{f.index}" if f.index > 1 else "") + f": {len(f.raw)} bytes, {f.transport}"
-    if f.src:
-        text += f" {f.src} → {f.dst}"
-    if f.offset is not None:
-        text += f", file offset {f.offset}"
-    if f.span:
-        text += f", reassembled from records {', '.join(map(str, f.span))}"
-    return Item(text, "frame", 0, len(f.raw), None, (), True)
+    return Item(frame_heading(f), "frame", 0, len(f.raw), None, (), True)
 
 
 def label_of(item: Item) -> Text:
