@@ -128,7 +128,7 @@ class Defragmenter:
 
     def __init__(self, max_held: int = MAX_HELD) -> None:
         self.max_held = max_held
-        self.held = 0  # what the fragments held cost (bytes and FRAGMENT_COST each)
+        self.held = 0  # what the datagrams held cost (QUEUE_COST each, their fragments' bytes, FRAGMENT_COST each)
         self.pending: dict[Key, _Datagram] = {}  # in the order they started
         self._dist: dict[bytes, int] = {}  # IPv4 fragments seen per source (ipfrag_max_dist)
 
