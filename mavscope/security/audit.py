@@ -12,7 +12,7 @@ from collections import defaultdict
 from collections.abc import Iterable
 
 from mavscope.mavlink.frame import EncryptionStatus, Frame, SignatureStatus
-from mavscope.notes import Finding, FrameNumbers, explanation, finding, sort_findings
+from mavscope.notes import Finding, FrameNumbers, Note, explanation, finding, sort_findings
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.security.keystream import DAMAGED, Collector, Recovery, frames_text, keystream_audit
 from mavscope.security.passphrase import Stream, Targets, default_key_findings, passphrase_findings
@@ -55,16 +55,17 @@ class Audit:
 
     def anomaly(self, item: Anomaly) -> None:
         """A record's notes that belong to no frame (the IP fragments that disagree, for one)."""
-        for n in item.notes:
+        self._notes(item.record, item.notes)
+
+    def _notes(self, record: int, notes: tuple[Note, ...]) -> None:
+        for n in notes:
             if n.code in _NOTE_CODES:
-                self.by[n.code].add(item.record)
+                self.by[n.code].add(record)
 
     def add_untargeted(self, f: Frame) -> None:
         """Everything `add` does but the signing streams' target frames (`Targets`), which a caller that
         counts signed frames in bulk (the export's native source) gives `targets` itself."""
-        for n in f.notes:
-            if n.code in _NOTE_CODES:
-                self.by[n.code].add(f.record)
+        self._notes(f.record, f.notes)
         self.keystreams.add(f)
         sec = f.security
         if sec is None:

@@ -8,7 +8,7 @@ from mavscope.capture.base import LINKTYPE_ETHERNET, LINKTYPE_MAVLINK_RAW, LINKT
 from mavscope.endpoint import Endpoint
 from mavscope.notes import Note, note
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
-from mavscope.transport.defrag import Defragmenter
+from mavscope.transport.defrag import Defragmenter, records_text
 from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, Endpoints, FragmentInfo, parse_ipv4, parse_ipv6, walk_ipv6
 from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, Subframes, Undecoded, strip_link
 from mavscope.transport.tcp import MAX_BUFFERED, TcpReassembler
@@ -153,7 +153,7 @@ class Decapsulator:
             walked = walk_ipv6(buf, 0, len(buf), proto)
             if isinstance(walked, str) or walked[2] is not None:
                 why = walked if isinstance(walked, str) else "a fragment inside it, not reassembled again"
-                return [], (*notes, note("malformed-packet", f"reassembled from {_records(whole.records)}: {why}",
+                return [], (*notes, note("malformed-packet", f"reassembled from {records_text(whole.records)}: {why}",
                                          None))
             proto, l4, _ = walked
         out, more = self._layer4(not frag.v6, proto, src, dst, buf, l4, len(buf), rec, None, whole.records, depth)
@@ -166,7 +166,7 @@ class Decapsulator:
         of data[0], None for a datagram reassembled from the fragments of the records in `span`)."""
         ep = self.endpoints
         number = rec.number
-        where = f" (reassembled from {_records(span)})" if span is not None else ""
+        where = f" (reassembled from {records_text(span)})" if span is not None else ""
         if proto == PROTO_UDP:
             if l4 + 8 > end:
                 return [], (note("malformed-packet", f"UDP header cut short at byte {l4}{where}", _at(base, l4)),)
@@ -214,7 +214,3 @@ class Decapsulator:
 def _at(base: int | None, pos: int) -> int | None:
     """The file offset of byte `pos` of a packet whose byte 0 lies at `base` (None: not in the file as such)."""
     return None if base is None else base + pos
-
-
-def _records(records: tuple[int, ...]) -> str:
-    return f"record{'s' if len(records) > 1 else ''} {', '.join(map(str, records))}"

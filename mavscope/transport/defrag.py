@@ -111,12 +111,13 @@ def _checksums(d: _Datagram) -> str:
     """What a note on fragments that disagree adds when some had a wrong IPv4 header checksum."""
     if not d.bad:
         return ""
-    return (f" (the IPv4 header checksum of {_records(d.bad)} is wrong: unless the capture was taken on their "
+    return (f" (the IPv4 header checksum of {records_text(d.bad)} is wrong: unless the capture was taken on their "
             "sender, whose NIC fills it in, the receiver dropped them before reassembly and read the others' "
             "bytes)")
 
 
-def _records(records: list[int], more_records: int = 0) -> str:
+def records_text(records: list[int] | tuple[int, ...], more_records: int = 0) -> str:
+    """"records 1, 2, 3 and 5 more": the records of a datagram's fragments, for a note."""
     seen = sorted(set(records))
     more = len(seen) - RECORDS_NAMED + more_records
     text = ", ".join(map(str, seen[:RECORDS_NAMED]))
@@ -319,7 +320,7 @@ class Defragmenter:
     @staticmethod
     def _incomplete(d: _Datagram, why: str, offset: int | None, code: str = "ip-fragment") -> Note:
         have = f"{d.meat} of {'' if d.last_in and d.first_in else 'at least '}{d.length} bytes"
-        return note(code, f"{_describe(d)}, fragments in {_records(d.records, d.more_records)} ({have}): {why}",
+        return note(code, f"{_describe(d)}, fragments in {records_text(d.records, d.more_records)} ({have}): {why}",
                     offset)
 
     def _expire(self, now: float, notes: list[Note], offset: int | None) -> None:

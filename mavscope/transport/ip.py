@@ -59,7 +59,8 @@ def checksum_ok(data: bytes, off: int, size: int) -> bool:
 def parse_ipv4(data: bytes, off: int, limit: int | None = None) -> IpResult | str:
     """Decode an IPv4 header at `off`; an error message (str) when it is malformed.
 
-    The checksum is never checked (offloading makes it wrong in captures). The end of the layer-4
+    The checksum decides nothing (offloading makes it wrong in a sender's captures); a fragment's says
+    whether it is right, for the notes on fragments that disagree. The end of the layer-4
     data honours the total length, which strips Ethernet padding, clamped to the captured bytes (or to
     `limit`, where the packet's bytes end before the record's).
     """

@@ -76,17 +76,17 @@ class _Direction:
     def retransmitted(self, start: int, data: bytes, offset: int | None) -> Note:
         """The note on bytes at `start` that were delivered already: a conflict when they differ from what
         was delivered there (the part still in `tail` is compared), a chat note when they do not."""
-        lo = max(start, self.next - len(self.tail))
-        hi = min(start + len(data), self.next)
-        old = self.tail[lo - (self.next - len(self.tail)):hi - (self.next - len(self.tail))] if lo < hi else b""
-        new = data[lo - start:hi - start] if lo < hi else b""
-        n = min(start + len(data), self.next) - start
+        base = self.next - len(self.tail)  # the stream position of tail[0]
+        n = min(start + len(data), self.next) - start  # the bytes delivered already
+        lo = max(start, base)
+        hi = max(lo, start + n)  # [lo, hi): those still in the tail
+        old, new = self.tail[lo - base:hi - base], data[lo - start:hi - start]
         if old != new:
             at = next(i for i in range(len(old)) if old[i] != new[i])
             return note("tcp-conflict", f"TCP retransmission of {n} bytes already delivered, with other bytes (from "
                         f"its byte {lo - start + at}): the receiver keeps what it read first; a reader that takes "
                         "the retransmission sees other bytes", offset)
-        older = n - max(hi - lo, 0)
+        older = n - (hi - lo)
         unchecked = f", {older} of them older than the last {TAIL} delivered (unchecked)" if older else ""
         return note("tcp-retransmission", f"TCP retransmission of {n} bytes already delivered{unchecked}", offset)
 
