@@ -121,6 +121,16 @@ CODES: dict[str, Code] = {
              "IP fragments that overlap others of their datagram partly: Linux discards the datagram (RFC 5722), "
              "other IP stacks and inspection tools may reassemble it with either fragment's bytes; no sender does "
              "this by itself: a way to make a monitor and a vehicle read different datagrams"),
+        Code("udp-bad-checksum", _WARN, Group.CHECKSUM, _B,
+             "UDP datagram with a wrong checksum (a receiver that checks drops it): its frames are shown",
+             "UDP datagrams whose checksum is wrong (not a sender's offload placeholder): a receiver that checks "
+             "them (Linux, most IP stacks) dropped them, so their frames were shown to whoever captured them but "
+             "not read by the vehicle; a damaged link, a capture edited without fixing checksums, or an insertion"),
+        Code("tcp-bad-checksum", _WARN, Group.CHECKSUM, _B,
+             "TCP segment with a wrong checksum (a receiver that checks drops it)",
+             "TCP segments whose checksum is wrong (not a sender's offload placeholder): a receiver that checks them "
+             "dropped them; where their direction has right checksums they are left out of the stream (the "
+             "receiver's bytes, not the inserted ones), else read, as in a capture edited without fixing them"),
         Code("tcp-gap", _WARN, Group.REASSEMBLY, _F, "bytes missing from a TCP stream"),
         Code("tcp-retransmission", _CHAT, Group.REASSEMBLY, _F, "TCP retransmission dropped"),
         Code("tcp-conflict", _WARN, Group.SECURITY, _B,

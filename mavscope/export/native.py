@@ -178,6 +178,7 @@ class _Export:
         self.types: set[str] = set()  # messages with rows
         self.py: list[Frame] = []
         self.pos: list[int] = []  # native frames of the window before each of `py`
+        self.py_anomalies: list[tuple[int, Anomaly]] = []  # the window's anomalies, each after so many of `py`
         self.py_messages = MessageTables(capture_id, dialect, 1 << 62)
         self.py_message_rows: dict[int, list[int]] = {}  # msgid -> the index in `py` of each row
 
@@ -186,7 +187,7 @@ class _Export:
         for item in self.stage.run(items):
             if type(item) is Anomaly:
                 self.summary.anomaly(item)
-                self.analyses.anomaly(item)
+                self.py_anomalies.append((len(self.py), item))  # to the audit in order with the frames
                 b = self.anomalies.add(item)
                 if b is not None:
                     yield b
@@ -222,9 +223,9 @@ class _Export:
         if self.want_messages:
             yield from self._messages(c, parts, gn, gp)
         if self.want_findings:
-            self.feed.window(c, py, pos, self.ends, parts)
+            self.feed.window(c, py, pos, self.ends, parts, self.py_anomalies)
         self._times(c, gn, gp)
-        self.py, self.pos = [], []
+        self.py, self.pos, self.py_anomalies = [], [], []
 
     def _messages(self, c: Chunk, parts: list[tuple[int, Any, Any, int]], gn: np.ndarray,
                   gp: np.ndarray) -> Iterator[pa.RecordBatch]:

@@ -35,6 +35,7 @@ from mavscope.export.native_columns import Chunk
 from mavscope.export.pure import Analyses
 from mavscope.mavlink.dialect import MessageDef, char_text
 from mavscope.mavlink.frame import CrcStatus, Frame, Signature, SignatureStatus, new_frame
+from mavscope.pipeline.dissect import Anomaly
 
 _TRANSPORT = {1: "udp", 2: "tlog"}  # columns.h MS_TRANSPORT_*
 
@@ -188,11 +189,15 @@ class NativeFeed:
         return np.array([test(md) for md in self.messages], np.bool_)
 
     def window(self, c: Chunk, py: list[Frame], pos: Sequence[int], ends: Sequence[Endpoint],
-               parts: Sequence[tuple[int, Any, Any, int]]) -> None:
+               parts: Sequence[tuple[int, Any, Any, int]], anomalies: Sequence[tuple[int, Anomaly]] = ()) -> None:
         """One window: chunk `c`, the handed-back frames `py` (after `pos[j]` native ones), the chunk's
-        endpoints and its payload rows (`_native.Columns.take`: position, rows, frames, count per message)."""
+        endpoints and its payload rows (`_native.Columns.take`: position, rows, frames, count per message),
+        and the window's anomalies (each after so many of `py`: the audit takes them in that order, as the
+        pure source gives them)."""
         w = Window(c, py, pos, self.messages, ends)
         if not w.size:
+            for _, item in anomalies:
+                self.a.anomaly(item)
             return
         params = self.params_msgs[c.message]
         params[self._quiet_heartbeats(w, parts)] = False
@@ -200,7 +205,7 @@ class NativeFeed:
         build = self.objects_msgs[c.message] | params
         build[given] = False
         w.build(w.native_rows(build))
-        self._audit(w)
+        self._audit(w, anomalies)
         self._objects(w, params, reports)
         self.seen += w.size
 
@@ -273,8 +278,11 @@ class NativeFeed:
         """The rows of the native frames where `native` is set and of every handed-back frame, in order."""
         return np.sort(np.concatenate([w.native_rows(native), w.gp])).tolist()
 
-    def _audit(self, w: Window) -> None:
+    def _audit(self, w: Window, anomalies: Sequence[tuple[int, Anomaly]]) -> None:
         c, audit = w.c, self.a.audit
+        later = iter(anomalies)
+        after, anomaly = next(later, (-1, None))  # (handed-back frames before it, the anomaly)
+        j = 0  # the handed-back frames given so far
         plain = audit.keystreams.plain
         events: list[tuple[int, int]] = [(int(r), -1) for r in w.gp]  # (row, native frame or -1: handed back)
         v2 = np.flatnonzero(c.version == 2)
@@ -287,11 +295,18 @@ class NativeFeed:
         events.sort()
         for row, i in events:
             if i < 0:
+                while anomaly is not None and after <= j:
+                    audit.anomaly(anomaly)
+                    after, anomaly = next(later, (-1, None))
                 audit.add_untargeted(w.frame(row))
+                j += 1
             else:
                 f_sysid, msgid = int(c.sysid[i]), int(c.msgid[i])
                 md = self.messages[int(c.message[i])]
                 plain.setdefault((f_sysid, msgid), (int(c.record[i]), c.payload_of(i).ljust(md.length, b"\x00")))
+        while anomaly is not None:
+            audit.anomaly(anomaly)
+            after, anomaly = next(later, (-1, None))
         signed = [r for r, f in zip(w.gp.tolist(), w.py) if f.signature is not None and f.crc_status is CrcStatus.OK]
         rows = np.sort(np.concatenate([w.native_rows(c.signed), np.asarray(signed, np.int64)]))
         if not len(rows):

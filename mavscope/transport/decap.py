@@ -7,7 +7,8 @@ import struct
 from mavscope.capture.base import LINKTYPE_ETHERNET, LINKTYPE_MAVLINK_RAW, LINKTYPE_MAVLINK_TLOG, Record
 from mavscope.endpoint import Endpoint
 from mavscope.notes import Note, note
-from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
+from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TCP, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
+from mavscope.transport.checksum import Checksum, judge
 from mavscope.transport.defrag import Defragmenter, records_text
 from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, Endpoints, FragmentInfo, parse_ipv4, parse_ipv6, walk_ipv6
 from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, Subframes, Undecoded, strip_link
@@ -43,6 +44,9 @@ class Decapsulator:
         self.defrag = Defragmenter()
         self._unknown_seen: set[int] = set()
         self._flows: dict[bytes, tuple[Endpoint, Endpoint]] = {}
+        # TCP directions (source, destination) that carried a segment with a right checksum (their
+        # captured checksums are real): one with a wrong checksum there is what the receiver dropped
+        self._checked: dict[tuple[Endpoint, Endpoint], None] = {}
 
     def feed(self, rec: Record) -> list[Payload]:
         """The Payloads that `rec` yields now (possibly none)."""
@@ -59,6 +63,9 @@ class Decapsulator:
                     names = self._flow_names(flow)
                 if names[1].port in VXLAN_PORTS:  # a tunnel's: the general path decodes what it carries
                     return self._slow(rec)
+                if (data[40] or data[41]) and _sum_wrong(data, ulen) and judge(
+                        False, data[26:30], data[30:34], PROTO_UDP, data, 34, 34 + ulen)[0] is Checksum.WRONG:
+                    return self._slow(rec)  # noted there
                 return [_tuple_new(Payload, (TRANSPORT_UDP, names[0], names[1], data[42:34 + ulen], None,
                                              number, offset + 42, (), None))]
         return self._slow(rec)
@@ -71,6 +78,32 @@ class Decapsulator:
             self._flows.clear()
         self._flows[flow] = names
         return names
+
+    def _check(self, direction: tuple[Endpoint, Endpoint]) -> None:
+        """Remember that TCP `direction` carried a right checksum."""
+        if direction not in self._checked:
+            if len(self._checked) >= FLOW_CACHE:
+                self._checked.clear()
+            self._checked[direction] = None
+
+    def _tcp_checksum(self, s: Endpoint, d: Endpoint, src: bytes, dst: bytes, data: bytes, l4: int, end: int,
+                      seq: int, hlen: int, where: str, offset: int | None) -> Note | None:
+        """The note on a whole TCP segment data[l4:end] with a wrong checksum (None when it is right, absent or a
+        sender's offload placeholder). A direction that carried a right checksum has real ones, so a wrong one
+        there is what the receiver dropped (and an insertion's way to feed a monitor bytes the vehicle never
+        read); on a direction without one (a capture edited without fixing them) the segment is read all the
+        same."""
+        verdict, field, right = judge(len(src) == 16, src, dst, PROTO_TCP, data, l4, end)
+        if verdict is Checksum.RIGHT:
+            self._check((s, d))
+        if verdict is not Checksum.WRONG:
+            return None
+        fate = ("not read into its stream, whose other segments have right checksums" if (s, d) in self._checked else
+                "read into its stream all the same, as no segment of that direction has had a right checksum (a "
+                "capture edited without fixing them?)")
+        return note("tcp-bad-checksum", f"TCP checksum 0x{field:04x} is wrong (0x{right:04x} is right){where}: a "
+                    f"receiver that checks drops this segment ({end - l4 - hlen} bytes at sequence {seq}); {fate}",
+                    offset)
 
     def flush(self) -> list[Payload]:
         """End of capture: deliver the TCP bytes still buffered, with notes for the gaps skipped, and note
@@ -140,7 +173,10 @@ class Decapsulator:
         v4 = et == ETHERTYPE_IPV4
         if fragment is not None:
             return self._fragment(fragment, proto, src, dst, data[l4:end], rec, _at(base, l4), depth)
-        return self._layer4(v4, proto, src, dst, data, l4, end, rec, base, span, depth)
+        # the packet is all here, as long as its header says (not snapped, not an offloaded send)
+        size = (data[off + 2] << 8 | data[off + 3]) if v4 else (data[off + 4] << 8 | data[off + 5]) + 40
+        whole = size > (0 if v4 else 40) and off + size == end
+        return self._layer4(v4, proto, src, dst, data, l4, end, rec, base, span, depth, whole)
 
     def _fragment(self, frag: FragmentInfo, proto: int, src: bytes, dst: bytes, data: bytes, rec: Record,
                   offset: int | None, depth: int) -> tuple[list[Payload], tuple[Note, ...]]:
@@ -156,14 +192,16 @@ class Decapsulator:
                 return [], (*notes, note("malformed-packet", f"reassembled from {records_text(whole.records)}: {why}",
                                          None))
             proto, l4, _ = walked
-        out, more = self._layer4(not frag.v6, proto, src, dst, buf, l4, len(buf), rec, None, whole.records, depth)
+        out, more = self._layer4(not frag.v6, proto, src, dst, buf, l4, len(buf), rec, None, whole.records, depth,
+                                 True)
         return out, (*notes, *more)
 
     def _layer4(self, v4: bool, proto: int, src: bytes, dst: bytes, data: bytes, l4: int, end: int, rec: Record,
-                base: int | None, span: tuple[int, ...] | None,
-                depth: int) -> tuple[list[Payload], tuple[Note, ...]]:
+                base: int | None, span: tuple[int, ...] | None, depth: int,
+                whole: bool) -> tuple[list[Payload], tuple[Note, ...]]:
         """The UDP or TCP payload at data[l4:end], or the packet a tunnel carries there (`base`: the file offset
-        of data[0], None for a datagram reassembled from the fragments of the records in `span`)."""
+        of data[0], None for a datagram reassembled from the fragments of the records in `span`; `whole`: the
+        IP packet ends at `end` as its header says, so its checksum can be judged)."""
         ep = self.endpoints
         number = rec.number
         where = f" (reassembled from {records_text(span)})" if span is not None else ""
@@ -177,13 +215,17 @@ class Decapsulator:
                                      _at(base, l4)),)
                 ulen = end - l4  # IPv6 jumbogram
             stop = min(l4 + ulen, end)
+            notes: tuple[Note, ...] = ()
+            if whole:
+                notes = _udp_dropped(v4, src, dst, data, l4, ulen, end, where, _at(base, l4))
             if dport in VXLAN_PORTS:
                 inner = vxlan(data, l4 + 8, stop)
                 if inner is not None:
-                    return self._inner(rec, data[:stop], inner, base, span, depth, "VXLAN")
+                    got, more = self._inner(rec, data[:stop], inner, base, span, depth, "VXLAN")
+                    return got, notes + more
             s = ep.v4_bytes(src, sport) if v4 else ep.v6(src, sport)
             d = ep.v4_bytes(dst, dport) if v4 else ep.v6(dst, dport)
-            return [Payload(TRANSPORT_UDP, s, d, data[l4 + 8:stop], None, number, _at(base, l4 + 8), (), span)], ()
+            return [Payload(TRANSPORT_UDP, s, d, data[l4 + 8:stop], None, number, _at(base, l4 + 8), (), span)], notes
         if proto == PROTO_TCP:
             if l4 + 20 > end:
                 return [], (note("malformed-packet", f"TCP header cut short at byte {l4}{where}", _at(base, l4)),)
@@ -194,8 +236,15 @@ class Decapsulator:
                                  _at(base, l4)),)
             s = ep.v4_bytes(src, sport) if v4 else ep.v6(src, sport)
             d = ep.v4_bytes(dst, dport) if v4 else ep.v6(dst, dport)
-            pieces = self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, _at(base, l4 + hlen))
-            return pieces, ()
+            bad = self._tcp_checksum(s, d, src, dst, data, l4, end, seq, hlen, where, _at(base, l4)) if whole else None
+            if bad is None:
+                return self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, _at(base, l4 + hlen)), ()
+            # the note is the record's, now (not one for the stream's next frame to carry)
+            out = [Payload(TRANSPORT_TCP, s, d, b"", None, number, _at(base, l4), (bad,))]
+            if (s, d) not in self._checked:
+                out += self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, _at(base, l4 + hlen))
+            # (else the receiver dropped it: its flags and bytes change nothing)
+            return out, ()
         if proto in TUNNEL_PROTOS:
             inner = gre(data, l4, end) if proto == PROTO_GRE else ip_in_ip(proto, l4)
             return self._inner(rec, data[:end], inner, base, span, depth, "GRE" if proto == PROTO_GRE else "IP-in-IP")
@@ -209,6 +258,30 @@ class Decapsulator:
         if depth >= MAX_DEPTH:
             return [], (note("malformed-packet", f"{kind} tunnel inside {MAX_DEPTH} others: not decoded", base),)
         return self._network(rec, data, *inner, base, span, depth + 1)
+
+
+def _sum_wrong(packet: bytes, ulen: int) -> bool:
+    """Whether the UDP datagram of `ulen` bytes in an Ethernet + 20-byte IPv4 packet fails its checksum (the
+    addresses, bytes 26-33, lie just before it: with the protocol and length they are its pseudo-header; the
+    words' sum modulo 0xFFFF, as mavscope.transport.checksum works it)."""
+    value = int.from_bytes(packet[26:34 + ulen], "big")
+    return ((value << 8 if ulen & 1 else value) + PROTO_UDP + ulen) % 0xFFFF != 0
+
+
+def _udp_dropped(v4: bool, src: bytes, dst: bytes, data: bytes, l4: int, ulen: int, end: int, where: str,
+                 offset: int | None) -> tuple[Note, ...]:
+    """The notes on a whole UDP datagram at data[l4:end] that a receiver drops: a length past the packet's
+    end (Linux: a short packet), a wrong checksum (not a sender's offload placeholder)."""
+    if l4 + ulen > end:
+        return (note("malformed-packet", f"UDP length {ulen} runs past the end of its IP packet ({end - l4} bytes) "
+                     f"at byte {l4}{where}: a receiver drops it (a short packet)", offset),)
+    verdict, field, right = judge(not v4, src, dst, PROTO_UDP, data, l4, l4 + ulen)
+    if verdict is not Checksum.WRONG:
+        return ()
+    what = (f"UDP checksum 0 over IPv6, which requires one (RFC 8200 8.1; 0x{right:04x} is right)" if field == 0 else
+            f"UDP checksum 0x{field:04x} is wrong (0x{right:04x} is right)")
+    return (note("udp-bad-checksum", f"{what}{where}: a receiver that checks (Linux, and most IP stacks) drops this "
+                 "datagram; its frames are shown", offset),)
 
 
 def _at(base: int | None, pos: int) -> int | None:

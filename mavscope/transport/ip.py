@@ -7,9 +7,10 @@ import struct
 from typing import NamedTuple
 
 from mavscope.endpoint import Endpoint
+from mavscope.transport.checksum import PROTO_TCP as PROTO_TCP  # (the protocol numbers live with the checksums)
+from mavscope.transport.checksum import PROTO_UDP as PROTO_UDP
+from mavscope.transport.checksum import ones_sum
 
-PROTO_TCP = 6
-PROTO_UDP = 17
 # IPv6 extension headers walked on the way to UDP/TCP
 EXT_HOPOPTS = 0
 EXT_ROUTING = 43
@@ -50,10 +51,7 @@ IpResult = tuple[int, bytes, bytes, int, int, FragmentInfo | None]
 
 def checksum_ok(data: bytes, off: int, size: int) -> bool:
     """Whether the IPv4 header of `size` bytes at `off` has the right checksum (its words sum to 0xFFFF)."""
-    total = sum(struct.unpack_from(f"!{size // 2}H", data, off))
-    while total >> 16:
-        total = (total & 0xFFFF) + (total >> 16)
-    return total == 0xFFFF
+    return ones_sum(data, off, off + size) == 0 and any(data[off:off + size])
 
 
 def parse_ipv4(data: bytes, off: int, limit: int | None = None) -> IpResult | str:

@@ -69,8 +69,41 @@ static int strip_link(int64_t lt, const uint8_t *d, size_t n, size_t *off) {
     }
 }
 
+/* The ones' complement sum of d[0 .. n) as 16-bit big-endian words (a last odd byte padded with zero),
+ * added to `sum` and left unfolded (at most 2**32 bytes' worth of words fit in 64 bits). */
+static uint64_t ones_sum(const uint8_t *d, size_t n, uint64_t sum) {
+    size_t i = 0;
+    for (; i + 1 < n; i += 2)
+        sum += (uint64_t)d[i] << 8 | d[i + 1];
+    if (i < n)
+        sum += (uint64_t)d[i] << 8;
+    return sum;
+}
+
+static unsigned fold(uint64_t sum) {
+    while (sum >> 16)
+        sum = (sum & 0xFFFF) + (sum >> 16);
+    return (unsigned)sum;
+}
+
+/* Whether the whole UDP datagram d[l4 .. l4 + ulen) has a checksum a receiver drops it for: wrong, and not
+ * the pseudo-header sum a sender's kernel leaves for checksum offload; 0 over IPv6 (mavscope/transport/
+ * checksum.py judge: Python notes it). */
+static int udp_checksum_wrong(int v6, const uint8_t *src, const uint8_t *dst, const uint8_t *d, size_t l4,
+                              size_t ulen) {
+    unsigned field = ms_be16(d + l4 + 6);
+    if (field == 0)
+        return v6;
+    size_t alen = v6 ? 16 : 4;
+    unsigned pseudo = fold(ones_sum(dst, alen, ones_sum(src, alen, 17 + (uint64_t)ulen)));
+    if (fold(ones_sum(d + l4, ulen, pseudo)) == 0xFFFF)
+        return 0;
+    return field != pseudo;
+}
+
 int ms_net_decode(int64_t linktype, const uint8_t *d, size_t n, ms_udp *out) {
     size_t off = 0;
+    int whole; /* the IP packet is all here, as long as its header says */
     int et = strip_link(linktype, d, n, &off);
     if (et < 0)
         return MS_NET_HANDBACK; /* an unknown link type is noted once; a malformed header always */
@@ -94,6 +127,7 @@ int ms_net_decode(int64_t linktype, const uint8_t *d, size_t n, ms_udp *out) {
         } else {
             end = off + total < n ? off + total : n;
         }
+        whole = total != 0 && off + total <= n;
         if (ms_be16(h + 6) & 0x3FFF)
             return MS_NET_HANDBACK; /* a fragment: noted */
         proto = h[9];
@@ -109,6 +143,7 @@ int ms_net_decode(int64_t linktype, const uint8_t *d, size_t n, ms_udp *out) {
             return MS_NET_HANDBACK;
         size_t plen = ms_be16(h + 4);
         end = plen ? (off + 40 + plen < n ? off + 40 + plen : n) : n;
+        whole = plen != 0 && off + 40 + plen <= n;
         unsigned nxt = h[6];
         size_t p = off + 40;
         int i;
@@ -153,6 +188,8 @@ int ms_net_decode(int64_t linktype, const uint8_t *d, size_t n, ms_udp *out) {
             return MS_NET_HANDBACK;
         ulen = end - l4; /* IPv6 jumbogram */
     }
+    if (whole && (l4 + ulen > end || udp_checksum_wrong(v6, out->src, out->dst, d, l4, ulen)))
+        return MS_NET_HANDBACK; /* a receiver drops it: Python notes why (decap._udp_dropped) */
     size_t stop = l4 + ulen < end ? l4 + ulen : end;
     out->start = l4 + 8;
     out->len = stop > l4 + 8 ? stop - (l4 + 8) : 0;

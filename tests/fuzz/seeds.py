@@ -101,6 +101,31 @@ def wifi_seed() -> bytes:
     return data
 
 
+def checksum_seed() -> bytes:
+    """A pcap of checksums (mavscope.transport.checksum): UDP right, wrong, absent and an offload placeholder;
+    IPv6 UDP with 0; a TCP stream with a segment of a wrong checksum before the right one."""
+    from scapy.layers.inet import IP, TCP, UDP
+    from scapy.layers.inet6 import IPv6
+    from scapy.layers.l2 import Ether
+    from scapy.utils import wrpcap
+
+    hb = b"\xfd\x09\x00\x00\x00\x01\x01\x00\x00\x00" + bytes(9) + b"\x00\x00"
+    v4, v6 = IP(src="10.0.0.2", dst="10.0.0.1"), IPv6(src="fd00::2", dst="fd00::1")
+    eth = Ether(src="02:00:00:00:00:02", dst="02:00:00:00:00:01")
+    # UDP checksums: scapy's, a wrong one, none, and the pseudo-header's sum (offload) of this datagram
+    pkts = [eth / v4 / UDP(sport=14550, dport=14555, chksum=c) / hb for c in (None, 0x1234, 0, 0x1431)]
+    pkts += [eth / v6 / UDP(sport=14550, dport=14555, chksum=0) / hb,
+             eth / v4 / TCP(sport=40000, dport=5760, flags="S", seq=9),
+             eth / v4 / TCP(sport=40000, dport=5760, flags="PA", seq=10, chksum=0xBEEF) / hb[::-1],
+             eth / v4 / TCP(sport=40000, dport=5760, flags="PA", seq=10) / hb]
+    path = ROOT / ".cache" / "fuzz" / "checksums.tmp"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    wrpcap(str(path), pkts)
+    data = path.read_bytes()
+    path.unlink()
+    return data
+
+
 def write(corpus: Path) -> None:
     """Fill corpus/<target>/ with the seeds of each target."""
     cap = corpus / "capture"
@@ -110,6 +135,7 @@ def write(corpus: Path) -> None:
             shutil.copyfile(p, cap / p.name)
     (cap / "ip_fragments.pcap").write_bytes(fragment_seed())
     (cap / "wifi.pcap").write_bytes(wifi_seed())
+    (cap / "checksums.pcap").write_bytes(checksum_seed())
     for target, seeds in (("filter", [f.encode() for f in FILTERS]), ("keys", [k.encode() for k in KEY_SPECS]),
                           ("tcp", tcp_seeds()), ("analyses", analyses_seeds()),
                           ("export", export_seeds())):

@@ -22,7 +22,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import common as mavlink
 from scapy.layers.inet import IP, UDP, fragment
-from scapy.layers.inet6 import IPv6, IPv6ExtHdrFragment, fragment6
+from scapy.layers.inet6 import IPv6, IPv6ExtHdrFragment, fragment6, in6_chksum
 from scapy.layers.l2 import Ether
 from scapy.packet import Raw
 from scapy.utils import wrpcap
@@ -168,6 +168,17 @@ A, B, C, LAST = bytes(range(16)), bytes(range(16, 32)), bytes(range(100, 116)), 
 HEAD = struct.pack("!HHHH", 14550, 14555, 40, 0)  # the UDP header of a 40-byte datagram (8 + 32 bytes)
 
 
+def head6(body: bytes) -> bytes:
+    """The UDP header of `body` from fd00::2 to fd00::1, with the checksum IPv6 requires (scapy's in6_chksum;
+    HEAD's 0, which IPv4 takes for none, is a wrong checksum there)."""
+    udp = struct.pack("!HHHH", 14550, 14555, 8 + len(body), 0)
+    value = in6_chksum(17, IPv6(src="fd00::2", dst="fd00::1"), udp + body) or 0xFFFF
+    return udp[:6] + struct.pack("!H", value)
+
+
+HEAD6 = head6(A[8:] + B + LAST)
+
+
 def test_a_repeat_inside_a_run_is_a_duplicate_and_the_first_bytes_stay() -> None:
     """[0,16) then [16,32) arrive in order: one run [0,32). [8,24) with other bytes lies inside it:
     IPFRAG_DUP, dropped; the datagram completes with the first bytes when [32,40) comes."""
@@ -232,8 +243,8 @@ def test_a_middle_fragment_is_cut_to_eight_bytes_in_ipv4_and_dropped_in_ipv6() -
     IPv6: ip6_frag_queue drops it (parameter problem) and keeps the datagram: the 16-byte one completes it."""
     out = run([record(1, raw4(0, HEAD + A[8:] + b"XXXX", True)), record(2, raw4(16, B + LAST, False))])
     assert codes(out) == [] and out[0].data == A[8:] + B + LAST
-    out = run([record(1, raw6(0, HEAD + A[8:] + b"XXXX", True)), record(2, raw6(16, B + LAST, False)),
-               record(3, raw6(0, HEAD + A[8:], True))])
+    out = run([record(1, raw6(0, HEAD6 + A[8:] + b"XXXX", True)), record(2, raw6(16, B + LAST, False)),
+               record(3, raw6(0, HEAD6 + A[8:], True))])
     assert codes(out) == [["ip-fragment-dropped"]] and out[1].data == A[8:] + B + LAST and out[1].span == (2, 3)
 
 
@@ -242,7 +253,7 @@ def test_a_first_ipv6_fragment_must_hold_the_udp_header() -> None:
     header (8 bytes), with the UDP header in the next fragment, is dropped, so the datagram never completes.
     Cut 8 bytes later, the first fragment holds both headers and the datagram is read, past its option."""
     opts = bytes([17, 0, 1, 4, 0, 0, 0, 0])  # next header UDP, 8 bytes long, a PadN option
-    body = opts + HEAD + A[8:] + B + LAST
+    body = opts + HEAD6 + A[8:] + B + LAST
 
     def frag6(off: int, chunk: bytes, more: bool) -> bytes:
         return bytes(Ether(**MACS) / IPv6(src="fd00::2", dst="fd00::1") / IPv6ExtHdrFragment(
@@ -265,10 +276,10 @@ def test_fragments_that_mix_ecn_codepoints_are_discarded() -> None:
         return bytes(Ether(**MACS) / IPv6(src="fd00::2", dst="fd00::1", tc=ecn) / IPv6ExtHdrFragment(
             offset=off // 8, m=int(more), id=9, nh=17) / Raw(chunk))
 
-    for make in (ecn4, ecn6):
-        out = run([record(1, make(0, HEAD + A[8:], True, 0)), record(2, make(16, B + LAST, False, 1))])
+    for make, head in ((ecn4, HEAD), (ecn6, HEAD6)):
+        out = run([record(1, make(0, head + A[8:], True, 0)), record(2, make(16, B + LAST, False, 1))])
         assert codes(out) == [["ip-fragment-dropped"]] and "mix ECN" in out[0].notes[0].message
-        out = run([record(1, make(0, HEAD + A[8:], True, 2)), record(2, make(16, B + LAST, False, 3))])
+        out = run([record(1, make(0, head + A[8:], True, 2)), record(2, make(16, B + LAST, False, 3))])
         assert codes(out) == [] and out[0].data == A[8:] + B + LAST
 
 
@@ -286,7 +297,7 @@ def test_nested_fragment_headers_and_jumbograms() -> None:
     """An atomic Fragment header (offset 0, no more) inside the fragmentable part is walked past (Linux's
     ipv6_skip_exthdr, then ipv6_frag_rcv's 'not fragmented'); a Fragment header in a packet of payload
     length 0 is dropped ('Jumbo payload inhibits frag. header')."""
-    inner = bytes(IPv6ExtHdrFragment(nh=17, offset=0, m=0, id=5)) + HEAD + A[8:] + B + LAST
+    inner = bytes(IPv6ExtHdrFragment(nh=17, offset=0, m=0, id=5)) + HEAD6 + A[8:] + B + LAST
 
     def nested(off: int, chunk: bytes, more: bool) -> bytes:
         return bytes(Ether(**MACS) / IPv6(src="fd00::2", dst="fd00::1") / IPv6ExtHdrFragment(
@@ -416,7 +427,8 @@ def test_any_cut_in_any_order_with_repeats_gives_the_datagram(data: st.DataObjec
     without one of its fragments it never is, and one `ip-fragment` note says so at the end. The expected
     bytes are the datagram's own."""
     v6 = data.draw(st.booleans(), "v6")
-    whole = HEAD[:4] + struct.pack("!H", 8 + len(frames_bytes())) + HEAD[6:] + frames_bytes()
+    whole = (head6(frames_bytes()) if v6 else HEAD[:4] + struct.pack("!H", 8 + len(frames_bytes())) + HEAD[6:]
+             ) + frames_bytes()
     cuts = sorted(data.draw(st.sets(st.integers(1, (len(whole) - 1) // 8), min_size=1, max_size=12), "cuts"))
     bounds = [0, *(c * 8 for c in cuts), len(whole)]
     pieces = [(a, whole[a:b], b == len(whole)) for a, b in zip(bounds, bounds[1:])]

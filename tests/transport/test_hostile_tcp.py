@@ -17,6 +17,7 @@ import tracemalloc
 from pathlib import Path
 
 import pytest
+from scapy.utils import checksum
 
 from mavscope.capture.detect import open_capture
 from mavscope.mavlink.frame import CrcStatus, Frame
@@ -31,7 +32,10 @@ PSH_ACK = 0x18
 
 
 def tcp_packet(src: bytes, dst: bytes, sport: int, dport: int, seq: int, flags: int, data: bytes) -> bytes:
+    """An Ethernet/IPv4/TCP packet, its TCP checksum right (scapy's Internet checksum over the pseudo-header)."""
     tcp = struct.pack("!HHIIBBHHH", sport, dport, seq % (1 << 32), 0, 5 << 4, flags, 65535, 0, 0)
+    pseudo = src + dst + struct.pack("!BBH", 0, 6, len(tcp) + len(data))
+    tcp = tcp[:16] + struct.pack("!H", checksum(pseudo + tcp + data)) + tcp[18:]
     ip = struct.pack("!BBHHHBBH4s4s", 0x45, 0, 40 + len(data), 0, 0x4000, 64, 6, 0, src, dst)
     return b"\x02\0\0\0\0\x02\x02\0\0\0\0\x01\x08\x00" + ip + tcp + data
 
