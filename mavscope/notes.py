@@ -121,6 +121,12 @@ CODES: dict[str, Code] = {
              "IP fragments that overlap others of their datagram partly: Linux discards the datagram (RFC 5722), "
              "other IP stacks and inspection tools may reassemble it with either fragment's bytes; no sender does "
              "this by itself: a way to make a monitor and a vehicle read different datagrams"),
+        Code("ip-bad-checksum", _WARN, Group.CHECKSUM, _B,
+             "IPv4 packet with a wrong header checksum (a receiver drops it before UDP or TCP reads it)",
+             "IPv4 packets whose header checksum is wrong (not 0, which a sender that leaves it to its NIC shows): "
+             "every receiver drops them before UDP or TCP reads them, so their frames were shown to whoever "
+             "captured them but not read by the vehicle (a TCP segment in one is left out of its stream where its "
+             "direction's checksums are otherwise right)"),
         Code("udp-bad-checksum", _WARN, Group.CHECKSUM, _B,
              "UDP datagram with a wrong checksum (a receiver that checks drops it): its frames are shown",
              "UDP datagrams whose checksum is wrong (not a sender's offload placeholder): a receiver that checks "

@@ -8,7 +8,7 @@ from mavscope.capture.base import LINKTYPE_ETHERNET, LINKTYPE_MAVLINK_RAW, LINKT
 from mavscope.endpoint import Endpoint
 from mavscope.notes import Note, note
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TCP, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
-from mavscope.transport.checksum import Checksum, judge
+from mavscope.transport.checksum import Checksum, ipv4_header, judge
 from mavscope.transport.defrag import Defragmenter, records_text
 from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, Endpoints, FragmentInfo, parse_ipv4, parse_ipv6, walk_ipv6
 from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, Subframes, Undecoded, strip_link
@@ -63,6 +63,8 @@ class Decapsulator:
                     names = self._flow_names(flow)
                 if names[1].port in VXLAN_PORTS:  # a tunnel's: the general path decodes what it carries
                     return self._slow(rec)
+                if (data[24] or data[25]) and int.from_bytes(data[14:34], "big") % 0xFFFF:
+                    return self._slow(rec)  # a wrong IPv4 header checksum: noted there
                 if (data[40] or data[41]) and _sum_wrong(data, ulen) and judge(
                         False, data[26:30], data[30:34], PROTO_UDP, data, 34, 34 + ulen)[0] is Checksum.WRONG:
                     return self._slow(rec)  # noted there
@@ -98,12 +100,16 @@ class Decapsulator:
             self._check((s, d))
         if verdict is not Checksum.WRONG:
             return None
-        fate = ("not read into its stream, whose other segments have right checksums" if (s, d) in self._checked else
-                "read into its stream all the same, as no segment of that direction has had a right checksum (a "
-                "capture edited without fixing them?)")
         return note("tcp-bad-checksum", f"TCP checksum 0x{field:04x} is wrong (0x{right:04x} is right){where}: a "
-                    f"receiver that checks drops this segment ({end - l4 - hlen} bytes at sequence {seq}); {fate}",
-                    offset)
+                    f"receiver that checks drops this segment ({end - l4 - hlen} bytes at sequence {seq}); "
+                    f"{self._fate(s, d)}", offset)
+
+    def _fate(self, s: Endpoint, d: Endpoint) -> str:
+        """What becomes of a TCP segment the receiver dropped, from `s` to `d`."""
+        if (s, d) in self._checked:
+            return "not read into its stream, whose other segments have right checksums"
+        return ("read into its stream all the same, as no segment of that direction has had a right checksum (a "
+                "capture edited without fixing them?)")
 
     def flush(self) -> list[Payload]:
         """End of capture: deliver the TCP bytes still buffered, with notes for the gaps skipped, and note
@@ -176,7 +182,12 @@ class Decapsulator:
         # the packet is all here, as long as its header says (not snapped, not an offloaded send)
         size = (data[off + 2] << 8 | data[off + 3]) if v4 else (data[off + 4] << 8 | data[off + 5]) + 40
         whole = size > (0 if v4 else 40) and off + size == end
-        return self._layer4(v4, proto, src, dst, data, l4, end, rec, base, span, depth, whole)
+        dropped: Note | None = None  # a wrong IPv4 header checksum: the receiver drops the packet
+        verdict, field, right = ipv4_header(data, off, l4 - off) if v4 else (Checksum.RIGHT, 0, 0)
+        if verdict is Checksum.WRONG:
+            dropped = note("ip-bad-checksum", f"IPv4 header checksum 0x{field:04x} is wrong (0x{right:04x} is right): "
+                           "a receiver drops this packet before UDP or TCP reads it", _at(base, off))
+        return self._layer4(v4, proto, src, dst, data, l4, end, rec, base, span, depth, whole, dropped)
 
     def _fragment(self, frag: FragmentInfo, proto: int, src: bytes, dst: bytes, data: bytes, rec: Record,
                   offset: int | None, depth: int) -> tuple[list[Payload], tuple[Note, ...]]:
@@ -197,11 +208,12 @@ class Decapsulator:
         return out, (*notes, *more)
 
     def _layer4(self, v4: bool, proto: int, src: bytes, dst: bytes, data: bytes, l4: int, end: int, rec: Record,
-                base: int | None, span: tuple[int, ...] | None, depth: int,
-                whole: bool) -> tuple[list[Payload], tuple[Note, ...]]:
+                base: int | None, span: tuple[int, ...] | None, depth: int, whole: bool,
+                dropped: Note | None = None) -> tuple[list[Payload], tuple[Note, ...]]:
         """The UDP or TCP payload at data[l4:end], or the packet a tunnel carries there (`base`: the file offset
         of data[0], None for a datagram reassembled from the fragments of the records in `span`; `whole`: the
-        IP packet ends at `end` as its header says, so its checksum can be judged)."""
+        IP packet ends at `end` as its header says, so its checksum can be judged; `dropped`: the note on an IP
+        header a receiver drops the packet for)."""
         ep = self.endpoints
         number = rec.number
         where = f" (reassembled from {records_text(span)})" if span is not None else ""
@@ -215,9 +227,9 @@ class Decapsulator:
                                      _at(base, l4)),)
                 ulen = end - l4  # IPv6 jumbogram
             stop = min(l4 + ulen, end)
-            notes: tuple[Note, ...] = ()
+            notes: tuple[Note, ...] = () if dropped is None else (dropped,)
             if whole:
-                notes = _udp_dropped(v4, src, dst, data, l4, ulen, end, where, _at(base, l4))
+                notes += _udp_dropped(v4, src, dst, data, l4, ulen, end, where, _at(base, l4))
             if dport in VXLAN_PORTS:
                 inner = vxlan(data, l4 + 8, stop)
                 if inner is not None:
@@ -236,7 +248,11 @@ class Decapsulator:
                                  _at(base, l4)),)
             s = ep.v4_bytes(src, sport) if v4 else ep.v6(src, sport)
             d = ep.v4_bytes(dst, dport) if v4 else ep.v6(dst, dport)
-            bad = self._tcp_checksum(s, d, src, dst, data, l4, end, seq, hlen, where, _at(base, l4)) if whole else None
+            bad: Note | None = None
+            if dropped is not None:
+                bad = note(dropped.code, f"{dropped.message}; {self._fate(s, d)}", dropped.offset)
+            elif whole:
+                bad = self._tcp_checksum(s, d, src, dst, data, l4, end, seq, hlen, where, _at(base, l4))
             if bad is None:
                 return self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, _at(base, l4 + hlen)), ()
             # the note is the record's, now (not one for the stream's next frame to carry)
@@ -247,8 +263,10 @@ class Decapsulator:
             return out, ()
         if proto in TUNNEL_PROTOS:
             inner = gre(data, l4, end) if proto == PROTO_GRE else ip_in_ip(proto, l4)
-            return self._inner(rec, data[:end], inner, base, span, depth, "GRE" if proto == PROTO_GRE else "IP-in-IP")
-        return [], ()
+            got, more = self._inner(rec, data[:end], inner, base, span, depth,
+                                    "GRE" if proto == PROTO_GRE else "IP-in-IP")
+            return got, more if dropped is None else (dropped, *more)
+        return [], () if dropped is None else (dropped,)
 
     def _inner(self, rec: Record, data: bytes, inner: tuple[int, int] | str, base: int | None,
                span: tuple[int, ...] | None, depth: int, kind: str) -> tuple[list[Payload], tuple[Note, ...]]:

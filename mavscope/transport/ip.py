@@ -9,7 +9,7 @@ from typing import NamedTuple
 from mavscope.endpoint import Endpoint
 from mavscope.transport.checksum import PROTO_TCP as PROTO_TCP  # (the protocol numbers live with the checksums)
 from mavscope.transport.checksum import PROTO_UDP as PROTO_UDP
-from mavscope.transport.checksum import ones_sum
+from mavscope.transport.checksum import Checksum, ipv4_header
 
 # IPv6 extension headers walked on the way to UDP/TCP
 EXT_HOPOPTS = 0
@@ -50,8 +50,9 @@ IpResult = tuple[int, bytes, bytes, int, int, FragmentInfo | None]
 
 
 def checksum_ok(data: bytes, off: int, size: int) -> bool:
-    """Whether the IPv4 header of `size` bytes at `off` has the right checksum (its words sum to 0xFFFF)."""
-    return ones_sum(data, off, off + size) == 0 and any(data[off:off + size])
+    """Whether the IPv4 header of `size` bytes at `off` has a checksum a receiver takes (right, or 0: left to
+    the sender's NIC, mavscope.transport.checksum.ipv4_header)."""
+    return ipv4_header(data, off, size)[0] is not Checksum.WRONG
 
 
 def parse_ipv4(data: bytes, off: int, limit: int | None = None) -> IpResult | str:

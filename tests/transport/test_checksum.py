@@ -96,7 +96,8 @@ def test_judge_against_scapys_checksums(v6: bool, tcp: bool, payload: bytes, oth
 def test_real_loopback_captures_hold_offload_placeholders(real_captures: Path) -> None:
     """Every checksum of the two real loopback captures (273 UDP datagrams, 6 TCP segments; tshark calls
     them all bad, "maybe caused by offload") is its pseudo-header's sum, worked out here with scapy's
-    checksum: mavscope gives no checksum note and reads every byte."""
+    checksum; judep90's (macOS, lo0) IPv4 header checksums are all 0, which tshark calls bad too: mavscope
+    gives no checksum note and reads every byte."""
     for name, count in (("ap_sitl_attack1_signed_knownkey.pcap", 273), ("judep90_serial_over_tcp_socat.pcapng", 6)):
         checked = 0
         for pkt in rdpcap(str(real_captures / name)):
@@ -107,6 +108,7 @@ def test_real_loopback_captures_hold_offload_placeholders(real_captures: Path) -
             at = field_at(proto, off)
             assert int.from_bytes(raw[at:at + 2], "big") == pseudo_sum(src, dst, proto, len(raw) - off)
             assert judge(v6, src, dst, proto, raw, off, len(raw))[0] is Checksum.OFFLOAD
+            assert pkt[IP].chksum == 0 if name.startswith("judep90") else IP(raw).chksum == pkt[IP].chksum
             checked += 1
         assert checked == count, name
         d = Decapsulator()
@@ -180,6 +182,38 @@ def test_a_udp_length_past_the_packet_is_noted(cli, tmp_path: Path) -> None:  # 
         (frame,) = cli.jsonl(pcap, environ=environ)
         assert [n["code"] for n in frame["notes"]] == ["malformed-packet"]
         assert "runs past the end of its IP packet" in frame["notes"][0]["message"]
+
+
+def test_wrong_ipv4_header_checksums_are_noted_where_tshark_finds_them(cli, tmp_path: Path,  # type: ignore[no-untyped-def]
+                                                                       tshark_exe: str) -> None:
+    """IPv4 header checksums: scapy's (right), a wrong one, and 0 (what macOS and Windows leave to the NIC),
+    on UDP datagrams; then a TCP stream whose SYN is right and whose next segment, a DISARM, has a wrong IP
+    header checksum before the ARM: tshark's bad ones (ip.checksum.status 0) less the zeros are noted, with
+    tshark's calculated value as the right one; the DISARM is left out (pymavlink's parse of the ARM); both
+    engines agree; `audit` reports them."""
+    hb, ip = heartbeat(), IP(**V4)
+    pkts = [Ether(**MACS) / IP(**V4, chksum=c) / UDP(sport=14550, dport=14555) / hb for c in (None, 0x1234, 0)]
+    pkts += [Ether(**MACS) / ip / TCP(sport=40000, dport=5760, flags="S", seq=999),
+             Ether(**MACS) / IP(**V4, chksum=0x4321) / TCP(sport=40000, dport=5760, flags="PA", seq=1000) / arm(0),
+             Ether(**MACS) / ip / TCP(sport=40000, dport=5760, flags="PA", seq=1000) / arm(1)]
+    pcap = tmp_path / "ip.pcap"
+    wrpcap(str(pcap), pkts)
+    judged = tshark_checksums(tshark_exe, pcap, "ip")
+    bad = {n: int(calc, 16) for n, status, calc in judged if status == "0"}
+    assert sorted(bad) == [2, 3, 5]
+    del bad[3]  # 0: left to the NIC
+    m = mavlink.MAVLink(None)
+    want = [(x.get_msgId(), getattr(x, "param1", None)) for x in m.parse_buffer(hb * 3 + arm(1))]
+    for environ in ENGINES:
+        frames = cli.jsonl(pcap, environ=environ)
+        assert [(f["msgid"], f["fields"].get("param1")) for f in frames] == want
+        assert [[n["code"] for n in f.get("notes", ())] for f in frames] == [[], ["ip-bad-checksum"], [], []]
+        status, out, err = cli("audit", pcap, "--json", environ=environ)
+        assert status == 1 and {f["code"]: f["frames"] for f in json.loads(out)["findings"]} == {
+            "ip-bad-checksum": [2, 5]}
+        assert f"0x{bad[2]:04x} is right" in frames[1]["notes"][0]["message"]
+        assert f"record 5: offset {24 + 16 * 5 + sum(len(p) for p in pkts[:4]) + 14}: IPv4 header checksum 0x4321 is " \
+            f"wrong (0x{bad[5]:04x} is right)" in err  # (pcap header, record headers, the packets before, Ethernet)
 
 
 # --- TCP: an insertion is left out ------------------------------------------------------------------
