@@ -13,7 +13,11 @@ modulo 0xFFFF (2**16 is 1 modulo 0xFFFF), with 0 standing for 0xFFFF: one C call
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from enum import Enum
+
+from mavscope.endpoint import Endpoint
+from mavscope.notes import Note, note
 
 PROTO_TCP = 6
 PROTO_UDP = 17
@@ -41,7 +45,7 @@ def pseudo_sum(src: bytes, dst: bytes, proto: int, length: int) -> int:
 
 def judge(v6: bool, src: bytes, dst: bytes, proto: int, data: bytes, l4: int, end: int) -> tuple[Checksum, int, int]:
     """The checksum of the UDP or TCP segment data[l4:end] (all of it captured): its verdict, the field's
-    value and the value that would be right (the field's own when it is right)."""
+    value and the value that would be right (the field's own when it is right, 0 when absent)."""
     at = l4 + (6 if proto == PROTO_UDP else 16)
     field = data[at] << 8 | data[at + 1]
     udp0 = field == 0 and proto == PROTO_UDP
@@ -49,14 +53,13 @@ def judge(v6: bool, src: bytes, dst: bytes, proto: int, data: bytes, l4: int, en
         return Checksum.ABSENT, 0, 0
     pseudo = pseudo_sum(src, dst, proto, end - l4)
     total = (pseudo + ones_sum(data, l4, end)) % _M
-    if udp0:  # IPv6 requires one (Linux drops it unless told otherwise: udp6_csum_init)
-        pass
-    elif total == 0:  # the sum of every word is 0xFFFF: right
+    if total == 0 and not udp0:  # the sum of every word is 0xFFFF: right (IPv6 UDP requires one: udp6_csum_init)
         return Checksum.RIGHT, field, field
-    elif field == (pseudo or _M):
-        return Checksum.OFFLOAD, field, field
     rest = (total - field) % _M  # the sum without the field
     right = _M - rest if rest else (_M if proto == PROTO_UDP else 0)
+    if not udp0 and field in (pseudo or _M, pseudo_sum(src, dst, proto, 0) or _M):
+        # (Windows' large send offload and OpenBSD's TSO leave the sum without the length)
+        return Checksum.OFFLOAD, field, right
     return Checksum.WRONG, field, right
 
 
@@ -72,3 +75,68 @@ def ipv4_header(data: bytes, off: int, ihl: int) -> tuple[Checksum, int, int]:
         return Checksum.RIGHT, field, field
     rest = (total - field) % _M
     return Checksum.WRONG, field, _M - rest if rest else 0
+
+
+MERGE_FLOOR = 1460  # bytes: a TCP segment a receiver merged (GRO, RSC) is larger than one Ethernet frame holds
+DIRECTIONS = 65536  # TCP directions remembered as carrying real checksums, the least recently confirmed forgotten
+
+
+class Directions:
+    """The TCP directions (source, destination) whose captured checksums are real: one carried a segment
+    with a right TCP and IPv4 header checksum. A capture taken there (on the wire, at the receiver) shows
+    the checksums the receiver checks, so a segment whose checksum is not right there (wrong, a sender's
+    offload placeholder, an IPv4 header checksum of 0) is what the receiver dropped, unless it is larger
+    than any one segment: a receiver's own merge (Linux's GRO leaves the placeholder on what it merged).
+    On any other direction nothing tells real checksums from a capture edited without fixing them."""
+
+    __slots__ = ("_largest", "limit")
+
+    def __init__(self, limit: int = DIRECTIONS) -> None:
+        self._largest: OrderedDict[tuple[Endpoint, Endpoint], int] = OrderedDict()  # -> largest right payload
+        self.limit = limit
+
+    def right(self, direction: tuple[Endpoint, Endpoint], size: int) -> None:
+        """A segment of `size` payload bytes with right checksums on `direction`."""
+        largest = self._largest.pop(direction, 0)
+        self._largest[direction] = max(largest, size)
+        if len(self._largest) > self.limit:
+            self._largest.popitem(last=False)
+
+    def fate(self, direction: tuple[Endpoint, Endpoint], size: int, dropped: Note | None, verdict: Checksum,
+             field: int, right: int, header_zero: bool, offset: int | None) -> tuple[Note | None, bool]:
+        """What becomes of a TCP segment of `size` payload bytes on `direction`: the note on it (None: nothing
+        to say) and whether it is left out of its stream. `dropped`: the note on an IP header its receiver drops
+        it for (a wrong checksum, a length that lies); `verdict`, `field`, `right`: its TCP checksum, judged
+        (Checksum.ABSENT where it is not: not captured whole); `header_zero`: an IPv4 header checksum of 0."""
+        checked = direction in self._largest
+        if dropped is None and verdict is Checksum.RIGHT and not header_zero:
+            self.right(direction, size)
+            return None, False
+        if dropped is not None:
+            code, what, offset = dropped.code, dropped.message, dropped.offset
+        elif verdict is Checksum.WRONG:
+            code, what = "tcp-bad-checksum", f"TCP checksum 0x{field:04x} is wrong (0x{right:04x} is right)"
+        elif not checked:
+            return None, False  # a sender's placeholders, or not judged: nothing says the checksums are real
+        elif verdict is Checksum.OFFLOAD:
+            code, what = "tcp-bad-checksum", (f"TCP checksum 0x{field:04x} is the pseudo-header's sum a sender "
+                                              f"leaves for its NIC (0x{right:04x} is right)")
+        elif header_zero:
+            code, what = "ip-bad-checksum", "IPv4 header checksum 0, which a sender leaves for its NIC"
+        else:
+            return None, False  # not judged (a segment the capture snapped)
+        drop = False
+        if not checked:
+            fate = ("read into its stream all the same: no right checksum is remembered for that direction (a "
+                    "capture edited without fixing them?)")
+        elif dropped is None and size > max(MERGE_FLOOR, self._largest[direction]):
+            if verdict is not Checksum.WRONG:
+                return None, False  # the receiving host's merge of several segments: GRO leaves the placeholder
+            fate = ("read into its stream: larger than any one segment of that direction, it may be the receiving "
+                    "host's merge of several")
+        else:
+            fate, drop = ("not read into its stream: that direction has carried right checksums, so the capture's "
+                          "are real"), True
+        if dropped is None:
+            what += f": a receiver that checks drops this segment ({size} bytes)"
+        return note(code, f"{what}; {fate}", offset), drop

@@ -8,7 +8,7 @@ from mavscope.capture.base import LINKTYPE_ETHERNET, LINKTYPE_MAVLINK_RAW, LINKT
 from mavscope.endpoint import Endpoint
 from mavscope.notes import Note, note
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TCP, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
-from mavscope.transport.checksum import Checksum, ipv4_header, judge
+from mavscope.transport.checksum import Checksum, Directions, ipv4_header, judge
 from mavscope.transport.defrag import Defragmenter, records_text
 from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, Endpoints, FragmentInfo, parse_ipv4, parse_ipv6, walk_ipv6
 from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, Subframes, Undecoded, strip_link
@@ -44,9 +44,7 @@ class Decapsulator:
         self.defrag = Defragmenter()
         self._unknown_seen: set[int] = set()
         self._flows: dict[bytes, tuple[Endpoint, Endpoint]] = {}
-        # TCP directions (source, destination) that carried a segment with a right checksum (their
-        # captured checksums are real): one with a wrong checksum there is what the receiver dropped
-        self._checked: dict[tuple[Endpoint, Endpoint], None] = {}
+        self.directions = Directions()  # the TCP directions whose captured checksums are real
 
     def feed(self, rec: Record) -> list[Payload]:
         """The Payloads that `rec` yields now (possibly none)."""
@@ -80,36 +78,6 @@ class Decapsulator:
             self._flows.clear()
         self._flows[flow] = names
         return names
-
-    def _check(self, direction: tuple[Endpoint, Endpoint]) -> None:
-        """Remember that TCP `direction` carried a right checksum."""
-        if direction not in self._checked:
-            if len(self._checked) >= FLOW_CACHE:
-                self._checked.clear()
-            self._checked[direction] = None
-
-    def _tcp_checksum(self, s: Endpoint, d: Endpoint, src: bytes, dst: bytes, data: bytes, l4: int, end: int,
-                      seq: int, hlen: int, where: str, offset: int | None) -> Note | None:
-        """The note on a whole TCP segment data[l4:end] with a wrong checksum (None when it is right, absent or a
-        sender's offload placeholder). A direction that carried a right checksum has real ones, so a wrong one
-        there is what the receiver dropped (and an insertion's way to feed a monitor bytes the vehicle never
-        read); on a direction without one (a capture edited without fixing them) the segment is read all the
-        same."""
-        verdict, field, right = judge(len(src) == 16, src, dst, PROTO_TCP, data, l4, end)
-        if verdict is Checksum.RIGHT:
-            self._check((s, d))
-        if verdict is not Checksum.WRONG:
-            return None
-        return note("tcp-bad-checksum", f"TCP checksum 0x{field:04x} is wrong (0x{right:04x} is right){where}: a "
-                    f"receiver that checks drops this segment ({end - l4 - hlen} bytes at sequence {seq}); "
-                    f"{self._fate(s, d)}", offset)
-
-    def _fate(self, s: Endpoint, d: Endpoint) -> str:
-        """What becomes of a TCP segment the receiver dropped, from `s` to `d`."""
-        if (s, d) in self._checked:
-            return "not read into its stream, whose other segments have right checksums"
-        return ("read into its stream all the same, as no segment of that direction has had a right checksum (a "
-                "capture edited without fixing them?)")
 
     def flush(self) -> list[Payload]:
         """End of capture: deliver the TCP bytes still buffered, with notes for the gaps skipped, and note
@@ -162,32 +130,40 @@ class Decapsulator:
         return self._network(rec, data, *link, roff)
 
     def _network(self, rec: Record, data: bytes, et: int, off: int, base: int | None,
-                 span: tuple[int, ...] | None = None, depth: int = 0,
-                 limit: int | None = None) -> tuple[list[Payload], tuple[Note, ...]]:
+                 span: tuple[int, ...] | None = None, depth: int = 0, limit: int | None = None,
+                 outer: tuple[Note, ...] = ()) -> tuple[list[Payload], tuple[Note, ...]]:
         """The IP packet at `off` in `data` (the record's bytes, or a reassembled datagram: `span`), ending by
         `limit` where given; `base` is the file offset of data[0] (None in a reassembled one), `depth` how many
-        tunnels it is inside."""
+        tunnels it is inside, `outer` the notes on the tunnel packet that carries it, a receiver drops (so this
+        one with it), which come first."""
         if et == ETHERTYPE_IPV4:
             ip = parse_ipv4(data, off, limit)
         elif et == ETHERTYPE_IPV6:
             ip = parse_ipv6(data, off, limit)
         else:
-            return [], ()
+            return [], outer
         if isinstance(ip, str):
-            return [], (note("malformed-packet", f"{ip} (packet byte {off})", _at(base, off)),)
+            return [], (*outer, note("malformed-packet", f"{ip} (packet byte {off})", _at(base, off)))
         proto, src, dst, l4, end, fragment = ip
         v4 = et == ETHERTYPE_IPV4
+        verdict, field, right = ipv4_header(data, off, l4 - off) if v4 else (Checksum.RIGHT, 0, 0)
+        dropped = None
+        if verdict is Checksum.WRONG:
+            what = "fragment before reassembly" if fragment is not None else "packet before UDP or TCP reads it"
+            dropped = note("ip-bad-checksum", f"IPv4 header checksum 0x{field:04x} is wrong (0x{right:04x} is "
+                           f"right): a receiver drops this {what}", _at(base, off))
         if fragment is not None:
+            if dropped is not None or outer:  # never reaches reassembly
+                return [], (*outer, *(() if dropped is None else (dropped,)))
             return self._fragment(fragment, proto, src, dst, data[l4:end], rec, _at(base, l4), depth)
-        # the packet is all here, as long as its header says (not snapped, not an offloaded send)
+        # the packet is all here, as long as its header says (unless the capture snapped it); else, where the
+        # record is whole, its header lies and a receiver drops it
         size = (data[off + 2] << 8 | data[off + 3]) if v4 else (data[off + 4] << 8 | data[off + 5]) + 40
         whole = size > (0 if v4 else 40) and off + size == end
-        dropped: Note | None = None  # a wrong IPv4 header checksum: the receiver drops the packet
-        verdict, field, right = ipv4_header(data, off, l4 - off) if v4 else (Checksum.RIGHT, 0, 0)
-        if verdict is Checksum.WRONG:
-            dropped = note("ip-bad-checksum", f"IPv4 header checksum 0x{field:04x} is wrong (0x{right:04x} is right): "
-                           "a receiver drops this packet before UDP or TCP reads it", _at(base, off))
-        return self._layer4(v4, proto, src, dst, data, l4, end, rec, base, span, depth, whole, dropped)
+        if not whole and dropped is None and rec.orig_len <= len(rec.data):
+            dropped = _length_lies(v4, size, end - off, _at(base, off))
+        return self._layer4(v4, proto, src, dst, data, l4, end, rec, base, span, depth, whole, dropped,
+                            v4 and verdict is Checksum.OFFLOAD, outer)
 
     def _fragment(self, frag: FragmentInfo, proto: int, src: bytes, dst: bytes, data: bytes, rec: Record,
                   offset: int | None, depth: int) -> tuple[list[Payload], tuple[Note, ...]]:
@@ -209,73 +185,79 @@ class Decapsulator:
 
     def _layer4(self, v4: bool, proto: int, src: bytes, dst: bytes, data: bytes, l4: int, end: int, rec: Record,
                 base: int | None, span: tuple[int, ...] | None, depth: int, whole: bool,
-                dropped: Note | None = None) -> tuple[list[Payload], tuple[Note, ...]]:
+                dropped: Note | None = None, header_zero: bool = False,
+                outer: tuple[Note, ...] = ()) -> tuple[list[Payload], tuple[Note, ...]]:
         """The UDP or TCP payload at data[l4:end], or the packet a tunnel carries there (`base`: the file offset
         of data[0], None for a datagram reassembled from the fragments of the records in `span`; `whole`: the
         IP packet ends at `end` as its header says, so its checksum can be judged; `dropped`: the note on an IP
-        header a receiver drops the packet for)."""
+        header a receiver drops the packet for; `header_zero`: an IPv4 header checksum of 0; `outer`: the notes
+        on a tunnel packet a receiver drops, which carries this one)."""
         ep = self.endpoints
         number = rec.number
         where = f" (reassembled from {records_text(span)})" if span is not None else ""
+        first = outer if dropped is None else (*outer, dropped)
         if proto == PROTO_UDP:
             if l4 + 8 > end:
-                return [], (note("malformed-packet", f"UDP header cut short at byte {l4}{where}", _at(base, l4)),)
+                return [], (*first, note("malformed-packet", f"UDP header cut short at byte {l4}{where}",
+                                         _at(base, l4)))
             sport, dport, ulen = _UDP.unpack_from(data, l4)
             if ulen < 8:
                 if ulen or v4:
-                    return [], (note("malformed-packet", f"UDP length {ulen} < 8 at byte {l4}{where}",
-                                     _at(base, l4)),)
+                    return [], (*first, note("malformed-packet", f"UDP length {ulen} < 8 at byte {l4}{where}",
+                                             _at(base, l4)))
                 ulen = end - l4  # IPv6 jumbogram
             stop = min(l4 + ulen, end)
-            notes: tuple[Note, ...] = () if dropped is None else (dropped,)
+            notes = first
             if whole:
                 notes += _udp_dropped(v4, src, dst, data, l4, ulen, end, where, _at(base, l4))
             if dport in VXLAN_PORTS:
                 inner = vxlan(data, l4 + 8, stop)
-                if inner is not None:
-                    got, more = self._inner(rec, data[:stop], inner, base, span, depth, "VXLAN")
-                    return got, notes + more
+                if inner is not None:  # (a receiver that drops the tunnel's datagram never reads what it carries)
+                    return self._inner(rec, data[:stop], inner, base, span, depth, "VXLAN", notes)
             s = ep.v4_bytes(src, sport) if v4 else ep.v6(src, sport)
             d = ep.v4_bytes(dst, dport) if v4 else ep.v6(dst, dport)
             return [Payload(TRANSPORT_UDP, s, d, data[l4 + 8:stop], None, number, _at(base, l4 + 8), (), span)], notes
         if proto == PROTO_TCP:
             if l4 + 20 > end:
-                return [], (note("malformed-packet", f"TCP header cut short at byte {l4}{where}", _at(base, l4)),)
+                return [], (*first, note("malformed-packet", f"TCP header cut short at byte {l4}{where}",
+                                         _at(base, l4)))
             sport, dport, seq, doff, flags = _TCP.unpack_from(data, l4)
             hlen = (doff >> 4) * 4
             if hlen < 20 or l4 + hlen > end:
-                return [], (note("malformed-packet", f"TCP header length {hlen} does not fit at byte {l4}{where}",
-                                 _at(base, l4)),)
+                return [], (*first, note("malformed-packet", f"TCP header length {hlen} does not fit at byte "
+                                         f"{l4}{where}", _at(base, l4)))
             s = ep.v4_bytes(src, sport) if v4 else ep.v6(src, sport)
             d = ep.v4_bytes(dst, dport) if v4 else ep.v6(dst, dport)
-            bad: Note | None = None
-            if dropped is not None:
-                bad = note(dropped.code, f"{dropped.message}; {self._fate(s, d)}", dropped.offset)
-            elif whole:
-                bad = self._tcp_checksum(s, d, src, dst, data, l4, end, seq, hlen, where, _at(base, l4))
-            if bad is None:
-                return self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, _at(base, l4 + hlen)), ()
+            if dropped is None and outer:
+                dropped = note(outer[0].code, "carried in a tunnel packet that a receiver drops", outer[0].offset)
+            verdict, field, right = (judge(not v4, src, dst, PROTO_TCP, data, l4, end) if whole and dropped is None
+                                     else (Checksum.ABSENT, 0, 0))
+            said, drop = self.directions.fate((s, d), end - l4 - hlen, dropped, verdict, field, right, header_zero,
+                                              _at(base, l4))
+            if said is None:
+                return self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, _at(base, l4 + hlen)), outer
             # the note is the record's, now (not one for the stream's next frame to carry)
-            out = [Payload(TRANSPORT_TCP, s, d, b"", None, number, _at(base, l4), (bad,))]
-            if (s, d) not in self._checked:
+            out = [Payload(TRANSPORT_TCP, s, d, b"", None, number, _at(base, l4), (said,))]
+            if not drop:  # (else the receiver dropped it: its flags and bytes change nothing)
                 out += self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, _at(base, l4 + hlen))
-            # (else the receiver dropped it: its flags and bytes change nothing)
-            return out, ()
+            return out, outer
         if proto in TUNNEL_PROTOS:
             inner = gre(data, l4, end) if proto == PROTO_GRE else ip_in_ip(proto, l4)
-            got, more = self._inner(rec, data[:end], inner, base, span, depth,
-                                    "GRE" if proto == PROTO_GRE else "IP-in-IP")
-            return got, more if dropped is None else (dropped, *more)
-        return [], () if dropped is None else (dropped,)
+            return self._inner(rec, data[:end], inner, base, span, depth, "GRE" if proto == PROTO_GRE else "IP-in-IP",
+                               first)
+        return [], first
 
     def _inner(self, rec: Record, data: bytes, inner: tuple[int, int] | str, base: int | None,
-               span: tuple[int, ...] | None, depth: int, kind: str) -> tuple[list[Payload], tuple[Note, ...]]:
-        """The packet a tunnel carries (`inner`: its ethertype and offset in `data`, or what is wrong)."""
+               span: tuple[int, ...] | None, depth: int, kind: str,
+               outer: tuple[Note, ...]) -> tuple[list[Payload], tuple[Note, ...]]:
+        """The packet a tunnel carries (`inner`: its ethertype and offset in `data`, or what is wrong; `outer`:
+        the notes on the tunnel's packet, which a receiver drops, that come first)."""
         if isinstance(inner, str):
-            return [], (note("malformed-packet", f"{kind}: {inner}", base),)
+            return [], (*outer, note("malformed-packet", f"{kind}: {inner}", base))
         if depth >= MAX_DEPTH:
-            return [], (note("malformed-packet", f"{kind} tunnel inside {MAX_DEPTH} others: not decoded", base),)
-        return self._network(rec, data, *inner, base, span, depth + 1)
+            return [], (*outer, note("malformed-packet", f"{kind} tunnel inside {MAX_DEPTH} others: not decoded",
+                                     base))
+        return self._network(rec, data, *inner, base, span, depth + 1, outer=outer)
 
 
 def _sum_wrong(packet: bytes, ulen: int) -> bool:
@@ -284,6 +266,23 @@ def _sum_wrong(packet: bytes, ulen: int) -> bool:
     words' sum modulo 0xFFFF, as mavscope.transport.checksum works it)."""
     value = int.from_bytes(packet[26:34 + ulen], "big")
     return ((value << 8 if ulen & 1 else value) + PROTO_UDP + ulen) % 0xFFFF != 0
+
+
+def _length_lies(v4: bool, size: int, have: int, offset: int | None) -> Note | None:
+    """The note on an IP packet, not snapped, whose header's length (`size`, header included) disagrees with the
+    `have` bytes there are: longer (Linux drops it as truncated), or 0 in a packet of 64 KiB or less (only a
+    packet larger than a length can say is given none: a BIG TCP one)."""
+    name = "IPv4 total length" if v4 else "IPv6 payload length"
+    told = size if v4 else size - 40
+    if size > (0 if v4 else 40):
+        if size <= have:
+            return None
+        what = f"{name} {told} runs past the packet's {have} bytes"
+    elif have > (65535 if v4 else 65575):
+        return None
+    else:
+        what = f"{name} 0 in a packet of {have} bytes (only a packet over 64 KiB is given no length)"
+    return note("malformed-packet", f"{what}: a receiver drops it", offset)
 
 
 def _udp_dropped(v4: bool, src: bytes, dst: bytes, data: bytes, l4: int, ulen: int, end: int, where: str,

@@ -75,7 +75,6 @@ class _Datagram:
     dist: int = 0  # the source's IPv4 fragment count at this datagram's last fragment
     cost: int = QUEUE_COST  # what it and its fragments count against MAX_HELD
     ecn: int = 0  # its fragments' ECN codepoints, a bit each (Linux's IPFRAG_ECN_*: 1 << codepoint)
-    bad: list[int] = field(default_factory=list)  # records of its IPv4 fragments with a wrong header checksum
     length: int = 0  # the datagram's length as far as known (Linux's q.len)
     last_in: bool = False
     first_in: bool = False
@@ -105,15 +104,6 @@ def _describe(d: _Datagram) -> str:
     fam = socket.AF_INET6 if v6 else socket.AF_INET
     return (f"IPv{6 if v6 else 4} datagram id {ident} from {socket.inet_ntop(fam, src)} to "
             f"{socket.inet_ntop(fam, dst)}")
-
-
-def _checksums(d: _Datagram) -> str:
-    """What a note on fragments that disagree adds when some had a wrong IPv4 header checksum."""
-    if not d.bad:
-        return ""
-    return (f" (the IPv4 header checksum of {records_text(d.bad)} is wrong: unless the capture was taken on their "
-            "sender, whose NIC fills it in, the receiver dropped them before reassembly and read the others' "
-            "bytes)")
 
 
 def records_text(records: list[int] | tuple[int, ...], more_records: int = 0) -> str:
@@ -176,8 +166,6 @@ class Defragmenter:
             self.held += QUEUE_COST
         d.dist = dist
         d.took(record)
-        if frag.bad_checksum and len(d.bad) < RECORDS_KEPT:
-            d.bad.append(record)
         return self._insert(d, frag, proto, data, record, notes, offset), notes
 
     @staticmethod
@@ -245,12 +233,12 @@ class Defragmenter:
             if placed == "overlap":
                 self._drop(d, notes, "ip-fragment-overlap", f"{what} overlaps a fragment held: Linux "
                            "discards the whole datagram (RFC 5722); other IP stacks may reassemble it with "
-                           f"either fragment's bytes{_checksums(d)}", offset)
+                           "either fragment's bytes", offset)
                 return None
             same = self._bytes_at(d, start, end) == data
             notes.append(note("ip-fragment-duplicate" if same else "ip-fragment-conflict",
                               f"{what} repeats bytes already held" + ("" if same else " with other bytes: the "
-                              f"receiver keeps the first and drops this one{_checksums(d)}"), offset))
+                              "receiver keeps the first and drops this one"), offset))
             return None
         insort(d.frags, (start, data, record), key=_start)
         d.ecn |= 1 << frag.ecn

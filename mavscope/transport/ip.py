@@ -9,7 +9,6 @@ from typing import NamedTuple
 from mavscope.endpoint import Endpoint
 from mavscope.transport.checksum import PROTO_TCP as PROTO_TCP  # (the protocol numbers live with the checksums)
 from mavscope.transport.checksum import PROTO_UDP as PROTO_UDP
-from mavscope.transport.checksum import Checksum, ipv4_header
 
 # IPv6 extension headers walked on the way to UDP/TCP
 EXT_HOPOPTS = 0
@@ -35,8 +34,6 @@ class FragmentInfo(NamedTuple):
     header_len: int  # IPv4: the header's length (with options); IPv6: the extension headers before it
     length: int  # the fragment's bytes as its header counts them (more than were captured in a snapped record)
     ecn: int = 0  # the ECN bits of its TOS / traffic class (Linux discards a datagram that mixes them badly)
-    bad_checksum: bool = False  # IPv4: its header checksum is wrong (a receiver drops it; a sender's capture
-    # shows it wrong where the NIC computes it)
 
     def describe(self) -> str:
         more = " (more follow)" if self.more else ""
@@ -49,17 +46,10 @@ class FragmentInfo(NamedTuple):
 IpResult = tuple[int, bytes, bytes, int, int, FragmentInfo | None]
 
 
-def checksum_ok(data: bytes, off: int, size: int) -> bool:
-    """Whether the IPv4 header of `size` bytes at `off` has a checksum a receiver takes (right, or 0: left to
-    the sender's NIC, mavscope.transport.checksum.ipv4_header)."""
-    return ipv4_header(data, off, size)[0] is not Checksum.WRONG
-
-
 def parse_ipv4(data: bytes, off: int, limit: int | None = None) -> IpResult | str:
     """Decode an IPv4 header at `off`; an error message (str) when it is malformed.
 
-    The checksum decides nothing (offloading makes it wrong in a sender's captures); a fragment's says
-    whether it is right, for the notes on fragments that disagree. The end of the layer-4
+    The checksum is not looked at here (mavscope.transport.checksum judges it). The end of the layer-4
     data honours the total length, which strips Ethernet padding, clamped to the captured bytes (or to
     `limit`, where the packet's bytes end before the record's).
     """
@@ -83,7 +73,7 @@ def parse_ipv4(data: bytes, off: int, limit: int | None = None) -> IpResult | st
     fragment = None
     if frag & 0x3FFF:
         fragment = FragmentInfo(False, ident, (frag & 0x1FFF) * 8, bool(frag & 0x2000), ihl,
-                                (total or n - off) - ihl, tos & 3, not checksum_ok(data, off, ihl))
+                                (total or n - off) - ihl, tos & 3)
     return proto, src, dst, off + ihl, end, fragment
 
 

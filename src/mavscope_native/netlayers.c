@@ -95,10 +95,11 @@ static int udp_checksum_wrong(int v6, const uint8_t *src, const uint8_t *dst, co
     if (field == 0)
         return v6;
     size_t alen = v6 ? 16 : 4;
-    unsigned pseudo = fold(ones_sum(dst, alen, ones_sum(src, alen, 17 + (uint64_t)ulen)));
+    uint64_t addresses = ones_sum(dst, alen, ones_sum(src, alen, 17));
+    unsigned pseudo = fold(addresses + ulen);
     if (fold(ones_sum(d + l4, ulen, pseudo)) == 0xFFFF)
         return 0;
-    return field != pseudo;
+    return field != pseudo && field != fold(addresses); /* (the latter: the sum without the length, Windows' USO) */
 }
 
 int ms_net_decode(int64_t linktype, const uint8_t *d, size_t n, ms_udp *out) {
@@ -120,14 +121,12 @@ int ms_net_decode(int64_t linktype, const uint8_t *d, size_t n, ms_udp *out) {
         if (ihl < 20 || off + ihl > n)
             return MS_NET_HANDBACK;
         size_t total = ms_be16(h + 2);
-        if (total == 0) {
-            end = n;
-        } else if (total < ihl) {
+        /* (a record that reaches here is not snapped: a length past its end, or 0 in a packet of 64 KiB or less,
+         * is a header that lies, which Python notes: decap._length_lies) */
+        if (total == 0 ? n - off <= 65535 : total < ihl || off + total > n)
             return MS_NET_HANDBACK;
-        } else {
-            end = off + total < n ? off + total : n;
-        }
-        whole = total != 0 && off + total <= n;
+        end = total ? off + total : n;
+        whole = total != 0;
         if (ms_be16(h + 6) & 0x3FFF)
             return MS_NET_HANDBACK; /* a fragment: noted */
         if (ms_be16(h + 10) != 0 && fold(ones_sum(h, ihl, 0)) != 0xFFFF)
@@ -144,8 +143,10 @@ int ms_net_decode(int64_t linktype, const uint8_t *d, size_t n, ms_udp *out) {
         if ((h[0] >> 4) != 6)
             return MS_NET_HANDBACK;
         size_t plen = ms_be16(h + 4);
-        end = plen ? (off + 40 + plen < n ? off + 40 + plen : n) : n;
-        whole = plen != 0 && off + 40 + plen <= n;
+        if (plen == 0 ? n - off <= 65575 : off + 40 + plen > n)
+            return MS_NET_HANDBACK; /* (as for IPv4 above) */
+        end = plen ? off + 40 + plen : n;
+        whole = plen != 0;
         unsigned nxt = h[6];
         size_t p = off + 40;
         int i;

@@ -69,24 +69,28 @@ def field_at(proto: int, l4: int) -> int:
 
 
 @settings(max_examples=200, deadline=None, derandomize=True)
-@given(st.booleans(), st.booleans(), st.binary(max_size=80), st.integers(0, 0xFFFF))
-def test_judge_against_scapys_checksums(v6: bool, tcp: bool, payload: bytes, other: int) -> None:
+@given(st.booleans(), st.booleans(), st.binary(max_size=80), st.integers(0, 0xFFFF), st.integers(0, 2))
+def test_judge_against_scapys_checksums(v6: bool, tcp: bool, payload: bytes, other: int, kind: int) -> None:
     """scapy's right checksum is right; any other value is wrong with scapy's value named as the right one,
-    except 0 over IPv4 UDP (none) and the pseudo-header's sum (a sender's offload placeholder)."""
+    except 0 over IPv4 UDP (none) and the pseudo-header's sum, with or without the length (a sender's offload
+    placeholder). `other` is drawn among those too."""
     l4 = TCP(sport=40000, dport=5760) if tcp else UDP(sport=14550, dport=14555)
     raw = bytes((IPv6(**V6) if v6 else IP(**V4)) / l4 / payload)
     six, src, dst, proto, off = layers(raw)
     at = field_at(proto, off)
     right = int.from_bytes(raw[at:at + 2], "big")
     assert judge(six, src, dst, proto, raw, off, len(raw)) == (Checksum.RIGHT, right, right)
+    if kind:  # a placeholder: the pseudo-header's sum with the length (1) or without (2)
+        other = pseudo_sum(src, dst, proto, len(raw) - off if kind == 1 else 0)
     if other == right:
         return
     bad = raw[:at] + struct.pack("!H", other) + raw[at + 2:]
     got = judge(six, src, dst, proto, bad, off, len(bad))
     if other == 0 and proto == PROTO_UDP and not v6:
         assert got == (Checksum.ABSENT, 0, 0)
-    elif other == pseudo_sum(src, dst, proto, len(raw) - off) and not (other == 0 and proto == PROTO_UDP):
-        assert got == (Checksum.OFFLOAD, other, other)
+    elif other in (pseudo_sum(src, dst, proto, len(raw) - off), pseudo_sum(src, dst, proto, 0)) and not (
+            other == 0 and proto == PROTO_UDP):
+        assert got == (Checksum.OFFLOAD, other, right)
     elif (other, right) in ((0, 0xFFFF), (0xFFFF, 0)) and proto == PROTO_TCP:
         assert got[0] is Checksum.RIGHT  # the two zeros of ones' complement: TCP takes either
     else:
@@ -301,3 +305,138 @@ def test_a_snapped_datagram_is_not_judged(v6: bool) -> None:
     d = Decapsulator()
     (p,) = d.feed(Record(1, 0.0, LINKTYPE_ETHERNET, raw[:-3], 0, len(raw)))
     assert not p.notes and p.data == heartbeat()[:-3]
+
+
+# --- what a review found: ways around the rules ---------------------------------------------------------
+
+
+def insertion(inserted: Ether | bytes) -> list[Ether]:
+    """A SYN with right checksums, `inserted` (a DISARM at the ARM's sequence number, in a packet a Linux
+    receiver drops), the ARM, a HEARTBEAT: scapy computes every other checksum."""
+    ip = IP(**V4)
+
+    def seg(flags: str, seq: int, data: bytes = b"") -> Ether:
+        return Ether(**MACS) / ip / TCP(sport=40000, dport=5760, flags=flags, seq=seq) / data
+
+    a = arm(1)
+    return [seg("S", 999), Ether(bytes(inserted)), seg("PA", 1000, a), seg("PA", 1000 + len(a), heartbeat())]
+
+
+def disarm_segment(**ip: object) -> Ether:
+    return Ether(**MACS) / IP(**V4, **ip) / TCP(sport=40000, dport=5760, flags="PA", seq=1000) / arm(0)
+
+
+def refreshed(pkt: Ether, edit: slice, value: bytes) -> bytes:
+    """`pkt` with bytes `edit` of its IPv4 header replaced and the header checksum made right again (scapy)."""
+    raw = bytearray(bytes(pkt))
+    raw[edit] = value
+    raw[24:26] = b"\0\0"
+    raw[24:26] = struct.pack("!H", checksum(bytes(raw[14:34])))
+    return bytes(raw)
+
+
+def _placeholder_disarm() -> Ether:
+    seg = disarm_segment()
+    raw = bytes(seg[IP])
+    seg[TCP].chksum = pseudo_sum(raw[12:16], raw[16:20], PROTO_TCP, len(raw) - 20)
+    return seg
+
+
+INSERTIONS = {
+    # tshark: the TCP checksum bad ("maybe offload"): the pseudo-header's sum, worked out with scapy
+    "tcp-placeholder": _placeholder_disarm,
+    # tshark: the IPv4 header checksum bad (0); Linux checks every header
+    "ip-checksum-0": lambda: disarm_segment(chksum=0),
+    # Linux: tot_len < ihl, or more than the packet holds: dropped in ip_rcv_core
+    "total-length-0": lambda: refreshed(disarm_segment(), slice(16, 18), b"\0\0"),
+    "total-length-long": lambda: refreshed(disarm_segment(), slice(16, 18),
+                                           struct.pack("!H", len(bytes(disarm_segment()[IP])) + 2)),
+    # tshark: a wrong IPv4 header checksum on both fragments of the segment (Linux drops them before reassembly)
+    "fragments": None,
+}
+
+
+@pytest.mark.parametrize("kind", sorted(INSERTIONS))
+def test_an_insertion_a_linux_receiver_drops_is_left_out(cli, tmp_path: Path, kind: str) -> None:  # type: ignore[no-untyped-def]
+    """A review's bypasses of the insertion rule: each inserted DISARM is in a packet a Linux receiver drops, on
+    a direction that has carried right checksums (its SYN): the stream is the ARM and the HEARTBEAT, as
+    pymavlink parses the bytes the receiver kept, on both engines, and the record is noted (a checksum note is an
+    `audit` finding; a length that lies, a malformed-packet note, is not). Without the rule the DISARM is the
+    stream and the ARM a tcp-conflict."""
+    from scapy.layers.inet import fragment
+
+    make = INSERTIONS[kind]
+    if make is None:
+        frags = [IP(bytes(f)) for f in fragment(disarm_segment(id=99)[IP], fragsize=24)]
+        for f in frags:
+            f.chksum = 0x1357
+        pkts = insertion(Ether(**MACS) / frags[0])[:2] + [Ether(**MACS) / f for f in frags[1:]] + insertion(b"")[2:]
+    else:
+        pkts = insertion(make())
+    pcap = tmp_path / f"{kind}.pcap"
+    wrpcap(str(pcap), pkts)
+    m = mavlink.MAVLink(None)
+    want = [(x.get_msgId(), getattr(x, "param1", None)) for x in m.parse_buffer(arm(1) + heartbeat())]
+    for environ in ENGINES:
+        frames = cli.jsonl(pcap, environ=environ)
+        assert [(f["msgid"], f["fields"].get("param1")) for f in frames] == want, (kind, environ)
+        _, out, err = cli("audit", pcap, "--json", environ=environ)
+        assert "tcp-conflict" not in {f["code"] for f in json.loads(out)["findings"]} and "record 2: " in err
+
+
+def test_a_receivers_merge_keeps_the_placeholder_and_is_read(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """Linux's GRO leaves the pseudo-header's sum on the segments it merged (tcp_gro_complete), in a capture
+    taken on the receiver: a segment larger than one Ethernet frame holds, and than any with a right
+    checksum on its direction, is read without a note; the same placeholder on a small one is not."""
+    hb = heartbeat()
+    big = hb * 80  # 1,680 bytes: two segments' worth
+    ip = IP(**V4)
+
+    def seg(flags: str, seq: int, data: bytes, placeholder: bool = False) -> Ether:
+        t = TCP(sport=40000, dport=5760, flags=flags, seq=seq)
+        if placeholder:
+            raw = bytes(ip / t / data)
+            t.chksum = pseudo_sum(raw[12:16], raw[16:20], PROTO_TCP, len(raw) - 20)
+        return Ether(**MACS) / ip / t / data
+
+    pcap = tmp_path / "gro.pcap"
+    wrpcap(str(pcap), [seg("S", 999, b""), seg("PA", 1000, hb), seg("PA", 1000 + len(hb), big, True),
+                       seg("PA", 1000 + len(hb) + len(big), hb, True)])
+    frames = cli.jsonl(pcap)
+    assert len(frames) == 1 + 80 and not any(f.get("notes") for f in frames)
+    status, out, _ = cli("audit", pcap, "--json")
+    assert {f["code"]: f["frames"] for f in json.loads(out)["findings"]} == {"tcp-bad-checksum": [4]}
+
+
+def test_a_flood_of_directions_forgets_the_least_recently_confirmed() -> None:
+    """The directions with right checksums are bounded; the one confirmed last stays, the oldest goes."""
+    from mavscope.endpoint import Endpoint
+    from mavscope.transport.checksum import Directions
+
+    ends = [Endpoint("10.0.0.1", p) for p in range(6)]
+    dirs = Directions(limit=3)
+    for e in ends[:3]:
+        dirs.right((e, ends[5]), 10)
+    dirs.right((ends[0], ends[5]), 10)  # confirmed again: the most recent
+    dirs.right((ends[3], ends[5]), 10)
+    wrong = (Checksum.WRONG, 1, 2)
+    assert dirs.fate((ends[0], ends[5]), 10, None, *wrong, False, None)[1] is True  # still known: left out
+    assert dirs.fate((ends[1], ends[5]), 10, None, *wrong, False, None)[1] is False  # forgotten: read
+
+
+def test_windows_large_send_placeholder_is_not_judged() -> None:
+    """Windows' large send offload (and OpenBSD's TSO) leave the pseudo-header's sum without the length."""
+    raw = bytes(IP(**V4) / TCP(sport=1, dport=2) / (b"x" * 3000))
+    at = 20 + 16
+    field = pseudo_sum(raw[12:16], raw[16:20], PROTO_TCP, 0)
+    raw = raw[:at] + struct.pack("!H", field) + raw[at + 2:]
+    assert judge(False, raw[12:16], raw[16:20], PROTO_TCP, raw, 20, len(raw))[0] is Checksum.OFFLOAD
+
+
+def test_a_header_note_survives_a_cut_short_udp_header() -> None:
+    """A wrong IPv4 header checksum on a packet whose UDP header is cut short: both notes."""
+    from mavscope.capture.base import LINKTYPE_ETHERNET, Record
+
+    raw = bytearray(bytes(Ether(**MACS) / IP(**V4, chksum=0x1234, proto=17) / b"\x01\x02\x03"))
+    (p,) = Decapsulator().feed(Record(1, 0.0, LINKTYPE_ETHERNET, bytes(raw), 0, len(raw)))
+    assert [n.code for n in p.notes] == ["ip-bad-checksum", "malformed-packet"]

@@ -190,18 +190,20 @@ def test_a_repeat_inside_a_run_is_a_duplicate_and_the_first_bytes_stay() -> None
     assert out[1].data == A[8:] + B + LAST and out[1].span == (1, 2, 4)
 
 
-def test_a_repeat_against_a_fragment_with_a_wrong_checksum_says_so() -> None:
+def test_a_fragment_with_a_wrong_header_checksum_is_dropped_before_reassembly() -> None:
     """Linux checks the IPv4 header checksum (ip_rcv_core) before reassembly, so a first fragment whose checksum
-    is wrong never reached it and a later good one is what it read; mavscope cannot tell a wrong checksum
-    on the wire from one a sender's NIC had yet to fill in (the capture taken on the sender), so it keeps the
-    first and says which fragments had a wrong checksum."""
+    is wrong (scapy's is replaced) never reaches it, and a later first fragment with other bytes is no repeat:
+    the datagram is made of it. Linux computes the header checksum in software, so a wrong one is not a
+    sender's offload; 0 (what macOS and Windows leave to their NIC) is not judged, and that fragment is held."""
     bad = Ether(raw4(0, HEAD + A[8:], True))
     bad[IP].chksum = 0x1234
     out = run([record(1, bytes(bad)), record(2, raw4(0, HEAD + C[8:], True)), record(3, raw4(16, B + LAST, False))])
-    assert codes(out) == [["ip-fragment-conflict"]]
-    assert "IPv4 header checksum of record 1 is wrong" in out[0].notes[0].message
-    out = run([record(1, raw4(0, HEAD + A[8:], True)), record(2, raw4(0, HEAD + C[8:], True))])
-    assert "checksum" not in out[0].notes[0].message
+    assert codes(out) == [["ip-bad-checksum"]] and "drops this fragment before reassembly" in out[0].notes[0].message
+    assert out[1].data == C[8:] + B + LAST and out[1].span == (2, 3)
+    zero = Ether(raw4(0, HEAD + A[8:], True))
+    zero[IP].chksum = 0
+    out = run([record(1, bytes(zero)), record(2, raw4(0, HEAD + C[8:], True)), record(3, raw4(16, B + LAST, False))])
+    assert codes(out) == [["ip-fragment-conflict"]] and out[1].data == A[8:] + B + LAST
 
 
 def test_an_exact_repeat_is_a_duplicate_noted_as_chat() -> None:
