@@ -69,17 +69,6 @@ static int strip_link(int64_t lt, const uint8_t *d, size_t n, size_t *off) {
     }
 }
 
-/* The ones' complement sum of d[0 .. n) as 16-bit big-endian words (a last odd byte padded with zero),
- * added to `sum` and left unfolded (at most 2**32 bytes' worth of words fit in 64 bits). */
-static uint64_t ones_sum(const uint8_t *d, size_t n, uint64_t sum) {
-    size_t i = 0;
-    for (; i + 1 < n; i += 2)
-        sum += (uint64_t)d[i] << 8 | d[i + 1];
-    if (i < n)
-        sum += (uint64_t)d[i] << 8;
-    return sum;
-}
-
 static unsigned fold(uint64_t sum) {
     while (sum >> 16)
         sum = (sum & 0xFFFF) + (sum >> 16);
@@ -95,9 +84,9 @@ static int udp_checksum_wrong(int v6, const uint8_t *src, const uint8_t *dst, co
     if (field == 0)
         return v6;
     size_t alen = v6 ? 16 : 4;
-    uint64_t addresses = ones_sum(dst, alen, ones_sum(src, alen, 17));
+    uint64_t addresses = ms_ones_sum(ms_ones_sum(17, src, alen), dst, alen);
     unsigned pseudo = fold(addresses + ulen);
-    if (fold(ones_sum(d + l4, ulen, pseudo)) == 0xFFFF)
+    if (fold(ms_ones_sum(pseudo, d + l4, ulen)) == 0xFFFF)
         return 0;
     return field != pseudo && field != fold(addresses); /* (the latter: the sum without the length, Windows' USO) */
 }
@@ -129,7 +118,7 @@ int ms_net_decode(int64_t linktype, const uint8_t *d, size_t n, ms_udp *out) {
         whole = total != 0;
         if (ms_be16(h + 6) & 0x3FFF)
             return MS_NET_HANDBACK; /* a fragment: noted */
-        if (ms_be16(h + 10) != 0 && fold(ones_sum(h, ihl, 0)) != 0xFFFF)
+        if (ms_be16(h + 10) != 0 && fold(ms_ones_sum(0, h, ihl)) != 0xFFFF)
             return MS_NET_HANDBACK; /* a wrong header checksum (0: left to the NIC): ip-bad-checksum */
         proto = h[9];
         memcpy(out->src, h + 12, 4);

@@ -22,6 +22,17 @@ typedef struct {
 
 int ms_net_decode(int64_t linktype, const uint8_t *data, size_t n, ms_udp *out);
 
+/* The ones' complement sum of p[0 .. n) as 16-bit big-endian words (a last odd byte padded with zero), added
+ * to `acc` and left unfolded (at most 2**32 bytes' worth of words fit in 64 bits). */
+static inline uint64_t ms_ones_sum(uint64_t acc, const uint8_t *p, size_t n) {
+    size_t i = 0;
+    for (; i + 1 < n; i += 2)
+        acc += ((uint64_t)p[i] << 8) | p[i + 1];
+    if (i < n)
+        acc += (uint64_t)p[i] << 8;
+    return acc;
+}
+
 /* "a.b.c.d:port" or "[v6]:port" as mavscope/transport/ip.py Endpoints names it; returns the length
  * (room for MS_ENDPOINT_MAX bytes). */
 #define MS_ENDPOINT_MAX 64

@@ -4,6 +4,8 @@
 #endif
 #include "recv.h"
 
+#include "netlayers.h" /* ms_ones_sum */
+
 #include <errno.h>
 #include <math.h>
 #include <stdlib.h>
@@ -24,16 +26,6 @@ static void put32le(uint8_t *p, uint32_t v) {
     p[1] = (uint8_t)(v >> 8);
     p[2] = (uint8_t)(v >> 16);
     p[3] = (uint8_t)(v >> 24);
-}
-
-/* The one's-complement sum of big-endian 16-bit words (an odd last byte padded with zero), not folded. */
-static uint64_t sum16(uint64_t acc, const uint8_t *p, size_t n) {
-    size_t i = 0;
-    for (; i + 1 < n; i += 2)
-        acc += ((uint64_t)p[i] << 8) | p[i + 1];
-    if (i < n)
-        acc += (uint64_t)p[i] << 8;
-    return acc;
 }
 
 /* synth.internet_checksum: the folded sum is 0 only for all-zero data, as value % 0xFFFF there */
@@ -83,10 +75,10 @@ int ms_udp_record(ms_buf *out, uint64_t sec, uint32_t nsec, const ms_addr *src, 
         put16(ip + 10, 0);
         memcpy(ip + 12, src->addr, 4);
         memcpy(ip + 16, dst->addr, 4);
-        put16(ip + 10, fold(sum16(0, ip, 20)));
+        put16(ip + 10, fold(ms_ones_sum(0, ip, 20)));
         udp = ip + 20;
-        acc = sum16(0, src->addr, 4);
-        acc = sum16(acc, dst->addr, 4);
+        acc = ms_ones_sum(0, src->addr, 4);
+        acc = ms_ones_sum(acc, dst->addr, 4);
     } else {
         uint8_t s16[16], d16[16];
         const ms_addr *a[2] = {src, dst};
@@ -109,16 +101,16 @@ int ms_udp_record(ms_buf *out, uint64_t sec, uint32_t nsec, const ms_addr *src, 
         memcpy(ip + 8, s16, 16);
         memcpy(ip + 24, d16, 16);
         udp = ip + 40;
-        acc = sum16(0, s16, 16);
-        acc = sum16(acc, d16, 16);
+        acc = ms_ones_sum(0, s16, 16);
+        acc = ms_ones_sum(acc, d16, 16);
     }
     acc += ulen + 17; /* the pseudo header's length and protocol (ulen < 2**16 either way) */
     put16(udp, sport);
     put16(udp + 2, dport);
     put16(udp + 4, (unsigned)ulen);
     put16(udp + 6, 0);
-    acc = sum16(acc, udp, 8);
-    acc = sum16(acc, payload, n);
+    acc = ms_ones_sum(acc, udp, 8);
+    acc = ms_ones_sum(acc, payload, n);
     unsigned csum = fold(acc);
     put16(udp + 6, csum ? csum : 0xFFFF);
     if (n)

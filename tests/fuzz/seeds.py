@@ -85,7 +85,6 @@ def wifi_seed() -> bytes:
     from scapy.layers.inet import IP, UDP
     from scapy.layers.l2 import LLC, SNAP
     from scapy.packet import Raw
-    from scapy.utils import wrpcap
 
     hb = b"\xfd\x09\x00\x00\x00\x01\x01\x00\x00\x00" + bytes(9) + b"\x00\x00"
     mac = {"addr1": "02:00:00:00:00:01", "addr2": "02:00:00:00:00:02", "addr3": "02:00:00:00:00:01"}
@@ -93,7 +92,14 @@ def wifi_seed() -> bytes:
             / LLC() / SNAP() / IP(src="192.168.4.2", dst="192.168.4.1") / UDP(sport=14550, dport=14555) / hb,
             RadioTap() / Dot11(type=2, FCfield="to_DS+protected", **mac) / Raw(bytes(40)),
             RadioTap() / Dot11(type=0, subtype=8) / Raw(b"beacon")]
-    path = ROOT / ".cache" / "fuzz" / "wifi.tmp"
+    return _pcap(pkts, "wifi")
+
+
+def _pcap(pkts: list, name: str) -> bytes:  # type: ignore[type-arg]
+    """The bytes of a pcap of scapy's `pkts` (written by scapy to a scratch file)."""
+    from scapy.utils import wrpcap
+
+    path = ROOT / ".cache" / "fuzz" / f"{name}.tmp"
     path.parent.mkdir(parents=True, exist_ok=True)
     wrpcap(str(path), pkts)
     data = path.read_bytes()
@@ -107,7 +113,6 @@ def checksum_seed() -> bytes:
     from scapy.layers.inet import IP, TCP, UDP
     from scapy.layers.inet6 import IPv6
     from scapy.layers.l2 import Ether
-    from scapy.utils import wrpcap
 
     hb = b"\xfd\x09\x00\x00\x00\x01\x01\x00\x00\x00" + bytes(9) + b"\x00\x00"
     v4, v6 = IP(src="10.0.0.2", dst="10.0.0.1"), IPv6(src="fd00::2", dst="fd00::1")
@@ -118,12 +123,7 @@ def checksum_seed() -> bytes:
              eth / v4 / TCP(sport=40000, dport=5760, flags="S", seq=9),
              eth / v4 / TCP(sport=40000, dport=5760, flags="PA", seq=10, chksum=0xBEEF) / hb[::-1],
              eth / v4 / TCP(sport=40000, dport=5760, flags="PA", seq=10) / hb]
-    path = ROOT / ".cache" / "fuzz" / "checksums.tmp"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    wrpcap(str(path), pkts)
-    data = path.read_bytes()
-    path.unlink()
-    return data
+    return _pcap(pkts, "checksums")
 
 
 def write(corpus: Path) -> None:
