@@ -268,6 +268,12 @@ class Dissector:
             yield Anomaly(self._raw_frames if raw else self._record, tuple(orphans))
 
     def _stream(self, p: Payload) -> Iterator[Frame | Anomaly]:
+        if not p.data:
+            # notes on a segment that added no bytes (a retransmission, a conflicting one, a suspicious SYN):
+            # its record's, now, not the next frame's of the stream (which may come records later)
+            if p.notes:
+                yield Anomaly(p.record, p.notes)
+            return
         sf = self.streams.get(p.stream)
         if sf is None:
             sf = self.streams[p.stream] = StreamFramer(self.framer, (p.stream, p.transport, p.src, p.dst))

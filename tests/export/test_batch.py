@@ -51,8 +51,10 @@ def test_a_directory_text_summary_and_stats(cli: Cli) -> None:
                 for p in captures)  # (audit's rule: notes are information)
     assert 0 < found < len(captures) and status == 1
     assert all(any(str(p) in ln for ln in out.splitlines()) for p in captures)  # every path whole on a line
-    assert (f"{len(captures) - found} ok, {found} with findings, 0 error(s); 1 with problems on stderr; "
-            "exit status 1 (findings)") in out  # damaged.pcap's cut record (captures/README.md)
+    # damaged.pcap's cut record (captures/README.md) and px4_sitl_tcp.pcap's retransmission, noted on its own
+    # record (tshark: frame 148 is tcp.analysis.retransmission, 52 bytes)
+    assert (f"{len(captures) - found} ok, {found} with findings, 0 error(s); 2 with problems on stderr; "
+            "exit status 1 (findings)") in out
 
 
 def test_stats_findings_decide_the_status(cli: Cli) -> None:

@@ -188,3 +188,39 @@ def test_a_conflicting_retransmission_is_an_audit_finding(cli, tmp_path: Path) -
 
     assert status == 1 and [(f["code"], f["frames"]) for f in json.loads(out)["findings"]] == [("tcp-conflict", [3])]
     assert "with other bytes" in err
+
+
+def test_a_conflict_is_named_by_its_own_record(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """A conflicting retransmission (record 3) followed by more of the stream: the finding names record 3,
+    the segment that carried the other bytes, not the HEARTBEAT of record 4 (the stream's next frame, which
+    carried the note before stop 33); the frames are the ARM and two HEARTBEATs, as pymavlink parses the
+    bytes the receiver kept."""
+    import json
+
+    from pymavlink.dialects.v20 import common as mavlink
+    from scapy.layers.inet import IP, TCP
+    from scapy.layers.l2 import Ether
+    from scapy.utils import wrpcap
+
+    gcs = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    arm = gcs.command_long_encode(1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0).pack(gcs)
+    gcs.seq = 0
+    disarm = gcs.command_long_encode(1, 1, 400, 0, 0, 0, 0, 0, 0, 0, 0).pack(gcs)
+    hb = gcs.heartbeat_encode(6, 8, 0, 0, 4).pack(gcs)
+    mac = {"src": "02:00:00:00:00:02", "dst": "02:00:00:00:00:01"}
+    ip = IP(src="10.0.0.2", dst="10.0.0.1")
+
+    def seg(flags: str, seq: int, data: bytes = b"") -> Ether:
+        return Ether(**mac) / ip / TCP(sport=40000, dport=5760, flags=flags, seq=seq) / data
+
+    pcap = tmp_path / "conflict_mid.pcap"
+    wrpcap(str(pcap), [seg("S", 999), seg("PA", 1000, arm), seg("PA", 1000, disarm), seg("PA", 1000 + len(arm), hb),
+                       seg("PA", 1000 + len(arm) + len(hb), hb)])
+    m = mavlink.MAVLink(None)
+    frames = cli.jsonl(pcap)
+    assert [(f["frame"], f["msgid"]) for f in frames] == list(zip((2, 4, 5), (x.get_msgId() for x in
+                                                                                m.parse_buffer(arm + hb + hb))))
+    assert not any(f.get("notes") for f in frames)
+    status, out, err = cli("audit", pcap, "--json")
+    assert status == 1 and [(f["code"], f["frames"]) for f in json.loads(out)["findings"]] == [("tcp-conflict", [3])]
+    assert "record 3: " in err
