@@ -123,10 +123,10 @@ CODES: dict[str, Code] = {
              "this by itself: a way to make a monitor and a vehicle read different datagrams"),
         Code("ip-bad-checksum", _WARN, Group.CHECKSUM, _B,
              "IPv4 packet with a wrong header checksum (a receiver drops it before UDP or TCP reads it)",
-             "IPv4 packets whose header checksum is wrong (not 0, which a sender that leaves it to its NIC shows): "
-             "every receiver drops them before UDP or TCP reads them, so their frames were shown to whoever "
-             "captured them but not read by the vehicle (a TCP segment in one is left out of its stream where its "
-             "direction's checksums are otherwise right)"),
+             "IPv4 packets whose header checksum is wrong (0, which a sender that leaves it to its NIC shows, only "
+             "on a TCP direction whose other checksums are right): every receiver drops them before UDP or TCP "
+             "reads them, so their frames were shown to whoever captured them but not read by the vehicle (a TCP "
+             "segment in one is left out of its stream where its direction's checksums are otherwise right)"),
         Code("udp-bad-checksum", _WARN, Group.CHECKSUM, _B,
              "UDP datagram with a wrong checksum (a receiver that checks drops it): its frames are shown",
              "UDP datagrams whose checksum is wrong (not a sender's offload placeholder): a receiver that checks "
@@ -134,9 +134,10 @@ CODES: dict[str, Code] = {
              "not read by the vehicle; a damaged link, a capture edited without fixing checksums, or an insertion"),
         Code("tcp-bad-checksum", _WARN, Group.CHECKSUM, _B,
              "TCP segment with a wrong checksum (a receiver that checks drops it)",
-             "TCP segments whose checksum is wrong (not a sender's offload placeholder): a receiver that checks them "
-             "dropped them; where their direction has right checksums they are left out of the stream (the "
-             "receiver's bytes, not the inserted ones), else read, as in a capture edited without fixing them"),
+             "TCP segments whose checksum is wrong (a sender's offload placeholder too, on a direction whose other "
+             "checksums are right): a receiver that checks them dropped them; where their direction has right "
+             "checksums they are left out of the stream (the receiver's bytes, not the inserted ones), else read, "
+             "as in a capture edited without fixing them"),
         Code("tcp-gap", _WARN, Group.REASSEMBLY, _F, "bytes missing from a TCP stream"),
         Code("tcp-retransmission", _CHAT, Group.REASSEMBLY, _F, "TCP retransmission dropped"),
         Code("tcp-conflict", _WARN, Group.SECURITY, _B,
@@ -292,7 +293,7 @@ def problem_line(where: str, n: Note) -> str:
     """A problem as `read` writes it on stderr: "WHERE: offset N: MESSAGE" (no offset when the message
     says it already). WHERE is "record R" for an anomaly, "frame F" for a frame's note."""
     offset = n.offset
-    at = f"offset {offset}: " if offset is not None and str(offset) not in n.message else ""
+    at = f"offset {offset}: " if offset is not None and f"offset {offset}" not in n.message else ""
     return f"{where}: {at}{n.message}"
 
 

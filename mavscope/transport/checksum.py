@@ -68,16 +68,17 @@ def ipv4_header(data: bytes, off: int, ihl: int) -> tuple[Checksum, int, int]:
     Linux computes it in software always; a field of 0 is what a sender that leaves it to its NIC shows
     (macOS on its loopback, judep90's capture; Windows with IP checksum offload): not judged."""
     field = data[off + 10] << 8 | data[off + 11]
+    total = ones_sum(data, off, off + ihl)
+    if total == 0:  # (0 is right once in 65,535 headers: the IP ID walks the checksum through every value)
+        return Checksum.RIGHT, field, field
     if field == 0:
         return Checksum.OFFLOAD, 0, 0
-    total = ones_sum(data, off, off + ihl)
-    if total == 0:
-        return Checksum.RIGHT, field, field
     rest = (total - field) % _M
     return Checksum.WRONG, field, _M - rest if rest else 0
 
 
 MERGE_FLOOR = 1460  # bytes: a TCP segment a receiver merged (GRO, RSC) is larger than one Ethernet frame holds
+FRAME_IP = 1500  # bytes: the IP packet one Ethernet frame holds (a sender's LSO packet, IPv4 length 0, is larger)
 DIRECTIONS = 65536  # TCP directions remembered as carrying real checksums, the least recently confirmed forgotten
 
 
@@ -102,12 +103,19 @@ class Directions:
         if len(self._largest) > self.limit:
             self._largest.popitem(last=False)
 
+    def forget(self, direction: tuple[Endpoint, Endpoint]) -> None:
+        """`direction`'s connection ended (a FIN or RST with right checksums): a new one on its 4-tuple starts
+        unknown (on a loopback, the kernel's own RST is right and the next connection all placeholders)."""
+        self._largest.pop(direction, None)
+
     def fate(self, direction: tuple[Endpoint, Endpoint], size: int, dropped: Note | None, verdict: Checksum,
-             field: int, right: int, header_zero: bool, offset: int | None) -> tuple[Note | None, bool]:
+             field: int, right: int, header_zero: bool, offset: int | None,
+             reassembled: bool = False) -> tuple[Note | None, bool]:
         """What becomes of a TCP segment of `size` payload bytes on `direction`: the note on it (None: nothing
         to say) and whether it is left out of its stream. `dropped`: the note on an IP header its receiver drops
         it for (a wrong checksum, a length that lies); `verdict`, `field`, `right`: its TCP checksum, judged
-        (Checksum.ABSENT where it is not: not captured whole); `header_zero`: an IPv4 header checksum of 0."""
+        (Checksum.ABSENT where it is not: not captured whole); `header_zero`: an IPv4 header checksum of 0 (or a
+        tunnel's or a fragment's that carried it); `reassembled`: from IP fragments (so no receiver's merge)."""
         checked = direction in self._largest
         if dropped is None and verdict is Checksum.RIGHT and not header_zero:
             self.right(direction, size)
@@ -127,9 +135,10 @@ class Directions:
             return None, False  # not judged (a segment the capture snapped)
         drop = False
         if not checked:
-            fate = ("read into its stream all the same: no right checksum is remembered for that direction (a "
-                    "capture edited without fixing them?)")
-        elif dropped is None and size > max(MERGE_FLOOR, self._largest[direction]):
+            fate = ("read into its stream all the same: no right checksum is remembered for that direction, so "
+                    "nothing says the capture shows what its receiver checked (a capture edited without fixing "
+                    "checksums?)")
+        elif dropped is None and not reassembled and size > max(MERGE_FLOOR, self._largest[direction]):
             if verdict is not Checksum.WRONG:
                 return None, False  # the receiving host's merge of several segments: GRO leaves the placeholder
             fate = ("read into its stream: larger than any one segment of that direction, it may be the receiving "

@@ -8,11 +8,11 @@ from mavscope.capture.base import LINKTYPE_ETHERNET, LINKTYPE_MAVLINK_RAW, LINKT
 from mavscope.endpoint import Endpoint
 from mavscope.notes import Note, note
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TCP, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
-from mavscope.transport.checksum import Checksum, Directions, ipv4_header, judge
+from mavscope.transport.checksum import FRAME_IP, Checksum, Directions, ipv4_header, judge
 from mavscope.transport.defrag import Defragmenter, records_text
 from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, Endpoints, FragmentInfo, parse_ipv4, parse_ipv6, walk_ipv6
 from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, Subframes, Undecoded, strip_link
-from mavscope.transport.tcp import MAX_BUFFERED, TcpReassembler
+from mavscope.transport.tcp import MAX_BUFFERED, TCP_FIN, TCP_RST, TcpReassembler
 from mavscope.transport.tunnel import MAX_DEPTH, PROTO_GRE, TUNNEL_PROTOS, VXLAN_PORTS, gre, ip_in_ip, vxlan
 
 RAW_STREAM = (TRANSPORT_RAW,)  # the stream key of a raw byte-stream capture
@@ -131,11 +131,11 @@ class Decapsulator:
 
     def _network(self, rec: Record, data: bytes, et: int, off: int, base: int | None,
                  span: tuple[int, ...] | None = None, depth: int = 0, limit: int | None = None,
-                 outer: tuple[Note, ...] = ()) -> tuple[list[Payload], tuple[Note, ...]]:
+                 outer: tuple[Note, ...] = (), outer_zero: bool = False) -> tuple[list[Payload], tuple[Note, ...]]:
         """The IP packet at `off` in `data` (the record's bytes, or a reassembled datagram: `span`), ending by
         `limit` where given; `base` is the file offset of data[0] (None in a reassembled one), `depth` how many
         tunnels it is inside, `outer` the notes on the tunnel packet that carries it, a receiver drops (so this
-        one with it), which come first."""
+        one with it), which come first, `outer_zero` whether that packet's checksum was a sender's placeholder."""
         if et == ETHERTYPE_IPV4:
             ip = parse_ipv4(data, off, limit)
         elif et == ETHERTYPE_IPV6:
@@ -152,18 +152,19 @@ class Decapsulator:
             what = "fragment before reassembly" if fragment is not None else "packet before UDP or TCP reads it"
             dropped = note("ip-bad-checksum", f"IPv4 header checksum 0x{field:04x} is wrong (0x{right:04x} is "
                            f"right): a receiver drops this {what}", _at(base, off))
-        if fragment is not None:
-            if dropped is not None or outer:  # never reaches reassembly
-                return [], (*outer, *(() if dropped is None else (dropped,)))
-            return self._fragment(fragment, proto, src, dst, data[l4:end], rec, _at(base, l4), depth)
         # the packet is all here, as long as its header says (unless the capture snapped it); else, where the
         # record is whole, its header lies and a receiver drops it
         size = (data[off + 2] << 8 | data[off + 3]) if v4 else (data[off + 4] << 8 | data[off + 5]) + 40
         whole = size > (0 if v4 else 40) and off + size == end
         if not whole and dropped is None and rec.orig_len <= len(rec.data):
             dropped = _length_lies(v4, size, end - off, _at(base, off))
-        return self._layer4(v4, proto, src, dst, data, l4, end, rec, base, span, depth, whole, dropped,
-                            v4 and verdict is Checksum.OFFLOAD, outer)
+        zero = outer_zero or (v4 and verdict is Checksum.OFFLOAD)
+        if fragment is not None:
+            if dropped is not None or outer:  # never reaches reassembly
+                return [], (*outer, *(() if dropped is None else (dropped,)))
+            return self._fragment(fragment._replace(header_zero=zero), proto, src, dst, data[l4:end], rec,
+                                  _at(base, l4), depth)
+        return self._layer4(v4, proto, src, dst, data, l4, end, rec, base, span, depth, whole, dropped, zero, outer)
 
     def _fragment(self, frag: FragmentInfo, proto: int, src: bytes, dst: bytes, data: bytes, rec: Record,
                   offset: int | None, depth: int) -> tuple[list[Payload], tuple[Note, ...]]:
@@ -180,7 +181,7 @@ class Decapsulator:
                                          None))
             proto, l4, _ = walked
         out, more = self._layer4(not frag.v6, proto, src, dst, buf, l4, len(buf), rec, None, whole.records, depth,
-                                 True)
+                                 True, header_zero=whole.header_zero)
         return out, (*notes, *more)
 
     def _layer4(self, v4: bool, proto: int, src: bytes, dst: bytes, data: bytes, l4: int, end: int, rec: Record,
@@ -207,13 +208,15 @@ class Decapsulator:
                                              _at(base, l4)))
                 ulen = end - l4  # IPv6 jumbogram
             stop = min(l4 + ulen, end)
-            notes = first
+            notes, placeholder = first, False
             if whole:
-                notes += _udp_dropped(v4, src, dst, data, l4, ulen, end, where, _at(base, l4))
+                more, placeholder = _udp_dropped(v4, src, dst, data, l4, ulen, end, where, _at(base, l4))
+                notes += more
             if dport in VXLAN_PORTS:
                 inner = vxlan(data, l4 + 8, stop)
                 if inner is not None:  # (a receiver that drops the tunnel's datagram never reads what it carries)
-                    return self._inner(rec, data[:stop], inner, base, span, depth, "VXLAN", notes)
+                    return self._inner(rec, data[:stop], inner, base, span, depth, "VXLAN", notes,
+                                       header_zero or placeholder)
             s = ep.v4_bytes(src, sport) if v4 else ep.v6(src, sport)
             d = ep.v4_bytes(dst, dport) if v4 else ep.v6(dst, dport)
             return [Payload(TRANSPORT_UDP, s, d, data[l4 + 8:stop], None, number, _at(base, l4 + 8), (), span)], notes
@@ -233,8 +236,10 @@ class Decapsulator:
             verdict, field, right = (judge(not v4, src, dst, PROTO_TCP, data, l4, end) if whole and dropped is None
                                      else (Checksum.ABSENT, 0, 0))
             said, drop = self.directions.fate((s, d), end - l4 - hlen, dropped, verdict, field, right, header_zero,
-                                              _at(base, l4))
+                                              _at(base, l4), span is not None)
             if said is None:
+                if flags & (TCP_FIN | TCP_RST) and verdict is Checksum.RIGHT and not header_zero:
+                    self.directions.forget((s, d))  # its connection ends: a new one on the 4-tuple starts unknown
                 return self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, _at(base, l4 + hlen)), outer
             # the note is the record's, now (not one for the stream's next frame to carry)
             out = [Payload(TRANSPORT_TCP, s, d, b"", None, number, _at(base, l4), (said,))]
@@ -244,20 +249,21 @@ class Decapsulator:
         if proto in TUNNEL_PROTOS:
             inner = gre(data, l4, end) if proto == PROTO_GRE else ip_in_ip(proto, l4)
             return self._inner(rec, data[:end], inner, base, span, depth, "GRE" if proto == PROTO_GRE else "IP-in-IP",
-                               first)
+                               first, header_zero)
         return [], first
 
     def _inner(self, rec: Record, data: bytes, inner: tuple[int, int] | str, base: int | None,
-               span: tuple[int, ...] | None, depth: int, kind: str,
-               outer: tuple[Note, ...]) -> tuple[list[Payload], tuple[Note, ...]]:
+               span: tuple[int, ...] | None, depth: int, kind: str, outer: tuple[Note, ...],
+               outer_zero: bool) -> tuple[list[Payload], tuple[Note, ...]]:
         """The packet a tunnel carries (`inner`: its ethertype and offset in `data`, or what is wrong; `outer`:
-        the notes on the tunnel's packet, which a receiver drops, that come first)."""
+        the notes on the tunnel's packet, which a receiver drops, that come first; `outer_zero`: its checksum
+        was a sender's placeholder)."""
         if isinstance(inner, str):
             return [], (*outer, note("malformed-packet", f"{kind}: {inner}", base))
         if depth >= MAX_DEPTH:
             return [], (*outer, note("malformed-packet", f"{kind} tunnel inside {MAX_DEPTH} others: not decoded",
                                      base))
-        return self._network(rec, data, *inner, base, span, depth + 1, outer=outer)
+        return self._network(rec, data, *inner, base, span, depth + 1, outer=outer, outer_zero=outer_zero)
 
 
 def _sum_wrong(packet: bytes, ulen: int) -> bool:
@@ -270,35 +276,37 @@ def _sum_wrong(packet: bytes, ulen: int) -> bool:
 
 def _length_lies(v4: bool, size: int, have: int, offset: int | None) -> Note | None:
     """The note on an IP packet, not snapped, whose header's length (`size`, header included) disagrees with the
-    `have` bytes there are: longer (Linux drops it as truncated), or 0 in a packet of 64 KiB or less (only a
-    packet larger than a length can say is given none: a BIG TCP one)."""
+    `have` bytes there are: longer (Linux drops it as truncated), or 0 in a packet one Ethernet frame holds (a
+    packet is given none only when a length cannot say it, BIG TCP's over 64 KiB, or by a sender for its
+    NIC to cut: Windows' LSOv2)."""
     name = "IPv4 total length" if v4 else "IPv6 payload length"
     told = size if v4 else size - 40
     if size > (0 if v4 else 40):
         if size <= have:
             return None
         what = f"{name} {told} runs past the packet's {have} bytes"
-    elif have > (65535 if v4 else 65575):
+    elif have > FRAME_IP:  # over 64 KiB (BIG TCP), or a sender's large send offload (Windows' LSOv2)
         return None
     else:
-        what = f"{name} 0 in a packet of {have} bytes (only a packet over 64 KiB is given no length)"
+        what = f"{name} 0 in a packet of {have} bytes (only a packet larger than a frame is given no length)"
     return note("malformed-packet", f"{what}: a receiver drops it", offset)
 
 
 def _udp_dropped(v4: bool, src: bytes, dst: bytes, data: bytes, l4: int, ulen: int, end: int, where: str,
-                 offset: int | None) -> tuple[Note, ...]:
+                 offset: int | None) -> tuple[tuple[Note, ...], bool]:
     """The notes on a whole UDP datagram at data[l4:end] that a receiver drops: a length past the packet's
-    end (Linux: a short packet), a wrong checksum (not a sender's offload placeholder)."""
+    end (Linux: a short packet), a wrong checksum (not a sender's offload placeholder); and whether its
+    checksum is such a placeholder (what a VXLAN datagram carries is judged with it)."""
     if l4 + ulen > end:
         return (note("malformed-packet", f"UDP length {ulen} runs past the end of its IP packet ({end - l4} bytes) "
-                     f"at byte {l4}{where}: a receiver drops it (a short packet)", offset),)
+                     f"at byte {l4}{where}: a receiver drops it (a short packet)", offset),), False
     verdict, field, right = judge(not v4, src, dst, PROTO_UDP, data, l4, l4 + ulen)
     if verdict is not Checksum.WRONG:
-        return ()
+        return (), verdict is Checksum.OFFLOAD
     what = (f"UDP checksum 0 over IPv6, which requires one (RFC 8200 8.1; 0x{right:04x} is right)" if field == 0 else
             f"UDP checksum 0x{field:04x} is wrong (0x{right:04x} is right)")
     return (note("udp-bad-checksum", f"{what}{where}: a receiver that checks (Linux, and most IP stacks) drops this "
-                 "datagram; its frames are shown", offset),)
+                 "datagram; its frames are shown", offset),), False
 
 
 def _at(base: int | None, pos: int) -> int | None:

@@ -65,6 +65,7 @@ class Reassembled(NamedTuple):
     data: bytes
     proto: int
     records: tuple[int, ...]  # in record order
+    header_zero: bool = False  # one of its IPv4 fragments had a header checksum of 0 (not judged)
 
 
 @dataclass(slots=True)
@@ -75,6 +76,7 @@ class _Datagram:
     dist: int = 0  # the source's IPv4 fragment count at this datagram's last fragment
     cost: int = QUEUE_COST  # what it and its fragments count against MAX_HELD
     ecn: int = 0  # its fragments' ECN codepoints, a bit each (Linux's IPFRAG_ECN_*: 1 << codepoint)
+    header_zero: bool = False  # one of its IPv4 fragments had a header checksum of 0
     length: int = 0  # the datagram's length as far as known (Linux's q.len)
     last_in: bool = False
     first_in: bool = False
@@ -242,6 +244,7 @@ class Defragmenter:
             return None
         insort(d.frags, (start, data, record), key=_start)
         d.ecn |= 1 << frag.ecn
+        d.header_zero |= frag.header_zero
         d.meat += end - start
         d.cost += end - start + FRAGMENT_COST
         self.held += end - start + FRAGMENT_COST
@@ -260,7 +263,7 @@ class Defragmenter:
                                           "receiver discards it (RFC 3168 5.3)", offset, "ip-fragment-dropped"))
             return None
         records = tuple(sorted({r for _, _, r in d.frags}))
-        return Reassembled(b"".join(b for _, b, _ in d.frags), d.proto, records)
+        return Reassembled(b"".join(b for _, b, _ in d.frags), d.proto, records, d.header_zero)
 
     @staticmethod
     def _place(d: _Datagram, start: int, end: int) -> str | None:

@@ -34,6 +34,7 @@ class FragmentInfo(NamedTuple):
     header_len: int  # IPv4: the header's length (with options); IPv6: the extension headers before it
     length: int  # the fragment's bytes as its header counts them (more than were captured in a snapped record)
     ecn: int = 0  # the ECN bits of its TOS / traffic class (Linux discards a datagram that mixes them badly)
+    header_zero: bool = False  # IPv4: a header checksum of 0, not judged (a sender's NIC fills it in)
 
     def describe(self) -> str:
         more = " (more follow)" if self.more else ""

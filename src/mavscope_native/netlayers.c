@@ -11,6 +11,7 @@
 #define ETHERTYPE_IPV4 0x0800
 #define ETHERTYPE_IPV6 0x86DD
 #define MAX_EXT_HEADERS 16
+#define FRAME_IP 1500 /* the IP packet one Ethernet frame holds (checksum.py FRAME_IP) */
 
 /* strip_link: -1 unknown link type, -2 malformed, else the ethertype (0: not IP) and *off */
 static int strip_link(int64_t lt, const uint8_t *d, size_t n, size_t *off) {
@@ -110,9 +111,9 @@ int ms_net_decode(int64_t linktype, const uint8_t *d, size_t n, ms_udp *out) {
         if (ihl < 20 || off + ihl > n)
             return MS_NET_HANDBACK;
         size_t total = ms_be16(h + 2);
-        /* (a record that reaches here is not snapped: a length past its end, or 0 in a packet of 64 KiB or less,
-         * is a header that lies, which Python notes: decap._length_lies) */
-        if (total == 0 ? n - off <= 65535 : total < ihl || off + total > n)
+        /* (a record that reaches here is not snapped: a length past its end, or 0 in a packet one Ethernet frame
+         * holds, is a header that lies, which Python notes: decap._length_lies) */
+        if (total == 0 ? n - off <= FRAME_IP : total < ihl || off + total > n)
             return MS_NET_HANDBACK;
         end = total ? off + total : n;
         whole = total != 0;
@@ -132,7 +133,7 @@ int ms_net_decode(int64_t linktype, const uint8_t *d, size_t n, ms_udp *out) {
         if ((h[0] >> 4) != 6)
             return MS_NET_HANDBACK;
         size_t plen = ms_be16(h + 4);
-        if (plen == 0 ? n - off <= 65575 : off + 40 + plen > n)
+        if (plen == 0 ? n - off <= FRAME_IP : off + 40 + plen > n)
             return MS_NET_HANDBACK; /* (as for IPv4 above) */
         end = plen ? off + 40 + plen : n;
         whole = plen != 0;
