@@ -1,4 +1,6 @@
-"""UDP and TCP checksums (RFC 768, RFC 793, RFC 8200 8.1): right, wrong, absent, or a sender's offload placeholder.
+"""IPv4 header, UDP and TCP checksums (RFC 791, 768, 793, RFC 8200 8.1): right, wrong, absent, or a sender's
+offload placeholder; and the TCP directions whose captured checksums are real (`Directions`: what becomes
+of a segment a receiver drops).
 
 A receiving kernel verifies them and drops a datagram or segment whose checksum is wrong before any
 application reads it (Linux: `udp_lib_checksum_complete`, `tcp_checksum_complete`). A capture taken on
