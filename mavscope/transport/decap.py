@@ -10,7 +10,16 @@ from mavscope.notes import Note, note
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TCP, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
 from mavscope.transport.checksum import FRAME_IP, Checksum, Directions, ipv4_header, judge
 from mavscope.transport.defrag import Defragmenter, records_text
-from mavscope.transport.ip import PROTO_TCP, PROTO_UDP, Endpoints, FragmentInfo, parse_ipv4, parse_ipv6, walk_ipv6
+from mavscope.transport.ip import (
+    PROTO_TCP,
+    PROTO_UDP,
+    Endpoints,
+    FragmentInfo,
+    options_problem,
+    parse_ipv4,
+    parse_ipv6,
+    walk_ipv6,
+)
 from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, Subframes, Undecoded, strip_link
 from mavscope.transport.tcp import MAX_BUFFERED, TCP_FIN, TCP_RST, TcpReassembler
 from mavscope.transport.tunnel import MAX_DEPTH, PROTO_GRE, TUNNEL_PROTOS, VXLAN_PORTS, gre, ip_in_ip, vxlan
@@ -148,10 +157,14 @@ class Decapsulator:
         v4 = et == ETHERTYPE_IPV4
         verdict, field, right = ipv4_header(data, off, l4 - off) if v4 else (Checksum.RIGHT, 0, 0)
         dropped = None
+        what = "fragment before reassembly" if fragment is not None else "packet before UDP or TCP reads it"
         if verdict is Checksum.WRONG:
-            what = "fragment before reassembly" if fragment is not None else "packet before UDP or TCP reads it"
             dropped = note("ip-bad-checksum", f"IPv4 header checksum 0x{field:04x} is wrong (0x{right:04x} is "
                            f"right): a receiver drops this {what}", _at(base, off))
+        elif v4 and l4 - off > 20:
+            problem = options_problem(data, off + 20, l4)
+            if problem is not None:
+                dropped = note("malformed-packet", f"{problem}: a receiver drops this {what}", _at(base, off + 20))
         # the packet is all here, as long as its header says (unless the capture snapped it); else, where the
         # record is whole, its header lies and a receiver drops it
         size = (data[off + 2] << 8 | data[off + 3]) if v4 else (data[off + 4] << 8 | data[off + 5]) + 40

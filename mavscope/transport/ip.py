@@ -47,6 +47,34 @@ class FragmentInfo(NamedTuple):
 IpResult = tuple[int, bytes, bytes, int, int, FragmentInfo | None]
 
 
+_POINTER_MIN = {7: (3, 4), 131: (3, 4), 137: (3, 4), 68: (4, 5)}  # RR, LSRR, SSRR, TS: least length, pointer
+
+
+def options_problem(data: bytes, start: int, end: int) -> str | None:
+    """What is wrong with the IPv4 options at data[start:end], as Linux's ip_options_compile finds it (a
+    receiver drops the packet): an option cut short or whose length runs past the header, a record-route,
+    source-route or timestamp option too short for its pointer or pointing before its data. None when they
+    parse (their meaning is not judged)."""
+    p = start
+    while p < end:
+        kind = data[p]
+        if kind == 0:  # end of options
+            return None
+        if kind == 1:  # no operation
+            p += 1
+            continue
+        if end - p < 2:
+            return f"IPv4 option {kind} cut short at the end of the header"
+        size = data[p + 1]
+        if size < 2 or size > end - p:
+            return f"IPv4 option {kind} of length {size} does not fit in the {end - p} bytes left of the header"
+        least = _POINTER_MIN.get(kind)
+        if least is not None and (size < least[0] or data[p + 2] < least[1]):
+            return f"IPv4 option {kind} of length {size} has no room for its pointer, or it points before its data"
+        p += size
+    return None
+
+
 def parse_ipv4(data: bytes, off: int, limit: int | None = None) -> IpResult | str:
     """Decode an IPv4 header at `off`; an error message (str) when it is malformed.
 
