@@ -8,7 +8,7 @@ from mavscope.capture.base import LINKTYPE_ETHERNET, LINKTYPE_MAVLINK_RAW, LINKT
 from mavscope.endpoint import Endpoint
 from mavscope.notes import Note, note
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TCP, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
-from mavscope.transport.checksum import FRAME_IP, Checksum, Directions, ipv4_header, judge
+from mavscope.transport.checksum import FRAME_IP, Checksum, Directions, ipv4_header, judge, ones_sum
 from mavscope.transport.defrag import Defragmenter, records_text
 from mavscope.transport.ip import (
     PROTO_TCP,
@@ -70,9 +70,11 @@ class Decapsulator:
                     names = self._flow_names(flow)
                 if names[1].port in VXLAN_PORTS:  # a tunnel's: the general path decodes what it carries
                     return self._slow(rec)
-                if (data[24] or data[25]) and int.from_bytes(data[14:34], "big") % 0xFFFF:
+                if (data[24] or data[25]) and ones_sum(data, 14, 34):
                     return self._slow(rec)  # a wrong IPv4 header checksum: noted there
-                if (data[40] or data[41]) and _sum_wrong(data, ulen) and judge(
+                # (the addresses, bytes 26-33, lie just before the datagram: with the protocol and the length
+                # they are its pseudo-header)
+                if (data[40] or data[41]) and (ones_sum(data, 26, 34 + ulen) + PROTO_UDP + ulen) % 0xFFFF and judge(
                         False, data[26:30], data[30:34], PROTO_UDP, data, 34, 34 + ulen)[0] is Checksum.WRONG:
                     return self._slow(rec)  # noted there
                 return [_tuple_new(Payload, (TRANSPORT_UDP, names[0], names[1], data[42:34 + ulen], None,
@@ -277,14 +279,6 @@ class Decapsulator:
             return [], (*outer, note("malformed-packet", f"{kind} tunnel inside {MAX_DEPTH} others: not decoded",
                                      base))
         return self._network(rec, data, *inner, base, span, depth + 1, outer=outer, outer_zero=outer_zero)
-
-
-def _sum_wrong(packet: bytes, ulen: int) -> bool:
-    """Whether the UDP datagram of `ulen` bytes in an Ethernet + 20-byte IPv4 packet fails its checksum (the
-    addresses, bytes 26-33, lie just before it: with the protocol and length they are its pseudo-header; the
-    words' sum modulo 0xFFFF, as mavscope.transport.checksum works it)."""
-    value = int.from_bytes(packet[26:34 + ulen], "big")
-    return ((value << 8 if ulen & 1 else value) + PROTO_UDP + ulen) % 0xFFFF != 0
 
 
 def _length_lies(v4: bool, size: int, have: int, offset: int | None) -> Note | None:

@@ -119,10 +119,10 @@ int ms_net_decode(int64_t linktype, const uint8_t *d, size_t n, ms_udp *out) {
         whole = total != 0;
         if (ms_be16(h + 6) & 0x3FFF)
             return MS_NET_HANDBACK; /* a fragment: noted */
-        if (ms_be16(h + 10) != 0 && fold(ms_ones_sum(0, h, ihl)) != 0xFFFF)
-            return MS_NET_HANDBACK; /* a wrong header checksum (0: left to the NIC): ip-bad-checksum */
         if (ihl > 20)
             return MS_NET_HANDBACK; /* options: Python judges them (ip.py options_problem) */
+        if (ms_be16(h + 10) != 0 && fold(ms_ones_sum(0, h, 20)) != 0xFFFF)
+            return MS_NET_HANDBACK; /* a wrong header checksum (0: left to the NIC): ip-bad-checksum */
         proto = h[9];
         memcpy(out->src, h + 12, 4);
         memcpy(out->dst, h + 16, 4);
