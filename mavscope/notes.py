@@ -103,6 +103,15 @@ CODES: dict[str, Code] = {
              "802.11 data frame not decoded: encrypted (WPA2/WPA3) or an 802.11 fragment"),
         Code("wifi-bad-fcs", _NOTE, Group.CHECKSUM, _F,
              "802.11 frame that failed its FCS check (the radio dropped it): not dissected"),
+        Code("wifi-retry", _CHAT, Group.REASSEMBLY, _F,
+             "802.11 retransmission the receiver discarded as a duplicate (Retry bit, same transmitter, "
+             "sequence and fragment number): not dissected again"),
+        Code("wifi-retry-conflict", _WARN, Group.SECURITY, _B,
+             "802.11 retransmission with another body than its first copy (the receiver keeps the first)",
+             "802.11 frames marked as retransmissions (the Retry bit, the transmitter's sequence number of the frame "
+             "before) whose body differs from the frame they repeat: the receiver discarded them as duplicates and "
+             "read the first, a monitor that takes the repeat sees other bytes; no radio does this by itself: a way "
+             "to show a monitor another packet than the vehicle reads"),
         # transport
         Code("malformed-packet", _WARN, Group.MALFORMED, _F, "link, IP, UDP or TCP header is malformed"),
         Code("ip-fragment", _WARN, Group.REASSEMBLY, _F,

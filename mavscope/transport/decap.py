@@ -23,6 +23,7 @@ from mavscope.transport.ip import (
 from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, Subframes, Undecoded, strip_link
 from mavscope.transport.tcp import MAX_BUFFERED, TCP_FIN, TCP_RST, TcpReassembler
 from mavscope.transport.tunnel import MAX_DEPTH, PROTO_GRE, TUNNEL_PROTOS, VXLAN_PORTS, gre, ip_in_ip, vxlan
+from mavscope.transport.wifi import Retries
 
 RAW_STREAM = (TRANSPORT_RAW,)  # the stream key of a raw byte-stream capture
 
@@ -54,6 +55,7 @@ class Decapsulator:
         self._unknown_seen: set[int] = set()
         self._flows: dict[bytes, tuple[Endpoint, Endpoint]] = {}
         self.directions = Directions()  # the TCP directions whose captured checksums are real
+        self.retries = Retries()  # 802.11 duplicate detection
 
     def feed(self, rec: Record) -> list[Payload]:
         """The Payloads that `rec` yields now (possibly none)."""
@@ -118,7 +120,7 @@ class Decapsulator:
     def _decode(self, rec: Record) -> tuple[list[Payload], tuple[Note, ...]]:
         """Payloads and notes of one packet record (the slow, general path)."""
         _, _, linktype, data, roff, _, _ = rec
-        link = strip_link(linktype, data)
+        link = strip_link(linktype, data, self.retries)
         if link is None:
             if linktype in self._unknown_seen:
                 return [], ()

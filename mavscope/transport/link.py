@@ -16,7 +16,7 @@ from mavscope.capture.base import (
     LINKTYPE_NULL,
     LINKTYPE_RAW,
 )
-from mavscope.transport.wifi import Subframes, Undecoded, strip_80211, strip_radiotap
+from mavscope.transport.wifi import Retries, Subframes, Undecoded, strip_80211, strip_radiotap
 
 ETHERTYPE_IPV4 = 0x0800
 ETHERTYPE_IPV6 = 0x86DD
@@ -70,8 +70,9 @@ def ethernet_at(data: bytes, start: int) -> tuple[int, int] | str:
     return (et, off)
 
 
-def strip_link(linktype: int, data: bytes) -> LinkResult:
-    """Where the network header starts: (ethertype, offset).
+def strip_link(linktype: int, data: bytes, retries: Retries | None = None) -> LinkResult:
+    """Where the network header starts: (ethertype, offset) (`retries`: the capture's 802.11 duplicate
+    detection, for the Wi-Fi link types).
 
     Returns None for a link type this module does not decode, and an error message (str) when the link
     header is malformed or cut short. Non-IP packets come back with their ethertype (or 0) for the caller
@@ -106,7 +107,7 @@ def strip_link(linktype: int, data: bytes) -> LinkResult:
             return f"Linux cooked v2 header needs 20 bytes, packet has {n}"
         return (_U16(data, 0)[0], 20)
     if linktype == LINKTYPE_IEEE802_11_RADIOTAP:
-        return strip_radiotap(data)
+        return strip_radiotap(data, retries)
     if linktype == LINKTYPE_IEEE802_11:
-        return strip_80211(data)
+        return strip_80211(data, retries=retries)
     return None

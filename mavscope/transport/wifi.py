@@ -11,14 +11,16 @@ header: version 0, its length, the present bitmaps, the Flags field).
 
 from __future__ import annotations
 
+import hashlib
 import struct
+from collections import OrderedDict
 from typing import NamedTuple
 
 _U16LE = struct.Struct("<H").unpack_from
 _U32LE = struct.Struct("<I").unpack_from
 
 TYPE_DATA = 2
-FC_TO_DS, FC_FROM_DS, FC_MORE_FRAG, FC_PROTECTED, FC_ORDER = 0x01, 0x02, 0x04, 0x40, 0x80
+FC_TO_DS, FC_FROM_DS, FC_MORE_FRAG, FC_RETRY, FC_PROTECTED, FC_ORDER = 0x01, 0x02, 0x04, 0x08, 0x40, 0x80
 SNAP = b"\xaa\xaa\x03"
 
 RADIOTAP_TSFT, RADIOTAP_FLAGS, RADIOTAP_EXT = 0, 1, 31
@@ -30,7 +32,7 @@ MAX_PRESENT_WORDS = 64  # extended present bitmaps walked at most (radiotap sets
 class Undecoded(NamedTuple):
     """A frame the radio layer does not hand on: its note's code and message."""
 
-    code: str  # "wifi-undecoded" or "wifi-bad-fcs" (mavscope.notes)
+    code: str  # "wifi-undecoded", "wifi-bad-fcs" or "wifi-retry" (mavscope.notes)
     message: str
 
 
@@ -45,11 +47,47 @@ class Subframes(NamedTuple):
 # or an A-MSDU's packets
 Link = tuple[int, int] | str | Undecoded | Subframes
 MAX_SUBFRAMES = 1024  # subframes of one A-MSDU read at most (7,935 bytes of 14-byte subframes: 567)
+MAX_TRANSMITTERS = 65536  # (transmitter, TID) caches of duplicate detection kept, the least recent forgotten
 
 
-def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False) -> Link:
+class Retries:
+    """802.11 duplicate detection as a receiver does it (IEEE 802.11-2016 10.3.2.14): the sequence and
+    fragment number of the last data frame from each transmitter (Address 2), one per TID for QoS data and
+    one for the rest; a frame with the Retry bit set that repeats them is a retransmission the receiver
+    discards (its first copy was received; the ACK was lost). A monitor sees what every receiver does, so
+    the caches are kept per receiver (Address 1) too: a transmitter numbers its QoS data per receiver and
+    TID, and the same number to two receivers is two frames. Retransmissions are common in monitor-mode
+    captures, and their packets would otherwise be shown (and counted) twice.
+
+    A retransmission repeats its frame's body byte for byte (an encrypted one its packet number and
+    ciphertext too); one with another body is no sender's (`conflict`): the receiver keeps the first."""
+
+    def __init__(self, limit: int = MAX_TRANSMITTERS) -> None:
+        self.limit = limit
+        self.last: OrderedDict[bytes, tuple[int, bytes]] = OrderedDict()
+
+    def duplicate(self, key: bytes, sc: int, retry: bool, body: bytes) -> bool | None:
+        """None when the frame of cache `key` (receiver, transmitter and TID), Sequence Control `sc` and
+        `body` is no duplicate (the cache then holds it), else whether its body is the first copy's."""
+        last = self.last
+        prev = last.get(key)
+        digest = hashlib.blake2b(body, digest_size=16).digest()
+        if prev is None:
+            if len(last) >= self.limit:
+                last.popitem(last=False)
+        else:
+            last.move_to_end(key)
+            if retry and prev[0] == sc:
+                return prev[1] == digest
+        last[key] = (sc, digest)
+        return None
+
+
+def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
+                retries: Retries | None = None) -> Link:
     """Where the network header starts in the 802.11 frame at `off` (`pad`: the header padded to 4 bytes;
-    `fcs`: the frame ends with its 4-byte FCS; both as radiotap's Flags say)."""
+    `fcs`: the frame ends with its 4-byte FCS; both as radiotap's Flags say; `retries`: the capture's
+    duplicate detection, which a data frame is checked against)."""
     n = len(data) - (4 if fcs else 0)
     if off + 10 > n:
         return f"802.11 header cut short: {n - off} bytes"
@@ -67,9 +105,21 @@ def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False)
         hlen += 2 + (4 if fc1 & FC_ORDER else 0)  # QoS Control, and HT Control with the Order bit
     if off + hlen > n:
         return f"802.11 header cut short: {n - off} of {hlen} bytes"
+    sc = _U16LE(data, off + 22)[0]
+    if retries is not None:
+        tid = data[off + hlen - (6 if fc1 & FC_ORDER else 2)] & 0xF if qos else 16
+        same = retries.duplicate(data[off + 4:off + 16] + bytes((tid,)), sc, bool(fc1 & FC_RETRY), data[off + hlen:n])
+        if same is not None:
+            what = (f"802.11 retransmission (Retry bit) of sequence number {sc >> 4}, fragment {sc & 0xF} from "
+                    f"{data[off + 10:off + 16].hex(':')} to {data[off + 4:off + 10].hex(':')}")
+            if same:
+                return Undecoded("wifi-retry", f"{what}: the receiver discarded it as a duplicate of the frame "
+                                 "before")
+            return Undecoded("wifi-retry-conflict", f"{what} with another body than the frame it repeats: the "
+                             "receiver discarded it as a duplicate and kept the first")
     if fc1 & FC_PROTECTED:
         return Undecoded("wifi-undecoded", "802.11 data frame protected (WPA2/WPA3 encryption): not decrypted")
-    fragment = _U16LE(data, off + 22)[0] & 0xF
+    fragment = sc & 0xF
     if fc1 & FC_MORE_FRAG or fragment:
         return Undecoded("wifi-undecoded", f"802.11 fragment {fragment}: 802.11 fragments are not reassembled")
     body = off + ((hlen + 3) & ~3 if pad else hlen)
@@ -104,8 +154,8 @@ def _amsdu(data: bytes, pos: int, n: int) -> Subframes:
     return Subframes(tuple(out), None)
 
 
-def strip_radiotap(data: bytes) -> Link:
-    """Where the network header starts in a radiotap-headed 802.11 frame."""
+def strip_radiotap(data: bytes, retries: Retries | None = None) -> Link:
+    """Where the network header starts in a radiotap-headed 802.11 frame (`retries`: as strip_80211's)."""
     n = len(data)
     if n < 8:
         return f"radiotap header cut short: {n} bytes"
@@ -135,5 +185,5 @@ def strip_radiotap(data: bytes) -> Link:
         if flags & RT_FLAG_BAD_FCS:
             return Undecoded("wifi-bad-fcs", "802.11 frame that failed its FCS check: the radio that received it "
                              "dropped it, so its bytes are not dissected")
-        return strip_80211(data, rlen, bool(flags & RT_FLAG_DATAPAD), bool(flags & RT_FLAG_FCS))
-    return strip_80211(data, rlen)
+        return strip_80211(data, rlen, bool(flags & RT_FLAG_DATAPAD), bool(flags & RT_FLAG_FCS), retries)
+    return strip_80211(data, rlen, retries=retries)
