@@ -381,7 +381,7 @@ def write_lines(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityS
     (JSON Lines, or summary lines with `summary`) and, for handed-back records, the Python pipeline with
     `render(frame)` (the same line as bytes). `count`: stop after that many frames (`read -c`), as the
     pure path's loop stops. See write_jsonl for the rest."""
-    dissector = Dissector(dialect)
+    dissector = Dissector(dialect, stage.material.wifi)
     writer = _Writer(out) if threaded else None
     put = writer.put if writer is not None else out.write
     if writer is not None:

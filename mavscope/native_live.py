@@ -63,7 +63,7 @@ def write_live(source: LiveSource, dialect: Dialect, stage: SecurityStage, out: 
     Lines, or summary lines (`summary`) with times relative to the first datagram's (told to `on_t0`).
     Stops the source after `count` frames. `idle` is called whenever the queue runs empty (after the
     lines are flushed to `out`). Returns the number of frames written."""
-    dissector = Dissector(dialect)
+    dissector = Dissector(dialect, stage.material.wifi)
     sink = LineSink(stage, problems, render, out.write, count)
     walk: NativeWalk | None = None
     native_frames = 0

@@ -49,7 +49,7 @@ def native_stats(path: str | os.PathLike[str], dialect: Dialect, stage: Security
     if native is None or plan is None:
         return None
     acc = Accumulator(native.Stats(table_for(dialect), plan))
-    dissector = Dissector(dialect)
+    dissector = Dissector(dialect, stage.material.wifi)
     run = stage.run
     nokey: Callable[[], bool] = lambda: not stage.check_signatures  # noqa: E731 - asked per batch
 

@@ -106,6 +106,17 @@ CODES: dict[str, Code] = {
         Code("wifi-retry", _CHAT, Group.REASSEMBLY, _F,
              "802.11 retransmission the receiver discarded as a duplicate (Retry bit, same transmitter, "
              "sequence and fragment number): not dissected again"),
+        Code("wifi-decrypt-failed", _WARN, Group.SECURITY, _B,
+             "802.11 frame whose CCMP MIC fails under its station's key (the receiver drops it)",
+             "WPA2 frames whose CCMP MIC fails under the key of the station pair they travel between, found from "
+             "the 4-way handshake with the given --wifi-key: the receiver dropped them unread; a damaged frame, a "
+             "frame under a key whose handshake the capture missed, or a forged one"),
+        Code("wifi-replay", _WARN, Group.SECURITY, _B,
+             "802.11 frame whose CCMP packet number is not above the last accepted (the receiver discards it)",
+             "WPA2 frames that decrypt, but whose packet number is not above the last one their receiver accepted "
+             "from the same transmitter and TID: the receiver discarded them as replays (a retransmission, which "
+             "repeats its number, is told apart by its Retry bit first); a recorded frame sent again, as a "
+             "replayed command would be"),
         Code("wifi-retry-conflict", _WARN, Group.SECURITY, _B,
              "802.11 retransmission with another body than its first copy (the receiver keeps the first)",
              "802.11 frames marked as retransmissions (the Retry bit, the transmitter's sequence number of the frame "

@@ -90,7 +90,7 @@ def native_build(index: Any, path: str, dialect: Dialect, stage: SecurityStage, 
     assert _native is not None
     with open_capture(path) as reader:  # the capture's errors first, as the pure build gives them
         kind = reader.kind
-    dissector = Dissector(dialect)
+    dissector = Dissector(dialect, stage.material.wifi)
     spath, f, size = open_file(path)
     cols = _native.Columns(table_for(dialect), FIRST_CHUNK, index=True)
     ends: list[int] = []  # walker endpoint id -> index endpoint id

@@ -75,7 +75,7 @@ def not_the_capture(option: str, out: str | None, args: argparse.Namespace) -> N
 
 
 def add_key_options(p: argparse.ArgumentParser) -> None:
-    """--key, --cipher, --ecdh-private, --use-leaked-keys (docs/security.md)."""
+    """--key, --cipher, --ecdh-private, --use-leaked-keys, --wifi-key (docs/security.md)."""
     g = p.add_argument_group("key material (docs/security.md)")
     g.add_argument("--key", action="append", default=[], metavar="[NAME=]SPEC",
                    help="signing key: hex:<64 hex>, base64:..., passphrase:TEXT (SHA-256), qgc:TEXT "
@@ -87,6 +87,10 @@ def add_key_options(p: argparse.ArgumentParser) -> None:
                    help="X25519 private key of one side of MAVSCOPE_KEY_EXCHANGE: derive each epoch's keys")
     g.add_argument("--use-leaked-keys", action="store_true",
                    help="verify the frames after a SETUP_SIGNING with the key it leaks")
+    g.add_argument("--wifi-key", action="append", default=[], metavar="wpa-pwd:PASSPHRASE:SSID",
+                   help="decrypt a WPA2 network's 802.11 frames (CCMP) from its 4-way handshakes: "
+                        "wpa-pwd:PASSPHRASE:SSID (the SSID after the last ':', %%XX for any byte) or "
+                        "wpa-psk:<64 hex>; repeatable")
 
 
 def add_filter_option(p: argparse.ArgumentParser) -> None:
@@ -105,6 +109,7 @@ def pipeline_options(args: argparse.Namespace, env: Env) -> PipelineOptions:
         ciphers=tuple(given.get("cipher") or ()),
         ecdh_private=tuple(given.get("ecdh_private") or ()),
         use_leaked_keys=bool(given.get("use_leaked_keys")),
+        wifi_keys=tuple(given.get("wifi_key") or ()),
         keyring=env.environ.get(KEYRING_ENV) or None,
         display_filter=given.get("display_filter") or None,
     )

@@ -164,7 +164,7 @@ class _Export:
         self.want_frames = options.wants(FRAMES)
         self.want_messages = options.wants_messages
         self.want_findings = options.wants(FINDINGS)
-        self.dissector = Dissector(dialect)
+        self.dissector = Dissector(dialect, self.stage.material.wifi)
         self.summary = CaptureSummary()
         self.anomalies = AnomalyColumns(capture_id, options.batch_rows)
         self.pending = _Pending(options.batch_rows)

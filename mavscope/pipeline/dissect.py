@@ -33,6 +33,7 @@ from mavscope.notes import Note
 from mavscope.pipeline.textrun import TextRun, is_text_entry
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
 from mavscope.transport.decap import Decapsulator
+from mavscope.transport.wpa import WifiKey, Wpa
 from mavscope.wire import SIGNATURE_LEN, STX_V2
 
 # Ports MAVLink uses by convention (DOMAIN.md). Datagrams on them are taken for MAVLink even when no
@@ -55,11 +56,12 @@ class Anomaly:
 class Dissector:
     """Finds and checks the MAVLink frames of a capture. One instance per capture (it keeps stream state)."""
 
-    def __init__(self, dialect: Dialect) -> None:
+    def __init__(self, dialect: Dialect, wifi: tuple[WifiKey, ...] = ()) -> None:
+        """`wifi`: the WPA2 networks' keys its 802.11 frames are decrypted with."""
         self.dialect = dialect
         self.messages = dialect.messages
         self.framer = Framer(dialect.messages)
-        self.decap = Decapsulator()
+        self.decap = Decapsulator(wpa=Wpa(wifi) if wifi else None)
         self.streams: dict[Hashable, StreamFramer] = {}
         # endpoints that have carried a CRC-valid frame: their datagrams are MAVLink even when damaged
         self.mavlink_endpoints: set[Endpoint] = set()

@@ -22,6 +22,7 @@ class PipelineOptions:
     ecdh_private: tuple[str, ...] = field(default=(), repr=False)  # --ecdh-private hex:KEY
     use_leaked_keys: bool = False  # verify the frames after a SETUP_SIGNING with the key it leaks
     keyring: str | None = None  # a default TOML keyring ($MAVSCOPE_KEYRING), loaded before `keys`
+    wifi_keys: tuple[str, ...] = field(default=(), repr=False)  # --wifi-key wpa-pwd:PASSPHRASE:SSID | wpa-psk:HEX
     display_filter: str | None = None  # -Y: which frames are shown
 
     @property

@@ -46,7 +46,8 @@ def make_security_stage(options: PipelineOptions, warn: Warn = _quiet) -> Securi
     leaked keys, SecureMAV's test cipher)."""
     environ = {KEYRING_ENV: options.keyring} if options.keyring else {}
     material = build_material(options.keys, options.ciphers, options.ecdh_private,
-                              use_leaked_keys=options.use_leaked_keys, environ=environ, warn=warn)
+                              use_leaked_keys=options.use_leaked_keys, environ=environ, warn=warn,
+                              wifi=options.wifi_keys)
     return SecurityStage(material)
 
 
@@ -75,7 +76,7 @@ def build_pipeline(options: PipelineOptions, dialect: Dialect, records: Iterable
     if security is None:
         security = make_security_stage(options, warn)
     flt = make_filter(options, dialect)
-    items = security.run(Dissector(dialect).run(records))
+    items = security.run(Dissector(dialect, security.material.wifi).run(records))
     return filter_stage(flt, items) if flt is not None else items
 
 
@@ -137,5 +138,5 @@ def open_session(path: str, options: PipelineOptions, *, dialect: Dialect | None
         security = make_security_stage(options, warn)
         flt = make_filter(options, dialect)
         session = Session(path, reader, dialect, iter(()), security, flt, t0)
-        session.items = session._counted(security.run(Dissector(dialect).run(records)))
+        session.items = session._counted(security.run(Dissector(dialect, security.material.wifi).run(records)))
         yield session

@@ -19,6 +19,7 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
 from mavscope.errors import UsageError
+from mavscope.transport.wpa import WifiKey, wifi_key
 
 QGC_SALT = b"QGroundControl-MAVLink-Signing-v1"
 QGC_ITERATIONS = 600_000
@@ -103,10 +104,12 @@ class KeyMaterial:
     ciphers: dict[int, CipherKey] = field(default_factory=dict)
     ecdh_private: list[bytes] = field(default_factory=list, repr=False)
     use_leaked_keys: bool = False
+    wifi: tuple[WifiKey, ...] = ()  # WPA2 networks' keys (--wifi-key), for the transport layer's 802.11
 
     def __repr__(self) -> str:
         return (f"KeyMaterial(signing={[k.name for k in self.signing]}, ciphers={sorted(self.ciphers)}, "
-                f"ecdh_private={len(self.ecdh_private)}, use_leaked_keys={self.use_leaked_keys})")
+                f"ecdh_private={len(self.ecdh_private)}, use_leaked_keys={self.use_leaked_keys}, "
+                f"wifi={len(self.wifi)})")
 
     @property
     def has_signing_material(self) -> bool:
@@ -264,9 +267,10 @@ def load_keyring(path: str, material: KeyMaterial, warn: Callable[[str], object]
 
 def build_material(keys: Iterable[str] = (), ciphers: Iterable[str] = (), ecdh_private: Iterable[str] = (),
                    *, use_leaked_keys: bool = False, environ: Mapping[str, str] | None = None,
-                   warn: Callable[[str], object] = lambda _m: None) -> KeyMaterial:
+                   warn: Callable[[str], object] = lambda _m: None, wifi: Iterable[str] = ()) -> KeyMaterial:
     """Key material from command-line specs (and the keyring `MAVSCOPE_KEYRING` names, first)."""
-    material = KeyMaterial(use_leaked_keys=use_leaked_keys)
+    material = KeyMaterial(use_leaked_keys=use_leaked_keys,
+                           wifi=tuple(wifi_key(spec, i) for i, spec in enumerate(wifi, 1)))
     default_ring = (environ or {}).get(KEYRING_ENV)
     if default_ring:
         load_keyring(default_ring, material, warn)

@@ -23,7 +23,8 @@ from mavscope.transport.ip import (
 from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, Subframes, Undecoded, strip_link
 from mavscope.transport.tcp import MAX_BUFFERED, TCP_FIN, TCP_RST, TcpReassembler
 from mavscope.transport.tunnel import MAX_DEPTH, PROTO_GRE, TUNNEL_PROTOS, VXLAN_PORTS, gre, ip_in_ip, vxlan
-from mavscope.transport.wifi import Retries
+from mavscope.transport.wifi import Decrypted, Retries
+from mavscope.transport.wpa import Wpa
 
 RAW_STREAM = (TRANSPORT_RAW,)  # the stream key of a raw byte-stream capture
 
@@ -48,7 +49,7 @@ class Decapsulator:
     are carried on the first Payload produced from their record, or on an empty-data Payload.
     """
 
-    def __init__(self, max_tcp_buffer: int = MAX_BUFFERED) -> None:
+    def __init__(self, max_tcp_buffer: int = MAX_BUFFERED, wpa: Wpa | None = None) -> None:
         self.endpoints = Endpoints()
         self.tcp = TcpReassembler(max_tcp_buffer)
         self.defrag = Defragmenter()
@@ -56,6 +57,7 @@ class Decapsulator:
         self._flows: dict[bytes, tuple[Endpoint, Endpoint]] = {}
         self.directions = Directions()  # the TCP directions whose captured checksums are real
         self.retries = Retries()  # 802.11 duplicate detection
+        self.wpa = wpa  # WPA2 handshakes and keys (--wifi-key), None without keys
 
     def feed(self, rec: Record) -> list[Payload]:
         """The Payloads that `rec` yields now (possibly none)."""
@@ -120,7 +122,11 @@ class Decapsulator:
     def _decode(self, rec: Record) -> tuple[list[Payload], tuple[Note, ...]]:
         """Payloads and notes of one packet record (the slow, general path)."""
         _, _, linktype, data, roff, _, _ = rec
-        link = strip_link(linktype, data, self.retries)
+        link = strip_link(linktype, data, self.retries, self.wpa)
+        base: int | None = roff  # the file offset of data[0]
+        if isinstance(link, Decrypted):  # a Wi-Fi frame's plaintext: bytes that are not in the file as such
+            data, base = link.data, None
+            link = link.link if not isinstance(link.link, Decrypted) else "802.11 frame encrypted twice"
         if link is None:
             if linktype in self._unknown_seen:
                 return [], ()
@@ -134,13 +140,13 @@ class Decapsulator:
             out: list[Payload] = []
             notes: tuple[Note, ...] = ()
             for et, off, end in link.packets:
-                got, more = self._network(rec, data, et, off, roff, limit=end)
+                got, more = self._network(rec, data, et, off, base, limit=end)
                 out += got
                 notes += more
             if link.problem is not None:
                 notes += (note("malformed-packet", link.problem, roff),)
             return out, notes
-        return self._network(rec, data, *link, roff)
+        return self._network(rec, data, *link, base)
 
     def _network(self, rec: Record, data: bytes, et: int, off: int, base: int | None,
                  span: tuple[int, ...] | None = None, depth: int = 0, limit: int | None = None,

@@ -16,7 +16,8 @@ from mavscope.capture.base import (
     LINKTYPE_NULL,
     LINKTYPE_RAW,
 )
-from mavscope.transport.wifi import Retries, Subframes, Undecoded, strip_80211, strip_radiotap
+from mavscope.transport.wifi import Decrypted, Retries, Subframes, Undecoded, strip_80211, strip_radiotap
+from mavscope.transport.wpa import Wpa
 
 ETHERTYPE_IPV4 = 0x0800
 ETHERTYPE_IPV6 = 0x86DD
@@ -33,7 +34,7 @@ _U16 = struct.Struct("!H").unpack_from
 _U32LE = struct.Struct("<I").unpack_from
 _U32BE = struct.Struct(">I").unpack_from
 
-LinkResult = tuple[int, int] | str | Undecoded | Subframes | None
+LinkResult = tuple[int, int] | str | Undecoded | Subframes | Decrypted | None
 
 
 def _family(af: int) -> int:
@@ -70,9 +71,9 @@ def ethernet_at(data: bytes, start: int) -> tuple[int, int] | str:
     return (et, off)
 
 
-def strip_link(linktype: int, data: bytes, retries: Retries | None = None) -> LinkResult:
-    """Where the network header starts: (ethertype, offset) (`retries`: the capture's 802.11 duplicate
-    detection, for the Wi-Fi link types).
+def strip_link(linktype: int, data: bytes, retries: Retries | None = None, wpa: Wpa | None = None) -> LinkResult:
+    """Where the network header starts: (ethertype, offset) (`retries`, `wpa`: the capture's 802.11 duplicate
+    detection and WPA2 keys, for the Wi-Fi link types; a decrypted frame comes back as its plaintext).
 
     Returns None for a link type this module does not decode, and an error message (str) when the link
     header is malformed or cut short. Non-IP packets come back with their ethertype (or 0) for the caller
@@ -107,7 +108,7 @@ def strip_link(linktype: int, data: bytes, retries: Retries | None = None) -> Li
             return f"Linux cooked v2 header needs 20 bytes, packet has {n}"
         return (_U16(data, 0)[0], 20)
     if linktype == LINKTYPE_IEEE802_11_RADIOTAP:
-        return strip_radiotap(data, retries)
+        return strip_radiotap(data, retries, wpa)
     if linktype == LINKTYPE_IEEE802_11:
-        return strip_80211(data, retries=retries)
+        return strip_80211(data, retries=retries, wpa=wpa)
     return None

@@ -3,8 +3,9 @@
 MAVLink telemetry often rides Wi-Fi (ESP8266/ESP32 bridges, companion computers' access points), and a
 capture in monitor mode has the radio's frames. A data frame of an open network carries LLC/SNAP and
 then IP (or an A-MSDU: several such packets, each decoded); a protected frame is encrypted (WPA2/3:
-CCMP or GCMP, which mavscope does not decrypt), and a frame whose FCS failed never reached the
-receiver's network stack: both are said, never dissected.
+CCMP or GCMP), decrypted where the network's passphrase was given and its handshake captured (WPA2's
+CCMP: `wpa.py`); a frame whose FCS failed never reached the receiver's network stack, and a retransmission
+the receiver discarded as a duplicate was read once: what is not read is said, never dissected.
 Layouts: IEEE 802.11-2016 section 9.2 (MAC header), RFC 1042 (LLC/SNAP), radiotap.org (the capture
 header: version 0, its length, the present bitmaps, the Flags field).
 """
@@ -15,6 +16,8 @@ import hashlib
 import struct
 from collections import OrderedDict
 from typing import NamedTuple
+
+from mavscope.transport.wpa import ETHERTYPE_EAPOL, Wpa
 
 _U16LE = struct.Struct("<H").unpack_from
 _U32LE = struct.Struct("<I").unpack_from
@@ -36,6 +39,14 @@ class Undecoded(NamedTuple):
     message: str
 
 
+class Decrypted(NamedTuple):
+    """A protected frame decrypted: the frame with its plaintext body (`data`, a new buffer: its bytes are
+    not the record's) and what that body holds."""
+
+    data: bytes
+    link: Link
+
+
 class Subframes(NamedTuple):
     """An A-MSDU: several packets in one frame, each (ethertype or 0, offset, end)."""
 
@@ -45,7 +56,7 @@ class Subframes(NamedTuple):
 
 # (ethertype or 0 for a frame that holds no IP, offset), a malformed header's message, a frame not decoded,
 # or an A-MSDU's packets
-Link = tuple[int, int] | str | Undecoded | Subframes
+Link = tuple[int, int] | str | Undecoded | Subframes | Decrypted
 MAX_SUBFRAMES = 1024  # subframes of one A-MSDU read at most (7,935 bytes of 14-byte subframes: 567)
 MAX_TRANSMITTERS = 65536  # (transmitter, TID) caches of duplicate detection kept, the least recent forgotten
 
@@ -84,10 +95,11 @@ class Retries:
 
 
 def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
-                retries: Retries | None = None) -> Link:
+                retries: Retries | None = None, wpa: Wpa | None = None) -> Link:
     """Where the network header starts in the 802.11 frame at `off` (`pad`: the header padded to 4 bytes;
     `fcs`: the frame ends with its 4-byte FCS; both as radiotap's Flags say; `retries`: the capture's
-    duplicate detection, which a data frame is checked against)."""
+    duplicate detection, which a data frame is checked against; `wpa`: the capture's WPA2 handshakes and
+    keys, which read its EAPOL frames and decrypt its protected ones)."""
     n = len(data) - (4 if fcs else 0)
     if off + 10 > n:
         return f"802.11 header cut short: {n - off} bytes"
@@ -107,7 +119,7 @@ def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
         return f"802.11 header cut short: {n - off} of {hlen} bytes"
     sc = _U16LE(data, off + 22)[0]
     if retries is not None:
-        tid = data[off + hlen - (6 if fc1 & FC_ORDER else 2)] & 0xF if qos else 16
+        tid = data[off + hlen - (6 if fc1 & FC_ORDER else 2)] & 0xF if qos else 16  # (the QoS Control's TID)
         same = retries.duplicate(data[off + 4:off + 16] + bytes((tid,)), sc, bool(fc1 & FC_RETRY), data[off + hlen:n])
         if same is not None:
             what = (f"802.11 retransmission (Retry bit) of sequence number {sc >> 4}, fragment {sc & 0xF} from "
@@ -117,15 +129,30 @@ def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
                                  "before")
             return Undecoded("wifi-retry-conflict", f"{what} with another body than the frame it repeats: the "
                              "receiver discarded it as a duplicate and kept the first")
+    qc = off + hlen - (6 if fc1 & FC_ORDER else 2) if qos else 0  # the QoS Control field
+    body = off + ((hlen + 3) & ~3 if pad else hlen)
     if fc1 & FC_PROTECTED:
-        return Undecoded("wifi-undecoded", "802.11 data frame protected (WPA2/WPA3 encryption): not decrypted")
+        if wpa is None:
+            return Undecoded("wifi-undecoded", "802.11 data frame protected (WPA2/WPA3 encryption): not decrypted "
+                             "(--wifi-key gives a WPA2 network's passphrase)")
+        got = wpa.decrypt(data, off, body, n, qc)
+        if isinstance(got, tuple):
+            code, message = got
+            return message if code == "malformed-packet" else Undecoded(code, message)
+        frame = bytes((fc0, fc1 & ~FC_PROTECTED)) + data[off + 2:off + hlen] + got
+        inner = strip_80211(frame)
+        if isinstance(inner, tuple) and inner[0] == ETHERTYPE_EAPOL:
+            wpa.eapol(frame[4:10], frame[10:16], frame[inner[1]:])  # a handshake under the keys of the last
+        return Decrypted(frame, inner)
     fragment = sc & 0xF
     if fc1 & FC_MORE_FRAG or fragment:
         return Undecoded("wifi-undecoded", f"802.11 fragment {fragment}: 802.11 fragments are not reassembled")
-    body = off + ((hlen + 3) & ~3 if pad else hlen)
-    if qos and data[off + hlen - (6 if fc1 & FC_ORDER else 2)] & 0x80:
+    if qos and data[qc] & 0x80:
         return _amsdu(data, body, n)
-    return _snap(data, body, n)
+    link = _snap(data, body, n)
+    if wpa is not None and link[0] == ETHERTYPE_EAPOL:
+        wpa.eapol(data[off + 4:off + 10], data[off + 10:off + 16], data[link[1]:n])
+    return link
 
 
 def _snap(data: bytes, body: int, end: int) -> tuple[int, int]:
@@ -154,8 +181,8 @@ def _amsdu(data: bytes, pos: int, n: int) -> Subframes:
     return Subframes(tuple(out), None)
 
 
-def strip_radiotap(data: bytes, retries: Retries | None = None) -> Link:
-    """Where the network header starts in a radiotap-headed 802.11 frame (`retries`: as strip_80211's)."""
+def strip_radiotap(data: bytes, retries: Retries | None = None, wpa: Wpa | None = None) -> Link:
+    """Where the network header starts in a radiotap-headed 802.11 frame (`retries`, `wpa`: as strip_80211's)."""
     n = len(data)
     if n < 8:
         return f"radiotap header cut short: {n} bytes"
@@ -185,5 +212,5 @@ def strip_radiotap(data: bytes, retries: Retries | None = None) -> Link:
         if flags & RT_FLAG_BAD_FCS:
             return Undecoded("wifi-bad-fcs", "802.11 frame that failed its FCS check: the radio that received it "
                              "dropped it, so its bytes are not dissected")
-        return strip_80211(data, rlen, bool(flags & RT_FLAG_DATAPAD), bool(flags & RT_FLAG_FCS), retries)
-    return strip_80211(data, rlen, retries=retries)
+        return strip_80211(data, rlen, bool(flags & RT_FLAG_DATAPAD), bool(flags & RT_FLAG_FCS), retries, wpa)
+    return strip_80211(data, rlen, retries=retries, wpa=wpa)
