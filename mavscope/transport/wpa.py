@@ -50,7 +50,7 @@ class WifiKey:
     pmk: bytes = field(repr=False)
 
 
-def _ssid(text: str) -> bytes:
+def _ssid(text: str, what: str) -> bytes:
     """An SSID as given: UTF-8, with %XX for any byte (so ':' and '%' can be written)."""
     out = bytearray()
     i = 0
@@ -60,7 +60,7 @@ def _ssid(text: str) -> bytes:
             try:
                 out.append(int(raw[i + 1:i + 3].decode("ascii"), 16))
             except (ValueError, UnicodeDecodeError):
-                raise UsageError("--wifi-key: an SSID's % is followed by two hex digits (%3a for ':')") from None
+                raise UsageError(f"{what}: an SSID's % is followed by two hex digits (%3a for ':')") from None
             i += 3
         else:
             out.append(raw[i])
@@ -85,7 +85,7 @@ def wifi_key(spec: str, number: int) -> WifiKey:
         passphrase, sep, ssid_text = rest.rpartition(":")
         if not sep:
             raise UsageError(f"{what}: expected wpa-pwd:PASSPHRASE:SSID")
-        ssid = _ssid(ssid_text)
+        ssid = _ssid(ssid_text, what)
         try:
             secret = passphrase.encode("ascii")
         except UnicodeEncodeError:
