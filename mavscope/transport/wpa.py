@@ -31,7 +31,7 @@ from cryptography.hazmat.primitives.keywrap import InvalidUnwrap, aes_key_unwrap
 from mavscope.errors import UsageError
 
 ETHERTYPE_EAPOL = 0x888E
-MAX_PAIRS = 65536  # station pairs (their nonces and keys) kept, the least recent forgotten
+MAX_PAIRS = 65536  # station pairs kept (with keys; and apart, with nonces only), the least recent forgotten
 KEYS_KEPT = 2  # keys per pair or group key index: the newest and the one before (frames in flight on a rekey)
 
 # EAPOL-Key Key Information bits (12.7.2)
@@ -199,7 +199,10 @@ class Wpa:
     def __init__(self, keys: tuple[WifiKey, ...], limit: int = MAX_PAIRS) -> None:
         self.pmks = tuple(k.pmk for k in keys)
         self.limit = limit
-        self.pairs: OrderedDict[bytes, Pair] = OrderedDict()
+        self.pairs: OrderedDict[bytes, Pair] = OrderedDict()  # (AA + SPA) -> a pair whose handshake verified
+        # pairs with a message 1 and no verified message 2 yet, apart: a flood of forged first messages
+        # (anyone can send them) forgets these, never the keys of the stations that did associate
+        self.pending: OrderedDict[bytes, Pair] = OrderedDict()
         self.groups: OrderedDict[bytes, dict[int, list[TemporalKey]]] = OrderedDict()
 
     def __repr__(self) -> str:
@@ -207,14 +210,26 @@ class Wpa:
 
     def _pair(self, aa: bytes, spa: bytes, create: bool) -> Pair | None:
         key = aa + spa
-        p = self.pairs.get(key)
-        if p is not None:
-            self.pairs.move_to_end(key)
-        elif create:
-            if len(self.pairs) >= self.limit:
-                self.pairs.popitem(last=False)
-            p = self.pairs[key] = Pair()
+        for table in (self.pairs, self.pending):
+            p = table.get(key)
+            if p is not None:
+                table.move_to_end(key)
+                return p
+        if not create:
+            return None
+        if len(self.pending) >= self.limit:
+            self.pending.popitem(last=False)
+        p = self.pending[key] = Pair()
         return p
+
+    def _verified(self, aa: bytes, spa: bytes, pair: Pair) -> None:
+        """`pair`'s message 2 verified: it holds keys from now on."""
+        key = aa + spa
+        self.pending.pop(key, None)
+        if key not in self.pairs and len(self.pairs) >= self.limit:
+            self.pairs.popitem(last=False)
+        self.pairs[key] = pair
+        self.pairs.move_to_end(key)
 
     def eapol(self, a1: bytes, a2: bytes, eapol: bytes) -> None:
         """An EAPOL frame from `a2` to `a1` (its bytes from the EAPOL header on): a handshake message."""
@@ -251,6 +266,7 @@ class Wpa:
                 if hmac.compare_digest(eapol_mic(keys[:16], version, zeroed), mic):
                     pair.snonce, pair.kck, pair.kek, pair.version = nonce, keys[:16], keys[16:32], version
                     _keep(pair.keys, keys[32:48])
+                    self._verified(aa, spa, pair)
                     return
             return
         if ack and info & KI_MIC and info & KI_INSTALL and pair.kck is not None:  # message 3: the GTK

@@ -182,3 +182,16 @@ def test_a_group_key_handshake_under_the_pair_key_gives_the_new_gtk() -> None:
     assert codes(got[4]) == [] and [frames_of(p.data) for p in got[5]] == [[(1, 1, 0, 5)]]
     unrekeyed = feed(w.handshake() + [after], (wifi_key(KEY, 1),))
     assert codes(unrekeyed[4]) == ["wifi-undecoded"]
+
+
+def test_a_flood_of_first_messages_forgets_no_key() -> None:
+    """Anyone can send message 1; a flood of them from made-up stations fills the table of pending
+    handshakes, not the one of the pairs whose keys verified."""
+    wpa = Wpa((wifi_key(KEY, 1),), limit=4)
+    dec = Decapsulator(wpa=wpa)
+    flood = [w.eapol_frame(f"02:00:00:00:01:{i:02x}", w.AP, w.eapol_key(0x008A, 1, w.ANONCE), i) for i in range(9)]
+    pkts = [*w.handshake(), *flood, w.ccmp_frame(w.AP, w.STA, 3, 1, w.mavlink_packet(255, 0))]
+    got = [dec.feed(Record(i, float(i), LINKTYPE_IEEE802_11_RADIOTAP, bytes(p), 0, len(bytes(p))))
+           for i, p in enumerate(pkts, 1)]
+    assert not codes(got[-1]) and frames_of(got[-1][0].data) == [(255, 190, 0, 0)]
+    assert len(wpa.pending) == 4 and len(wpa.pairs) == 1
