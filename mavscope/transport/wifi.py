@@ -58,39 +58,61 @@ class Subframes(NamedTuple):
 # or an A-MSDU's packets
 Link = tuple[int, int] | str | Undecoded | Subframes | Decrypted
 MAX_SUBFRAMES = 1024  # subframes of one A-MSDU read at most (7,935 bytes of 14-byte subframes: 567)
-MAX_TRANSMITTERS = 65536  # (transmitter, TID) caches of duplicate detection kept, the least recent forgotten
+WINDOW = 64  # sequence numbers remembered behind the newest, per receiver, transmitter and TID: a block ack window
+MAX_REMEMBERED = 1 << 18  # numbers remembered over all caches (about 40 MB), the least recent caches forgotten
 
 
 class Retries:
-    """802.11 duplicate detection as a receiver does it (IEEE 802.11-2016 10.3.2.14): the sequence and
-    fragment number of the last data frame from each transmitter (Address 2), one per TID for QoS data and
-    one for the rest; a frame with the Retry bit set that repeats them is a retransmission the receiver
-    discards (its first copy was received; the ACK was lost). A monitor sees what every receiver does, so
-    the caches are kept per receiver (Address 1) too: a transmitter numbers its QoS data per receiver and
-    TID, and the same number to two receivers is two frames. Retransmissions are common in monitor-mode
-    captures, and their packets would otherwise be shown (and counted) twice.
+    """802.11 duplicate detection as a receiver does it (IEEE 802.11-2016 10.3.2.14): a frame with the Retry bit
+    set whose sequence and fragment number its receiver already has from the same transmitter (per TID for QoS
+    data) is a retransmission the receiver discards (its first copy was received; the ACK was lost).
+    Retransmissions are common in monitor-mode captures, and their packets would otherwise be shown (and
+    counted) twice. A monitor sees what every receiver does, so a cache is kept per receiver (Address 1)
+    too: a transmitter numbers its QoS data per receiver and TID, and the same number to two receivers is two
+    frames. Under a block ack agreement (802.11n on) a retransmission may come after frames numbered later (its
+    A-MPDU's other frames were acknowledged), and the receiver's scoreboard still knows it: so each cache holds
+    the numbers up to WINDOW behind the newest, not the last one only; a frame numbered as far from the newest
+    as a reset counter (a new association) starts the cache over.
 
     A retransmission repeats its frame's body byte for byte (an encrypted one its packet number and
     ciphertext too); one with another body is no sender's (`conflict`): the receiver keeps the first."""
 
-    def __init__(self, limit: int = MAX_TRANSMITTERS) -> None:
+    def __init__(self, limit: int = MAX_REMEMBERED) -> None:
         self.limit = limit
-        self.last: OrderedDict[bytes, tuple[int, bytes]] = OrderedDict()
+        self.caches: OrderedDict[bytes, tuple[int, dict[int, bytes]]] = OrderedDict()  # key -> (newest, sc -> body)
+        self.size = 0
 
     def duplicate(self, key: bytes, sc: int, retry: bool, body: bytes) -> bool | None:
         """None when the frame of cache `key` (receiver, transmitter and TID), Sequence Control `sc` and
         `body` is no duplicate (the cache then holds it), else whether its body is the first copy's."""
-        last = self.last
-        prev = last.get(key)
         digest = hashlib.blake2b(body, digest_size=16).digest()
-        if prev is None:
-            if len(last) >= self.limit:
-                last.popitem(last=False)
+        sn = sc >> 4
+        got = self.caches.get(key)
+        if got is None:
+            newest, seen = sn, {}
         else:
-            last.move_to_end(key)
-            if retry and prev[0] == sc:
-                return prev[1] == digest
-        last[key] = (sc, digest)
+            self.caches.move_to_end(key)
+            newest, seen = got
+            behind = (newest - sn) % 4096
+            if retry and behind < WINDOW and sc in seen:
+                return seen[sc] == digest
+            if behind >= WINDOW:  # ahead of the newest (or a counter started over): the window moves
+                if (sn - newest) % 4096 >= WINDOW:
+                    self.size -= len(seen)
+                    seen = {}
+                newest = sn
+                if len(seen) >= 2 * WINDOW:  # (numbers past the window are never matched: forgotten now and then)
+                    old = [k for k in seen if (newest - (k >> 4)) % 4096 >= WINDOW]
+                    for k in old:
+                        del seen[k]
+                    self.size -= len(old)
+        if sc not in seen:
+            self.size += 1
+        seen[sc] = digest
+        self.caches[key] = (newest, seen)
+        while self.size > self.limit:
+            _, (_, gone) = self.caches.popitem(last=False)
+            self.size -= len(gone)
         return None
 
 

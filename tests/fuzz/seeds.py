@@ -95,6 +95,19 @@ def wifi_seed() -> bytes:
     return _pcap(pkts, "wifi")
 
 
+def wpa_seed() -> bytes:
+    """A WPA2 capture (mavscope.transport.wpa, with the capture target's --wifi-key): a 4-way handshake,
+    CCMP frames of both sides and group-addressed, a replay and a retransmission (tests/support/wpa.py)."""
+    from tests.support import wpa as w
+
+    hb = w.mavlink_packet(255, 0, arm=True)
+    pkts = [*w.handshake(), w.ccmp_frame(w.AP, w.STA, 3, 1, hb),
+            w.ccmp_frame(w.STA, w.AP, 3, 1, w.mavlink_packet(1, 0)),
+            w.ccmp_frame(w.BROADCAST, w.AP, 4, 1, w.mavlink_packet(1, 1, dst="192.168.4.255"), key=w.GTK, key_index=1),
+            w.ccmp_frame(w.AP, w.STA, 9, 1, hb), w.ccmp_frame(w.AP, w.STA, 9, 1, hb, retry=True)]
+    return _pcap(pkts, "wpa")
+
+
 def _pcap(pkts: list, name: str) -> bytes:  # type: ignore[type-arg]
     """The bytes of a pcap of scapy's `pkts` (written by scapy to a scratch file)."""
     from scapy.utils import wrpcap
@@ -135,6 +148,7 @@ def write(corpus: Path) -> None:
             shutil.copyfile(p, cap / p.name)
     (cap / "ip_fragments.pcap").write_bytes(fragment_seed())
     (cap / "wifi.pcap").write_bytes(wifi_seed())
+    (cap / "wpa2.pcap").write_bytes(wpa_seed())
     (cap / "checksums.pcap").write_bytes(checksum_seed())
     for target, seeds in (("filter", [f.encode() for f in FILTERS]), ("keys", [k.encode() for k in KEY_SPECS]),
                           ("tcp", tcp_seeds()), ("analyses", analyses_seeds()),

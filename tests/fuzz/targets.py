@@ -44,7 +44,7 @@ from tests.support.sources import same_tables
 
 DIALECT = load_dialect()
 SECURITY = PipelineOptions(keys=("passphrase:mavscope-demo",), ciphers=("2=aes-128-ctr:hex:" + "00" * 16,),
-                           ecdh_private=("hex:" + "11" * 32,))
+                           ecdh_private=("hex:" + "11" * 32,), wifi_keys=("wpa-pwd:drone-pass-2024:ArduPilotNet",))
 SUFFIXES = (".pcap", ".pcapng", ".tlog", ".raw")  # content decides the reader; the name does not
 
 
@@ -56,7 +56,7 @@ def capture(data: bytes) -> None:
             fh.write(data)
         with open_capture(path) as reader:
             stage = make_security_stage(SECURITY)
-            for item in stage.run(Dissector(DIALECT).run(reader)):
+            for item in stage.run(Dissector(DIALECT, stage.material.wifi).run(reader)):
                 if type(item) is Anomaly:
                     continue
                 jsonl_bytes(item)

@@ -107,6 +107,27 @@ def test_the_standards_cache_is_per_receiver_and_tid() -> None:
         "wifi-retry"]
 
 
+def test_a_block_ack_retransmission_after_later_frames() -> None:
+    """Under a block ack agreement the receiver acknowledges an A-MPDU's frames in one bitmap, and resends
+    only those it missed: frame 11's retransmission comes after 12 and 13, and a receiver that had it (the
+    monitor did) discards it from its scoreboard (802.11-2016 10.3.2.14.3, 10.24.7). tshark's rule (the last
+    number only) would show it again."""
+    pkts = [frame(AP, STA, n, n - 10, tid=0) for n in (10, 11, 12, 13)] + [frame(AP, STA, 11, 1, retry=True, tid=0)]
+    got = feed_all(pkts)
+    assert [codes(g) for g in got] == [[], [], [], [], ["wifi-retry"]]
+    assert seqs([p for g in got for p in g]) == [0, 1, 2, 3]
+
+
+def test_a_counter_started_over_starts_the_cache_over() -> None:
+    """A station that associates again numbers its frames from 0 again: a retransmission of its new frame
+    numbered as an old one was is no conflict (the old number is far behind the newest)."""
+    pkts = [frame(AP, STA, 4, 0), frame(AP, STA, 2000, 1), frame(AP, STA, 0, 2), frame(AP, STA, 4, 3),
+            frame(AP, STA, 4, 3, retry=True)]
+    got = feed_all(pkts)
+    assert [codes(g) for g in got] == [[], [], [], [], ["wifi-retry"]]
+    assert seqs([p for g in got for p in g]) == [0, 1, 2, 3]
+
+
 def test_a_retransmission_with_another_body_is_a_conflict(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     """The receiver keeps the first copy (it discards the repeat unread); a repeat with other bytes is no
     radio's own: a warning, and an audit finding naming its record."""
@@ -144,5 +165,5 @@ def test_the_cache_is_bounded() -> None:
     assert r.duplicate(b"a", 1, False, b"x") is None and r.duplicate(b"b", 1, False, b"x") is None
     assert r.duplicate(b"a", 1, True, b"x") is True  # a is now the most recent
     assert r.duplicate(b"c", 1, False, b"x") is None  # b, the least recent, is forgotten
-    assert r.duplicate(b"b", 1, True, b"x") is None and len(r.last) == 2
+    assert r.duplicate(b"b", 1, True, b"x") is None and len(r.caches) == 2 and r.size == 2
     assert r.duplicate(b"a", 1, True, b"y") is None  # a went when b came back
