@@ -88,6 +88,7 @@ class Retries:
         digest = hashlib.blake2b(body, digest_size=16).digest()
         sn = sc >> 4
         got = self.caches.get(key)
+        seen: dict[int, bytes]
         if got is None:
             newest, seen = sn, {}
         else:
