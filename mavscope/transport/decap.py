@@ -122,7 +122,7 @@ class Decapsulator:
     def _decode(self, rec: Record) -> tuple[list[Payload], tuple[Note, ...]]:
         """Payloads and notes of one packet record (the slow, general path)."""
         _, _, linktype, data, roff, _, _ = rec
-        link = strip_link(linktype, data, self.retries, self.wpa)
+        link = strip_link(linktype, data, self.retries, self.wpa, rec.orig_len <= len(data))
         base: int | None = roff  # the file offset of data[0]
         if isinstance(link, Decrypted):  # a Wi-Fi frame's plaintext: bytes that are not in the file as such
             data, base = link.data, None

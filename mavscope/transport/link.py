@@ -71,9 +71,11 @@ def ethernet_at(data: bytes, start: int) -> tuple[int, int] | str:
     return (et, off)
 
 
-def strip_link(linktype: int, data: bytes, retries: Retries | None = None, wpa: Wpa | None = None) -> LinkResult:
+def strip_link(linktype: int, data: bytes, retries: Retries | None = None, wpa: Wpa | None = None,
+               whole: bool = True) -> LinkResult:
     """Where the network header starts: (ethertype, offset) (`retries`, `wpa`: the capture's 802.11 duplicate
-    detection and WPA2 keys, for the Wi-Fi link types; a decrypted frame comes back as its plaintext).
+    detection and WPA2 keys, for the Wi-Fi link types; a decrypted frame comes back as its plaintext; `whole`:
+    the record was not snapped, so that a radiotap frame's FCS is checked).
 
     Returns None for a link type this module does not decode, and an error message (str) when the link
     header is malformed or cut short. Non-IP packets come back with their ethertype (or 0) for the caller
@@ -108,7 +110,7 @@ def strip_link(linktype: int, data: bytes, retries: Retries | None = None, wpa: 
             return f"Linux cooked v2 header needs 20 bytes, packet has {n}"
         return (_U16(data, 0)[0], 20)
     if linktype == LINKTYPE_IEEE802_11_RADIOTAP:
-        return strip_radiotap(data, retries, wpa)
+        return strip_radiotap(data, retries, wpa, whole)
     if linktype == LINKTYPE_IEEE802_11:
         return strip_80211(data, retries=retries, wpa=wpa)
     return None

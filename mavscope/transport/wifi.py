@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import hashlib
 import struct
+import zlib
 from collections import OrderedDict
 from typing import NamedTuple
 
@@ -204,8 +205,9 @@ def _amsdu(data: bytes, pos: int, n: int) -> Subframes:
     return Subframes(tuple(out), None)
 
 
-def strip_radiotap(data: bytes, retries: Retries | None = None, wpa: Wpa | None = None) -> Link:
-    """Where the network header starts in a radiotap-headed 802.11 frame (`retries`, `wpa`: as strip_80211's)."""
+def strip_radiotap(data: bytes, retries: Retries | None = None, wpa: Wpa | None = None, whole: bool = True) -> Link:
+    """Where the network header starts in a radiotap-headed 802.11 frame (`retries`, `wpa`: as strip_80211's;
+    `whole`: the record holds the whole frame, so that its FCS, where radiotap says it is there, is checked)."""
     n = len(data)
     if n < 8:
         return f"radiotap header cut short: {n} bytes"
@@ -235,5 +237,12 @@ def strip_radiotap(data: bytes, retries: Retries | None = None, wpa: Wpa | None 
         if flags & RT_FLAG_BAD_FCS:
             return Undecoded("wifi-bad-fcs", "802.11 frame that failed its FCS check: the radio that received it "
                              "dropped it, so its bytes are not dissected")
+        if flags & RT_FLAG_FCS and whole and n - rlen >= 4:
+            # the radio's check, where the driver left it to us (most set the flag above; some hand on every frame)
+            right, given = zlib.crc32(memoryview(data)[rlen:n - 4]), _U32LE(data, n - 4)[0]
+            if right != given:
+                return Undecoded("wifi-bad-fcs", f"802.11 frame whose FCS 0x{given:08x} is wrong (0x{right:08x} is "
+                                 "right): damaged in the air, the radio that received it dropped it, so its bytes are "
+                                 "not dissected")
         return strip_80211(data, rlen, bool(flags & RT_FLAG_DATAPAD), bool(flags & RT_FLAG_FCS), retries, wpa)
     return strip_80211(data, rlen, retries=retries, wpa=wpa)

@@ -9,13 +9,14 @@ say of each.
 
 from __future__ import annotations
 
+import zlib
 from pathlib import Path
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from pymavlink.dialects.v20 import common as mavlink
-from scapy.layers.dot11 import Dot11, Dot11QoS, RadioTap
+from scapy.layers.dot11 import Dot11, Dot11FCS, Dot11QoS, RadioTap
 from scapy.layers.inet import IP, UDP
 from scapy.layers.l2 import LLC, SNAP
 from scapy.packet import Packet, Raw
@@ -52,7 +53,7 @@ READABLE = {  # what each readable frame is: the frames in it are pymavlink's pa
     "qos with HT control (order bit)": RadioTap() / data("to_DS+order", 8) / Dot11QoS() / Raw(bytes(4)) / LLC()
     / SNAP() / ip(),
     "radiotap with TSFT and Flags (FCS present, good)": RadioTap(present="TSFT+Flags", mac_timestamp=5, Flags="FCS")
-    / data() / LLC() / SNAP() / ip() / Raw(b"\x00\x00\x00\x00"),
+    / Dot11FCS(type=2, FCfield="to_DS", addr1=AP, addr2=STA, addr3=AP) / LLC() / SNAP() / ip(),  # (scapy's FCS)
 }
 UNREADABLE = {  # (frame, the code of its one note)
     "protected": (RadioTap() / data("to_DS+protected") / Raw(bytes(90)), "wifi-undecoded"),
@@ -82,15 +83,16 @@ def test_data_frames_carry_their_udp(name: str) -> None:
     assert bare[0].data == frames_bytes()
 
 
-def amsdu(*packets: bytes, radio: Packet | None = None, fcs: bytes = b"") -> Packet:
+def amsdu(*packets: bytes, radio: Packet | None = None, fcs: bool = False) -> Packet:
     """A QoS data frame whose body is an A-MSDU of `packets` (IEEE 802.11-2016 9.3.2.2.2, by hand: DA, SA,
-    a big-endian length, LLC/SNAP and the packet, padded to 4 bytes but the last), then `fcs`."""
+    a big-endian length, LLC/SNAP and the packet, padded to 4 bytes but the last), then its FCS if `fcs`."""
     body = b""
     for i, pkt in enumerate(packets):
         msdu = bytes(LLC() / SNAP(code=0x0800)) + pkt
         sub = bytes.fromhex(AP.replace(":", "") + STA.replace(":", "")) + len(msdu).to_bytes(2, "big") + msdu
         body += sub + (bytes(-len(sub) % 4) if i + 1 < len(packets) else b"")
-    return (radio or RadioTap()) / data(subtype=8) / Dot11QoS(A_MSDU_Present=1) / Raw(body + fcs)
+    frame = bytes(data(subtype=8) / Dot11QoS(A_MSDU_Present=1) / Raw(body))
+    return (radio or RadioTap()) / Raw(frame + (zlib.crc32(frame).to_bytes(4, "little") if fcs else b""))
 
 
 def test_radiotap_padding_and_fcs() -> None:
@@ -99,7 +101,7 @@ def test_radiotap_padding_and_fcs() -> None:
     padded = RadioTap(present="Flags", Flags="pad") / data(subtype=8) / Dot11QoS() / Raw(b"\x00\x00") / LLC() \
         / SNAP() / ip()
     assert [p.data for p in feed(padded)] == [frames_bytes()]
-    with_fcs = amsdu(bytes(ip()), radio=RadioTap(present="Flags", Flags="FCS"), fcs=b"\x12\x34\x56\x78")
+    with_fcs = amsdu(bytes(ip()), radio=RadioTap(present="Flags", Flags="FCS"), fcs=True)
     out = feed(with_fcs)
     assert [p.data for p in out] == [frames_bytes()] and not out[0].notes
 
@@ -172,3 +174,27 @@ def test_cut_frames_never_raise(cut: int, junk: bytes) -> None:
     for pkt in [*READABLE.values(), *(p for p, _ in UNREADABLE.values())]:
         raw = bytes(pkt)[:cut] + junk
         Decapsulator().feed(Record(1, 1.0, LINKTYPE_IEEE802_11_RADIOTAP, raw, 0, len(raw)))
+
+
+def test_a_wrong_fcs_is_what_tshark_calls_bad(tmp_path: Path, tshark_exe: str) -> None:
+    """Where radiotap says the FCS is there and the driver did not flag it, the FCS is checked as the radio
+    did (CRC-32 over the 802.11 frame): a bit flipped in the air drops the frame. tshark's check
+    (`wlan.check_checksum`) is the reference; a snapped record, whose last bytes are no FCS, is not checked."""
+    import subprocess
+
+    good = bytes(READABLE["radiotap with TSFT and Flags (FCS present, good)"])
+    flipped = bytearray(good)
+    flipped[-10] ^= 0x01  # in the UDP payload
+    fcs_flipped = good[:-1] + bytes((good[-1] ^ 0x80,))
+    pcap = tmp_path / "fcs.pcap"
+    wrpcap(str(pcap), [RadioTap(good), RadioTap(bytes(flipped)), RadioTap(fcs_flipped)])
+    out = subprocess.run([tshark_exe, "-o", "wlan.check_checksum:TRUE", "-r", str(pcap), "-T", "fields", "-e",
+                          "wlan.fcs.status"], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["1", "0", "0"]  # good, bad, bad
+    got = [Decapsulator().feed(Record(1, 1.0, LINKTYPE_IEEE802_11_RADIOTAP, raw, 0, len(raw)))
+           for raw in (good, bytes(flipped), fcs_flipped)]
+    assert [[n.code for p in g for n in p.notes] for g in got] == [[], ["wifi-bad-fcs"], ["wifi-bad-fcs"]]
+    assert "FCS 0x" in got[1][0].notes[0].message
+    snapped = good[:-20]
+    out2 = Decapsulator().feed(Record(1, 1.0, LINKTYPE_IEEE802_11_RADIOTAP, snapped, 0, len(good)))
+    assert "wifi-bad-fcs" not in [n.code for p in out2 for n in p.notes]
