@@ -89,7 +89,8 @@ def wifi_seed() -> bytes:
     hb = b"\xfd\x09\x00\x00\x00\x01\x01\x00\x00\x00" + bytes(9) + b"\x00\x00"
     mac = {"addr1": "02:00:00:00:00:01", "addr2": "02:00:00:00:00:02", "addr3": "02:00:00:00:00:01"}
     pkts = [RadioTap(present="TSFT+Flags", Flags="FCS") / Dot11FCS(type=2, subtype=8, FCfield="to_DS", **mac)
-            / Dot11QoS() / LLC() / SNAP() / IP(src="192.168.4.2", dst="192.168.4.1") / UDP(sport=14550, dport=14555) / hb,
+            / Dot11QoS() / LLC() / SNAP() / IP(src="192.168.4.2", dst="192.168.4.1")
+            / UDP(sport=14550, dport=14555) / hb,
             RadioTap() / Dot11(type=2, FCfield="to_DS+protected", **mac) / Raw(bytes(40)),
             RadioTap() / Dot11(type=0, subtype=8) / Raw(b"beacon")]
     return _pcap(pkts, "wifi")
