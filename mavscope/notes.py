@@ -117,6 +117,12 @@ CODES: dict[str, Code] = {
              "from the same transmitter and TID: the receiver discarded them as replays (a retransmission, which "
              "repeats its number, is told apart by its Retry bit first); a recorded frame sent again, as a "
              "replayed command would be"),
+        Code("wifi-unprotected", _WARN, Group.SECURITY, _B,
+             "802.11 data frame without protection between stations that have keys (the receiver drops it)",
+             "802.11 data frames sent without protection between a station and its access point after their 4-way "
+             "handshake gave them keys (or group-addressed from an access point that has a group key): a receiver "
+             "drops every such frame but EAPOL, so their packets were shown to whoever captured them and never "
+             "read by the vehicle; no station sends them: an injection"),
         Code("wifi-retry-conflict", _WARN, Group.SECURITY, _B,
              "802.11 retransmission with another body than its first copy (the receiver keeps the first)",
              "802.11 frames marked as retransmissions (the Retry bit, the transmitter's sequence number of the frame "

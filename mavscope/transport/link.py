@@ -112,5 +112,5 @@ def strip_link(linktype: int, data: bytes, retries: Retries | None = None, wpa: 
     if linktype == LINKTYPE_IEEE802_11_RADIOTAP:
         return strip_radiotap(data, retries, wpa, whole)
     if linktype == LINKTYPE_IEEE802_11:
-        return strip_80211(data, retries=retries, wpa=wpa)
+        return strip_80211(data, retries=retries, wpa=wpa, whole=whole)
     return None

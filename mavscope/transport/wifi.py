@@ -59,7 +59,7 @@ class Subframes(NamedTuple):
 # or an A-MSDU's packets
 Link = tuple[int, int] | str | Undecoded | Subframes | Decrypted
 MAX_SUBFRAMES = 1024  # subframes of one A-MSDU read at most (7,935 bytes of 14-byte subframes: 567)
-WINDOW = 64  # sequence numbers remembered behind the newest, per receiver, transmitter and TID: a block ack window
+WINDOW = 256  # sequence numbers remembered behind the newest, per receiver, transmitter and TID: 802.11ax's block ack window
 MAX_REMEMBERED = 1 << 18  # numbers remembered over all caches (about 40 MB), the least recent caches forgotten
 
 
@@ -119,11 +119,11 @@ class Retries:
 
 
 def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
-                retries: Retries | None = None, wpa: Wpa | None = None) -> Link:
+                retries: Retries | None = None, wpa: Wpa | None = None, whole: bool = True) -> Link:
     """Where the network header starts in the 802.11 frame at `off` (`pad`: the header padded to 4 bytes;
     `fcs`: the frame ends with its 4-byte FCS; both as radiotap's Flags say; `retries`: the capture's
     duplicate detection, which a data frame is checked against; `wpa`: the capture's WPA2 handshakes and
-    keys, which read its EAPOL frames and decrypt its protected ones)."""
+    keys, which read its EAPOL frames and decrypt its protected ones; `whole`: the record is not snapped)."""
     n = len(data) - (4 if fcs else 0)
     if off + 10 > n:
         return f"802.11 header cut short: {n - off} bytes"
@@ -142,40 +142,45 @@ def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
     if off + hlen > n:
         return f"802.11 header cut short: {n - off} of {hlen} bytes"
     sc = _U16LE(data, off + 22)[0]
+    qc = off + hlen - (6 if fc1 & FC_ORDER else 2) if qos else 0  # the QoS Control field
+    body = off + ((hlen + 3) & ~3 if pad else hlen)  # (past radiotap's padding, which a retransmission may change)
+    a1, a2 = data[off + 4:off + 10], data[off + 10:off + 16]
     if retries is not None:
-        tid = data[off + hlen - (6 if fc1 & FC_ORDER else 2)] & 0xF if qos else 16  # (the QoS Control's TID)
-        same = retries.duplicate(data[off + 4:off + 16] + bytes((tid,)), sc, bool(fc1 & FC_RETRY), data[off + hlen:n])
+        same = retries.duplicate(a1 + a2 + bytes((data[qc] & 0xF if qos else 16,)), sc, bool(fc1 & FC_RETRY),
+                                 data[body:n])
         if same is not None:
             what = (f"802.11 retransmission (Retry bit) of sequence number {sc >> 4}, fragment {sc & 0xF} from "
-                    f"{data[off + 10:off + 16].hex(':')} to {data[off + 4:off + 10].hex(':')}")
+                    f"{a2.hex(':')} to {a1.hex(':')}")
             if same:
                 return Undecoded("wifi-retry", f"{what}: the receiver discarded it as a duplicate of the frame "
                                  "before")
             return Undecoded("wifi-retry-conflict", f"{what} with another body than the frame it repeats: the "
                              "receiver discarded it as a duplicate and kept the first")
-    qc = off + hlen - (6 if fc1 & FC_ORDER else 2) if qos else 0  # the QoS Control field
-    body = off + ((hlen + 3) & ~3 if pad else hlen)
     if fc1 & FC_PROTECTED:
         if wpa is None:
             return Undecoded("wifi-undecoded", "802.11 data frame protected (WPA2/WPA3 encryption): not decrypted "
                              "(--wifi-key gives a WPA2 network's passphrase)")
-        got = wpa.decrypt(data, off, body, n, qc)
+        got = wpa.decrypt(data, off, body, n, qc, whole)
         if isinstance(got, tuple):
             code, message = got
             return message if code == "malformed-packet" else Undecoded(code, message)
         frame = bytes((fc0, fc1 & ~FC_PROTECTED)) + data[off + 2:off + hlen] + got
         inner = strip_80211(frame)
-        if isinstance(inner, tuple) and inner[0] == ETHERTYPE_EAPOL:
-            wpa.eapol(frame[4:10], frame[10:16], frame[inner[1]:])  # a handshake under the keys of the last
+        if type(inner) is tuple and inner[0] == ETHERTYPE_EAPOL:
+            wpa.eapol(a1, a2, frame[hlen + 8:])  # a handshake under the keys of the last (past LLC/SNAP)
         return Decrypted(frame, inner)
     fragment = sc & 0xF
     if fc1 & FC_MORE_FRAG or fragment:
         return Undecoded("wifi-undecoded", f"802.11 fragment {fragment}: 802.11 fragments are not reassembled")
-    if qos and data[qc] & 0x80:
-        return _amsdu(data, body, n)
-    link = _snap(data, body, n)
-    if wpa is not None and link[0] == ETHERTYPE_EAPOL:
-        wpa.eapol(data[off + 4:off + 10], data[off + 10:off + 16], data[link[1]:n])
+    link: Link = _amsdu(data, body, n) if qos and data[qc] & 0x80 else _snap(data, body, n)
+    if wpa is not None:
+        eapol = type(link) is tuple and link[0] == ETHERTYPE_EAPOL
+        if not eapol and wpa.protected(a1, a2):  # (EAPOL travels unprotected until its keys are installed)
+            return Undecoded("wifi-unprotected", f"802.11 data frame from {a2.hex(':')} to {a1.hex(':')} without "
+                             "protection where their handshake gave them keys: the receiver drops it (only EAPOL "
+                             "passes unprotected)")
+        if eapol:
+            wpa.eapol(a1, a2, data[body + 8:n])  # (past the LLC/SNAP header: the EAPOL frame)
     return link
 
 
@@ -244,5 +249,5 @@ def strip_radiotap(data: bytes, retries: Retries | None = None, wpa: Wpa | None 
                 return Undecoded("wifi-bad-fcs", f"802.11 frame whose FCS 0x{given:08x} is wrong (0x{right:08x} is "
                                  "right): damaged in the air, the radio that received it dropped it, so its bytes are "
                                  "not dissected")
-        return strip_80211(data, rlen, bool(flags & RT_FLAG_DATAPAD), bool(flags & RT_FLAG_FCS), retries, wpa)
-    return strip_80211(data, rlen, retries=retries, wpa=wpa)
+        return strip_80211(data, rlen, bool(flags & RT_FLAG_DATAPAD), bool(flags & RT_FLAG_FCS), retries, wpa, whole)
+    return strip_80211(data, rlen, retries=retries, wpa=wpa, whole=whole)

@@ -1,16 +1,15 @@
-"""WPA2-Personal decryption of 802.11 data frames (CCMP-128), given the network's passphrase or PSK.
+"""WPA2-Personal decryption of 802.11 data frames, given the network's passphrase or PSK: the handshakes.
 
 A monitor-mode capture of a WPA2 network holds its 4-way handshakes: with the passphrase (or the PSK) the
 pairwise keys of each station that associated while the capture ran follow, and from them the group key
-the access point sends in message 3. mavscope keeps what a receiving station keeps: the keys of the
-handshakes whose MIC verifies (a handshake forged without the passphrase installs nothing), the newest
-first, and per key and TID the last packet number it accepted: a frame whose CCMP MIC fails is dropped
-(`wifi-decrypt-failed`), and one whose packet number is not above the last is a replay the receiver
-discards (`wifi-replay`, which Wireshark does not check).
+the access point sends in message 3. mavscope takes each message as the station and the access point take
+it (wpa_supplicant, hostapd): replay counters that only increase, message 2 paired with the message 1 of
+its counter and verified by its MIC (a handshake forged without the passphrase installs nothing), the
+ciphers the station's RSNE chose. The frames are decrypted and their packet numbers checked by `ccmp.py`.
 
 IEEE 802.11-2016: 12.7.1.2 (PRF), 12.7.1.7.2 (KDF, for the SHA-256 AKM), 12.7.2 (EAPOL-Key frames), 12.7.6
-(the 4-way handshake), 12.7.7 (the group key handshake), 12.5.3 (CCMP: its header, nonce and AAD), J.4 (the
-passphrase-to-PSK mapping); RFC 3394 (AES key wrap). TKIP (WPA1), GCMP and SAE (WPA3) are not decrypted.
+(the 4-way handshake), 12.7.7 (the group key handshake), 9.4.2.25 (the RSNE), J.4 (the passphrase-to-PSK
+mapping); RFC 3394 (AES key wrap). TKIP (WPA1), 256-bit ciphers and SAE (WPA3) are not decrypted.
 Secrets (passphrases, PSKs, derived keys) are never printed: the keys' reprs and every message leave them out.
 """
 
@@ -22,17 +21,18 @@ import struct
 from collections import OrderedDict
 from dataclasses import dataclass, field
 
-from cryptography.exceptions import InvalidTag
-from cryptography.hazmat.primitives.ciphers.aead import AESCCM
 from cryptography.hazmat.primitives.ciphers.algorithms import AES
 from cryptography.hazmat.primitives.cmac import CMAC
 from cryptography.hazmat.primitives.keywrap import InvalidUnwrap, aes_key_unwrap
 
 from mavscope.errors import UsageError
+from mavscope.transport.ccmp import CCMP_128, CIPHER_NAMES, GCMP_128, TemporalKey, unprotect
 
 ETHERTYPE_EAPOL = 0x888E
 MAX_PAIRS = 65536  # station pairs kept (with keys; and apart, with nonces only), the least recent forgotten
 KEYS_KEPT = 2  # keys per pair or group key index: the newest and the one before (frames in flight on a rekey)
+ANONCES_KEPT = 4  # message 1s of a pair whose message 2 may still come (a forged one among them changes nothing)
+SUITES = (CCMP_128, GCMP_128)  # the ciphers decrypted (both with 16-byte keys)
 
 # EAPOL-Key Key Information bits (12.7.2)
 KI_VERSION, KI_PAIRWISE, KI_INSTALL, KI_ACK = 0x7, 0x8, 0x40, 0x80
@@ -91,7 +91,7 @@ def wifi_key(spec: str, number: int) -> WifiKey:
         except UnicodeEncodeError:
             raise UsageError(f"{what}: a WPA passphrase is printable ASCII") from None
         if not 8 <= len(secret) <= 63 or not all(32 <= b <= 126 for b in secret):
-            raise UsageError(f"{what}: a WPA passphrase is 8 to 63 printable ASCII characters, got {len(secret)}")
+            raise UsageError(f"{what}: a WPA passphrase is 8 to 63 printable ASCII characters")
         if len(ssid) > 32:
             raise UsageError(f"{what}: an SSID is at most 32 bytes, got {len(ssid)}")
         pmk = hashlib.pbkdf2_hmac("sha1", secret, ssid, 4096, 32)  # 802.11-2016 J.4.1
@@ -139,41 +139,43 @@ def eapol_mic(kck: bytes, version: int, eapol: bytes) -> bytes:
     return hmac.new(kck, eapol, hashlib.sha1).digest()[:16]
 
 
-class TemporalKey:
-    """A TK and the last packet number its receivers accepted, per transmitter and TID (16: frames without
-    QoS): each side of a pair numbers what it sends on a counter of its own."""
-
-    __slots__ = ("cipher", "ident", "last")
-
-    def __init__(self, tk: bytes) -> None:
-        self.cipher = AESCCM(tk, tag_length=8)
-        self.ident = hashlib.sha256(b"mavscope tk" + tk).digest()[:16]  # to tell a key installed again
-        self.last: dict[bytes, int] = {}
-
-    def __repr__(self) -> str:
-        return "TemporalKey(...)"
-
-
 @dataclass(slots=True, repr=False)
 class Pair:
-    """A station and its access point: the nonces of their handshake, and their keys (newest first)."""
+    """A station and its access point: their handshake's nonces and counters, and their keys (newest first)."""
 
-    anonce: bytes | None = None
-    snonce: bytes | None = None
+    anonces: list[tuple[int, bytes]] = field(default_factory=list)  # (replay counter, ANonce) of recent message 1s
+    replay: int = -1  # the highest replay counter of a message the station verified (12.7.2: never lower again)
     kck: bytes | None = None
     kek: bytes | None = None
     version: int = 2
+    pairwise: int = CCMP_128  # the cipher suites the station chose (its RSNE in message 2)
+    group: int = CCMP_128
     keys: list[TemporalKey] = field(default_factory=list)
 
 
-def _keep(keys: list[TemporalKey], tk: bytes) -> None:
+def _keep(keys: list[TemporalKey], tk: bytes, suite: int) -> None:
     """Install `tk` as the newest of `keys`, unless it is installed already: a key installed again keeps its
     packet numbers (a receiver that reset them would accept replays: the KRACK attacks, 2017)."""
-    new = TemporalKey(tk)
+    new = TemporalKey(tk, suite)
     if any(k.ident == new.ident for k in keys):
         return
     keys.insert(0, new)
     del keys[KEYS_KEPT:]
+
+
+def rsne_suites(key_data: bytes) -> tuple[int, int] | None:
+    """(group, pairwise) cipher suite types of the RSNE in message 2's key data (9.4.2.25: version, group
+    suite, pairwise count and suites), None without one (or with suites of another OUI: 0 then)."""
+    i = 0
+    while i + 2 <= len(key_data):
+        kind, size = key_data[i], key_data[i + 1]
+        body = key_data[i + 2:i + 2 + size]
+        if kind == 0x30 and len(body) >= 12 and body[6] | body[7] << 8 >= 1:
+            def suite(at: int) -> int:
+                return body[at + 3] if body[at:at + 3] == b"\x00\x0f\xac" else 0
+            return suite(2), suite(8)
+        i += 2 + size
+    return None
 
 
 def gtk_from_key_data(data: bytes) -> tuple[int, bytes] | None:
@@ -204,7 +206,7 @@ class Wpa:
         # (anyone can send them) forgets these, never the keys of the stations that did associate
         self.pending: OrderedDict[bytes, Pair] = OrderedDict()
         self.groups: OrderedDict[bytes, dict[int, list[TemporalKey]]] = OrderedDict()
-
+        self.group_suites: dict[bytes, int] = {}  # access point -> its group cipher, once a GTK came
     def __repr__(self) -> str:
         return f"Wpa({len(self.pmks)} keys, {len(self.pairs)} pairs)"
 
@@ -232,10 +234,14 @@ class Wpa:
         self.pairs.move_to_end(key)
 
     def eapol(self, a1: bytes, a2: bytes, eapol: bytes) -> None:
-        """An EAPOL frame from `a2` to `a1` (its bytes from the EAPOL header on): a handshake message."""
+        """An EAPOL frame from `a2` to `a1` (its bytes from the EAPOL header on): a handshake message, taken as
+        the station and the access point take it (wpa_supplicant, hostapd): message 1 only with a replay
+        counter above every verified one; message 2 (told from 4 by its key data, as hostapd tells them: a
+        station sets Secure in both once it has keys) for a message 1 of its counter, its MIC finding the
+        PMK; messages 3 and group message 1 with their MIC and a counter above the last verified."""
         if len(eapol) < _EAPOL_KEY.size:
             return
-        (_, ptype, length, desc, info, _, _, nonce, _, _, mic, kd_len) = _EAPOL_KEY.unpack_from(eapol)
+        (_, ptype, length, desc, info, _, counter, nonce, _, _, mic, kd_len) = _EAPOL_KEY.unpack_from(eapol)
         end = 4 + length
         if ptype != 3 or desc != 2 or end > len(eapol) or _EAPOL_KEY.size + kd_len > end:
             return  # not an RSN EAPOL-Key frame (WPA1's descriptor 254 is TKIP's)
@@ -247,31 +253,44 @@ class Wpa:
         key_data = frame[_EAPOL_KEY.size:_EAPOL_KEY.size + kd_len]
         ack = info & KI_ACK
         aa, spa = (a2, a1) if ack else (a1, a2)  # the authenticator (the access point) sends the ACKed ones
-        pair = self._pair(aa, spa, create=bool(ack and info & KI_PAIRWISE and not info & KI_MIC))
+        first = bool(ack and info & KI_PAIRWISE and not info & KI_MIC)
+        pair = self._pair(aa, spa, create=first)
         if pair is None:
             return
-        if not info & KI_PAIRWISE:  # group key message 1: the new GTK under the pair's KEK
-            if ack and info & KI_MIC and pair.kck is not None and hmac.compare_digest(
-                    eapol_mic(pair.kck, pair.version, zeroed), mic):
-                self._group(aa, pair, key_data, info)
+        if first:  # message 1
+            if counter > pair.replay:
+                pair.anonces = [*pair.anonces, (counter, nonce)][-ANONCES_KEPT:]
             return
-        if ack and not info & KI_MIC:  # message 1
-            pair.anonce = nonce
+        if not ack and info & KI_MIC and info & KI_PAIRWISE:
+            if kd_len:
+                self._message2(aa, spa, pair, version, counter, nonce, key_data, zeroed, mic)
+            return  # (message 4 holds no key data)
+        if not ack or not info & KI_MIC or pair.kck is None or counter <= pair.replay:
             return
-        if not ack and info & KI_MIC and not info & KI_SECURE and any(nonce):  # message 2: find the PMK
-            if pair.anonce is None:
-                return
+        if not hmac.compare_digest(eapol_mic(pair.kck, pair.version, zeroed), mic):
+            return
+        if info & KI_PAIRWISE and not info & KI_INSTALL:
+            return
+        pair.replay = counter  # message 3, or group message 1: the GTK under the pair's KEK
+        self._group(aa, pair, key_data, info)
+
+    def _message2(self, aa: bytes, spa: bytes, pair: Pair, version: int, counter: int, snonce: bytes,
+                  key_data: bytes, zeroed: bytes, mic: bytes) -> None:
+        for sent, anonce in reversed(pair.anonces):
+            if sent != counter:  # hostapd takes message 2 for the message 1 of its counter only
+                continue
             for pmk in self.pmks:
-                keys = ptk(pmk, version, aa, spa, pair.anonce, nonce)
+                keys = ptk(pmk, version, aa, spa, anonce, snonce)
                 if hmac.compare_digest(eapol_mic(keys[:16], version, zeroed), mic):
-                    pair.snonce, pair.kck, pair.kek, pair.version = nonce, keys[:16], keys[16:32], version
-                    _keep(pair.keys, keys[32:48])
+                    pair.kck, pair.kek, pair.version = keys[:16], keys[16:32], version
+                    pair.anonces = []
+                    pair.group, pair.pairwise = rsne_suites(key_data) or (CCMP_128, CCMP_128)
+                    if pair.pairwise in SUITES:
+                        _keep(pair.keys, keys[32:48], pair.pairwise)
+                    else:
+                        pair.keys = []
                     self._verified(aa, spa, pair)
                     return
-            return
-        if ack and info & KI_MIC and info & KI_INSTALL and pair.kck is not None:  # message 3: the GTK
-            if hmac.compare_digest(eapol_mic(pair.kck, pair.version, zeroed), mic):
-                self._group(aa, pair, key_data, info)
 
     def _group(self, aa: bytes, pair: Pair, key_data: bytes, info: int) -> None:
         if not info & KI_ENCRYPTED or pair.kek is None or len(key_data) < 24 or len(key_data) % 8:
@@ -281,7 +300,7 @@ class Wpa:
         except InvalidUnwrap:
             return
         found = gtk_from_key_data(plain)
-        if found is None or len(found[1]) != 16:  # (a 32-byte GTK is GCMP-256's)
+        if found is None:
             return
         index, gtk = found
         groups = self.groups.get(aa)
@@ -289,58 +308,47 @@ class Wpa:
             if len(self.groups) >= self.limit:
                 self.groups.popitem(last=False)
             groups = self.groups[aa] = {}
-        _keep(groups.setdefault(index, []), gtk)
+        if pair.group in SUITES and len(gtk) == 16:
+            _keep(groups.setdefault(index, []), gtk, pair.group)
+        else:
+            groups[index] = []
+        self.group_suites[aa] = pair.group
 
-    def keys_for(self, a1: bytes, a2: bytes, index: int) -> list[TemporalKey] | None:
-        """The keys a frame from `a2` to `a1` may be under (group-addressed: the GTKs of index `index` of its
-        access point `a2`; else the pair's), None when there are none."""
-        if a1[0] & 1:
-            groups = self.groups.get(a2)
-            return None if groups is None else groups.get(index) or None
+    def _pair_of(self, a1: bytes, a2: bytes) -> Pair | None:
         p = self.pairs.get(a2 + a1)
-        if p is None or not p.keys:
-            p = self.pairs.get(a1 + a2)
-        return None if p is None or not p.keys else p.keys
+        return p if p is not None else self.pairs.get(a1 + a2)
 
-    def decrypt(self, data: bytes, off: int, body: int, end: int, qos: int) -> bytes | tuple[str, str]:
-        """The plaintext of the protected data frame at `off` whose body (CCMP header, ciphertext, MIC) runs
-        from `body` to `end` (`qos`: the offset of its QoS Control field, 0 without), or the code and message
-        of the note on a frame the receiver does not read."""
-        if end - body < 17:
-            return ("malformed-packet", f"802.11 protected frame of {end - body} bytes: shorter than CCMP's "
-                    "header and MIC")
-        iv = data[body:body + 8]
-        if not iv[3] & 0x20:
-            return ("wifi-undecoded", "802.11 frame protected with WEP (no extended IV): not decrypted")
+    def protected(self, a1: bytes, a2: bytes) -> bool:
+        """Whether frames from `a2` to `a1` travel protected: their pair (or, group-addressed, their access
+        point's group) has keys from a verified handshake, so a receiver drops what is not (mac80211's
+        ieee80211_drop_unencrypted; EAPOL alone passes)."""
+        if a1[0] & 1:
+            return a2 in self.group_suites
+        return self._pair_of(a1, a2) is not None
+
+    def decrypt(self, data: bytes, off: int, body: int, end: int, qos: int,
+                whole: bool = True) -> bytes | tuple[str, str]:
+        """The plaintext of the protected data frame at `off` whose body (its cipher's header, ciphertext, MIC)
+        runs from `body` to `end` (`qos`: the offset of its QoS Control field, 0 without; `whole`: not cut by
+        the capture's snap length), or the code and message of the note on a frame the receiver does not read."""
         a1, a2 = data[off + 4:off + 10], data[off + 10:off + 16]
-        keys = self.keys_for(a1, a2, iv[3] >> 6)
-        if keys is None:
-            return ("wifi-undecoded", "802.11 frame protected (WPA2/WPA3) between "
-                    f"{a2.hex(':')} and {a1.hex(':')}: no key for it (no 4-way handshake of theirs with a given "
-                    "--wifi-key seen before it)")
-        pn = int.from_bytes(bytes((iv[7], iv[6], iv[5], iv[4], iv[1], iv[0])), "big")
-        tid = data[qos] & 0x0F if qos else 16
-        nonce = bytes((tid & 0x0F,)) + a2 + pn.to_bytes(6, "big")
-        fc0, fc1 = data[off], data[off + 1]
-        fc1 = (fc1 & ~(0x08 | 0x10 | 0x20) | 0x40) & (0x7F if qos else 0xFF)  # Retry, PwrMgt, MoreData; Order in QoS
-        aad = bytes((fc0 & 0x8F, fc1)) + data[off + 4:off + 22] + bytes((data[off + 22] & 0x0F, 0))
-        if data[off + 1] & 3 == 3:
-            aad += data[off + 24:off + 30]
-        if qos:
-            aad += bytes((data[qos] & 0x0F, 0))
-        sealed = data[body + 8:end]
-        for k in keys:
-            try:
-                plain = k.cipher.decrypt(nonce, sealed, aad)
-            except InvalidTag:
-                continue
-            counter = a2 + bytes((tid,))
-            last = k.last.get(counter)
-            if last is not None and pn <= last:
-                return ("wifi-replay", f"802.11 frame from {a2.hex(':')} to {a1.hex(':')} with CCMP packet number "
-                        f"{pn}, not above the {last} its key last accepted: the receiver discarded it as a replay")
-            k.last[counter] = pn
-            return plain
-        return ("wifi-decrypt-failed", f"802.11 frame from {a2.hex(':')} to {a1.hex(':')} whose CCMP MIC fails "
-                "with every key of theirs: the receiver drops it (forged, damaged, or under a key whose handshake "
-                "the capture missed)")
+        between = f"between {a2.hex(':')} and {a1.hex(':')}"
+        if end - body < 16:
+            return ("malformed-packet", f"802.11 protected frame of {end - body} bytes: shorter than a cipher's "
+                    "header and MIC")
+        if not data[body + 3] & 0x20:
+            return ("wifi-undecoded", "802.11 frame protected with WEP (no extended IV): not decrypted")
+        index = data[body + 3] >> 6
+        group = bool(a1[0] & 1)
+        suite = self.group_suites.get(a2, CCMP_128) if group else getattr(self._pair_of(a1, a2), "pairwise", 0)
+        keys = self.groups.get(a2, {}).get(index) if group else getattr(self._pair_of(a1, a2), "keys", None)
+        if not keys:
+            if suite and suite not in SUITES and (group and a2 in self.group_suites or self._pair_of(a1, a2)):
+                why = f"its cipher is {CIPHER_NAMES.get(suite, f'suite {suite}')}, which mavscope does not decrypt"
+            else:
+                why = "no key for it (no 4-way handshake of theirs with a given --wifi-key seen before it)"
+            return ("wifi-undecoded", f"802.11 frame protected (WPA2/WPA3) {between}: {why}")
+        if not whole:
+            return ("wifi-undecoded", f"802.11 frame protected {between}, cut short by the capture's snap length: "
+                    "not decrypted")
+        return unprotect(keys, data, off, body, end, qos)
