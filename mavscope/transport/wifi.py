@@ -59,7 +59,7 @@ class Subframes(NamedTuple):
 # or an A-MSDU's packets
 Link = tuple[int, int] | str | Undecoded | Subframes | Decrypted
 MAX_SUBFRAMES = 1024  # subframes of one A-MSDU read at most (7,935 bytes of 14-byte subframes: 567)
-WINDOW = 256  # sequence numbers remembered behind the newest, per receiver, transmitter and TID: 802.11ax's block ack window
+WINDOW = 256  # numbers remembered behind the newest, per receiver, transmitter and TID: 802.11ax's block ack window
 MAX_REMEMBERED = 1 << 18  # numbers remembered over all caches (about 40 MB), the least recent caches forgotten
 
 
