@@ -123,6 +123,8 @@ CODES: dict[str, Code] = {
              "handshake gave them keys (or group-addressed from an access point that has a group key): a receiver "
              "drops every such frame but EAPOL, so their packets were shown to whoever captured them and never "
              "read by the vehicle; no station sends them: an injection"),
+        Code("wifi-relay", _CHAT, Group.REASSEMBLY, _F,
+             "802.11 frame an access point relays (its packet was shown when a station sent it to the access point)"),
         Code("wifi-retry-conflict", _WARN, Group.SECURITY, _B,
              "802.11 retransmission with another body than its first copy (the receiver keeps the first)",
              "802.11 frames marked as retransmissions (the Retry bit, the transmitter's sequence number of the frame "

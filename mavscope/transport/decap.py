@@ -7,6 +7,7 @@ import struct
 from mavscope.capture.base import LINKTYPE_ETHERNET, LINKTYPE_MAVLINK_RAW, LINKTYPE_MAVLINK_TLOG, Record
 from mavscope.endpoint import Endpoint
 from mavscope.notes import Note, note
+from mavscope.transport.air import Air
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TCP, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
 from mavscope.transport.checksum import FRAME_IP, Checksum, Directions, ipv4_header, judge, ones_sum
 from mavscope.transport.defrag import Defragmenter, records_text
@@ -23,7 +24,7 @@ from mavscope.transport.ip import (
 from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, Subframes, Undecoded, strip_link
 from mavscope.transport.tcp import MAX_BUFFERED, TCP_FIN, TCP_RST, TcpReassembler
 from mavscope.transport.tunnel import MAX_DEPTH, PROTO_GRE, TUNNEL_PROTOS, VXLAN_PORTS, gre, ip_in_ip, vxlan
-from mavscope.transport.wifi import Decrypted, Retries
+from mavscope.transport.wifi import Decrypted
 from mavscope.transport.wpa import Wpa
 
 RAW_STREAM = (TRANSPORT_RAW,)  # the stream key of a raw byte-stream capture
@@ -56,8 +57,7 @@ class Decapsulator:
         self._unknown_seen: set[int] = set()
         self._flows: dict[bytes, tuple[Endpoint, Endpoint]] = {}
         self.directions = Directions()  # the TCP directions whose captured checksums are real
-        self.retries = Retries()  # 802.11 duplicate detection
-        self.wpa = wpa  # WPA2 handshakes and keys (--wifi-key), None without keys
+        self.air = Air(wpa)  # 802.11: duplicate detection, the access points' relays, WPA2 keys (--wifi-key)
 
     def feed(self, rec: Record) -> list[Payload]:
         """The Payloads that `rec` yields now (possibly none)."""
@@ -122,7 +122,7 @@ class Decapsulator:
     def _decode(self, rec: Record) -> tuple[list[Payload], tuple[Note, ...]]:
         """Payloads and notes of one packet record (the slow, general path)."""
         _, _, linktype, data, roff, _, _ = rec
-        link = strip_link(linktype, data, self.retries, self.wpa, rec.orig_len <= len(data))
+        link = strip_link(linktype, data, self.air, rec.orig_len <= len(data))
         base: int | None = roff  # the file offset of data[0]
         if isinstance(link, Decrypted):  # a Wi-Fi frame's plaintext: bytes that are not in the file as such
             data, base = link.data, None

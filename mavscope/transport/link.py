@@ -16,8 +16,8 @@ from mavscope.capture.base import (
     LINKTYPE_NULL,
     LINKTYPE_RAW,
 )
-from mavscope.transport.wifi import Decrypted, Retries, Subframes, Undecoded, strip_80211, strip_radiotap
-from mavscope.transport.wpa import Wpa
+from mavscope.transport.air import Air
+from mavscope.transport.wifi import Decrypted, Subframes, Undecoded, strip_80211, strip_radiotap
 
 ETHERTYPE_IPV4 = 0x0800
 ETHERTYPE_IPV6 = 0x86DD
@@ -71,11 +71,10 @@ def ethernet_at(data: bytes, start: int) -> tuple[int, int] | str:
     return (et, off)
 
 
-def strip_link(linktype: int, data: bytes, retries: Retries | None = None, wpa: Wpa | None = None,
-               whole: bool = True) -> LinkResult:
-    """Where the network header starts: (ethertype, offset) (`retries`, `wpa`: the capture's 802.11 duplicate
-    detection and WPA2 keys, for the Wi-Fi link types; a decrypted frame comes back as its plaintext; `whole`:
-    the record was not snapped, so that a radiotap frame's FCS is checked).
+def strip_link(linktype: int, data: bytes, air: Air | None = None, whole: bool = True) -> LinkResult:
+    """Where the network header starts: (ethertype, offset) (`air`: the capture's 802.11 state, for the Wi-Fi
+    link types; a decrypted frame comes back as its plaintext; `whole`: the record was not snapped, so that a
+    radiotap frame's FCS is checked).
 
     Returns None for a link type this module does not decode, and an error message (str) when the link
     header is malformed or cut short. Non-IP packets come back with their ethertype (or 0) for the caller
@@ -110,7 +109,7 @@ def strip_link(linktype: int, data: bytes, retries: Retries | None = None, wpa: 
             return f"Linux cooked v2 header needs 20 bytes, packet has {n}"
         return (_U16(data, 0)[0], 20)
     if linktype == LINKTYPE_IEEE802_11_RADIOTAP:
-        return strip_radiotap(data, retries, wpa, whole)
+        return strip_radiotap(data, air, whole)
     if linktype == LINKTYPE_IEEE802_11:
-        return strip_80211(data, retries=retries, wpa=wpa, whole=whole)
+        return strip_80211(data, air=air, whole=whole)
     return None

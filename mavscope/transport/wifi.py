@@ -12,13 +12,12 @@ header: version 0, its length, the present bitmaps, the Flags field).
 
 from __future__ import annotations
 
-import hashlib
 import struct
 import zlib
-from collections import OrderedDict
 from typing import NamedTuple
 
-from mavscope.transport.wpa import ETHERTYPE_EAPOL, Wpa
+from mavscope.transport.air import Air
+from mavscope.transport.wpa import ETHERTYPE_EAPOL
 
 _U16LE = struct.Struct("<H").unpack_from
 _U32LE = struct.Struct("<I").unpack_from
@@ -59,71 +58,12 @@ class Subframes(NamedTuple):
 # or an A-MSDU's packets
 Link = tuple[int, int] | str | Undecoded | Subframes | Decrypted
 MAX_SUBFRAMES = 1024  # subframes of one A-MSDU read at most (7,935 bytes of 14-byte subframes: 567)
-WINDOW = 256  # numbers remembered behind the newest, per receiver, transmitter and TID: 802.11ax's block ack window
-MAX_REMEMBERED = 1 << 18  # numbers remembered over all caches (about 40 MB), the least recent caches forgotten
-
-
-class Retries:
-    """802.11 duplicate detection as a receiver does it (IEEE 802.11-2016 10.3.2.14): a frame with the Retry bit
-    set whose sequence and fragment number its receiver already has from the same transmitter (per TID for QoS
-    data) is a retransmission the receiver discards (its first copy was received; the ACK was lost).
-    Retransmissions are common in monitor-mode captures, and their packets would otherwise be shown (and
-    counted) twice. A monitor sees what every receiver does, so a cache is kept per receiver (Address 1)
-    too: a transmitter numbers its QoS data per receiver and TID, and the same number to two receivers is two
-    frames. Under a block ack agreement (802.11n on) a retransmission may come after frames numbered later (its
-    A-MPDU's other frames were acknowledged), and the receiver's scoreboard still knows it: so each cache holds
-    the numbers up to WINDOW behind the newest, not the last one only; a frame numbered as far from the newest
-    as a reset counter (a new association) starts the cache over.
-
-    A retransmission repeats its frame's body byte for byte (an encrypted one its packet number and
-    ciphertext too); one with another body is no sender's (`conflict`): the receiver keeps the first."""
-
-    def __init__(self, limit: int = MAX_REMEMBERED) -> None:
-        self.limit = limit
-        self.caches: OrderedDict[bytes, tuple[int, dict[int, bytes]]] = OrderedDict()  # key -> (newest, sc -> body)
-        self.size = 0
-
-    def duplicate(self, key: bytes, sc: int, retry: bool, body: bytes) -> bool | None:
-        """None when the frame of cache `key` (receiver, transmitter and TID), Sequence Control `sc` and
-        `body` is no duplicate (the cache then holds it), else whether its body is the first copy's."""
-        digest = hashlib.blake2b(body, digest_size=16).digest()
-        sn = sc >> 4
-        got = self.caches.get(key)
-        seen: dict[int, bytes]
-        if got is None:
-            newest, seen = sn, {}
-        else:
-            self.caches.move_to_end(key)
-            newest, seen = got
-            behind = (newest - sn) % 4096
-            if retry and behind < WINDOW and sc in seen:
-                return seen[sc] == digest
-            if behind >= WINDOW:  # ahead of the newest (or a counter started over): the window moves
-                if (sn - newest) % 4096 >= WINDOW:
-                    self.size -= len(seen)
-                    seen = {}
-                newest = sn
-                if len(seen) >= 2 * WINDOW:  # (numbers past the window are never matched: forgotten now and then)
-                    old = [k for k in seen if (newest - (k >> 4)) % 4096 >= WINDOW]
-                    for k in old:
-                        del seen[k]
-                    self.size -= len(old)
-        if sc not in seen:
-            self.size += 1
-        seen[sc] = digest
-        self.caches[key] = (newest, seen)
-        while self.size > self.limit:
-            _, (_, gone) = self.caches.popitem(last=False)
-            self.size -= len(gone)
-        return None
-
-
-def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
-                retries: Retries | None = None, wpa: Wpa | None = None, whole: bool = True) -> Link:
+def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False, air: Air | None = None,
+                whole: bool = True) -> Link:
     """Where the network header starts in the 802.11 frame at `off` (`pad`: the header padded to 4 bytes;
-    `fcs`: the frame ends with its 4-byte FCS; both as radiotap's Flags say; `retries`: the capture's
-    duplicate detection, which a data frame is checked against; `wpa`: the capture's WPA2 handshakes and
-    keys, which read its EAPOL frames and decrypt its protected ones; `whole`: the record is not snapped)."""
+    `fcs`: the frame ends with its 4-byte FCS; both as radiotap's Flags say; `air`: the capture's duplicate
+    detection, relays and WPA2 keys, which a data frame is checked against, its EAPOL frames read and its
+    protected ones decrypted with; `whole`: the record is not snapped)."""
     n = len(data) - (4 if fcs else 0)
     if off + 10 > n:
         return f"802.11 header cut short: {n - off} bytes"
@@ -145,6 +85,7 @@ def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
     qc = off + hlen - (6 if fc1 & FC_ORDER else 2) if qos else 0  # the QoS Control field
     body = off + ((hlen + 3) & ~3 if pad else hlen)  # (past radiotap's padding, which a retransmission may change)
     a1, a2 = data[off + 4:off + 10], data[off + 10:off + 16]
+    retries, wpa = (air.retries, air.wpa) if air is not None else (None, None)
     if retries is not None:
         same = retries.duplicate(a1 + a2 + bytes((data[qc] & 0xF if qos else 16,)), sc, bool(fc1 & FC_RETRY),
                                  data[body:n])
@@ -168,7 +109,8 @@ def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
         inner = strip_80211(frame)
         if type(inner) is tuple and inner[0] == ETHERTYPE_EAPOL:
             wpa.eapol(a1, a2, frame[hlen + 8:])  # a handshake under the keys of the last (past LLC/SNAP)
-        return Decrypted(frame, inner)
+        relay = _relay(air, data, off, inner, got)
+        return relay if relay is not None else Decrypted(frame, inner)
     fragment = sc & 0xF
     if fc1 & FC_MORE_FRAG or fragment:
         return Undecoded("wifi-undecoded", f"802.11 fragment {fragment}: 802.11 fragments are not reassembled")
@@ -181,7 +123,23 @@ def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
                              "passes unprotected)")
         if eapol:
             wpa.eapol(a1, a2, data[body + 8:n])  # (past the LLC/SNAP header: the EAPOL frame)
-    return link
+    relay = _relay(air, data, off, link, data[body:n])
+    return relay if relay is not None else link
+
+
+def _relay(air: Air | None, data: bytes, off: int, link: Link, msdu: bytes) -> Undecoded | None:
+    """The note on a frame the access point relays (From DS, Address 3 the source) whose `msdu` a station
+    sent it before (To DS, Address 3 the destination); a packet sent to the access point is remembered."""
+    if air is None or type(link) is not tuple or not link[0]:
+        return None
+    ds = data[off + 1] & 3
+    a1, a2, a3 = data[off + 4:off + 10], data[off + 10:off + 16], data[off + 16:off + 22]
+    if ds == 1:
+        air.relays.to_ap(a2, a3, msdu)
+    elif ds == 2 and air.relays.relayed(a3, a1, msdu):
+        return Undecoded("wifi-relay", f"802.11 frame relayed by the access point {a2.hex(':')} from {a3.hex(':')} "
+                         f"to {a1.hex(':')}: its packet was shown when {a3.hex(':')} sent it to the access point")
+    return None
 
 
 def _snap(data: bytes, body: int, end: int) -> tuple[int, int]:
@@ -210,8 +168,8 @@ def _amsdu(data: bytes, pos: int, n: int) -> Subframes:
     return Subframes(tuple(out), None)
 
 
-def strip_radiotap(data: bytes, retries: Retries | None = None, wpa: Wpa | None = None, whole: bool = True) -> Link:
-    """Where the network header starts in a radiotap-headed 802.11 frame (`retries`, `wpa`: as strip_80211's;
+def strip_radiotap(data: bytes, air: Air | None = None, whole: bool = True) -> Link:
+    """Where the network header starts in a radiotap-headed 802.11 frame (`air`: as strip_80211's;
     `whole`: the record holds the whole frame, so that its FCS, where radiotap says it is there, is checked)."""
     n = len(data)
     if n < 8:
@@ -249,5 +207,5 @@ def strip_radiotap(data: bytes, retries: Retries | None = None, wpa: Wpa | None 
                 return Undecoded("wifi-bad-fcs", f"802.11 frame whose FCS 0x{given:08x} is wrong (0x{right:08x} is "
                                  "right): damaged in the air, the radio that received it dropped it, so its bytes are "
                                  "not dissected")
-        return strip_80211(data, rlen, bool(flags & RT_FLAG_DATAPAD), bool(flags & RT_FLAG_FCS), retries, wpa, whole)
-    return strip_80211(data, rlen, retries=retries, wpa=wpa, whole=whole)
+        return strip_80211(data, rlen, bool(flags & RT_FLAG_DATAPAD), bool(flags & RT_FLAG_FCS), air, whole)
+    return strip_80211(data, rlen, air=air, whole=whole)

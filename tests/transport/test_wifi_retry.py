@@ -23,8 +23,8 @@ from scapy.packet import Packet, Raw
 from scapy.utils import wrpcap
 
 from mavscope.capture.base import LINKTYPE_IEEE802_11_RADIOTAP, Record
+from mavscope.transport.air import Retries
 from mavscope.transport.decap import Decapsulator
-from mavscope.transport.wifi import Retries
 
 AP, STA, STA2 = "02:00:00:00:00:01", "02:00:00:00:00:02", "02:00:00:00:00:03"
 
@@ -167,3 +167,62 @@ def test_the_cache_is_bounded() -> None:
     assert r.duplicate(b"c", 1, False, b"x") is None  # b, the least recent, is forgotten
     assert r.duplicate(b"b", 1, True, b"x") is None and len(r.caches) == 2 and r.size == 2
     assert r.duplicate(b"a", 1, True, b"y") is None  # a went when b came back
+
+
+def relay_pair(sta: str, sn: int, seq: int, da: str = STA2) -> list[Packet]:
+    """`sta`'s packet for `da` sent to the access point (To DS: Address 3 the destination), and the access
+    point's relay of it (From DS: Address 3 the source): one MSDU, twice on the air (IEEE 802.11-2016 5.7,
+    the distribution system's service)."""
+    body = heartbeat(seq)
+    ip_udp = LLC() / SNAP() / IP(src="192.168.4.2", dst="192.168.4.3") / UDP(sport=14550, dport=14555) / body
+    up = RadioTap() / Dot11(type=2, FCfield="to_DS", addr1=AP, addr2=sta, addr3=da, SC=sn << 4) / ip_udp
+    down = RadioTap() / Dot11(type=2, FCfield="from_DS", addr1=da, addr2=AP, addr3=sta, SC=(sn + 1) << 4) / ip_udp
+    return [up, down]
+
+
+def test_an_access_points_relay_is_shown_once(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    """A GCS and a vehicle that are both stations of one access point: every packet is captured twice, and
+    was counted as a duplicate (a seq-duplicate finding on every such capture). The relay is said; pymavlink's
+    parse of the packets sent to the access point is what is shown, each once."""
+    pkts = [p for i in range(5) for p in relay_pair(STA, 2 * i, i)] + relay_pair(STA, 20, 5, da="ff:ff:ff:ff:ff:ff")
+    got = feed_all(pkts)
+    assert [codes(g) for g in got] == [[], ["wifi-relay"]] * 6
+    assert seqs([p for g in got for p in g]) == [0, 1, 2, 3, 4, 5]
+    pcap = tmp_path / "relay.pcap"
+    wrpcap(str(pcap), pkts)
+    (link,) = cli.json("stats", pcap)["links"]
+    assert (link["received"], link["duplicates"]) == (6, 0)
+    for argv in (("read", pcap, "-T", "jsonl"), ("stats", pcap, "--json")):
+        assert cli(*argv, environ={"MAVSCOPE_PURE": "0"}) == cli(*argv, environ={"MAVSCOPE_PURE": "1"})
+
+
+def test_what_is_no_relay_is_shown() -> None:
+    """The access point's own packets (Address 3 itself), another source's, other bytes, a second relay of
+    one packet: each is a frame of its own."""
+    up, down = relay_pair(STA, 0, 0)
+    own = RadioTap() / Dot11(type=2, FCfield="from_DS", addr1=STA2, addr2=AP, addr3=AP, SC=9 << 4) \
+        / down.payload.payload
+    other_source = relay_pair(STA2, 4, 0, da=STA)[1]
+    other_bytes = relay_pair(STA, 6, 1)[1]
+    got = feed_all([up, own, other_source, other_bytes, down, down.copy()])
+    assert [codes(g) for g in got] == [[], [], [], [], ["wifi-relay"], []]
+    assert seqs([p for g in got for p in g]) == [0, 0, 0, 1, 0]
+
+
+def test_an_encrypted_relay_under_the_group_key() -> None:
+    """A station's broadcast sent to the access point under its pairwise key, relayed to every station under
+    the group key: the plaintexts are the same MSDU."""
+    from mavscope.transport.wpa import Wpa, wifi_key
+    from tests.support import wpa as w
+
+    msdu = w.mavlink_packet(255, 3, dst="192.168.4.255")
+    up = w.ccmp_frame(w.AP, w.STA, 3, 1, msdu)  # Address 3 the access point: a packet for it, relayed to no one
+    down = w.ccmp_frame(w.BROADCAST, w.AP, 4, 1, msdu, key=w.GTK, key_index=1)
+    dec = Decapsulator(wpa=Wpa((wifi_key(f"wpa-pwd:{w.PASSPHRASE}:{w.SSID}", 1),)))
+    got = feed_all([*w.handshake(), up, down], dec)
+    assert codes(got[4]) == [] and codes(got[5]) == []
+    dec2 = Decapsulator(wpa=Wpa((wifi_key(f"wpa-pwd:{w.PASSPHRASE}:{w.SSID}", 1),)))
+    relayed = w.ccmp_frame(w.BROADCAST, w.AP, 4, 1, msdu, key=w.GTK, key_index=1, a3=w.STA)
+    sent = w.ccmp_frame(w.AP, w.STA, 3, 1, msdu, a3=w.BROADCAST)
+    got = feed_all([*w.handshake(), sent, relayed], dec2)
+    assert codes(got[4]) == [] and codes(got[5]) == ["wifi-relay"]

@@ -1,0 +1,108 @@
+"""What a receiver remembers of the air, per capture: 802.11 duplicate detection, the access point's relays,
+and the WPA2 keys (`wpa.py`). `wifi.strip_80211` asks it of each data frame."""
+
+from __future__ import annotations
+
+import hashlib
+from collections import OrderedDict
+from dataclasses import dataclass, field
+
+from mavscope.transport.wpa import Wpa
+
+WINDOW = 256  # numbers remembered behind the newest, per receiver, transmitter and TID: 802.11ax's block ack window
+MAX_REMEMBERED = 1 << 18  # numbers remembered over all caches (about 40 MB), the least recent caches forgotten
+
+
+class Retries:
+    """802.11 duplicate detection as a receiver does it (IEEE 802.11-2016 10.3.2.14): a frame with the Retry bit
+    set whose sequence and fragment number its receiver already has from the same transmitter (per TID for QoS
+    data) is a retransmission the receiver discards (its first copy was received; the ACK was lost).
+    Retransmissions are common in monitor-mode captures, and their packets would otherwise be shown (and
+    counted) twice. A monitor sees what every receiver does, so a cache is kept per receiver (Address 1)
+    too: a transmitter numbers its QoS data per receiver and TID, and the same number to two receivers is two
+    frames. Under a block ack agreement (802.11n on) a retransmission may come after frames numbered later (its
+    A-MPDU's other frames were acknowledged), and the receiver's scoreboard still knows it: so each cache holds
+    the numbers up to WINDOW behind the newest, not the last one only; a frame numbered as far from the newest
+    as a reset counter (a new association) starts the cache over.
+
+    A retransmission repeats its frame's body byte for byte (an encrypted one its packet number and
+    ciphertext too); one with another body is no sender's (`conflict`): the receiver keeps the first."""
+
+    def __init__(self, limit: int = MAX_REMEMBERED) -> None:
+        self.limit = limit
+        self.caches: OrderedDict[bytes, tuple[int, dict[int, bytes]]] = OrderedDict()  # key -> (newest, sc -> body)
+        self.size = 0
+
+    def duplicate(self, key: bytes, sc: int, retry: bool, body: bytes) -> bool | None:
+        """None when the frame of cache `key` (receiver, transmitter and TID), Sequence Control `sc` and
+        `body` is no duplicate (the cache then holds it), else whether its body is the first copy's."""
+        digest = hashlib.blake2b(body, digest_size=16).digest()
+        sn = sc >> 4
+        got = self.caches.get(key)
+        seen: dict[int, bytes]
+        if got is None:
+            newest, seen = sn, {}
+        else:
+            self.caches.move_to_end(key)
+            newest, seen = got
+            behind = (newest - sn) % 4096
+            if retry and behind < WINDOW and sc in seen:
+                return seen[sc] == digest
+            if behind >= WINDOW:  # ahead of the newest (or a counter started over): the window moves
+                if (sn - newest) % 4096 >= WINDOW:
+                    self.size -= len(seen)
+                    seen = {}
+                newest = sn
+                if len(seen) >= 2 * WINDOW:  # (numbers past the window are never matched: forgotten now and then)
+                    old = [k for k in seen if (newest - (k >> 4)) % 4096 >= WINDOW]
+                    for k in old:
+                        del seen[k]
+                    self.size -= len(old)
+        if sc not in seen:
+            self.size += 1
+        seen[sc] = digest
+        self.caches[key] = (newest, seen)
+        while self.size > self.limit:
+            _, (_, gone) = self.caches.popitem(last=False)
+            self.size -= len(gone)
+        return None
+
+
+RELAYS_KEPT = 4096  # frames sent to an access point for it to relay, remembered (the oldest forgotten)
+
+
+class Relays:
+    """The access point's relays. In an infrastructure network a station sends a packet for another station
+    (or for every station) to the access point (To DS), and the access point sends it on (From DS, the
+    original sender as Address 3): a monitor captures the packet twice, and its MAVLink frames would be
+    shown and counted twice (a duplicate in every Links table, a seq-duplicate finding). The relay carries
+    the same MSDU from the same source to the same destination: it is said and not dissected again."""
+
+    def __init__(self, limit: int = RELAYS_KEPT) -> None:
+        self.limit = limit
+        self.sent: OrderedDict[bytes, None] = OrderedDict()
+
+    def _key(self, sa: bytes, da: bytes, msdu: bytes) -> bytes:
+        return sa + da + hashlib.blake2b(msdu, digest_size=16).digest()
+
+    def to_ap(self, sa: bytes, da: bytes, msdu: bytes) -> None:
+        """A frame from `sa` for `da`, sent to the access point."""
+        key = self._key(sa, da, msdu)
+        self.sent[key] = None
+        self.sent.move_to_end(key)
+        if len(self.sent) > self.limit:
+            self.sent.popitem(last=False)
+
+    def relayed(self, sa: bytes, da: bytes, msdu: bytes) -> bool:
+        """Whether a frame from the access point, from `sa` for `da`, relays one sent to it (forgotten then:
+        one relay each)."""
+        return self.sent.pop(self._key(sa, da, msdu), False) is None
+
+
+@dataclass(slots=True)
+class Air:
+    """One capture's 802.11 state."""
+
+    wpa: Wpa | None = None  # the WPA2 handshakes and keys (--wifi-key), None without keys
+    retries: Retries = field(default_factory=Retries)
+    relays: Relays = field(default_factory=Relays)
