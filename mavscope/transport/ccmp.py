@@ -26,6 +26,11 @@ WINDOW = 256  # sequence numbers a receiver reorders within (802.11ax's block ac
 MAX_MPDU = 11454  # the longest MPDU (802.11-2016 9.2.4.7.1, VHT): a body longer is no frame a radio sent
 
 
+def key_ident(tk: bytes, suite: int) -> bytes:
+    """What tells one key from another without holding it."""
+    return hashlib.sha256(b"mavscope tk" + bytes((suite,)) + tk).digest()[:16]
+
+
 class TemporalKey:
     """A TK (or GTK) of one cipher, and the packet numbers its receivers accepted."""
 
@@ -34,7 +39,7 @@ class TemporalKey:
     def __init__(self, tk: bytes, suite: int = CCMP_128) -> None:
         self.gcmp = suite == GCMP_128
         self.cipher: AESCCM | AESGCM = AESGCM(tk) if self.gcmp else AESCCM(tk, tag_length=8)
-        self.ident = hashlib.sha256(b"mavscope tk" + bytes((suite,)) + tk).digest()[:16]  # a key installed again
+        self.ident = key_ident(tk, suite)  # (a key installed again)
         self.numbers: dict[bytes, PacketNumbers] = {}  # transmitter + TID -> what was accepted
 
     def __repr__(self) -> str:
@@ -43,7 +48,8 @@ class TemporalKey:
 
 class PacketNumbers:
     """The packet numbers accepted from one transmitter and TID under one key, by sequence number: those
-    of the last WINDOW sequence numbers, and the highest of those before (`floor`)."""
+    of the sequence numbers up to WINDOW behind the newest, the highest of those before (`floor`), and the
+    highest of all (`top`)."""
 
     __slots__ = ("floor", "newest", "recent", "top")
 
@@ -51,22 +57,31 @@ class PacketNumbers:
         self.newest, self.floor, self.top = sn, -1, pn
         self.recent: dict[int, int] = {sn: pn}
 
+    def _forget(self, every: bool) -> None:
+        """Fold the numbers WINDOW or more behind the newest into `floor`: from the oldest kept while they are
+        (they come in order but for reordered ones), or `every` one of them."""
+        recent, newest = self.recent, self.newest
+        for s in list(recent):
+            if (newest - s) % 4096 >= WINDOW:
+                self.floor = max(self.floor, recent.pop(s))
+            elif not every:
+                break
+
     def accept(self, sn: int, pn: int) -> int | None:
         """None when packet number `pn` of sequence number `sn` is in order (it is then accepted), else
         the accepted packet number it is not above."""
-        ahead = (sn - self.newest) % 4096
-        if 0 < ahead < 2048:  # the next frames: above everything accepted
-            if pn <= self.top:
-                return self.top
-            self.newest, self.top = sn, pn
+        if pn > self.top:  # above every number accepted: no captured frame's again, whatever its place
+            self.top = pn
+            if (sn - self.newest) % 4096 < 2048 or (self.newest - sn) % 4096 >= WINDOW:
+                self.newest = sn  # (ahead, or far from the window: a gap the monitor missed, a counter restarted)
             self.recent[sn] = pn
-            if ahead >= WINDOW or len(self.recent) > 2 * WINDOW:  # (those held stay within 2 windows)
-                for s in [s for s in self.recent if (sn - s) % 4096 >= WINDOW]:
-                    self.floor = max(self.floor, self.recent.pop(s))
+            self._forget(len(self.recent) > 2 * WINDOW)
             return None
-        behind = (self.newest - sn) % 4096
-        if behind >= WINDOW or sn in self.recent:
-            return self.recent.get(sn, self.top)  # older than the window, or a number already read
+        if sn in self.recent:
+            return self.recent[sn]  # a number already read
+        if (self.newest - sn) % 4096 >= WINDOW:
+            return self.top  # not above the newest, outside the window a receiver reorders in
+        self._forget(True)  # (so that what is left is within the window: before or after, modulo 4096, is sure)
         if pn <= self.floor:
             return self.floor
         for s, p in self.recent.items():  # a frame reordered into the window: between its neighbours

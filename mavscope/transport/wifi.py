@@ -23,6 +23,7 @@ _U16LE = struct.Struct("<H").unpack_from
 _U32LE = struct.Struct("<I").unpack_from
 
 TYPE_DATA = 2
+ASSOCIATION = frozenset((0, 1, 2, 3, 10, 11, 12))  # management subtypes: (re)association, disassociation, (de)auth
 FC_TO_DS, FC_FROM_DS, FC_MORE_FRAG, FC_RETRY, FC_PROTECTED, FC_ORDER = 0x01, 0x02, 0x04, 0x08, 0x40, 0x80
 SNAP = b"\xaa\xaa\x03"
 
@@ -71,6 +72,8 @@ def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
     if fc0 & 3:
         return f"802.11 protocol version {fc0 & 3}"
     if (fc0 >> 2) & 3 != TYPE_DATA:
+        if fc0 & 0x0C == 0 and fc0 >> 4 in ASSOCIATION and air is not None and air.wpa is not None and off + 16 <= n:
+            air.wpa.association(data[off + 4:off + 10], data[off + 10:off + 16])
         return (0, off)  # management and control frames carry no IP
     subtype = fc0 >> 4
     if subtype & 4:

@@ -26,12 +26,13 @@ from cryptography.hazmat.primitives.cmac import CMAC
 from cryptography.hazmat.primitives.keywrap import InvalidUnwrap, aes_key_unwrap
 
 from mavscope.errors import UsageError
-from mavscope.transport.ccmp import CCMP_128, CIPHER_NAMES, GCMP_128, TemporalKey, unprotect
+from mavscope.transport.ccmp import CCMP_128, CIPHER_NAMES, GCMP_128, TemporalKey, key_ident, unprotect
 
 ETHERTYPE_EAPOL = 0x888E
 MAX_PAIRS = 65536  # station pairs kept (with keys; and apart, with nonces only), the least recent forgotten
 KEYS_KEPT = 2  # keys per pair or group key index: the newest and the one before (frames in flight on a rekey)
 ANONCES_KEPT = 4  # message 1s of a pair whose message 2 may still come (a forged one among them changes nothing)
+SEEN_KEPT = 64  # keys a pair installed, remembered so that a replayed handshake cannot install one again
 SUITES = (CCMP_128, GCMP_128)  # the ciphers decrypted (both with 16-byte keys)
 
 # EAPOL-Key Key Information bits (12.7.2)
@@ -151,14 +152,22 @@ class Pair:
     pairwise: int = CCMP_128  # the cipher suites the station chose (its RSNE in message 2)
     group: int = CCMP_128
     keys: list[TemporalKey] = field(default_factory=list)
+    seen: list[bytes] = field(default_factory=list)  # every key the pair installed (the last SEEN_KEPT)
+    left: bool = False  # an association of theirs ended or began since their last handshake
+    epoch: int = 0  # their access point's broadcast deauthentications when they last verified a handshake
 
 
-def _keep(keys: list[TemporalKey], tk: bytes, suite: int) -> None:
-    """Install `tk` as the newest of `keys`, unless it is installed already: a key installed again keeps its
-    packet numbers (a receiver that reset them would accept replays: the KRACK attacks, 2017)."""
+def _keep(keys: list[TemporalKey], tk: bytes, suite: int, seen: list[bytes] | None = None) -> None:
+    """Install `tk` as the newest of `keys`, unless it is installed already, or (`seen`) was once: a key
+    installed again keeps its packet numbers (a receiver that reset them would accept replays: the KRACK
+    attacks, 2017), and a handshake's nonces are never used twice, so a key that comes back is a recorded
+    handshake sent again."""
     new = TemporalKey(tk, suite)
-    if any(k.ident == new.ident for k in keys):
+    if any(k.ident == new.ident for k in keys) or (seen is not None and new.ident in seen):
         return
+    if seen is not None:
+        seen.append(new.ident)
+        del seen[:-SEEN_KEPT]
     keys.insert(0, new)
     del keys[KEYS_KEPT:]
 
@@ -207,6 +216,7 @@ class Wpa:
         self.pending: OrderedDict[bytes, Pair] = OrderedDict()
         self.groups: OrderedDict[bytes, dict[int, list[TemporalKey]]] = OrderedDict()
         self.group_suites: dict[bytes, int] = {}  # access point -> its group cipher, once a GTK came
+        self.epochs: dict[bytes, int] = {}  # access point of a verified pair -> its broadcast deauthentications
     def __repr__(self) -> str:
         return f"Wpa({len(self.pmks)} keys, {len(self.pairs)} pairs)"
 
@@ -226,6 +236,7 @@ class Wpa:
 
     def _verified(self, aa: bytes, spa: bytes, pair: Pair) -> None:
         """`pair`'s message 2 verified: it holds keys from now on."""
+        pair.left, pair.epoch = False, self.epochs.setdefault(aa, 0)
         key = aa + spa
         self.pending.pop(key, None)
         if key not in self.pairs and len(self.pairs) >= self.limit:
@@ -236,9 +247,10 @@ class Wpa:
     def eapol(self, a1: bytes, a2: bytes, eapol: bytes) -> None:
         """An EAPOL frame from `a2` to `a1` (its bytes from the EAPOL header on): a handshake message, taken as
         the station and the access point take it (wpa_supplicant, hostapd): message 1 only with a replay
-        counter above every verified one; message 2 (told from 4 by its key data, as hostapd tells them: a
-        station sets Secure in both once it has keys) for a message 1 of its counter, its MIC finding the
-        PMK; messages 3 and group message 1 with their MIC and a counter above the last verified."""
+        counter above every verified one since the pair's association began; message 2 (told from 4 by its key
+        data, as hostapd tells them: a station sets Secure in both once it has keys) for a message 1 kept, its
+        MIC finding the PMK; messages 3 and group message 1 with their MIC and a counter above the last
+        verified."""
         if len(eapol) < _EAPOL_KEY.size:
             return
         (_, ptype, length, desc, info, _, counter, nonce, _, _, mic, kd_len) = _EAPOL_KEY.unpack_from(eapol)
@@ -257,6 +269,8 @@ class Wpa:
         pair = self._pair(aa, spa, create=first)
         if pair is None:
             return
+        if pair.epoch < self.epochs.get(aa, 0):  # every station of the access point was sent away since
+            self._left(pair)
         if first:  # message 1
             if counter > pair.replay:
                 pair.anonces = [*pair.anonces, (counter, nonce)][-ANONCES_KEPT:]
@@ -276,17 +290,21 @@ class Wpa:
 
     def _message2(self, aa: bytes, spa: bytes, pair: Pair, version: int, counter: int, snonce: bytes,
                   key_data: bytes, zeroed: bytes, mic: bytes) -> None:
-        for sent, anonce in reversed(pair.anonces):
-            if sent != counter:  # hostapd takes message 2 for the message 1 of its counter only
-                continue
-            for pmk in self.pmks:
+        for _, anonce in reversed(pair.anonces):  # (hostapd takes any of the counters it sent lately: each
+            for pmk in self.pmks:                  # message 1 kept is tried, its MIC rules a forged one out)
                 keys = ptk(pmk, version, aa, spa, anonce, snonce)
                 if hmac.compare_digest(eapol_mic(keys[:16], version, zeroed), mic):
+                    group, pairwise = rsne_suites(key_data) or (CCMP_128, CCMP_128)
+                    ident = key_ident(keys[32:48], pairwise)
+                    if ident in pair.seen and (not pair.keys or pair.keys[0].ident != ident):
+                        return  # a handshake recorded before and sent again: nothing of it is taken
                     pair.kck, pair.kek, pair.version = keys[:16], keys[16:32], version
                     pair.anonces = []
-                    pair.group, pair.pairwise = rsne_suites(key_data) or (CCMP_128, CCMP_128)
+                    pair.group, pair.pairwise = group, pairwise
+                    if pair.left:  # a new association: the keys of the one before are gone (kept till now in
+                        pair.keys = []  # case its end was forged, as a deauthentication can be by anyone)
                     if pair.pairwise in SUITES:
-                        _keep(pair.keys, keys[32:48], pair.pairwise)
+                        _keep(pair.keys, keys[32:48], pair.pairwise, pair.seen)
                     else:
                         pair.keys = []
                     self._verified(aa, spa, pair)
@@ -314,6 +332,27 @@ class Wpa:
             groups[index] = []
         self.group_suites[aa] = pair.group
 
+    @staticmethod
+    def _left(pair: Pair) -> None:
+        """An association of the pair began or ended: its replay counters start over (wpa_supplicant clears
+        its own on every association, hostapd's state is new), and what it sends unprotected is no longer
+        dropped. Its keys stay until a new handshake verifies (anyone can send a deauthentication: a forged
+        one ends nothing), and the keys it ever installed are remembered (a replayed handshake installs none)."""
+        pair.replay, pair.anonces, pair.left = -1, [], True
+
+    def association(self, a1: bytes, a2: bytes) -> None:
+        """An authentication, (re)association, deauthentication or disassociation frame from `a2` to `a1`
+        (to every station, when `a1` is group-addressed)."""
+        if a1[0] & 1:
+            if a2 in self.epochs:
+                self.epochs[a2] += 1
+            return
+        for key in (a1 + a2, a2 + a1):
+            for table in (self.pairs, self.pending):
+                p = table.get(key)
+                if p is not None:
+                    self._left(p)
+
     def _pair_of(self, a1: bytes, a2: bytes) -> Pair | None:
         p = self.pairs.get(a2 + a1)
         return p if p is not None else self.pairs.get(a1 + a2)
@@ -324,7 +363,13 @@ class Wpa:
         ieee80211_drop_unencrypted; EAPOL alone passes)."""
         if a1[0] & 1:
             return a2 in self.group_suites
-        return self._pair_of(a1, a2) is not None
+        p = self._pair_of(a1, a2)
+        if p is None or p.left:
+            return False
+        for aa in (a1, a2):
+            if aa in self.epochs:
+                return p.epoch >= self.epochs[aa]
+        return True
 
     def decrypt(self, data: bytes, off: int, body: int, end: int, qos: int,
                 whole: bool = True) -> bytes | tuple[str, str]:

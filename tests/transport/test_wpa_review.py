@@ -181,3 +181,72 @@ def test_radiotap_padding_is_not_the_frames_body() -> None:
     b = w.ccmp_frame(w.AP, w.STA, 5, 1, w.mavlink_packet(255, 0), retry=True, pad=b"\xff\xff")
     got = feed([*w.handshake(), a, b])
     assert seqs(got) == [0] and codes(got)[4:] == [[], ["wifi-retry"]]
+
+
+def mgmt(subtype: int, a1: str, a2: str, sn: int) -> Packet:
+    from scapy.layers.dot11 import Dot11, RadioTap
+
+    return RadioTap() / Dot11(type=0, subtype=subtype, addr1=a1, addr2=a2, addr3=w.AP, SC=sn << 4)
+
+
+def test_a_station_that_associates_again(tmp_path: Path, tshark_exe: str) -> None:
+    """A station that leaves and associates again starts a new handshake whose replay counters start at 1
+    again (hostapd's state is new; wpa_supplicant clears its counter on every association:
+    wpa_sm_notify_assoc): it is decrypted, as tshark decrypts it. A handshake recorded before and sent again
+    after the new association installs nothing: its key was installed once already."""
+    first, second = w.handshake(n32(1), n32(2)), w.handshake(n32(3), n32(4))
+    _, _, tk1 = w.keys_for(n32(1), n32(2))
+    _, _, tk2 = w.keys_for(n32(3), n32(4))
+    pkts = [*first, w.ccmp_frame(w.AP, w.STA, 5, 1, w.mavlink_packet(255, 0), key=tk1),
+            mgmt(12, w.AP, w.STA, 6), mgmt(11, w.AP, w.STA, 7), mgmt(0, w.AP, w.STA, 8),  # deauth, auth, assoc
+            *second, w.ccmp_frame(w.AP, w.STA, 9, 1, w.mavlink_packet(255, 1), key=tk2)]
+    path = tmp_path / "again.pcap"
+    wrpcap(str(path), pkts)
+    assert tshark_records(tshark_exe, path) == [5, 13]
+    got = feed(pkts)
+    assert seqs(got) == [0, 1] and not any(codes(got))
+    replayed = feed([*pkts, mgmt(12, w.AP, w.STA, 10), first[0], first[1],
+                     w.ccmp_frame(w.AP, w.STA, 11, 7, w.mavlink_packet(255, 2, arm=True), key=tk1)])
+    assert codes(replayed)[-1] == ["wifi-decrypt-failed"]  # tk1's frames, after tk2: the old key is not back
+
+
+def test_plaintext_after_the_station_left_is_read() -> None:
+    """Once the station is deauthenticated its keys are gone (mac80211 frees them with the station), and a
+    receiver drops no plaintext for lack of them: an access point that now runs open is read."""
+    from scapy.layers.dot11 import Dot11, Dot11QoS, RadioTap
+
+    clear = RadioTap() / Dot11(type=2, subtype=8, FCfield="to_DS", addr1=w.AP, addr2=w.STA, addr3=w.AP, SC=9 << 4) \
+        / Dot11QoS() / w.mavlink_packet(255, 5)
+    got = feed([*w.handshake(), w.ccmp_frame(w.AP, w.STA, 3, 1, w.mavlink_packet(255, 0)), mgmt(12, w.STA, w.AP, 4),
+                clear])
+    assert seqs(got) == [0, 5] and not any(codes(got))
+    broadcast = feed([*w.handshake(), mgmt(12, w.BROADCAST, w.AP, 4), clear])  # every station sent away
+    assert seqs(broadcast) == [5] and not any(codes(broadcast))
+
+
+def test_a_gap_of_thousands_of_sequence_numbers() -> None:
+    """A monitor out of range for a while misses thousands of frames: what comes after carries higher
+    packet numbers and is read (mac80211 without block ack compares packet numbers only)."""
+    pkts = [w.ccmp_frame(w.AP, w.STA, sn, pn, w.mavlink_packet(255, pn))
+            for pn, sn in enumerate([*range(3, 13), *range(2303, 2313)], 1)]
+    got = feed([*w.handshake(), *pkts])
+    assert seqs(got) == list(range(1, 21)) and not any(codes(got))
+
+
+def test_a_sparse_capture_of_a_block_ack_stream() -> None:
+    """The monitor caught one frame in six of a block ack stream (sequence numbers wrapping), then a late
+    retransmission of one it missed: between its neighbours, it is read."""
+    from mavscope.transport.ccmp import PacketNumbers
+
+    numbers = PacketNumbers(0, 1)
+    assert all(numbers.accept(sn % 4096, sn + 1) is None for sn in range(6, 2700, 6))
+    assert numbers.accept(2692 % 4096, 2693) is None and numbers.accept(2690, 2689) is not None
+
+
+def test_message_2_answering_a_message_1_the_monitor_missed() -> None:
+    """hostapd sends message 1 again with a higher counter before message 2 comes; the station answers the
+    first (which the monitor missed): hostapd accepts any counter it sent lately, and the ANonce is the same."""
+    hs = w.handshake()
+    m1_again = w.eapol_frame(w.STA, w.AP, w.eapol_key(0x008A, 2, w.ANONCE), 1)
+    got = feed([m1_again, *hs[1:], w.ccmp_frame(w.AP, w.STA, 3, 1, w.mavlink_packet(255, 0))])
+    assert seqs(got) == [0] and not any(codes(got))
