@@ -88,7 +88,7 @@ def add_key_options(p: argparse.ArgumentParser) -> None:
     g.add_argument("--use-leaked-keys", action="store_true",
                    help="verify the frames after a SETUP_SIGNING with the key it leaks")
     g.add_argument("--wifi-key", action="append", default=[], metavar="wpa-pwd:PASSPHRASE:SSID",
-                   help="decrypt a WPA2 network's 802.11 frames (CCMP) from its 4-way handshakes: "
+                   help="decrypt a WPA2 network's 802.11 frames (CCMP, GCMP) from its 4-way handshakes: "
                         "wpa-pwd:PASSPHRASE:SSID (the SSID after the last ':', %%XX for any byte) or "
                         "wpa-psk:<64 hex>; repeatable")
 

@@ -3,9 +3,11 @@
 MAVLink telemetry often rides Wi-Fi (ESP8266/ESP32 bridges, companion computers' access points), and a
 capture in monitor mode has the radio's frames. A data frame of an open network carries LLC/SNAP and
 then IP (or an A-MSDU: several such packets, each decoded); a protected frame is encrypted (WPA2/3:
-CCMP or GCMP), decrypted where the network's passphrase was given and its handshake captured (WPA2's
-CCMP: `wpa.py`); a frame whose FCS failed never reached the receiver's network stack, and a retransmission
-the receiver discarded as a duplicate was read once: what is not read is said, never dissected.
+CCMP or GCMP), decrypted where the network's passphrase was given and its handshake captured (WPA2:
+`wpa.py`, `ccmp.py`); a frame whose FCS failed never reached the receiver's network stack, a retransmission
+the receiver discarded as a duplicate was read once, and an access point's relay of a station's packet
+carries a packet already shown (`air.py` keeps what a receiver remembers): what is not read is said, never
+dissected.
 Layouts: IEEE 802.11-2016 section 9.2 (MAC header), RFC 1042 (LLC/SNAP), radiotap.org (the capture
 header: version 0, its length, the present bitmaps, the Flags field).
 """
@@ -36,7 +38,7 @@ MAX_PRESENT_WORDS = 64  # extended present bitmaps walked at most (radiotap sets
 class Undecoded(NamedTuple):
     """A frame the radio layer does not hand on: its note's code and message."""
 
-    code: str  # "wifi-undecoded", "wifi-bad-fcs" or "wifi-retry" (mavscope.notes)
+    code: str  # one of mavscope.notes' "wifi-" codes (wifi-undecoded, wifi-bad-fcs, wifi-retry, wifi-relay...)
     message: str
 
 
@@ -59,6 +61,8 @@ class Subframes(NamedTuple):
 # or an A-MSDU's packets
 Link = tuple[int, int] | str | Undecoded | Subframes | Decrypted
 MAX_SUBFRAMES = 1024  # subframes of one A-MSDU read at most (7,935 bytes of 14-byte subframes: 567)
+
+
 def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False, air: Air | None = None,
                 whole: bool = True) -> Link:
     """Where the network header starts in the 802.11 frame at `off` (`pad`: the header padded to 4 bytes;
