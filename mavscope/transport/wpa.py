@@ -217,6 +217,7 @@ class Wpa:
         self.groups: OrderedDict[bytes, dict[int, list[TemporalKey]]] = OrderedDict()
         self.group_suites: dict[bytes, int] = {}  # access point -> its group cipher, once a GTK came
         self.epochs: dict[bytes, int] = {}  # access point of a verified pair -> its broadcast deauthentications
+
     def __repr__(self) -> str:
         return f"Wpa({len(self.pmks)} keys, {len(self.pairs)} pairs)"
 
@@ -277,7 +278,7 @@ class Wpa:
             return
         if not ack and info & KI_MIC and info & KI_PAIRWISE:
             if kd_len:
-                self._message2(aa, spa, pair, version, counter, nonce, key_data, zeroed, mic)
+                self._message2(aa, spa, pair, version, nonce, key_data, zeroed, mic)
             return  # (message 4 holds no key data)
         if not ack or not info & KI_MIC or pair.kck is None or counter <= pair.replay:
             return
@@ -288,8 +289,8 @@ class Wpa:
         pair.replay = counter  # message 3, or group message 1: the GTK under the pair's KEK
         self._group(aa, pair, key_data, info)
 
-    def _message2(self, aa: bytes, spa: bytes, pair: Pair, version: int, counter: int, snonce: bytes,
-                  key_data: bytes, zeroed: bytes, mic: bytes) -> None:
+    def _message2(self, aa: bytes, spa: bytes, pair: Pair, version: int, snonce: bytes, key_data: bytes,
+                  zeroed: bytes, mic: bytes) -> None:
         for _, anonce in reversed(pair.anonces):  # (hostapd takes any of the counters it sent lately: each
             for pmk in self.pmks:                  # message 1 kept is tried, its MIC rules a forged one out)
                 keys = ptk(pmk, version, aa, spa, anonce, snonce)
@@ -311,6 +312,7 @@ class Wpa:
                     return
 
     def _group(self, aa: bytes, pair: Pair, key_data: bytes, info: int) -> None:
+        """The GTK in the verified message's `key_data` (wrapped under the pair's KEK), installed for `aa`."""
         if not info & KI_ENCRYPTED or pair.kek is None or len(key_data) < 24 or len(key_data) % 8:
             return
         try:
