@@ -106,3 +106,4 @@ class Air:
     wpa: Wpa | None = None  # the WPA2 handshakes and keys (--wifi-key), None without keys
     retries: Retries = field(default_factory=Retries)
     relays: Relays = field(default_factory=Relays)
+    record: int = 0  # the number of the record being read (the handshake messages' records are a key's origin)

@@ -16,6 +16,7 @@ around it and is discarded.
 from __future__ import annotations
 
 import hashlib
+from typing import NamedTuple
 
 from cryptography.exceptions import InvalidTag
 from cryptography.hazmat.primitives.ciphers.aead import AESCCM, AESGCM
@@ -34,9 +35,11 @@ def key_ident(tk: bytes, suite: int) -> bytes:
 class TemporalKey:
     """A TK (or GTK) of one cipher, and the packet numbers its receivers accepted."""
 
-    __slots__ = ("cipher", "gcmp", "ident", "numbers")
+    __slots__ = ("cipher", "gcmp", "ident", "numbers", "origin")
 
-    def __init__(self, tk: bytes, suite: int = CCMP_128) -> None:
+    def __init__(self, tk: bytes, suite: int = CCMP_128, origin: tuple[int, ...] = ()) -> None:
+        """`origin`: the records of the handshake messages that gave the key."""
+        self.origin = origin
         self.gcmp = suite == GCMP_128
         self.cipher: AESCCM | AESGCM = AESGCM(tk) if self.gcmp else AESCCM(tk, tag_length=8)
         self.ident = key_ident(tk, suite)  # (a key installed again)
@@ -108,8 +111,15 @@ def aad_nonce(data: bytes, off: int, qos: int, pn: int, gcmp: bool) -> tuple[byt
     return aad, (a2 + number if gcmp else bytes(((data[qos] & 0x0F) if qos else 0,)) + a2 + number)
 
 
+class Plain(NamedTuple):
+    """A decrypted frame's plaintext, and the records of the handshake messages its key came from."""
+
+    data: bytes
+    origin: tuple[int, ...]
+
+
 def unprotect(keys: list[TemporalKey], data: bytes, off: int, body: int, end: int,
-              qos: int) -> bytes | tuple[str, str]:
+              qos: int) -> Plain | tuple[str, str]:
     """The plaintext of the protected data frame at `off` whose body (header, ciphertext, MIC) runs from
     `body` to `end`, under the first of `keys` its MIC verifies with; else the code and message of the note
     on a frame the receiver does not read."""
@@ -134,10 +144,10 @@ def unprotect(keys: list[TemporalKey], data: bytes, off: int, body: int, end: in
         numbers = k.numbers.get(counter)
         if numbers is None:
             k.numbers[counter] = PacketNumbers(sn, pn)
-            return plain
+            return Plain(plain, k.origin)
         last = numbers.accept(sn, pn)
         if last is None:
-            return plain
+            return Plain(plain, k.origin)
         return ("wifi-replay", f"802.11 frame from {a2} to {a1} with packet number {pn} (sequence number {sn}), "
                 f"not above the {last} its key accepted in the order of sequence numbers: the receiver discarded "
                 "it as a replay")

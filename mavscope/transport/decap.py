@@ -21,7 +21,7 @@ from mavscope.transport.ip import (
     parse_ipv6,
     walk_ipv6,
 )
-from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, Subframes, Undecoded, strip_link
+from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, LinkResult, Subframes, Undecoded, strip_link
 from mavscope.transport.tcp import MAX_BUFFERED, TCP_FIN, TCP_RST, TcpReassembler
 from mavscope.transport.tunnel import MAX_DEPTH, PROTO_GRE, TUNNEL_PROTOS, VXLAN_PORTS, gre, ip_in_ip, vxlan
 from mavscope.transport.wifi import Decrypted
@@ -122,11 +122,22 @@ class Decapsulator:
     def _decode(self, rec: Record) -> tuple[list[Payload], tuple[Note, ...]]:
         """Payloads and notes of one packet record (the slow, general path)."""
         _, _, linktype, data, roff, _, _ = rec
+        self.air.record = rec.number
         link = strip_link(linktype, data, self.air, rec.orig_len <= len(data))
-        base: int | None = roff  # the file offset of data[0]
         if isinstance(link, Decrypted):  # a Wi-Fi frame's plaintext: bytes that are not in the file as such
-            data, base = link.data, None
-            link = link.link if not isinstance(link.link, Decrypted) else "802.11 frame encrypted twice"
+            out, notes = self._link(rec, link.data, link.link, None)
+            if link.origin:  # the handshake's records go with its frames (`read -w` writes them too)
+                out = [p._replace(span=tuple(sorted({*link.origin, *(p.span or (rec.number,))}))) for p in out]
+            return out, notes
+        return self._link(rec, data, link, roff)
+
+    def _link(self, rec: Record, data: bytes, link: LinkResult, base: int | None,
+              ) -> tuple[list[Payload], tuple[Note, ...]]:
+        """The payloads and notes of a packet record whose link layer `link` is (`data`: its bytes, or a
+        decrypted frame's; `base`: the file offset of data[0], None for a decrypted frame)."""
+        linktype, roff = rec.linktype, rec.offset
+        if isinstance(link, Decrypted):
+            link = "802.11 frame encrypted twice"
         if link is None:
             if linktype in self._unknown_seen:
                 return [], ()

@@ -19,6 +19,7 @@ import zlib
 from typing import NamedTuple
 
 from mavscope.transport.air import Air
+from mavscope.transport.ccmp import Plain
 from mavscope.transport.wpa import ETHERTYPE_EAPOL
 
 _U16LE = struct.Struct("<H").unpack_from
@@ -44,10 +45,12 @@ class Undecoded(NamedTuple):
 
 class Decrypted(NamedTuple):
     """A protected frame decrypted: the frame with its plaintext body (`data`, a new buffer: its bytes are
-    not the record's) and what that body holds."""
+    not the record's), what that body holds, and the records of the handshake messages its key came from
+    (written with it, so that a capture written of its frames can be decrypted again)."""
 
     data: bytes
     link: Link
+    origin: tuple[int, ...] = ()
 
 
 class Subframes(NamedTuple):
@@ -109,15 +112,16 @@ def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
             return Undecoded("wifi-undecoded", "802.11 data frame protected (WPA2/WPA3 encryption): not decrypted "
                              "(--wifi-key gives a WPA2 network's passphrase)")
         got = wpa.decrypt(data, off, body, n, qc, whole)
-        if isinstance(got, tuple):
+        if not isinstance(got, Plain):
             code, message = got
             return message if code == "malformed-packet" else Undecoded(code, message)
-        frame = bytes((fc0, fc1 & ~FC_PROTECTED)) + data[off + 2:off + hlen] + got
+        frame = bytes((fc0, fc1 & ~FC_PROTECTED)) + data[off + 2:off + hlen] + got.data
         inner = strip_80211(frame)
+        record = air.record if air is not None else 0
         if type(inner) is tuple and inner[0] == ETHERTYPE_EAPOL:
-            wpa.eapol(a1, a2, frame[hlen + 8:])  # a handshake under the keys of the last (past LLC/SNAP)
-        relay = _relay(air, data, off, inner, got)
-        return relay if relay is not None else Decrypted(frame, inner)
+            wpa.eapol(a1, a2, frame[hlen + 8:], record)  # a handshake under the keys of the last (past LLC/SNAP)
+        relay = _relay(air, data, off, inner, got.data)
+        return relay if relay is not None else Decrypted(frame, inner, got.origin)
     fragment = sc & 0xF
     if fc1 & FC_MORE_FRAG or fragment:
         return Undecoded("wifi-undecoded", f"802.11 fragment {fragment}: 802.11 fragments are not reassembled")
@@ -129,7 +133,7 @@ def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
                              "protection where their handshake gave them keys: the receiver drops it (only EAPOL "
                              "passes unprotected)")
         if eapol:
-            wpa.eapol(a1, a2, data[body + 8:n])  # (past the LLC/SNAP header: the EAPOL frame)
+            wpa.eapol(a1, a2, data[body + 8:n], air.record if air is not None else 0)  # (past LLC/SNAP: EAPOL)
     relay = _relay(air, data, off, link, data[body:n])
     return relay if relay is not None else link
 

@@ -26,7 +26,7 @@ from cryptography.hazmat.primitives.cmac import CMAC
 from cryptography.hazmat.primitives.keywrap import InvalidUnwrap, aes_key_unwrap
 
 from mavscope.errors import UsageError
-from mavscope.transport.ccmp import CCMP_128, CIPHER_NAMES, GCMP_128, TemporalKey, key_ident, unprotect
+from mavscope.transport.ccmp import CCMP_128, CIPHER_NAMES, GCMP_128, Plain, TemporalKey, key_ident, unprotect
 
 ETHERTYPE_EAPOL = 0x888E
 MAX_PAIRS = 65536  # station pairs kept (with keys; and apart, with nonces only), the least recent forgotten
@@ -144,7 +144,7 @@ def eapol_mic(kck: bytes, version: int, eapol: bytes) -> bytes:
 class Pair:
     """A station and its access point: their handshake's nonces and counters, and their keys (newest first)."""
 
-    anonces: list[tuple[int, bytes]] = field(default_factory=list)  # (replay counter, ANonce) of recent message 1s
+    anonces: list[tuple[int, bytes]] = field(default_factory=list)  # (record, ANonce) of recent message 1s
     replay: int = -1  # the highest replay counter of a message the station verified (12.7.2: never lower again)
     kck: bytes | None = None
     kek: bytes | None = None
@@ -153,16 +153,18 @@ class Pair:
     group: int = CCMP_128
     keys: list[TemporalKey] = field(default_factory=list)
     seen: list[bytes] = field(default_factory=list)  # every key the pair installed (the last SEEN_KEPT)
+    origin: tuple[int, ...] = ()  # the records of the messages 1 and 2 that gave its newest key
     left: bool = False  # an association of theirs ended or began since their last handshake
     epoch: int = 0  # their access point's broadcast deauthentications when they last verified a handshake
 
 
-def _keep(keys: list[TemporalKey], tk: bytes, suite: int, seen: list[bytes] | None = None) -> None:
+def _keep(keys: list[TemporalKey], tk: bytes, suite: int, seen: list[bytes] | None = None,
+          origin: tuple[int, ...] = ()) -> None:
     """Install `tk` as the newest of `keys`, unless it is installed already, or (`seen`) was once: a key
     installed again keeps its packet numbers (a receiver that reset them would accept replays: the KRACK
     attacks, 2017), and a handshake's nonces are never used twice, so a key that comes back is a recorded
     handshake sent again."""
-    new = TemporalKey(tk, suite)
+    new = TemporalKey(tk, suite, origin)
     if any(k.ident == new.ident for k in keys) or (seen is not None and new.ident in seen):
         return
     if seen is not None:
@@ -245,8 +247,9 @@ class Wpa:
         self.pairs[key] = pair
         self.pairs.move_to_end(key)
 
-    def eapol(self, a1: bytes, a2: bytes, eapol: bytes) -> None:
-        """An EAPOL frame from `a2` to `a1` (its bytes from the EAPOL header on): a handshake message, taken as
+    def eapol(self, a1: bytes, a2: bytes, eapol: bytes, record: int = 0) -> None:
+        """An EAPOL frame from `a2` to `a1` (its bytes from the EAPOL header on; in capture record `record`,
+        which a frame decrypted with what it gives names): a handshake message, taken as
         the station and the access point take it (wpa_supplicant, hostapd): message 1 only with a replay
         counter above every verified one since the pair's association began; message 2 (told from 4 by its key
         data, as hostapd tells them: a station sets Secure in both once it has keys) for a message 1 kept, its
@@ -274,11 +277,11 @@ class Wpa:
             self._left(pair)
         if first:  # message 1
             if counter > pair.replay:
-                pair.anonces = [*pair.anonces, (counter, nonce)][-ANONCES_KEPT:]
+                pair.anonces = [*pair.anonces, (record, nonce)][-ANONCES_KEPT:]
             return
         if not ack and info & KI_MIC and info & KI_PAIRWISE:
             if kd_len:
-                self._message2(aa, spa, pair, version, nonce, key_data, zeroed, mic)
+                self._message2(aa, spa, pair, version, nonce, key_data, zeroed, mic, record)
             return  # (message 4 holds no key data)
         if not ack or not info & KI_MIC or pair.kck is None or counter <= pair.replay:
             return
@@ -287,11 +290,11 @@ class Wpa:
         if info & KI_PAIRWISE and not info & KI_INSTALL:
             return
         pair.replay = counter  # message 3, or group message 1: the GTK under the pair's KEK
-        self._group(aa, pair, key_data, info)
+        self._group(aa, pair, key_data, info, record)
 
     def _message2(self, aa: bytes, spa: bytes, pair: Pair, version: int, snonce: bytes, key_data: bytes,
-                  zeroed: bytes, mic: bytes) -> None:
-        for _, anonce in reversed(pair.anonces):  # (hostapd takes any of the counters it sent lately: each
+                  zeroed: bytes, mic: bytes, record: int) -> None:
+        for first, anonce in reversed(pair.anonces):  # (hostapd takes any of the counters it sent lately: each
             for pmk in self.pmks:                  # message 1 kept is tried, its MIC rules a forged one out)
                 keys = ptk(pmk, version, aa, spa, anonce, snonce)
                 if hmac.compare_digest(eapol_mic(keys[:16], version, zeroed), mic):
@@ -304,14 +307,15 @@ class Wpa:
                     pair.group, pair.pairwise = group, pairwise
                     if pair.left:  # a new association: the keys of the one before are gone (kept till now in
                         pair.keys = []  # case its end was forged, as a deauthentication can be by anyone)
+                    pair.origin = (first, record)
                     if pair.pairwise in SUITES:
-                        _keep(pair.keys, keys[32:48], pair.pairwise, pair.seen)
+                        _keep(pair.keys, keys[32:48], pair.pairwise, pair.seen, pair.origin)
                     else:
                         pair.keys = []
                     self._verified(aa, spa, pair)
                     return
 
-    def _group(self, aa: bytes, pair: Pair, key_data: bytes, info: int) -> None:
+    def _group(self, aa: bytes, pair: Pair, key_data: bytes, info: int, record: int) -> None:
         """The GTK in the verified message's `key_data` (wrapped under the pair's KEK), installed for `aa`."""
         if not info & KI_ENCRYPTED or pair.kek is None or len(key_data) < 24 or len(key_data) % 8:
             return
@@ -329,7 +333,7 @@ class Wpa:
                 self.groups.popitem(last=False)
             groups = self.groups[aa] = {}
         if pair.group in SUITES and len(gtk) == 16:
-            _keep(groups.setdefault(index, []), gtk, pair.group)
+            _keep(groups.setdefault(index, []), gtk, pair.group, origin=(*pair.origin, record))
         else:
             groups[index] = []
         self.group_suites[aa] = pair.group
@@ -374,7 +378,7 @@ class Wpa:
         return True
 
     def decrypt(self, data: bytes, off: int, body: int, end: int, qos: int,
-                whole: bool = True) -> bytes | tuple[str, str]:
+                whole: bool = True) -> Plain | tuple[str, str]:
         """The plaintext of the protected data frame at `off` whose body (its cipher's header, ciphertext, MIC)
         runs from `body` to `end` (`qos`: the offset of its QoS Control field, 0 without; `whole`: not cut by
         the capture's snap length), or the code and message of the note on a frame the receiver does not read."""

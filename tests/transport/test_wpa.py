@@ -195,3 +195,21 @@ def test_a_flood_of_first_messages_forgets_no_key() -> None:
            for i, p in enumerate(pkts, 1)]
     assert not codes(got[-1]) and frames_of(got[-1][0].data) == [(255, 190, 0, 0)]
     assert len(wpa.pending) == 4 and len(wpa.pairs) == 1
+
+
+def test_a_written_subset_can_be_decrypted_again(capture: Path, cli, tmp_path: Path,  # type: ignore[no-untyped-def]
+                                                 tshark_exe: str) -> None:
+    """`read -w` writes with each decrypted frame the handshake messages its key came from (messages 1 and
+    2; 3 too for the group key): the ARM, filtered and written, is read from the written capture with the
+    passphrase, as tshark reads it there."""
+    out = tmp_path / "arm.pcap"
+    assert cli("read", capture, "--wifi-key", KEY, "-Y", "COMMAND_LONG", "-w", out).status == 0
+    again = cli.jsonl(out, "--wifi-key", KEY)
+    assert [(f["frame"], f["msgid"]) for f in again] == [(3, 0), (3, 76)]  # records 1, 2 (the handshake), 5
+    theirs = subprocess.run([tshark_exe, "-o", "wlan.enable_decryption:TRUE", "-o",
+                             f'uat:80211_keys:"wpa-pwd","{w.PASSPHRASE}:{w.SSID}"', "-r", str(out), "-T", "fields",
+                             "-e", "udp.payload"], capture_output=True, text=True, check=True).stdout.split("\n")
+    assert [bool(line) for line in theirs[:3]] == [False, False, True]
+    group = tmp_path / "group.pcap"
+    assert cli("read", capture, "--wifi-key", KEY, "-Y", "ip.dst == 192.168.4.255", "-w", group).status == 0
+    assert [(f["frame"], f["sysid"]) for f in cli.jsonl(group, "--wifi-key", KEY)] == [(4, 1)]  # 1, 2, 3 and 7
