@@ -7,9 +7,9 @@ import hashlib
 from collections import OrderedDict
 from dataclasses import dataclass, field
 
+from mavscope.transport.ccmp import WINDOW  # (numbers remembered behind the newest: 802.11ax's block ack window)
 from mavscope.transport.wpa import Wpa
 
-WINDOW = 256  # numbers remembered behind the newest, per receiver, transmitter and TID: 802.11ax's block ack window
 MAX_REMEMBERED = 1 << 18  # numbers remembered over all caches (about 40 MB), the least recent caches forgotten
 
 
