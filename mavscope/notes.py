@@ -100,7 +100,7 @@ CODES: dict[str, Code] = {
         Code("capture-garbage", _WARN, Group.CAPTURE, _F, "unparseable bytes in the capture file were skipped"),
         Code("unknown-linktype", _NOTE, Group.UNDECODED, _F, "link type mavscope does not decode"),
         Code("wifi-undecoded", _NOTE, Group.UNDECODED, _F,
-             "802.11 data frame not decoded: encrypted (WPA2/WPA3) or an 802.11 fragment"),
+             "802.11 data frame not decoded: encrypted (WPA2/WPA3) without a key for it"),
         Code("wifi-bad-fcs", _NOTE, Group.CHECKSUM, _F,
              "802.11 frame that failed its FCS check (the radio dropped it): not dissected"),
         Code("wifi-retry", _CHAT, Group.REASSEMBLY, _F,
@@ -123,6 +123,9 @@ CODES: dict[str, Code] = {
              "handshake gave them keys (or group-addressed from an access point that has a group key): a receiver "
              "drops every such frame but EAPOL, so their packets were shown to whoever captured them and never "
              "read by the vehicle; no station sends them: an injection"),
+        Code("wifi-fragment", _WARN, Group.REASSEMBLY, _F,
+             "802.11 fragments the receiver drops (out of order, packet numbers not consecutive, keys or protection "
+             "mixed, or never completed)"),
         Code("wifi-relay", _CHAT, Group.REASSEMBLY, _F,
              "802.11 frame an access point relays (its packet was shown when a station sent it to the access point)"),
         Code("wifi-retry-conflict", _WARN, Group.SECURITY, _B,

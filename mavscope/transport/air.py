@@ -1,5 +1,6 @@
 """What a receiver remembers of the air, per capture: 802.11 duplicate detection, the access point's relays,
-and the WPA2 keys (`wpa.py`). `wifi.strip_80211` asks it of each data frame."""
+the MSDUs being reassembled from fragments, and the WPA2 keys (`wpa.py`). `wifi.strip_80211` asks it of
+each data frame."""
 
 from __future__ import annotations
 
@@ -99,6 +100,83 @@ class Relays:
         return self.sent.pop(self._key(sa, da, msdu), False) is None
 
 
+FRAGMENTED_KEPT = 4096  # MSDUs being reassembled, per receiver, transmitter and TID (the least recent dropped)
+MAX_FRAGMENT_BYTES = 16 * 11454  # an MSDU's fragments (16 at most, each an MPDU)
+
+
+@dataclass(slots=True)
+class _Partial:
+    sc: int  # the last fragment's Sequence Control
+    parts: list[bytes]
+    records: list[int]
+    pn: int | None  # the last fragment's packet number (None: not protected)
+    ident: bytes  # the key of its fragments
+
+
+class Fragments:
+    """802.11 defragmentation as a receiver does it (IEEE 802.11-2016 10.6; Linux's mac80211 with the
+    FragAttacks fixes of 2021): the fragments of one MSDU, from one transmitter to one receiver in one TID,
+    share its sequence number and come in the order of their fragment numbers, the last without More
+    Fragments; protected ones carry consecutive packet numbers under one key (12.5.3.4.4), never mixed with
+    plaintext ones. A fragment that breaks these is dropped with its MSDU's others (`wifi-fragment`), and so
+    is an MSDU a new one replaces before it completes, or that never completes."""
+
+    def __init__(self, limit: int = FRAGMENTED_KEPT) -> None:
+        self.limit = limit
+        self.partial: OrderedDict[bytes, _Partial] = OrderedDict()
+
+    def add(self, key: bytes, sc: int, more: bool, msdu: bytes, record: int, pn: int | None = None,
+            ident: bytes = b"") -> tuple[bytes, tuple[int, ...]] | str | None:
+        """A fragment (`pn`, `ident`: its packet number and key, protected): its MSDU and the records of its
+        other fragments when it completes one; a message when the receiver drops something (the fragment
+        itself, or fragments held before); None when it is held."""
+        p = self.partial.pop(key, None)
+        if sc & 0xF == 0:
+            self.partial[key] = _Partial(sc, [msdu], [record], pn, ident)
+            if len(self.partial) > self.limit:
+                self.partial.popitem(last=False)
+            if p is not None:  # (a new MSDU: the one before never completed)
+                return f"802.11 fragments of sequence number {p.sc >> 4} ({_records(p.records)}) never completed: " \
+                       "the receiver dropped them when another MSDU began"
+            return None if more else self._done(key)
+        why = None
+        if p is None or p.sc >> 4 != sc >> 4:
+            why = "no fragment before it of its MSDU was kept"
+        elif sc & 0xF != (p.sc & 0xF) + 1:
+            why = f"fragment {sc & 0xF} after fragment {p.sc & 0xF}: out of order"
+        elif (pn is None) != (p.pn is None) or ident != p.ident:
+            why = "protected and plaintext fragments, or fragments under two keys, mixed (the FragAttacks of 2021)"
+        elif pn is not None and p.pn is not None and pn != p.pn + 1:
+            why = f"packet number {pn} after {p.pn}: not consecutive"
+        elif sum(map(len, p.parts)) + len(msdu) > MAX_FRAGMENT_BYTES:
+            why = "longer than 16 MPDUs"
+        if why is not None:
+            held = f" and the fragments held before it ({_records(p.records)})" if p is not None else ""
+            return f"802.11 fragment {sc & 0xF} of sequence number {sc >> 4}: {why}; the receiver drops it{held}"
+        assert p is not None
+        p.sc, p.pn = sc, pn
+        p.parts.append(msdu)
+        p.records.append(record)
+        self.partial[key] = p
+        return None if more else self._done(key)
+
+    def _done(self, key: bytes) -> tuple[bytes, tuple[int, ...]]:
+        p = self.partial.pop(key)
+        return b"".join(p.parts), tuple(p.records[:-1])
+
+    def flush(self) -> list[tuple[int, str]]:
+        """The MSDUs never completed: (their last fragment's record, the message)."""
+        out = [(p.records[-1], f"802.11 fragments of sequence number {p.sc >> 4} ({_records(p.records)}) never "
+                f"completed: the receiver discarded them") for p in self.partial.values()]
+        self.partial.clear()
+        return out
+
+
+def _records(records: list[int]) -> str:
+    return ("record " if len(records) == 1 else "records ") + ", ".join(map(str, records[:8])) + \
+        (f" and {len(records) - 8} more" if len(records) > 8 else "")
+
+
 @dataclass(slots=True)
 class Air:
     """One capture's 802.11 state."""
@@ -106,4 +184,5 @@ class Air:
     wpa: Wpa | None = None  # the WPA2 handshakes and keys (--wifi-key), None without keys
     retries: Retries = field(default_factory=Retries)
     relays: Relays = field(default_factory=Relays)
+    fragments: Fragments = field(default_factory=Fragments)
     record: int = 0  # the number of the record being read (the handshake messages' records are a key's origin)

@@ -112,10 +112,13 @@ def aad_nonce(data: bytes, off: int, qos: int, pn: int, gcmp: bool) -> tuple[byt
 
 
 class Plain(NamedTuple):
-    """A decrypted frame's plaintext, and the records of the handshake messages its key came from."""
+    """A decrypted frame's plaintext, the records of the handshake messages its key came from, its packet
+    number and its key (`ident`: a fragment's must be its MSDU's first's)."""
 
     data: bytes
     origin: tuple[int, ...]
+    pn: int = 0
+    ident: bytes = b""
 
 
 def unprotect(keys: list[TemporalKey], data: bytes, off: int, body: int, end: int,
@@ -144,10 +147,10 @@ def unprotect(keys: list[TemporalKey], data: bytes, off: int, body: int, end: in
         numbers = k.numbers.get(counter)
         if numbers is None:
             k.numbers[counter] = PacketNumbers(sn, pn)
-            return Plain(plain, k.origin)
+            return Plain(plain, k.origin, pn, k.ident)
         last = numbers.accept(sn, pn)
         if last is None:
-            return Plain(plain, k.origin)
+            return Plain(plain, k.origin, pn, k.ident)
         return ("wifi-replay", f"802.11 frame from {a2} to {a1} with packet number {pn} (sequence number {sn}), "
                 f"not above the {last} its key accepted in the order of sequence numbers: the receiver discarded "
                 "it as a replay")

@@ -24,7 +24,7 @@ from mavscope.transport.ip import (
 from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, LinkResult, Subframes, Undecoded, strip_link
 from mavscope.transport.tcp import MAX_BUFFERED, TCP_FIN, TCP_RST, TcpReassembler
 from mavscope.transport.tunnel import MAX_DEPTH, PROTO_GRE, TUNNEL_PROTOS, VXLAN_PORTS, gre, ip_in_ip, vxlan
-from mavscope.transport.wifi import Decrypted
+from mavscope.transport.wifi import Rebuilt
 from mavscope.transport.wpa import Wpa
 
 RAW_STREAM = (TRANSPORT_RAW,)  # the stream key of a raw byte-stream capture
@@ -100,6 +100,8 @@ class Decapsulator:
         out = self.tcp.flush()
         out.extend(Payload(TRANSPORT_UDP, None, None, b"", None, record, None, (n,))
                    for record, n in self.defrag.flush())
+        out.extend(Payload(TRANSPORT_UDP, None, None, b"", None, record, None, (note("wifi-fragment", m, None),))
+                   for record, m in self.air.fragments.flush())
         return out
 
     def _slow(self, rec: Record) -> list[Payload]:
@@ -124,10 +126,10 @@ class Decapsulator:
         _, _, linktype, data, roff, _, _ = rec
         self.air.record = rec.number
         link = strip_link(linktype, data, self.air, rec.orig_len <= len(data))
-        if isinstance(link, Decrypted):  # a Wi-Fi frame's plaintext: bytes that are not in the file as such
+        if isinstance(link, Rebuilt):  # a Wi-Fi frame decrypted or reassembled: bytes not in the file as such
             out, notes = self._link(rec, link.data, link.link, None)
-            if link.origin:  # the handshake's records go with its frames (`read -w` writes them too)
-                out = [p._replace(span=tuple(sorted({*link.origin, *(p.span or (rec.number,))}))) for p in out]
+            if link.records:  # its handshake's and fragments' records go with its frames (`read -w` writes them)
+                out = [p._replace(span=tuple(sorted({*link.records, *(p.span or (rec.number,))}))) for p in out]
             return out, notes
         return self._link(rec, data, link, roff)
 
@@ -136,8 +138,8 @@ class Decapsulator:
         """The payloads and notes of a packet record whose link layer `link` is (`data`: its bytes, or a
         decrypted frame's; `base`: the file offset of data[0], None for a decrypted frame)."""
         linktype, roff = rec.linktype, rec.offset
-        if isinstance(link, Decrypted):
-            link = "802.11 frame encrypted twice"
+        if isinstance(link, Rebuilt):
+            link = "802.11 frame rebuilt twice"
         if link is None:
             if linktype in self._unknown_seen:
                 return [], ()

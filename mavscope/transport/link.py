@@ -17,7 +17,7 @@ from mavscope.capture.base import (
     LINKTYPE_RAW,
 )
 from mavscope.transport.air import Air
-from mavscope.transport.wifi import Decrypted, Subframes, Undecoded, strip_80211, strip_radiotap
+from mavscope.transport.wifi import Rebuilt, Subframes, Undecoded, strip_80211, strip_radiotap
 
 ETHERTYPE_IPV4 = 0x0800
 ETHERTYPE_IPV6 = 0x86DD
@@ -34,7 +34,7 @@ _U16 = struct.Struct("!H").unpack_from
 _U32LE = struct.Struct("<I").unpack_from
 _U32BE = struct.Struct(">I").unpack_from
 
-LinkResult = tuple[int, int] | str | Undecoded | Subframes | Decrypted | None
+LinkResult = tuple[int, int] | str | Undecoded | Subframes | Rebuilt | None
 
 
 def _family(af: int) -> int:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import struct
 import zlib
-from typing import NamedTuple
+from typing import NamedTuple, cast
 
 from mavscope.transport.air import Air
 from mavscope.transport.ccmp import Plain
@@ -43,14 +43,15 @@ class Undecoded(NamedTuple):
     message: str
 
 
-class Decrypted(NamedTuple):
-    """A protected frame decrypted: the frame with its plaintext body (`data`, a new buffer: its bytes are
-    not the record's), what that body holds, and the records of the handshake messages its key came from
-    (written with it, so that a capture written of its frames can be decrypted again)."""
+class Rebuilt(NamedTuple):
+    """A frame decrypted or reassembled from fragments: the frame with its MSDU whole and in clear (`data`, a
+    new buffer: its bytes are not the record's), what that MSDU holds, and the other records it came from:
+    its key's handshake messages, its earlier fragments (written with it by `read -w`, so that the capture
+    written can be read the same way)."""
 
     data: bytes
     link: Link
-    origin: tuple[int, ...] = ()
+    records: tuple[int, ...] = ()
 
 
 class Subframes(NamedTuple):
@@ -62,7 +63,7 @@ class Subframes(NamedTuple):
 
 # (ethertype or 0 for a frame that holds no IP, offset), a malformed header's message, a frame not decoded,
 # or an A-MSDU's packets
-Link = tuple[int, int] | str | Undecoded | Subframes | Decrypted
+Link = tuple[int, int] | str | Undecoded | Subframes | Rebuilt
 MAX_SUBFRAMES = 1024  # subframes of one A-MSDU read at most (7,935 bytes of 14-byte subframes: 567)
 
 
@@ -107,7 +108,11 @@ def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
                                  "before")
             return Undecoded("wifi-retry-conflict", f"{what} with another body than the frame it repeats: the "
                              "receiver discarded it as a duplicate and kept the first")
-    if fc1 & FC_PROTECTED:
+    protected = fc1 & FC_PROTECTED
+    origin: tuple[int, ...] = ()  # other records the MSDU comes from: its key's handshake, its fragments
+    pn: int | None = None
+    ident = b""
+    if protected:
         if wpa is None:
             return Undecoded("wifi-undecoded", "802.11 data frame protected (WPA2/WPA3 encryption): not decrypted "
                              "(--wifi-key gives a WPA2 network's passphrase)")
@@ -115,27 +120,38 @@ def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
         if not isinstance(got, Plain):
             code, message = got
             return message if code == "malformed-packet" else Undecoded(code, message)
-        frame = bytes((fc0, fc1 & ~FC_PROTECTED)) + data[off + 2:off + hlen] + got.data
-        inner = strip_80211(frame)
-        record = air.record if air is not None else 0
-        if type(inner) is tuple and inner[0] == ETHERTYPE_EAPOL:
-            wpa.eapol(a1, a2, frame[hlen + 8:], record)  # a handshake under the keys of the last (past LLC/SNAP)
-        relay = _relay(air, data, off, inner, got.data)
-        return relay if relay is not None else Decrypted(frame, inner, got.origin)
-    fragment = sc & 0xF
-    if fc1 & FC_MORE_FRAG or fragment:
-        return Undecoded("wifi-undecoded", f"802.11 fragment {fragment}: 802.11 fragments are not reassembled")
-    link: Link = _amsdu(data, body, n) if qos and data[qc] & 0x80 else _snap(data, body, n)
+        msdu, origin, pn, ident = got
+    else:
+        msdu = data[body:n]
+    fragment, more = sc & 0xF, bool(fc1 & FC_MORE_FRAG)
+    if fragment or more:
+        if air is None:
+            return Undecoded("wifi-undecoded", f"802.11 fragment {fragment}: not reassembled")
+        done = air.fragments.add(a1 + a2 + bytes((data[qc] & 0xF if qos else 16,)), sc, more, msdu, air.record, pn,
+                                 ident)
+        if isinstance(done, str):
+            return Undecoded("wifi-fragment", done)
+        if done is None:
+            return (0, off)  # held, as an IP fragment is: the fragment that completes its MSDU shows it
+        msdu, origin = done[0], tuple(sorted({*origin, *done[1]}))
+    if protected or fragment or more:  # the frame rebuilt: its MSDU whole and in clear, behind its header
+        frame = bytes((fc0, fc1 & ~(FC_PROTECTED | FC_MORE_FRAG))) + data[off + 2:off + 22] + \
+            bytes((data[off + 22] & 0xF0,)) + data[off + 23:off + hlen] + msdu
+        link: Link = strip_80211(frame)
+    else:
+        frame, link = data, _amsdu(data, body, n) if qos and data[qc] & 0x80 else _snap(data, body, n)
     if wpa is not None:
-        eapol = type(link) is tuple and link[0] == ETHERTYPE_EAPOL
-        if not eapol and wpa.protected(a1, a2):  # (EAPOL travels unprotected until its keys are installed)
+        eapol = cast(tuple[int, int], link)[1] if type(link) is tuple and link[0] == ETHERTYPE_EAPOL else None
+        if not protected and eapol is None and wpa.protected(a1, a2):  # (EAPOL goes unprotected till keys are in)
             return Undecoded("wifi-unprotected", f"802.11 data frame from {a2.hex(':')} to {a1.hex(':')} without "
                              "protection where their handshake gave them keys: the receiver drops it (only EAPOL "
                              "passes unprotected)")
-        if eapol:
-            wpa.eapol(a1, a2, data[body + 8:n], air.record if air is not None else 0)  # (past LLC/SNAP: EAPOL)
-    relay = _relay(air, data, off, link, data[body:n])
-    return relay if relay is not None else link
+        if eapol is not None:  # a handshake message (under the keys of the last, if protected)
+            wpa.eapol(a1, a2, frame[eapol:n if frame is data else len(frame)], air.record if air else 0)
+    relay = _relay(air, data, off, link, msdu)
+    if relay is not None:
+        return relay
+    return link if frame is data else Rebuilt(frame, link, origin)
 
 
 def _relay(air: Air | None, data: bytes, off: int, link: Link, msdu: bytes) -> Undecoded | None:

@@ -98,14 +98,17 @@ def wifi_seed() -> bytes:
 
 def wpa_seed() -> bytes:
     """A WPA2 capture (mavscope.transport.wpa, with the capture target's --wifi-key): a 4-way handshake,
-    CCMP frames of both sides and group-addressed, a replay and a retransmission (tests/support/wpa.py)."""
+    CCMP frames of both sides and group-addressed, a replay, a retransmission and an MSDU in fragments
+    (tests/support/wpa.py)."""
     from tests.support import wpa as w
 
     hb = w.mavlink_packet(255, 0, arm=True)
     pkts = [*w.handshake(), w.ccmp_frame(w.AP, w.STA, 3, 1, hb),
             w.ccmp_frame(w.STA, w.AP, 3, 1, w.mavlink_packet(1, 0)),
             w.ccmp_frame(w.BROADCAST, w.AP, 4, 1, w.mavlink_packet(1, 1, dst="192.168.4.255"), key=w.GTK, key_index=1),
-            w.ccmp_frame(w.AP, w.STA, 9, 1, hb), w.ccmp_frame(w.AP, w.STA, 9, 1, hb, retry=True)]
+            w.ccmp_frame(w.AP, w.STA, 9, 1, hb), w.ccmp_frame(w.AP, w.STA, 9, 1, hb, retry=True),
+            w.ccmp_frame(w.AP, w.STA, 10, 2, hb[:40], fragment=0, more=True),  # an MSDU in two fragments
+            w.ccmp_frame(w.AP, w.STA, 10, 3, hb[40:], fragment=1)]
     return _pcap(pkts, "wpa")
 
 

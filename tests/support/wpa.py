@@ -105,12 +105,14 @@ def mavlink_packet(sysid: int, seq: int, arm: bool = False, dst: str = "192.168.
 
 def ccmp_frame(a1: str, a2: str, sn: int, pn: int, plain: bytes, key: bytes = TK, key_index: int = 0,
                tid: int = 0, retry: bool = False, gcmp: bool = False, pad: bytes | None = None,
-               a3: str = AP) -> Packet:
+               a3: str = AP, fragment: int = 0, more: bool = False) -> Packet:
     """A protected QoS data frame: its CCMP header, `plain` encrypted and its 8-byte MIC (12.5.3.3); with
     `gcmp`, GCMP-128's nonce (Address 2 and the packet number) and 16-byte MIC (12.5.5.3); `pad`: the bytes
-    that pad its 26-byte header to 28, radiotap's Flags saying so."""
-    fc = ("to_DS" if a1 == AP else "from_DS") + "+protected" + ("+retry" if retry else "")
-    hdr = bytes(Dot11(type=2, subtype=8, FCfield=fc, addr1=a1, addr2=a2, addr3=a3, SC=sn << 4) / Dot11QoS(TID=tid))
+    that pad its 26-byte header to 28, radiotap's Flags saying so; `fragment`, `more`: a fragment of an MSDU
+    (its number, More Fragments: both in the AAD)."""
+    fc = ("to_DS" if a1 == AP else "from_DS") + "+protected" + ("+retry" if retry else "") + ("+MF" if more else "")
+    hdr = bytes(Dot11(type=2, subtype=8, FCfield=fc, addr1=a1, addr2=a2, addr3=a3, SC=sn << 4 | fragment)
+                / Dot11QoS(TID=tid))
     p = pn.to_bytes(6, "little")
     ccmp = bytes((p[0], p[1], 0, 0x20 | key_index << 6)) + p[2:6]
     aad = bytes((hdr[0] & 0x8F, (hdr[1] & 0xC7 | 0x40) & 0x7F)) + hdr[4:22] + bytes((hdr[22] & 0x0F, 0)) + \

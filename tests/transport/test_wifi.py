@@ -2,7 +2,7 @@
 
 The frames are scapy's (RadioTap, Dot11, Dot11QoS, LLC, SNAP); the MAVLink frames expected in each are
 pymavlink's parse of the UDP payload it carries, and tshark (with pymavlink's Lua dissector) finds the same
-frames in the same records. What is not decoded (a protected frame, an A-MSDU, an 802.11 fragment, a frame
+frames in the same records. What is not decoded (a protected frame, an A-MSDU, a frame
 whose FCS failed) is one note on its record, as the layouts in IEEE 802.11-2016 section 9.2 and radiotap.org
 say of each.
 """
@@ -57,7 +57,6 @@ READABLE = {  # what each readable frame is: the frames in it are pymavlink's pa
 }
 UNREADABLE = {  # (frame, the code of its one note)
     "protected": (RadioTap() / data("to_DS+protected") / Raw(bytes(90)), "wifi-undecoded"),
-    "802.11 fragment": (RadioTap() / data("to_DS+MF") / LLC() / SNAP() / ip(), "wifi-undecoded"),
     "bad FCS": (RadioTap(present="Flags", Flags="FCS+badFCS") / data() / LLC() / SNAP() / ip(), "wifi-bad-fcs"),
 }
 SILENT = {"beacon": RadioTap() / Dot11(type=0, subtype=8) / Raw(b"beacon"),
