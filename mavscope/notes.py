@@ -124,8 +124,14 @@ CODES: dict[str, Code] = {
              "drops every such frame but EAPOL, so their packets were shown to whoever captured them and never "
              "read by the vehicle; no station sends them: an injection"),
         Code("wifi-fragment", _WARN, Group.REASSEMBLY, _F,
-             "802.11 fragments the receiver drops (out of order, packet numbers not consecutive, keys or protection "
-             "mixed, or never completed)"),
+             "802.11 fragments the receiver drops (none of their MSDU held before them, expired, pushed out, or never "
+             "completed)"),
+        Code("wifi-fragment-mixed", _WARN, Group.SECURITY, _B,
+             "802.11 fragment mixing protection or keys into an MSDU, or skipping a packet number (dropped)",
+             "802.11 fragments joined to an MSDU held for reassembly with another protection (plaintext among "
+             "protected fragments), under another key, or with a packet number that is not the next: no radio sends "
+             "these, and receivers drop them since the FragAttacks (2021), in which such fragments make a receiver "
+             "read a packet an attacker put together; the MSDU they were sent into is read without them"),
         Code("wifi-relay", _CHAT, Group.REASSEMBLY, _F,
              "802.11 frame an access point relays (its packet was shown when a station sent it to the access point)"),
         Code("wifi-retry-conflict", _WARN, Group.SECURITY, _B,

@@ -7,6 +7,7 @@ from __future__ import annotations
 import hashlib
 from collections import OrderedDict
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 from mavscope.transport.ccmp import WINDOW  # (numbers remembered behind the newest: 802.11ax's block ack window)
 from mavscope.transport.wpa import Wpa
@@ -100,76 +101,132 @@ class Relays:
         return self.sent.pop(self._key(sa, da, msdu), False) is None
 
 
-FRAGMENTED_KEPT = 4096  # MSDUs being reassembled, per receiver, transmitter and TID (the least recent dropped)
-MAX_FRAGMENT_BYTES = 16 * 11454  # an MSDU's fragments (16 at most, each an MPDU)
+FRAGMENT_SLOTS = 4  # MSDUs a station reassembles at once (mac80211's IEEE80211_FRAGMENT_MAX)
+FRAGMENT_LIFETIME = 2.0  # seconds an MSDU's fragments are held (mac80211: 2 s from the first fragment)
+MAX_MPDU = 11454  # the longest MPDU (802.11-2016 9.2.4.7.1): a fragment longer is none a radio sent
+MAX_FRAGMENT_HELD = 4 << 20  # fragment bytes held over all stations (as Linux's ipfrag_high_thresh), least recent
+# stations' dropped first
+
+
+class Reassembly(NamedTuple):
+    """What a fragment did: the MSDU it completed (the first fragment's header, the MSDU, the records of its
+    other fragments), or the code and message of why the receiver dropped it; and what of the MSDUs held
+    before it the receiver dropped meanwhile (`said`, each a `wifi-fragment` message)."""
+
+    said: list[str]
+    done: tuple[bytes, bytes, tuple[int, ...]] | None = None
+    refused: tuple[str, str] | None = None
 
 
 @dataclass(slots=True)
 class _Partial:
+    tid: int
     sc: int  # the last fragment's Sequence Control
+    header: bytes  # the first fragment's 802.11 header (the frame rebuilt carries it)
     parts: list[bytes]
     records: list[int]
     pn: int | None  # the last fragment's packet number (None: not protected)
     ident: bytes  # the key of its fragments
+    time: float | None  # its first fragment's
+
+    @property
+    def size(self) -> int:
+        return sum(map(len, self.parts))
 
 
 class Fragments:
-    """802.11 defragmentation as a receiver does it (IEEE 802.11-2016 10.6; Linux's mac80211 with the
-    FragAttacks fixes of 2021): the fragments of one MSDU, from one transmitter to one receiver in one TID,
-    share its sequence number and come in the order of their fragment numbers, the last without More
-    Fragments; protected ones carry consecutive packet numbers under one key (12.5.3.4.4), never mixed with
-    plaintext ones. A fragment that breaks these is dropped with its MSDU's others (`wifi-fragment`), and so
-    is an MSDU a new one replaces before it completes, or that never completes."""
+    """802.11 defragmentation as a receiver does it (IEEE 802.11-2016 10.6; Linux's mac80211,
+    ieee80211_rx_h_defragment, with the FragAttacks fixes of 2021): a station reassembles up to four MSDUs
+    at once, each from the fragments of one sequence number and TID in the order of their fragment numbers,
+    the last without More Fragments, within 2 s of the first; protected fragments carry consecutive packet
+    numbers under one key (12.5.3.4.4), never mixed with plaintext ones; group-addressed frames are never
+    fragmented. A fragment that breaks a rule is dropped alone (its MSDU stays held); an MSDU pushed out by a
+    fifth, expired, pushed out by the memory cap, or never completed is dropped whole: each is said
+    (`wifi-fragment`)."""
 
-    def __init__(self, limit: int = FRAGMENTED_KEPT) -> None:
+    def __init__(self, limit: int = MAX_FRAGMENT_HELD) -> None:
         self.limit = limit
-        self.partial: OrderedDict[bytes, _Partial] = OrderedDict()
+        self.stations: OrderedDict[bytes, list[_Partial]] = OrderedDict()  # receiver + transmitter -> MSDUs
+        self.held = 0
 
-    def add(self, key: bytes, sc: int, more: bool, msdu: bytes, record: int, pn: int | None = None,
-            ident: bytes = b"") -> tuple[bytes, tuple[int, ...]] | str | None:
-        """A fragment (`pn`, `ident`: its packet number and key, protected): its MSDU and the records of its
-        other fragments when it completes one; a message when the receiver drops something (the fragment
-        itself, or fragments held before); None when it is held."""
-        p = self.partial.pop(key, None)
-        if sc & 0xF == 0:
-            self.partial[key] = _Partial(sc, [msdu], [record], pn, ident)
-            if len(self.partial) > self.limit:
-                self.partial.popitem(last=False)
-            if p is not None:  # (a new MSDU: the one before never completed)
-                return f"802.11 fragments of sequence number {p.sc >> 4} ({_records(p.records)}) never completed: " \
-                       "the receiver dropped them when another MSDU began"
-            return None if more else self._done(key)
-        why = None
-        if p is None or p.sc >> 4 != sc >> 4:
-            why = "no fragment before it of its MSDU was kept"
-        elif sc & 0xF != (p.sc & 0xF) + 1:
-            why = f"fragment {sc & 0xF} after fragment {p.sc & 0xF}: out of order"
-        elif (pn is None) != (p.pn is None) or ident != p.ident:
-            why = "protected and plaintext fragments, or fragments under two keys, mixed (the FragAttacks of 2021)"
-        elif pn is not None and p.pn is not None and pn != p.pn + 1:
-            why = f"packet number {pn} after {p.pn}: not consecutive"
-        elif sum(map(len, p.parts)) + len(msdu) > MAX_FRAGMENT_BYTES:
-            why = "longer than 16 MPDUs"
-        if why is not None:
-            held = f" and the fragments held before it ({_records(p.records)})" if p is not None else ""
-            return f"802.11 fragment {sc & 0xF} of sequence number {sc >> 4}: {why}; the receiver drops it{held}"
-        assert p is not None
-        p.sc, p.pn = sc, pn
-        p.parts.append(msdu)
-        p.records.append(record)
-        self.partial[key] = p
-        return None if more else self._done(key)
+    def add(self, station: bytes, tid: int, sc: int, more: bool, header: bytes, msdu: bytes, record: int,
+            time: float | None, pn: int | None = None, ident: bytes = b"") -> Reassembly:
+        """A fragment from `station` (receiver and transmitter) in `tid` (`header`: its 802.11 header; `pn`,
+        `ident`: its packet number and key, protected): the MSDU it completes, or why the receiver drops it,
+        and what it dropped of the MSDUs held before."""
+        said: list[str] = []
+        frag, sn = sc & 0xF, sc >> 4
+        slots = self.stations.pop(station, [])
+        for p in [p for p in slots if p.time is not None and time is not None and time - p.time > FRAGMENT_LIFETIME]:
+            self._drop(slots, p, f"expired ({FRAGMENT_LIFETIME:g} s after the first)", said)
+        what = f"802.11 fragment {frag} of sequence number {sn}"
+        try:
+            if len(msdu) > MAX_MPDU:
+                return Reassembly(said, refused=("wifi-fragment", f"{what} of {len(msdu)} bytes: longer than any "
+                                                 "frame a radio sends; the receiver drops it"))
+            if frag == 0:
+                if len(slots) == FRAGMENT_SLOTS:
+                    self._drop(slots, slots[0], f"pushed out by a {FRAGMENT_SLOTS + 1}th MSDU being reassembled",
+                               said)
+                p = _Partial(tid, sc, header, [msdu], [record], pn, ident, time)
+            else:
+                found = next((p for p in slots if p.tid == tid and p.sc >> 4 == sn and (p.sc & 0xF) + 1 == frag),
+                             None)
+                if found is None:
+                    return Reassembly(said, refused=("wifi-fragment", f"{what}: no fragment before it of its MSDU is "
+                                                     "held; the receiver drops it"))
+                if (pn is None) != (found.pn is None) or ident != found.ident:
+                    return Reassembly(said, refused=("wifi-fragment-mixed", f"{what}: protected and plaintext "
+                                                     "fragments, or fragments under two keys, mixed in one MSDU; the "
+                                                     "receiver drops it"))
+                if pn is not None and found.pn is not None and pn != found.pn + 1:
+                    return Reassembly(said, refused=("wifi-fragment-mixed", f"{what}: packet number {pn} after "
+                                                     f"{found.pn}, not consecutive; the receiver drops it"))
+                p = found
+                slots.remove(p)
+                p.sc, p.pn = sc, pn
+                p.parts.append(msdu)
+                p.records.append(record)
+            if not more:
+                self.held -= p.size - len(msdu)
+                return Reassembly(said, (p.header, b"".join(p.parts), tuple(p.records[:-1])))
+            slots.append(p)
+            self.held += len(msdu)
+            return Reassembly(said)
+        finally:
+            if slots:
+                self.stations[station] = slots  # (the most recent last)
+                self._cap(slots, said)
 
-    def _done(self, key: bytes) -> tuple[bytes, tuple[int, ...]]:
-        p = self.partial.pop(key)
-        return b"".join(p.parts), tuple(p.records[:-1])
+    def _drop(self, slots: list[_Partial], p: _Partial, why: str, said: list[str]) -> None:
+        slots.remove(p)
+        self.held -= p.size
+        said.append(_gone(p, why))
+
+    def _cap(self, keep: list[_Partial], said: list[str]) -> None:
+        """While more bytes are held than the cap: the least recent stations' MSDUs go (never `keep`'s)."""
+        for station in list(self.stations):
+            if self.held <= self.limit:
+                return
+            slots = self.stations[station]
+            if slots is keep:
+                continue
+            while slots and self.held > self.limit:
+                self._drop(slots, slots[0], "dropped: too many fragment bytes held", said)
+            if not slots:
+                del self.stations[station]
 
     def flush(self) -> list[tuple[int, str]]:
         """The MSDUs never completed: (their last fragment's record, the message)."""
-        out = [(p.records[-1], f"802.11 fragments of sequence number {p.sc >> 4} ({_records(p.records)}) never "
-                f"completed: the receiver discarded them") for p in self.partial.values()]
-        self.partial.clear()
+        out = [(p.records[-1], _gone(p, "never completed")) for slots in self.stations.values() for p in slots]
+        self.stations.clear()
+        self.held = 0
         return out
+
+
+def _gone(p: _Partial, why: str) -> str:
+    return f"802.11 fragments of sequence number {p.sc >> 4} ({_records(p.records)}) {why}: the receiver " \
+        "discarded them"
 
 
 def _records(records: list[int]) -> str:
@@ -186,3 +243,4 @@ class Air:
     relays: Relays = field(default_factory=Relays)
     fragments: Fragments = field(default_factory=Fragments)
     record: int = 0  # the number of the record being read (the handshake messages' records are a key's origin)
+    time: float | None = None  # and its time (fragments expire)

@@ -36,6 +36,7 @@ _FAST_ETH_IP4 = 0x08004500  # ethertype IPv4, version 4, header length 20 (TOS m
 _FAST_UDP_UNFRAGMENTED = 17  # no MF flag, fragment offset 0, protocol UDP (TTL masked off)
 _FLOW = struct.Struct("!IIHH")
 _UDP = struct.Struct("!HHH")
+REBUILT_KEPT = 65536  # records of rebuilt 802.11 frames remembered (for the IP datagrams they complete)
 FLOW_CACHE = 65536  # (addresses, ports) -> names entries kept before the cache starts over
 _TCP = struct.Struct("!HHIxxxxBB")  # ports, sequence number, data offset byte, flags byte
 
@@ -57,7 +58,8 @@ class Decapsulator:
         self._unknown_seen: set[int] = set()
         self._flows: dict[bytes, tuple[Endpoint, Endpoint]] = {}
         self.directions = Directions()  # the TCP directions whose captured checksums are real
-        self.air = Air(wpa)  # 802.11: duplicate detection, the access points' relays, WPA2 keys (--wifi-key)
+        self.air = Air(wpa)  # 802.11: duplicate detection, relays, fragments, WPA2 keys (--wifi-key)
+        self.rebuilt: dict[int, tuple[int, ...]] = {}  # record -> the records its rebuilt 802.11 frame came from
 
     def feed(self, rec: Record) -> list[Payload]:
         """The Payloads that `rec` yields now (possibly none)."""
@@ -124,14 +126,29 @@ class Decapsulator:
     def _decode(self, rec: Record) -> tuple[list[Payload], tuple[Note, ...]]:
         """Payloads and notes of one packet record (the slow, general path)."""
         _, _, linktype, data, roff, _, _ = rec
-        self.air.record = rec.number
+        self.air.record, self.air.time = rec.number, rec.time
         link = strip_link(linktype, data, self.air, rec.orig_len <= len(data))
         if isinstance(link, Rebuilt):  # a Wi-Fi frame decrypted or reassembled: bytes not in the file as such
             out, notes = self._link(rec, link.data, link.link, None)
             if link.records:  # its handshake's and fragments' records go with its frames (`read -w` writes them)
-                out = [p._replace(span=tuple(sorted({*link.records, *(p.span or (rec.number,))}))) for p in out]
-            return out, notes
+                out = [p._replace(span=self._also(tuple(sorted({*link.records, *(p.span or (rec.number,))}))))
+                       for p in out]
+                self._remember(rec.number, link.records)
+            dropped = tuple(note("wifi-fragment", m, roff) for m in link.dropped)
+            return out, dropped + notes
         return self._link(rec, data, link, roff)
+
+    def _remember(self, record: int, others: tuple[int, ...]) -> None:
+        """The other records a rebuilt 802.11 frame of `record` came from, for a datagram that record
+        completes later (its IP fragment, reassembled in another record)."""
+        self.rebuilt[record] = others
+        if len(self.rebuilt) > REBUILT_KEPT:
+            del self.rebuilt[next(iter(self.rebuilt))]
+
+    def _also(self, span: tuple[int, ...]) -> tuple[int, ...]:
+        """`span` with the records each of its rebuilt 802.11 frames came from."""
+        more = {r for s in span for r in self.rebuilt.get(s, ())}
+        return tuple(sorted({*span, *more})) if more else span
 
     def _link(self, rec: Record, data: bytes, link: LinkResult, base: int | None,
               ) -> tuple[list[Payload], tuple[Note, ...]]:
@@ -216,8 +233,8 @@ class Decapsulator:
                 return [], (*notes, note("malformed-packet", f"reassembled from {records_text(whole.records)}: {why}",
                                          None))
             proto, l4, _ = walked
-        out, more = self._layer4(not frag.v6, proto, src, dst, buf, l4, len(buf), rec, None, whole.records, depth,
-                                 True, header_zero=whole.header_zero)
+        out, more = self._layer4(not frag.v6, proto, src, dst, buf, l4, len(buf), rec, None, self._also(whole.records),
+                                 depth, True, header_zero=whole.header_zero)
         return out, (*notes, *more)
 
     def _layer4(self, v4: bool, proto: int, src: bytes, dst: bytes, data: bytes, l4: int, end: int, rec: Record,

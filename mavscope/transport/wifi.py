@@ -52,6 +52,7 @@ class Rebuilt(NamedTuple):
     data: bytes
     link: Link
     records: tuple[int, ...] = ()
+    dropped: tuple[str, ...] = ()  # fragments of other MSDUs the receiver dropped meanwhile (`wifi-fragment`)
 
 
 class Subframes(NamedTuple):
@@ -124,22 +125,37 @@ def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
     else:
         msdu = data[body:n]
     fragment, more = sc & 0xF, bool(fc1 & FC_MORE_FRAG)
+    header = data[off:off + hlen]
+    pieces: tuple[int, ...] = ()  # the records of the MSDU's other fragments
+    dropped: tuple[str, ...] = ()
     if fragment or more:
         if air is None:
             return Undecoded("wifi-undecoded", f"802.11 fragment {fragment}: not reassembled")
-        done = air.fragments.add(a1 + a2 + bytes((data[qc] & 0xF if qos else 16,)), sc, more, msdu, air.record, pn,
-                                 ident)
-        if isinstance(done, str):
-            return Undecoded("wifi-fragment", done)
-        if done is None:
+        if a1[0] & 1:
+            return Undecoded("wifi-fragment", f"802.11 fragment {fragment} of sequence number {sc >> 4}, group-"
+                             "addressed: no radio fragments those (802.11-2016 10.5), the receiver drops it")
+        if not whole:
+            return Undecoded("wifi-fragment", f"802.11 fragment {fragment} of sequence number {sc >> 4}, cut short "
+                             "by the capture's snap length: not reassembled")
+        reassembly = air.fragments.add(a1 + a2, data[qc] & 0xF if qos else 16, sc, more, header, msdu, air.record,
+                                 air.time, pn, ident)
+        if reassembly.refused is not None:
+            code, message = reassembly.refused
+            return Undecoded(code, "; ".join((message, *reassembly.said)))
+        if reassembly.done is None:
+            if reassembly.said:
+                return Undecoded("wifi-fragment", "; ".join(reassembly.said))
             return (0, off)  # held, as an IP fragment is: the fragment that completes its MSDU shows it
-        msdu, origin = done[0], tuple(sorted({*origin, *done[1]}))
-    if protected or fragment or more:  # the frame rebuilt: its MSDU whole and in clear, behind its header
-        frame = bytes((fc0, fc1 & ~(FC_PROTECTED | FC_MORE_FRAG))) + data[off + 2:off + 22] + \
-            bytes((data[off + 22] & 0xF0,)) + data[off + 23:off + hlen] + msdu
+        header, msdu, pieces = reassembly.done
+        dropped = tuple(reassembly.said)
+        origin = tuple(sorted({*origin, *pieces}))
+    if protected or fragment or more:  # the frame rebuilt: its MSDU whole and in clear, behind its (first) header
+        frame = bytes((header[0], header[1] & ~(FC_PROTECTED | FC_MORE_FRAG))) + header[2:22] + \
+            bytes((header[22] & 0xF0,)) + header[23:] + msdu
         link: Link = strip_80211(frame)
+        at = (frame, 0)
     else:
-        frame, link = data, _amsdu(data, body, n) if qos and data[qc] & 0x80 else _snap(data, body, n)
+        frame, link, at = data, _amsdu(data, body, n) if qos and data[qc] & 0x80 else _snap(data, body, n), (data, off)
     if wpa is not None:
         eapol = cast(tuple[int, int], link)[1] if type(link) is tuple and link[0] == ETHERTYPE_EAPOL else None
         if not protected and eapol is None and wpa.protected(a1, a2):  # (EAPOL goes unprotected till keys are in)
@@ -147,11 +163,12 @@ def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
                              "protection where their handshake gave them keys: the receiver drops it (only EAPOL "
                              "passes unprotected)")
         if eapol is not None:  # a handshake message (under the keys of the last, if protected)
-            wpa.eapol(a1, a2, frame[eapol:n if frame is data else len(frame)], air.record if air else 0)
-    relay = _relay(air, data, off, link, msdu)
+            record = air.record if air is not None else 0
+            wpa.eapol(a1, a2, frame[eapol:n if frame is data else len(frame)], (*pieces, record))
+    relay = _relay(air, *at, link, msdu)
     if relay is not None:
         return relay
-    return link if frame is data else Rebuilt(frame, link, origin)
+    return link if frame is data else Rebuilt(frame, link, origin, dropped)
 
 
 def _relay(air: Air | None, data: bytes, off: int, link: Link, msdu: bytes) -> Undecoded | None:

@@ -144,7 +144,7 @@ def eapol_mic(kck: bytes, version: int, eapol: bytes) -> bytes:
 class Pair:
     """A station and its access point: their handshake's nonces and counters, and their keys (newest first)."""
 
-    anonces: list[tuple[int, bytes]] = field(default_factory=list)  # (record, ANonce) of recent message 1s
+    anonces: list[tuple[tuple[int, ...], bytes]] = field(default_factory=list)  # (records, ANonce) of message 1s
     replay: int = -1  # the highest replay counter of a message the station verified (12.7.2: never lower again)
     kck: bytes | None = None
     kek: bytes | None = None
@@ -247,8 +247,8 @@ class Wpa:
         self.pairs[key] = pair
         self.pairs.move_to_end(key)
 
-    def eapol(self, a1: bytes, a2: bytes, eapol: bytes, record: int = 0) -> None:
-        """An EAPOL frame from `a2` to `a1` (its bytes from the EAPOL header on; in capture record `record`,
+    def eapol(self, a1: bytes, a2: bytes, eapol: bytes, records: tuple[int, ...] = ()) -> None:
+        """An EAPOL frame from `a2` to `a1` (its bytes from the EAPOL header on; in the capture's `records`,
         which a frame decrypted with what it gives names): a handshake message, taken as
         the station and the access point take it (wpa_supplicant, hostapd): message 1 only with a replay
         counter above every verified one since the pair's association began; message 2 (told from 4 by its key
@@ -277,11 +277,11 @@ class Wpa:
             self._left(pair)
         if first:  # message 1
             if counter > pair.replay:
-                pair.anonces = [*pair.anonces, (record, nonce)][-ANONCES_KEPT:]
+                pair.anonces = [*pair.anonces, (records, nonce)][-ANONCES_KEPT:]
             return
         if not ack and info & KI_MIC and info & KI_PAIRWISE:
             if kd_len:
-                self._message2(aa, spa, pair, version, nonce, key_data, zeroed, mic, record)
+                self._message2(aa, spa, pair, version, nonce, key_data, zeroed, mic, records)
             return  # (message 4 holds no key data)
         if not ack or not info & KI_MIC or pair.kck is None or counter <= pair.replay:
             return
@@ -290,10 +290,10 @@ class Wpa:
         if info & KI_PAIRWISE and not info & KI_INSTALL:
             return
         pair.replay = counter  # message 3, or group message 1: the GTK under the pair's KEK
-        self._group(aa, pair, key_data, info, record)
+        self._group(aa, pair, key_data, info, records)
 
     def _message2(self, aa: bytes, spa: bytes, pair: Pair, version: int, snonce: bytes, key_data: bytes,
-                  zeroed: bytes, mic: bytes, record: int) -> None:
+                  zeroed: bytes, mic: bytes, records: tuple[int, ...]) -> None:
         for first, anonce in reversed(pair.anonces):  # (hostapd takes any of the counters it sent lately: each
             for pmk in self.pmks:                  # message 1 kept is tried, its MIC rules a forged one out)
                 keys = ptk(pmk, version, aa, spa, anonce, snonce)
@@ -307,7 +307,7 @@ class Wpa:
                     pair.group, pair.pairwise = group, pairwise
                     if pair.left:  # a new association: the keys of the one before are gone (kept till now in
                         pair.keys = []  # case its end was forged, as a deauthentication can be by anyone)
-                    pair.origin = (first, record)
+                    pair.origin = tuple(sorted({*first, *records}))
                     if pair.pairwise in SUITES:
                         _keep(pair.keys, keys[32:48], pair.pairwise, pair.seen, pair.origin)
                     else:
@@ -315,7 +315,7 @@ class Wpa:
                     self._verified(aa, spa, pair)
                     return
 
-    def _group(self, aa: bytes, pair: Pair, key_data: bytes, info: int, record: int) -> None:
+    def _group(self, aa: bytes, pair: Pair, key_data: bytes, info: int, records: tuple[int, ...]) -> None:
         """The GTK in the verified message's `key_data` (wrapped under the pair's KEK), installed for `aa`."""
         if not info & KI_ENCRYPTED or pair.kek is None or len(key_data) < 24 or len(key_data) % 8:
             return
@@ -333,7 +333,7 @@ class Wpa:
                 self.groups.popitem(last=False)
             groups = self.groups[aa] = {}
         if pair.group in SUITES and len(gtk) == 16:
-            _keep(groups.setdefault(index, []), gtk, pair.group, origin=(*pair.origin, record))
+            _keep(groups.setdefault(index, []), gtk, pair.group, origin=tuple(sorted({*pair.origin, *records})))
         else:
             groups[index] = []
         self.group_suites[aa] = pair.group

@@ -11,6 +11,7 @@ drops since), the receiver's rule is the expected answer, cited in each test.
 
 from __future__ import annotations
 
+import json
 import subprocess
 from pathlib import Path
 
@@ -49,7 +50,7 @@ def protected_fragments(msdu: bytes, sn: int, pns: list[int]) -> list[Packet]:
 
 def feed(pkts: list[Packet], keyed: bool = False) -> tuple[list[list], list]:
     dec = Decapsulator(wpa=Wpa((wifi_key(KEY, 1),)) if keyed else None)
-    got = [dec.feed(Record(i, float(i), LINKTYPE_IEEE802_11_RADIOTAP, bytes(p), 0, len(bytes(p))))
+    got = [dec.feed(Record(i, i / 1000, LINKTYPE_IEEE802_11_RADIOTAP, bytes(p), 0, len(bytes(p))))
            for i, p in enumerate(pkts, 1)]
     return got, dec.flush()
 
@@ -119,20 +120,49 @@ def test_what_a_receiver_drops() -> None:
         got, _ = feed([*w.handshake(), *frags], keyed=True)
         assert not frames(got), name
         said = [c for c in codes(got) if c]
-        assert said in ([["wifi-fragment"]], [["wifi-unprotected"]]), (name, said)
-    got, left = feed(open_fragments(ARM, 5, order=[0, 2, 1]))
-    assert not frames(got) and codes(got)[1] == ["wifi-fragment"] and "out of order" in got[1][0].notes[0].message
+        assert said in ([["wifi-fragment-mixed"]], [["wifi-unprotected"]]), (name, said)
+    got, left = feed(open_fragments(ARM, 5, order=[0, 2, 1]))  # fragment 2 before 1: dropped alone
+    assert not frames(got) and codes(got) == [[], ["wifi-fragment"], []]
+    assert "no fragment before it" in got[1][0].notes[0].message and len(left) == 1  # (the MSDU never completes)
+    pkts = [*w.handshake(), *protected_fragments(ARM, 3, [1, 2, 3])]
+    stray = RadioTap() / Dot11(type=2, subtype=8, FCfield="to_DS+MF", addr1=w.AP, addr2=w.STA, addr3=w.AP,
+                               SC=3 << 4 | 1) / Dot11QoS() / Raw(b"injected")
+    got, _ = feed([*pkts[:5], stray, *pkts[5:]], keyed=True)  # a plaintext fragment injected in between: it
+    assert codes(got)[5] == ["wifi-fragment-mixed"] and [f[:2] for f in frames(got)] == [(8, 0), (8, 76)]  # alone
 
 
 def test_fragments_never_completed_are_said() -> None:
-    """A new MSDU from the same transmitter before the last fragment, or the end of the capture: the
-    fragments held are dropped, and said."""
+    """A station reassembles four MSDUs at once (mac80211): a fifth pushes the oldest out; what is held at
+    the end of the capture, or longer than 2 s, never completes. Each is said."""
     first_two = open_fragments(ARM, 5)[:2]
     got, left = feed([*first_two, *open_fragments(w.mavlink_packet(255, 8), 6, n=2)])
-    assert codes(got) == [[], [], ["wifi-fragment"], []] and [f[2] for f in frames(got)] == [8]
-    got, left = feed(first_two)
-    assert not frames(got) and [n.code for p in left for n in p.notes] == ["wifi-fragment"]
-    assert "records 1, 2" in left[0].notes[0].message
+    assert not any(codes(got)) and [f[2] for f in frames(got)] == [8]
+    assert [n.code for p in left for n in p.notes] == ["wifi-fragment"] and "records 1, 2" in left[0].notes[0].message
+    starts = [open_fragments(w.mavlink_packet(255, i), 10 + i)[0] for i in range(5)]
+    got, left = feed(starts)
+    assert codes(got) == [[], [], [], [], ["wifi-fragment"]] and "pushed out" in got[4][0].notes[0].message
+    assert len(left) == 4
+    dec = Decapsulator()
+    late = [dec.feed(Record(i + 1, t, LINKTYPE_IEEE802_11_RADIOTAP, bytes(p), 0, len(bytes(p))))
+            for i, (p, t) in enumerate(zip(open_fragments(ARM, 5), (0.0, 0.5, 2.7)))]
+    assert not frames(late) and [n.code for p in late[2] for n in p.notes] == ["wifi-fragment"]
+    assert "expired" in late[2][0].notes[0].message
+
+
+def test_group_addressed_and_snapped_fragments() -> None:
+    """802.11 fragments only individually addressed frames (10.5): mac80211 drops group-addressed ones; a
+    fragment cut by the capture's snap length is not joined with a hole."""
+    bcast = [RadioTap() / Dot11(type=2, subtype=8, FCfield="from_DS" + ("+MF" if i == 0 else ""),
+                                addr1=w.BROADCAST, addr2=w.AP, addr3=w.STA, SC=5 << 4 | i) / Dot11QoS() / Raw(p)
+             for i, p in enumerate(chunks(ARM, 2))]
+    got, _ = feed(bcast)
+    assert not frames(got) and codes(got) == [["wifi-fragment"], ["wifi-fragment"]]
+    frags = [bytes(p) for p in open_fragments(ARM, 5)]
+    dec = Decapsulator()
+    got = [dec.feed(Record(1, 0.0, LINKTYPE_IEEE802_11_RADIOTAP, frags[0][:-10], 0, len(frags[0])))]
+    got += [dec.feed(Record(i, i / 1000, LINKTYPE_IEEE802_11_RADIOTAP, f, 0, len(f))) for i, f in ((2, frags[1]),
+                                                                                                  (3, frags[2]))]
+    assert not frames(got) and codes(got)[0] == ["wifi-fragment"] and "snap length" in got[0][0].notes[0].message
 
 
 def test_two_transmitters_interleaved() -> None:
@@ -140,3 +170,16 @@ def test_two_transmitters_interleaved() -> None:
     b = open_fragments(w.mavlink_packet(255, 9), 5, a2=w.STA2)
     got, _ = feed([a[0], b[0], a[1], b[1], a[2], b[2]])
     assert [(r, s) for r, _, s in frames(got)] == [(5, 7), (5, 7), (6, 9)] and not any(codes(got))
+
+
+def test_an_injected_fragment_is_an_audit_finding(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    pkts = [*w.handshake(), *protected_fragments(ARM, 3, [1, 2, 3])]
+    stray = RadioTap() / Dot11(type=2, subtype=8, FCfield="to_DS+MF", addr1=w.AP, addr2=w.STA, addr3=w.AP,
+                               SC=3 << 4 | 1) / Dot11QoS() / Raw(b"injected")
+    path = tmp_path / "mixed.pcap"
+    wrpcap(str(path), [*pkts[:5], stray, *pkts[5:]])
+    status, out, _ = cli("audit", path, "--wifi-key", KEY, "--json")
+    assert status == 1 and {f["code"]: f["frames"] for f in json.loads(out)["findings"]} == {"wifi-fragment-mixed": [6]}
+    for argv in (("read", path, "-T", "jsonl"), ("audit", path, "--json")):
+        assert cli(*argv, "--wifi-key", KEY, environ={"MAVSCOPE_PURE": "0"}) == \
+            cli(*argv, "--wifi-key", KEY, environ={"MAVSCOPE_PURE": "1"})
