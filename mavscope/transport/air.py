@@ -9,7 +9,8 @@ from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-from mavscope.transport.ccmp import WINDOW  # (numbers remembered behind the newest: 802.11ax's block ack window)
+from mavscope.transport.ccmp import MAX_MPDU, WINDOW  # (WINDOW: 802.11ax's block ack window)
+from mavscope.transport.defrag import records_text
 from mavscope.transport.wpa import Wpa
 
 MAX_REMEMBERED = 1 << 18  # numbers remembered over all caches (about 40 MB), the least recent caches forgotten
@@ -103,7 +104,6 @@ class Relays:
 
 FRAGMENT_SLOTS = 4  # MSDUs a station reassembles at once (mac80211's IEEE80211_FRAGMENT_MAX)
 FRAGMENT_LIFETIME = 2.0  # seconds an MSDU's fragments are held (mac80211: 2 s from the first fragment)
-MAX_MPDU = 11454  # the longest MPDU (802.11-2016 9.2.4.7.1): a fragment longer is none a radio sent
 MAX_FRAGMENT_HELD = 4 << 20  # fragment bytes held over all stations (as Linux's ipfrag_high_thresh), least recent
 # stations' dropped first
 
@@ -225,13 +225,8 @@ class Fragments:
 
 
 def _gone(p: _Partial, why: str) -> str:
-    return f"802.11 fragments of sequence number {p.sc >> 4} ({_records(p.records)}) {why}: the receiver " \
+    return f"802.11 fragments of sequence number {p.sc >> 4} ({records_text(p.records)}) {why}: the receiver " \
         "discarded them"
-
-
-def _records(records: list[int]) -> str:
-    return ("record " if len(records) == 1 else "records ") + ", ".join(map(str, records[:8])) + \
-        (f" and {len(records) - 8} more" if len(records) > 8 else "")
 
 
 @dataclass(slots=True)

@@ -133,7 +133,8 @@ class Decapsulator:
             if link.records:  # its handshake's and fragments' records go with its frames (`read -w` writes them)
                 out = [p._replace(span=self._also(tuple(sorted({*link.records, *(p.span or (rec.number,))}))))
                        for p in out]
-                self._remember(rec.number, link.records)
+                if not out:  # (an IP fragment held, say: the record that completes its datagram names these)
+                    self._remember(rec.number, link.records)
             dropped = tuple(note("wifi-fragment", m, roff) for m in link.dropped)
             return out, dropped + notes
         return self._link(rec, data, link, roff)

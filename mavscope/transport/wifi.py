@@ -97,10 +97,10 @@ def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
     qc = off + hlen - (6 if fc1 & FC_ORDER else 2) if qos else 0  # the QoS Control field
     body = off + ((hlen + 3) & ~3 if pad else hlen)  # (past radiotap's padding, which a retransmission may change)
     a1, a2 = data[off + 4:off + 10], data[off + 10:off + 16]
+    tid = data[qc] & 0xF if qos else 16  # (16: frames without QoS, which have their own caches)
     retries, wpa = (air.retries, air.wpa) if air is not None else (None, None)
     if retries is not None:
-        same = retries.duplicate(a1 + a2 + bytes((data[qc] & 0xF if qos else 16,)), sc, bool(fc1 & FC_RETRY),
-                                 data[body:n])
+        same = retries.duplicate(a1 + a2 + bytes((tid,)), sc, bool(fc1 & FC_RETRY), data[body:n])
         if same is not None:
             what = (f"802.11 retransmission (Retry bit) of sequence number {sc >> 4}, fragment {sc & 0xF} from "
                     f"{a2.hex(':')} to {a1.hex(':')}")
@@ -137,8 +137,7 @@ def strip_80211(data: bytes, off: int = 0, pad: bool = False, fcs: bool = False,
         if not whole:
             return Undecoded("wifi-fragment", f"802.11 fragment {fragment} of sequence number {sc >> 4}, cut short "
                              "by the capture's snap length: not reassembled")
-        reassembly = air.fragments.add(a1 + a2, data[qc] & 0xF if qos else 16, sc, more, header, msdu, air.record,
-                                 air.time, pn, ident)
+        reassembly = air.fragments.add(a1 + a2, tid, sc, more, header, msdu, air.record, air.time, pn, ident)
         if reassembly.refused is not None:
             code, message = reassembly.refused
             return Undecoded(code, "; ".join((message, *reassembly.said)))

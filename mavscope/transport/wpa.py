@@ -389,12 +389,15 @@ class Wpa:
                     "header and MIC")
         if not data[body + 3] & 0x20:
             return ("wifi-undecoded", "802.11 frame protected with WEP (no extended IV): not decrypted")
-        index = data[body + 3] >> 6
-        group = bool(a1[0] & 1)
-        suite = self.group_suites.get(a2, CCMP_128) if group else getattr(self._pair_of(a1, a2), "pairwise", 0)
-        keys = self.groups.get(a2, {}).get(index) if group else getattr(self._pair_of(a1, a2), "keys", None)
+        if a1[0] & 1:  # group-addressed: the access point's group key of the frame's index
+            known = a2 in self.group_suites
+            suite, keys = self.group_suites.get(a2, CCMP_128), self.groups.get(a2, {}).get(data[body + 3] >> 6)
+        else:
+            pair = self._pair_of(a1, a2)
+            known = pair is not None
+            suite, keys = (pair.pairwise, pair.keys) if pair is not None else (0, None)
         if not keys:
-            if suite and suite not in SUITES and (group and a2 in self.group_suites or self._pair_of(a1, a2)):
+            if known and suite and suite not in SUITES:
                 why = f"its cipher is {CIPHER_NAMES.get(suite, f'suite {suite}')}, which mavscope does not decrypt"
             else:
                 why = "no key for it (no 4-way handshake of theirs with a given --wifi-key seen before it)"
