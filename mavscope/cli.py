@@ -171,7 +171,10 @@ def main(argv: Sequence[str] | None = None, env: Env | None = None) -> int:
             return ExitStatus.ERROR
         return int(args.run(args, env))
     except MavscopeError as exc:
-        first, *more = exc.lines()
+        from mavscope.security.redact import redact  # what was typed as key material is never echoed
+
+        typed = [*words, *(rest or [])]
+        first, *more = (redact(line, typed) for line in exc.lines())
         env.say(first)
         for line in more:
             env.say(line, prefix="")
