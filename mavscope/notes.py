@@ -15,6 +15,10 @@ import operator
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from enum import Enum
+from typing import TypeVar
+
+K = TypeVar("K")
+V = TypeVar("V")
 
 
 def _by_rank(op: Callable[[int, int], bool]) -> Callable[[Severity, object], bool]:
@@ -58,6 +62,7 @@ class Group(str, Enum):
     PROTOCOL = "protocol"  # a protocol exchange that is unusual (commands, missions)
     SECURITY = "security"  # signing, encryption, keys, injection, replay
     UNDECODED = "undecoded"  # what mavscope cannot decode (unknown link types, message ids)
+    CAPACITY = "capacity"  # a bound of mavscope's own state gave something up (docs/security.md, "Bounds")
 
 
 class Scope(str, Enum):
@@ -200,6 +205,13 @@ CODES: dict[str, Code] = {
         Code("split-frame", _WARN, Group.PROTOCOL, _F,
              "frame split over datagrams to one destination, which the receivers' parser reads whole"),
         Code("encrypted-payload", _NOTE, Group.SECURITY, _F, "payload encrypted (incompat flag bits 5-7)"),
+        # bounds of mavscope's own state, anywhere (docs/security.md, "Bounds: what each gives up and how it is said")
+        Code("capacity", _WARN, Group.CAPACITY, _B,
+             "a bound of mavscope's state gave something up (what, and how much so far)",
+             "a bound of mavscope's own state (caches, waiting frames, streams, tables) gave something up: what "
+             "and how much is said on the records where it did (read -Y note.capacity); a flood in the capture "
+             "reaches these bounds, and what a bound gives up is the state that came last or was least "
+             "established, never what was established before the flood"),
         # security stage (notes), and the audit's summaries of them (findings)
         Code("unsigned-in-signed-stream", _WARN, Group.SECURITY, _B,
              "unsigned frame from a sender that signs its frames",
@@ -378,6 +390,41 @@ class FrameNumbers:
         nums = self.nums
         if len(nums) < self.limit and (self.repeats or not nums or nums[-1] != number):
             nums.append(number)
+
+
+class GivenUp:
+    """What one bounded structure gave up, said as `capacity` notes (docs/security.md, "Bounds"): every give-up
+    counted, with the units it gave up (records, numbers, bytes); the 1st, 2nd, 4th, 8th... said, each with
+    the counts so far (a flood is not noted one by one), onto `said`, a list the layer that owns the
+    structure empties onto the record being read."""
+
+    __slots__ = ("what", "unit", "count", "units", "said")
+
+    def __init__(self, what: str, unit: str, said: list[Note] | None = None) -> None:
+        self.what = what  # the structure and its bound, e.g. "802.11 duplicate detection (262,144 numbers)"
+        self.unit = unit  # what `units` counts, e.g. "sequence numbers"
+        self.count = 0
+        self.units = 0
+        self.said: list[Note] = [] if said is None else said
+
+    def add(self, detail: str, units: int = 1) -> None:
+        """One give-up of `units` (`detail`: what went, and what that means to the analyst)."""
+        self.count += 1
+        self.units += units
+        if not self.count & (self.count - 1):
+            self.said.append(note("capacity", f"{self.what}: {detail} ({self.count:,} given up so far, "
+                                  f"{self.units:,} {self.unit})"))
+
+
+def pop_newest(table: dict[K, V], keep: object) -> tuple[K, V]:
+    """The house policy where a flood must not flush established state: take out the newest entry of `table`
+    (insertion order, as an OrderedDict's LRU order) other than `keep` (the one just added). A flood then
+    churns its own entries; what was there before it stays."""
+    it = reversed(table)
+    k = next(it)
+    if k == keep:
+        k = next(it)
+    return k, table.pop(k)
 
 
 def finding(code: str, message: str, frames: Iterable[int] = ()) -> Finding:

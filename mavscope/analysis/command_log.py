@@ -24,10 +24,11 @@ from mavscope.mavlink.semantics import (
     finite,
     int_coordinate,
 )
+from mavscope.notes import GivenUp
 
 MAV_RESULT_IN_PROGRESS = 5
 COMMAND_MESSAGES = frozenset({"COMMAND_LONG", "COMMAND_INT", "COMMAND_ACK"})
-PENDING_MAX = 4096  # commands waiting for their ACK (the oldest is given up first)
+PENDING_MAX = 4096  # commands waiting for their ACK (past it the newest but the one just sent is given up: said)
 ORPHANS_KEPT = 10_000  # ACKs matching no command, listed (all are counted)
 
 
@@ -65,7 +66,10 @@ class CommandMatcher:
     """Commands and their ACKs in one pass: `add(frame, fields)` per COMMAND_LONG / COMMAND_INT /
     COMMAND_ACK frame (decoded `fields`) in capture order returns the commands that frame completed (an
     ACK answers at most one); `finish()` the ones still unanswered. At most PENDING_MAX commands wait for
-    their ACK (the oldest is given up as unanswered), so the state is bounded whatever the capture.
+    their ACK, so the state is bounded whatever the capture: past that, the command sent last before the new
+    one is given up as unanswered (`given_up` counts them, as `capacity`): a flood of commands from made-up
+    senders gives up its own, never the commands that were waiting before it (oldest first, an ARM sent
+    before a flood would be called unanswered and its ACK an orphan).
 
     A frame costs the same however many commands wait: a retry is found by its key (message, command,
     sender, target), and an ACK's candidates, oldest first, under the command and the target it can answer
@@ -81,6 +85,7 @@ class CommandMatcher:
         self._by: dict[tuple[int, ...], OrderedDict[Key, Command]] = {}
         self.orphans: list[dict[str, object]] = []  # ACKs that answer no command (the first ORPHANS_KEPT)
         self.orphan_count = 0
+        self.given_up = GivenUp(f"commands waiting for their ACK (at most {PENDING_MAX:,})", "commands")
 
     @staticmethod
     def _groups(key: Key) -> tuple[tuple[int, ...], ...]:
@@ -143,7 +148,14 @@ class CommandMatcher:
             src = None if f.src is None else f.src.text
             c = Command(name, cmd_id, me, target, params, f.time, [f.record], src=src)
             self._wait(key, c)
-            dropped = [self._done(next(iter(self._pending)))] if len(self._pending) > PENDING_MAX else []
+            dropped: list[Command] = []
+            if len(self._pending) > PENDING_MAX:
+                newest = reversed(self._pending)  # (the house policy, notes.pop_newest's, over the groups too)
+                gone = next(newest)
+                gone = next(newest) if gone == key else gone
+                dropped.append(self._done(gone))
+                self.given_up.add(f"gave up {gone[0]} {gone[1]} from {gone[2][0]}/{gone[2][1]} (frame "
+                                  f"{dropped[0].frames[0]}) as unanswered")
             return c, dropped
         cmd_id = int(fields["command"])  # type: ignore[call-overload]
         result = int(fields["result"])  # type: ignore[call-overload]

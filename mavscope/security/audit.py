@@ -22,7 +22,7 @@ from mavscope.security.signing import NEW_STREAM_WINDOW
 _NOTE_CODES = ("key-leak", "hidden-frame", "unsigned-in-signed-stream", "v1-in-signed-stream", "nonce-reuse",
                "signature-skew", "ip-fragment-overlap", "ip-fragment-conflict", "tcp-conflict",
                "wifi-retry-conflict", "wifi-fragment-mixed", "wifi-unprotected", "wifi-replay", "wifi-decrypt-failed",
-               "ip-bad-checksum", "tcp-bad-checksum", "udp-bad-checksum")
+               "ip-bad-checksum", "tcp-bad-checksum", "udp-bad-checksum", "capacity")
 RECORDS_LISTED = 10_000  # frame numbers kept per kind of verdict (all of them are counted)
 AHEAD_S = 3600.0  # a signing stream that starts this much further ahead of the capture clock than every other
 

@@ -9,11 +9,13 @@ from collections import OrderedDict
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
+from mavscope.notes import GivenUp, Note, pop_newest
 from mavscope.transport.ccmp import MAX_MPDU, WINDOW  # (WINDOW: 802.11ax's block ack window)
 from mavscope.transport.defrag import records_text
 from mavscope.transport.wpa import Wpa
 
-MAX_REMEMBERED = 1 << 18  # numbers remembered over all caches (about 40 MB), the least recent caches forgotten
+MAX_REMEMBERED = 1 << 18  # numbers remembered over all caches (about 40 MB), the least recent young caches forgotten
+ESTABLISHED = 16  # frames a cache has seen before it is established (forgotten only when no young one is left)
 
 
 class Retries:
@@ -29,25 +31,39 @@ class Retries:
     as a reset counter (a new association) starts the cache over.
 
     A retransmission repeats its frame's body byte for byte (an encrypted one its packet number and
-    ciphertext too); one with another body is no sender's (`conflict`): the receiver keeps the first."""
+    ciphertext too); one with another body is no sender's (`conflict`): the receiver keeps the first.
 
-    def __init__(self, limit: int = MAX_REMEMBERED) -> None:
+    The numbers remembered are bounded (MAX_REMEMBERED over all caches). A flood of frames from made-up
+    transmitters makes new caches, so they are young until they have seen ESTABLISHED frames, and the bound
+    forgets the least recent young cache first: a flood forgets its own, never the caches of the stations that
+    were talking before it (a forgotten cache lets a retransmission, or a forged one, be shown as a frame).
+    Each forgetting is said (`capacity`)."""
+
+    def __init__(self, limit: int = MAX_REMEMBERED, said: list[Note] | None = None) -> None:
         self.limit = limit
-        self.caches: OrderedDict[bytes, tuple[int, dict[int, bytes]]] = OrderedDict()  # key -> (newest, sc -> body)
+        # key -> (newest, sc -> body, frames seen): the established caches, and the young ones apart
+        self.caches: OrderedDict[bytes, tuple[int, dict[int, bytes], int]] = OrderedDict()
+        self.young: OrderedDict[bytes, tuple[int, dict[int, bytes], int]] = OrderedDict()
         self.size = 0
+        self.given_up = GivenUp(f"802.11 duplicate detection (at most {limit:,} sequence numbers held)",
+                                "sequence numbers", said)
 
     def duplicate(self, key: bytes, sc: int, retry: bool, body: bytes) -> bool | None:
         """None when the frame of cache `key` (receiver, transmitter and TID), Sequence Control `sc` and
         `body` is no duplicate (the cache then holds it), else whether its body is the first copy's."""
         digest = hashlib.blake2b(body, digest_size=16).digest()
         sn = sc >> 4
-        got = self.caches.get(key)
+        table = self.caches
+        got = table.get(key)
+        if got is None:
+            table = self.young
+            got = table.get(key)
         seen: dict[int, bytes]
         if got is None:
-            newest, seen = sn, {}
+            newest, seen, frames = sn, {}, 0
         else:
-            self.caches.move_to_end(key)
-            newest, seen = got
+            table.move_to_end(key)
+            newest, seen, frames = got
             behind = (newest - sn) % 4096
             if retry and behind < WINDOW and sc in seen:
                 return seen[sc] == digest
@@ -64,10 +80,20 @@ class Retries:
         if sc not in seen:
             self.size += 1
         seen[sc] = digest
-        self.caches[key] = (newest, seen)
+        frames += 1
+        if table is self.young and frames >= ESTABLISHED:
+            del self.young[key]
+            table = self.caches
+        table[key] = (newest, seen, frames)
         while self.size > self.limit:
-            _, (_, gone) = self.caches.popitem(last=False)
+            pool = self.young if self.young and next(iter(self.young)) != key else self.caches
+            if not pool or next(iter(pool)) == key:
+                break
+            gone_key, (_, gone, n) = pool.popitem(last=False)
             self.size -= len(gone)
+            self.given_up.add(f"forgot the frames of {gone_key[6:12].hex(':')} to {gone_key[:6].hex(':')} "
+                              f"({'established' if pool is self.caches else 'young'}: {n:,} seen), so a "
+                              "retransmission of theirs is shown as a frame", len(gone))
         return None
 
 
@@ -79,11 +105,16 @@ class Relays:
     (or for every station) to the access point (To DS), and the access point sends it on (From DS, the
     original sender as Address 3): a monitor captures the packet twice, and its MAVLink frames would be
     shown and counted twice (a duplicate in every Links table, a seq-duplicate finding). The relay carries
-    the same MSDU from the same source to the same destination: it is said and not dissected again."""
+    the same MSDU from the same source to the same destination: it is said and not dissected again.
 
-    def __init__(self, limit: int = RELAYS_KEPT) -> None:
+    The frames remembered are bounded (RELAYS_KEPT), the oldest forgotten: a relay of a forgotten frame is
+    shown again (a duplicate, never a frame hidden), and each forgetting is said (`capacity`)."""
+
+    def __init__(self, limit: int = RELAYS_KEPT, said: list[Note] | None = None) -> None:
         self.limit = limit
         self.sent: OrderedDict[bytes, None] = OrderedDict()
+        self.given_up = GivenUp(f"802.11 relays (at most {limit:,} frames sent to an access point remembered)",
+                                "frames", said)
 
     def _key(self, sa: bytes, da: bytes, msdu: bytes) -> bytes:
         return sa + da + hashlib.blake2b(msdu, digest_size=16).digest()
@@ -94,7 +125,9 @@ class Relays:
         self.sent[key] = None
         self.sent.move_to_end(key)
         if len(self.sent) > self.limit:
-            self.sent.popitem(last=False)
+            gone, _ = self.sent.popitem(last=False)
+            self.given_up.add(f"forgot a frame from {gone[:6].hex(':')} to {gone[6:12].hex(':')}, so the access "
+                              "point's relay of it is shown as a second copy")
 
     def relayed(self, sa: bytes, da: bytes, msdu: bytes) -> bool:
         """Whether a frame from the access point, from `sa` for `da`, relays one sent to it (forgotten then:
@@ -104,8 +137,9 @@ class Relays:
 
 FRAGMENT_SLOTS = 4  # MSDUs a station reassembles at once (mac80211's IEEE80211_FRAGMENT_MAX)
 FRAGMENT_LIFETIME = 2.0  # seconds an MSDU's fragments are held (mac80211: 2 s from the first fragment)
-MAX_FRAGMENT_HELD = 4 << 20  # fragment bytes held over all stations (as Linux's ipfrag_high_thresh), least recent
-# stations' dropped first
+MAX_FRAGMENT_HELD = 4 << 20  # fragment bytes held over all stations, FRAGMENT_COST each besides its bytes (as Linux's
+# ipfrag_high_thresh); expired MSDUs dropped first, then the most recent stations'
+FRAGMENT_COST = 256  # what a fragment held costs besides its bytes (its record and bookkeeping)
 
 
 class Reassembly(NamedTuple):
@@ -131,7 +165,8 @@ class _Partial:
 
     @property
     def size(self) -> int:
-        return sum(map(len, self.parts))
+        """What it counts against MAX_FRAGMENT_HELD."""
+        return sum(map(len, self.parts)) + FRAGMENT_COST * len(self.parts)
 
 
 class Fragments:
@@ -141,13 +176,19 @@ class Fragments:
     the last without More Fragments, within 2 s of the first; protected fragments carry consecutive packet
     numbers under one key (12.5.3.4.4), never mixed with plaintext ones; group-addressed frames are never
     fragmented. A fragment that breaks a rule is dropped alone (its MSDU stays held); an MSDU pushed out by a
-    fifth, expired, pushed out by the memory cap, or never completed is dropped whole: each is said
-    (`wifi-fragment`)."""
+    fifth, expired or never completed is dropped whole: each is said (`wifi-fragment`).
 
-    def __init__(self, limit: int = MAX_FRAGMENT_HELD) -> None:
+    What is held is bounded (MAX_FRAGMENT_HELD over all stations, mavscope's bound: a receiver has none over
+    its stations): past it, MSDUs of the least recent stations that are past their lifetime go first (the
+    receiver dropped those too), then the most recent stations' MSDUs, never those of the station whose
+    fragment it is: a flood of fragments from made-up stations pushes out its own, not the MSDU a station was
+    sending before it. What the bound drops is said (`capacity`)."""
+
+    def __init__(self, limit: int = MAX_FRAGMENT_HELD, said: list[Note] | None = None) -> None:
         self.limit = limit
         self.stations: OrderedDict[bytes, list[_Partial]] = OrderedDict()  # receiver + transmitter -> MSDUs
         self.held = 0
+        self.given_up = GivenUp(f"802.11 reassembly (at most {limit:,} bytes of fragments held)", "bytes", said)
 
     def add(self, station: bytes, tid: int, sc: int, more: bool, header: bytes, msdu: bytes, record: int,
             time: float | None, pn: int | None = None, ident: bytes = b"") -> Reassembly:
@@ -188,33 +229,41 @@ class Fragments:
                 p.parts.append(msdu)
                 p.records.append(record)
             if not more:
-                self.held -= p.size - len(msdu)
+                self.held -= p.size - len(msdu) - FRAGMENT_COST
                 return Reassembly(said, (p.header, b"".join(p.parts), tuple(p.records[:-1])))
             slots.append(p)
-            self.held += len(msdu)
+            self.held += len(msdu) + FRAGMENT_COST
             return Reassembly(said)
         finally:
             if slots:
                 self.stations[station] = slots  # (the most recent last)
-                self._cap(slots, said)
+                self._cap(station, time, said)
 
     def _drop(self, slots: list[_Partial], p: _Partial, why: str, said: list[str]) -> None:
         slots.remove(p)
         self.held -= p.size
         said.append(_gone(p, why))
 
-    def _cap(self, keep: list[_Partial], said: list[str]) -> None:
-        """While more bytes are held than the cap: the least recent stations' MSDUs go (never `keep`'s)."""
-        for station in list(self.stations):
-            if self.held <= self.limit:
-                return
+    def _cap(self, keep: bytes, time: float | None, said: list[str]) -> None:
+        """While more is held than the bound: the least recent stations' MSDUs whose lifetime is over (the
+        receiver dropped them), then the most recent stations' MSDUs, the newest first (never `keep`'s)."""
+        while self.held > self.limit and time is not None:
+            station = next(iter(self.stations))
             slots = self.stations[station]
-            if slots is keep:
-                continue
-            while slots and self.held > self.limit:
-                self._drop(slots, slots[0], "dropped: too many fragment bytes held", said)
-            if not slots:
-                del self.stations[station]
+            if station == keep or any(p.time is None or time - p.time <= FRAGMENT_LIFETIME for p in slots):
+                break
+            del self.stations[station]
+            for p in list(slots):
+                self._drop(slots, p, f"expired ({FRAGMENT_LIFETIME:g} s after the first)", said)
+        while self.held > self.limit and len(self.stations) > 1:
+            station, slots = pop_newest(self.stations, keep)
+            p = slots.pop()
+            self.held -= p.size
+            self.given_up.add(f"dropped the 802.11 fragments of sequence number {p.sc >> 4} "
+                              f"({records_text(p.records)}), which a receiver reads: their MSDU is not shown", p.size)
+            if slots:  # (back in its place: the most recent but one)
+                self.stations[station] = slots
+                self.stations.move_to_end(keep)
 
     def flush(self) -> list[tuple[int, str]]:
         """The MSDUs never completed: (their last fragment's record, the message)."""
@@ -234,8 +283,15 @@ class Air:
     """One capture's 802.11 state."""
 
     wpa: Wpa | None = None  # the WPA2 handshakes and keys (--wifi-key), None without keys
-    retries: Retries = field(default_factory=Retries)
-    relays: Relays = field(default_factory=Relays)
-    fragments: Fragments = field(default_factory=Fragments)
+    retries: Retries = field(init=False)
+    relays: Relays = field(init=False)
+    fragments: Fragments = field(init=False)
+    said: list[Note] = field(init=False)  # what its bounds gave up (`capacity`), for the record being read
     record: int = 0  # the number of the record being read (the handshake messages' records are a key's origin)
     time: float | None = None  # and its time (fragments expire)
+
+    def __post_init__(self) -> None:
+        self.said = self.wpa.said if self.wpa is not None else []
+        self.retries = Retries(said=self.said)
+        self.relays = Relays(said=self.said)
+        self.fragments = Fragments(said=self.said)

@@ -19,7 +19,7 @@ from collections import OrderedDict
 from enum import Enum
 
 from mavscope.endpoint import Endpoint
-from mavscope.notes import Note, note
+from mavscope.notes import GivenUp, Note, note
 
 PROTO_TCP = 6
 PROTO_UDP = 17
@@ -81,7 +81,8 @@ def ipv4_header(data: bytes, off: int, ihl: int) -> tuple[Checksum, int, int]:
 
 MERGE_FLOOR = 1460  # bytes: a TCP segment a receiver merged (GRO, RSC) is larger than one Ethernet frame holds
 FRAME_IP = 1500  # bytes: the IP packet one Ethernet frame holds (a sender's LSO packet, IPv4 length 0, is larger)
-DIRECTIONS = 65536  # TCP directions remembered as carrying real checksums, the least recently confirmed forgotten
+DIRECTIONS = 65536  # TCP directions remembered as carrying real checksums, the least recently confirmed young forgotten
+ESTABLISHED = 16  # right segments that make a direction established (forgotten only when no young one is left)
 
 
 class Directions:
@@ -90,25 +91,48 @@ class Directions:
     the checksums the receiver checks, so a segment whose checksum is not right there (wrong, a sender's
     offload placeholder, an IPv4 header checksum of 0) is what the receiver dropped, unless it is larger
     than any one segment: a receiver's own merge (Linux's GRO leaves the placeholder on what it merged).
-    On any other direction nothing tells real checksums from a capture edited without fixing them."""
+    On any other direction nothing tells real checksums from a capture edited without fixing them.
 
-    __slots__ = ("_largest", "limit")
+    The directions remembered are bounded (DIRECTIONS). A direction is young until ESTABLISHED right segments
+    confirmed it, and the bound forgets the least recently confirmed young direction first: a flood of made-up
+    directions forgets its own, never a connection that was talking before it (a forgotten direction's
+    dropped segments would be read into its stream). Each forgetting is said (`capacity`)."""
 
-    def __init__(self, limit: int = DIRECTIONS) -> None:
-        self._largest: OrderedDict[tuple[Endpoint, Endpoint], int] = OrderedDict()  # -> largest right payload
+    __slots__ = ("_largest", "_young", "_established", "limit", "given_up")
+
+    def __init__(self, limit: int = DIRECTIONS, said: list[Note] | None = None) -> None:
+        self._largest: dict[tuple[Endpoint, Endpoint], int] = {}  # -> largest right payload
+        self._young: OrderedDict[tuple[Endpoint, Endpoint], int] = OrderedDict()  # -> right segments seen
+        self._established: OrderedDict[tuple[Endpoint, Endpoint], None] = OrderedDict()
         self.limit = limit
+        self.given_up = GivenUp(f"TCP checksum directions (at most {limit:,} remembered)", "directions", said)
 
     def right(self, direction: tuple[Endpoint, Endpoint], size: int) -> None:
         """A segment of `size` payload bytes with right checksums on `direction`."""
-        largest = self._largest.pop(direction, 0)
-        self._largest[direction] = max(largest, size)
-        if len(self._largest) > self.limit:
-            self._largest.popitem(last=False)
+        self._largest[direction] = max(self._largest.get(direction, 0), size)
+        if direction in self._established:
+            self._established.move_to_end(direction)
+        else:
+            n = self._young.pop(direction, 0) + 1
+            if n >= ESTABLISHED:
+                self._established[direction] = None
+            else:
+                self._young[direction] = n
+        while len(self._largest) > self.limit:
+            young = bool(self._young) and next(iter(self._young)) != direction
+            gone = next(iter(self._young if young else self._established), direction)
+            if gone == direction:
+                break
+            del (self._young if young else self._established)[gone], self._largest[gone]
+            self.given_up.add(f"forgot that {gone[0]} -> {gone[1]} carries real checksums, so its segments with "
+                              "wrong ones are read into its stream")
 
     def forget(self, direction: tuple[Endpoint, Endpoint]) -> None:
         """`direction`'s connection ended (a FIN or RST with right checksums): a new one on its 4-tuple starts
         unknown (on a loopback, the kernel's own RST is right and the next connection all placeholders)."""
         self._largest.pop(direction, None)
+        self._young.pop(direction, None)
+        self._established.pop(direction, None)
 
     def fate(self, direction: tuple[Endpoint, Endpoint], size: int, dropped: Note | None, verdict: Checksum,
              field: int, right: int, header_zero: bool, offset: int | None,

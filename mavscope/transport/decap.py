@@ -6,7 +6,7 @@ import struct
 
 from mavscope.capture.base import LINKTYPE_ETHERNET, LINKTYPE_MAVLINK_RAW, LINKTYPE_MAVLINK_TLOG, Record
 from mavscope.endpoint import Endpoint
-from mavscope.notes import Note, note
+from mavscope.notes import GivenUp, Note, note
 from mavscope.transport.air import Air
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TCP, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
 from mavscope.transport.checksum import FRAME_IP, Checksum, Directions, ipv4_header, judge, ones_sum
@@ -53,13 +53,16 @@ class Decapsulator:
 
     def __init__(self, max_tcp_buffer: int = MAX_BUFFERED, wpa: Wpa | None = None) -> None:
         self.endpoints = Endpoints()
+        self.air = Air(wpa)  # 802.11: duplicate detection, relays, fragments, WPA2 keys (--wifi-key)
+        self.said = self.air.said  # what the bounds gave up (`capacity` notes), for the record being read
         self.tcp = TcpReassembler(max_tcp_buffer)
-        self.defrag = Defragmenter()
+        self.defrag = Defragmenter(said=self.said)
         self._unknown_seen: set[int] = set()
         self._flows: dict[bytes, tuple[Endpoint, Endpoint]] = {}
-        self.directions = Directions()  # the TCP directions whose captured checksums are real
-        self.air = Air(wpa)  # 802.11: duplicate detection, relays, fragments, WPA2 keys (--wifi-key)
+        self.directions = Directions(said=self.said)  # the TCP directions whose captured checksums are real
         self.rebuilt: dict[int, tuple[int, ...]] = {}  # record -> the records its rebuilt 802.11 frame came from
+        self.rebuilt_given_up = GivenUp(f"records of rebuilt 802.11 frames (at most {REBUILT_KEPT:,} remembered)",
+                                        "records", self.said)
 
     def feed(self, rec: Record) -> list[Payload]:
         """The Payloads that `rec` yields now (possibly none)."""
@@ -116,6 +119,9 @@ class Decapsulator:
         # second note saying the packet is too short for its link header
         out, notes = ([], ()) if rnotes and not data else self._decode(rec)
         notes = rnotes + notes
+        if self.said:
+            notes += tuple(self.said)
+            self.said.clear()
         if notes:
             if out:
                 out[0] = out[0]._replace(notes=notes + out[0].notes)
@@ -144,7 +150,10 @@ class Decapsulator:
         completes later (its IP fragment, reassembled in another record)."""
         self.rebuilt[record] = others
         if len(self.rebuilt) > REBUILT_KEPT:
-            del self.rebuilt[next(iter(self.rebuilt))]
+            gone = next(iter(self.rebuilt))
+            self.rebuilt_given_up.add(f"forgot the other records of record {gone}'s 802.11 frame, so a datagram it "
+                                      "completes later is written (read -w) without them", len(self.rebuilt[gone]))
+            del self.rebuilt[gone]
 
     def _also(self, span: tuple[int, ...]) -> tuple[int, ...]:
         """`span` with the records each of its rebuilt 802.11 frames came from."""

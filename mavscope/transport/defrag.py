@@ -38,7 +38,7 @@ from bisect import bisect_right, insort
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
-from mavscope.notes import Note, note
+from mavscope.notes import GivenUp, Note, note
 from mavscope.transport.ip import MAX_EXT_HEADERS, PROTO_TCP, PROTO_UDP, FragmentInfo, walk_ipv6
 
 TIMEOUT_V4 = 30.0  # net.ipv4.ipfrag_time
@@ -119,8 +119,10 @@ def records_text(records: list[int] | tuple[int, ...], more_records: int = 0) ->
 class Defragmenter:
     """The fragments held for reassembly across the records of one capture."""
 
-    def __init__(self, max_held: int = MAX_HELD) -> None:
+    def __init__(self, max_held: int = MAX_HELD, said: list[Note] | None = None) -> None:
         self.max_held = max_held
+        self.given_up = GivenUp(f"IP reassembly's fragment counts (ipfrag_max_dist) for at most {MAX_SOURCES:,} "
+                                "sources", "sources", said)
         self.held = 0  # what the datagrams held cost (QUEUE_COST each, their fragments' bytes, FRAGMENT_COST each)
         self.pending: dict[Key, _Datagram] = {}  # in the order they started
         self._dist: dict[bytes, int] = {}  # IPv4 fragments seen per source (ipfrag_max_dist)
@@ -156,6 +158,8 @@ class Defragmenter:
         dist = 0
         if not frag.v6:
             if src not in self._dist and len(self._dist) >= MAX_SOURCES:
+                self.given_up.add("the counts start over, so a datagram a receiver drops for ipfrag_max_dist may be "
+                                  "reassembled and shown", len(self._dist))
                 self._dist.clear()
             dist = self._dist[src] = self._dist.get(src, 0) + 1
         if d is not None and not frag.v6 and dist - d.dist > MAX_DIST:

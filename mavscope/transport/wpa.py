@@ -26,10 +26,11 @@ from cryptography.hazmat.primitives.cmac import CMAC
 from cryptography.hazmat.primitives.keywrap import InvalidUnwrap, aes_key_unwrap
 
 from mavscope.errors import UsageError
+from mavscope.notes import GivenUp, Note, pop_newest
 from mavscope.transport.ccmp import CCMP_128, CIPHER_NAMES, GCMP_128, Plain, TemporalKey, key_ident, unprotect
 
 ETHERTYPE_EAPOL = 0x888E
-MAX_PAIRS = 65536  # station pairs kept (with keys; and apart, with nonces only), the least recent forgotten
+MAX_PAIRS = 65536  # station pairs kept (with keys; and apart, with nonces only), the newest forgotten (said)
 KEYS_KEPT = 2  # keys per pair or group key index: the newest and the one before (frames in flight on a rekey)
 ANONCES_KEPT = 4  # message 1s of a pair whose message 2 may still come (a forged one among them changes nothing)
 SEEN_KEPT = 64  # keys a pair installed, remembered so that a replayed handshake cannot install one again
@@ -212,6 +213,10 @@ class Wpa:
     def __init__(self, keys: tuple[WifiKey, ...], limit: int = MAX_PAIRS) -> None:
         self.pmks = tuple(k.pmk for k in keys)
         self.limit = limit
+        self.said: list[Note] = []  # what the bounds gave up (`capacity` notes), for the record being read
+        self.gave_up = {table: GivenUp(f"WPA2 {what} (at most {limit:,})", unit, self.said) for table, what, unit in (
+            ("pending", "handshakes begun", "message 1s"), ("pairs", "station pairs with keys", "pairs"),
+            ("groups", "access points with group keys", "access points"))}
         self.pairs: OrderedDict[bytes, Pair] = OrderedDict()  # (AA + SPA) -> a pair whose handshake verified
         # pairs with a message 1 and no verified message 2 yet, apart: a flood of forged first messages
         # (anyone can send them) forgets these, never the keys of the stations that did associate
@@ -225,16 +230,17 @@ class Wpa:
 
     def _pair(self, aa: bytes, spa: bytes, create: bool) -> Pair | None:
         key = aa + spa
-        for table in (self.pairs, self.pending):
+        for table in (self.pairs, self.pending):  # (kept in the order they came: the bounds forget the newest)
             p = table.get(key)
             if p is not None:
-                table.move_to_end(key)
                 return p
         if not create:
             return None
-        if len(self.pending) >= self.limit:
-            self.pending.popitem(last=False)
         p = self.pending[key] = Pair()
+        if len(self.pending) > self.limit:  # the newest go: a flood of first messages forgets its own
+            gone, _ = pop_newest(self.pending, key)
+            self.gave_up["pending"].add(f"forgot the handshake begun between {gone[:6].hex(':')} and "
+                                        f"{gone[6:].hex(':')}: if it completes, its frames are not decrypted")
         return p
 
     def _verified(self, aa: bytes, spa: bytes, pair: Pair) -> None:
@@ -242,10 +248,11 @@ class Wpa:
         pair.left, pair.epoch = False, self.epochs.setdefault(aa, 0)
         key = aa + spa
         self.pending.pop(key, None)
-        if key not in self.pairs and len(self.pairs) >= self.limit:
-            self.pairs.popitem(last=False)
         self.pairs[key] = pair
-        self.pairs.move_to_end(key)
+        if len(self.pairs) > self.limit:  # the newest other than this one go: the keys held before a flood stay
+            gone, _ = pop_newest(self.pairs, key)
+            self.gave_up["pairs"].add(f"forgot the keys of {gone[:6].hex(':')} and {gone[6:].hex(':')}: their "
+                                      "later frames are not decrypted")
 
     def eapol(self, a1: bytes, a2: bytes, eapol: bytes, records: tuple[int, ...] = ()) -> None:
         """An EAPOL frame from `a2` to `a1` (its bytes from the EAPOL header on; in the capture's `records`,
@@ -329,9 +336,11 @@ class Wpa:
         index, gtk = found
         groups = self.groups.get(aa)
         if groups is None:
-            if len(self.groups) >= self.limit:
-                self.groups.popitem(last=False)
             groups = self.groups[aa] = {}
+            if len(self.groups) > self.limit:  # (the newest other than this one go)
+                gone, _ = pop_newest(self.groups, aa)
+                self.gave_up["groups"].add(f"forgot the group keys of {gone.hex(':')}: its later group-addressed "
+                                           "frames are not decrypted")
         if pair.group in SUITES and len(gtk) == 16:
             _keep(groups.setdefault(index, []), gtk, pair.group, origin=tuple(sorted({*pair.origin, *records})))
         else:

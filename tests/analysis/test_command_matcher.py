@@ -23,7 +23,8 @@ class Reference:
     """The docstring's rule, scanning every waiting command: a retry is the same message, command, sender and
     target still waiting; an ACK answers the oldest waiting command of its id whose target is the ACK's
     system (or 0) and component (or 0) and whose sender is the system and component the ACK names (where
-    it names them); IN_PROGRESS answers without completing; past `cap` waiting, the oldest is given up."""
+    it names them); IN_PROGRESS answers without completing; past `cap` waiting, the
+    one sent last before the new one is given up (with a cap of 1, the one waiting)."""
 
     def __init__(self, cap: int) -> None:
         self.cap = cap
@@ -39,7 +40,8 @@ class Reference:
                     return False, []
             self.pending.append({"msg": msg, "cmd": cmd_id, "sender": sender, "target": target, "frames": [record],
                                  "retries": 0, "result": None, "progress": []})
-            return True, [self.pending.pop(0)["frames"][0]] if len(self.pending) > self.cap else []
+            # past the cap the newest waiting but the new one is given up (a flood gives up its own)
+            return True, [self.pending.pop(-2)["frames"][0]] if len(self.pending) > self.cap else []
         _, cmd_id, (sysid, compid), to_sys, to_comp, result, record = ev
         for c in self.pending:
             if c["cmd"] == cmd_id and c["target"][0] in (0, sysid) and c["target"][1] in (0, compid) \
@@ -103,7 +105,7 @@ def test_the_matcher_is_its_definition(events: list[tuple], cap: int, dialect: D
 
 
 @pytest.mark.parametrize("frame", [
-    ("cmd", "COMMAND_LONG", 400, (255, 190), (200, 1)),  # new: pushes the oldest out
+    ("cmd", "COMMAND_LONG", 400, (255, 190), (200, 1)),  # new: pushes out the newest but itself
     ("cmd", "COMMAND_LONG", 400, (255, 190), (9, 9)),  # a retry of the newest
     ("ack", 400, (200, 1), 0, 0, 0),  # answers nothing waiting for 200/1 (all wait for 1..16 / 1..255)
     ("ack", 400, (16, 255), 0, 0, 0),  # answers the newest

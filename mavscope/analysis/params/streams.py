@@ -60,6 +60,7 @@ class StreamRequests:
 
     def __init__(self) -> None:
         self.requests: dict[tuple[int, str], deque[_Request]] = {}
+        self.unfollowed = 0  # requests of (system, stream) pairs beyond the first MAX_KEYS, not remembered
 
     def feed(self, record: int, fields: dict[str, object]) -> None:
         start_stop = _int(fields, "start_stop")
@@ -74,7 +75,8 @@ class StreamRequests:
             key = (_int(fields, "target_system"), name)
             kept = self.requests.get(key)
             if kept is None:
-                if len(self.requests) >= MAX_KEYS:
+                if len(self.requests) >= MAX_KEYS:  # (the first kept: a flood cannot flush them)
+                    self.unfollowed += 1
                     return
                 kept = self.requests[key] = deque(maxlen=KEPT)
             kept.append(req)

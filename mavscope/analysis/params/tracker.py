@@ -28,7 +28,7 @@ from mavscope.analysis.params.missions import MESSAGES as MISSION_MESSAGES
 from mavscope.analysis.params.missions import MissionRequests
 from mavscope.analysis.params.model import Addr, Component, Param, ParamChange, ParamLog
 from mavscope.analysis.params.security import category, disables
-from mavscope.analysis.params.streams import StreamRequests
+from mavscope.analysis.params.streams import MAX_KEYS, StreamRequests
 from mavscope.analysis.params.values import (
     BYTEWISE,
     C_CAST,
@@ -40,6 +40,7 @@ from mavscope.analysis.params.values import (
     same,
 )
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
+from mavscope.notes import pop_newest
 
 CONFIRM_WINDOW = 5.0  # seconds after the set's last transmission
 MAX_COMPONENTS = 64
@@ -307,8 +308,9 @@ class ParamTracker:
         if not self._append(e):
             return
         self.pending[key] = e
-        if len(self.pending) > MAX_PENDING:
-            self.pending.popitem(last=False)
+        if len(self.pending) > MAX_PENDING:  # the newest but this one goes: sets waiting before a flood stay
+            pop_newest(self.pending, key)
+            self.given_up[f"sets waiting for their answer beyond {MAX_PENDING:,} were not matched to it"] += 1
 
     def _ext_ack(self, f: Frame, fields: dict[str, object]) -> None:
         name = _name(fields)
@@ -383,6 +385,9 @@ class ParamTracker:
                 c.encoding, c.encoding_basis = self.encodings[c.addr[0]]
         main = choose_main(comps)
         timeline = sorted((e.freeze() for e in self.timeline), key=lambda e: e.frame)
+        if self.streams.unfollowed:
+            self.given_up["REQUEST_DATA_STREAM requests of (system, stream) pairs beyond the first "
+                          f"{MAX_KEYS:,}, not used to explain rate changes"] = self.streams.unfollowed
         log = ParamLog([c for c in comps if c.params], timeline, main, self.ftp, [], dict(self.given_up))
         log.findings = param_findings(log)
         return log
