@@ -6,7 +6,10 @@ GPS_RAW_INT with at least a 2D fix. Positions within NULL_ISLAND degrees of 0, 0
 (ArduPilot reports offsets from 0, 0 until its EKF origin is set). Each track keeps at most MAX_POINTS
 points: past that it keeps every second point and from then on takes every second position (and so on,
 doubling), so a track of any length costs bounded memory and stays evenly spread over the flight.
-The mission, fence and rally points are those `mavscope mission --plan` exports (`mission.to_plan`).
+The mission, fence and rally points are those `mavscope mission --plan` exports (`mission.to_plan`): what the
+vehicle holds at the end of the capture. When it holds no mission any more (an accepted empty upload or
+MISSION_CLEAR_ALL), the one it held before is kept beside the track as its history (`Tracks.history`),
+marked with the time it was cleared.
 """
 
 from __future__ import annotations
@@ -58,6 +61,9 @@ class Track:
 class Tracks:
     tracks: list[Track]
     plan: PlanExport | None  # the mission, fence and rally points (None: no mission item in the capture)
+    # the mission the vehicle held before it was cleared (None: it was not, or held none before)
+    history: PlanExport | None = None
+    history_until: float | None = None  # when it was cleared (capture time)
 
 
 def _point(f: Frame, fields: dict[str, object]) -> Point | None:
@@ -110,7 +116,12 @@ class TrackBuilder:
         fused = {(s, c) for s, c, name in self.tracks if name == "GLOBAL_POSITION_INT"}
         tracks = [t for (s, c, name), t in sorted(self.tracks.items())
                   if name == "GLOBAL_POSITION_INT" or (s, c) not in fused]
-        return Tracks(tracks, to_plan(self.missions.finish(), self.dialect))
+        log = self.missions.finish()
+        plan = to_plan(log, self.dialect)
+        cleared = plan.cleared.get("mission") if plan is not None else None
+        if cleared is None or not cleared["history"]:
+            return Tracks(tracks, plan)
+        return Tracks(tracks, plan, to_plan(log, self.dialect, cleared["history"][-1] - 1), cleared["at"])
 
 
 def tracks(frames: Iterable[Frame], dialect: Dialect) -> Tracks:

@@ -24,8 +24,11 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "and rally points, and the MISSION_CLEAR_ALL / MISSION_SET_CURRENT operations.")
     add_analysis_options(p)
     p.add_argument("--plan", metavar="OUT.plan",
-                   help="write the last complete mission, fence and rally transfers (else the last ones with items) "
-                        "as a QGroundControl plan")
+                   help="write what the vehicle holds at the end of the capture (its last accepted upload, clear "
+                        "or download of each of mission, fence and rally) as a QGroundControl plan")
+    p.add_argument("--plan-transfer", metavar="N", type=int,
+                   help="with --plan: export transfer N (as numbered in the output) for its mission type instead, "
+                        "e.g. a mission the vehicle no longer holds")
     p.set_defaults(run=run)
 
 
@@ -38,8 +41,15 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         log.transfers = [t for t in log.transfers if select.any_record(t.frames)]
         log.events = [e for e in log.events if select.any_record(e.frames)]
     doc = log_json(log, dialect)
+    export = None
+    chosen = args.plan_transfer
+    if chosen is not None and not args.plan:
+        raise UsageError("mission: --plan-transfer needs --plan OUT.plan")
+    if chosen is not None and not 1 <= chosen <= len(log.transfers):
+        raise UsageError(f"mission: --plan-transfer {chosen}: {path} has transfers 1 to {len(log.transfers)}"
+                         if log.transfers else f"mission: --plan-transfer {chosen}: {path} has no transfer")
     if args.plan:
-        export = to_plan(log, dialect)
+        export = to_plan(log, dialect, None if chosen is None else chosen - 1)
         if export is None:
             raise UsageError(f"mission: --plan: {path} holds no mission, fence or rally items to export")
         try:
@@ -69,8 +79,10 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
             extra += f"; {len(d['duplicate_frames'])} duplicate frame(s) ignored"
         if d["frames"]:
             extra += f"; frames {d['frames'][0]}-{d['frames'][-1]}"
+        sent = "" if d["addressed_to"] == d["to"] else f" (addressed to {d['addressed_to'][0]}/{d['addressed_to'][1]})"
+        span = f"items {d['partial'][0]}..{d['partial'][1]} (partial)" if d["partial"] else f"{d['count']} items"
         print_lines(con, [f"Transfer {n}: {d['direction']} {d['mission_type']} from {d['from'][0]}/{d['from'][1]} "
-                          f"to {d['to'][0]}/{d['to'][1]}, {d['count']} items, {state}: {d['reason']}; "
+                          f"to {d['to'][0]}/{d['to'][1]}{sent}, {span}, {state}: {d['reason']}; "
                           f"started {iso(d['start'])}{extra}"], plain=plain)
         if not d["items"]:
             continue
@@ -78,7 +90,12 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                                  right=("seq", "z")), d["items"], _item_row, plain=plain)
     print_lines(con, (f"Event {n}: {e['text']}; at {iso(e['time'])}; frames {', '.join(map(str, e['frames']))}"
                       for n, e in enumerate(events, 1)), plain=plain)
-    if args.plan:
+    if args.plan and export is not None:
+        for what, c in export.cleared.items():
+            by = f"transfer {c['transfer']}" if c["transfer"] is not None else f"event {c['event']}"
+            held = f"; before: transfer {', '.join(map(str, c['history']))}" if c["history"] else ""
+            print_lines(con, [f"Plan: the vehicle holds no {what} since {iso(c['at'])} (frame {c['frame']}, {by})"
+                              f"{held}"], plain=plain)
         con.print(f"Plan written to {args.plan}")
     return ExitStatus.OK
 

@@ -12,6 +12,7 @@ from mavscope.commands.analysis_common import add_analysis_options, analysis_pas
 from mavscope.commands.common import console, not_the_capture, write_json
 from mavscope.errors import UsageError
 from mavscope.output.geo import geojson, gpx, kml, xsd_time
+from mavscope.output.tables import iso
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -58,8 +59,11 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                 "points": len(t.points), "every": t.stride, "start": xsd_time(t.points[0].time),
                 "end": xsd_time(t.points[-1].time)} for t in result.tracks]
     plan = result.plan
-    mission = {"mission_transfer": None, "fence_transfer": None, "rally_transfer": None} if plan is None else \
-        {k: v for k, v in plan.json().items() if k.endswith("_transfer")}
+    mission: dict[str, object] = {"mission_transfer": None, "fence_transfer": None, "rally_transfer": None} \
+        if plan is None else {k: v for k, v in plan.json().items() if k.endswith("_transfer")}
+    mission["cleared"] = {} if plan is None else plan.cleared
+    mission["history_mission_transfer"] = None if result.history is None or result.history.mission is None \
+        else result.history.mission + 1
     if args.json:
         write_json(env, {"file": path, "tracks": summary, **mission,
                          "written": [{"format": fmt, "file": out} for fmt, out in targets]})
@@ -74,8 +78,16 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         con.print(f"system {t.sysid}/{t.compid}: {len(t.points)} points{thin} from {t.source}, "
                   f"{xsd_time(t.points[0].time) or '-'} to {xsd_time(t.points[-1].time) or '-'}", markup=False)
     if plan is not None:
-        con.print("mission, fence and rally: transfers " + ", ".join(
-            f"{k.removesuffix('_transfer')} {v}" for k, v in mission.items() if v is not None), markup=False)
+        shown = [f"{k.removesuffix('_transfer')} {v}" for k, v in mission.items() if k.endswith("_transfer")
+                 and not k.startswith("history") and v is not None]
+        if shown:
+            con.print("mission, fence and rally: transfers " + ", ".join(shown), markup=False)
+        for what, c in plan.cleared.items():
+            by = f"transfer {c['transfer']}" if c["transfer"] is not None else f"event {c['event']}"
+            before = c["history"]
+            held = f"; it held transfer {before[-1]} before (drawn as history)" if what == "mission" and before else ""
+            con.print(f"the vehicle holds no {what} since {iso(c['at'])} (frame {c['frame']}, {by}){held}",
+                      markup=False)
     for fmt, out in targets:
         con.print(f"wrote {fmt} to {out}", markup=False)
     return ExitStatus.OK

@@ -22,6 +22,7 @@ from datetime import datetime, timezone
 from typing import Any
 from xml.etree import ElementTree as ET
 
+from mavscope.analysis.mission import PlanExport
 from mavscope.analysis.track import Track, Tracks
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.semantics import enum_name
@@ -48,11 +49,26 @@ def _num(v: object) -> float | None:
     return float(v) if isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) else None
 
 
-def _waypoints(tracks: Tracks, dialect: Dialect) -> Iterator[tuple[int, str, float, float, float, int]]:
+def _missions(tracks: Tracks, dialect: Dialect) -> Iterator[tuple[list[tuple[int, str, float, float, float, int]],
+                                                                    dict[str, object]]]:
+    """The mission the vehicle holds ("current") and the one it held before it was cleared ("history", with
+    `until`, the time it was cleared): their waypoints and the properties that say which."""
+    yield list(_waypoints(tracks.plan, dialect)), {"state": "current"}
+    if tracks.history is not None:
+        yield list(_waypoints(tracks.history, dialect)), {"state": "history", "until": xsd_time(tracks.history_until)}
+
+
+def _mission_name(props: dict[str, object]) -> str:
+    if props["state"] == "current":
+        return "mission"
+    return f"mission (history: cleared {props['until']})" if props["until"] else "mission (history: cleared)"
+
+
+def _waypoints(plan: PlanExport | None, dialect: Dialect) -> Iterator[tuple[int, str, float, float, float, int]]:
     """(seq, command name, lat, lon, z, frame) of the mission items with a position."""
-    if tracks.plan is None:
+    if plan is None:
         return
-    mission: Any = tracks.plan.plan["mission"]
+    mission: Any = plan.plan["mission"]
     for item in mission["items"]:
         params = item.get("params") or []
         lat, lon, z = (_num(params[i]) if len(params) > i else None for i in (4, 5, 6))
@@ -110,13 +126,13 @@ def geojson(tracks: Tracks, dialect: Dialect) -> dict[str, object]:
         feature(geom, kind="track", name=_label(t), sysid=t.sysid, compid=t.compid, source=t.source,
                 times=[xsd_time(p.time) for p in t.points], frames=[p.record for p in t.points],
                 positions=t.seen, every=t.stride)
-    wps = list(_waypoints(tracks, dialect))
-    if len(wps) > 1:
-        feature({"type": "LineString", "coordinates": [[lon, lat, z] for _, _, lat, lon, z, _ in wps]},
-                kind="mission", name="mission")
-    for seq, name, lat, lon, z, frame in wps:
-        feature({"type": "Point", "coordinates": [lon, lat, z]}, kind="waypoint", name=f"{seq} {name}", seq=seq,
-                command=name, frame=frame)
+    for wps, state in _missions(tracks, dialect):
+        if len(wps) > 1:
+            feature({"type": "LineString", "coordinates": [[lon, lat, z] for _, _, lat, lon, z, _ in wps]},
+                    kind="mission", name=_mission_name(state), **state)
+        for seq, name, lat, lon, z, frame in wps:
+            feature({"type": "Point", "coordinates": [lon, lat, z]}, kind="waypoint", name=f"{seq} {name}", seq=seq,
+                    command=name, frame=frame, **state)
     home = _home(tracks)
     if home is not None:
         feature({"type": "Point", "coordinates": [home[1], home[0], home[2]]}, kind="home", name="home")
@@ -167,13 +183,15 @@ def kml(tracks: Tracks, dialect: Dialect) -> str:
             ET.SubElement(line, f"{k}altitudeMode").text = "absolute"
             ET.SubElement(line, f"{k}coordinates").text = " ".join(
                 f"{p.lon:.7f},{p.lat:.7f},{p.alt:.3f}" for p in t.points)
-    wps = list(_waypoints(tracks, dialect))
-    if len(wps) > 1:
-        line = ET.SubElement(_placemark(doc, "mission"), f"{k}LineString")
-        ET.SubElement(line, f"{k}altitudeMode").text = "relativeToGround"
-        ET.SubElement(line, f"{k}coordinates").text = " ".join(f"{lon:.7f},{lat:.7f},{z:.3f}"
-                                                                 for _, _, lat, lon, z, _ in wps)
-    points = [(f"{seq} {name}", lat, lon, z) for seq, name, lat, lon, z, _ in wps]
+    points: list[tuple[str, float, float, float]] = []
+    for wps, state in _missions(tracks, dialect):
+        if len(wps) > 1:
+            line = ET.SubElement(_placemark(doc, _mission_name(state)), f"{k}LineString")
+            ET.SubElement(line, f"{k}altitudeMode").text = "relativeToGround"
+            ET.SubElement(line, f"{k}coordinates").text = " ".join(f"{lon:.7f},{lat:.7f},{z:.3f}"
+                                                                     for _, _, lat, lon, z, _ in wps)
+        mark = "" if state["state"] == "current" else " (history)"
+        points += [(f"{seq} {name}{mark}", lat, lon, z) for seq, name, lat, lon, z, _ in wps]
     home = _home(tracks)
     if home is not None:
         points.append(("home", *home))
@@ -222,10 +240,11 @@ def gpx(tracks: Tracks, dialect: Dialect) -> str:
         lat, lon = c["circle"]["center"]
         wpt("wpt", root, lat, lon, None, "fence circle " + ("inclusion" if c["inclusion"] else "exclusion"),
             desc=f"radius {c['circle']['radius']} m")
-    wps = list(_waypoints(tracks, dialect))
-    if wps:
+    for wps, state in _missions(tracks, dialect):
+        if not wps:
+            continue
         rte = ET.SubElement(root, f"{g}rte")
-        ET.SubElement(rte, f"{g}name").text = "mission"
+        ET.SubElement(rte, f"{g}name").text = _mission_name(state)
         for seq, name, lat, lon, z, frame in wps:
             wpt("rtept", rte, lat, lon, z, f"{seq} {name}",
                 desc="altitude relative to home" if frame in RELATIVE_FRAMES else "")

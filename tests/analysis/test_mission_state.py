@@ -24,7 +24,7 @@ from mavscope.pipeline.options import PipelineOptions
 from mavscope.pipeline.session import open_session
 from tests.support.cost import lines_run
 
-ADDRS = st.tuples(st.sampled_from([1, 2]), st.sampled_from([0, 1, 190]))
+ADDRS = st.tuples(st.sampled_from([0, 1, 2]), st.sampled_from([0, 1, 190]))  # system or component 0: a broadcast
 TYPES = st.sampled_from([0, 1])
 OPS = st.lists(st.one_of(
     st.tuples(st.just("add"), TYPES, ADDRS, ADDRS),

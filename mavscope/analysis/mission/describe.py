@@ -45,7 +45,8 @@ _WHY = {"restarted": "a new MISSION_COUNT or MISSION_REQUEST_LIST between the tw
 
 def reason(t: Transfer, dialect: Dialect) -> str:
     missing = t.missing
-    got = f"{len(t.items)} of {t.count} items"
+    span = f"items {t.first}..{t.count - 1} (a partial upload)" if t.partial else f"{t.count} items"
+    got = f"{len(t.items)} of {span}"
     miss = f"items missing from the capture: {run_text(missing)}" if missing else ""
     silent = f"; {addr(t.receiver)} sent no frame in this capture" if t.receiver_silent else ""
     if t.outcome == COMPLETE:
@@ -58,7 +59,7 @@ def reason(t: Transfer, dialect: Dialect) -> str:
         have = f"items {ranges(sorted(t.items))} of {t.count}" if t.items else f"none of {t.count} items"
         text = f"cancelled by the sender {addr(t.sender)} with {result_name(dialect, t.result)} after {have}"
     elif t.outcome == UNACKNOWLEDGED:
-        have = f"all {t.count} items in the capture" if t.count else "count 0 (nothing to request)"
+        have = f"all {span} in the capture" if t.count > t.first else "count 0 (nothing to request)"
         text = f"{have}, no MISSION_ACK from {addr(t.receiver)} ({_WHY.get(t.closed, t.closed)})"
     elif t.outcome == ABANDONED:
         text = f"abandoned: no MISSION_ACK ({_WHY.get(t.closed, t.closed)}); {got}; {miss}"
@@ -75,8 +76,11 @@ def event_text(ev: Event, dialect: Dialect) -> str:
     mtype = enum_name(dialect, "MAV_MISSION_TYPE", ev.mission_type)
     who = f"from {addr(ev.sender)} to {addr(ev.target)}"
     answer = f"MISSION_ACK {result_name(dialect, ev.ack.result)}" if ev.ack is not None else "no MISSION_ACK"
+    if ev.addressed is not None and ev.addressed != ev.target:
+        who += f" (addressed to {addr(ev.addressed)})"
     if ev.kind == "clear-all":
-        return f"MISSION_CLEAR_ALL {mtype} {who}: {answer}"
+        again = f" ({len(ev.repeats)} more time(s))" if ev.repeats else ""
+        return f"MISSION_CLEAR_ALL {mtype} {who}: {answer}{again}"
     if ev.kind == "request-list":
         return f"MISSION_REQUEST_LIST {mtype} {who} answered by no MISSION_COUNT: {answer}"
     if ev.kind == "set-current":

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from mavscope.analysis.mission.choose import WHAT, Cleared, choose
 from mavscope.analysis.mission.describe import event_text, result_name
 from mavscope.analysis.mission.model import (
     COMPLETE,
@@ -60,6 +61,8 @@ def transfer_json(t: Transfer, dialect: Dialect) -> dict[str, object]:
     return {
         "from": list(t.sender), "to": list(t.receiver), "direction": t.direction,
         "direction_basis": t.direction_basis,
+        "addressed_to": list(t.addressed) if t.addressed is not None else list(t.receiver),
+        "partial": [t.first, t.count - 1] if t.partial else None,
         "mission_type": enum_name(dialect, "MAV_MISSION_TYPE", t.mission_type), "mission_type_id": t.mission_type,
         "count": t.count, "complete": t.complete, "outcome": t.outcome, "reason": t.reason,
         "result": result_name(dialect, t.result), "closed": t.closed,
@@ -77,10 +80,12 @@ def transfer_json(t: Transfer, dialect: Dialect) -> dict[str, object]:
 def event_json(ev: Event, dialect: Dialect) -> dict[str, object]:
     return {
         "kind": ev.kind, "from": list(ev.sender), "to": list(ev.target),
+        "addressed_to": list(ev.addressed) if ev.addressed is not None else list(ev.target),
         "mission_type": enum_name(dialect, "MAV_MISSION_TYPE", ev.mission_type), "mission_type_id": ev.mission_type,
         "time": ev.time, "frames": ev.frames,
         "result": result_name(dialect, ev.ack.result) if ev.ack is not None else None,
         "ack_frame": ev.ack.record if ev.ack is not None else None,
+        "repeated_ack_frames": [a.record for a in ev.repeats],
         "seq": ev.seq, "reported_seq": ev.reported, "confirmed": ev.confirmed, "reply_frame": ev.reply_frame,
         "messages": dict(ev.messages), "seqs": ev.seqs,
         "text": event_text(ev, dialect),
@@ -105,19 +110,24 @@ class PlanExport:
     vehicle_type: int
     home_source: str
     warnings: list[str] = field(default_factory=list)
+    # "mission", "fence", "rally" -> the vehicle holds none since: {"how", "at", "frame", "transfer",
+    # "event", "history"} (choose.py)
+    cleared: dict[str, Cleared] = field(default_factory=dict)
+    vehicle: list[int] | None = None  # the vehicle whose plan this is
 
     def json(self) -> dict[str, object]:
         def n(i: int | None) -> int | None:
             return None if i is None else i + 1  # numbered as the text output numbers transfers
 
         return {"mission_transfer": n(self.mission), "fence_transfer": n(self.fence), "rally_transfer": n(self.rally),
+                "vehicle": self.vehicle, "cleared": self.cleared,
                 "firmwareType": self.firmware_type, "vehicleType": self.vehicle_type,
                 "home_source": self.home_source, "warnings": self.warnings}
 
 
 def pick(transfers: list[Transfer], mtype: int) -> int | None:
-    """The transfer of `mtype` to export: the last complete one with items, else the last with every item,
-    else the last with any item."""
+    """The best transfer of `mtype` there is (the TUI's choice; the plan's is choose.py): the last complete
+    one with items, else the last with every item, else the last with any item."""
     best: tuple[int, int] | None = None
     for i, t in enumerate(transfers):
         if t.mission_type == mtype and t.items:
@@ -210,19 +220,26 @@ def _fence(t: Transfer, warnings: list[str]) -> dict[str, object]:
     return doc
 
 
-def to_plan(log: MissionLog, dialect: Dialect) -> PlanExport | None:
-    """A QGroundControl .plan (JSON, version 1) from the mission, fence and rally transfers `pick` chooses;
-    None when no transfer has items."""
+def to_plan(log: MissionLog, dialect: Dialect, chosen: int | None = None) -> PlanExport | None:
+    """A QGroundControl .plan (JSON, version 1) of what one vehicle holds at the end of the capture
+    (choose.py; `chosen`, an index into log.transfers, exports that transfer for its type instead); None
+    when no transfer has items."""
     transfers = log.transfers
-    mi, fi, ri = pick(transfers, 0), pick(transfers, 1), pick(transfers, 2)
-    first = next((i for i in (mi, fi, ri) if i is not None), None)
-    if first is None:
+    if not any(t.items for t in transfers):
         return None
-    warnings: list[str] = []
+    choice = choose(log, chosen)
+    warnings = choice.warnings
+    secs = choice.sections
+    mi, fi, ri = secs[0].transfer, secs[1].transfer, secs[2].transfer
     for i, what in ((mi, "mission"), (fi, "fence"), (ri, "rally")):
         if i is not None and transfers[i].outcome != COMPLETE:
             warnings.append(f"the exported {what} (transfer {i + 1}) is incomplete: {transfers[i].reason}")
-    vehicle, hb = _vehicle(log, transfers[first])
+    first = next((i for i in (mi, fi, ri) if i is not None), None)
+    if first is not None:
+        vehicle, hb = _vehicle(log, transfers[first])
+    else:
+        vehicle = choice.vehicle or (0, 0)
+        hb = log.heartbeat_of(vehicle)
     if hb is None:
         warnings.append(f"no HEARTBEAT from the vehicle {vehicle[0]}/{vehicle[1]}: firmwareType and vehicleType "
                         f"0 (generic)")
@@ -231,8 +248,9 @@ def to_plan(log: MissionLog, dialect: Dialect) -> PlanExport | None:
     items: list[object] = []
     home: list[object] | None = None
     source = ""
-    if mi is not None:
-        mission = transfers[mi]
+    mission_items = secs[0].items
+    if mission_items is not None:
+        mission = mission_items
         seqs = sorted(mission.items)
         if ardupilot:  # item 0 is home
             seqs = [s for s in seqs if s != 0]
@@ -246,18 +264,19 @@ def to_plan(log: MissionLog, dialect: Dialect) -> PlanExport | None:
         items = [_simple_item(mission.items[s], s if ardupilot else s + 1) for s in seqs]
     if home is None and vehicle[0] in log.homes:
         home, source = list(log.homes[vehicle[0]]), "HOME_POSITION"
-    if home is None and mi is not None:
-        located = [it for _, it in sorted(transfers[mi].items.items()) if is_global(it.frame) and (it.x or it.y)]
+    if home is None and mission_items is not None:
+        located = [it for _, it in sorted(mission_items.items.items()) if is_global(it.frame) and (it.x or it.y)]
         if located:
             home, source = [located[0].x, located[0].y, 0.0], "first item's position"
             warnings.append("plannedHomePosition is the first item's position at altitude 0 (no HOME_POSITION)")
     if home is None:
         home, source = [0, 0, 0], "none"
         warnings.append("no home position in the capture: plannedHomePosition is 0, 0, 0")
-    fence = _fence(transfers[fi], warnings) if fi is not None else {"circles": [], "polygons": [], "version": 2}
+    fence_items, rally_items = secs[1].items, secs[2].items
+    fence = _fence(fence_items, warnings) if fence_items is not None else {"circles": [], "polygons": [], "version": 2}
     points: list[object] = []
-    if ri is not None:
-        for seq, it in sorted(transfers[ri].items.items()):
+    if rally_items is not None:
+        for seq, it in sorted(rally_items.items.items()):
             where = _position(it)
             if it.command != RALLY_POINT:
                 warnings.append(f"rally item {seq}: command {it.command} is not a rally point: left out")
@@ -276,4 +295,6 @@ def to_plan(log: MissionLog, dialect: Dialect) -> PlanExport | None:
         "rallyPoints": {"points": points, "version": 2},
         "version": 1,
     }
-    return PlanExport(plan, mi, fi, ri, firmware, vehicle_type, source, warnings)
+    cleared = {WHAT[m]: sec.cleared for m, sec in secs.items() if sec.cleared is not None}
+    return PlanExport(plan, mi, fi, ri, firmware, vehicle_type, source, warnings, cleared,
+                      None if choice.vehicle is None else list(choice.vehicle))

@@ -30,8 +30,16 @@ ABANDONED = "abandoned"  # no ACK, items missing: a new transfer restarted it, i
 
 
 def same(a: Addr, b: Addr) -> bool:
-    """Whether two (sysid, compid) name the same party; component 0 (MAV_COMP_ID_ALL) matches any."""
-    return a[0] == b[0] and (a[1] == b[1] or a[1] == 0 or b[1] == 0)
+    """Whether two (sysid, compid) can name the same party: a target of system 0 is every system, of
+    component 0 (MAV_COMP_ID_ALL) every component (the MAVLink routing rules: a message to system 0 is a
+    broadcast, ArduPilot's MAVLink_routing and PX4's mavlink receiver read it as theirs), so 0/0 matches
+    anyone and 1/0 any component of system 1."""
+    return (a[0] == b[0] or a[0] == 0 or b[0] == 0) and (a[1] == b[1] or a[1] == 0 or b[1] == 0)
+
+
+def broadcast(a: Addr) -> bool:
+    """Whether a target names more than one party (system or component 0)."""
+    return a[0] == 0 or a[1] == 0
 
 
 @dataclass
@@ -78,6 +86,12 @@ class Transfer:
     count: int
     start: float | None
     order: int = 0  # creation order among transfers and events
+    # the target the MISSION_COUNT (or MISSION_WRITE_PARTIAL_LIST) named: the receiver is whoever answered
+    # it, which a broadcast target (system or component 0) leaves open until someone does
+    addressed: Addr | None = None
+    first: int = 0  # the first seq transferred: start_index of a MISSION_WRITE_PARTIAL_LIST, else 0
+    partial: bool = False  # a MISSION_WRITE_PARTIAL_LIST upload (items first..count-1 of the mission)
+    opened: int = 0  # how many of `frames` opened it (its COUNT, copies sent before an answer, a REQUEST_LIST)
     frames: list[int] = field(default_factory=list)
     direction: str = ""  # "upload" (to the vehicle), "download" (from it), "unknown"
     direction_basis: str = ""  # "request-list", "heartbeat", "component-id", "none"
@@ -102,12 +116,17 @@ class Transfer:
 
     @property
     def missing(self) -> list[list[int]]:
-        """[[first, last], ...]: the runs of seqs below `count` with no item in the capture."""
-        return missing_runs(self.items, self.count)
+        """[[first, last], ...]: the runs of seqs `first`..`count`-1 with no item in the capture."""
+        return [[max(a, self.first), b] for a, b in missing_runs(self.items, self.count) if b >= self.first]
 
     @property
     def missing_count(self) -> int:
-        return self.count - sum(1 for s in self.items if 0 <= s < self.count)
+        return max(0, self.count - self.first) - sum(1 for s in self.items if self.first <= s < self.count)
+
+    @property
+    def answered(self) -> bool:
+        """Whether the receiver has answered (a request, an ACK) or the sender gone on (an item)."""
+        return bool(self.requests or self.items or self.acks)
 
     @property
     def nacks(self) -> list[Ack]:
@@ -149,7 +168,7 @@ class Event:
 
     kind: str  # "clear-all", "set-current", "request-list", "unmatched-ack", "orphan"
     sender: Addr
-    target: Addr
+    target: Addr  # clear-all: the party that answered, once one did
     mission_type: int
     time: float | None
     order: int
@@ -162,6 +181,9 @@ class Event:
     messages: dict[str, int] = field(default_factory=dict)  # orphan: message name -> frames
     seqs: list[int] = field(default_factory=list)  # orphan: item seqs requested or sent
     last: float | None = None
+    repeats: list[Ack] = field(default_factory=list)  # clear-all: the same answer again (old ArduPilot sent it 3 times)
+    answered_by: list[Addr] = field(default_factory=list)  # request-list to a broadcast target: who sent a COUNT
+    addressed: Addr | None = None  # clear-all, request-list: the target the message named
 
 
 @dataclass

@@ -2,13 +2,20 @@
 open exchanges, the last HEARTBEAT and HOME_POSITION of each system, a few recent frames per sender).
 
 A transfer opens with a MISSION_COUNT from the system holding the items to the one that will request
-them, per mission type (0 mission, 1 fence, 2 rally). MISSION_REQUEST(_INT), MISSION_ITEM(_INT) and
-MISSION_ACK join it when both ends and the mission type match (component 0 matches any component) and
-it has not been silent for TRANSFER_TIMEOUT. A MISSION_ACK ACCEPTED from the receiver closes it. Any
-other ACK is a NACK that decides the outcome only if nothing of the transfer follows it: ArduPilot
-answers an item out of sequence with MAV_MISSION_INVALID_SEQUENCE and requests again, PX4 answers a
-GCS that cannot do MISSION_ITEM_INT with MAV_MISSION_UNSUPPORTED and switches. A new MISSION_COUNT (or
-MISSION_REQUEST_LIST) between the same two systems for the same type restarts the exchange.
+them, per mission type (0 mission, 1 fence, 2 rally), or with a MISSION_WRITE_PARTIAL_LIST (items
+start..end, as Mission Planner and MAVProxy's `wp move` send it). MISSION_REQUEST(_INT) (either, as
+requested) and MISSION_ITEM(_INT) (either, mixed) join it when the mission type matches, it has not been
+silent for TRANSFER_TIMEOUT and both ends fit: a target of system or component 0 is a broadcast
+(model.same), and the party that answers a COUNT is its receiver whatever the COUNT's target said
+(`answers.Answers.answering`: a legacy MAVLink 1 upload to 0/0 answered by system 10; a COUNT to 1/190
+answered by PX4's autopilot 1/1). A MISSION_ACK ACCEPTED from the receiver closes it; which operation an
+ACK answers is the protocol's state per vehicle (answers.py: the ACK of a MISSION_CLEAR_ALL that arrives
+after the next COUNT answers the clear). Any other ACK is a NACK that decides the outcome only if nothing
+of the transfer follows it: ArduPilot answers an item out of sequence with MAV_MISSION_INVALID_SEQUENCE
+and requests again, PX4 answers a GCS that cannot do MISSION_ITEM_INT with MAV_MISSION_UNSUPPORTED and
+switches. A new MISSION_COUNT (or MISSION_REQUEST_LIST) between the same two systems for the same type
+restarts the exchange; the same COUNT again before any answer is a retry (Mission Planner's setWPTotal
+resends it 3 times at 700 ms, QGroundControl's PlanManager 5 times at its ack timeout).
 
 The direction is `download` when the receiver asked for the items with MISSION_REQUEST_LIST, otherwise it
 comes from the HEARTBEATs (a vehicle sending the items: download; a GCS: upload), else from component ids
@@ -22,18 +29,17 @@ from collections import deque
 from collections.abc import Iterable
 from typing import cast
 
+from mavscope.analysis.mission.answers import Answers
 from mavscope.analysis.mission.describe import reason
 from mavscope.analysis.mission.model import (
-    MAV_MISSION_ACCEPTED,
-    MAV_MISSION_TYPE_ALL,
     OPEN_MAX,
     TRANSFER_TIMEOUT,
-    Ack,
     Addr,
     Event,
     Item,
     MissionLog,
     Transfer,
+    broadcast,
     heartbeat_of,
     role,
     same,
@@ -45,7 +51,7 @@ from mavscope.mavlink.semantics import int_coordinate
 
 MISSION_MESSAGES = frozenset({"MISSION_COUNT", "MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ITEM",
                               "MISSION_ITEM_INT", "MISSION_ACK", "MISSION_REQUEST_LIST", "MISSION_CLEAR_ALL",
-                              "MISSION_SET_CURRENT"})
+                              "MISSION_SET_CURRENT", "MISSION_WRITE_PARTIAL_LIST"})
 # Every message the reconstruction reads: the mission protocol, MISSION_CURRENT (the answer to
 # MISSION_SET_CURRENT), HEARTBEAT (who is a vehicle), HOME_POSITION (the plan's home).
 TRACKED_MESSAGES = MISSION_MESSAGES | {"MISSION_CURRENT", "HEARTBEAT", "HOME_POSITION"}
@@ -73,10 +79,11 @@ def _item(name: str, fields: dict[str, object], record: int) -> Item:
                 int(num.get("current", 0)), int(num.get("autocontinue", 1)), name, [record])
 
 
-class MissionTracker:
+class MissionTracker(Answers):
     """Feed frames in capture order (`feed`), then `finish()` for the MissionLog."""
 
     def __init__(self, dialect: Dialect) -> None:
+        super().__init__()
         self.dialect = dialect
         self.transfers: list[Transfer] = []
         self.events: list[Event] = []
@@ -148,6 +155,9 @@ class MissionTracker:
                   mtype: int) -> object:
         if name == "MISSION_COUNT":
             return self._count(f, me, tgt, mtype, _num(fields, "count"))
+        if name == "MISSION_WRITE_PARTIAL_LIST":
+            start, end = _num(fields, "start_index"), _num(fields, "end_index")
+            return self._count(f, me, tgt, mtype, end + 1 if end >= start >= 0 else max(start, 0), max(start, 0))
         if name == "MISSION_REQUEST_LIST":
             return self._request_list(f, me, tgt, mtype)
         if name in ("MISSION_REQUEST", "MISSION_REQUEST_INT"):
@@ -191,7 +201,8 @@ class MissionTracker:
         for ev in (x for x in due if isinstance(x, Event)):
             if ev.kind == "request-list":
                 self._unlist(ev)
-                self._event(ev)
+                if not ev.answered_by:  # a broadcast one some vehicle answered is in its downloads
+                    self._event(ev)
             elif ev.kind == "clear-all":
                 self.clears.remove(ev)
             elif ev.kind == "set-current":
@@ -233,28 +244,44 @@ class MissionTracker:
                 return None
         return None
 
-    def _count(self, f: Frame, me: Addr, tgt: Addr, mtype: int, count: int) -> Transfer:
+    def _count(self, f: Frame, me: Addr, tgt: Addr, mtype: int, count: int, first: int | None = None) -> Transfer:
+        """A MISSION_COUNT (`first` None) or a MISSION_WRITE_PARTIAL_LIST of items `first`..`count`-1."""
+        partial = first is not None
         t = self._find(mtype, me, tgt)
-        if t is not None and t.count == count and not t.requests and not t.items and not t.acks:
+        if (t is not None and t.count == count and t.partial == partial and t.first == (first or 0)
+                and not t.answered and t.addressed == tgt):
             t.count_resent += 1  # the same COUNT again: the receiver did not answer yet
             t.touch(f.record, f.time)
+            t.opened = len(t.frames)
             return t
         for old in self.open.between(mtype, me, tgt):
             self._close(old, "restarted")
         self.order += 1
-        t = Transfer(me, tgt, mtype, count, f.time, self.order)
+        t = Transfer(me, tgt, mtype, count, f.time, self.order, addressed=tgt, first=first or 0, partial=partial)
         # the first REQUEST_LIST of this type to this system (any component) from the COUNT's target
-        ev = self.listed.first(mtype, tgt, (me[0], 0))
+        ev = None if partial else self.listed.first(mtype, tgt, (me[0], 0))
         if ev is not None:
-            self._unlist(ev)
+            if ev.addressed is not None and broadcast(ev.addressed):  # other vehicles may answer it too
+                if len(ev.answered_by) < 64:
+                    ev.answered_by.append(me)
+            else:
+                self._unlist(ev)
             t.direction, t.direction_basis, t.receiver = "download", "request-list", ev.sender
             t.frames.extend(ev.frames)
         t.touch(f.record, f.time)
+        t.opened = len(t.frames)
+        if broadcast(t.receiver):
+            self.families[(me, mtype)] = self.last_family[mtype] = [t]
+        self.adopt(t)
+        return t
+
+    def adopt(self, t: Transfer) -> None:
+        """Follow a new transfer."""
         self.transfers.append(t)
         self.open.add(t)
+        self.deadlines.push(t)
         if len(self.open) > OPEN_MAX:
             self._close(self.open.oldest(), "evicted")
-        return t
 
     def _request_list(self, f: Frame, me: Addr, tgt: Addr, mtype: int) -> object:
         for old in self.open.matching(mtype, tgt, me):
@@ -266,6 +293,7 @@ class MissionTracker:
         ev = self.lists.get(key)
         if ev is None:
             ev = self.lists[key] = self._new_event("request-list", f, me, tgt, mtype)
+            ev.addressed = tgt
             self.listed.add(ev)
         else:
             ev.frames.append(f.record)
@@ -280,39 +308,44 @@ class MissionTracker:
         t.touch(f.record, f.time)
 
     def _request(self, f: Frame, name: str, me: Addr, tgt: Addr, mtype: int, seq: int) -> object:
-        t = self._find(mtype, tgt, me)
-        if t is None:
+        found, how = self.answering(f, mtype, tgt, me)
+        if found is None:
             return self._stray(f, name, me, tgt, mtype, seq)
-        if t.receiver[1] == 0:
-            narrow(self.open, t, me)  # the COUNT went to component 0: the component that answers is the receiver
+        t = self.take(found, how, me)
         self._continue(t, f)
         t.requests.append(seq)
         t.max_request = max(t.max_request, seq)
         return t
 
     def _item(self, f: Frame, name: str, fields: dict[str, object], me: Addr, tgt: Addr, mtype: int) -> object:
-        t = self._find(mtype, me, tgt)
         seq = _num(fields, "seq")
-        if t is None:
+        # A broadcast item reaches every party answering the broadcast COUNT; an addressed one its party
+        found = self.open.matching(mtype, me, tgt, exact_sender=True)
+        if not found:
             return self._stray(f, name, me, tgt, mtype, seq)
-        if t.receiver[1] == 0 and tgt[1] != 0:
-            narrow(self.open, t, tgt)
-        self._continue(t, f)
-        item = _item(name, fields, f.record)
+        for t in (found if broadcast(tgt) else found[-1:]):
+            if broadcast(t.receiver) and not broadcast(tgt):
+                narrow(self.open, t, tgt)  # no answer in the capture: the items name the receiver
+            self._continue(t, f)
+            self._add_item(t, _item(name, fields, f.record), seq)
+            if t is not found[-1]:
+                self.deadlines.push(t)
+        return found[-1]
+
+    def _add_item(self, t: Transfer, item: Item, seq: int) -> None:
         old = t.items.get(seq)
         if old is None:
             t.items[seq] = item
-            return t
+            return
         t.resent[seq] = t.resent.get(seq, 0) + 1
         if old.content() != item.content():
             t.resent_changed.add(seq)
         if t.max_request > seq:  # the receiver had moved on: this copy answers nothing, the earlier one stays
-            old.frames.append(f.record)
+            old.frames.append(item.frames[0])
         else:  # a copy the receiver asked for again: it replaces the earlier one
             old.frames.extend(item.frames)  # in place: a copy per resend was quadratic in the resends
             item.frames = old.frames
             t.items[seq] = item
-        return t
 
     def _stray(self, f: Frame, name: str, me: Addr, tgt: Addr, mtype: int, seq: int) -> object:
         late = self._late(f, mtype, me, tgt)
@@ -333,60 +366,16 @@ class MissionTracker:
             ev.seqs.append(seq)
         return ev
 
-    def _ack(self, f: Frame, me: Addr, tgt: Addr, mtype: int, result: int) -> object:
-        ack = Ack(me, result, f.record, f.time)
-        # The operations this ACK can answer, between exactly these two systems, for this mission type;
-        # the latest one started wins.
-        cands: list[tuple[int, object]] = [
-            (x.order, x) for x in (self.open.latest(mtype, tgt, me), self.open.latest(mtype, me, tgt),
-                                   *(self.clears.latest(m, tgt, me) for m in {mtype, MAV_MISSION_TYPE_ALL}),
-                                   self.listed.latest(mtype, tgt, me)) if x is not None]
-        if not cands:
-            late = self._late(f, mtype, me, tgt)
-            if late is not None:
-                ack.role = "late"
-                late.acks.append(ack)
-                late.late_frames.append(f.record)
-                return late
-            ev = self._new_event("unmatched-ack", f, me, tgt, mtype)
-            ev.ack = ack
-            return self._event(ev)
-        target = max(cands, key=lambda c: c[0])[1]
-        if isinstance(target, Event):
-            target.ack = ack
-            target.frames.append(f.record)
-            if target.kind == "clear-all":
-                self.clears.remove(target)
-                return target
-            self._unlist(target)  # a MISSION_REQUEST_LIST answered with an ACK instead of a COUNT (refused)
-            return self._event(target)
-        t = cast("Transfer", target)
-        from_receiver = same(me, t.receiver) and me != t.sender
-        if from_receiver and t.receiver[1] == 0:
-            narrow(self.open, t, me)
-        t.acks.append(ack)
-        t.touch(f.record, f.time)
-        if result == MAV_MISSION_ACCEPTED and from_receiver:
-            t.result = result
-            if t.pending is not None:
-                t.pending.role = "continued"
-            t.pending = None
-            self._close(t, "ack")
-        else:
-            if t.pending is not None:
-                t.pending.role = "repeated"
-            t.pending = ack
-        return t
-
     # -- other operations ----------------------------------------------------------------------------
 
     def _clear_all(self, f: Frame, me: Addr, tgt: Addr, mtype: int) -> Event:
         ev = self.clears.first(mtype, me, tgt, exact_sender=True)
-        if ev is not None:
+        if ev is not None and ev.addressed == tgt:
             ev.frames.append(f.record)  # sent again: no answer yet
             ev.last = f.time
             return ev
         ev = self._event(self._new_event("clear-all", f, me, tgt, mtype))
+        ev.addressed = tgt
         self.clears.add(ev)
         return ev
 
@@ -400,13 +389,14 @@ class MissionTracker:
         return ev
 
     def _mission_current(self, f: Frame, seq: int) -> None:
-        ev = self.set_current.get(f.sysid)
+        key = f.sysid if f.sysid in self.set_current else 0  # 0: a MISSION_SET_CURRENT to every system
+        ev = self.set_current.get(key)
         if ev is None:
             return
         ev.reported, ev.reply_frame = seq, f.record
         if seq == ev.seq:
             ev.confirmed = True
-            del self.set_current[f.sysid]
+            del self.set_current[key]
 
     def _settle(self, ev: Event) -> None:
         if ev.confirmed is None and ev.reported is not None:
@@ -418,7 +408,8 @@ class MissionTracker:
         for t in self.open:
             self._close(t, "timeout" if self._stale(t.last, self.now) else "end")
         for ev in self.lists.values():
-            self._event(ev)
+            if not ev.answered_by:
+                self._event(ev)
         self.lists.clear()
         self.listed = open_events()
         for ev in self.set_current.values():

@@ -5,7 +5,7 @@ systems exchanging MISSION_COUNTs); scanning them at every frame, to find a fram
 what fell silent, took 200,000 such frames 88 s. Here:
 
 - `PartyIndex` indexes the open transfers (and the events awaiting an answer) by mission type, sender and
-  receiver, component 0 matching any component (`model.same`), so a frame finds its transfers in a few
+  receiver, system or component 0 matching any (`model.same`), so a frame finds its transfers in a few
   lookups;
 - `Deadlines` hands back what has been silent for longer than a timeout, oldest silence first, from a heap
   of (last time, object) entries pushed whenever an object's time changes; entries of objects gone or
@@ -20,13 +20,21 @@ from __future__ import annotations
 import heapq
 import math
 from bisect import bisect_left, insort
+from collections import deque
 from collections.abc import Callable, Iterable, Iterator
+from functools import partial
+from itertools import product, repeat
+from operator import attrgetter, itemgetter
 from typing import Generic, Protocol, TypeVar
 
 from mavscope.analysis.mission.model import Event, Transfer
 from mavscope.mavlink.frame import Addr
 
-ANY = -1  # the index's component key that any component matches
+ANY = -1  # the index's system or component key that any system or component matches
+
+
+def _keys_of(v: int) -> tuple[int, ...]:
+    return (ANY,) if v == 0 else (v, 0)
 
 
 class Party(Protocol):
@@ -37,8 +45,7 @@ class Party(Protocol):
     order: int
 
 
-def _order(t: Party) -> int:
-    return t.order
+_order = attrgetter("order")  # a Party's order (in C: the index's sorts and bisections run no Python line)
 
 
 def _receiver(t: Transfer) -> Addr:
@@ -74,10 +81,9 @@ class PartyIndex(Generic[P]):
         return next(iter(self._all.values()))
 
     def _keys(self, x: P) -> Iterator[tuple[int, int, int, int, int]]:
+        """Each end filed under its own system and component and under ANY for each (16 keys)."""
         (ssys, scomp), (rsys, rcomp) = x.sender, self._other(x)
-        for sk in (scomp, ANY):
-            for rk in (rcomp, ANY):
-                yield x.mission_type, ssys, rsys, sk, rk
+        return product((x.mission_type,), (ssys, ANY), (rsys, ANY), (scomp, ANY), (rcomp, ANY))
 
     def add(self, x: P) -> None:
         self._all[x.order] = x
@@ -89,8 +95,8 @@ class PartyIndex(Generic[P]):
             self._unfile(x)
 
     def _file(self, x: P) -> None:
-        for key in self._keys(x):
-            insort(self._by.setdefault(key, []), x, key=_order)
+        buckets = map(self._by.setdefault, self._keys(x), map(list, repeat((), 16)))
+        deque(map(partial(insort, x=x, key=_order), buckets), maxlen=0)  # insort x into each, in C
 
     def _unfile(self, x: P) -> None:
         for key in self._keys(x):
@@ -99,15 +105,15 @@ class PartyIndex(Generic[P]):
             if not bucket:
                 del self._by[key]
 
-    def _buckets(self, mtype: int, sender: Addr, other: Addr, exact_sender: bool) -> Iterator[list[P]]:
-        """The buckets of what `same` matches to both ends (`exact_sender`: the sender's component equal):
-        disjoint, their union exact."""
-        sks = (sender[1],) if exact_sender else (ANY,) if sender[1] == 0 else (sender[1], 0)
-        for sk in sks:
-            for rk in ((ANY,) if other[1] == 0 else (other[1], 0)):
-                bucket = self._by.get((mtype, sender[0], other[0], sk, rk))
-                if bucket:
-                    yield bucket
+    def _buckets(self, mtype: int, sender: Addr, other: Addr, exact_sender: bool) -> list[list[P]]:
+        """The buckets of what `same` matches to both ends (`exact_sender`: the sender equal): disjoint,
+        their union exact. Per field: a query of 0 takes the ANY bucket (everything), any other value its
+        own bucket and that of the objects whose field is 0 (a broadcast end). (map and filter: the 16
+        lookups run in C.)"""
+        ss = (sender[0],) if exact_sender else _keys_of(sender[0])
+        sks = (sender[1],) if exact_sender else _keys_of(sender[1])
+        return list(filter(None, map(self._by.get, product((mtype,), ss, _keys_of(other[0]), sks,
+                                                              _keys_of(other[1])))))
 
     def matching(self, mtype: int, sender: Addr, other: Addr, exact_sender: bool = False) -> list[P]:
         """Those of `mtype` from `sender` to `other`, oldest first."""
@@ -117,11 +123,11 @@ class PartyIndex(Generic[P]):
 
     def latest(self, mtype: int, sender: Addr, other: Addr) -> P | None:
         """The one of `mtype` from `sender` to `other` that began last."""
-        return max((b[-1] for b in self._buckets(mtype, sender, other, False)), key=_order, default=None)
+        return max(map(itemgetter(-1), self._buckets(mtype, sender, other, False)), key=_order, default=None)
 
     def first(self, mtype: int, sender: Addr, other: Addr, exact_sender: bool = False) -> P | None:
         """The one of `mtype` from `sender` to `other` that began first."""
-        return min((b[0] for b in self._buckets(mtype, sender, other, exact_sender)), key=_order, default=None)
+        return min(map(itemgetter(0), self._buckets(mtype, sender, other, exact_sender)), key=_order, default=None)
 
     def between(self, mtype: int, a: Addr, b: Addr) -> list[P]:
         """Those of `mtype` between `a` and `b`, either way, oldest first."""
@@ -138,14 +144,24 @@ def open_events() -> PartyIndex[Event]:
 
 
 def narrow(index: PartyIndex[Transfer], t: Transfer, receiver: Addr) -> None:
-    """Set the receiver of `t` (open or not) to `receiver`, which `same` matches with the one it had; an
-    open transfer keeps its place among the open ones."""
+    """Set the receiver of `t` (open or not) to `receiver` (the party that answered); an open transfer
+    keeps its place among the open ones."""
     if t not in index:
         t.receiver = receiver
         return
     index._unfile(t)
     t.receiver = receiver
     index._file(t)
+
+
+def retarget(index: PartyIndex[Event], ev: Event, target: Addr) -> None:
+    """Set the target of an event (open or not) to the party that answered it."""
+    if ev not in index:
+        ev.target = target
+        return
+    index._unfile(ev)
+    ev.target = target
+    index._file(ev)
 
 
 class Timed(Protocol):
