@@ -11,12 +11,15 @@ from __future__ import annotations
 
 import os
 import struct
+import sys
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from mavscope.errors import DialectError
 from mavscope.mavlink.dialect_cache import Record, cache_dir, record_of
+from mavscope.mavlink.dialect_check import MAX_FILES, MAX_INCLUDE_DEPTH, MAX_LOAD_BYTES, duplicates, include_path
+from mavscope.visible import visible
 
 # Wire type -> struct code (little-endian). `uint8_t_mavlink_version` is HEARTBEAT's constant field.
 _STRUCT_CODE = {
@@ -115,6 +118,8 @@ class MessageDef:
     crc_extra_byte: bytes = field(repr=False, compare=False)
     decode: Callable[[bytes], Decoded] = field(repr=False, compare=False)
     xml_order: tuple[str, ...] = ()  # field names in XML order (pymavlink's `fieldnames`; CSV columns)
+    # its char arrays that hold strings (wire order): those whose bytes after the NUL are noted (char-after-nul)
+    chars: tuple[FieldDef, ...] = field(default=(), repr=False, compare=False)
 
     def field(self, name: str) -> FieldDef | None:
         for f in self.fields:
@@ -139,8 +144,42 @@ def wire_format(fields: Iterable[FieldDef]) -> str:
 
 
 def char_text(raw: bytes) -> str:
-    """A char array's value. Same rule as pymavlink: trailing NULs go, undecodable bytes are shown escaped."""
+    """A char array's value: its bytes up to the first NUL (common.xml: PARAM_VALUE.param_id "terminated by
+    NULL if the length is less than 16"; pymavlink's generated messages keep `value.split(b"\\x00", 1)[0]`,
+    MAVLink's C++ library `strnlen`, C readers hand the array to C string functions), UTF-8 with undecodable
+    bytes shown escaped. The bytes after that NUL are no part of the value (`char_tail`)."""
+    end = raw.find(0)
+    return (raw if end < 0 else raw[:end]).decode("utf-8", errors="backslashreplace")
+
+
+def char_tail(raw: bytes) -> int:
+    """How many bytes of a char array follow the NUL that ends its value, up to its last byte that is not
+    NUL (0: only NULs, or none, follow it): what a sender put where no reader of the string looks."""
+    end = raw.find(0)
+    return 0 if end < 0 else max(0, len(raw.rstrip(b"\x00")) - end - 1)
+
+
+# char arrays that carry a value's bytes, not text: PARAM_EXT_*.param_value (the extended parameter protocol:
+# MAV_PARAM_EXT_TYPE says what its bytes are, a float's or an integer's little-endian bytes, text only for
+# CUSTOM), where a NUL is one of the value's bytes
+VALUE_BYTES = frozenset({("PARAM_EXT_VALUE", "param_value"), ("PARAM_EXT_SET", "param_value"),
+                         ("PARAM_EXT_ACK", "param_value")})
+
+
+def is_text(fd: FieldDef) -> bool:
+    """Whether char array `fd` holds a string (`char_text`), not a value's bytes (VALUE_BYTES: `bytes_text`)."""
+    return (fd.message, fd.name) not in VALUE_BYTES
+
+
+def bytes_text(raw: bytes) -> str:
+    """A char array that carries a value's bytes (VALUE_BYTES): all of them but the trailing NULs (the
+    sender's padding), UTF-8 with undecodable bytes shown escaped: a NUL inside is one of the bytes."""
     return raw.rstrip(b"\x00").decode("utf-8", errors="backslashreplace")
+
+
+def char_value(fd: FieldDef) -> Callable[[bytes], str]:
+    """How char array `fd`'s value is made from its bytes: `char_text`, or `bytes_text` for VALUE_BYTES."""
+    return char_text if is_text(fd) else bytes_text
 
 
 def _make_decoder(fields: tuple[FieldDef, ...], length: int) -> Callable[[bytes], Decoded]:
@@ -160,12 +199,13 @@ def _make_decoder(fields: tuple[FieldDef, ...], length: int) -> Callable[[bytes]
 
         return decode_simple
 
-    # (name, first index in the flat tuple, count, kind) with kind: 0 scalar, 1 string, 2 array
+    # (name, first index in the flat tuple, count, kind) with kind: 0 scalar, 1 string, 2 array, 3 a char
+    # array of a value's bytes
     plan: list[tuple[str, int, int, int]] = []
     i = 0
     for f in fields:
         if f.type == "char":
-            plan.append((f.name, i, 1, 1))
+            plan.append((f.name, i, 1, 1 if is_text(f) else 3))
             i += 1
         elif f.array_length:
             plan.append((f.name, i, f.array_length, 2))
@@ -185,6 +225,8 @@ def _make_decoder(fields: tuple[FieldDef, ...], length: int) -> Callable[[bytes]
                 out[name] = flat[start]
             elif kind == 1:
                 out[name] = char_text(flat[start])
+            elif kind == 3:
+                out[name] = bytes_text(flat[start])
             else:
                 out[name] = list(flat[start : start + count])
         return out
@@ -208,70 +250,132 @@ def _compile_message(m: list, source: str) -> MessageDef:
         crc_extra_byte=bytes((crc_extra,)),
         decode=_make_decoder(ftuple, length),
         xml_order=tuple(xml_order),
+        chars=tuple(f for f in ftuple if f.type == "char" and is_text(f)),
     )
 
 
 def _parse_files(root: Path, cache: Path | None = None) -> list[tuple[Path, Record]]:
     """The records of `root` and, breadth first, of every file it includes (from the cache in `cache`, a
-    directory, or parsed by pymavlink)."""
+    directory, or parsed by pymavlink), each once (an include cycle ends there, as in mavgen). Bounded:
+    at most MAX_FILES files, MAX_INCLUDE_DEPTH includes deep, MAX_LOAD_BYTES in all, every include inside
+    `root`'s folder (dialect_check.include_path)."""
+    top = root.resolve()
+    folder = top.parent
     done: dict[Path, Record] = {}
-    queue = [root.resolve()]
+    queue: list[tuple[Path, int, Path | None]] = [(top, 0, None)]
+    queued = {top}
+    total = 0
     while queue:
-        path = queue.pop(0)
-        if path in done:
-            continue
+        path, depth, by = queue.pop(0)
         if not path.is_file():
-            raise DialectError(f"{path}: dialect file not found")
+            raise DialectError(f"{path}: dialect file not found" + (f" (included by {by})" if by else ""))
+        if len(done) == MAX_FILES:
+            raise DialectError(f"{root}: cannot load dialect: it includes more than {MAX_FILES} files")
+        total += path.stat().st_size
+        if total > MAX_LOAD_BYTES:
+            raise DialectError(f"{root}: cannot load dialect: it and its includes are over {MAX_LOAD_BYTES:,} bytes")
         record = record_of(path, cache)
         done[path] = record
-        queue.extend((path.parent / inc).resolve() for inc in record["include"])
+        for inc in record["include"]:
+            target = include_path(path, inc, folder)
+            if target in queued:
+                continue
+            if depth == MAX_INCLUDE_DEPTH:
+                raise DialectError(f"{path}: cannot load dialect: includes nested more than {MAX_INCLUDE_DEPTH} deep")
+            queued.add(target)
+            queue.append((target, depth + 1, path))
     return list(done.items())
 
 
+# MAVLink's standard messages, which every dialect includes (common.xml and the files it includes): a
+# later file cannot redefine one of the base dialect's (mavgen refuses any dialect that does)
+STANDARD_FILES = frozenset({"common.xml", "standard.xml", "minimal.xml"})
+MAX_MESSAGES = 1 << 16  # messages of a Dialect, all files together (all.xml: 425; the native table: 2**20)
+MAX_ENTRIES = 1 << 16  # entries of one enum, all files together (MAV_CMD: 300; the native summary: 2**20)
+
+
 class Dialect:
-    """Messages and enums from one or more dialect XML files, merged; later files override earlier ones."""
+    """Messages and enums from one or more dialect XML files, merged (load: the rules for a definition that
+    meets an earlier one)."""
 
     def __init__(self) -> None:
         self.messages: dict[int, MessageDef] = {}
         self.by_name: dict[str, MessageDef] = {}
         self.enums: dict[str, EnumDef] = {}
         self.files: list[str] = []
-        self.overrides: list[str] = []  # "MSG (id) from A replaced by B" for each redefinition
+        self.standard: frozenset[int] = frozenset()  # ids no later file may redefine (load_dialect: the base's)
+        self.warnings: list[str] = []  # one line per definition a later file redefined or could not
+        self._entry_names: dict[str, str] = {}  # enum entry name -> its enum
 
     def load(self, path: str | os.PathLike[str], cache: Path | None = None) -> None:
         """Add every message and enum of `path` and of the files it includes (their parsed XML cached in
-        the directory `cache`, if given: mavscope.mavlink.dialect_cache)."""
+        the directory `cache`, if given: mavscope.mavlink.dialect_cache).
+
+        Within the file and its includes a name or id defined twice is refused, as mavgen refuses it
+        (dialect_check.duplicates). Against the files loaded before, a definition the same as an earlier
+        one (id, name, CRC_EXTRA) is that message; otherwise, each case said in one line of `warnings`:
+        a name never changes meaning (a message whose name an earlier message of another id has, an enum
+        entry whose name or value an earlier entry has, is not loaded: `-Y COMMAND_LONG` keeps meaning
+        message 76); a message id of MAVLink's standard messages (`standard`) keeps its definition; any
+        other id takes the later file's definition (a vendor's dialect for its own vehicles), its earlier
+        name then naming no message."""
         records = _parse_files(Path(path), cache)
+        duplicates(records)
         self.files.append(str(path))
         for file, record in records:
-            src = file.name
             for m in record["messages"]:
-                mid, name, crc_extra = m[0], m[1], m[2]
-                old = self.messages.get(mid)
-                if old is not None:
-                    if old.crc_extra == crc_extra and old.name == name:
-                        continue
-                    self.overrides.append(f"{old.name} ({mid}) from {old.source} replaced by {name} from {src}")
-                    self.by_name.pop(old.name, None)
-                md = _compile_message(m, src)
-                self.messages[md.id] = md
-                self.by_name[md.name] = md
+                self._add_message(m, file.name)
             for e in record["enums"]:
-                self._merge_enum(e)
+                self._merge_enum(e, file.name)
 
-    def _merge_enum(self, e: list) -> None:
+    def _add_message(self, m: list, src: str) -> None:
+        mid, name, crc_extra = m[0], m[1], m[2]
+        old, named = self.messages.get(mid), self.by_name.get(name)
+        if old is not None and old.crc_extra == crc_extra and old.name == name:
+            return
+        what = f"{src}: message {name} (id {mid})"
+        if named is not None and named.id != mid:
+            self.warnings.append(f"{what} not loaded: {name} is message id {named.id} of {named.source}")
+            return
+        if old is not None and mid in self.standard:
+            self.warnings.append(f"{what} not loaded: id {mid} is {old.name} of {old.source}, one of MAVLink's "
+                                 "standard messages")
+            return
+        if old is not None:
+            self.warnings.append(f"{what} replaces {old.name} of {old.source}")
+            self.by_name.pop(old.name, None)
+        elif len(self.messages) >= MAX_MESSAGES:
+            raise DialectError(f"{src}: cannot load dialect: more than {MAX_MESSAGES:,} messages in all")
+        md = _compile_message(m, src)
+        self.messages[md.id] = md
+        self.by_name[md.name] = md
+
+    def _merge_enum(self, e: list, src: str) -> None:
         name, bitmask, description, new_entries = e
         existing = self.enums.get(name)
         entries = dict(existing.entries) if existing else {}
         for entry_name, value, entry_description, params, param_enums in new_entries:
+            old, owner = entries.get(value), self._entry_names.get(entry_name)
+            if old is not None and old.name == entry_name:
+                continue  # the same entry: the earlier one's description and params are kept
+            what = f"{src}: enum entry {name}.{entry_name} = {value} not loaded:"
+            if old is not None:
+                self.warnings.append(f"{what} {value} is {name}.{old.name} of an earlier dialect")
+                continue
+            if owner is not None:
+                self.warnings.append(f"{what} {entry_name} is an entry of {owner} already")
+                continue
+            if len(entries) >= MAX_ENTRIES:
+                raise DialectError(f"{src}: cannot load dialect: enum {name} has more than {MAX_ENTRIES:,} entries")
             entries[value] = EnumEntry(entry_name, value, entry_description, tuple(map(tuple, params)),
                                        tuple(map(tuple, param_enums)))
+            self._entry_names[entry_name] = name
         self.enums[name] = EnumDef(
             name=name,
             bitmask=bitmask or bool(existing and existing.bitmask),
             entries=entries,
             by_name={en.name: en for en in entries.values()},
-            description=description,
+            description=(existing.description if existing and existing.description else description),
         )
 
     def enum_value(self, name: str) -> tuple[str, int] | None:
@@ -310,23 +414,39 @@ def default_dissectors_dir() -> Path:
     return checkout if checkout.is_dir() else package / "dissectors"
 
 
+_said: set[str] = set()  # the warnings written to stderr by this process (a dialect is loaded once per use)
+
+
+def _stderr(line: str) -> None:
+    if line not in _said:
+        _said.add(line)
+        sys.stderr.write("mavscope: " + visible(line) + "\n")
+
+
 def load_dialect(
     extra: Iterable[str | os.PathLike[str]] = (),
     *,
     base: str | os.PathLike[str] | None = None,
     dissectors: str | os.PathLike[str] | None = None,
     environ: Mapping[str, str] | None = None,
+    warn: Callable[[str], None] | None = None,
 ) -> Dialect:
     """The default dialect (pymavlink's all.xml), then every XML in `dissectors/`, then `extra` files.
     Each file's parsed XML comes from the cache `environ` (default os.environ) names, where it holds it
-    (mavscope.mavlink.dialect_cache.cache_dir: MAVSCOPE_CACHE_DIR, MAVSCOPE_NO_CACHE)."""
+    (mavscope.mavlink.dialect_cache.cache_dir: MAVSCOPE_CACHE_DIR, MAVSCOPE_NO_CACHE). The base's messages
+    from MAVLink's standard files (STANDARD_FILES) are `standard`. Each of the Dialect's `warnings` (a later
+    file's definition that meets an earlier one: Dialect.load) goes to `warn`, by default one line on
+    stderr, escaped, once per process."""
     cache = cache_dir(environ)
     d = Dialect()
     d.load(base if base is not None else pymavlink_dialect_path("all"), cache)
+    d.standard = frozenset(mid for mid, m in d.messages.items() if m.source in STANDARD_FILES)
     folder = Path(dissectors) if dissectors is not None else default_dissectors_dir()
     if folder.is_dir():
         for xml in sorted(folder.glob("*.xml")):
             d.load(xml, cache)
     for path in extra:
         d.load(path, cache)
+    for line in d.warnings:
+        (warn or _stderr)(line)
     return d

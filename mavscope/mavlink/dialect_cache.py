@@ -4,18 +4,20 @@ Parsing the XML (pymavlink's `mavparse`) is most of the cost of loading a dialec
 for all.xml and the 16 files it includes), paid by every run. `xml_record(xml)` turns one parsed file
 into a *record*: lists, strings, ints and bools only, exactly what `mavscope.mavlink.dialect` builds its
 messages and enums from. `record_of(path, directory)` gives a file's record, from the cache when it holds
-one, else parsed (and then stored).
+one, else parsed (and then stored). A file is read once (`read_dialect`: a regular file, bounded), checked
+(mavscope.mavlink.dialect_check: dialect files are input) and parsed from those very bytes.
 
 The cache is content-addressed: an entry is named by the SHA-256 of the file's bytes salted with the
-cache format, mavscope's version, this module's own source, pymavlink's version and parser file, and the
-Python version. Editing any XML (one in `dissectors/`, one a dialect includes) gives a new name, so a
-stale entry is never read; includes are resolved against the real path every run.
+cache format, mavscope's version, this module's and dialect_check's source, pymavlink's version and
+parser file, and the Python version. Editing any XML (one in `dissectors/`, one a dialect includes)
+gives a new name, so a stale entry is never read; includes are resolved against the real path every run.
 
 Trust: an entry is plain JSON (never pickle or marshal, which can run code or crash on crafted bytes)
 in a directory the user owns. It is read only when the directory and the file are owned by the user and
 not writable by group or others, the file is a regular file (not a symlink) under 16 MiB, its header
 names the expected key, the SHA-256 of its body matches the header, and the body has exactly the record's
-shape with consistent layouts (`valid_record`). Anything else is ignored and the XML parsed afresh.
+shape with consistent layouts and identifiers for names (`valid_record`). Anything else is ignored and
+the XML parsed afresh.
 Writing is best effort (a temporary file renamed into place); a read-only or missing directory only
 costs the parse. Each write keeps the directory bounded: at most MAX_ENTRIES entries, those least
 recently used removed first (an entry read a day or more after its last write or touch is touched; a new
@@ -34,12 +36,15 @@ import io
 import os
 import stat
 import sys
+import tempfile
 import time
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 from mavscope.errors import DialectError
+from mavscope.mavlink import dialect_check
+from mavscope.mavlink.dialect_check import MAX_ARRAY, MAX_FIELDS, MAX_FILE_BYTES, check_xml, names_valid
 
 CACHE_ENV = "MAVSCOPE_CACHE_DIR"
 NO_CACHE_ENV = "MAVSCOPE_NO_CACHE"
@@ -93,26 +98,79 @@ def xml_record(xml: Any) -> Record:
     return {"include": list(xml.include), "messages": messages, "enums": enums}
 
 
-def parse_xml(path: Path) -> Record:
-    """Parse one dialect file with pymavlink (v2.0 definitions) into its record."""
-    from pymavlink.generator import mavparse
-
+def read_dialect(path: Path) -> bytes:
+    """The bytes of the dialect file `path`: a regular file (never a FIFO, device or /proc file that would
+    block or never end) of at most dialect_check.MAX_FILE_BYTES, read once (DialectError otherwise)."""
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
     try:
-        declares_entities = b"<!ENTITY" in path.read_bytes()
+        fd = os.open(path, flags)
     except OSError as e:
         raise DialectError(f"{path}: cannot read dialect: {e.strerror or e}") from None
-    if declares_entities:
-        # no MAVLink dialect declares one; expat stops an expansion bomb only after some 8 MB of it, which
-        # mavparse's character handler (a string grown a piece at a time) took 35 s to take in
-        raise DialectError(f"{path}: cannot parse dialect: it declares XML entities (<!ENTITY), which MAVLink "
-                           "dialects do not use")
+    with os.fdopen(fd, "rb") as f:
+        try:
+            st = os.fstat(f.fileno())
+            if not stat.S_ISREG(st.st_mode):
+                raise DialectError(f"{path}: cannot read dialect: not a regular file")
+            data = f.read(MAX_FILE_BYTES + 1)
+        except OSError as e:
+            raise DialectError(f"{path}: cannot read dialect: {e.strerror or e}") from None
+    return data
+
+
+@contextlib.contextmanager
+def _copy_of(data: bytes, path: Path) -> Iterator[str]:
+    """A file name with the bytes `data` for mavparse to open: an anonymous in-memory file (Linux), else a
+    private temporary file, else (neither can be made: no /proc, a read-only temporary folder) `path`
+    itself, then read again after the parse (DialectError if it changed meanwhile)."""
+    fd = -1
+    with contextlib.suppress(OSError, AttributeError):
+        fd = os.memfd_create("mavscope-dialect", getattr(os, "MFD_CLOEXEC", 0))
+    if fd >= 0:
+        try:
+            os.write(fd, data)
+            name = f"/proc/self/fd/{fd}"
+            if os.path.exists(name):
+                yield name
+                return
+        finally:
+            os.close(fd)
     try:
-        # mavparse prints warnings about upstream XML to stdout; keep our output clean.
-        with contextlib.redirect_stdout(io.StringIO()):
-            xml = mavparse.MAVXML(str(path), "2.0")
-    except Exception as exc:  # mavparse raises bare Exceptions and ExpatErrors
-        raise DialectError(f"{path}: cannot parse dialect: {exc}") from exc
+        fd, copy = tempfile.mkstemp(prefix="mavscope-dialect-", suffix=".xml")  # mode 0600
+    except OSError:
+        yield str(path)
+        if read_dialect(path) != data:
+            raise DialectError(f"{path}: cannot load dialect: the file changed while it was read") from None
+        return
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        yield copy
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(copy)
+
+
+def parse_data(data: bytes, path: Path) -> Record:
+    """Parse the bytes `data` of the dialect file `path` with pymavlink (v2.0 definitions) into its record,
+    once they pass mavscope.mavlink.dialect_check (bounded time and memory, identifiers for names). The
+    parser reads a copy of those bytes (`_copy_of`): what is parsed is what was checked (and what names
+    the cache entry), whatever happens to the file meanwhile."""
+    from pymavlink.generator import mavparse
+
+    check_xml(data, str(path))
+    with _copy_of(data, path) as name:
+        try:
+            # mavparse prints warnings about upstream XML to stdout; keep our output clean.
+            with contextlib.redirect_stdout(io.StringIO()):
+                xml = mavparse.MAVXML(name, "2.0")
+        except Exception as exc:  # mavparse raises bare Exceptions and ExpatErrors
+            raise DialectError(f"{path}: cannot parse dialect: {exc}") from exc
     return xml_record(xml)
+
+
+def parse_xml(path: Path) -> Record:
+    """Parse one dialect file with pymavlink (v2.0 definitions) into its record (`parse_data`)."""
+    return parse_data(read_dialect(path), path)
 
 
 def cache_dir(environ: Mapping[str, str] | None = None) -> Path | None:
@@ -143,7 +201,8 @@ def _salt() -> bytes:
         from mavscope import __version__
 
         parser = os.stat(Path(pymavlink.__file__).parent / "generator" / "mavparse.py")
-        parts = [FORMAT, __version__.encode(), hashlib.sha256(Path(__file__).read_bytes()).digest(),
+        own = Path(__file__).read_bytes() + Path(dialect_check.__file__).read_bytes()
+        parts = [FORMAT, __version__.encode(), hashlib.sha256(own).digest(),
                  str(getattr(pymavlink, "__version__", "")).encode(), f"{parser.st_size}:{parser.st_mtime_ns}".encode(),
                  sys.version.encode()]
         _SALT = b"\0".join(parts) + b"\0"
@@ -157,20 +216,15 @@ def entry_key(data: bytes) -> str:
 
 def record_of(path: Path, directory: Path | None) -> Record:
     """The record of the dialect file `path`: cached in `directory` (None: no cache) or parsed."""
+    data = read_dialect(path)
     if directory is None:
-        return parse_xml(path)
-    try:
-        data = path.read_bytes()
-        key = entry_key(data)
-    except OSError:
-        return parse_xml(path)  # which reports the error as without a cache
+        return parse_data(data, path)
+    key = entry_key(data)
     cached = read_entry(directory, key)
     if cached is not None:
         return cached
-    record = parse_xml(path)
-    with contextlib.suppress(OSError):
-        if path.read_bytes() == data:  # the file parsed is the file named by the key
-            write_entry(directory, key, record)
+    record = parse_data(data, path)  # the bytes named by the key
+    write_entry(directory, key, record)
     return record
 
 
@@ -209,8 +263,6 @@ def read_entry(directory: Path, key: str) -> Record | None:
 def write_entry(directory: Path, key: str, record: Record) -> None:
     """Store `record` under `key`, best effort: nothing happens when the directory cannot be made private
     or written, or the record is not plain JSON."""
-    import tempfile
-
     import orjson
 
     try:
@@ -281,14 +333,17 @@ _ENUM = (str, bool, str, list)
 _ENTRY = (str, int, str, list, list)
 _PARAM = (int, str, str)
 _PARAM_ENUM = (int, str)
+# a layout's longest: every field an array of 255 eight-byte values (a payload over 255 bytes is a layout
+# pymavlink accepts too: frames of it carry its first 255 bytes at most)
+_MAX_LENGTH = MAX_FIELDS * MAX_ARRAY * 8
 
 
 def _valid_message(m: Any) -> bool:
     if type(m) is not list or tuple(map(type, m)) != _MESSAGE:
         return False
     mid, _, crc_extra, base_length, length, _, order, fields = m
-    if not (0 <= mid < 1 << 24 and 0 <= crc_extra <= 255 and 0 <= base_length <= length <= 255
-            and all(type(o) is str for o in order)):
+    if not (0 <= mid < 1 << 24 and 0 <= crc_extra <= 255 and 0 <= base_length <= length <= _MAX_LENGTH
+            and len(fields) <= MAX_FIELDS and all(type(o) is str for o in order)):
         return False
     offset = 0
     for f in fields:
@@ -318,8 +373,10 @@ def _valid_enum(e: Any) -> bool:
 
 def valid_record(record: Any) -> bool:
     """Whether `record` has exactly the shape `xml_record` gives, with each message's fields laid end to
-    end from offset 0 to its length (a type's size times the array length)."""
+    end from offset 0 to its length (a type's size times the array length), and names that are
+    identifiers (dialect_check.names_valid: a cached record is held to the rules of a parsed one)."""
     return (type(record) is dict and record.keys() == {"include", "messages", "enums"}
             and type(record["include"]) is list and all(type(i) is str for i in record["include"])
             and type(record["messages"]) is list and all(map(_valid_message, record["messages"]))
-            and type(record["enums"]) is list and all(map(_valid_enum, record["enums"])))
+            and type(record["enums"]) is list and all(map(_valid_enum, record["enums"]))
+            and names_valid(record["messages"], record["enums"]))
