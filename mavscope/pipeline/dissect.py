@@ -22,17 +22,19 @@ from mavscope.mavlink.framing import (
     Framer,
     StreamFramer,
     build_frame,
+    has_char_tail,
     mcrf4xx,
     skipped_note,
     unpack_signature,
     unpack_v2,
 )
-from mavscope.mavlink.hidden import ACROSS, hidden_note, merged
-from mavscope.mavlink.receivers import MAX_WAITING, Waiting, across, split_note
+from mavscope.mavlink.hidden import ACROSS, Hidden, Scanned, hidden_note, merged
+from mavscope.mavlink.receivers import WILD, Sockets, Waiting, across, split_note
 from mavscope.notes import Note
 from mavscope.pipeline.textrun import TextRun, is_text_entry
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
 from mavscope.transport.decap import Decapsulator
+from mavscope.transport.tcp import GAP
 from mavscope.transport.wpa import WifiKey, Wpa
 from mavscope.wire import SIGNATURE_LEN, STX_V2
 
@@ -41,6 +43,10 @@ from mavscope.wire import SIGNATURE_LEN, STX_V2
 MAVLINK_PORTS = frozenset({14550, 14540, 14555, 14557, 14560, 14580, 18570, 5760, 5761, 5762, 5763})
 
 
+# a frame the receivers read that the framer does not show: (its Hidden by position in the datagram, the bytes
+# it is in, its position there, file offset, the earlier records it began in or None, its notes)
+Placed = tuple[Hidden, bytes, int, "int | None", "tuple[int, ...] | None", list[Note]]
+LATER_KEPT = 1 << 16  # records whose last frame index is kept for frames a TCP hole dates by them later
 _CUT = frozenset({"record-snapped", "record-truncated", "malformed-packet"})  # notes of a payload cut short
 
 
@@ -65,15 +71,17 @@ class Dissector:
         self.streams: dict[Hashable, StreamFramer] = {}
         # endpoints that have carried a CRC-valid frame: their datagrams are MAVLink even when damaged
         self.mavlink_endpoints: set[Endpoint] = set()
-        # UDP destinations whose receivers (MAVLink's C library) are in a frame where the last datagram to
-        # them ended (mavscope.mavlink.receivers): the next datagram to them goes on with it. The native
-        # walker hands a datagram to one of them back here.
-        self.receivers: dict[Endpoint, Waiting] = {}
+        # UDP receivers (MAVLink's C library behind a socket) in a frame where the last datagram to them
+        # ended (mavscope.mavlink.receivers), by port: the next datagram to them goes on with it. The native
+        # walker hands every datagram to one of these ports back here.
+        self.sockets = Sockets()
+        self.receivers = self.sockets.ports
         self._record = 0
         self._index = 0
         self._raw_frames = 0  # frames of a raw byte stream so far (they are numbered 1..N)
         self._time: float | None = None
         self._text = TextRun()  # non-MAVLink tlog entries, reported as one anomaly per run
+        self._indices: dict[int, int] = {}  # record -> the last frame index given, for records TCP holes dated later
 
     def run(self, records: Iterable[Record]) -> Iterator[Frame | Anomaly]:
         """Every frame and anomaly of the capture, in order."""
@@ -112,7 +120,8 @@ class Dissector:
             data = p.data
             n = len(data)
             pos = 0
-            if not p.notes and p.span is None and not (self.receivers and p.dst in self.receivers):
+            if not p.notes and p.span is None and not (self.receivers and p.dst is not None
+                                                      and p.dst.port in self.receivers):
                 src = p.src
                 base = p.offset
                 while pos + 12 <= n and data[pos] == STX_V2:
@@ -122,8 +131,8 @@ class Dissector:
                     if iflags > 1 or pos + size > n:
                         break
                     md = messages.get(lo | (hi << 16))
-                    if md is None or length > md.length:
-                        break
+                    if md is None or length > md.length or (md.chars and has_char_tail(md, data, pos + 10, end)):
+                        break  # (the general scanner notes bytes after a string's NUL)
                     crc = data[end] | (data[end + 1] << 8)
                     if mcrf4xx(md.crc_extra_byte, mcrf4xx(data[pos + 1 : end])) != crc:
                         break
@@ -151,6 +160,9 @@ class Dissector:
                 key = ended.popleft()
                 if key in self.streams:
                     yield from self._finish(key)
+            index = self._index
+        if index and self.decap.tcp.holding:  # a later record may complete frames dated by this one
+            self._later(number, index)
 
     def finish(self) -> Iterator[Frame | Anomaly]:
         """The end of the capture: what TCP reassembly and the stream framers still hold."""
@@ -188,16 +200,15 @@ class Dissector:
     def _datagram(self, p: Payload, start: int) -> Iterator[Frame | Anomaly]:
         """The general path: scan a datagram from `start` (the frames before it were clean)."""
         data = p.data
-        waiting = self.receivers.pop(p.dst, None) if self.receivers and p.dst is not None else None
+        udp = p.transport == TRANSPORT_UDP and p.dst is not None
+        waiting = udp and self.receivers and p.dst.port in self.receivers  # type: ignore[union-attr]
         if not data:
-            if waiting is not None:
-                self.receivers[p.dst] = waiting  # type: ignore[index]  # (p.dst is not None)
             if p.notes:
                 yield Anomaly(p.record, p.notes)
             return
         found, skipped, _ = self.framer.scan(data, start, len(data), True)
         # (a receiver in a frame is given MAVLink: it reads the datagram on with it)
-        if not start and waiting is None and not any(f[2] is OK for f in found) and not self._trusted(p):
+        if not start and not waiting and not any(f[2] is OK for f in found) and not self._trusted(p):
             # No valid frame and no reason to expect MAVLink here: some other protocol.
             if p.notes:
                 yield Anomaly(p.record, p.notes)
@@ -208,15 +219,10 @@ class Dissector:
         pending: list[Note] = list(p.notes)
         sk = 0
         messages = self.messages
-        buf, t, hidden, left = across(self.framer.candidate, data, found, skipped, waiting, self._record, base)
-        if left is not None and p.transport == TRANSPORT_UDP and p.dst is not None and not any(
-                n.code in _CUT for n in p.notes):  # (a capture that lost the datagram's end: state unknown)
-            if len(self.receivers) >= MAX_WAITING:
-                del self.receivers[next(iter(self.receivers))]
-            self.receivers[p.dst] = left
-        if t:  # by position in data: below 0 for a frame that began in an earlier datagram
-            hidden = [((h[0][0] - t, *h[0][1:]), h[1] - t, h[2], h[3]) for h in hidden]
-        for (pos, size, status, crc), h in merged(found, hidden):
+        hidden, given_up = self._receivers(p, data, found, skipped, base, udp)
+        pending.extend(given_up)  # (on the record's first frame, as its own notes)
+        by_id = {id(x[0]): x for x in hidden}
+        for (pos, size, status, crc), h in merged(found, [x[0] for x in hidden]):
             while sk < len(skipped) and skipped[sk][0] < pos:
                 s_pos, s_count = skipped[sk]
                 sk += 1
@@ -226,16 +232,11 @@ class Dissector:
             if h is None:
                 offset = None if base is None else base + pos
                 frame_buf = data
-            elif pos < 0:
-                frame_buf, pos = buf, pos + t
-                offset, records = waiting.locate(pos)  # type: ignore[union-attr]  # (t > 0: there is one)
-                span = (*records, self._record)
-                pending.append(split_note(h, -h[0][0], records, offset))
-                if h[1] != h[0][0] or h[2] != ACROSS:  # the receiver parted from the framer before it, too
-                    pending.append(hidden_note(h, offset))
             else:
-                frame_buf, offset = data, None if base is None else base + pos
-                pending.append(hidden_note(h, offset))
+                _, frame_buf, pos, offset, span, notes = by_id[id(h)]
+                pending.extend(notes)
+                if span is not None:
+                    span = (*span, self._record)
             if span is None:  # reassembled from IP fragments: their records
                 span = p.span
             frame = build_frame(
@@ -249,39 +250,110 @@ class Dissector:
         if pending:
             yield Anomaly(p.record, tuple(pending))
 
+    def _receivers(self, p: Payload, data: bytes, found: list[Scanned], skipped: list[tuple[int, int]],
+                   base: int | None, udp: bool) -> tuple[list[Placed], list[Note]]:
+        """The frames the receivers a datagram reaches read that the framer does not show, each with the bytes
+        it is in, its position there, file offset, the earlier records it began in and its notes; and the
+        notes of what the receivers' bounds gave up. A UDP datagram goes on with each receiver state it
+        reaches (mavscope.mavlink.receivers: a socket, not an address), walked once per distinct state."""
+        cand, rec = self.framer.candidate, self._record
+        if not udp:
+            hidden = across(cand, data, found, skipped, None, rec, base)[2]
+            return [(h, data, h[0][0], None if base is None else base + h[0][0], None,
+                     [hidden_note(h, None if base is None else base + h[0][0])]) for h in hidden], []
+        dst: Endpoint = p.dst  # type: ignore[assignment]  # (udp: not None)
+        walks: dict[int, tuple[Waiting | None, list[str], tuple[bytes, int, list[Hidden], Waiting | None]]] = {}
+        left: dict[str, Waiting | None] = {}
+        for key, w in self.sockets.reach(dst):
+            walk = walks.get(id(w))
+            if walk is None:
+                walk = walks[id(w)] = (w, [], across(cand, data, found, skipped, w, rec, base, dst.text))
+            walk[1].append(key)
+            left[key] = walk[2][3]
+        if any(n.code in _CUT for n in p.notes):  # a capture that lost the datagram's end: the state is unknown
+            left = dict.fromkeys(left)
+        said = self.sockets.settle(dst, left)
+        placed: list[Placed] = []
+        inside: set[int] = set()
+        split: set[tuple[tuple[int, ...], int | None, bytes]] = set()
+        for w, keys, (buf, t, hidden, _) in walks.values():
+            for h in hidden:
+                bpos, size = h[0][0], h[0][1]
+                pos = bpos - t
+                hd: Hidden = ((pos, *h[0][1:]), h[1] - t, h[2], h[3])
+                if pos >= 0:
+                    if pos not in inside:
+                        inside.add(pos)
+                        offset = None if base is None else base + pos
+                        placed.append((hd, data, pos, offset, None, [hidden_note(hd, offset)]))
+                    continue
+                offset, records, dsts = w.locate(bpos)  # type: ignore[union-attr]  # (t > 0: there is one)
+                seen = (records, offset, buf[bpos:bpos + size])
+                if seen in split:
+                    continue
+                split.add(seen)
+                notes = [split_note(hd, -pos, records, tuple(dict.fromkeys((*dsts, dst.text))), offset,
+                                    keys == [WILD])]
+                if h[1] != h[0][0] or h[2] != ACROSS:  # the receiver parted from the framer before it, too
+                    notes.append(hidden_note(hd, offset))
+                placed.append((hd, buf, bpos, offset, records, notes))
+        return placed, said
+
     def _emit(self, sf: StreamFramer, p_transport: str, src: Endpoint | None, dst: Endpoint | None,
               final: bool) -> Iterator[Frame | Anomaly]:
         found, orphans = sf.take(final)
         raw = p_transport == TRANSPORT_RAW
-        for buf, pos, size, status, crc, off, span, notes in found:
+        for buf, pos, size, status, crc, off, records, notes, done in found:
+            span: tuple[int, ...] | None
+            time = self._time
             if raw:
                 # A raw stream has no records of its own (its chunks are the reader's), so its frames are
                 # numbered 1..N and each is its own "record": frame 999 is 999, not 1.999.
                 self._raw_frames += 1
                 record, index, span = self._raw_frames, 1, None
             else:
-                self._index += 1
-                record, index = self._record, self._index
+                # a frame is the record's that completed it (its last byte, readable in order there: after
+                # a hole the capture missed, an earlier record than this one), with the records holding it
+                record, time = done
+                if record == self._record:
+                    self._index += 1
+                    index = self._index
+                else:
+                    index = self._later(record)
+                span = None if records == (record,) else records
             yield build_frame(
-                buf, pos, size, status, crc, self.messages, record, index, self._time,
+                buf, pos, size, status, crc, self.messages, record, index, time,
                 p_transport, src, dst, off, notes, span,
             )
         if orphans:
             yield Anomaly(self._raw_frames if raw else self._record, tuple(orphans))
 
+    def _later(self, record: int, index: int | None = None) -> int:
+        """The index of one more frame of `record`, an earlier record than the one read (else `index`, the
+        last one it gave, is remembered): frames a TCP hole held back (LATER_KEPT records kept)."""
+        later = self._indices
+        index = later.pop(record, 0) + 1 if index is None else index
+        later[record] = index
+        if len(later) > LATER_KEPT:
+            del later[next(iter(later))]
+        return index
+
     def _stream(self, p: Payload) -> Iterator[Frame | Anomaly]:
+        sf = self.streams.get(p.stream)
+        if sf is not None and p.notes and any(n.code == GAP for n in p.notes):
+            # a hole the capture missed: what the framer holds ends before it (a frame it cut is truncated)
+            yield from self._emit(sf, p.transport, p.src, p.dst, True)
         if not p.data:
             # notes on a segment that added no bytes (a retransmission, a conflicting one, a suspicious SYN):
             # its record's, now, not the next frame's of the stream (which may come records later)
             if p.notes:
                 yield Anomaly(p.record, p.notes)
             return
-        sf = self.streams.get(p.stream)
         if sf is None:
             sf = self.streams[p.stream] = StreamFramer(self.framer, (p.stream, p.transport, p.src, p.dst))
             # A raw file is MAVLink by the user's word; a TCP stream proves it with a valid frame.
             sf.trusted = p.transport == TRANSPORT_RAW
-        sf.feed(p.data, p.record, p.offset, p.notes)
+        sf.feed(p.data, p.record, p.offset, p.notes, p.ready or (self._record, self._time))
         yield from self._emit(sf, p.transport, p.src, p.dst, False)
 
     def _finish(self, key: Hashable) -> Iterator[Frame | Anomaly]:

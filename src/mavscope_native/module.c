@@ -10,8 +10,8 @@
  *          signed_senders: set[tuple[int, int]], window: int = 1 << 20, summary: Summary | None = None,
  *          t0: float | None = None, stats: Stats | None = None, columns: Columns | None = None,
  *          receivers: dict | None = None)
- *                                        with `receivers` (the Dissector's: Endpoint -> Waiting): a datagram
- *                                        to one of its destinations is handed back (read after each record
+ *                                        with `receivers` (the Dissector's: UDP port -> receivers): a datagram
+ *                                        to one of its ports is handed back (read after each record
  *                                        handed back, the only thing that changes it)
  *                                        with `summary`: summary lines (relative to t0) instead of JSON;
  *                                        with `stats`: no text, the frames go to the accumulator
@@ -724,7 +724,7 @@ typedef struct {
     PyObject *summary;   /* SummaryObject or NULL (JSON Lines) */
     PyObject *stats;     /* StatsObject or NULL */
     PyObject *columns;   /* ColumnsObject or NULL: column mode */
-    PyObject *receivers; /* the Dissector's receivers (dict: Endpoint -> Waiting), or NULL */
+    PyObject *receivers; /* the Dissector's receivers (dict: UDP port -> receivers), or NULL */
     int waiting_stale;   /* Python may have changed `receivers` (it was handed a record) since they were read */
     ms_buf out;
 } WalkerObject;
@@ -1042,8 +1042,9 @@ static int push_state(WalkerObject *self) {
     return 0;
 }
 
-/* Read the destinations Python's receivers wait on into the walker (after a handed-back record, the only
- * thing that changes them; Python keeps at most mavscope.mavlink.receivers.MAX_WAITING). */
+/* Read the UDP ports Python's receivers wait on into the walker (after a handed-back record, the only thing
+ * that changes them): the keys of the Dissector's `receivers`, ints (mavscope.mavlink.receivers.Sockets.ports:
+ * a receiving socket is a port, whatever address a datagram to it has). */
 static int sync_waiting(WalkerObject *self) {
     ms_walker *w = &self->walker;
     w->n_waiting = 0;
@@ -1057,27 +1058,16 @@ static int sync_waiting(WalkerObject *self) {
         return -1;
     }
     for (Py_ssize_t i = 0; i < n; i++) {
-        PyObject *key = PyList_GET_ITEM(keys, i);
-        PyObject *packed = PyObject_GetAttrString(key, "packed");
-        PyObject *port = packed != NULL ? PyObject_GetAttrString(key, "port") : NULL;
-        long pv = port != NULL ? PyLong_AsLong(port) : -1;
-        int bad = port == NULL || (pv == -1 && PyErr_Occurred()) || !PyBytes_Check(packed);
-        Py_ssize_t len = bad ? 0 : PyBytes_GET_SIZE(packed);
-        if (!bad && (len == 4 || len == 16) && pv >= 0 && pv <= 65535) {
-            ms_endpoint *e = &w->waiting[w->n_waiting++];
-            memset(e, 0, sizeof *e);
-            e->v6 = len == 16;
-            memcpy(e->addr, PyBytes_AS_STRING(packed), (size_t)len);
-            e->port = (uint16_t)pv;
-        }
-        Py_XDECREF(packed);
-        Py_XDECREF(port);
-        if (bad) {
+        long pv = PyLong_AsLong(PyList_GET_ITEM(keys, i));
+        if ((pv == -1 && PyErr_Occurred()) || pv < 0 || pv > 65535) {
             Py_DECREF(keys);
             if (!PyErr_Occurred())
-                PyErr_SetString(PyExc_TypeError, "receivers' keys must be Endpoints");
+                PyErr_SetString(PyExc_TypeError, "receivers' keys must be UDP ports");
             return -1;
         }
+        ms_endpoint *e = &w->waiting[w->n_waiting++];
+        memset(e, 0, sizeof *e);
+        e->port = (uint16_t)pv;
     }
     Py_DECREF(keys);
     self->waiting_stale = 0;

@@ -210,6 +210,8 @@ static int scan_clean(ms_walker *w, const uint8_t *d, size_t n, size_t *count, s
         }
         if (m->python_only || m->msgid == SETUP_SIGNING || m->msgid == KEY_EXCHANGE)
             return NOT_CLEAN;
+        if (m->has_char && ms_char_tail(m, f + hlen, len))
+            return NOT_CLEAN; /* bytes after a string's NUL: the char-after-nul note, Python */
         uint16_t crc = ms_crc16(f + 1, hlen - 1 + len, 0xFFFF);
         crc = ms_crc16(&m->crc_extra, 1, crc);
         if (crc != ms_le16(f + hlen + len) && !w->fuzz_any_crc)
@@ -393,15 +395,13 @@ static int stats_record(ms_walker *w, const ms_record *rec, const uint8_t *d, si
     return count_frames(w, d, count);
 }
 
-/* Whether the datagram goes to a destination whose receivers are in a frame (w->waiting: at most a few
- * hundred, and only while a datagram to them ended in a frame). */
+/* Whether the datagram goes to a UDP port whose receivers are in a frame (w->waiting: the ports of
+ * mavscope.mavlink.receivers.Sockets, only while a datagram to them ended in a frame). The port alone: a socket
+ * bound to the wildcard address reads the datagrams to its unicast, broadcast and IPv4-mapped addresses alike. */
 static int is_waiting(const ms_walker *w, const ms_udp *udp) {
-    const size_t alen = udp->v6 ? 16 : 4;
-    for (size_t i = 0; i < w->n_waiting; i++) {
-        const ms_endpoint *e = &w->waiting[i];
-        if (e->port == udp->dport && e->v6 == (uint8_t)udp->v6 && memcmp(e->addr, udp->dst, alen) == 0)
+    for (size_t i = 0; i < w->n_waiting; i++)
+        if (w->waiting[i].port == udp->dport)
             return 1;
-    }
     return 0;
 }
 

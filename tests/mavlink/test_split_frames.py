@@ -100,12 +100,17 @@ def test_an_arm_whose_second_half_is_a_clean_heartbeat(cli, tmp_path: Path, cpar
     assert status == 0 and "[split over datagrams: the receivers read it whole]" in out
 
 
-def test_destinations_do_not_mix_and_a_snapped_datagram_carries_nothing(dialect: Dialect, tmp_path: Path) -> None:
+def test_hosts_mix_only_as_a_condition_and_a_snapped_datagram_carries_nothing(dialect: Dialect, tmp_path: Path) -> None:
     a = arm()
     frames = dissect_udp(dialect, [(GCS, VEHICLE, a[:20]), (GCS, OTHER, a[20:]), (GCS, VEHICLE, a[20:])])
+    # VEHICLE's socket gets records 1 and 3: it reads the ARM in record 3. A socket on port 14555 that both
+    # 10.0.0.1 and 10.0.0.9 reach (one host's two addresses: the capture cannot tell) reads it in record 2,
+    # which is said as that condition (mavscope.mavlink.receivers: the port's wildcard state)
     assert [(f.record, f.msgname, f.crc_status) for f in frames] == [
-        (1, "COMMAND_LONG", CrcStatus.TRUNCATED), (3, "COMMAND_LONG", CrcStatus.OK)]
-    assert frames[1].span == (1, 3) and frames[1].raw == a
+        (1, "COMMAND_LONG", CrcStatus.TRUNCATED), (2, "COMMAND_LONG", CrcStatus.OK), (3, "COMMAND_LONG", CrcStatus.OK)]
+    assert frames[1].notes[0].message.startswith("if 10.0.0.1:14555, 10.0.0.9:14555 reach one receiving socket")
+    assert not frames[2].notes[0].message.startswith("if ")
+    assert frames[2].span == (1, 3) and frames[2].raw == a
     # the capture kept only 20 bytes of the first datagram: what the receiver had is unknown
     cut = Record(1, 1.0, LINKTYPE_ETHERNET, udp_packet(*GCS, *VEHICLE, a)[: HEADERS + 20], 0, HEADERS + len(a),
                  (note("record-snapped", f"{HEADERS + 20} of {HEADERS + len(a)} bytes captured", 0),))  # as the reader

@@ -53,3 +53,16 @@ def write_tlog(tmp: Path, entries: list[tuple[float, bytes]], name: str = "flow.
     path = tmp / name
     path.write_bytes(tlog(entries))
     return str(path)
+
+
+def write_udp_pcap(path: Path, packets: list[tuple[tuple[str, int], tuple[str, int], bytes]], t0: float = 1.0) -> Path:
+    """UDP datagrams (source, destination, payload) as an Ethernet pcap, one a second from `t0`: IPv4, or
+    IPv6 where an end is an IPv6 address (an IPv4 end then written IPv4-mapped)."""
+    from mavscope.capture.base import LINKTYPE_ETHERNET
+    from mavscope.capture.synth import udp_packet
+    from mavscope.capture.writer import PcapWriter
+
+    with PcapWriter(path, LINKTYPE_ETHERNET) as w:
+        for i, (src, dst, payload) in enumerate(packets):
+            w.write(t0 + i, udp_packet(*src, *dst, payload))
+    return path
