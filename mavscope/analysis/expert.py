@@ -10,7 +10,7 @@ bounded state, so a capture of any length is analysed in one pass without holdin
 
 from __future__ import annotations
 
-from collections import Counter, OrderedDict
+from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from typing import Protocol
 
@@ -19,14 +19,15 @@ from mavscope.analysis.control import ControlSources
 from mavscope.analysis.framelist import MAX_FRAMES
 from mavscope.analysis.framelist import frame_numbers as _frames
 from mavscope.analysis.gnss import GnssAnomalies
+from mavscope.analysis.replays import COPIES_KEPT as COPIES_KEPT  # the native plan names it here
+from mavscope.analysis.replays import ReplayedCommands
 from mavscope.analysis.sequence import GAP_MIN, SeqChannels, SeqTracker, totals
 from mavscope.mavlink.dialect import Dialect
-from mavscope.mavlink.frame import CrcStatus, Frame, SignatureStatus, decode_payload
+from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
 from mavscope.notes import Finding, FrameNumbers, finding, sort_findings
 
 BURST_MIN = 3  # bad-CRC frames...
 BURST_WINDOW_S = 1.0  # ...each within this long of the previous one make a burst
-COPIES_KEPT = 65_536  # commanding frames remembered for replay detection (the oldest go first)
 # Messages a ground station may number on a counter of their own, apart from its other messages: both real
 # GCS tlogs we hold show it (QGroundControl with ArduSub; Mission Planner through MAVProxy with ArduPlane):
 # REQUEST_DATA_STREAM numbered 1..7, one per stream, burst after burst. Commanding messages never qualify:
@@ -237,76 +238,6 @@ def unchanged_message(sender: Link, count: int) -> str:
     return (f"link {sender[0]}/{sender[1]}: {count} frame(s) repeat the sequence number of the frame before "
             "them from the same sender with other contents (neither copies nor losses; one known cause: MAVProxy "
             "writes the parameters it fetched over FTP into its tlog under one number)")
-
-
-class ReplayedCommands:
-    """Commanding frames repeated byte for byte (sequence number included) where the sender's sequence
-    cannot explain it, aggregated per link; and frames the security layer judged signature replays.
-
-    A copy is explained by the 8-bit counter when the sender has moved on by whole cycles since the
-    original: a neutral-stick MANUAL_CONTROL repeats itself exactly every 256 frames, in sequence. It is
-    reported when the counter has not wrapped since the original (the copy takes the original's place in
-    the sequence, within 128 frames of it: a replay or a duplicated packet), or when it steps back in the
-    sequence without filling a gap (a copy of an old frame injected out of turn)."""
-
-    def __init__(self) -> None:
-        self.trackers: dict[Link, SeqTracker] = {}
-        self.seen: OrderedDict[bytes, tuple[int, int]] = OrderedDict()  # raw -> (record, position)
-        self.copies: dict[Link, tuple[FrameNumbers, Counter[str]]] = {}
-        self.replays: dict[Link, tuple[FrameNumbers, Counter[str]]] = {}
-
-    def add(self, f: Frame, fields: Fields | None) -> None:
-        link = (f.sysid, f.compid)
-        tr = self.trackers.get(link)
-        if tr is None:
-            tr = self.trackers[link] = SeqTracker()
-        step, _ = tr.feed(f.seq, f.record)
-        self.judge(f, step, tr.position)
-
-    def judge(self, f: Frame, step: str, position: int) -> None:
-        """The frame after its link's tracker took it (`step`, and the frame's `position` in the sequence)."""
-        link = (f.sysid, f.compid)
-        name = f.msgname or str(f.msgid)
-        sec = f.security
-        if sec is not None and sec.signature_status is SignatureStatus.REPLAY:
-            self._count(self.replays, link, (f.record,), name)
-            return
-        md = f.msgdef
-        if md is None or md.name not in COMMANDING or f.crc_status is not CrcStatus.OK:
-            return
-        prev = self.seen.get(f.raw)
-        if prev is not None and (position - prev[1] < 256 or step == "duplicate"):
-            self._count(self.copies, link, (prev[0], f.record), name)
-            return
-        self.seen[f.raw] = (f.record, position)
-        self.seen.move_to_end(f.raw)
-        if len(self.seen) > COPIES_KEPT:
-            self.seen.popitem(last=False)
-
-    @staticmethod
-    def _count(table: dict[Link, tuple[FrameNumbers, Counter[str]]], link: Link, records: tuple[int, ...],
-               name: str) -> None:
-        """Count one frame of message `name` (listing `records`: the copy, and its original if known)."""
-        entry = table.get(link)
-        if entry is None:
-            entry = table[link] = (_frames(), Counter())
-        for r in records:
-            entry[0].add(r)
-        entry[1][name] += 1
-
-    def findings(self) -> list[Finding]:
-        out = []
-        for (sysid, compid), (frames, names) in self.copies.items():
-            kinds = ", ".join(f"{n} {c}" for n, c in names.most_common())
-            out.append(finding("replayed-command",
-                               f"link {sysid}/{compid}: {sum(names.values())} commanding frame(s) repeat an earlier "
-                               f"one byte for byte out of the sender's sequence ({kinds}): replays or duplicated "
-                               "packets", frames.nums))
-        for (sysid, compid), (frames, names) in self.replays.items():
-            kinds = ", ".join(f"{n} {c}" for n, c in names.most_common())
-            out.append(finding("replay", f"link {sysid}/{compid}: {frames.count} frame(s) whose signature verifies "
-                                         f"with a timestamp not newer than its stream's ({kinds})", frames.nums))
-        return out
 
 
 class UnsignedCommands:

@@ -1,17 +1,24 @@
 """`mavscope audit FILE`: security findings (leaked keys, replays, forged and injected frames, weak
-passphrases, fixed keystreams) as a list, or `{"findings": [...]}` with --json."""
+passphrases, fixed keystreams) as a list, or `{"findings": [...]}` with --json.
+
+One pass serves every finding: the audit's own (mavscope.security.audit, with the unsigned frames of
+signing senders judged at the end: mavscope.security.downgrade) and every security-group finding of the
+expert detectors, the very pass `stats` runs (mavscope.analysis.expert): a code both report (`replay`,
+`key-leak`, `hidden-frame`) is given once, as the expert words it, as `stats` shows it."""
 
 from __future__ import annotations
 
 import argparse
 
+from mavscope.analysis.expert import Expert
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import Pass
 from mavscope.commands.common import add_capture_options, add_key_options, capture_session, write_json
 from mavscope.errors import UsageError
 from mavscope.mavlink.dialect import load_dialect
-from mavscope.notes import Severity
+from mavscope.notes import CODES, Finding, Group, Severity, sort_findings
 from mavscope.security.audit import Audit
+from mavscope.security.downgrade import Downgrades
 from mavscope.security.keystream import parse_known_plaintext
 from mavscope.security.passphrase import read_wordlist
 
@@ -33,6 +40,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
+def merged(expert: list[Finding], own: list[Finding]) -> list[Finding]:
+    """The expert's security findings and the audit's own, a code both give once (the expert's)."""
+    security = [f for f in expert if CODES[f.code].group is Group.SECURITY]
+    codes = {f.code for f in security}
+    return sort_findings(security + [f for f in own if f.code not in codes])
+
+
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     if args.qgc and not args.wordlist:
         raise UsageError("audit: --qgc needs --wordlist")
@@ -46,12 +60,15 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         except OSError as exc:
             raise UsageError(f"audit: --wordlist {args.wordlist}: {exc.strerror or exc}") from None
         words = read_wordlist(args.wordlist)
-    audit = Audit()
+    audit, expert, downgrades = Audit(), Expert(dialect), Downgrades()
     with capture_session(args, env, dialect) as session:
         for frame in Pass(session, env, audit.anomaly):  # (damage and anomalies on stderr, as read says them)
             audit.add(frame)
+            expert.add(frame)
+            downgrades.add(frame)
         frames = session.frame_count
-    findings, recoveries = audit.result(words=words, qgc=args.qgc, known=known)
+    own, recoveries = audit.result(words=words, qgc=args.qgc, known=known, early=downgrades.judged())
+    findings = merged(expert.findings(), own)
     status = ExitStatus.FINDINGS if any(f.severity >= Severity.WARN for f in findings) else ExitStatus.OK
     if args.json:
         doc: dict[str, object] = {"frames": frames, "findings": [f.to_json() for f in findings]}

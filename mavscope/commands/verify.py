@@ -44,6 +44,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         for f in Pass(session, env):  # (damage and anomalies on stderr, as read says them)
             report.add(f)
         path = session.name
+    report.finish()
     status = ExitStatus.FINDINGS if report.failed else ExitStatus.OK
     if args.json:
         write_json(env, {"file": path, "ok": not report.failed, "signing_in_force": not report.v1_frames,

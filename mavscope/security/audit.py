@@ -14,6 +14,7 @@ from collections.abc import Iterable
 from mavscope.mavlink.frame import EncryptionStatus, Frame, SignatureStatus
 from mavscope.notes import Finding, FrameNumbers, Note, explanation, finding, sort_findings
 from mavscope.pipeline.dissect import Anomaly
+from mavscope.security.downgrade import Judged
 from mavscope.security.keystream import DAMAGED, Collector, Recovery, frames_text, keystream_audit
 from mavscope.security.passphrase import Stream, Targets, default_key_findings, passphrase_findings
 from mavscope.security.signing import NEW_STREAM_WINDOW
@@ -35,10 +36,6 @@ def _records() -> FrameNumbers:
 def _text(r: FrameNumbers) -> str:
     more = r.count - len(r.nums)
     return frames_text(r.nums) + (f" (and {more} not listed)" if more > 0 else "")
-
-    def text(self) -> str:
-        more = self.count - len(self.nums)
-        return frames_text(self.nums) + (f" (and {more} not listed)" if more > 0 else "")
 
 
 class Audit:
@@ -86,6 +83,19 @@ class Audit:
         elif enc is not None and enc.status is EncryptionStatus.FAILED:
             self.failed.add(f.record)
 
+    def early(self, judged: Iterable[Judged]) -> None:
+        """The unsigned frames of signing senders that came before their first signed frame (Downgrades, at
+        the end of the capture): counted with the stage's notes of the same codes, in frame order."""
+        for j in judged:
+            for code, count, listed in (("unsigned-in-signed-stream", j.v2, j.listed_v2),
+                                        ("v1-in-signed-stream", j.v1, j.listed_v1)):
+                if not count:
+                    continue
+                r = self.by[code]
+                merged = sorted(r.nums + [rec for rec, _, _ in listed])
+                r.nums = merged[:r.limit]
+                r.count += count
+
     def verdict_findings(self) -> list[Finding]:
         """One finding per kind of verdict the security stage gave (with the frames that got it)."""
         findings = [finding(code, f"{r.count} frame(s): {explanation(code)} (frames {_text(r)})", r.nums)
@@ -101,8 +111,11 @@ class Audit:
         return findings
 
     def result(self, *, words: Iterable[bytes] | None = None, qgc: bool = False,
-               known: Iterable[tuple[int, bytes]] = ()) -> tuple[list[Finding], list[Recovery]]:
-        """Every security finding, most severe first, and the payloads recovered without a key."""
+               known: Iterable[tuple[int, bytes]] = (),
+               early: Iterable[Judged] = ()) -> tuple[list[Finding], list[Recovery]]:
+        """Every security finding, most severe first, and the payloads recovered without a key (`early`:
+        the unsigned frames of signing senders before their first signed frame, `Downgrades.judged()`)."""
+        self.early(early)
         findings = self.verdict_findings()
         ks = keystream_audit(self.keystreams, known)
         findings += ks.findings

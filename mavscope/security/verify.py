@@ -1,7 +1,9 @@
 """`mavscope verify`: signature verdicts counted per sender, and the frames that fail the check.
 
 The computation behind the command (`commands/verify.py` renders it): every frame goes through
-`VerifyReport.add`, which counts it in its sender's row and lists what is wrong with it.
+`VerifyReport.add`, which counts it in its sender's row and lists what is wrong with it; `finish()` at the
+end adds the unsigned frames of signing senders that came before their first signed frame (Downgrades:
+the verdict does not depend on the order of frames).
 """
 
 from __future__ import annotations
@@ -10,6 +12,7 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 
 from mavscope.mavlink.frame import Frame, SignatureReason, SignatureStatus
+from mavscope.security.downgrade import Downgrades
 
 PROBLEMS_KEPT = 10_000  # problems listed (all are counted)
 
@@ -50,6 +53,7 @@ class VerifyReport:
     rows: dict[tuple[int, int], StreamRow] = field(default_factory=lambda: defaultdict(StreamRow))
     problems: list[tuple[int, int, str]] = field(default_factory=list)  # (record, index, what is wrong)
     problem_count: int = 0  # all of them (PROBLEMS_KEPT are listed)
+    downgrades: Downgrades = field(default_factory=Downgrades)
 
     @property
     def failed(self) -> bool:
@@ -70,7 +74,23 @@ class VerifyReport:
         if len(self.problems) < PROBLEMS_KEPT:
             self.problems.append((f.record, f.index, message))
 
+    def finish(self) -> None:
+        """The end of the capture: the unsigned frames of signing senders from before their first signed
+        frame counted as those after it are, and the problems put in frame order."""
+        for j in self.downgrades.judged():
+            row = self.rows[j.sender]
+            row.injected += j.v2
+            row.v1 += j.v1
+            sender = f"{j.sender[0]}/{j.sender[1]}"
+            self.problem_count += j.v2
+            self.problems += [(r, i, f"unsigned {what} from {sender}, which signs its frames (before its first "
+                                     "signed frame)") for r, i, what in j.listed_v2]
+        self.problems.sort(key=lambda p: (p[0], p[1]))
+        del self.problems[PROBLEMS_KEPT:]
+        self.downgrades = Downgrades()
+
     def add(self, f: Frame) -> None:
+        self.downgrades.add(f)
         row = self.rows[(f.sysid, f.compid)]
         row.frames += 1
         sender = f"{f.sysid}/{f.compid}"

@@ -197,6 +197,7 @@ void ms_acc_free(ms_acc *a) {
     free(a->copies.v);
     free(a->replays.v);
     ms_seen_free(a->seen);
+    free(a->helds.v);
     free(a->candidates.v);
     ms_map_free(&a->candidate_index);
     ms_map_free(&a->reported);
@@ -508,7 +509,7 @@ int ms_acc_add(ms_acc *a, const ms_acc_frame *f) {
         if (r != 0)
             return r > 0 ? (a->full = 1) : -1;
     }
-    r = ms_expert_add(a, f, lk, step);
+    r = ms_expert_add(a, f, lk, ch, step);
     if (r > 0)
         a->full = 1;
     return r;

@@ -100,8 +100,23 @@ typedef struct {
     int32_t slot;     /* SeqTracker.slot */
     uint64_t at;      /* SeqTracker.at */
     uint16_t sender;
+    int32_t held; /* ReplayedCommands.held: index in helds, or -1 */
     ms_seq seq;
 } ms_chan;
+
+/* replays.ReplayedCommands: the copies of one channel judged by the frames after them (_Held) */
+#define MS_HOLD 10 /* replays.HOLD (sequence.RESET_RUN) */
+typedef struct {
+    uint64_t order, orig, copy;
+    uint32_t label;
+} ms_held_copy;
+typedef struct {
+    uint16_t sender;
+    uint8_t ahead_seq;
+    uint32_t nahead, nbehind;
+    ms_held_copy ahead[MS_HOLD]; /* their `order` unused */
+    ms_held_copy behind[MS_HOLD];
+} ms_held;
 #define MS_SHARED (-2)
 
 /* sequence.ChannelCounter: one channel's frames, whoever sent them */
@@ -272,6 +287,8 @@ typedef struct {
     ms_pairs names;         /* (named index, label) -> count */
     ms_ivec copies, replays;
     struct ms_seen *seen;
+    MS_VEC(ms_held) helds;
+    uint64_t held_order; /* ReplayedCommands.order */
     /* UnsignedCommands */
     uint8_t signing[32];
     ms_ivec candidates;
@@ -314,7 +331,7 @@ int ms_acc_add(ms_acc *a, const ms_acc_frame *f);
 int ms_acc_record(ms_acc *a, uint64_t number, int has_time, double t, int udp, const char *src, size_t src_len,
                   const char *dst, size_t dst_len, const uint8_t *d, const uint32_t *frames, size_t count);
 /* The whole state (native_stats.py reads it): 0, or -1 when memory ran out. */
-int ms_acc_dump(const ms_acc *a, ms_buf *out);
+int ms_acc_dump(ms_acc *a, ms_buf *out); /* judges what is held first (ms_expert_finish) */
 
 /* helpers shared by acc.c, expert.c, control.c, gnss.c */
 int ms_map_get(const ms_map *m, uint64_t key, uint32_t *val);
@@ -347,7 +364,9 @@ ms_val ms_get(const ms_acc_frame *f, const ms_plan_msg *pm, int slot);
  * -1 nomem) */
 ms_chan *ms_channel(ms_acc *a, ms_link *lk, int32_t src, int32_t dst);
 int ms_channel_feed(ms_acc *a, ms_chan *ch, const ms_acc_frame *f);
-int ms_expert_add(ms_acc *a, const ms_acc_frame *f, ms_link *lk, int step);
+int ms_expert_add(ms_acc *a, const ms_acc_frame *f, ms_link *lk, ms_chan *ch, int step);
+/* ReplayedCommands.finish: the copies still held judged (0, -1 out of memory, 1 full) */
+int ms_expert_finish(ms_acc *a);
 int ms_control_add(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg *pm);
 int ms_gnss_add(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg *pm);
 void ms_seen_free(struct ms_seen *s);

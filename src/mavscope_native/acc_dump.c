@@ -97,7 +97,9 @@ static void seq(ms_buf *b, const ms_seq *s) {
     }
 }
 
-int ms_acc_dump(const ms_acc *a, ms_buf *b) {
+int ms_acc_dump(ms_acc *a, ms_buf *b) {
+    if (ms_expert_finish(a) != 0) /* the copies ReplayedCommands still holds, judged first */
+        return -1;
     ms_buf_put(b, "MSSD", 4);
     un(b, 4, 4);
     un(b, a->total, 8);

@@ -57,6 +57,7 @@ ms_chan *ms_channel(ms_acc *a, ms_link *lk, int32_t src, int32_t dst) {
     c->slot = -1;
     c->at = 0;
     c->sender = lk->sender;
+    c->held = -1;
     ms_seq_init(&c->seq);
     if (lk->chan_tail >= 0)
         a->chans.v[lk->chan_tail].next = at;

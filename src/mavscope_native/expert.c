@@ -1,7 +1,7 @@
 /* The expert detectors of analysis/expert.py that look at every frame: SequenceAnomalies (its sequence
  * counters are StatsBuilder's, fed the same frames: the step comes from acc.c), CommandSources,
- * ReplayedCommands (with its own tracker per link and the copies it has seen, least recently seen first
- * out) and UnsignedCommands; then ControlSources (control.c) and GnssAnomalies (gnss.c). */
+ * ReplayedCommands (on the channels' steps, its copies held per channel until the frames after them tell,
+ * and the copies it has seen, least recently seen first out) and UnsignedCommands; then ControlSources (control.c) and GnssAnomalies (gnss.c). */
 #include <stdlib.h>
 #include <string.h>
 
@@ -67,11 +67,10 @@ static uint32_t label_of(const ms_acc_frame *f) {
     return f->known ? f->msgid : f->msgid | 0x80000000u; /* f.msgname or str(f.msgid) */
 }
 
-/* ---- the copies ReplayedCommands has seen: raw bytes -> (record, position), an LRU -------------- */
+/* ---- the copies ReplayedCommands has seen: raw bytes -> record, an LRU ------------------------- */
 
 typedef struct {
     uint64_t hash, record;
-    int64_t position;
     int32_t prev, next;
     uint16_t len;
     uint8_t raw[MS_RAW_MAX];
@@ -149,14 +148,12 @@ static void lru_append(struct ms_seen *s, int32_t k) {
     s->tail = k;
 }
 
-/* seen[raw] = (record, position); seen.move_to_end(raw); drop the oldest beyond `kept`. */
-static int seen_put(ms_acc *a, const uint8_t *raw, size_t n, uint64_t h, int32_t k, uint64_t record,
-                    int64_t position) {
+/* seen[raw] = record; seen.move_to_end(raw); drop the oldest beyond `kept`. */
+static int seen_put(ms_acc *a, const uint8_t *raw, size_t n, uint64_t h, int32_t k, uint64_t record) {
     struct ms_seen *s = a->seen;
     const uint32_t kept = (uint32_t)a->plan->k[MS_K_COPIES_KEPT];
     if (k >= 0) {
         s->e[k].record = record;
-        s->e[k].position = position;
         lru_unlink(s, k);
         lru_append(s, k);
         return 0;
@@ -172,7 +169,6 @@ static int seen_put(ms_acc *a, const uint8_t *raw, size_t n, uint64_t h, int32_t
     seen_entry *e = &s->e[k];
     e->hash = h;
     e->record = record;
-    e->position = position;
     e->len = (uint16_t)n;
     memcpy(e->raw, raw, n);
     uint32_t mask = s->nslots - 1;
@@ -326,27 +322,140 @@ static int command_sources(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg *
     return 0;
 }
 
-/* ReplayedCommands.add */
-static int replayed_commands(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg *pm, ms_link *lk) {
-    int step = ms_seq_feed(&lk->replay_seq, &a->rules, f->seq, f->record, NULL, 0, 0, -1);
-    if (step < 0)
-        return -1;
-    const uint32_t key = lk->sender;
-    if (f->sig == MS_SIG_REPLAY)
-        return ms_count_named(a, &lk->replays, &a->replays, key, &f->record, 1, label_of(f));
-    if (pm == NULL || !(pm->roles & MS_R_COMMANDING) || f->crc != MS_CRC_OK)
-        return 0;
-    if (a->seen == NULL && seen_init(a) != 0)
-        return -1;
-    const size_t n = f->raw_len < MS_RAW_MAX ? f->raw_len : MS_RAW_MAX;
-    const uint64_t h = raw_hash(f->raw, n);
-    int32_t k = seen_find(a->seen, f->raw, n, h);
-    const int64_t position = lk->replay_seq.position;
-    if (k >= 0 && (position - a->seen->e[k].position < 256 || step == MS_STEP_DUPLICATE)) {
-        uint64_t records[2] = {a->seen->e[k].record, f->record};
-        return ms_count_named(a, &lk->copies, &a->copies, key, records, 2, label_of(f));
+/* ReplayedCommands: count the copy `c` of link `key` (its original and itself) */
+static int count_copy(ms_acc *a, ms_link *lk, const ms_held_copy *c) {
+    uint64_t records[2] = {c->orig, c->copy};
+    return ms_count_named(a, &lk->copies, &a->copies, lk->sender, records, 2, c->label);
+}
+
+/* ReplayedCommands._resolve_behind */
+static int resolve_behind(ms_acc *a, ms_link *lk, ms_held *h, int step) {
+    int r;
+    if (h->nbehind) {
+        if (step == MS_STEP_NEXT || step == MS_STEP_GAP) {
+            for (uint32_t i = 0; i < h->nbehind; i++)
+                if ((r = count_copy(a, lk, &h->behind[i])) != 0)
+                    return r;
+            h->nbehind = 0;
+        } else if (step == MS_STEP_RESET) {
+            h->nbehind = 0;
+        }
     }
-    return seen_put(a, f->raw, n, h, k, f->record, position);
+    return 0;
+}
+
+/* ReplayedCommands._resolve: what the frame after them (number `seq`, `step`) tells of the copies held */
+static int resolve(ms_acc *a, ms_link *lk, ms_held *h, unsigned seq, int step) {
+    int r;
+    if (h->nahead) {
+        if (step == MS_STEP_NEXT || step == MS_STEP_GAP || step == MS_STEP_RESET) {
+            h->nahead = 0;
+        } else if (seq == h->ahead_seq && (step == MS_STEP_DUPLICATE || step == MS_STEP_UNCHANGED)) {
+            for (uint32_t i = 0; i < h->nahead; i++)
+                if ((r = count_copy(a, lk, &h->ahead[i])) != 0)
+                    return r;
+            h->nahead = 0;
+        }
+    }
+    return resolve_behind(a, lk, h, step);
+}
+
+/* ReplayedCommands.judge */
+static int replayed_commands(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg *pm, ms_link *lk, ms_chan *ch,
+                             int step) {
+    int r;
+    const int replay = f->sig == MS_SIG_REPLAY;
+    const int tracked = !replay && pm != NULL && (pm->roles & MS_R_COMMANDING) && f->crc == MS_CRC_OK;
+    size_t n = 0;
+    uint64_t hash = 0;
+    int32_t k = -1;
+    if (tracked) {
+        if (a->seen == NULL && seen_init(a) != 0)
+            return -1;
+        n = f->raw_len < MS_RAW_MAX ? f->raw_len : MS_RAW_MAX;
+        hash = raw_hash(f->raw, n);
+        k = seen_find(a->seen, f->raw, n, hash);
+    }
+    ms_held *h = ch->held >= 0 ? &a->helds.v[ch->held] : NULL;
+    if (h != NULL) {
+        if (h->nahead && k >= 0 && step == MS_STEP_NEXT && !f->has_signature && h->nahead < MS_HOLD) {
+            ms_held_copy c = {0, a->seen->e[k].record, f->record, label_of(f)};
+            h->ahead[h->nahead++] = c; /* the run ahead goes on */
+            return resolve_behind(a, lk, h, step);
+        }
+        if ((r = resolve(a, lk, h, f->seq, step)) != 0)
+            return r;
+    }
+    if (replay)
+        return ms_count_named(a, &lk->replays, &a->replays, lk->sender, &f->record, 1, label_of(f));
+    if (!tracked)
+        return 0;
+    if (k >= 0 && f->has_signature) { /* the signature timestamp did not advance */
+        ms_held_copy c = {0, a->seen->e[k].record, f->record, label_of(f)};
+        return count_copy(a, lk, &c);
+    }
+    if (k < 0 || step == MS_STEP_FIRST || step == MS_STEP_NEXT || step == MS_STEP_LATE || step == MS_STEP_RESET)
+        return seen_put(a, f->raw, n, hash, k, f->record);
+    if (h == NULL) {
+        int g = MS_VGROW(a, a->helds, MS_CAP_CHANNELS);
+        if (g != 0)
+            return g;
+        ch->held = (int32_t)a->helds.n;
+        h = &a->helds.v[a->helds.n++];
+        memset(h, 0, sizeof *h);
+        h->sender = lk->sender;
+    }
+    ms_held_copy c = {a->held_order, a->seen->e[k].record, f->record, label_of(f)};
+    if (step == MS_STEP_GAP) {
+        h->ahead[0] = c;
+        h->nahead = 1;
+        h->ahead_seq = (uint8_t)f->seq;
+        return 0;
+    }
+    a->held_order++;
+    if (h->nbehind == MS_HOLD) { /* del held.behind[0] */
+        memmove(h->behind, h->behind + 1, (MS_HOLD - 1) * sizeof *h->behind);
+        h->nbehind--;
+    }
+    h->behind[h->nbehind++] = c;
+    return 0;
+}
+
+typedef struct {
+    ms_held_copy c;
+    uint16_t sender;
+} left_copy;
+
+static int by_order(const void *x, const void *y) {
+    const uint64_t a = ((const left_copy *)x)->c.order, b = ((const left_copy *)y)->c.order;
+    return a < b ? -1 : a > b;
+}
+
+int ms_expert_finish(ms_acc *a) {
+    size_t n = 0;
+    for (uint32_t i = 0; i < a->helds.n; i++)
+        n += a->helds.v[i].nbehind;
+    left_copy *left = n ? malloc(n * sizeof *left) : NULL;
+    if (n && left == NULL)
+        return -1;
+    n = 0;
+    for (uint32_t i = 0; i < a->helds.n; i++) {
+        ms_held *h = &a->helds.v[i];
+        for (uint32_t j = 0; j < h->nbehind; j++) {
+            left[n].c = h->behind[j];
+            left[n++].sender = h->sender;
+        }
+        h->nbehind = 0;
+        h->nahead = 0;
+    }
+    qsort(left, n, sizeof *left, by_order);
+    int r = 0;
+    for (size_t i = 0; i < n && r == 0; i++) {
+        ms_link *lk = &a->links.v[a->link_of[left[i].sender]];
+        r = count_copy(a, lk, &left[i].c);
+    }
+    free(left);
+    return r;
 }
 
 /* UnsignedCommands.add */
@@ -370,7 +479,7 @@ static int unsigned_commands(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg
     return r;
 }
 
-int ms_expert_add(ms_acc *a, const ms_acc_frame *f, ms_link *lk, int step) {
+int ms_expert_add(ms_acc *a, const ms_acc_frame *f, ms_link *lk, ms_chan *ch, int step) {
     const ms_plan_msg *pm = f->known ? ms_plan_get(a->plan, f->msgid) : NULL;
     const int fields = pm != NULL && (pm->roles & MS_R_DECODE) && f->crc != MS_CRC_BAD && f->payload != NULL;
     int r;
@@ -394,7 +503,7 @@ int ms_expert_add(ms_acc *a, const ms_acc_frame *f, ms_link *lk, int step) {
     if (pm != NULL || f->msgid == 0)
         if ((r = command_sources(a, f, pm, fields)) != 0)
             return r;
-    if ((r = replayed_commands(a, f, pm, lk)) != 0)
+    if ((r = replayed_commands(a, f, pm, lk, ch, step)) != 0)
         return r;
     if ((r = unsigned_commands(a, f, pm, fields)) != 0)
         return r;
