@@ -10,8 +10,8 @@ the first scalar fields, enum names, degE7 as degrees) into the byte string `_na
 layout: summary.h), beside the layout table of mavscope.native. The command messages' param1 is named
 as semantics.command_param_name names it: per MAV_CMD entry, the names of its param 1's enum or, for a
 "Message ID" param, the dialect's message names; for a bitmask, the names of the bits (Enum.flags_of).
-Containers (FILE_TRANSFER_PROTOCOL shows the inner protocol) are marked Python-only, so their records
-are handed back.
+Containers (FILE_TRANSFER_PROTOCOL shows the inner protocol) and STATUSTEXT (a chunk says which) are
+marked Python-only (fields/summary.py PYTHON_INFO), so their records are handed back.
 """
 
 from __future__ import annotations
@@ -22,13 +22,15 @@ from collections.abc import Callable
 from typing import IO
 
 from mavscope.capture.reader import WINDOW
-from mavscope.fields.summary import CONTAINER_MESSAGES, DEGREES, ENUM, PLAIN, summary_plan
+from mavscope.fields.summary import DEGREES, ENUM, PLAIN, PYTHON_INFO, summary_plan
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import Frame
+from mavscope.mavlink.native_table import python_only as layout_python_only
 from mavscope.mavlink.semantics import COMMAND_MESSAGES, MESSAGE_ID_LABELS
 from mavscope.native import Reporter, native_module, table_for, write_lines
 from mavscope.output.text import summary_line
 from mavscope.security.stage import SecurityStage
+from mavscope.visible import visible
 
 SUMMARY_MAGIC = b"MSSM"
 SUMMARY_VERSION = 1
@@ -51,8 +53,9 @@ _U64 = (1 << 64) - 1
 
 
 def _text(s: str) -> bytes | None:
-    """A name or label as the C table holds it: UTF-8, at most 255 bytes, no newline; else None."""
-    b = s.encode("utf-8")
+    """A name or label as the C table holds it, escaped as fields/summary.py shows it (`visible`): UTF-8, at
+    most 255 bytes, no newline; else None."""
+    b = visible(s).encode("utf-8")
     return b if len(b) <= 255 and b"\n" not in b else None
 
 
@@ -121,7 +124,8 @@ def _param1(md: MessageDef, dialect: Dialect, commands: Callable[[], bytes]) -> 
 
 def _message_entry(md: MessageDef, dialect: Dialect, commands: Callable[[], bytes]) -> bytes:
     """One message of the summary table: header, name, plan items (see summary.h for the layout)."""
-    python_only = md.name in CONTAINER_MESSAGES
+    # a layout the layout table leaves to Python (over 255 bytes...) has no fields there to point at
+    python_only = md.name in PYTHON_INFO or layout_python_only(md)
     index = {f.name: i for i, f in enumerate(md.fields)}
     items: list[bytes] = []
     for name, how, names in summary_plan(md, dialect):

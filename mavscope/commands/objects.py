@@ -17,6 +17,7 @@ from mavscope.errors import UsageError
 from mavscope.output.grid import columns, many, print_lines, print_table
 from mavscope.output.objects_out import ObjectWriter
 from mavscope.output.tables import iso
+from mavscope.visible import quoted
 
 MIB = 1024 * 1024
 DEFAULTS = Limits()
@@ -97,8 +98,8 @@ def _state(o: dict) -> str:
 
 
 def _operation(op: dict) -> str:
-    what = op["opcode"] + (f" {op['path']!r}" if op["path"] else "") + (
-        f" -> {op['new_path']!r}" if op["new_path"] else "")
+    what = op["opcode"] + (f" {quoted(op['path'])}" if op["path"] else "") + (
+        f" -> {quoted(op['new_path'])}" if op["new_path"] else "")  # (the Console escapes them, once)
     return (f"FTP {what} from {op['client'][0]}/{op['client'][1]}: {op['result'] or 'no answer'}"
             f"{'; ' + op['detail'] if op['detail'] else ''} (frame {op['frame']})")
 

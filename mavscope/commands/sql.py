@@ -17,6 +17,7 @@ from mavscope.cli import Env, ExitStatus
 from mavscope.commands.common import add_dialect_option, add_key_options, pipeline_options, warner
 from mavscope.commands.export import Reporter, bar, gather, needs_fleet
 from mavscope.errors import UsageError
+from mavscope.visible import visible
 
 if TYPE_CHECKING:
     import pyarrow as pa
@@ -154,14 +155,18 @@ def _csv(env: Env, names: list[str], batches: Iterator[pa.RecordBatch], guard: b
     stderr), as `export -T csv` writes them (mavscope.export.csvout)."""
     from mavscope.export.csvout import guard_cells, guarded_note
 
+    try:  # a terminal gets every cell escaped (mavscope.visible: no ESC of the capture's runs there); a file
+        tty = env.stdout.isatty()  # or a pipe gets the values as they are
+    except (AttributeError, ValueError):
+        tty = False
     w = csv.writer(env.stdout, lineterminator="\n")
-    w.writerow(names)
+    w.writerow([visible(n) for n in names] if tty else names)
     guarded = 0
     for row in _tuples(batches):
         values = list(row)
         if guard:
             guarded += guard_cells(values)
-        w.writerow([_cell(v) for v in values])
+        w.writerow([visible(_cell(v)) for v in values] if tty else [_cell(v) for v in values])
     if guarded:
         env.say(guarded_note("sql", guarded), prefix="")
 

@@ -1,7 +1,9 @@
 """The Info column of a frame: its message name, key fields and the verdicts that are not ok.
 
 The packet list of the TUI, the summary lines of `read` and `live`, and anything else that lists
-frames one per line use this one text.
+frames one per line use this one text. It is shown as it is: every word a capture or a dialect chose in it
+is escaped here (`visible`: message, field and enum names; string values with `repr`, `visible` in quotes;
+the inner protocol's paths with `repr` too), as the native summary writer's table holds them.
 """
 
 from __future__ import annotations
@@ -10,7 +12,7 @@ from weakref import WeakKeyDictionary
 
 from mavscope.fields.containers import info as container_info
 from mavscope.mavlink.dialect import Dialect, MessageDef
-from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, CrcStatus, Frame, decode_payload
+from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, CrcStatus, Frame, SignatureStatus, decode_payload
 from mavscope.mavlink.semantics import (
     COMMAND_MESSAGES,
     DEGE7,
@@ -19,6 +21,7 @@ from mavscope.mavlink.semantics import (
     float_text,
     message_label,
 )
+from mavscope.visible import visible
 from mavscope.wire import IFLAG_SIGNED
 
 # The fields a summary line shows per message (default: the first few scalar fields).
@@ -44,6 +47,9 @@ SUMMARY_FIELDS: dict[str, tuple[str, ...]] = {
 }
 _MAX_DEFAULT = 4
 CONTAINER_MESSAGES = frozenset({"FILE_TRANSFER_PROTOCOL"})  # their Info is the inner protocol's
+# STATUSTEXT: a chunk of a long text (id not 0) says which ("[chunk 1 of id 7]"): the events join them
+# (analysis/events/statustext.py). Its Info and the containers' are Python's (the native writer hands back)
+PYTHON_INFO = CONTAINER_MESSAGES | {"STATUSTEXT"}
 
 
 # How a summary shows one field: by its name, an enum's names, degE7 as degrees, or by the value's type.
@@ -82,10 +88,13 @@ def summary_plan(md: MessageDef, dialect: Dialect) -> _Plan:
 
 
 def _short(name: str, how: int, names: dict[int, str], value: object) -> str:
+    """One field as the summary shows it: `name=value`, the dialect's names escaped (`visible`), a string
+    value as `repr` writes it."""
+    name = visible(name)
     if how == ENUM and isinstance(value, int):
         text = names.get(value)
         if text:
-            return f"{name}={text}"
+            return f"{name}={visible(text)}"
     elif how == DEGREES and isinstance(value, int):
         return f"{name}={value / DEGE7:.7f}"
     if isinstance(value, float):
@@ -104,18 +113,20 @@ def summary_info(frame: Frame, dialect: Dialect, fields: dict[str, object] | Non
     if md is None:
         parts.append(message_label(frame.msgid, None))
     else:
-        parts.append(md.name)
+        parts.append(visible(md.name))
         if fields is None:
             fields = decode_payload(frame)
         inner = container_info(frame) if md.name in CONTAINER_MESSAGES else None
         if inner is not None:
-            parts.append(inner)
+            parts.append(inner)  # (its paths as `repr` writes them: fields/containers/ftp.py summary)
         elif fields is not None:
             parts.extend(_short(name, how, names, fields.get(name)) for name, how, names in summary_plan(md, dialect))
+            if md.name == "STATUSTEXT" and fields.get("id"):
+                parts.append(f"[chunk {fields.get('chunk_seq')} of id {fields.get('id')}]")
             if md.name in COMMAND_MESSAGES and "param1" in fields:  # the value's name where the XML gives one
                 named = command_param_name(dialect, fields.get("command"), 1, fields["param1"])  # type: ignore[arg-type]
                 if named is not None:
-                    parts = [f"param1={named}" if p.startswith("param1=") else p for p in parts]
+                    parts = [f"param1={visible(named)}" if p.startswith("param1=") else p for p in parts]
         elif frame.encryption_method:
             parts.append(f"[encrypted, method {frame.encryption_method}]")
     if frame.crc_status is not CrcStatus.OK:
@@ -128,9 +139,19 @@ def summary_info(frame: Frame, dialect: Dialect, fields: dict[str, object] | Non
         parts.append("[hidden: MAVLink's C library reads it]")
     if any(n.code == "split-frame" for n in frame.notes):
         parts.append("[split over datagrams: the receivers read it whole]")
+    status = frame.signature_status
+    verdict = "" if status in _UNREMARKED else f"signature {status.value}"  # type: ignore[union-attr]
     if frame.signature is not None:
-        parts.append(f"[signed link {frame.signature.link_id}]")
+        parts.append(f"[signed link {frame.signature.link_id}{', ' + verdict if verdict else ''}]")
+    elif verdict:
+        parts.append(f"[{verdict}]")
     return " ".join(parts)
+
+
+# The signature verdicts a summary leaves unsaid: none (unsigned), valid, and no-key (no key was given, so
+# every signed frame is); an invalid, replayed or truncated signature is said (`read --key` shows it). The
+# native summary writer writes only frames whose signature is valid or unjudged (it hands the others back).
+_UNREMARKED = frozenset({None, SignatureStatus.VALID, SignatureStatus.NO_KEY})
 
 
 RECORDS_SHOWN = 8  # records of a reassembled frame its heading names (a datagram may come in thousands)

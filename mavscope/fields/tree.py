@@ -7,6 +7,10 @@ items from the dialect's field definitions, with enum names, bitmask flags, degE
 and for command-carrying messages the parameter labels of the command (Hold, Accept Radius, ... for
 NAV_WAYPOINT). A container array (FILE_TRANSFER_PROTOCOL.payload, LOG_DATA.data...) shows a summary and
 nests the fields `fields.containers` finds in it.
+
+Labels are shown as they are (`read -V`, the TUI's tree): the words a dialect or a capture chose in them
+are escaped as they are built (`visible`: field, enum, message and component names, units, a command's
+parameter labels, notes; string values with `repr`, which is `visible` in quotes).
 """
 
 from __future__ import annotations
@@ -17,8 +21,8 @@ from dataclasses import dataclass
 
 from mavscope.fields import containers
 from mavscope.fields.registry import FIELDS, HEADER, Field, field, payload_position
-from mavscope.mavlink.dialect import Dialect, FieldDef, MessageDef
-from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
+from mavscope.mavlink.dialect import Dialect, FieldDef, MessageDef, char_tail, is_text
+from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload, plaintext_payload
 from mavscope.mavlink.framing import mcrf4xx
 from mavscope.mavlink.semantics import (
     COMMAND_PARAM_INDEX,
@@ -29,6 +33,7 @@ from mavscope.mavlink.semantics import (
     float_text,
     is_global,
 )
+from mavscope.visible import visible
 from mavscope.wire import HEADER_V1, HEADER_V2, SIGNATURE_LEN
 
 
@@ -52,8 +57,9 @@ def _fmt_float(v: float) -> str:
 
 
 def format_value(fd: FieldDef, value: object, dialect: Dialect) -> str:
-    """Human text for one payload field value: enum names, flags, degrees, units."""
-    units = fd.units
+    """Human text for one payload field value: enum names, flags, degrees, units (the dialect's words
+    escaped, a string as `repr` writes it)."""
+    units = visible(fd.units) if fd.units else fd.units
     if isinstance(value, list):
         if fd.type in ("uint8_t", "int8_t") and len(value) > 16:
             return bytes(v & 0xFF for v in value).hex(" ")
@@ -65,9 +71,9 @@ def format_value(fd: FieldDef, value: object, dialect: Dialect) -> str:
         if enum is not None:
             if enum.bitmask or fd.display == "bitmask":
                 flags = enum.flags_of(value)
-                return f"0x{value:x} ({' | '.join(flags) if flags else 'none'})"
+                return f"0x{value:x} ({visible(' | '.join(flags)) if flags else 'none'})"
             name = enum.name_of(value)
-            return f"{name} ({value})" if name else f"{value} (unknown {fd.enum})"
+            return f"{visible(name)} ({value})" if name else f"{value} (unknown {visible(fd.enum)})"
     if units == "degE7" and isinstance(value, int):
         return degrees_text(value)
     if fd.display == "bitmask" and isinstance(value, int):
@@ -81,7 +87,7 @@ def _payload_value_text(
 ) -> str:
     label = command_param(dialect, md.name, fd.name, fields.get("command"))
     if label is not None:
-        plabel, punits = label
+        plabel, punits = visible(label[0]), visible(label[1] or "")
         frame = fields.get("frame")
         is_int_coord = fd.name in ("x", "y") and md.name in INT_COORDINATE_MESSAGES
         if is_int_coord and isinstance(value, int) and (frame is None or is_global(frame)):  # type: ignore[arg-type]
@@ -91,11 +97,11 @@ def _payload_value_text(
             index = COMMAND_PARAM_INDEX.get(fd.name, 0)
             name = command_param_name(dialect, fields.get("command"), index, value)  # type: ignore[arg-type]
             if name is not None:
-                text = f"{name} ({text})"
+                text = f"{visible(name)} ({text})"
             elif punits and not fd.units and isinstance(value, float) and not math.isnan(value):
                 text = f"{text} {punits}"
-        return f"{plabel} ({fd.name}): {text}"
-    return f"{fd.name}: {format_value(fd, value, dialect)}"
+        return f"{plabel} ({visible(fd.name)}): {text}"
+    return f"{visible(fd.name)}: {format_value(fd, value, dialect)}"
 
 
 def _container_item(node: containers.Node) -> Item:
@@ -103,9 +109,24 @@ def _container_item(node: containers.Node) -> Item:
                 tuple(_container_item(n) for n in node.children), node.generated)
 
 
+def _char_tail_items(frame: Frame, fd: FieldDef, offset: int, present: int) -> tuple[Item, ...]:
+    """The bytes of char array `fd` after the NUL that ends its string (the `char-after-nul` note), as an
+    item over them: they are on the wire (the hex view shows them) but no part of the value."""
+    payload = plaintext_payload(frame)
+    raw = b"" if payload is None else payload[fd.offset : fd.offset + present]
+    tail = char_tail(raw)
+    if not tail:
+        return ()
+    start = raw.find(0) + 1
+    hidden = raw[start : start + tail]
+    return (Item(f"[note] {tail} byte{'s' if tail > 1 else ''} after the NUL that ends the string (not part of its "
+                 f"value): {hidden!r}", "note.char-after-nul", offset + start, tail, hidden),)
+
+
 def payload_items(frame: Frame, dialect: Dialect, fields: dict[str, object]) -> tuple[Item, ...]:
     """One item per payload field, in wire order; fields beyond a truncated (v2) payload are marked. A
-    container (FILE_TRANSFER_PROTOCOL.payload, LOG_DATA.data...) shows a summary, its fields nested."""
+    container (FILE_TRANSFER_PROTOCOL.payload, LOG_DATA.data...) shows a summary, its fields nested; a char
+    array's bytes after the NUL that ends its string are an item under it."""
     md = frame.msgdef
     assert md is not None
     items = []
@@ -118,9 +139,11 @@ def payload_items(frame: Frame, dialect: Dialect, fields: dict[str, object]) -> 
             text = _payload_value_text(md, fd, value, fields, dialect)
             children: tuple[Item, ...] = ()
         else:
-            text = f"{fd.name}: {sub[0]}"
+            text = f"{visible(fd.name)}: {sub[0]}"  # (the container's summary escapes its words)
             children = tuple(_container_item(n) for n in sub[1])
         offset, present = payload_position(frame, fd)
+        if fd.type == "char" and is_text(fd):
+            children = _char_tail_items(frame, fd, offset, present)
         if present < fd.size:
             # MAVLink 2 senders trim trailing zero bytes; the receiver restores them.
             text += " [trimmed: zero-filled]" if present == 0 else " [partly trimmed: zero-filled]"
@@ -147,7 +170,7 @@ def _flags_text(flags: int) -> str:
 def _compid_text(compid: int, dialect: Dialect) -> str:
     enum = dialect.enums.get("MAV_COMPONENT")
     name = enum.name_of(compid) if enum else None
-    return f"{compid} ({name})" if name else str(compid)
+    return f"{compid} ({visible(name)})" if name else str(compid)
 
 
 # How the tree shows a header field's value (default: the number).
@@ -156,7 +179,7 @@ _HEADER_TEXT: dict[str, Callable[[Frame, Dialect], str]] = {
     "mavlink.incompat_flags": lambda f, d: _flags_text(f.incompat_flags),
     "mavlink.compat_flags": lambda f, d: f"0x{f.compat_flags:02x}",
     "mavlink.compid": lambda f, d: _compid_text(f.compid, d),
-    "mavlink.msgid": lambda f, d: f"{f.msgid} ({f.msgname or 'unknown'})",
+    "mavlink.msgid": lambda f, d: f"{f.msgid} ({visible(f.msgname) if f.msgname else 'unknown'})",
 }
 
 
@@ -195,7 +218,7 @@ def _signature_status_item(frame: Frame, offset: int) -> Item:
         return Item(f"{sf.label}: no-key (no key supplied)", sf.name, offset, 0, "no-key", generated=True)
     text = f"{sf.label}: {sec.signature_status.value}"
     if sec.key:
-        text += f" (key {sec.key})"
+        text += f" (key {visible(sec.key)})"
     if sec.reason is not None:
         text += f": {sec.reason_text}"
     return Item(text, sf.name, offset, 0, sec.signature_status.value, generated=True)
@@ -231,7 +254,7 @@ def _encryption_item(frame: Frame, hlen: int, plen: int) -> Item | None:
     text = f"Encryption: method {enc.method}"
     if enc.scheme:
         text += f" ({enc.scheme})"
-    text += f" [{enc.status.value}{': ' + enc.reason if enc.reason else ''}]"
+    text += f" [{enc.status.value}{': ' + visible(enc.reason) if enc.reason else ''}]"
     return Item(text, "encryption.status", hlen, plen, enc.status.value, generated=True)
 
 
@@ -246,7 +269,7 @@ def frame_items(frame: Frame, dialect: Dialect, fields: dict[str, object] | None
     if fields is None:
         fields = decode_payload(frame)
     if frame.msgdef is not None and fields is not None:
-        tree.append(Item(f"Payload: {frame.msgdef.name} ({frame.length} bytes)", "mavlink.payload", hlen, plen,
+        tree.append(Item(f"Payload: {visible(frame.msgdef.name)} ({frame.length} bytes)", "mavlink.payload", hlen, plen,
                          None, payload_items(frame, dialect, fields)))
     else:
         why = ("unknown message id" if frame.msgdef is None else
@@ -258,7 +281,7 @@ def frame_items(frame: Frame, dialect: Dialect, fields: dict[str, object] | None
         if extra is not None:
             tree.append(extra)
     for n in frame.notes:
-        tree.append(Item(f"[{n.severity.value}] {n.message}", f"note.{n.code}", 0, 0, n.code, generated=True))
+        tree.append(Item(f"[{n.severity.value}] {visible(n.message)}", f"note.{n.code}", 0, 0, n.code, generated=True))
     return tuple(tree)
 
 

@@ -22,14 +22,15 @@ class FilterError(MavscopeError):
         return "\n".join(self.lines())
 
     def lines(self) -> list[str]:
-        """The message, the filter's text, and a caret under the problem. White space shows as a space and
-        any other character `repr` escapes as its escape (a filter may be pasted from anywhere), the caret
-        moved to match."""
+        """The message, the filter's text, and a caret under the problem. White space shows as a space; any
+        other character `visible` escapes is left for the writer to escape (a filter may be pasted from
+        anywhere: cli.Env.say escapes each line, once), the caret moved to match its escape's width."""
         shown = ["  "]
         for c in self.text:
-            shown.append(" " if c in "\t\r\n\v\f" else visible(c))
+            shown.append(" " if c in "\t\r\n\v\f" else c)
+        widths = [len(visible(c)) for c in shown[1:]]
         end = self.position + self.length
-        before = sum(len(s) for s in shown[1 : self.position + 1])  # (shown[i + 1] is character i)
-        under = sum(len(s) for s in shown[self.position + 1 : end + 1]) + max(0, end - len(self.text))
+        before = sum(widths[: self.position])
+        under = sum(widths[self.position : end]) + max(0, end - len(self.text))
         caret = " " * before + "^" + "~" * (under - 1)
         return [f"filter error: {self.message}", "".join(shown), "  " + caret]

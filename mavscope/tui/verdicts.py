@@ -1,7 +1,9 @@
 """Verdict glyphs and colours, shared by the packet list, the detail tree and the help screen.
 
 Bad CRC and invalid signatures red, replays and unsigned frames in a signed stream orange, valid
-green; encrypted and decrypted payloads marked. Each glyph is one cell wide.
+green; encrypted and decrypted payloads marked. Each glyph is one cell wide, and the glyphs of a column
+differ from each other, so that the verdicts read without colour (a monochrome terminal, NO_COLOR, a
+colour-blind analyst): ✗ and X a check that failed, … a frame cut short.
 """
 
 from __future__ import annotations
@@ -31,10 +33,10 @@ CRC_GLYPHS: dict[CrcStatus, tuple[str, str, str]] = {
 
 SIGNATURE_GLYPHS: dict[str, tuple[str, str, str]] = {
     SignatureStatus.VALID.value: ("S", GREEN, "signature valid"),
-    SignatureStatus.INVALID.value: ("S", RED, "signature invalid"),
+    SignatureStatus.INVALID.value: ("X", RED, "signature invalid"),
     SignatureStatus.REPLAY.value: ("R", ORANGE, "replayed signature (timestamp not increasing)"),
     SignatureStatus.NO_KEY.value: ("s", DIM, "signed, no key to check it (k adds one)"),
-    SignatureStatus.TRUNCATED.value: ("s", RED, "signature truncated"),
+    SignatureStatus.TRUNCATED.value: ("…", RED, "signature truncated"),
     "unsigned": ("U", ORANGE, "unsigned frame in a signed stream"),
     "v1": ("1", ORANGE, "MAVLink v1 frame from a signing sender (cannot be signed)"),
 }
@@ -42,7 +44,7 @@ SIGNATURE_GLYPHS: dict[str, tuple[str, str, str]] = {
 ENCRYPTION_GLYPHS: dict[str, tuple[str, str, str]] = {
     EncryptionStatus.DECRYPTED.value: ("D", BLUE, "payload decrypted"),
     EncryptionStatus.NO_KEY.value: ("E", ORANGE, "payload encrypted, no cipher key (k adds one)"),
-    EncryptionStatus.FAILED.value: ("E", RED, "payload encrypted, decryption failed"),
+    EncryptionStatus.FAILED.value: ("X", RED, "payload encrypted, decryption failed"),
 }
 
 

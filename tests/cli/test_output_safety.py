@@ -53,9 +53,13 @@ def _clean(out: str) -> None:
 
 
 def test_visible_escapes_what_repr_escapes() -> None:
-    for s in ["plain", "tab\there", "\x1b[31m", "\u202e", "\x85", "\ud800", "ok é ü 日本"]:
-        want = repr(s)[1:-1].replace("\\\\", "\\").replace("\\'", "'")
+    """As `repr` writes a string without its quotes: the backslash escaped too (issue 35), so that a real
+    ESC and the four characters backslash, x, 1, b never print alike."""
+    for s in ["plain", "tab\there", "\x1b[31m", "\u202e", "\x85", "\ud800", "ok é ü 日本", "a\\x1b", "\\"]:
+        want = repr(s)[1:-1].replace("\\'", "'")
         assert visible(s) == want
+    assert visible("\x1b") == "\\x1b" and visible("\\x1b") == "\\\\x1b"  # by hand: 4 and 5 characters
+    assert len(visible("\x1b")) == 4 and len(visible("\\x1b")) == 5
     assert visible("a\nb", keep_newlines=True) == "a\nb"
 
 

@@ -27,6 +27,7 @@ from mavscope.analysis.objects import (
 from mavscope.analysis.params import MESSAGES, ParamChange, ParamTracker, json_value, value_text
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
+from mavscope.visible import quoted
 
 FTP_MESSAGE = "FILE_TRANSFER_PROTOCOL"  # read by both trackers from the frame's bytes, never decoded
 _VERBS = {FTP_READ: "FTP read", FTP_WRITE: "FTP write", FTP_LIST: "FTP listing"}
@@ -35,8 +36,9 @@ SIGNATURES = {"unsigned": "unsigned", "valid": "validly signed", "no-key": "sign
 
 
 def shown(text: str) -> str:
-    """A name or path from the capture as the event text shows it: escaped where it is not printable."""
-    return text if text.isprintable() else ascii(text)
+    """A name or path from the capture as the event text shows it: in quotes where it is not printable, as
+    it is (whoever shows the text escapes it, once: mavscope.visible)."""
+    return text if text.isprintable() and "\\" not in text else quoted(text)
 
 
 def _answer(c: ParamChange, latency_ms: float | None) -> str:

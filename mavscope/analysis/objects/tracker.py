@@ -19,6 +19,7 @@ from mavscope.analysis.objects.names import unsafe_reasons
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
 from mavscope.notes import Finding, finding, sort_findings
+from mavscope.visible import quoted
 
 FTP_MESSAGE = "FILE_TRANSFER_PROTOCOL"
 LOG_MESSAGES = frozenset({"LOG_ENTRY", "LOG_REQUEST_DATA", "LOG_DATA", "LOG_REQUEST_END"})
@@ -130,7 +131,7 @@ def object_findings(log: ObjectLog) -> list[Finding]:
             if p is not None and (why := unsafe_reasons(p)):
                 unsafe.append((p, why, op.frame))
     if unsafe:
-        text = "; ".join(f"{p!r}: {', '.join(why)}" for p, why, _ in unsafe[:MAX_LISTED])
+        text = "; ".join(f"{quoted(p)}: {', '.join(why)}" for p, why, _ in unsafe[:MAX_LISTED])  # (shown escaped)
         out.append(finding("object-unsafe-path", f"{len(unsafe)} vehicle path(s) that cannot be used as file "
                                                  f"names as they are ({text}); their files are named safely",
                            [n for _, _, n in unsafe[:MAX_LISTED]]))

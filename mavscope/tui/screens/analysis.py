@@ -23,6 +23,7 @@ from textual.worker import get_current_worker
 from mavscope.analysis.selection import Selection
 from mavscope.browse.index import FrameIndex
 from mavscope.mavlink.frame import Frame
+from mavscope.tui.widgets.words import Pane
 
 TABLE_ROWS = 5_000  # rows a screen's table lists: Textual laid out 200,000 mission transfers for 30 s
 T = TypeVar("T")
@@ -72,7 +73,7 @@ class AnalysisScreen(Screen[None]):
         self.selection = Selection()  # what the analysis marked as shown (set by run_analysis)
 
     def compose(self) -> ComposeResult:
-        yield Static(self._scope() + "  analysing…", id="analysis-status")
+        yield Pane(self._scope() + "  analysing…", id="analysis-status")
         with Vertical(id="analysis-body"):
             yield from self.compose_body()
         yield Footer()

@@ -16,6 +16,7 @@ from mavscope.mavlink.frame import Frame
 from mavscope.output.console import text
 from mavscope.tui.screens.analysis import AnalysisScreen, first_rows
 from mavscope.tui.verdicts import BLUE, DIM, GREEN, ORANGE, RED
+from mavscope.tui.widgets.words import Table, Title
 
 KIND_STYLE = {"arming": ORANGE, "mode": BLUE, "failsafe": RED, "reboot": ORANGE, "link": RED, "signing": ORANGE,
               "command": GREEN, "mission": BLUE, "statustext": "", "param": DIM, "file": DIM, "vehicle": "bold"}
@@ -32,8 +33,8 @@ class EventsScreen(AnalysisScreen):
     dropped: Counter[str] = Counter()
 
     def compose_body(self) -> ComposeResult:
-        yield Label("Enter: go to the event's frame", id="events-title")
-        yield DataTable(id="events", cursor_type="row", zebra_stripes=True)
+        yield Title("Enter: go to the event's frame", id="events-title")
+        yield Table(id="events", cursor_type="row", zebra_stripes=True)
 
     def analyse(self, frames: Iterator[Frame], selection: Selection) -> list[Event]:
         log = EventLog(self.index.dialect)

@@ -15,6 +15,7 @@ from mavscope.notes import Finding, Severity
 from mavscope.output.console import text
 from mavscope.tui.screens.analysis import AnalysisScreen, first_rows
 from mavscope.tui.verdicts import BLUE, DIM, ORANGE, RED
+from mavscope.tui.widgets.words import Table, Title
 
 SEVERITY_STYLE = {Severity.ERROR: RED, Severity.WARN: ORANGE, Severity.NOTE: BLUE, Severity.CHAT: DIM}
 
@@ -27,8 +28,8 @@ class ExpertScreen(AnalysisScreen):
     """
 
     def compose_body(self) -> ComposeResult:
-        yield Label("Enter: go to the finding's first frame", id="expert-title")
-        yield DataTable(id="findings", cursor_type="row", zebra_stripes=True)
+        yield Title("Enter: go to the finding's first frame", id="expert-title")
+        yield Table(id="findings", cursor_type="row", zebra_stripes=True)
 
     def analyse(self, frames: Iterator[Frame], selection: Selection) -> list[Finding]:
         return [f for f in expert_findings(frames, self.index.dialect) if selection.any_record(f.frames)]

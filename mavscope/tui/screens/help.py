@@ -8,10 +8,10 @@ from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.containers import VerticalScroll
 from textual.screen import ModalScreen
-from textual.widgets import Static
 
 from mavscope.tui.bindings import KEYS
 from mavscope.tui.verdicts import legend
+from mavscope.tui.widgets.words import Pane
 
 
 def help_table() -> Table:
@@ -50,8 +50,8 @@ class HelpScreen(ModalScreen[None]):
     def compose(self) -> ComposeResult:
         with VerticalScroll() as v:
             v.border_title = "mavscope tui: help (Escape closes)"
-            yield Static(help_table())
-            yield Static("")
-            yield Static(legend_table())
-            yield Static(Text("\nRows: No. is the capture record (record.index when a record holds several "
+            yield Pane(help_table())
+            yield Pane("")
+            yield Pane(legend_table())
+            yield Pane(Text("\nRows: No. is the capture record (record.index when a record holds several "
                               "frames); Time is seconds since the first frame.", style="dim"))

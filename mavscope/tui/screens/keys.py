@@ -17,6 +17,8 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import ModalScreen
 from textual.widgets import Button, Input, Label, RadioButton, RadioSet, Static
 
+from mavscope.tui.widgets.words import Pane, Title
+
 # words of the spec syntax, left in an error message even when they were typed
 _SYNTAX = frozenset(("hex", "base64", "passphrase", "qgc", "file", "xor", "aes-128-ctr", "aes-gcm", "ecdh", "iv"))
 
@@ -49,9 +51,9 @@ class KeyDialog(ModalScreen[None]):
             with RadioSet(id="key-kind"):
                 for i, kind in enumerate(KINDS):
                     yield RadioButton(kind[2], value=i == 0, id=f"kind-{i}")
-            yield Label(KINDS[0][3], id="key-help")
+            yield Title(KINDS[0][3], id="key-help")
             yield Input(placeholder="key", id="key-input", password=True)
-            yield Static("", id="key-error")
+            yield Pane("", id="key-error")
             with Horizontal():  # Add first: Tab from the input lands on it, not on Cancel (which loses the key)
                 yield Button("Add", variant="primary", id="key-add")
                 yield Button("Cancel", id="key-cancel")

@@ -26,6 +26,7 @@ from mavscope.output.console import text
 from mavscope.tui.screens.analysis import AnalysisScreen, first_rows
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
 from mavscope.tui.widgets.track_plot import TrackPlot
+from mavscope.tui.widgets.words import Table, Title
 
 MAX_TRACK_POINTS = 4000
 
@@ -54,12 +55,12 @@ class MissionScreen(AnalysisScreen):
     def compose_body(self) -> ComposeResult:
         with Horizontal():
             with Vertical(id="mission-left"):
-                yield Label("Transfers and operations (Enter: show a transfer's items)", id="transfers-title")
-                yield DataTable(id="transfers", cursor_type="row", zebra_stripes=True)
-                yield Label("Items", id="items-title")
-                yield DataTable(id="items", cursor_type="row", zebra_stripes=True)
+                yield Title("Transfers and operations (Enter: show a transfer's items)", id="transfers-title")
+                yield Table(id="transfers", cursor_type="row", zebra_stripes=True)
+                yield Title("Items", id="items-title")
+                yield Table(id="items", cursor_type="row", zebra_stripes=True)
             with Vertical(id="mission-right"):
-                yield Label("Track (blue: GLOBAL_POSITION_INT; orange: waypoints in order)")
+                yield Title("Track (blue: GLOBAL_POSITION_INT; orange: waypoints in order)")
                 yield TrackPlot(id="plot")
 
     def analyse(self, frames: Iterator[Frame], selection: Selection) -> MissionResult:

@@ -22,6 +22,8 @@ from mavscope.mavlink.frame import Frame
 from mavscope.output.console import text as escaped
 from mavscope.tui.screens.analysis import AnalysisScreen, first_rows
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
+from mavscope.tui.widgets.words import Pane, Table, Title
+from mavscope.visible import visible
 
 PREVIEW_BYTES = 2048
 
@@ -40,7 +42,7 @@ def preview(data: bytes) -> Text:
     head = data[:PREVIEW_BYTES]
     try:
         text = head.decode("utf-8")
-        if all(c.isprintable() or c in "\n\r\t" for c in text):
+        if all(c.isprintable() or c in "\n\t" for c in text):  # (a CR would rewrite the line: hex)
             return Text(text + ("\n…" if len(data) > PREVIEW_BYTES else ""))
     except UnicodeDecodeError:
         pass
@@ -64,7 +66,7 @@ def describe(r: ObjectRecord) -> Text:
     if r.duplicate_bytes or r.conflict_bytes:
         lines.append(f"received again: {r.duplicate_bytes:,} bytes the same, {r.conflict_bytes:,} different")
     lines += [f"! {p}" for p in r.problems]
-    return Text("\n".join(lines), style=RED if r.conflict_bytes else "")
+    return Text(visible("\n".join(lines), keep_newlines=True), style=RED if r.conflict_bytes else "")
 
 
 class ObjectsScreen(AnalysisScreen):
@@ -77,12 +79,12 @@ class ObjectsScreen(AnalysisScreen):
     """
 
     def compose_body(self) -> ComposeResult:
-        yield Label("Files (MAVLink FTP), logs and images (Enter: go to the first frame)", id="objects-title")
-        yield DataTable(id="objects", cursor_type="row", zebra_stripes=True)
+        yield Title("Files (MAVLink FTP), logs and images (Enter: go to the first frame)", id="objects-title")
+        yield Table(id="objects", cursor_type="row", zebra_stripes=True)
         with VerticalScroll(id="object-pane"):
-            yield Static(id="object-detail")
-            yield Static(id="object-preview")
-            yield Static(id="object-notes")
+            yield Pane(id="object-detail")
+            yield Pane(id="object-preview")
+            yield Pane(id="object-notes")
 
     def analyse(self, frames: Iterator[Frame], selection: Selection) -> ObjectLog:
         """Over the frames of the whole index that carry objects; under a filter, the objects with a frame
@@ -126,7 +128,7 @@ class ObjectsScreen(AnalysisScreen):
         notes += [f"[{f.severity.value}] {f.code}: {f.message}" for f in log.findings]
         if log.image_orphans:
             notes.append(f"{log.image_orphans} ENCAPSULATED_DATA frame(s) before any image was announced")
-        self.query_one("#object-notes", Static).update(Text("\n".join(notes), style="dim"))
+        self.query_one("#object-notes", Static).update(Text(visible("\n".join(notes), keep_newlines=True), style="dim"))
         if log.objects:
             self.show_object(0)
         table.focus()

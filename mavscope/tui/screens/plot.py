@@ -6,7 +6,6 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 
-from rich.text import Text
 from textual.app import ComposeResult
 from textual.widgets import Static
 
@@ -15,8 +14,10 @@ from mavscope.analysis.series import Plotter
 from mavscope.browse.index import FrameIndex
 from mavscope.fields.registry import FieldRegistry, PayloadField
 from mavscope.mavlink.frame import Frame
+from mavscope.output.console import text
 from mavscope.output.plotting import chart
 from mavscope.tui.screens.analysis import AnalysisScreen
+from mavscope.tui.widgets.words import Pane
 
 
 class PlotScreen(AnalysisScreen):
@@ -31,7 +32,7 @@ class PlotScreen(AnalysisScreen):
         self.plotter = Plotter(FieldRegistry(index.dialect), [field])  # UsageError for a field that is no number
 
     def compose_body(self) -> ComposeResult:
-        yield Static(Text(f"{self.field} over time"), id="plot")
+        yield Pane(text(f"{self.field} over time"), id="plot")
 
     def analyse(self, frames: Iterator[Frame], selection: Selection) -> Plotter:
         """Over the frames of the field's messages (the filter's view when there is one)."""

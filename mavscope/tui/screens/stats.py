@@ -14,6 +14,7 @@ from mavscope.mavlink.frame import Frame
 from mavscope.output.tables import listed, sparkline
 from mavscope.tui.screens.analysis import AnalysisScreen, first_rows
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
+from mavscope.tui.widgets.words import Table, Title
 
 SPARK_WIDTH = 30
 
@@ -32,10 +33,10 @@ class StatsScreen(AnalysisScreen):
     """
 
     def compose_body(self) -> ComposeResult:
-        yield Label("Loss per link (sequence gaps per sysid/compid)", id="links-title")
-        yield DataTable(id="links", zebra_stripes=True, cursor_type="row")
-        yield Label("Message rates", id="rates-title")
-        yield DataTable(id="rates", zebra_stripes=True, cursor_type="row")
+        yield Title("Loss per link (sequence gaps per sysid/compid)", id="links-title")
+        yield Table(id="links", zebra_stripes=True, cursor_type="row")
+        yield Title("Message rates", id="rates-title")
+        yield Table(id="rates", zebra_stripes=True, cursor_type="row")
 
     def analyse(self, frames: Iterator[Frame], selection: Selection) -> Stats:
         return compute_stats(frames)

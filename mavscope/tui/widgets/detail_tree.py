@@ -17,6 +17,7 @@ from mavscope.fields.summary import frame_heading
 from mavscope.fields.tree import Item
 from mavscope.notes import Severity
 from mavscope.tui.verdicts import BLUE, DIM, GREEN, ORANGE, RED
+from mavscope.visible import printable
 
 _STATUS_STYLE = {
     "ok": GREEN, "valid": GREEN, "bad": RED, "invalid": RED, "truncated": RED, "replay": ORANGE,
@@ -36,8 +37,9 @@ def frame_item(detail: Detail) -> Item:
 
 
 def label_of(item: Item) -> Text:
-    """The node label, with verdicts in colour and generated items dimmed."""
-    text = Text(item.label)
+    """The node label, with verdicts in colour and generated items dimmed (a label escapes the words of the
+    capture and the dialect as it is built: fields/tree.py; `printable` is the last guard)."""
+    text = Text(printable(item.label))
     name = item.name
     if name in ("mavlink.crc", "signature.status", "encryption.status"):
         word = item.label.partition("[")[2] or item.label.partition(": ")[2]

@@ -12,7 +12,10 @@ from textual.binding import Binding
 from textual.containers import Horizontal
 from textual.message import Message
 from textual.widget import Widget
-from textual.widgets import Input, Label, Static
+from textual.widgets import Input, Static
+
+from mavscope.tui.widgets.words import Pane, Title
+from mavscope.visible import visible
 
 PROMPT = "Filter: "
 
@@ -57,11 +60,11 @@ class FilterBar(Widget):
 
     def compose(self) -> ComposeResult:
         with Horizontal():
-            yield Label(PROMPT)
+            yield Title(PROMPT)
             yield FilterInput(self._initial, id="filter-input", select_on_focus=False,
                               placeholder="display filter, e.g. COMMAND_LONG or mavlink.crc_status == bad "
                                           "(/ to edit, Enter to apply, Escape to leave)")
-        yield Static("", id="filter-error")
+        yield Pane("", id="filter-error")
 
     @property
     def input(self) -> Input:
@@ -79,7 +82,7 @@ class FilterBar(Widget):
         """Show `message` under the bar with a caret under `position` of the text."""
         caret = " " * (len(PROMPT) + position) + "^" + "~" * max(0, length - 1)
         self.error = f"{caret} {message}"
-        self.query_one("#filter-error", Static).update(Text(self.error))
+        self.query_one("#filter-error", Static).update(Text(visible(self.error)))  # (a message may quote the text)
         self.add_class("-error")
         self.input.cursor_position = position
         self.input.focus()

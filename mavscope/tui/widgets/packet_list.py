@@ -34,6 +34,7 @@ from mavscope.tui.verdicts import (
     encryption_key,
     signature_key,
 )
+from mavscope.visible import printable, visible
 
 # (title, width); the last column takes the rest of the line
 COLUMNS: tuple[tuple[str, int], ...] = (
@@ -300,7 +301,7 @@ class PacketList(ScrollView, can_focus=True):
         t0 = self.index.time_base
         t = "-" if r.time is None or t0 is None else f"{r.time - t0:.6f}"
         src = str(r.src or r.transport)
-        label = r.msgname or message_label(r.msgid, None)
+        label = visible(r.msgname) if r.msgname else message_label(r.msgid, None)  # (as the Info column has it)
         segs = [
             Segment(_cell(r.number, COLUMNS[0][1], True), base),
             Segment(_cell(t, COLUMNS[1][1], True), base),
@@ -324,7 +325,7 @@ class PacketList(ScrollView, can_focus=True):
             glyph, style, _ = ENCRYPTION_GLYPHS.get(ek, ("?", "", ""))
             segs.append(Segment(glyph, base + Style.parse(style)))
         segs.append(Segment(" ", base))
-        info = self.index.summary(row)
+        info = printable(self.index.summary(row))  # (its words escaped as it was made: fields/summary.py)
         if info.startswith(label):
             info = info[len(label) :].lstrip()  # the Message column has it
         bad = r.crc_status in (CrcStatus.BAD, CrcStatus.TRUNCATED) or sk in ("invalid",)
