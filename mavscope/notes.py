@@ -196,6 +196,9 @@ CODES: dict[str, Code] = {
         Code("unknown-msgid", _NOTE, Group.UNDECODED, _F, "message id not in the loaded dialects: CRC unchecked"),
         Code("length-mismatch", _WARN, Group.MALFORMED, _F, "payload length does not fit the message definition"),
         Code("unknown-incompat-flags", _WARN, Group.PROTOCOL, _F, "incompatibility flags mavscope does not know"),
+        Code("char-after-nul", _NOTE, Group.SECURITY, _F,
+             "a char array holds bytes after the NUL that ends its string (no reader shows them: garbage or a "
+             "covert channel)"),
         Code("hidden-frame", _ERROR, Group.SECURITY, _B,
              "frame MAVLink's C library reads inside bytes the framer shows as other frames or skipped",
              "frames that MAVLink's C library (ArduPilot, PX4, QGroundControl) reads inside bytes the framer "

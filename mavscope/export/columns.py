@@ -24,7 +24,7 @@ from mavscope.export.schema import (
     has_block,
     message_columns,
 )
-from mavscope.mavlink.dialect import Dialect, MessageDef, char_text, wire_format
+from mavscope.mavlink.dialect import Dialect, MessageDef, bytes_text, char_text, is_text, wire_format
 from mavscope.mavlink.frame import Frame, plaintext_payload
 from mavscope.pipeline.dissect import Anomaly
 
@@ -131,7 +131,8 @@ class _Plan:
     md: MessageDef
     schema: pa.Schema
     unpack: struct.Struct
-    # per field in wire order: (flat start, element count, kind: 0 scalar, 1 string, 2 array)
+    # per field in wire order: (flat start, element count, kind: 0 scalar, 1 string, 2 array, 3 a char array of
+    # a value's bytes: dialect.VALUE_BYTES)
     steps: list[tuple[int, int, int]]
     order: list[int]  # wire index of each column in XML order
     extensions: list[int]  # column positions (XML order) of extension fields
@@ -146,7 +147,7 @@ def _plan(md: MessageDef, dialect: Dialect) -> _Plan:
     i = 0
     for fd in wire:
         if fd.type == "char":
-            steps.append((i, 1, 1))
+            steps.append((i, 1, 1 if is_text(fd) else 3))
             i += 1
         elif fd.array_length:
             steps.append((i, fd.array_length, 2))
@@ -206,6 +207,8 @@ class _Message:
                 wire_cols.append(list(flat[start]))
             elif kind == 1:
                 wire_cols.append([char_text(b) for b in flat[start]])
+            elif kind == 3:
+                wire_cols.append([bytes_text(b) for b in flat[start]])
             else:
                 wire_cols.append([list(t) for t in zip(*flat[start : start + count])])
         values = [wire_cols[k] for k in plan.order]

@@ -7,7 +7,7 @@ message tables' columns without a copy where Arrow's layout is the buffer's (num
 vectorised numpy and Arrow kernels elsewhere (strings from tables of names, hex, validity bitmaps). A
 message's payload rows are read through a numpy structured dtype compiled from its FieldDefs (pymavlink's
 parser): the layout is never written here. Values equal the pure path's (columns.py) exactly: char arrays
-trimmed and decoded as `char_text` does, float32 NaNs quieted as CPython's float conversion quiets them,
+cut at their first NUL and decoded as `char_text` does, float32 NaNs quieted as CPython's float conversion quiets them,
 MAVLink 1 frames' extension fields null, enum names looked up per distinct value by the same rule.
 """
 
@@ -24,7 +24,7 @@ import pyarrow as pa
 
 from mavscope.export.columns import flag_names
 from mavscope.export.schema import frames_schema, message_columns
-from mavscope.mavlink.dialect import Dialect, FieldDef, MessageDef, char_text
+from mavscope.mavlink.dialect import Dialect, FieldDef, MessageDef, bytes_text, char_text, is_text
 from mavscope.mavlink.frame import SIGNING_EPOCH
 
 # MAVLink scalar types as numpy types (sizes and offsets come from the FieldDefs)
@@ -199,7 +199,7 @@ def frames_batch(c: Chunk, names: Names, capture_id: str, capture_path: str) -> 
 class _Column:
     field: str  # its name in the dtype
     type: pa.DataType
-    kind: int  # 0 number, 1 string (char array), 2 list
+    kind: int  # 0 number, 1 string (char array), 2 list, 3 a char array of a value's bytes (VALUE_BYTES)
     count: int  # elements (a char array: bytes)
     extension: bool
     float32: bool
@@ -243,7 +243,7 @@ def message_plan(md: MessageDef, dialect: Dialect) -> MessagePlan:
     columns = []
     for (col, fd), field in zip(cols.fields, list(cols.schema)[8:]):
         assert field.name == col
-        kind = 1 if fd.type == "char" else (2 if fd.array_length else 0)
+        kind = (1 if is_text(fd) else 3) if fd.type == "char" else (2 if fd.array_length else 0)
         count = max(fd.array_length, 1)
         columns.append(_Column(key[fd.name], field.type, kind, count, fd.extension, fd.type == "float"))
     position = {fd.name: j for j, (_, fd) in enumerate(cols.fields)}
@@ -265,13 +265,17 @@ def decoded(plan: MessagePlan, rows: Any, count: int) -> list[dict[str, object]]
     return [dict(zip(names, t)) for t in np.frombuffer(rows, plan.dtype, count=count).tolist()]
 
 
-def _strings(raw: np.ndarray, valid: np.ndarray | None) -> pa.Array:
-    """char arrays (rows of bytes) as `char_text` makes them: trailing NULs dropped, UTF-8, bytes that are
-    not UTF-8 as \\xNN escapes (the rare column holding one is decoded row by row, by char_text itself)."""
+def _strings(raw: np.ndarray, valid: np.ndarray | None, text: bool = True) -> pa.Array:
+    """char arrays (rows of bytes) as `char_text` makes them (`text`: the bytes up to the first NUL) or
+    `bytes_text` (else: all but the trailing NULs), UTF-8, bytes that are not UTF-8 as \\xNN escapes (the
+    rare column holding one is decoded row by row, by those functions themselves)."""
     n, width = raw.shape
-    nonzero = raw != 0
-    any_set = nonzero.any(axis=1)
-    lengths = np.where(any_set, width - np.argmax(nonzero[:, ::-1], axis=1), 0).astype(np.int32)
+    if text:
+        zero = raw == 0
+        lengths = np.where(zero.any(axis=1), np.argmax(zero, axis=1), width).astype(np.int32)
+    else:
+        nonzero = raw != 0
+        lengths = np.where(nonzero.any(axis=1), width - np.argmax(nonzero[:, ::-1], axis=1), 0).astype(np.int32)
     offsets = np.zeros(n + 1, np.int32)
     np.cumsum(lengths, out=offsets[1:])
     keep = np.arange(width)[None, :] < lengths[:, None]
@@ -281,7 +285,8 @@ def _strings(raw: np.ndarray, valid: np.ndarray | None) -> pa.Array:
     try:
         out.validate(full=True)
     except pa.ArrowInvalid:  # not UTF-8 somewhere
-        rows = [char_text(bytes(r)) for r in raw]
+        decode = char_text if text else bytes_text
+        rows = [decode(bytes(r)) for r in raw]
         out = pa.array(rows if valid is None else [t if v else None for t, v in zip(rows, valid)], pa.string())
     return out
 
@@ -290,8 +295,8 @@ def _values(col: _Column, recs: np.ndarray, valid: np.ndarray | None) -> tuple[p
     """One payload column, and its numbers (for the enum names) when it is a scalar number."""
     raw = np.ascontiguousarray(recs[col.field])
     n = len(recs)
-    if col.kind == 1:
-        return _strings(raw.view(np.uint8).reshape(n, col.count), valid), None
+    if col.kind in (1, 3):
+        return _strings(raw.view(np.uint8).reshape(n, col.count), valid, col.kind == 1), None
     if col.float32:
         raw = quiet_nans(raw)
     if col.kind == 0:

@@ -118,6 +118,8 @@ class MessageDef:
     crc_extra_byte: bytes = field(repr=False, compare=False)
     decode: Callable[[bytes], Decoded] = field(repr=False, compare=False)
     xml_order: tuple[str, ...] = ()  # field names in XML order (pymavlink's `fieldnames`; CSV columns)
+    # its char arrays that hold strings (wire order): those whose bytes after the NUL are noted (char-after-nul)
+    chars: tuple[FieldDef, ...] = field(default=(), repr=False, compare=False)
 
     def field(self, name: str) -> FieldDef | None:
         for f in self.fields:
@@ -142,8 +144,42 @@ def wire_format(fields: Iterable[FieldDef]) -> str:
 
 
 def char_text(raw: bytes) -> str:
-    """A char array's value. Same rule as pymavlink: trailing NULs go, undecodable bytes are shown escaped."""
+    """A char array's value: its bytes up to the first NUL (common.xml: PARAM_VALUE.param_id "terminated by
+    NULL if the length is less than 16"; pymavlink's generated messages keep `value.split(b"\\x00", 1)[0]`,
+    MAVLink's C++ library `strnlen`, C readers hand the array to C string functions), UTF-8 with undecodable
+    bytes shown escaped. The bytes after that NUL are no part of the value (`char_tail`)."""
+    end = raw.find(0)
+    return (raw if end < 0 else raw[:end]).decode("utf-8", errors="backslashreplace")
+
+
+def char_tail(raw: bytes) -> int:
+    """How many bytes of a char array follow the NUL that ends its value, up to its last byte that is not
+    NUL (0: only NULs, or none, follow it): what a sender put where no reader of the string looks."""
+    end = raw.find(0)
+    return 0 if end < 0 else max(0, len(raw.rstrip(b"\x00")) - end - 1)
+
+
+# char arrays that carry a value's bytes, not text: PARAM_EXT_*.param_value (the extended parameter protocol:
+# MAV_PARAM_EXT_TYPE says what its bytes are, a float's or an integer's little-endian bytes, text only for
+# CUSTOM), where a NUL is one of the value's bytes
+VALUE_BYTES = frozenset({("PARAM_EXT_VALUE", "param_value"), ("PARAM_EXT_SET", "param_value"),
+                         ("PARAM_EXT_ACK", "param_value")})
+
+
+def is_text(fd: FieldDef) -> bool:
+    """Whether char array `fd` holds a string (`char_text`), not a value's bytes (VALUE_BYTES: `bytes_text`)."""
+    return (fd.message, fd.name) not in VALUE_BYTES
+
+
+def bytes_text(raw: bytes) -> str:
+    """A char array that carries a value's bytes (VALUE_BYTES): all of them but the trailing NULs (the
+    sender's padding), UTF-8 with undecodable bytes shown escaped: a NUL inside is one of the bytes."""
     return raw.rstrip(b"\x00").decode("utf-8", errors="backslashreplace")
+
+
+def char_value(fd: FieldDef) -> Callable[[bytes], str]:
+    """How char array `fd`'s value is made from its bytes: `char_text`, or `bytes_text` for VALUE_BYTES."""
+    return char_text if is_text(fd) else bytes_text
 
 
 def _make_decoder(fields: tuple[FieldDef, ...], length: int) -> Callable[[bytes], Decoded]:
@@ -163,12 +199,13 @@ def _make_decoder(fields: tuple[FieldDef, ...], length: int) -> Callable[[bytes]
 
         return decode_simple
 
-    # (name, first index in the flat tuple, count, kind) with kind: 0 scalar, 1 string, 2 array
+    # (name, first index in the flat tuple, count, kind) with kind: 0 scalar, 1 string, 2 array, 3 a char
+    # array of a value's bytes
     plan: list[tuple[str, int, int, int]] = []
     i = 0
     for f in fields:
         if f.type == "char":
-            plan.append((f.name, i, 1, 1))
+            plan.append((f.name, i, 1, 1 if is_text(f) else 3))
             i += 1
         elif f.array_length:
             plan.append((f.name, i, f.array_length, 2))
@@ -188,6 +225,8 @@ def _make_decoder(fields: tuple[FieldDef, ...], length: int) -> Callable[[bytes]
                 out[name] = flat[start]
             elif kind == 1:
                 out[name] = char_text(flat[start])
+            elif kind == 3:
+                out[name] = bytes_text(flat[start])
             else:
                 out[name] = list(flat[start : start + count])
         return out
@@ -211,6 +250,7 @@ def _compile_message(m: list, source: str) -> MessageDef:
         crc_extra_byte=bytes((crc_extra,)),
         decode=_make_decoder(ftuple, length),
         xml_order=tuple(xml_order),
+        chars=tuple(f for f in ftuple if f.type == "char" and is_text(f)),
     )
 
 

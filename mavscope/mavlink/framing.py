@@ -24,7 +24,7 @@ from collections.abc import Hashable
 from fastcrc import crc16
 
 from mavscope.endpoint import Endpoint
-from mavscope.mavlink.dialect import MessageDef
+from mavscope.mavlink.dialect import MessageDef, char_tail
 from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, KNOWN_IFLAGS, CrcStatus, Frame, Signature, new_frame
 from mavscope.mavlink.hidden import Receiver, Scanned, Walking, hidden_frames, hidden_note, merged
 from mavscope.notes import Note, note
@@ -305,10 +305,37 @@ def build_frame(
                               offset))
         elif length > md.length and not iflags & IFLAG_ENCRYPTION_MASK:
             extra.append(note("length-mismatch", f"payload of {length} bytes, {md.name} has {md.length}", offset))
+        if md.chars and not iflags & ~KNOWN_IFLAGS:  # (a payload that is decoded)
+            hlen = HEADER_V2 if version == 2 else HEADER_V1
+            extra.extend(char_notes(md, raw[hlen : hlen + min(length, md.length)], offset))
     if extra:
         notes = notes + tuple(extra)
     return new_frame(record, index, time, transport, src, dst, offset, raw, version, length, iflags, cflags, seq,
                      sysid, compid, msgid, crc, status, md, sig, notes, span)
+
+
+def char_notes(md: MessageDef, payload: bytes, offset: int | None) -> list[Note]:
+    """`char-after-nul` for each char array of `payload` (a plaintext payload of message `md`) that holds
+    bytes after the NUL ending its string: the field and the count, for what no reader of the value sees."""
+    out = []
+    for fd in md.chars:
+        tail = char_tail(payload[fd.offset : fd.offset + fd.size])
+        if tail:
+            out.append(note("char-after-nul", f"{md.name}.{fd.name}: {tail} byte{'s' if tail > 1 else ''} after the "
+                            "NUL that ends the string (not part of its value)", offset))
+    return out
+
+
+def has_char_tail(md: MessageDef, data: bytes, start: int, end: int) -> bool:
+    """Whether a char array of message `md`, whose payload is data[start:end], holds bytes after the NUL
+    that ends its string (the test of `char_notes`, without copying the payload)."""
+    for fd in md.chars:
+        a = start + fd.offset
+        b = min(a + fd.size, end)
+        z = data.find(0, a, b)
+        if 0 <= z and data.count(0, z, b) != b - z:
+            return True
+    return False
 
 
 def announced_size(raw: bytes) -> int:

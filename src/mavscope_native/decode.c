@@ -55,10 +55,7 @@ char *ms_w_fields(char *p, const ms_message *m, const uint8_t *payload, size_t l
         const uint8_t *v = padded + f->offset; /* offset + size <= length <= 255: checked by the parser */
         const unsigned type = f->type & 0x7F;
         if (type == MS_T_CHAR) {
-            size_t n = f->count;
-            while (n && v[n - 1] == 0)
-                n--;
-            p = ms_w_text(p, v, n);
+            p = ms_w_text(p, v, ms_char_len(v, f->count)); /* the string ends at its first NUL */
         } else if (f->type & MS_T_ARRAY) {
             *p++ = '[';
             const unsigned step = SIZE_OF[type];

@@ -322,8 +322,7 @@ char *ms_w_reltime(char *p, double t) {
 
 
 char *ms_w_repr_ascii(char *p, const uint8_t *s, size_t n) {
-    while (n && s[n - 1] == 0)
-        n--;
+    n = ms_char_len(s, n); /* a string ends at its first NUL (char_text) */
     int sq = 0, dq = 0;
     for (size_t i = 0; i < n; i++) {
         if (s[i] >= 0x80)

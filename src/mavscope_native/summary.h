@@ -89,7 +89,7 @@ char *ms_w_degrees(char *p, int64_t v, int is_unsigned);
 #define MS_REL_MAX 40 /* f"{t:11.6f}" for |t| < 1e15 */
 /* f"{t:11.6f}"; NULL when |t| >= 1e15 or t is not finite (the caller hands the record back) */
 char *ms_w_reltime(char *p, double t);
-/* repr() of bytes decoded as Python's char_text would (trailing NULs stripped); NULL when a byte is not
+/* repr() of bytes decoded as Python's char_text would (up to the first NUL); NULL when a byte is not
  * ASCII (printable non-ASCII characters need Unicode tables: the caller hands the record back). */
 char *ms_w_repr_ascii(char *p, const uint8_t *s, size_t n);
 

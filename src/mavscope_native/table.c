@@ -95,6 +95,8 @@ int ms_table_parse(ms_table *t, const uint8_t *blob, size_t len) {
                 goto fail;
             size_t value;
             if (base == MS_T_CHAR)
+                msg->has_char = 1;
+            if (base == MS_T_CHAR)
                 value = 6 * (size_t)fd->count + 2; /* ms_text_max */
             else if (fd->type & MS_T_ARRAY)
                 value = 2 + (size_t)fd->count * (TEXT_MAX[base] + 1);

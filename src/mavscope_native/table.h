@@ -16,7 +16,7 @@
 
 enum {
     MS_T_U8 = 1, MS_T_I8, MS_T_U16, MS_T_I16, MS_T_U32, MS_T_I32, MS_T_U64, MS_T_I64, MS_T_F32, MS_T_F64,
-    MS_T_CHAR, /* a string: trailing NULs stripped, UTF-8 with backslashreplace */
+    MS_T_CHAR, /* a string: its bytes up to the first NUL, UTF-8 with backslashreplace */
     MS_T_ARRAY = 0x80,
 };
 
@@ -46,6 +46,7 @@ typedef struct {
     uint8_t length;
     uint8_t base_length;
     uint8_t python_only; /* frames of this message always go to the Python path */
+    uint8_t has_char;    /* a field is a char array (ms_char_tail) */
     uint16_t nfields;
     uint16_t name_len;
     const char *name;
@@ -60,6 +61,30 @@ typedef struct {
     size_t nslots;   /* a power of two */
     char *text;      /* the names and keys, each followed by MS_TEXT_PAD zero bytes (fixed-size copies) */
 } ms_table;
+
+/* The length of a char array's string: its bytes up to the first NUL (or all `n`). */
+static inline size_t ms_char_len(const uint8_t *v, size_t n) {
+    const uint8_t *z = memchr(v, 0, n);
+    return z == NULL ? n : (size_t)(z - v);
+}
+
+/* Whether a char array of `m` in `payload` (its first `len` bytes; the rest are zero) holds a byte that is
+ * not NUL after the NUL that ends its string (mavlink/framing.py's `char-after-nul` note: Python's). */
+static inline int ms_char_tail(const ms_message *m, const uint8_t *payload, size_t len) {
+    for (uint16_t i = 0; i < m->nfields; i++) {
+        const ms_field *f = &m->fields[i];
+        if ((f->type & 0x7F) != MS_T_CHAR || f->offset >= len)
+            continue;
+        size_t n = f->count;
+        if (n > len - f->offset)
+            n = len - f->offset;
+        const uint8_t *v = payload + f->offset;
+        for (size_t k = ms_char_len(v, n); k < n; k++)
+            if (v[k])
+                return 1;
+    }
+    return 0;
+}
 
 /* 0 on success, -1 when the blob is malformed or memory runs out (the table is left empty). */
 int ms_table_parse(ms_table *t, const uint8_t *blob, size_t len);

@@ -210,6 +210,8 @@ static int scan_clean(ms_walker *w, const uint8_t *d, size_t n, size_t *count, s
         }
         if (m->python_only || m->msgid == SETUP_SIGNING || m->msgid == KEY_EXCHANGE)
             return NOT_CLEAN;
+        if (m->has_char && ms_char_tail(m, f + hlen, len))
+            return NOT_CLEAN; /* bytes after a string's NUL: the char-after-nul note, Python */
         uint16_t crc = ms_crc16(f + 1, hlen - 1 + len, 0xFFFF);
         crc = ms_crc16(&m->crc_extra, 1, crc);
         if (crc != ms_le16(f + hlen + len) && !w->fuzz_any_crc)

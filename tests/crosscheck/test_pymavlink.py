@@ -37,7 +37,8 @@ def dissect(path: Path, dialect: Dialect) -> tuple[list[Frame], list[Anomaly]]:
 def _same(a: object, b: object) -> bool:
     if isinstance(a, str) and isinstance(b, str) and "\x00" in a:
         # pymavlink 2.4.50 cuts a char array at its first NUL (`value.split(b"\x00", 1)[0]` in each message's
-        # __init__); mavscope strips trailing NULs only, so binary PARAM_EXT_* values (a float's bytes) survive
+        # __init__), as mavscope cuts a string; PARAM_EXT_*.param_value carries a value's bytes (the extended
+        # parameter protocol), which mavscope keeps whole but for trailing NULs (dialect.VALUE_BYTES)
         return a.split("\x00", 1)[0] == b
     if isinstance(a, float) and isinstance(b, float):
         return a == b or (math.isnan(a) and math.isnan(b))

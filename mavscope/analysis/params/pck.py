@@ -15,13 +15,16 @@ The format, as ArduPilot's libraries/AP_Filesystem/README.md documents it and MA
 Decoding never raises: a block it cannot read ends the decode with a problem (and its offset); the
 parameters before it are kept. A count that differs from the header is reported, not refused (MAVProxy
 refuses such a file; ArduPilot's header is taken when the file is opened, and parameters can appear in
-between).
+between). A name ends at its first NUL, as every MAVLink string does (`char_text`: the name a PARAM_SET or
+PARAM_VALUE of it would carry); bytes after it are a problem of the decode.
 """
 
 from __future__ import annotations
 
 import struct
 from typing import NamedTuple
+
+from mavscope.mavlink.dialect import char_tail, char_text
 
 MAGIC = 0x671B
 MAGIC_DEFAULTS = 0x671C
@@ -101,7 +104,11 @@ def decode(data: bytes) -> PckFile:
         v_at = pos + 2 + name_len
         value = struct.unpack_from(fmt, data, v_at)[0]
         default = struct.unpack_from(fmt, data, v_at + size)[0] if has_default else (value if with_defaults else None)
-        params.append(PckParam(raw_name.decode("utf-8", "backslashreplace"), ap_type, value, default))
+        tail = char_tail(raw_name)
+        if tail:
+            problems.append(f"offset {pos}: the name {char_text(raw_name)!r} has {tail} byte{'s' if tail > 1 else ''} "
+                            "after a NUL, which ends it (as a char[16] param_id ends)")
+        params.append(PckParam(char_text(raw_name), ap_type, value, default))
         last = raw_name
         pos = stop
     if num != len(params) and not problems:
