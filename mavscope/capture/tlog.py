@@ -23,6 +23,7 @@ SNIFF_TEXT = 32768  # bytes of such entries a tlog may start with (a SITL's boot
 
 _TS = struct.Struct(">Q")
 _STX = re.compile(rb"[\xfd\xfe]")
+STXS = (STX_V1, STX_V2)
 
 
 def frame_length(buf: bytes, p: int, size: int) -> int:
@@ -74,6 +75,16 @@ def find_entry(buf: bytes, size: int, start: int, last_ts: int = -1, limit: int 
         if end >= 0 and _followed(buf, end, size, lo, hi):
             return p
         q += 1
+
+
+def cut_at(buf: bytes, p: int, end: int, ts: int, size: int) -> int:
+    """Where a whole entry starts inside the entry at `p` (timestamp `ts`), whose frame ends at `end` where no
+    MAVLink entry starts (an STX after a timestamp near `ts`): the entry was cut short (a logger that lost
+    bytes, a record cut to its first byte), and MAVLink's C parser, reading the file byte by byte, reads the
+    entry inside it; -1 if none (or an entry follows: this one is whole)."""
+    if end + 9 > size or (buf[end + 8] in STXS and near(_TS.unpack_from(buf, end)[0], ts)):
+        return -1
+    return find_entry(buf, size, p + 9, ts, end)
 
 
 def near(ts: int, last_ts: int) -> bool:
@@ -184,6 +195,8 @@ class TlogReader(CaptureReader):
                     end = p + 8 + flen
                     if end > blen or not TS_MIN <= ts < TS_MAX:
                         break
+                    if end + 9 <= blen and not (buf[end + 8] in STXS and near(ts_unpack(buf, end)[0], ts)):
+                        break  # no entry starts where it ends: the slow path looks for one inside it
                     n += 1
                     last_ts = ts
                     yield tuple_new(R, (n, ts / 1e6, LT, buf[p + 8:end], base + p + 8, end - p - 8, pending))
@@ -216,6 +229,18 @@ class TlogReader(CaptureReader):
                     flen = frame_size(buf, p + 8)
                     end = p + 8 + flen if flen >= 0 else -1
                     if end >= 0 and TS_MIN <= ts < TS_MAX:
+                        q = cut_at(buf, p, end, ts, size - base if base + len(buf) >= size else len(buf))
+                        if q >= 0:  # cut short where a whole entry starts inside it
+                            n += 1
+                            last_ts = ts
+                            pending += (note("record-truncated", f"tlog entry at offset {pos} has {q - p - 8} of "
+                                             f"{flen} frame bytes: the entry at offset {base + q} starts inside it",
+                                             pos),)
+                            yield tuple_new(R, (n, ts / 1e6, LT, buf[p + 8:q], base + p + 8, flen, pending))
+                            pending = ()
+                            pos = base + q
+                            self.position = pos
+                            continue
                         if base + end <= size:
                             n += 1
                             last_ts = ts

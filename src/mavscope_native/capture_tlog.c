@@ -83,6 +83,19 @@ static int near(uint64_t ts, int64_t last_ts) {
     return last_ts < 0 || (last_ts - RESYNC_BEHIND <= (int64_t)ts && (int64_t)ts <= last_ts + RESYNC_AHEAD);
 }
 
+/* whether a MAVLink entry starts at buf[q]: an STX after a timestamp near ts (tlog.py's fast-path test) */
+static int entry_starts(const uint8_t *buf, int64_t q, uint64_t ts) {
+    return (buf[q + 8] == STX_V1 || buf[q + 8] == STX_V2) && near(ms_be64(buf + q), (int64_t)ts);
+}
+
+/* cut_at: where a whole entry starts inside the entry at buf[p] (timestamp ts) whose frame ends at `end` where
+ * no timestamp is, or -1 (tlog.py's cut_at) */
+static int64_t cut_at(const uint8_t *buf, size_t blen, int64_t p, int64_t end, uint64_t ts, int64_t size) {
+    if (end + 9 > size || entry_starts(buf, end, ts))
+        return -1;
+    return find_entry(buf, blen, size, p + 9, (int64_t)ts, end + 8);
+}
+
 /* text_entry_end: end of the entry at buf[p] whose bytes are not a MAVLink frame: the first offset after
  * at least one byte where an entry with a timestamp near this one's starts, or the end of the file (`final`:
  * `stop` is the end); within TEXT_MAX bytes and before `stop`; -1 if there is none */
@@ -172,7 +185,9 @@ int ms_tlog_next(ms_reader *r, ms_record *rec) {
             uint64_t ts = ms_be64(buf + p);
             const int64_t flen = frame_length(buf, p + 8, (int64_t)blen);
             int64_t end = flen < 0 ? -1 : p + 8 + flen;
-            if (end >= 0 && end <= (int64_t)blen && in_range(ts, TS_MIN, TS_MAX)) {
+            if (end >= 0 && end <= (int64_t)blen && in_range(ts, TS_MIN, TS_MAX)
+                && !(end + 9 <= (int64_t)blen && !entry_starts(buf, end, ts))) {
+                /* (no entry starts where it ends: the slow path looks for one inside it) */
                 r->last_ts = (int64_t)ts;
                 entry(r, rec, buf + p + 8, (size_t)(end - p - 8), base + (uint64_t)p + 8, (uint64_t)(end - p - 8), 1, ts);
                 r->pos = base + (uint64_t)end;
@@ -205,6 +220,19 @@ int ms_tlog_next(ms_reader *r, ms_record *rec) {
             const int64_t flen = frame_length(buf, p + 8, (int64_t)blen); /* the frame length the entry announces */
             int64_t end = flen < 0 ? -1 : p + 8 + flen;
             if (end >= 0 && in_range(ts, TS_MIN, TS_MAX)) {
+                const int64_t valid = base + blen >= size ? (int64_t)(size - base) : (int64_t)blen;
+                q = cut_at(buf, blen, p, end, ts, valid);
+                if (q >= 0) { /* cut short where a whole entry starts inside it */
+                    r->last_ts = (int64_t)ts;
+                    ms_notes_add(&r->pending, MS_NOTE_RECORD_TRUNCATED, (int64_t)pos,
+                                 "tlog entry at offset %llu has %lld of %lld frame bytes: the entry at offset %llu "
+                                 "starts inside it", (unsigned long long)pos, (long long)(q - p - 8), (long long)flen,
+                                 (unsigned long long)(base + (uint64_t)q));
+                    entry(r, rec, buf + p + 8, (size_t)(q - p - 8), base + (uint64_t)p + 8, (uint64_t)flen, 1, ts);
+                    r->pos = base + (uint64_t)q;
+                    r->position = r->pos;
+                    return 1;
+                }
                 if (base + (uint64_t)end <= size) {
                     r->last_ts = (int64_t)ts;
                     r->position = base + (uint64_t)end;
