@@ -141,6 +141,9 @@ def test_transfers_match_the_independent_derivation(name: str, docs: dict[str, d
         want = MISSING.get((name, i), [])
         assert [s for a, b in t["missing"] for s in range(a, b + 1)] == want and t["missing_count"] == len(want)
         assert t["complete"] is (t["outcome"] == "complete")
+        final = [a for a in t["acks"] if a["role"] == "final"]
+        if final and final[-1]["result"] == OK and final[-1]["from"] == t["to"]:  # the receiver accepted it
+            assert t["outcome"] == "complete"  # never "missing" or "unacknowledged" (every item is here)
     # no false alarm: no duplicate, no ACK without its exchange, no frame outside a transfer
     assert docs[name]["duplicates"] == 0
     assert [e for e in docs[name]["events"] if e["kind"] in ("unmatched-ack", "orphan", "request-list")] == []
@@ -210,19 +213,20 @@ def _heartbeat(msgs: list[Msg], src: tuple[int, int]) -> tuple[int, int]:
 
 
 @pytest.mark.parametrize(("name", "exported"), [
-    ("ap_rover_mission_fence_rally_params.tlog", 9),  # the last complete transfer with items: the 19-item upload
-    ("ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog", 1),  # the only one with items: the 4-item download
+    ("ap_rover_mission_fence_rally_params.tlog", 9),  # the 19-item upload (since emptied: history, on request)
+    ("ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog", 1),  # the 4-item download (since emptied, likewise)
 ])
 def test_plan_of_an_ardupilot_capture(name: str, exported: int, real_captures: Path, tmp_path: Path,
                                       frames: dict[str, list[Msg]], cli: Cli) -> None:
     out = tmp_path / "real.plan"
-    doc = cli.json("mission", str(real_captures / name), "--plan", str(out))
+    doc = cli.json("mission", str(real_captures / name), "--plan", str(out), "--plan-transfer", str(exported))
     plan = json.loads(out.read_text())
     msgs = frames[name]
     seg = segments(msgs)[exported - 1]
     assert doc["plan"]["mission_transfer"] == exported
-    assert set(doc["plan"]) == {"file", "mission_transfer", "fence_transfer", "rally_transfer", "firmwareType",
-                                "vehicleType", "home_source", "warnings"}  # as docs/analysis.md lists them
+    assert set(doc["plan"]) == {"file", "mission_transfer", "fence_transfer", "rally_transfer", "vehicle",
+                                "cleared", "firmwareType", "vehicleType", "home_source",
+                                "warnings"}  # as docs/analysis.md lists them
     mission = plan["mission"]
     # the vehicle's last HEARTBEAT: ArduPilot (MAV_AUTOPILOT_ARDUPILOTMEGA 3), its MAV_TYPE
     assert (mission["firmwareType"], mission["vehicleType"]) == _heartbeat(msgs, (1, 1))
@@ -245,6 +249,72 @@ def test_plan_of_an_ardupilot_capture(name: str, exported: int, real_captures: P
         assert item["params"][6] == pytest.approx(m.z)
     assert plan["geoFence"] == {"circles": [], "polygons": [], "version": 2}  # every fence transfer is empty
     assert plan["rallyPoints"] == {"points": [], "version": 2}
+
+
+def last_accepted_uploads(msgs: list[Msg]) -> dict[int, tuple[int, int, float]]:
+    """Per mission type, the last upload the vehicle (1/1) accepted, by the mission protocol's rules
+    (mavlink.io/en/services/mission.html): a MISSION_COUNT from another system to system 1 (or 0) opens an
+    upload; the vehicle's MISSION_ACK of that type, MAV_MISSION_ACCEPTED, to that system, before the next
+    MISSION_COUNT of the type, accepts it (at once for count 0: the spec's clear by empty upload). Gives
+    (count, the COUNT's number among the capture's MISSION_COUNTs from 1, the ACK's time)."""
+    out: dict[int, tuple[int, int, float]] = {}
+    counts = 0
+    uploading: dict[int, tuple[int, tuple[int, int], int]] = {}  # type -> (count, sender, number)
+    for m in msgs:
+        mtype = getattr(m.msg, "mission_type", 0) or 0
+        if m.name == "MISSION_COUNT":
+            counts += 1
+            if m.src[0] != 1 and m.msg.target_system in (0, 1):
+                uploading[mtype] = (m.msg.count, m.src, counts)
+            else:
+                uploading.pop(mtype, None)
+        elif m.name == "MISSION_ACK" and m.src == (1, 1) and m.msg.type == 0 and mtype in uploading:
+            count, sender, number = uploading[mtype]
+            if m.msg.target_system in (0, sender[0]):
+                out[mtype] = (count, number, m.time)
+                del uploading[mtype]
+    return out
+
+
+@pytest.mark.parametrize("name", ["ap_rover_mission_fence_rally_params.tlog",
+                                  "ap_plane_sitl_mission3types_ftp_mp_mavproxy.tlog"])
+def test_after_the_last_empty_upload_the_vehicle_holds_no_mission(name: str, real_captures: Path, tmp_path: Path,
+                                                                   frames: dict[str, list[Msg]], cli: Cli) -> None:
+    # Both captures end with accepted uploads of 0 items for mission, fence and rally (derived below): the
+    # plan and the track must say the vehicle holds none since then, the earlier mission kept as history.
+    last = last_accepted_uploads(frames[name])
+    assert sorted(last) == [0, 1, 2] and all(count == 0 for count, _, _ in last.values())
+    out = tmp_path / "now.plan"
+    path = str(real_captures / name)
+    status, _, err = cli("mission", path, "--plan", str(out))
+    assert status == 0 and "holds no mission since frame" in err
+    plan = json.loads(out.read_text())
+    assert plan["mission"]["items"] == [] and plan["rallyPoints"]["points"] == []
+    info = cli.json("mission", path, "--plan", str(out))["plan"]
+    assert info["mission_transfer"] is None and info["vehicle"] == [1, 1]
+    for mtype, what in ((0, "mission"), (1, "fence"), (2, "rally")):
+        count, number, when = last[mtype]
+        c = info["cleared"][what]
+        assert (c["how"], c["transfer"]) == ("empty-upload", number) and c["at"] == pytest.approx(when, abs=1e-6)
+    transfers = cli.json("mission", path)["transfers"]
+    items = [n for n, t in enumerate(transfers, 1) if t["items"] and t["mission_type_id"] == 0]
+    assert info["cleared"]["mission"]["history"] == items and items  # the transfers with items, all before
+    summary = cli.json("track", path)
+    assert summary["mission_transfer"] is None and summary["history_mission_transfer"] == items[-1]
+
+
+@pytest.mark.parametrize("name", sorted(EXPECTED))
+def test_both_engines_agree_on_real_captures(name: str, real_captures: Path, tmp_path: Path, cli: Cli) -> None:
+    path = str(real_captures / name)
+    runs = [["mission", path], ["mission", path, "--json"], ["track", path, "--json"]]
+    if name.startswith("ap_") or name.startswith("px4_fw"):  # the captures with items: a plan to write
+        runs.append(["mission", path, "--plan", str(tmp_path / "p.plan")])
+    for argv in runs:
+        native = cli(*argv, environ={})
+        plan = (tmp_path / "p.plan").read_text() if "--plan" in argv else ""
+        pure = cli(*argv, environ={"MAVSCOPE_PURE": "1"})
+        assert (native.status, native.out, native.err) == (pure.status, pure.out, pure.err), argv
+        assert plan == ((tmp_path / "p.plan").read_text() if "--plan" in argv else "")
 
 
 def test_plan_of_an_incomplete_px4_download_warns(real_captures: Path, tmp_path: Path, cli: Cli,
