@@ -16,6 +16,7 @@ import pytest
 from mavscope.analysis import track as track_mod
 from mavscope.capture.detect import open_capture
 from mavscope.mavlink.dialect import Dialect
+from mavscope.output.geo import xsd_time
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from tests.analysis.mission_exchange import Exchange
 from tests.conftest import CAPTURES, Cli
@@ -63,6 +64,13 @@ def test_geojson_track_and_mission(tmp_path: Path, cli: Cli, positions: list) ->
     assert [w["properties"]["command"] for w in wps] == ["NAV_TAKEOFF", "NAV_WAYPOINT", "NAV_WAYPOINT"]
     assert mission["geometry"]["coordinates"] == [w["geometry"]["coordinates"] for w in wps]
     assert mission["geometry"]["coordinates"][0][:2] == [8.5455938, 47.3977419]
+    # the takeover GCS's MISSION_CLEAR_ALL, accepted by the vehicle's MISSION_ACK (pymavlink's reading):
+    # the vehicle holds no mission since that ACK, so the mission is drawn as its history, until then
+    msgs = read_pcap(TAKEOVER)
+    clear = next(i for i, m in enumerate(msgs) if m.name == "MISSION_CLEAR_ALL")
+    ack = next(m for m in msgs[clear:] if m.name == "MISSION_ACK" and m.src[0] == 1 and m.msg.type == 0)
+    assert {(f["properties"]["state"], f["properties"]["until"]) for f in [mission, *wps]} == {
+        ("history", xsd_time(ack.time))}
 
 
 def test_kml_and_gpx_parse_back(tmp_path: Path, cli: Cli, positions: list) -> None:  # type: ignore[type-arg]
@@ -89,7 +97,7 @@ def test_kml_and_gpx_parse_back(tmp_path: Path, cli: Cli, positions: list) -> No
         assert [c.tag.removeprefix(GPX) for c in pt] == ["ele", "time"]
         assert _iso(pt.findtext(f"{GPX}time")) == pytest.approx(t, abs=0.0015)  # type: ignore[arg-type]
     (rte,) = root.findall(f"{GPX}rte")
-    assert len(rte.findall(f"{GPX}rtept")) == 3
+    assert len(rte.findall(f"{GPX}rtept")) == 3 and rte.findtext(f"{GPX}name").startswith("mission (history")  # type: ignore[union-attr]
 
 
 def _fence_and_rally(tmp_path: Path) -> str:
@@ -206,4 +214,7 @@ def test_usage_and_stdout(tmp_path: Path, cli: Cli) -> None:
     status, _, err = cli("track", TAKEOVER, "--gpx", "-", "--kml", "-")
     assert status == 2 and "stdout" in err
     doc = cli.json("track", TAKEOVER, "--kml", tmp_path / "x.kml")
-    assert doc["tracks"][0]["positions"] == 300 and doc["mission_transfer"] == 1
+    assert doc["tracks"][0]["positions"] == 300 and doc["mission_transfer"] is None  # cleared by the takeover
+    assert doc["history_mission_transfer"] == 1 and doc["cleared"]["mission"]["how"] == "clear-all"
+    status, out, _ = cli("track", TAKEOVER, "--kml", tmp_path / "y.kml")
+    assert status == 0 and "the vehicle holds no mission since" in out and "drawn as history" in out
