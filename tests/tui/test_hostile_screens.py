@@ -105,3 +105,35 @@ def test_every_screen_shows_hostile_words_escaped(tmp_path: Path) -> None:
             assert STATUS in walked["events"] and PARAM in walked["events"]
 
     run(scenario())
+
+
+def test_the_word_widgets_never_read_markup() -> None:
+    """Defence in depth for names a dialect may still bring (issue 35 item 6(d): `[blink red]` in a message
+    name blinked on the statistics screen): the screens' Table, Title and Pane show a `str` escaped and as
+    written, whatever it holds."""
+    from textual.app import App, ComposeResult
+
+    from mavscope.tui.widgets.words import Pane, Table, Title
+
+    word = "[blink red]MSG\x1b]0;t\x07\u202e"
+    shown = r"[blink red]MSG\x1b]0;t\x07\u202e"  # by hand
+
+    class Words(App[None]):
+        def compose(self) -> ComposeResult:
+            yield Title(word)
+            yield Pane(word)
+            yield Table()
+
+        def on_mount(self) -> None:
+            table = self.query_one(Table)
+            table.add_columns(word, "n")
+            table.add_row(word, "1")
+
+    async def scenario() -> None:
+        app = Words()
+        async with app.run_test(size=(80, 10)) as pilot:
+            await pilot.pause()
+            text = _screen_text(app)  # type: ignore[arg-type]
+            assert text.count(shown) == 4, text
+
+    run(scenario())
