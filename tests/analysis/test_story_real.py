@@ -186,21 +186,40 @@ def test_signed_attack_story(real_captures: Path, dialect: Dialect) -> None:
                                   "ap_rover_mission_fence_rally_params.tlog", "ardusub_log_tools_small.tlog",
                                   "bluerobotics_mavlink_server_blueos_00025.tlog", "px4_2018_params_offboard.tlog"])
 def test_statustexts(real_captures: Path, dialect: Dialect, name: str) -> None:
+    # QGroundControl's rule (StatusTextHandler.cc): one text in progress per sender; id 0 whole; another id
+    # ends the text in progress, its end missing; a chunk shorter than 50 characters ends it; 1 s without
+    # a chunk ends it, its end missing (mavscope writes "[end not seen]", "[chunk k missing]")
     texts, open_chunks = [], {}
+
+    def close(src: tuple[int, int], complete: bool) -> None:
+        first, _, parts, _ = open_chunks.pop(src)
+        out, k, top = "", 0, max(parts)
+        while k <= top:
+            if k in parts:
+                out, k = out + parts[k], k + 1
+                continue
+            j = k
+            while j + 1 not in parts:
+                j += 1
+            out, k = out + (f"[chunk {k} missing]" if j == k else f"[chunks {k}-{j} missing]"), j + 1
+        texts.append((first, out + ("" if complete else "[end not seen]")))
+
     for m in _pymavlink(real_captures / name):
         if m.name != "STATUSTEXT":
             continue
+        cur = open_chunks.get(m.src)
+        if cur is not None and (cur[1] != m.msg.id or m.time - cur[3] > 1.0):
+            close(m.src, False)
         if m.msg.id == 0:
             texts.append((m.time, m.msg.text))
             continue
-        key = (m.src, m.msg.id)
-        first, parts = open_chunks.pop(key, (m.time, []))
-        parts.append(m.msg.text)
+        first, _, parts, _ = open_chunks.setdefault(m.src, (m.time, m.msg.id, {}, m.time))
+        parts[m.msg.chunk_seq] = m.msg.text
+        open_chunks[m.src] = (first, m.msg.id, parts, m.time)
         if len(m.msg.text) < 50:
-            texts.append((first, "".join(parts)))
-        else:
-            open_chunks[key] = (first, parts)
-    texts += [(first, "".join(parts)) for first, parts in open_chunks.values()]  # unfinished at the end
+            close(m.src, True)
+    for src in list(open_chunks):  # unfinished at the end
+        close(src, False)
     result, _ = _analyse(real_captures / name, dialect)
     got = [(e.time, e.details["message"]) for e in result.events
            if e.kind == "statustext" or (e.kind == "failsafe" and e.details.get("source") == "STATUSTEXT")]

@@ -177,8 +177,7 @@ SAID: dict[str, str] = {
     "analysis/objects/names.py:MAX_COMPONENT": "- file names", "analysis/objects/names.py:MAX_VEHICLE_PATH":
     "object-unsafe-path", "analysis/objects/tracker.py:MAX_LISTED": "- listed",
     "analysis/events/log.py:MAX_PER_KIND": "- events: 'N more not listed'",
-    "analysis/events/vehicle.py:CHUNKS_MAX": "- a new message starts", "analysis/events/vehicle.py:PARTIALS_MAX":
-    "- STATUSTEXT chunks (helper E)",
+    "analysis/events/statustext.py:MAX_OPEN": "- the text is shown, its end said not seen (end: limit)",
     "analysis/vehicles.py:MAX_SENDERS": "- the first kept (reported to the lead)",
     "analysis/expert.py:MAX_NAMED": "- helper D", "analysis/replays.py:COPIES_KEPT": "- helper D",
     "analysis/sequence.py:GAPS_KEPT": "- counted beyond", "analysis/sequence.py:MAX_CHANNELS": "- helper D",

@@ -20,6 +20,7 @@ from mavscope.analysis.events.model import (
     addr,
     at,
 )
+from mavscope.analysis.events.statustext import StatusText, StatusTextJoiner
 from mavscope.analysis.vehicles import FAILSAFE_STATES, MAX_SENDERS, Heartbeat, Systems, heartbeat
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
@@ -29,9 +30,6 @@ REBOOT_BACK_MS = 1000  # the boot clock stepping back this far or more is a rebo
 # messages whose time_boot_ms is the sender's boot clock, streamed by ArduPilot and PX4 alike: PX4 in 2017
 # sent no SYSTEM_TIME, and came back from its reboot with RC_CHANNELS (px4_2018_params_offboard.tlog)
 BOOT_CLOCKS = frozenset({"SYSTEM_TIME", "ATTITUDE", "GLOBAL_POSITION_INT", "RC_CHANNELS"})
-STATUSTEXT_CHUNK = 50  # bytes of text in one STATUSTEXT: a shorter chunk ends a multi-chunk message
-CHUNKS_MAX = 64  # chunks joined into one message at most (the rest starts a new one)
-PARTIALS_MAX = 256  # multi-chunk messages being joined at once (the oldest is emitted first)
 FAILSAFE_TEXT = re.compile(r"fail[ -]?safe", re.IGNORECASE)
 
 
@@ -159,54 +157,35 @@ class MissionProgress:
 
 
 class StatusTexts:
-    """STATUSTEXT with its severity; the chunks of a long text (same `id`, `chunk_seq` counting up) are
-    joined into one event, dated by the first. A text that mentions a failsafe is a `failsafe` event."""
+    """STATUSTEXT with its severity, as a ground station shows them: the chunks of a long text joined into
+    one event, dated by the first, as QGroundControl joins them, missing chunks said (statustext.py). A
+    text that mentions a failsafe is a `failsafe` event."""
 
     wants = frozenset({"STATUSTEXT"})
 
     def __init__(self, dialect: Dialect) -> None:
         self.dialect = dialect
-        self.partial: dict[tuple[Addr, int], tuple[Frame, int, list[str]]] = {}
+        self.joiner = StatusTextJoiner()
 
-    def _event(self, f: Frame, severity: int, text: str, chunks: int) -> Event:
-        sev = _short(enum_name(self.dialect, "MAV_SEVERITY", severity), "MAV_SEVERITY_")
+    def _event(self, t: StatusText) -> Event:
+        sev = _short(enum_name(self.dialect, "MAV_SEVERITY", t.severity), "MAV_SEVERITY_")
+        text = t.text
         kind = FAILSAFE if FAILSAFE_TEXT.search(text) else STATUSTEXT
-        details: dict[str, object] = {"severity": sev, "severity_id": severity, "message": text}
-        if chunks > 1:
-            details["chunks"] = chunks
+        details: dict[str, object] = {"severity": sev, "severity_id": t.severity, "message": text}
+        if t.ident:
+            details.update({"id": t.ident, "chunks": len(t.frames), "complete": t.complete, "end": t.end.value})
+            if len(t.frames) > 1:
+                details["frames"] = list(t.frames)
+            if t.missing:
+                details["missing"] = list(t.missing)
         if kind == FAILSAFE:
             details["source"] = "STATUSTEXT"
-        return Event(f.time, f.record, kind, (f.sysid, f.compid), f"{addr((f.sysid, f.compid))} {sev}: {text}",
-                     None, details)
+        return Event(t.time, t.frame, kind, t.sender, f"{addr(t.sender)} {sev}: {text}", None, details)
 
     def add(self, f: Frame, fields: Fields | None) -> Iterable[Event]:
         if fields is None:
             return ()
-        text = fields.get("text")
-        severity = fields.get("severity")
-        if not isinstance(text, str) or not isinstance(severity, int):
-            return ()
-        ident = fields.get("id", 0)
-        done = len(text) < STATUSTEXT_CHUNK
-        if not isinstance(ident, int) or ident == 0:
-            return (self._event(f, severity, text, 1),)
-        key = ((f.sysid, f.compid), ident)
-        out: list[Event] = []
-        entry = self.partial.pop(key, None)
-        if entry is None:
-            entry = (f, severity, [])
-        entry[2].append(text)
-        if done or len(entry[2]) >= CHUNKS_MAX:
-            out.append(self._event(entry[0], entry[1], "".join(entry[2]), len(entry[2])))
-        else:
-            self.partial[key] = entry
-            if len(self.partial) > PARTIALS_MAX:
-                old = next(iter(self.partial))
-                first, sev, chunks = self.partial.pop(old)
-                out.append(self._event(first, sev, "".join(chunks), len(chunks)))
-        return out
+        return [self._event(t) for t in self.joiner.add(f, fields)]
 
     def finish(self) -> Iterable[Event]:
-        out = [self._event(first, sev, "".join(chunks), len(chunks)) for first, sev, chunks in self.partial.values()]
-        self.partial.clear()
-        return out
+        return [self._event(t) for t in self.joiner.finish()]
