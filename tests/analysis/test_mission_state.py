@@ -188,3 +188,31 @@ def test_an_item_resent_many_times_keeps_its_frames_in_order_at_a_constant_cost(
     [t] = tracker.finish().transfers
     assert t.items[0].frames == list(range(3, 303))
     assert copied <= 300
+
+
+def test_broadcast_frames_cost_the_same_however_many_transfers_are_open(tmp_path: Path, dialect: Dialect) -> None:
+    """Hostile: one GCS keeps OPEN_MAX uploads open (MISSION_COUNTs to as many targets), then sends items
+    and a clear to 0/0 (system 0: every system) and a vehicle answers 0/0. A broadcast fits every open
+    transfer of the sender; it reaches only those answering one broadcast COUNT (none here: the latest
+    fits), so a frame does not visit every transfer (the scan it would be ran 1,024 lines and more)."""
+    gcs = apm.MAVLink(None, srcSystem=255, srcComponent=190)
+    raws = []
+    for k in range(OPEN_MAX):
+        gcs.seq = k % 256
+        raws.append(apm.MAVLink_mission_count_message(1 + k % 250, 1 + k // 250, 3, 0).pack(gcs))
+    veh = apm.MAVLink(None, srcSystem=7, srcComponent=1)
+    probes = [apm.MAVLink_mission_item_int_message(0, 0, 0, 0, 16, 0, 1, 0, 0, 0, 0, 1, 2, 3.0, 0).pack(gcs),
+              apm.MAVLink_mission_request_int_message(0, 0, 1, 0).pack(veh),
+              apm.MAVLink_mission_ack_message(0, 0, 0, 0).pack(veh),
+              apm.MAVLink_mission_clear_all_message(0, 0, 0).pack(gcs),
+              apm.MAVLink_mission_ack_message(0, 0, 0, 0).pack(veh)]
+    path = tmp_path / "bcast.tlog"
+    path.write_bytes(b"".join(struct.pack(">Q", 1_700_000_000_000_000 + i * 1000) + r
+                             for i, r in enumerate(raws + probes)))
+    tracker = MissionTracker(dialect)
+    with open_session(str(path), PipelineOptions()) as s:
+        frames = list(s.frames())
+    for f in frames[:OPEN_MAX]:
+        tracker.feed(f)
+    for f in frames[OPEN_MAX:]:
+        assert lines_run(lambda: tracker.feed(f)) < 400

@@ -76,9 +76,7 @@ class Answers:
         "fork" (another party answered the broadcast first: `me` received it too), "answerer" (no target
         fits: the party that answers is the one that received, whatever the target said), "" (none)."""
         t = self.open.latest(mtype, tgt, me)
-        if t is not None and t.sender == me:  # a broadcast target fits `me`'s own transfers too
-            t = next((x for x in reversed(self.open.matching(mtype, tgt, me)) if x.sender != me), None)
-        if t is not None:
+        if t is not None and t.sender != me:  # (a broadcast target fits `me`'s own transfers too: not those)
             return t, "target"
         family = self.families.get((tgt, mtype)) if not broadcast(tgt) else self.last_family.get(mtype)
         if family:
@@ -144,9 +142,9 @@ class Answers:
             if isinstance(target, Event):
                 return self._event_answered(target, ack, f, me)
             return self._receiver_ack(self.take(cast("Transfer", target), how, me), ack, f)
-        sending = self.open.matching(mtype, me, tgt, exact_sender=True)
-        if sending:
-            return self._sender_ack(sending[-1], ack, f)
+        sending = self.open.latest(mtype, me, tgt, exact_sender=True)
+        if sending is not None:
+            return self._sender_ack(sending, ack, f)
         again = self._answered_clear(f, mtype, tgt, me)
         if again is not None:
             return self._clear_again(again, ack, f, me)

@@ -271,7 +271,10 @@ class MissionTracker(Answers):
         t.touch(f.record, f.time)
         t.opened = len(t.frames)
         if broadcast(t.receiver):
+            self.families.pop((me, mtype), None)
             self.families[(me, mtype)] = self.last_family[mtype] = [t]
+            if len(self.families) > OPEN_MAX:  # the oldest broadcast COUNT takes no more answerers (theirs: orphans)
+                del self.families[next(iter(self.families))]
         self.adopt(t)
         return t
 
@@ -319,11 +322,14 @@ class MissionTracker(Answers):
 
     def _item(self, f: Frame, name: str, fields: dict[str, object], me: Addr, tgt: Addr, mtype: int) -> object:
         seq = _num(fields, "seq")
-        # A broadcast item reaches every party answering the broadcast COUNT; an addressed one its party
-        found = self.open.matching(mtype, me, tgt, exact_sender=True)
+        # A broadcast item reaches every party answering the broadcast COUNT (at most MAX_FORKS); an
+        # addressed one its party
+        fam = [t for t in self.families.get((me, mtype), ()) if t in self.open] if broadcast(tgt) else []
+        latest = self.open.latest(mtype, me, tgt, exact_sender=True)
+        found = fam or ([latest] if latest is not None else [])
         if not found:
             return self._stray(f, name, me, tgt, mtype, seq)
-        for t in (found if broadcast(tgt) else found[-1:]):
+        for t in found:
             if broadcast(t.receiver) and not broadcast(tgt):
                 narrow(self.open, t, tgt)  # no answer in the capture: the items name the receiver
             self._continue(t, f)

@@ -121,9 +121,9 @@ class PartyIndex(Generic[P]):
         out.sort(key=_order)
         return out
 
-    def latest(self, mtype: int, sender: Addr, other: Addr) -> P | None:
+    def latest(self, mtype: int, sender: Addr, other: Addr, exact_sender: bool = False) -> P | None:
         """The one of `mtype` from `sender` to `other` that began last."""
-        return max(map(itemgetter(-1), self._buckets(mtype, sender, other, False)), key=_order, default=None)
+        return max(map(itemgetter(-1), self._buckets(mtype, sender, other, exact_sender)), key=_order, default=None)
 
     def first(self, mtype: int, sender: Addr, other: Addr, exact_sender: bool = False) -> P | None:
         """The one of `mtype` from `sender` to `other` that began first."""
