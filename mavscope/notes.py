@@ -180,7 +180,10 @@ CODES: dict[str, Code] = {
              "checksums are right): a receiver that checks them dropped them; where their direction has right "
              "checksums they are left out of the stream (the receiver's bytes, not the inserted ones), else read, "
              "as in a capture edited without fixing them"),
-        Code("tcp-gap", _WARN, Group.REASSEMBLY, _F, "bytes missing from a TCP stream"),
+        Code("tcp-gap", _WARN, Group.REASSEMBLY, _F,
+             "bytes missing from a TCP stream (the capture missed them, or a bound gave them up): read on after"),
+        Code("tcp-late", _WARN, Group.REASSEMBLY, _F,
+             "TCP bytes that came after their stream went on without them: read apart from the stream"),
         Code("tcp-retransmission", _CHAT, Group.REASSEMBLY, _F, "TCP retransmission dropped"),
         Code("tcp-conflict", _WARN, Group.SECURITY, _B,
              "TCP retransmission of delivered bytes with other bytes (the receiver keeps the first)",

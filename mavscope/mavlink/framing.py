@@ -41,8 +41,11 @@ BAD = CrcStatus.BAD
 UNCHECKED = CrcStatus.UNCHECKED
 TRUNCATED = CrcStatus.TRUNCATED
 
-# a frame StreamFramer.take found: (buf, pos, size, status, crc, offset, span, notes)
-StreamPiece = tuple[bytes, int, int, CrcStatus, int | None, int | None, tuple[int, ...] | None, tuple[Note, ...]]
+# a frame StreamFramer.take found: (buf, pos, size, status, crc, offset, span, notes, done): span the records
+# holding its bytes, in record order; done the (record, time) its last byte became readable at (its piece's)
+StreamPiece = tuple[bytes, int, int, CrcStatus, int | None, int | None, tuple[int, ...], tuple[Note, ...],
+                    tuple[int, float | None]]
+Ready = tuple[int, float | None]  # the record (and its capture time) at which a stream's piece became readable
 
 
 def _next_stx(buf: bytes, start: int, end: int) -> int:
@@ -360,8 +363,9 @@ class StreamFramer:
         self.key = key
         self.buf = b""
         self.start = 0  # where in buf the framer goes on (the bytes before it are kept for `walking`)
-        # (start position in buf, record number, file offset of that position or None)
-        self.segs: list[tuple[int, int, int | None]] = []
+        # (start position in buf, record number, file offset of that position or None, record and time at
+        # which the piece became readable)
+        self.segs: list[tuple[int, int, int | None, Ready]] = []
         self.trusted = False
         self.pending: list[Note] = []
         # MAVLink's C library's receivers out of step with the framer where the framer stopped, to go on
@@ -374,20 +378,31 @@ class StreamFramer:
     def _locate(self, pos: int) -> tuple[int, int | None]:
         """Record and file offset of buffer position `pos`."""
         rec, off = self.segs[0][1], None
-        for start, r, o in self.segs:
+        for start, r, o, _ in self.segs:
             if start > pos:
                 break
             rec = r
             off = None if o is None else o + (pos - start)
         return rec, off
 
-    def feed(self, data: bytes, record: int, offset: int | None, notes: tuple[Note, ...] = ()) -> None:
-        """Append the next in-order bytes of the stream."""
+    def _ready(self, pos: int) -> Ready:
+        """When buffer position `pos` became readable: the record (and time) of its piece."""
+        ready = self.segs[0][3]
+        for start, _, _, r in self.segs:
+            if start > pos:
+                break
+            ready = r
+        return ready
+
+    def feed(self, data: bytes, record: int, offset: int | None, notes: tuple[Note, ...] = (),
+             ready: Ready = (0, None)) -> None:
+        """Append the next in-order bytes of the stream (`ready`: the record, and its capture time, at which
+        they became readable in order; a frame they complete is dated by it)."""
         if notes:
             self.pending.extend(notes)
         if not data:
             return
-        self.segs.append((len(self.buf), record, offset))
+        self.segs.append((len(self.buf), record, offset, ready))
         self.buf = self.buf + data if self.buf else data
 
     def take(self, final: bool) -> tuple[list[StreamPiece], list[Note]]:
@@ -415,15 +430,12 @@ class StreamFramer:
                 sk += 1
                 self.pending.append(skipped_note(s_count, self._locate(s_pos)[1]))
             first_rec, off = self._locate(pos)
-            last_rec = self._locate(pos + size - 1)[0]
-            span = None
-            if first_rec != last_rec:
-                span = tuple(sorted({r for start, r, _ in self.segs if pos <= start < pos + size} | {first_rec}))
+            span = tuple(sorted({r for start, r, _, _ in self.segs if pos <= start < pos + size} | {first_rec}))
             if h is not None:
                 self.pending.append(hidden_note(h, off))
             notes = tuple(self.pending)
             self.pending = []
-            out.append((buf, pos, size, status, crc, off, span, notes))
+            out.append((buf, pos, size, status, crc, off, span, notes, self._ready(pos + size - 1)))
         for s_pos, s_count in skipped[sk:]:
             if self.trusted:
                 self.pending.append(skipped_note(s_count, self._locate(s_pos)[1]))
@@ -448,12 +460,11 @@ class StreamFramer:
         else:
             self.buf = buf[keep:]
             segs = []
-            for start, r, o in self.segs:
+            for start, r, o, ready in self.segs:
                 if start <= keep:
-                    base = (r, None if o is None else o + (keep - start))
-                    segs = [(0, *base)]
+                    segs = [(0, r, None if o is None else o + (keep - start), ready)]
                 else:
-                    segs.append((start - keep, r, o))
+                    segs.append((start - keep, r, o, ready))
             self.segs = segs
         if final:
             orphans, self.pending = self.pending, []

@@ -35,3 +35,8 @@ class Payload(NamedTuple):
     # a datagram reassembled from IP fragments: the records of its fragments, in record order (a frame in
     # it is shown with them all: `read -w` writes them, and the written capture reassembles it too)
     span: tuple[int, ...] | None = None
+    # stream bytes that became readable in order at an earlier record than the one delivering them (the
+    # capture missed a segment before them, and reassembly gave the hole up later): that (record, time); a
+    # frame they complete is that record's. None: the record delivering them (`record`, or the one that
+    # filled the hole before them)
+    ready: tuple[int, float | None] | None = None

@@ -38,7 +38,7 @@ _FLOW = struct.Struct("!IIHH")
 _UDP = struct.Struct("!HHH")
 REBUILT_KEPT = 65536  # records of rebuilt 802.11 frames remembered (for the IP datagrams they complete)
 FLOW_CACHE = 65536  # (addresses, ports) -> names entries kept before the cache starts over
-_TCP = struct.Struct("!HHIxxxxBB")  # ports, sequence number, data offset byte, flags byte
+_TCP = struct.Struct("!HHIIBB")  # ports, sequence and acknowledgment numbers, data offset byte, flags byte
 
 _tuple_new = tuple.__new__
 
@@ -87,7 +87,7 @@ class Decapsulator:
                         False, data[26:30], data[30:34], PROTO_UDP, data, 34, 34 + ulen)[0] is Checksum.WRONG:
                     return self._slow(rec)  # noted there
                 return [_tuple_new(Payload, (TRANSPORT_UDP, names[0], names[1], data[42:34 + ulen], None,
-                                             number, offset + 42, (), None))]
+                                             number, offset + 42, (), None, None))]
         return self._slow(rec)
 
     def _flow_names(self, flow: bytes) -> tuple[Endpoint, Endpoint]:
@@ -287,7 +287,7 @@ class Decapsulator:
             if l4 + 20 > end:
                 return [], (*first, note("malformed-packet", f"TCP header cut short at byte {l4}{where}",
                                          _at(base, l4)))
-            sport, dport, seq, doff, flags = _TCP.unpack_from(data, l4)
+            sport, dport, seq, ack, doff, flags = _TCP.unpack_from(data, l4)
             hlen = (doff >> 4) * 4
             if hlen < 20 or l4 + hlen > end:
                 return [], (*first, note("malformed-packet", f"TCP header length {hlen} does not fit at byte "
@@ -303,11 +303,13 @@ class Decapsulator:
             if said is None:
                 if flags & (TCP_FIN | TCP_RST) and verdict is Checksum.RIGHT and not header_zero:
                     self.directions.forget((s, d))  # its connection ends: a new one on the 4-tuple starts unknown
-                return self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, _at(base, l4 + hlen)), outer
+                return self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, _at(base, l4 + hlen), ack,
+                                        rec.time), outer
             # the note is the record's, now (not one for the stream's next frame to carry)
             out = [Payload(TRANSPORT_TCP, s, d, b"", None, number, _at(base, l4), (said,))]
             if not drop:  # (else the receiver dropped it: its flags and bytes change nothing)
-                out += self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, _at(base, l4 + hlen))
+                out += self.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], number, _at(base, l4 + hlen), ack,
+                                        rec.time)
             return out, outer
         if proto in TUNNEL_PROTOS:
             inner = gre(data, l4, end) if proto == PROTO_GRE else ip_in_ip(proto, l4)

@@ -1,4 +1,4 @@
-"""TCP stream reassembly: per-direction, in sequence order, with retransmissions trimmed and gaps noted.
+"""TCP stream reassembly: per-direction, in sequence order, with retransmissions trimmed and holes noted.
 
 A direction of a connection (a 4-tuple read one way) may hold several generations, each a stream of its
 own: a SYN with a new initial sequence number (ISN) starts one. After a FIN or RST (or on a direction
@@ -9,11 +9,26 @@ the SYN is noted (`tcp-suspicious-syn`), and every segment goes to the generatio
 sequence number is nearest to its own: the established stream keeps every byte, and whatever follows
 the new ISN (the SYN's own data, a real new connection whose FIN we missed) is a stream of its own.
 
+Holes. Bytes after a missing range wait for it only while the capture may still hold it. The range is
+given up, noted `tcp-gap` (its size, sequence numbers and why) on the bytes after it, as soon as:
+- the peer acknowledges bytes of it: the receiver had them, the capture missed them (Wireshark's "ACKed
+  segment that wasn't captured", TCP_A_ACK_LOST_PACKET in packet-tcp.c's tcp_analyze_sequence_number);
+- the stream goes on without it (Wireshark's "previous segment not captured", TCP_A_LOST_PACKET): no
+  segment fills it within HOLE_TIMEOUT of capture time after the bytes beyond it came (a retransmission
+  after a lost segment comes in about a round trip, or after a retransmission timeout, at least 1 s by
+  RFC 6298), or more than FAR_SEGMENTS segments or FAR_BYTES bytes came beyond it; a FIN or RST; the end
+  of the capture; a memory bound below.
+The bytes after a hole are then read at once, each piece `ready` at the record where it became readable
+in order (its own record, or the later one that filled the range before it), so a frame is dated by the
+record that completed it, never by the moment reassembly gave up. Bytes that come after their range was
+given up, or that lie before the first byte seen of a stream picked up mid-way, are delivered apart
+(`stream` None, read as a datagram) with a `tcp-late` note: nothing a capture holds is hidden.
+
 Memory is bounded whatever the input: out-of-order bytes per direction (`max_buffered`) and over all
 directions (`max_total`, each buffered segment charged SEGMENT_COST for its bookkeeping), directions
 tracked at once (`max_directions`, the least recently active released first), generations per direction
-(GENERATIONS), and a direction idle for `idle_records` records is released. Buffered bytes given up to
-a bound are delivered after a `tcp-gap` note, as at the end of a stream.
+(GENERATIONS), holes remembered per direction (HOLES_KEPT), and a direction idle for `idle_records`
+records is released. Buffered bytes given up to a bound are delivered after a `tcp-gap` note.
 """
 
 from __future__ import annotations
@@ -25,78 +40,26 @@ from collections.abc import Hashable
 from mavscope.endpoint import Endpoint
 from mavscope.notes import Note, note
 from mavscope.transport.base import TRANSPORT_TCP, Payload
+from mavscope.transport.tcp_direction import HOLES_KEPT, MOD, NEVER, Direction
 
 TCP_FIN = 0x01
 TCP_SYN = 0x02
 TCP_RST = 0x04
 TCP_ACK = 0x10
+GAP = "tcp-gap"  # the note on the bytes after a hole: a stream framer starts afresh there
 MAX_BUFFERED = 1 << 20  # out-of-order bytes held per direction before the missing range is given up
 MAX_TOTAL_BUFFERED = 32 << 20  # ... and over all directions, counting SEGMENT_COST per buffered segment
 SEGMENT_COST = 200  # bytes a buffered segment costs beyond its data (its tuple, bytes header, heap slot)
 MAX_DIRECTIONS = 1 << 16  # directions (of any generation) tracked at once; about 0.5 KB each
-TAIL = 512  # bytes last delivered per direction that a retransmission is compared with (tcp-conflict)
 GENERATIONS = 2  # generations kept per direction of a 4-tuple: the established one and a newer one
 IDLE_RECORDS = 1_000_000  # a direction without a segment for this many records is released
 ENDED_KEPT = 1 << 16  # ended stream keys kept for pop_ended() (older ones are forgotten)
 PENDING_NOTES = 16  # suspicious-SYN notes held for a direction before they go out on an empty payload
-_MOD = 1 << 32
-_HALF = 1 << 31
+HOLE_TIMEOUT = 2.0  # seconds of capture time a hole is waited for after the bytes beyond it came
+FAR_SEGMENTS = 64  # segments beyond a hole that give it up ...
+FAR_BYTES = 1 << 16  # ... or bytes beyond it (the largest window without window scaling, RFC 7323)
 
 _tuple_new = tuple.__new__
-
-
-class _Direction:
-    """Reassembly state of one generation of one direction of one connection."""
-
-    __slots__ = ("src", "dst", "isn", "next", "gen", "key", "pending", "buffered", "counter", "syn", "data",
-                 "closed", "last", "tail")
-
-    def __init__(self, src: Endpoint, dst: Endpoint, isn: int, nxt: int, gen: int, syn: bool, record: int) -> None:
-        self.src = src
-        self.dst = dst
-        self.isn = isn
-        self.next = nxt  # next expected sequence number, unwrapped (a Python int that never wraps)
-        self.gen = gen
-        self.key: Hashable = (TRANSPORT_TCP, src, dst, gen)
-        # out-of-order segments: (unwrapped seq, arrival counter, data, record, file offset)
-        self.pending: list[tuple[int, int, bytes, int, int | None]] = []
-        self.buffered = 0
-        self.counter = 0
-        self.syn = syn  # started by a SYN (so `isn` is an initial sequence number)
-        self.data = False  # carried data: established
-        self.closed = False  # a FIN or RST with a plausible sequence number was seen
-        self.last = record  # the record of its latest segment
-        self.tail = b""  # the last TAIL bytes delivered: stream positions [next - len(tail), next)
-
-    def deliver(self, data: bytes) -> None:
-        """`data` goes out in order after the bytes delivered so far."""
-        self.next += len(data)
-        self.tail = data[-TAIL:] if len(data) >= TAIL else (self.tail + data)[-TAIL:]
-
-    def retransmitted(self, start: int, data: bytes, offset: int | None) -> Note:
-        """The note on bytes at `start` that were delivered already: a conflict when they differ from what
-        was delivered there (the part still in `tail` is compared), a chat note when they do not."""
-        base = self.next - len(self.tail)  # the stream position of tail[0]
-        n = min(start + len(data), self.next) - start  # the bytes delivered already
-        lo = max(start, base)
-        hi = max(lo, start + n)  # [lo, hi): those still in the tail
-        old, new = self.tail[lo - base:hi - base], data[lo - start:hi - start]
-        if old != new:
-            at = next(i for i in range(len(old)) if old[i] != new[i])
-            return note("tcp-conflict", f"TCP retransmission of {n} bytes already delivered, with other bytes (from "
-                        f"its byte {lo - start + at}): the receiver keeps what it read first; a reader that takes "
-                        "the retransmission sees other bytes", offset)
-        older = n - (hi - lo)
-        unchecked = f", {older} of them older than the last {TAIL} delivered (unchecked)" if older else ""
-        return note("tcp-retransmission", f"TCP retransmission of {n} bytes already delivered{unchecked}", offset)
-
-    def unwrap(self, seq: int) -> int:
-        """The unwrapped position of 32-bit sequence number `seq`, taken as the one nearest `next`."""
-        return self.next + (((seq - self.next) + _HALF) % _MOD - _HALF)
-
-    def distance(self, seq: int) -> int:
-        """How far 32-bit sequence number `seq` lies from the next expected one, either way."""
-        return abs(((seq - self.next) + _HALF) % _MOD - _HALF)
 
 
 class TcpReassembler:
@@ -104,7 +67,9 @@ class TcpReassembler:
 
     A stream key is ("tcp", src, dst, generation); generations are numbered in the order directions are
     first seen, over the whole capture, so a key never names two streams. `pop_ended()` returns the keys
-    of streams that ended (FIN, RST) or were released, so a consumer can let their state go.
+    of streams that ended (FIN, RST) or were released, so a consumer can let their state go. A stream
+    Payload's `ready` is None when its bytes became readable in order in the record being read, else the
+    (record, capture time) at which they did.
     """
 
     def __init__(self, max_buffered: int = MAX_BUFFERED, max_total: int = MAX_TOTAL_BUFFERED,
@@ -115,9 +80,12 @@ class TcpReassembler:
         self.idle_records = idle_records
         self.total = 0  # charged bytes buffered over all directions
         self.given_up = 0  # directions released to the bound on directions while their stream went on
-        self._slots: dict[tuple[Endpoint, Endpoint], list[_Direction]] = {}  # (src, dst) -> generations, oldest first
-        self._lru: OrderedDict[Hashable, _Direction] = OrderedDict()  # every direction, least recently active first
-        self._buffering: OrderedDict[Hashable, _Direction] = OrderedDict()  # those holding bytes, oldest first
+        self.clock = -NEVER  # the latest capture time seen (a time that goes back does not move it)
+        self.current: int | None = None  # the record being read (None at the end of the capture)
+        self._slots: dict[tuple[Endpoint, Endpoint], list[Direction]] = {}  # (src, dst) -> generations, oldest first
+        self._lru: OrderedDict[Hashable, Direction] = OrderedDict()  # every direction, least recently active first
+        self._buffering: OrderedDict[Hashable, Direction] = OrderedDict()  # those holding bytes, oldest first
+        self._holes: OrderedDict[Hashable, Direction] = OrderedDict()  # those waiting on a hole, about by `since`
         self._notes: dict[tuple[Endpoint, Endpoint], list[Note]] = {}  # notes for the next payload of a (src, dst)
         self._serial = 0
         # keys of streams that ended (FIN, RST) or were released, oldest first, for a consumer to let their
@@ -125,15 +93,21 @@ class TcpReassembler:
         self.ended: deque[Hashable] = deque(maxlen=ENDED_KEPT)
 
     def segment(
-        self, src: Endpoint, dst: Endpoint, seq: int, flags: int, data: bytes, record: int, offset: int | None
+        self, src: Endpoint, dst: Endpoint, seq: int, flags: int, data: bytes, record: int, offset: int | None,
+        ack: int | None = None, time: float | None = None,
     ) -> list[Payload]:
-        """Take one segment (payload `data` at file `offset`) and return the bytes now in order."""
+        """Take one segment (payload `data` at file `offset`, acknowledgment number `ack`, in a record of
+        capture time `time`) and return the bytes now in order (of its direction, and of the other one
+        where `ack` gives up a hole)."""
         out: list[Payload] = []
+        self.current = record
+        if time is not None and time > self.clock:
+            self.clock = time
         k = (src, dst)
         ds = self._slots.get(k)
         if flags & TCP_SYN:
             d = self._syn(k, ds, seq, flags, record, offset, len(data), out)
-            seq = (seq + 1) % _MOD
+            seq = (seq + 1) % MOD
         elif ds is None:
             d = self._open(k, seq, seq, False, record, out)
         elif len(ds) == 1:
@@ -148,17 +122,27 @@ class TcpReassembler:
             start = d.unwrap(seq)
             if start == d.next and not d.pending:  # the common case: the next bytes, nothing buffered
                 d.deliver(data)
-                out.append(_tuple_new(Payload, (TRANSPORT_TCP, src, dst, data, d.key, record, offset, (), None)))
+                d.ready, d.ready_time = record, time
+                out.append(_tuple_new(Payload, (TRANSPORT_TCP, src, dst, data, d.key, record, offset, (), None, None)))
             else:
-                self._add(d, start, data, record, offset, out)
+                self._add(d, start, data, record, offset, time, out)
         if flags & (TCP_FIN | TCP_RST):
             self._close(d, seq, flags, len(data), out)
+        if ack is not None and flags & TCP_ACK:
+            self._ack(k, ack, record, out)
         if k in self._notes:
             self._attach(k, out)
+        if self._holes and self.clock - next(iter(self._holes.values())).since > HOLE_TIMEOUT:
+            self._expire(out)
         if self.total > self.max_total or len(self._lru) > self.max_directions or \
                 record - next(iter(self._lru.values())).last > self.idle_records:
             self._sweep(record, out)
         return out
+
+    @property
+    def holding(self) -> bool:
+        """Whether bytes are buffered out of order (a later record may date frames by an earlier one)."""
+        return bool(self._buffering)
 
     def tracked(self) -> int:
         """How many directions (of any generation) are tracked now."""
@@ -175,10 +159,11 @@ class TcpReassembler:
         return ended
 
     def flush(self) -> list[Payload]:
-        """Deliver everything still buffered (end of capture), noting the gaps skipped."""
+        """Deliver everything still buffered (end of capture), noting the holes skipped."""
         out: list[Payload] = []
+        self.current = None
         for d in list(self._buffering.values()):
-            self._drain(d, out, gaps=True)
+            self._drain(d, out, NEVER, "the capture ended without them")
         for k in list(self._notes):
             ds = self._slots.get(k)
             key = ds[-1].key if ds else (TRANSPORT_TCP, k[0], k[1], -1)
@@ -189,8 +174,8 @@ class TcpReassembler:
     # --- generations --------------------------------------------------------------------------
 
     def _open(self, k: tuple[Endpoint, Endpoint], isn: int, nxt: int, syn: bool, record: int,
-              out: list[Payload]) -> _Direction:
-        d = _Direction(k[0], k[1], isn, nxt, self._serial, syn, record)
+              out: list[Payload]) -> Direction:
+        d = Direction(k[0], k[1], isn, nxt, self._serial, syn, record)
         self._serial += 1
         ds = self._slots.setdefault(k, [])
         ds.append(d)
@@ -198,11 +183,12 @@ class TcpReassembler:
         if len(ds) > GENERATIONS:
             # give up the least useful: one that carried no data or has ended, else the least recently active
             idle = [g for g in ds[:-1] if not g.data or g.closed]
-            self._release(idle[0] if idle else min(ds[:-1], key=lambda g: g.last), out, "")
+            self._release(idle[0] if idle else min(ds[:-1], key=lambda g: g.last), out, "",
+                          "given up: a newer connection on its 4-tuple")
         return d
 
-    def _syn(self, k: tuple[Endpoint, Endpoint], ds: list[_Direction] | None, seq: int, flags: int, record: int,
-             offset: int | None, size: int, out: list[Payload]) -> _Direction:
+    def _syn(self, k: tuple[Endpoint, Endpoint], ds: list[Direction] | None, seq: int, flags: int, record: int,
+             offset: int | None, size: int, out: list[Payload]) -> Direction:
         """The generation a SYN belongs to: its own if retransmitted, else a new one (noted if suspicious)."""
         if ds:
             for g in ds:
@@ -218,39 +204,59 @@ class TcpReassembler:
             pending.append(note("tcp-suspicious-syn", msg, offset))
         return self._open(k, seq, seq + 1, True, record, out)
 
-    def _answers(self, k: tuple[Endpoint, Endpoint], live: list[_Direction]) -> bool:
+    def _answers(self, k: tuple[Endpoint, Endpoint], live: list[Direction]) -> bool:
         """Whether a SYN-ACK on `k` answers a SYN the other way that is newer than `k`'s live generations."""
         newest = max(g.gen for g in live)
         return any(g.syn and not g.data and g.gen > newest for g in self._slots.get((k[1], k[0]), ()))
 
-    def _close(self, d: _Direction, seq: int, flags: int, size: int, out: list[Payload]) -> None:
+    def _close(self, d: Direction, seq: int, flags: int, size: int, out: list[Payload]) -> None:
         """A FIN or RST: what is buffered is delivered; with a plausible sequence number the stream ended
-        (an RST ends the other direction too)."""
+        (an RST ends the other direction too), and a FIN says where its bytes end."""
+        how = "FIN" if flags & TCP_FIN else "RST"
         if d.pending:
-            self._drain(d, out, gaps=True)
-        if d.closed or d.distance((seq + size) % _MOD) > max(self.max_buffered, 1 << 16):
+            self._drain(d, out, NEVER, f"the stream ended ({how}) without them")
+        if d.closed or d.distance((seq + size) % MOD) > max(self.max_buffered, 1 << 16):
             return
+        end = d.unwrap((seq + size) % MOD)
+        if flags & TCP_FIN and end > d.next:  # bytes before the FIN the capture does not hold
+            out.append(self._empty(d, (self._gap(d, end, "the stream ended (FIN) without them", None),)))
         d.closed = True
         self.ended.append(d.key)
         if flags & TCP_RST:
             for g in self._slots.get((d.dst, d.src), ()):
                 if not g.closed:
                     if g.pending:
-                        self._drain(g, out, gaps=True)
+                        self._drain(g, out, NEVER, "the connection was reset (RST) without them")
                     g.closed = True
                     self.ended.append(g.key)
 
-    def _release(self, d: _Direction, out: list[Payload], why: str) -> None:
-        """Forget direction `d`, delivering what it buffered; `why` (if given) is noted when it had data."""
+    def _ack(self, k: tuple[Endpoint, Endpoint], ack: int, record: int, out: list[Payload]) -> None:
+        """An acknowledgment on `k` of the direction the other way: its receiver had every byte before `ack`,
+        so a hole among them is one the capture missed, given up now (or when bytes beyond it come)."""
+        ds = self._slots.get((k[1], k[0]))
+        if not ds:
+            return
+        g = ds[0] if len(ds) == 1 else min(ds, key=lambda g: g.distance(ack))
+        a = g.unwrap(ack)
+        if g.closed or a <= g.next or (g.acked is not None and a <= g.acked):
+            return
+        g.acked, g.acked_by = a, record
+        if g.pending:
+            self._drain(g, out, a, "")
+
+    def _release(self, d: Direction, out: list[Payload], bound: str, reason: str) -> None:
+        """Forget direction `d`, delivering what it buffered after a note saying `reason`; `bound` (if given),
+        the bound it was released to, is noted when its stream went on."""
         if d.pending:
-            self._drain(d, out, gaps=True, why=why)
-        elif why and d.data and not d.closed:
+            self._drain(d, out, NEVER, reason)
+        elif bound and d.data and not d.closed:
             self.given_up += 1
             if not self.given_up & (self.given_up - 1):  # the 1st, 2nd, 4th, 8th...: a flood is not noted one by one
-                msg = (f"TCP stream {d.src} -> {d.dst}: reassembly state given up ({why}; {self.given_up} so far); "
+                msg = (f"TCP stream {d.src} -> {d.dst}: reassembly state given up ({bound}; {self.given_up} so far); "
                        "what follows starts a new stream")
-                out.append(Payload(TRANSPORT_TCP, d.src, d.dst, b"", d.key, d.last, None, (note("tcp-gap", msg),)))
+                out.append(Payload(TRANSPORT_TCP, d.src, d.dst, b"", d.key, d.last, None, (note(GAP, msg),)))
         del self._lru[d.key]
+        self._holes.pop(d.key, None)
         k = (d.src, d.dst)
         ds = self._slots[k]
         ds.remove(d)
@@ -268,14 +274,15 @@ class TcpReassembler:
         while len(lru) > 1:
             d = next(iter(lru.values()))
             if len(lru) > self.max_directions:
-                self._release(d, out, f"more than {self.max_directions} TCP directions at once")
+                bound = f"more than {self.max_directions} TCP directions at once"
+                self._release(d, out, bound, f"given up: {bound}")
             elif record - d.last > self.idle_records:
-                self._release(d, out, "")
+                self._release(d, out, "", f"the stream was idle for {self.idle_records} records")
             else:
                 break
         while self.total > self.max_total and self._buffering:
             d = next(iter(self._buffering.values()))
-            self._drain(d, out, gaps=True, why=f"more than {self.max_total} bytes buffered over all TCP streams")
+            self._drain(d, out, NEVER, f"given up: more than {self.max_total} bytes buffered over all TCP streams")
 
     def _attach(self, k: tuple[Endpoint, Endpoint], out: list[Payload]) -> None:
         """Put the notes waiting for `k` on its first payload in `out` (or on an empty one, when many wait)."""
@@ -294,41 +301,65 @@ class TcpReassembler:
 
     # --- bytes ----------------------------------------------------------------------------------
 
-    def _add(
-        self, d: _Direction, start: int, data: bytes, record: int, offset: int | None, out: list[Payload]
-    ) -> None:
+    def _add(self, d: Direction, start: int, data: bytes, record: int, offset: int | None, time: float | None,
+             out: list[Payload]) -> None:
         """Deliver or buffer a segment that is not simply the next in order."""
         end = start + len(data)
-        if end <= d.next:
-            out.append(_tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, b"", d.key, record, offset,
-                                            (d.retransmitted(start, data, offset),), None)))
-            return
+        if start < d.next:
+            upto = min(end, d.next)
+            late = d.late(start, upto)
+            if late:  # bytes never delivered: shown apart, the rest as a retransmission
+                for lo, hi in late:
+                    out.append(self._late(d, lo, hi, start, data, record, offset))
+                if sum(hi - lo for lo, hi in late) < upto - start:
+                    out.append(_tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, b"", d.key, record, offset,
+                                                    (d.retransmitted(start, data[:upto - start], offset),), None,
+                                                    None)))
+                if end <= d.next:
+                    return
+                data, offset, start = data[upto - start:], None if offset is None else offset + upto - start, upto
+                if not d.pending:
+                    d.deliver(data)
+                    d.ready, d.ready_time = record, time
+                    out.append(_tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, data, d.key, record, offset, (), None,
+                                                    None)))
+                    return
+            elif end <= d.next:
+                out.append(_tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, b"", d.key, record, offset,
+                                                (d.retransmitted(start, data, offset),), None, None)))
+                return
         d.counter += 1
         if not d.pending:
             self._buffering[d.key] = d
-        heapq.heappush(d.pending, (start, d.counter, data, record, offset))
+        heapq.heappush(d.pending, (start, d.counter, data, record, offset, time, self.clock))
         d.buffered += len(data)
         self.total += len(data) + SEGMENT_COST
-        self._drain(d, out, gaps=False)
+        if end > d.high:
+            d.high = end
+        self._drain(d, out, d.acked if d.acked is not None else -NEVER, "")
 
-    def _drain(self, d: _Direction, out: list[Payload], gaps: bool, why: str = "") -> None:
-        """Deliver buffered segments that are now in order.
+    def _drain(self, d: Direction, out: list[Payload], upto: float, why: str) -> None:
+        """Deliver the buffered segments now in order.
 
-        Missing ranges are skipped (with a tcp-gap note) when `gaps` is set, or while the buffer is over
-        its bound. `why` says which bound forced the gap, if one did.
+        A hole before stream position `upto` is given up for `why` (empty: the peer acknowledged it); one
+        after it when the stream went on too far beyond it (_beyond).
         """
         pending = d.pending
         while pending:
-            start, _, data, record, offset = pending[0]
+            start, _, data, record, offset, time, _ = pending[0]
             notes: tuple[Note, ...] = ()
             if start > d.next:
-                if not gaps and d.buffered <= self.max_buffered:
-                    return
-                missing = start - d.next
-                because = f" (given up: {why})" if why else ""
-                notes = (note("tcp-gap", f"{missing} bytes missing from the TCP stream {d.src} -> {d.dst}{because}",
-                              offset),)
-                d.next, d.tail = start, b""
+                if d.next < upto:
+                    stop = min(start, int(upto)) if upto < NEVER else start
+                    reason = why or f"the receiver acknowledged them (record {d.acked_by}): the capture missed them"
+                else:
+                    stop, reason = start, self._beyond(d)
+                    if not reason:
+                        break
+                notes = (self._gap(d, stop, reason, offset if stop == start else None),)
+                if stop < start:  # the rest of the range is waited for
+                    out.append(self._empty(d, notes))
+                    continue
             heapq.heappop(pending)
             d.buffered -= len(data)
             self.total -= len(data) + SEGMENT_COST
@@ -337,7 +368,7 @@ class TcpReassembler:
             end = start + len(data)
             if end <= d.next:
                 out.append(_tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, b"", d.key, record, offset,
-                                                notes + (d.retransmitted(start, data, offset),), None)))
+                                                notes + (d.retransmitted(start, data, offset),), None, None)))
                 continue
             if start < d.next:
                 cut = d.next - start
@@ -346,4 +377,67 @@ class TcpReassembler:
                 if offset is not None:
                     offset += cut
             d.deliver(data)
-            out.append(_tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, data, d.key, record, offset, notes, None)))
+            if record > d.ready:  # readable in order from its own record (else from the one that filled a hole)
+                d.ready, d.ready_time = record, time
+            ready = None if d.ready == self.current else (d.ready, d.ready_time)
+            out.append(_tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, data, d.key, record, offset, notes, None,
+                                            ready)))
+        self._wait(d)
+
+    def _beyond(self, d: Direction) -> str:
+        """Why the hole at `next` is given up now that bytes beyond it came, if it is: a bound, or the stream
+        went on too far without it ("" when it is waited for)."""
+        if d.buffered > self.max_buffered:
+            return f"given up: more than {self.max_buffered} bytes buffered beyond them"
+        if len(d.pending) > FAR_SEGMENTS:
+            return f"the capture missed them: {len(d.pending)} segments came beyond them"
+        if d.high - d.next > FAR_BYTES:
+            return f"the capture missed them: the stream went on {d.high - d.next} bytes beyond them"
+        return ""
+
+    def _wait(self, d: Direction) -> None:
+        """Keep `_holes` (the directions waiting on a hole, for HOLE_TIMEOUT) up to date with `d`."""
+        if d.pending:
+            if d.since == NEVER or d.hole != d.next:  # a new hole: the bytes beyond it came with pending[0]
+                d.hole, d.since = d.next, d.pending[0][6]
+                self._holes[d.key] = d
+                self._holes.move_to_end(d.key)
+        elif d.since != NEVER:
+            d.since = NEVER
+            self._holes.pop(d.key, None)
+
+    def _expire(self, out: list[Payload]) -> None:
+        """Give up the holes nothing filled for HOLE_TIMEOUT after the bytes beyond them came."""
+        while self._holes:
+            d = next(iter(self._holes.values()))
+            waited = self.clock - d.since
+            if waited <= HOLE_TIMEOUT:
+                return
+            self._drain(d, out, d.pending[0][0], f"the capture missed them: nothing filled them in {waited:.3g} s "
+                        "after the bytes beyond them came")
+
+    def _gap(self, d: Direction, stop: int, reason: str, offset: int | None) -> Note:
+        """Skip the hole [next, stop): the note on the bytes after it, which a stream framer starts afresh at."""
+        lo = d.next
+        d.next, d.tail = stop, b""
+        holes = d.holes if d.holes is not None else []
+        holes.append((lo, stop))
+        if len(holes) > HOLES_KEPT:  # the two oldest become one: bytes between them that come again are read
+            holes[0:2] = [(holes[0][0], holes[1][1])]  # apart too (a second copy shown, never a frame hidden)
+        d.holes = holes
+        return note(GAP, f"{stop - lo} bytes missing from the TCP stream {d.src} -> {d.dst} ({d.span(lo, stop)}): "
+                    f"{reason}", offset)
+
+    def _empty(self, d: Direction, notes: tuple[Note, ...]) -> Payload:
+        """A payload of no bytes carrying `notes`, at the record being read (else the direction's last)."""
+        record = d.last if self.current is None else self.current
+        return _tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, b"", d.key, record, None, notes, None, None))
+
+    def _late(self, d: Direction, lo: int, hi: int, start: int, data: bytes, record: int,
+              offset: int | None) -> Payload:
+        """Bytes [lo, hi) of a segment at `start` that were never delivered, shown apart from the stream."""
+        at = None if offset is None else offset + lo - start
+        msg = (f"{hi - lo} bytes of the TCP stream {d.src} -> {d.dst} ({d.span(lo, hi)}) came after the stream went "
+               "on without them (a hole given up, or before its first byte seen): read apart from the stream")
+        return _tuple_new(Payload, (TRANSPORT_TCP, d.src, d.dst, data[lo - start:hi - start], None, record, at,
+                                    (note("tcp-late", msg, at),), None, None))

@@ -149,6 +149,7 @@ SAID: dict[str, str] = {
     "transport/defrag.py:RECORDS_KEPT": "- records a note names (all counted)",
     "transport/tcp.py:MAX_BUFFERED": "tcp-gap", "transport/tcp.py:MAX_TOTAL_BUFFERED": "tcp-gap",
     "transport/tcp.py:MAX_DIRECTIONS": "tcp-gap", "transport/tcp.py:ENDED_KEPT": "- ended streams' keys (helper C)",
+    "transport/tcp_direction.py:HOLES_KEPT": "tcp-late", "pipeline/dissect.py:LATER_KEPT": "- frame indices",
     "transport/ip.py:MAX_EXT_HEADERS": "malformed-packet", "transport/tunnel.py:MAX_DEPTH": "malformed-packet",
     "transport/wifi.py:MAX_PRESENT_WORDS": "malformed-packet", "transport/wifi.py:MAX_SUBFRAMES": "malformed-packet",
     "transport/ccmp.py:MAX_MPDU": "wifi-fragment",
