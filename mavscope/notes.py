@@ -241,6 +241,9 @@ CODES: dict[str, Code] = {
              "aes-gcm nonces used twice under one key"),
         # expert findings over the frames (mavscope.analysis.expert)
         Code("bad-crc-burst", _WARN, Group.CHECKSUM, _C, "frames with a bad CRC close together"),
+        Code("dialect-mismatch", _WARN, Group.SECURITY, _C,
+             "bad-CRC frames of one sender and message id that all fit one other CRC_EXTRA: the sender defines "
+             "the message otherwise (another dialect), and a receiver with its dialect reads frames hidden here"),
         Code("seq-gap", _WARN, Group.SEQUENCE, _C, "a large jump in a sender's sequence numbers: frames lost"),
         Code("seq-duplicate", _NOTE, Group.SEQUENCE, _C,
              "frames repeating a sequence number already seen on their channel"),

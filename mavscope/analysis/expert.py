@@ -16,6 +16,7 @@ from typing import Protocol
 
 from mavscope.analysis.commanders import COMMANDING, CommandSources, Fields, Link, target_of
 from mavscope.analysis.control import ControlSources
+from mavscope.analysis.crcextra import Group, Mismatches
 from mavscope.analysis.framelist import MAX_FRAMES
 from mavscope.analysis.framelist import frame_numbers as _frames
 from mavscope.analysis.gnss import GnssAnomalies
@@ -44,41 +45,78 @@ def _link(f: Frame) -> str:
     return f"{f.sysid}/{f.compid}"
 
 
-class BadCrcBursts:
-    """Runs of bad-CRC frames close together: interference, a failing link, or injection attempts."""
+class _Run:
+    """A run of bad-CRC frames close together, as it accumulates (frame numbers with the group each fits)."""
 
-    clean: frozenset[str | int] = frozenset()  # bad-CRC frames only (see Detector)
+    __slots__ = ("count", "nums", "first", "last", "links", "groups")
 
     def __init__(self) -> None:
-        self.out: list[Finding] = []
-        self.run = _frames()
+        self.count = 0
+        self.nums: list[tuple[int, Group | None]] = []  # the first MAX_FRAMES (record, group it fits)
         self.first: float | None = None
         self.last: float | None = None
-        self.links: set[str] = set()
+        self.links: Counter[str] = Counter()
+        self.groups: Counter[Group] = Counter()  # frames fitting another CRC_EXTRA, per group
+
+
+class BadCrcBursts:
+    """Runs of bad-CRC frames close together: interference, a failing link, or injection attempts; and the
+    bad-CRC frames another definition of their message explains (`dialect-mismatch`, crcextra.Mismatches),
+    which are not noise: a frame of a group that is a mismatch so far joins no run, and the few frames
+    of a group that came before it was one are taken out of the runs at the end."""
+
+    clean: frozenset[str | int] = frozenset()  # bad-CRC frames only (see Detector)
+    dialect: Dialect | None = None  # the loaded dialect, to name the definitions (Expert.findings sets it)
+
+    def __init__(self) -> None:
+        self.runs: list[_Run] = []
+        self.run = _Run()
+        self.mismatches = Mismatches()
 
     def _close(self) -> None:
         if self.run.count >= BURST_MIN:
-            span = (self.last - self.first) if self.first is not None and self.last is not None else None
-            when = f" within {span:.3f} s" if span is not None else ""
-            self.out.append(finding("bad-crc-burst", f"{self.run.count} frames with a bad CRC{when} "
-                                                     f"(links {', '.join(sorted(self.links))})", self.run.nums))
-        self.run, self.first, self.last, self.links = _frames(), None, None, set()
+            self.runs.append(self.run)
+        self.run = _Run()
 
     def add(self, f: Frame, fields: Fields | None) -> None:
         if f.crc_status is not CrcStatus.BAD:
             return
-        t = f.time
-        if self.run.count and not (t is not None and self.last is not None and t - self.last <= BURST_WINDOW_S):
+        group, mismatch = self.mismatches.add(f)
+        if mismatch:
+            return
+        run, t = self.run, f.time
+        if run.count and not (t is not None and run.last is not None and t - run.last <= BURST_WINDOW_S):
             self._close()
-        if not self.run.count:
-            self.first = t
-        self.run.add(f.record)
-        self.last = t
-        self.links.add(_link(f))
+            run = self.run
+        if not run.count:
+            run.first = t
+        run.count += 1
+        if len(run.nums) < MAX_FRAMES and (not run.nums or run.nums[-1][0] != f.record):
+            run.nums.append((f.record, group))
+        run.last = t
+        run.links[_link(f)] += 1
+        if group is not None:
+            run.groups[group] += 1
 
     def findings(self) -> list[Finding]:
         self._close()
-        return self.out
+        groups = self.mismatches.groups()
+        out = []
+        for run in self.runs:
+            links = Counter(run.links)
+            count = run.count
+            for g, n in run.groups.items():
+                if g in groups:
+                    count -= n
+                    links[f"{g[0]}/{g[1]}"] -= n
+            if count < BURST_MIN:
+                continue
+            span = (run.last - run.first) if run.first is not None and run.last is not None else None
+            when = f" within {span:.3f} s" if span is not None else ""
+            shown = sorted(lk for lk, n in links.items() if n > 0)
+            out.append(finding("bad-crc-burst", f"{count} frames with a bad CRC{when} (links {', '.join(shown)})",
+                               [r for r, g in run.nums if g not in groups]))
+        return out + self.mismatches.findings(self.dialect)
 
 
 class SequenceAnomalies:
@@ -370,6 +408,8 @@ class Expert:
     def findings(self) -> list[Finding]:
         out: list[Finding] = []
         for d in self.detectors:
+            if isinstance(d, BadCrcBursts):  # (the native pass hands over one made without the dialect)
+                d.dialect = self.dialect
             out.extend(d.findings())
         return sort_findings(out)
 

@@ -110,7 +110,8 @@ def test_a_recorded_run_sent_again_behind_the_counter(cli: Cli, tmp_path: Path) 
     counter's terms): every copy is behind a counter that then runs on (100 next), 3 replays, listed with
     their originals."""
     gcs = flows.Sender(*GCS)
-    entries, recorded = [], []
+    entries: list[tuple[float, bytes]] = []
+    recorded: list[bytes] = []
     for i in range(400):
         if i == 100:
             entries += [(flows.T0 + i * 0.05 - 0.01, f) for f in recorded]
@@ -129,7 +130,8 @@ def test_a_recorded_run_sent_again_ahead_of_the_counter(cli: Cli, tmp_path: Path
     record 200): 40 is 97 ahead of 199, a jump forward, and the copies follow it number by number; the GCS's
     own frames then fill 200..39 and reach 40 again (its frame 296), so the run was ahead: 3 replays."""
     gcs = flows.Sender(*GCS)
-    entries, recorded = [], []
+    entries: list[tuple[float, bytes]] = []
+    recorded: list[bytes] = []
     for i in range(400):
         if i == 200:
             entries += [(flows.T0 + i * 0.05 - 0.01, f) for f in recorded]

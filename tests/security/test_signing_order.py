@@ -20,8 +20,8 @@ import pytest
 
 from tests.conftest import Cli
 from tests.native.engines import PURE
-from tests.support.pmav import mav1
 from tests.support.pmav import heartbeat as heartbeat_v1
+from tests.support.pmav import mav1
 from tests.support.security import PASSPHRASE, SHA_KEY, command_long, heartbeat, signer, write_raw
 
 KEY = ["--key", f"passphrase:{PASSPHRASE}"]
