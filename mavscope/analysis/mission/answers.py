@@ -24,7 +24,7 @@ receiver, and a second vehicle answering the same broadcast gets an exchange of 
 from __future__ import annotations
 
 from collections import deque
-from typing import TYPE_CHECKING, cast
+from typing import cast
 
 from mavscope.analysis.mission.model import (
     MAV_MISSION_ACCEPTED,
@@ -39,9 +39,6 @@ from mavscope.analysis.mission.model import (
 )
 from mavscope.analysis.mission.state import Deadlines, PartyIndex, narrow, retarget
 from mavscope.mavlink.frame import Frame
-
-if TYPE_CHECKING:
-    from mavscope.analysis.mission.reconstruct import MissionTracker
 
 ANSWERED_KEPT = 16  # answered clears remembered for the repeats of their ACK and other answerers of a broadcast
 MAX_FORKS = 16  # parties answering one broadcast MISSION_COUNT or MISSION_CLEAR_ALL each get their own exchange
@@ -62,6 +59,25 @@ class Answers:
     deadlines: Deadlines
     events: list[Event]
     order: int
+
+    # the tracker's own (reconstruct.MissionTracker)
+    def adopt(self, t: Transfer) -> None:
+        raise NotImplementedError
+
+    def _close(self, t: Transfer, how: str) -> None:
+        raise NotImplementedError
+
+    def _unlist(self, ev: Event) -> None:
+        raise NotImplementedError
+
+    def _late(self, f: Frame, mtype: int, a: Addr, b: Addr) -> Transfer | None:
+        raise NotImplementedError
+
+    def _new_event(self, kind: str, f: Frame, me: Addr, tgt: Addr, mtype: int) -> Event:
+        raise NotImplementedError
+
+    def _event(self, ev: Event) -> Event:
+        raise NotImplementedError
 
     def __init__(self) -> None:
         self.answered_clears: deque[Event] = deque(maxlen=ANSWERED_KEPT)
@@ -110,7 +126,7 @@ class Answers:
         t.opened, t.count_resent = first.opened, first.count_resent
         t.last = t.end = first.start
         self.families[(first.sender, first.mission_type)].append(t)
-        cast("MissionTracker", self).adopt(t)
+        self.adopt(t)
         return t
 
     def supersede(self, t: Transfer, me: Addr) -> None:
@@ -160,7 +176,7 @@ class Answers:
             if t.pending is not None:
                 t.pending.role = "continued"
             t.pending = None
-            cast("MissionTracker", self)._close(t, "ack")
+            self._close(t, "ack")
         else:
             if t.pending is not None:
                 t.pending.role = "repeated"
@@ -185,7 +201,7 @@ class Answers:
             retarget(self.clears, ev, me)
             self.answered_clears.append(ev)
             return ev
-        cast("MissionTracker", self)._unlist(ev)  # a MISSION_REQUEST_LIST refused with an ACK instead of a COUNT
+        self._unlist(ev)  # a MISSION_REQUEST_LIST refused with an ACK instead of a COUNT
         self.events.append(ev)
         return ev
 
@@ -214,13 +230,12 @@ class Answers:
         return twin
 
     def _unexplained(self, f: Frame, ack: Ack, me: Addr, tgt: Addr, mtype: int) -> object:
-        tracker = cast("MissionTracker", self)
-        late = tracker._late(f, mtype, me, tgt)
+        late = self._late(f, mtype, me, tgt)
         if late is not None:
             ack.role = "late"
             late.acks.append(ack)
             late.late_frames.append(f.record)
             return late
-        ev = tracker._new_event("unmatched-ack", f, me, tgt, mtype)
+        ev = self._new_event("unmatched-ack", f, me, tgt, mtype)
         ev.ack = ack
-        return tracker._event(ev)
+        return self._event(ev)
