@@ -169,7 +169,10 @@ def main(argv: Sequence[str] | None = None, env: Env | None = None) -> int:
         if args.command is None:
             parser.print_help(env.stdout)
             return ExitStatus.ERROR
-        return int(args.run(args, env))
+        from mavscope.mavlink.dialect import warnings_to  # a dialect's redefinitions: one line each on stderr
+
+        with warnings_to(env.say):
+            return int(args.run(args, env))
     except MavscopeError as exc:
         from mavscope.security.redact import redact  # what was typed as key material is never echoed
 

@@ -25,6 +25,7 @@ from mavscope.capture.reader import WINDOW
 from mavscope.fields.summary import DEGREES, ENUM, PLAIN, PYTHON_INFO, summary_plan
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import Frame
+from mavscope.mavlink.native_table import python_only as layout_python_only
 from mavscope.mavlink.semantics import COMMAND_MESSAGES, MESSAGE_ID_LABELS
 from mavscope.native import Reporter, native_module, table_for, write_lines
 from mavscope.output.text import summary_line
@@ -123,7 +124,8 @@ def _param1(md: MessageDef, dialect: Dialect, commands: Callable[[], bytes]) -> 
 
 def _message_entry(md: MessageDef, dialect: Dialect, commands: Callable[[], bytes]) -> bytes:
     """One message of the summary table: header, name, plan items (see summary.h for the layout)."""
-    python_only = md.name in PYTHON_INFO
+    # a layout the layout table leaves to Python (over 255 bytes...) has no fields there to point at
+    python_only = md.name in PYTHON_INFO or layout_python_only(md)
     index = {f.name: i for i, f in enumerate(md.fields)}
     items: list[bytes] = []
     for name, how, names in summary_plan(md, dialect):

@@ -23,6 +23,7 @@ from typing import IO, Any
 
 import pyarrow.compute as pc
 
+from mavscope.export.dataset import inside
 from mavscope.export.schema import CAPTURES, IDENTITY, MESSAGE_PREFIX, message_columns, table_of
 from mavscope.export.source import ExportOptions, Progress, Warn, dialect_for, record_batches
 
@@ -103,7 +104,7 @@ def write_capture_csv(path: str, folder: Path, options: ExportOptions | None = N
             cols = message_columns(md, dialect)
             entry = files.get(name)
             if entry is None:
-                f: IO[str] = open(folder / f"{name}.csv", "w", newline="", encoding="utf-8")  # noqa: SIM115
+                f: IO[str] = open(inside(folder, f"{name}.csv"), "w", newline="", encoding="utf-8")  # noqa: SIM115
                 w = csv.writer(f, lineterminator="\n")
                 w.writerow(["timestamp"] + [f"{name}.{fd.name}" for _, fd in cols.fields])
                 entry = files[name] = (f, w)
@@ -132,4 +133,4 @@ def csv_folder(out: Path, path: str, taken: set[str]) -> Path:
         n += 1
         name = f"{base}.{n}"
     taken.add(name)
-    return out / name
+    return inside(out, name)

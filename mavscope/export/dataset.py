@@ -31,8 +31,9 @@ import pyarrow.parquet as pq
 
 from mavscope import __version__
 from mavscope.errors import DatasetError
-from mavscope.export.schema import CAPTURES, PARTITION, SCHEMA_VERSION, table_of
+from mavscope.export.schema import CAPTURES, FIXED_TABLES, MESSAGE_PREFIX, PARTITION, SCHEMA_VERSION, table_of
 from mavscope.export.source import ExportOptions, Progress, Warn, content_id, record_batches
+from mavscope.mavlink.dialect_check import name_problem
 
 MANIFEST = "_mavscope_dataset.json"
 STAGING = "_staging"
@@ -49,8 +50,35 @@ def dictionary_columns(schema: pa.Schema) -> list[str]:
     return [f.name for f in schema if pa.types.is_string(f.type) or pa.types.is_large_string(f.type)]
 
 
+def inside(root: Path, *names: str) -> Path:
+    """`root` joined with `names`, each one plain file name (not empty, `.` or `..`, no separator, NUL or
+    drive), and the result, symbolic links followed, still inside `root` (DatasetError otherwise). Every
+    file name an export makes holds a dialect's or a capture's strings (a message name, a capture's file
+    name): checked at the source (mavscope.mavlink.dialect_check), and confined here, where it is used."""
+    for name in names:
+        if not name or name in (".", "..") or any(c in name for c in "/\\:\0"):
+            raise DatasetError(f"{root}: {name!r} cannot name a file there (one plain file name is needed)")
+    path = root.joinpath(*names)
+    try:
+        real, top = path.resolve(), root.resolve()
+    except (OSError, RuntimeError) as e:  # a symbolic link loop
+        raise DatasetError(f"{path}: cannot be used: {e}") from None
+    if not real.is_relative_to(top):
+        raise DatasetError(f"{path}: leads outside {root} (a symbolic link); nothing written there")
+    return path
+
+
+def valid_table(name: str) -> bool:
+    """Whether `name` can be a table of a dataset: a fixed table or `msg=` and a message name (an
+    identifier in upper case, as dialects are held to): a directory of any other name (a glob character
+    DuckDB would expand, a name no dialect can give) is no table."""
+    if name in FIXED_TABLES:
+        return True
+    return name.startswith(MESSAGE_PREFIX) and name_problem(name[len(MESSAGE_PREFIX):], upper=True) is None
+
+
 def partition_dir(root: Path, table: str, capture_id: str) -> Path:
-    return root / table / f"{PARTITION}={capture_id}"
+    return inside(root, table, f"{PARTITION}={capture_id}")
 
 
 def read_manifest(root: Path) -> dict[str, object] | None:
@@ -121,7 +149,7 @@ def is_committed(root: Path, capture_id: str) -> bool:
 
 def tables(root: Path) -> list[str]:
     """The table directories of the dataset (frames, msg=HEARTBEAT...)."""
-    return sorted(p.name for p in root.iterdir() if p.is_dir() and not p.name.startswith(("_", ".")))
+    return sorted(p.name for p in root.iterdir() if p.is_dir() and valid_table(p.name))
 
 
 @dataclass(frozen=True, slots=True)
@@ -165,7 +193,7 @@ class _Writers:
         body = batch.drop_columns([PARTITION])  # the directory name holds it (Hive partitioning)
         w = self.open.get(table)
         if w is None:
-            d = self.stage / table
+            d = inside(self.stage, table)
             d.mkdir()
             w = self.open[table] = pq.ParquetWriter(d / PART, body.schema, compression=COMPRESSION,
                                                     use_dictionary=dictionary_columns(body.schema))
@@ -276,7 +304,7 @@ def export_capture(dataset: str | os.PathLike[str], path: str, options: ExportOp
     if is_committed(root, cid) and not replace:
         return CaptureResult(path, cid, "skipped", size=size)
     remove_capture(root, cid)
-    stage = root / STAGING / f"{cid}.{uuid.uuid4().hex}"
+    stage = inside(root, STAGING, f"{cid}.{uuid.uuid4().hex}")
     stage.mkdir(parents=True)
     writers = _Writers(stage, cid, durable)
     try:

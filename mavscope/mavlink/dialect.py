@@ -12,7 +12,9 @@ from __future__ import annotations
 import os
 import struct
 import sys
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -414,13 +416,27 @@ def default_dissectors_dir() -> Path:
     return checkout if checkout.is_dir() else package / "dissectors"
 
 
-_said: set[str] = set()  # the warnings written to stderr by this process (a dialect is loaded once per use)
+_said: set[str] = set()  # the warnings written to stderr by this process outside `warnings_to`
+_sink: ContextVar[tuple[Callable[[str], None], set[str]] | None] = ContextVar("dialect_warnings", default=None)
 
 
-def _stderr(line: str) -> None:
-    if line not in _said:
-        _said.add(line)
-        sys.stderr.write("mavscope: " + visible(line) + "\n")
+@contextmanager
+def warnings_to(say: Callable[[str], None]) -> Iterator[None]:
+    """Within the block, the warnings of `load_dialect` go to `say` (the command line's stderr: cli.main),
+    each once however often the dialect is loaded."""
+    token = _sink.set((say, set()))
+    try:
+        yield
+    finally:
+        _sink.reset(token)
+
+
+def _warn(line: str) -> None:
+    sink = _sink.get()
+    say, said = sink if sink is not None else (lambda text: sys.stderr.write(f"mavscope: {visible(text)}\n"), _said)
+    if line not in said:
+        said.add(line)
+        say(line)
 
 
 def load_dialect(
@@ -436,7 +452,7 @@ def load_dialect(
     (mavscope.mavlink.dialect_cache.cache_dir: MAVSCOPE_CACHE_DIR, MAVSCOPE_NO_CACHE). The base's messages
     from MAVLink's standard files (STANDARD_FILES) are `standard`. Each of the Dialect's `warnings` (a later
     file's definition that meets an earlier one: Dialect.load) goes to `warn`, by default one line on
-    stderr, escaped, once per process."""
+    stderr, escaped (that of the command line within `warnings_to`), once."""
     cache = cache_dir(environ)
     d = Dialect()
     d.load(base if base is not None else pymavlink_dialect_path("all"), cache)
@@ -448,5 +464,5 @@ def load_dialect(
     for path in extra:
         d.load(path, cache)
     for line in d.warnings:
-        (warn or _stderr)(line)
+        (warn or _warn)(line)
     return d

@@ -44,7 +44,7 @@ from typing import Any
 
 from mavscope.errors import DialectError
 from mavscope.mavlink import dialect_check
-from mavscope.mavlink.dialect_check import MAX_ARRAY, MAX_FIELDS, MAX_FILE_BYTES, check_xml, names_valid
+from mavscope.mavlink.dialect_check import MAX_ARRAY, MAX_FIELDS, MAX_FILE_BYTES, check_xml, names_valid, too_big
 
 CACHE_ENV = "MAVSCOPE_CACHE_DIR"
 NO_CACHE_ENV = "MAVSCOPE_NO_CACHE"
@@ -111,6 +111,8 @@ def read_dialect(path: Path) -> bytes:
             st = os.fstat(f.fileno())
             if not stat.S_ISREG(st.st_mode):
                 raise DialectError(f"{path}: cannot read dialect: not a regular file")
+            if st.st_size > MAX_FILE_BYTES:
+                raise DialectError(too_big(str(path)))
             data = f.read(MAX_FILE_BYTES + 1)
         except OSError as e:
             raise DialectError(f"{path}: cannot read dialect: {e.strerror or e}") from None

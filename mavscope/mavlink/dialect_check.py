@@ -9,26 +9,34 @@ first, with expat as mavparse does (the same pieces: fed 2,048 bytes at a time, 
 refuses, in one line naming the file and what is wrong (DialectError):
 
 - a file over MAX_FILE_BYTES, a DOCTYPE with more than a name (so no entity of any kind, in any
-  encoding expat decodes: the check is on the parsed document, not on bytes), elements nested deeper than MAX_DEPTH, an element
-  with more than MAX_ATTRIBUTES attributes, more than MAX_ELEMENTS elements, more than MAX_TEXT_EVENTS
-  pieces of text, or text whose growth would cost mavparse more than MAX_TEXT_COPY bytes of copying
-  (each piece appended copies what its description holds so far: counted exactly as mavparse appends);
+  encoding expat decodes: the check is on the parsed document, not on bytes), elements nested deeper
+  than MAX_DEPTH, an element with more than MAX_ATTRIBUTES attributes, more than MAX_ELEMENTS
+  elements, more than MAX_TEXT_EVENTS pieces of text, or text whose growth would cost mavparse more
+  than MAX_TEXT_COPY bytes of copying (each piece appended copies what its description holds so far:
+  counted exactly as mavparse appends);
 - names that are not identifiers (`NAME`: ASCII letters, digits and `_`, not starting with a digit, at
   most MAX_NAME characters; message and enum names in upper case, `UPPER_NAME`), as every dialect
   MAVLink ships has them (mavgen's C and Python generators make identifiers of them, and mavscope makes
   file names, SQL views and filter names of them): no `../x`, `/`, NUL, `C:\\x`, space or control
   character reaches a path, a query or a terminal from a dialect;
 - a message id that is not a whole number of 0..16777215 (mavschema.xsd's mavlinkMsgId, 24 bits), a
-  field type that is not one of MAVLink's (mavschema.xsd's, with an array length of 1..255), a field
-  outside a message, more than MAX_FIELDS fields in a message (mavparse's own limit, which it checks only
-  after the whole file is read), an enum entry value that is not one of mavschema.xsd's forms (decimal,
+  field type that is not one of MAVLink's (mavschema.xsd's, with an array length of 1..255), more than
+  MAX_FIELDS fields in a message (mavparse's own limit, which it checks only after the whole file is
+  read), an enum entry value that is not one of mavschema.xsd's forms (decimal,
   0x hex, 0b binary, 2**N: so `eval` only ever sees an integer literal), a command param index that is
   not 1..7.
 
-The limits are far above what MAVLink's dialects need (common.xml, the largest, is 0.7 MB with 6,400
-elements, nesting 5 deep, 7 attributes at most, 21,000 pieces of text costing 1.5 MB of copying): every
-dialect of MAVLink's message_definitions/v1.0 loads (tests/mavlink/test_dialect_input.py). Checking costs
-one expat pass with a small handler per event, at most MAX_ELEMENTS + MAX_TEXT_EVENTS events.
+Over a file and its includes (mavscope.mavlink.dialect's loader): at most MAX_FILES files, includes
+MAX_INCLUDE_DEPTH deep, MAX_LOAD_BYTES together, each include a relative path resolving inside the
+folder of the file loaded (`include_path`), and mavgen's duplicate rules (`duplicates`).
+
+The limits are above what MAVLink's dialects need, all of them in one file (common.xml, the largest, is
+0.7 MB with 6,400 elements, nesting 5 deep, 7 attributes at most, 21,000 pieces of text costing 1.5 MB of
+copying; the 19 files pymavlink ships have 9,700 elements and 32,000 pieces together), and low enough
+that a file at every limit loads in about a second (1.1 s measured on a loaded 2-core machine, where
+common.xml takes 0.25 s; a 5 MB file is refused unread): every dialect of MAVLink's
+message_definitions/v1.0 loads (tests/mavlink/test_dialect_input.py). Checking costs one expat pass
+with a small handler per event, at most MAX_ELEMENTS + MAX_TEXT_EVENTS events.
 """
 
 from __future__ import annotations
@@ -45,8 +53,8 @@ from mavscope.errors import DialectError
 MAX_FILE_BYTES = 4 << 20  # common.xml: 0.7 MB
 MAX_DEPTH = 8  # MAVLink's schema nests 5 deep (mavlink.enums.enum.entry.param)
 MAX_ATTRIBUTES = 32  # common.xml: 7 at most
-MAX_ELEMENTS = 100_000  # common.xml: 6,400
-MAX_TEXT_EVENTS = 500_000  # pieces of text expat hands mavparse; common.xml: 21,000
+MAX_ELEMENTS = 20_000  # common.xml: 6,400; the 19 dialects pymavlink ships, together: 9,700
+MAX_TEXT_EVENTS = 64_000  # pieces of text expat hands mavparse; common.xml: 21,000; all 19: 32,000
 MAX_TEXT_COPY = 256 << 20  # bytes mavparse's `+=` copies; common.xml: 1.5 MB
 MAX_FIELDS = 64  # mavparse: "Maximum number of field names allowed is 64"
 MAX_NAME = 128  # characters; the longest MAVLink name is 63 (an enum entry)
@@ -69,10 +77,8 @@ _ENUM = "mavlink.enums.enum"
 _ENTRY = _ENUM + ".entry"
 _PARAM = _ENTRY + ".param"
 _INCLUDE = "mavlink.include"
-# the elements that make one of mavparse's objects, and the object each needs before it
+# the elements that make one of mavparse's objects (its path holds the parent's: a field is in a message)
 _MAKES = {_MESSAGE: "message", _FIELD: "field", _ENUM: "enum", _ENTRY: "entry", _PARAM: "param", _INCLUDE: "include"}
-_PARENT = {"field": "message", "entry": "enum", "param": "entry"}
-_WHAT = {"message": "a message", "field": "a field", "enum": "an enum", "entry": "an enum entry", "param": "a param"}
 # mavparse's char_data: the paths whose text it appends (`+=`) to an attribute of the last object of a kind
 _APPENDS = {_MESSAGE + ".description": "message", _MESSAGE + ".deprecated": "message", _FIELD: "field",
             _ENUM + ".description": "enum", _ENUM + ".deprecated": "enum", _ENTRY + ".description": "entry",
@@ -152,9 +158,6 @@ class _Checker:
         kind = _MAKES.get(path)
         if kind is None:
             return
-        parent = _PARENT.get(kind)
-        if parent is not None and not self.made[parent]:
-            self.refuse(f"{_WHAT[kind]} outside {_WHAT[parent]}")
         self.made[kind] += 1
         if kind == "message":
             self.fields = 0
@@ -209,13 +212,17 @@ class _Checker:
             self.refuse("text in too many pieces (lines, character references) for its length")
 
 
+def too_big(where: str) -> str:
+    return (f"{where}: cannot load dialect: over {MAX_FILE_BYTES:,} bytes (common.xml, the largest of MAVLink's "
+            "dialects, is about 700,000)")
+
+
 def check_xml(data: bytes, where: str) -> None:
     """Refuse (DialectError, one line starting with `where`) a dialect file whose bytes are `data` unless it
     is what pymavlink's parser can take in bounded time and memory and every name in it is an identifier
     (the module's docstring)."""
     if len(data) > MAX_FILE_BYTES:
-        raise DialectError(f"{where}: cannot load dialect: {len(data):,} bytes (dialects are at most "
-                           f"{MAX_FILE_BYTES:,}; common.xml is about 700,000)")
+        raise DialectError(too_big(where))
     parser = expat.ParserCreate()
     parser.SetParamEntityParsing(expat.XML_PARAM_ENTITY_PARSING_NEVER)
     check = _Checker(parser)

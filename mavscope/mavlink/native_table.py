@@ -32,13 +32,16 @@ TYPES: dict[str, tuple[int, int]] = {
     "char": (11, 1),
 }
 ARRAY = 0x80
+MAX_PAYLOAD = 255  # bytes: MAVLink 2's length field is one byte
 
 
-def message_entry(md: MessageDef) -> bytes:
-    """One message of the table: header, name, fields (see table.h for the layout)."""
+def _fields(md: MessageDef) -> tuple[list[bytes], bool]:
+    """The field entries of `md`'s table entry, and whether C can take them: every field's count and
+    offset and its JSON key fit a byte, no name twice, the fields end to end to the message's length, and
+    that length a payload's (at most 255 bytes)."""
     fields: list[bytes] = []
     offset = 0
-    python_only = False
+    fits = md.length <= MAX_PAYLOAD
     names: set[str] = set()
     for f in md.fields:
         code, size = TYPES[f.type]
@@ -51,17 +54,30 @@ def message_entry(md: MessageDef) -> bytes:
             count = 1
         key = orjson.dumps(f.name) + b":"
         if count > 255 or offset > 255 or len(key) > 255 or f.name in names:
-            python_only = True  # cannot be described to C (never in a real dialect): Python decodes it
+            fits = False
         names.add(f.name)
         fields.append(struct.pack("<BBBB", code, count & 0xFF, offset & 0xFF, len(key) & 0xFF) + key)
         offset += size * count
-    if offset != md.length or md.length > 255:
-        python_only = True
-    if python_only:
-        fields = []
+    return fields, fits and offset == md.length
+
+
+def python_only(md: MessageDef) -> bool:
+    """Whether frames of `md` go to the Python path, whatever engine runs: its layout cannot be described
+    to C (`_fields`). A message over 255 bytes is one: pymavlink takes such a layout (mavparse checks no
+    length) and decodes a frame of it as any, its payload (at most 255 bytes on the wire) padded with
+    zeros, which is what the Python path does; no frame can carry the whole of it. Every table built on
+    the layout table (the native summary's, mavscope.native_summary) marks the same messages."""
+    return not _fields(md)[1]
+
+
+def message_entry(md: MessageDef) -> bytes:
+    """One message of the table: header, name, fields (see table.h for the layout)."""
+    fields, fits = _fields(md)
+    if not fits:
+        fields = []  # cannot be described to C (never in a real dialect): Python decodes it
     name = orjson.dumps(md.name)
     head = struct.pack("<IBBBBHH", md.id, md.crc_extra, md.length & 0xFF, min(md.base_length, md.length) & 0xFF,
-                       int(python_only), len(fields), len(name))
+                       int(not fits), len(fields), len(name))
     return head + name + b"".join(fields)
 
 
