@@ -99,8 +99,10 @@ def item_args(seq: int, point: tuple[float, float, float], legacy: bool, mtype: 
 
 class SimVehicle(Party):
     def __init__(self, link: Link, sysid: int = 1, compid: int = 1, legacy: bool = False,
-                 answer_broadcast: bool = False, clear_acks: int = 1, capacity: int = 700) -> None:
+                 answer_broadcast: bool = False, clear_acks: int = 1, capacity: int = 700,
+                 components: tuple[int, ...] = ()) -> None:
         super().__init__(link, sysid, compid)
+        self.components = components  # other target components it takes as its own (PX4: 190, the mission planner)
         self.legacy, self.answer_broadcast = legacy, answer_broadcast
         self.clear_acks, self.capacity = clear_acks, capacity
         self.held: dict[int, dict[int, Any]] = {0: {}, 1: {}, 2: {}}
@@ -109,6 +111,9 @@ class SimVehicle(Party):
 
     def to(self, src: Addr) -> Addr:
         return (0, 0) if self.answer_broadcast else src
+
+    def mine(self, msg: Any) -> bool:
+        return super().mine(msg) or (msg.target_system == self.addr[0] and msg.target_component in self.components)
 
     def request(self, rx: dict[str, Any]) -> None:
         self.send("MISSION_REQUEST" if self.legacy else "MISSION_REQUEST_INT", *self.to(rx["gcs"]), rx["next"],

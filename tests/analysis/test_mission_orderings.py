@@ -143,11 +143,21 @@ def partial_update(link: Link) -> tuple[list[SimVehicle], list[SimGcs]]:
     return [v], [g]
 
 
+def px4_takes_a_count_to_the_mission_planner_component(link: Link) -> tuple[list[SimVehicle], list[SimGcs]]:
+    # PX4's mission manager takes a message to component 190 (MAV_COMP_ID_MISSIONPLANNER) as its own
+    # (CHECK_SYSID_COMPID_MISSION): a COUNT addressed to 1/190 is answered by the autopilot 1/1.
+    v, g = SimVehicle(link, components=(190,)), SimGcs(link)
+    heartbeats(link, v, g)
+    g.upload((1, 190), 0, WP[:3])
+    return [v], [g]
+
+
 SCENARIOS: dict[str, Callable[[Link], tuple[list[SimVehicle], list[SimGcs]]]] = {
     f.__name__: f for f in (mission_planner_clear_then_count, legacy_upload_to_broadcast,
                             old_ardupilot_triple_clear_ack, clear_by_empty_upload_and_clear_all,
                             download_interleaved_with_upload, two_vehicles_one_broadcast_count,
-                            second_gcs_denied_and_no_space, lossy_link_rerequests, partial_update)}
+                            second_gcs_denied_and_no_space, lossy_link_rerequests, partial_update,
+                            px4_takes_a_count_to_the_mission_planner_component)}
 
 
 def build(name: str, tmp_path: Path) -> tuple[str, list[SimVehicle], list[SimGcs]]:

@@ -107,6 +107,17 @@ class Answers:
                 return t, "answerer"
         return None, ""
 
+    def holding(self, mtype: int, me: Addr, tgt: Addr) -> Transfer | None:
+        """The open transfer `me` holds the items of, that a frame of `me` to `tgt` belongs to: the latest
+        whose receiver `tgt` fits, else the latest addressed as `tgt` (the COUNT went to 1/190, PX4's
+        autopilot 1/1 answered, the items still go to 1/190)."""
+        t = self.open.latest(mtype, me, tgt, exact_sender=True)
+        if t is None:
+            t = self.open.latest(mtype, me, (0, 0), exact_sender=True)
+            if t is not None and t.addressed != tgt:
+                t = None
+        return t
+
     def take(self, t: Transfer, how: str, me: Addr) -> Transfer:
         """The transfer `me` answers, `answering`'s choice applied: a fork made, the receiver narrowed."""
         if how == "fork":
@@ -158,7 +169,7 @@ class Answers:
             if isinstance(target, Event):
                 return self._event_answered(target, ack, f, me)
             return self._receiver_ack(self.take(cast("Transfer", target), how, me), ack, f)
-        sending = self.open.latest(mtype, me, tgt, exact_sender=True)
+        sending = self.holding(mtype, me, tgt)
         if sending is not None:
             return self._sender_ack(sending, ack, f)
         again = self._answered_clear(f, mtype, tgt, me)

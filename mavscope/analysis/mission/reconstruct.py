@@ -325,7 +325,7 @@ class MissionTracker(Answers):
         # A broadcast item reaches every party answering the broadcast COUNT (at most MAX_FORKS); an
         # addressed one its party
         fam = [t for t in self.families.get((me, mtype), ()) if t in self.open] if broadcast(tgt) else []
-        latest = self.open.latest(mtype, me, tgt, exact_sender=True)
+        latest = self.holding(mtype, me, tgt)
         found = fam or ([latest] if latest is not None else [])
         if not found:
             return self._stray(f, name, me, tgt, mtype, seq)
