@@ -36,7 +36,7 @@ def st(sev: int, text: bytes, ident: int = 0, seq: int = 0) -> object:
 def _texts(path: str, dialect: Dialect) -> list[tuple[int, tuple[int, int], str, dict]]:
     with open_capture(path) as r:
         events = story((f for f in Dissector(dialect).run(r) if type(f) is not Anomaly), dialect).events
-    return [(e.frame, e.sender, e.details["message"], e.details) for e in events
+    return [(e.frame, e.sender, str(e.details["message"]), e.details) for e in events
             if e.kind == "statustext" or e.details.get("source") == "STATUSTEXT"]
 
 

@@ -181,7 +181,7 @@ def test_real_px4flow_params_all_written(cli: Cli, real_captures: Path, tmp_path
     path = real_captures / "px4flow_v1_encapsulated_data.tlog"
     names = {m.msg.param_id for m in pymavlink_read(path) if m.name == "PARAM_VALUE"}
     out = tmp_path / "px4flow.parm"
-    r = cli("params", path, "--out", str(out))
+    r = cli("params", str(path), "--out", str(out))
     assert r.status == 0, r.err
     written = {line.split(",")[0] for line in out.read_text().splitlines() if not line.startswith("#")}
     assert len(names) == 13 and written == names
