@@ -29,13 +29,17 @@ COMMANDING = {"COMMAND_LONG", "COMMAND_INT", "SET_MODE", "MISSION_COUNT", "MISSI
 
 
 def both(cli: Cli, path: str, *extra: str) -> dict[str, list[dict]]:
-    """stats and audit, text and JSON, on both engines (equal), and audit holding every security finding of
-    stats: stats' findings by code."""
+    """stats, audit and verify, text and JSON, on both engines (equal), and audit holding every security
+    finding of stats: stats' findings by code."""
     for command in ("stats", "audit"):
         for fmt in ((), ("--json",)):
             pure = cli(command, path, *fmt, *extra, environ=PURE)
             native = cli(command, path, *fmt, *extra, environ={})
             assert (native.out, native.err, native.status) == (pure.out, pure.err, pure.status), (command, fmt)
+    for fmt in ((), ("--json",)):  # verify needs a key: any (these captures' signed frames then fail it)
+        pure = cli("verify", path, "--key", "passphrase:x", *fmt, *extra, environ=PURE)
+        native = cli("verify", path, "--key", "passphrase:x", *fmt, *extra, environ={})
+        assert (native.out, native.err, native.status) == (pure.out, pure.err, pure.status), ("verify", fmt)
     stats = cli.json("stats", path, *extra)
     audit = cli("audit", path, "--json", *extra)
     import json

@@ -73,6 +73,10 @@ def test_verify_does_not_depend_on_the_order(cli: Cli, tmp_path: Path) -> None:
         assert [p["message"].split(" from")[0] for p in doc["problems"]] == ["unsigned COMMAND_LONG"]
         text = cli("verify", path, *KEY)
         assert text.status == 1 and "FAIL" in text.out
+        for fmt in ((), ("--json",)):
+            pure = cli("verify", path, *KEY, *fmt, environ=PURE)
+            native = cli("verify", path, *KEY, *fmt, environ={})
+            assert (native.out, native.err, native.status) == (pure.out, pure.err, pure.status)
     assert rows["before"] == rows["after"]
     assert rows["before"]["unsigned_in_signed_stream"] == 1 and rows["before"]["v1_in_signed_stream"] == 1
     assert rows["before"]["valid"] == 3
