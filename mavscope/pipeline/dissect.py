@@ -109,11 +109,13 @@ class Dissector:
         messages = self.messages
         endpoints = self.mavlink_endpoints
         index = 0
+        streamed = False
         for p in self.decap.feed(rec):
             if p.stream is not None:
                 self._index = index
                 yield from self._stream(p)
                 index = self._index
+                streamed = True
                 continue
             # Fast path: a datagram that is a run of clean v2 frames (known message, good CRC,
             # no unknown flags). Anything else goes to the general scanner from where it stops.
@@ -161,7 +163,8 @@ class Dissector:
                 if key in self.streams:
                     yield from self._finish(key)
             index = self._index
-        if index and self.decap.tcp.holding:  # a later record may complete frames dated by this one
+        if index and (streamed or self.decap.tcp.holding):  # a later record may give frames dated by this one
+            # (a frame a hole or the stream's end cuts, or bytes held beyond a hole)
             self._later(number, index)
 
     def finish(self) -> Iterator[Frame | Anomaly]:

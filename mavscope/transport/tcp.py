@@ -129,7 +129,9 @@ class TcpReassembler:
         if flags & (TCP_FIN | TCP_RST):
             self._close(d, seq, flags, len(data), out)
         if ack is not None and flags & TCP_ACK:
-            self._ack(k, ack, record, out)
+            peer = self._slots.get((dst, src))
+            if peer is not None:
+                self._ack(peer, ack, record, out)
         if k in self._notes:
             self._attach(k, out)
         if self._holes and self.clock - next(iter(self._holes.values())).since > HOLE_TIMEOUT:
@@ -230,19 +232,21 @@ class TcpReassembler:
                     g.closed = True
                     self.ended.append(g.key)
 
-    def _ack(self, k: tuple[Endpoint, Endpoint], ack: int, record: int, out: list[Payload]) -> None:
-        """An acknowledgment on `k` of the direction the other way: its receiver had every byte before `ack`,
-        so a hole among them is one the capture missed, given up now (or when bytes beyond it come)."""
-        ds = self._slots.get((k[1], k[0]))
-        if not ds:
-            return
+    def _ack(self, ds: list[Direction], ack: int, record: int, out: list[Payload]) -> None:
+        """An acknowledgment of the direction the other way (its generations `ds`): its receiver had every
+        byte before `ack`, so a hole among them is one the capture missed, given up now (or when bytes beyond
+        it come, or HOLE_TIMEOUT later). An ACK past what its sender can have sent unseen (more than
+        `max_buffered` beyond the bytes seen: another connection's, or made up) is not taken."""
         g = ds[0] if len(ds) == 1 else min(ds, key=lambda g: g.distance(ack))
         a = g.unwrap(ack)
-        if g.closed or a <= g.next or (g.acked is not None and a <= g.acked):
+        if g.closed or a <= g.next or (g.acked is not None and a <= g.acked) or \
+                a - max(g.next, g.high) > self.max_buffered:
             return
         g.acked, g.acked_by = a, record
         if g.pending:
             self._drain(g, out, a, "")
+        else:
+            self._wait(g)
 
     def _release(self, d: Direction, out: list[Payload], bound: str, reason: str) -> None:
         """Forget direction `d`, delivering what it buffered after a note saying `reason`; `bound` (if given),
@@ -396,10 +400,11 @@ class TcpReassembler:
         return ""
 
     def _wait(self, d: Direction) -> None:
-        """Keep `_holes` (the directions waiting on a hole, for HOLE_TIMEOUT) up to date with `d`."""
-        if d.pending:
-            if d.since == NEVER or d.hole != d.next:  # a new hole: the bytes beyond it came with pending[0]
-                d.hole, d.since = d.next, d.pending[0][6]
+        """Keep `_holes` (the directions waiting on a hole, for HOLE_TIMEOUT) up to date with `d`: a hole
+        with bytes beyond it (since they came), or bytes its receiver acknowledged unseen (since the ACK)."""
+        if d.pending or (d.acked is not None and d.acked > d.next and not d.closed):
+            if d.since == NEVER or d.hole != d.next:  # a new hole
+                d.hole, d.since = d.next, d.pending[0][6] if d.pending else self.clock
                 self._holes[d.key] = d
                 self._holes.move_to_end(d.key)
         elif d.since != NEVER:
@@ -407,14 +412,22 @@ class TcpReassembler:
             self._holes.pop(d.key, None)
 
     def _expire(self, out: list[Payload]) -> None:
-        """Give up the holes nothing filled for HOLE_TIMEOUT after the bytes beyond them came."""
+        """Give up the holes nothing filled for HOLE_TIMEOUT after the bytes beyond them came (or their ACK)."""
         while self._holes:
             d = next(iter(self._holes.values()))
             waited = self.clock - d.since
             if waited <= HOLE_TIMEOUT:
                 return
-            self._drain(d, out, d.pending[0][0], f"the capture missed them: nothing filled them in {waited:.3g} s "
-                        "after the bytes beyond them came")
+            if d.pending:
+                self._drain(d, out, d.pending[0][0], f"the capture missed them: nothing filled them in {waited:.3g} "
+                            "s after the bytes beyond them came")
+                continue
+            if d.hole == d.next and d.acked is not None and d.acked > d.next and not d.closed:
+                why = f"the receiver acknowledged them (record {d.acked_by}): the capture missed them"
+                out.append(self._empty(d, (self._gap(d, d.acked, why, None),)))
+            d.since = NEVER  # (bytes came since: the rest, if any, is waited for anew)
+            self._holes.pop(d.key, None)
+            self._wait(d)
 
     def _gap(self, d: Direction, stop: int, reason: str, offset: int | None) -> Note:
         """Skip the hole [next, stop): the note on the bytes after it, which a stream framer starts afresh at."""

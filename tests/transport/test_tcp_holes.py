@@ -224,6 +224,46 @@ def test_a_retransmission_never_captured(tmp_path: Path, dialect) -> None:  # ty
     assert message.startswith(f"{HB} bytes missing") and f"acknowledged them (record {jump})" in message
 
 
+def _tail_hole() -> tuple[tf.Capture, list[bytes], list[bytes], int]:
+    """The vehicle's HEARTBEAT 0 at t=0, then HEARTBEAT 1 in two segments at t=0.5, the second (its last 5
+    bytes) not captured; only the ground station's ACK of all 42 bytes at t=0.51 shows it. Then the vehicle
+    is quiet until HEARTBEAT 2 at t=10, while the ground station sends its own HEARTBEATs at t=1..9 (which
+    ack the 42 bytes again)."""
+    hbs, gcs = tf.heartbeats(3), tf.heartbeats(9)
+    cap = tf.Capture()
+    cap.add(tf.GCS, tf.VEHICLE, tf.G_ISN, 0, "S", -0.3)
+    cap.add(tf.VEHICLE, tf.GCS, tf.V_ISN, tf.G_ISN + 1, "SA", -0.2)
+    cap.add(tf.GCS, tf.VEHICLE, tf.G_ISN + 1, tf.V_ISN + 1, "A", -0.1)
+    cap.record_of[0] = cap.add(tf.VEHICLE, tf.GCS, tf.V_ISN + 1, tf.G_ISN + 1, "PA", 0.0, hbs[0])
+    cap.record_of[1] = cap.add(tf.VEHICLE, tf.GCS, tf.V_ISN + 1 + HB, tf.G_ISN + 1, "PA", 0.5, hbs[1][:16])
+    ack = cap.add(tf.GCS, tf.VEHICLE, tf.G_ISN + 1, tf.V_ISN + 1 + 2 * HB, "A", 0.51)
+    for i, f in enumerate(gcs):
+        cap.record_of[100 + i] = cap.add(tf.GCS, tf.VEHICLE, tf.G_ISN + 1 + HB * i, tf.V_ISN + 1 + 2 * HB, "PA",
+                                         1.0 + i, f)
+    cap.record_of[2] = cap.add(tf.VEHICLE, tf.GCS, tf.V_ISN + 1 + 2 * HB, tf.G_ISN + 1 + HB * 9, "PA", 10.0, hbs[2])
+    return cap, hbs, gcs, ack
+
+
+def test_a_hole_only_the_peers_ack_shows(tmp_path: Path, dialect) -> None:  # type: ignore[no-untyped-def]
+    """A hole with no bytes after it for 9.5 s (_tail_hole): 2 s after the ACK that shows it (at the ground
+    station's record of t=3, the first over 2 s later) the 16 captured bytes of HEARTBEAT 1 come out as a
+    truncated frame of their own record and time, and the gap (5 bytes, sequence numbers 1037-1041) is noted
+    there, naming the ACK; HEARTBEATs 0 and 2 are read whole, and every ground station HEARTBEAT too."""
+    cap, hbs, gcs, ack = _tail_hole()
+    items = dissect(cap.write(tmp_path / "tail.pcap"), dialect)
+    at_t3 = dict(items)[cap.record_of[102]]
+    cut = [f for f in at_t3 if isinstance(f, Frame) and f.src.port == 5760]
+    assert [(f.raw, f.record, f.time, f.crc_status) for f in cut] == [
+        (hbs[1][:16], cap.record_of[1], tf.T0 + 0.5, CrcStatus.TRUNCATED)]
+    (record, message), = gap_notes(items)
+    assert record == cap.record_of[102] and message.startswith("5 bytes missing")
+    assert "sequence numbers 1037-1041" in message and f"(record {ack})" in message
+    got = frames_of(items)
+    assert [(f.raw, f.record) for f in got if f.crc_status is CrcStatus.OK and f.src.port == 5760] == [
+        (hbs[0], cap.record_of[0]), (hbs[2], cap.record_of[2])]
+    assert [f.raw for f in got if f.src.port == 40000] == gcs
+
+
 def test_a_hole_before_the_fin(tmp_path: Path, dialect) -> None:  # type: ignore[no-untyped-def]
     """The last segment missed, then the FIN (one direction): the FIN's sequence number says 21 bytes are
     missing before it; nothing waits, nothing is truncated."""
@@ -302,7 +342,8 @@ def _captures(tmp: Path) -> list[Path]:
             tf.build(segs, missed={5}, acks=False).write(tmp / "one_way.pcap"),
             tf.build(tf.chunks(hbs, 16), missed={6}, acks=False).write(tmp / "cut.pcap"),
             tf.build(segs, missed={9}, acks=False, fin=True).write(tmp / "fin.pcap"),
-            tf.build(segs, handshake=False, order=[4, 3, *range(5, 20)], acks=False).write(tmp / "pickup.pcap")]
+            tf.build(segs, handshake=False, order=[4, 3, *range(5, 20)], acks=False).write(tmp / "pickup.pcap"),
+            _tail_hole()[0].write(tmp / "tail.pcap")]
 
 
 @pytest.mark.parametrize("form", [(), ("-T", "jsonl")], ids=["text", "jsonl"])
