@@ -166,6 +166,10 @@ class TcpReassembler:
         self.current = None
         for d in list(self._buffering.values()):
             self._drain(d, out, NEVER, "the capture ended without them")
+        for d in list(self._holes.values()):  # bytes the receiver acknowledged, never captured
+            if d.acked is not None and d.acked > d.next and not d.closed:
+                why = f"the receiver acknowledged them (record {d.acked_by}): the capture missed them"
+                out.append(self._empty(d, (self._gap(d, d.acked, why, None),)))
         for k in list(self._notes):
             ds = self._slots.get(k)
             key = ds[-1].key if ds else (TRANSPORT_TCP, k[0], k[1], -1)

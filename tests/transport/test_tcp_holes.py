@@ -262,6 +262,11 @@ def test_a_hole_only_the_peers_ack_shows(tmp_path: Path, dialect) -> None:  # ty
     assert [(f.raw, f.record) for f in got if f.crc_status is CrcStatus.OK and f.src.port == 5760] == [
         (hbs[0], cap.record_of[0]), (hbs[2], cap.record_of[2])]
     assert [f.raw for f in got if f.src.port == 40000] == gcs
+    # the capture ends at t=1, before the 2 s: said at the end, on the stream's last record (HEARTBEAT 1's)
+    cap.packets = cap.packets[:cap.record_of[100]]
+    items = dissect(cap.write(tmp_path / "tail_end.pcap"), dialect)
+    assert [r for r, _ in gap_notes(items)] == [cap.record_of[1]]
+    assert [f.raw for f in frames_of(items) if f.crc_status is CrcStatus.TRUNCATED] == [hbs[1][:16]]
 
 
 def test_a_hole_before_the_fin(tmp_path: Path, dialect) -> None:  # type: ignore[no-untyped-def]
