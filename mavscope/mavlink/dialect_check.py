@@ -114,8 +114,8 @@ class _Refused(Exception):
 
 
 def _quoted(text: str, limit: int = 60) -> str:
-    """`text` for an error line: repr, cut short (the line is escaped again where it is shown)."""
-    return repr(text if len(text) <= limit else text[:limit] + "...")
+    """`text` for an error line: in quotes, cut short, as it is (escaped where the line is shown: visible)."""
+    return f"'{text if len(text) <= limit else text[:limit] + '...'}'"
 
 
 class _Checker:
@@ -285,12 +285,14 @@ def duplicates(records: list[tuple[Path, dict[str, Any]]]) -> None:
                 raise DialectError(f"{where} message {name} is both id {mid} and id {names[name][0]} "
                                    f"({names[name][1].name})")
             ids[mid], names[name] = (name, file), (mid, file)
-            seen: set[str] = set()
+            seen: dict[str, str] = {}
             for f in m[7]:
-                if f[0].lower() in seen:
-                    raise DialectError(f"{where} message {name} has field {f[0]} twice (names differing only "
-                                       "in case count as one)")
-                seen.add(f[0].lower())
+                other = seen.get(f[0].lower())
+                if other is not None:
+                    raise DialectError(f"{where} message {name} has field {f[0]} twice" if other == f[0] else
+                                       f"{where} message {name} has fields {other} and {f[0]}, which differ only in "
+                                       "case (SQL and many file systems do not tell them apart)")
+                seen[f[0].lower()] = f[0]
         for e in record["enums"]:
             for entry in e[3]:
                 key = (e[0], entry[1])

@@ -46,11 +46,14 @@ def message(name: str = "TEST_X", mid: int | str = 60500, fields: str = FIELD) -
 
 
 def refused(data: bytes) -> str:
+    """The error (its text as it is: the command line escapes it into one line, `visible`)."""
     with pytest.raises(DialectError) as e:
         check_xml(data, "x.xml")
-    text = str(e.value)
-    assert "\n" not in text  # one line
-    return text
+    return str(e.value)
+
+
+def quoted(text: str) -> str:
+    return f"'{text if len(text) <= 60 else text[:60] + '...'}'"
 
 
 def write(folder: Path, name: str, data: bytes) -> Path:
@@ -102,9 +105,7 @@ BAD_NAMES = ["../../x", "/etc/x", "a/b", "..", "C:\\x", "A B", "A&#10;B", "A&#13
 
 @pytest.mark.parametrize("name", BAD_NAMES)
 def test_a_message_or_enum_name_that_is_no_identifier_is_refused(name: str) -> None:
-    shown = repr(name.replace("&#10;", "\n").replace("&#13;", "\r"))
-    if len(shown) > 62:
-        shown = repr("A" * 60 + "...")
+    shown = quoted(name.replace("&#10;", "\n").replace("&#13;", "\r"))
     why = "is longer than 128 characters" if len(name) > 128 else "is not an identifier in upper case (A-Z, 0-9, _)"
     assert refused(xml(message(name))) == f"x.xml: cannot load dialect: line 2: message name {shown} {why}"
     assert refused(xml(enums=f'<enum name="{name}"><entry name="E_A" value="1"/></enum>')) == (
@@ -113,7 +114,7 @@ def test_a_message_or_enum_name_that_is_no_identifier_is_refused(name: str) -> N
 
 @pytest.mark.parametrize("name", BAD_NAMES[:10])
 def test_a_field_or_entry_name_that_is_no_identifier_is_refused(name: str) -> None:
-    shown = repr(name.replace("&#10;", "\n").replace("&#13;", "\r"))
+    shown = quoted(name.replace("&#10;", "\n").replace("&#13;", "\r"))
     why = "is not an identifier (letters, digits, _)"
     fields = f'<field type="uint8_t" name="{name}">a</field>'
     assert refused(xml(message(fields=fields))) == f"x.xml: cannot load dialect: line 2: field name {shown} {why}"
@@ -148,7 +149,7 @@ def test_a_message_id_outside_24_bits_is_refused(attrs: str, why: str) -> None:
                                   "char[ 4]", "uint8_t[9999999999]"])
 def test_a_field_type_that_is_not_mavlinks_is_refused(kind: str) -> None:
     data = xml(message(fields=f'<field type="{kind}" name="a">a</field>'))
-    assert refused(data) == (f"x.xml: cannot load dialect: line 2: field a: type {kind!r} is not a MAVLink type "
+    assert refused(data) == (f"x.xml: cannot load dialect: line 2: field a: type {quoted(kind)} is not a MAVLink type "
                              "(arrays of 1..255)")
 
 
@@ -156,8 +157,8 @@ def test_a_field_type_that_is_not_mavlinks_is_refused(kind: str) -> None:
                                    "0x" + "f" * 17, "(1)"])
 def test_an_entry_value_is_an_integer_literal_before_mavparse_evals_it(value: str, tmp_path: Path) -> None:
     data = xml(enums=f'<enum name="E"><entry name="E_A" value="{value}"/></enum>')
-    assert refused(data) == (f"x.xml: cannot load dialect: line 2: enum entry E_A: value {value!r} is not a whole "
-                             "number (decimal, 0x hex, 0b binary or 2**N)")
+    assert refused(data) == (f"x.xml: cannot load dialect: line 2: enum entry E_A: value {quoted(value)} is not a "
+                             "whole number (decimal, 0x hex, 0b binary or 2**N)")
     with pytest.raises(DialectError):  # and through the loader: pymavlink never sees it
         Dialect().load(write(tmp_path, "e.xml", data))
 
@@ -350,7 +351,7 @@ def test_includes_stay_in_the_dialects_folder(tmp_path: Path) -> None:
         with pytest.raises(DialectError) as e:
             Dialect().load(path)
         if why is not None:
-            shown = repr(inc if len(inc) <= 60 else inc[:60] + "...")  # a long text is cut short
+            shown = quoted(inc)  # a long text is cut short
             assert str(e.value) == f"{path}: cannot load dialect: include {shown} {why}"
     link = folder / "link.xml"
     link.symlink_to(outside)
