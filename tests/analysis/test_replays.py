@@ -212,3 +212,16 @@ def test_real_flights_hold_no_replay(name: str, real_captures: Path, cli: Cli) -
             seen.add(raw)
     doc = cli.json("stats", str(real_captures / name))
     assert not [f for f in doc["findings"] if f["code"] == "replayed-command"], (name, repeats)
+
+
+BUNDLED = ["commands_ack.pcap", "gcs_takeover.pcap", "gps_spoof.pcap", "ftp_lua_upload.pcap", "signed_udp.pcap",
+           "stats_loss.pcap", "damaged.pcap", "key_exchange_udp.pcap"]
+
+
+@pytest.mark.parametrize("name", BUNDLED)
+def test_audit_shows_every_security_finding_of_stats(name: str, cli: Cli) -> None:
+    """The bundled captures built with attacks in them (captures/README.md): every finding of the security
+    group that stats reports, audit reports word for word (both run the one expert pass)."""
+    from tests.conftest import CAPTURES
+
+    both(cli, str(CAPTURES / name))
