@@ -30,7 +30,7 @@ from mavscope.mavlink.framing import (
 )
 from mavscope.mavlink.hidden import ACROSS, Hidden, Scanned, hidden_note, merged
 from mavscope.mavlink.receivers import WILD, Sockets, Waiting, across, split_note
-from mavscope.notes import Note
+from mavscope.notes import GivenUp, Note
 from mavscope.pipeline.textrun import TextRun, is_text_entry
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
 from mavscope.transport.decap import Decapsulator
@@ -41,6 +41,9 @@ from mavscope.wire import SIGNATURE_LEN, STX_V2
 # Ports MAVLink uses by convention (DOMAIN.md). Datagrams on them are taken for MAVLink even when no
 # frame in them has a valid CRC; on any other port, a valid frame must have been seen first.
 MAVLINK_PORTS = frozenset({14550, 14540, 14555, 14557, 14560, 14580, 18570, 5760, 5761, 5762, 5763})
+# Sources of valid MAVLink remembered (Dissector.mavlink_endpoints); the native walker's MS_MAX_ENDPOINTS
+# (src/mavscope_native/walk.h) is the same number (tests/pipeline/test_endpoint_bound.py checks it).
+MAX_MAVLINK_ENDPOINTS = 16384
 
 
 # a frame the receivers read that the framer does not show: (its Hidden by position in the datagram, the bytes
@@ -69,8 +72,12 @@ class Dissector:
         self.framer = Framer(dialect.messages)
         self.decap = Decapsulator(wpa=Wpa(wifi) if wifi else None)
         self.streams: dict[Hashable, StreamFramer] = {}
-        # endpoints that have carried a CRC-valid frame: their datagrams are MAVLink even when damaged
+        # endpoints that have carried a CRC-valid frame: their datagrams are MAVLink even when damaged; at most
+        # MAX_MAVLINK_ENDPOINTS, the first ones kept (_learn: a flood of spoofed sources churns nothing out)
         self.mavlink_endpoints: set[Endpoint] = set()
+        self._said: list[Note] = []
+        self.endpoints_given_up = GivenUp(f"sources of valid MAVLink (at most {MAX_MAVLINK_ENDPOINTS:,} remembered)",
+                                          "sources", self._said)
         # UDP receivers (MAVLink's C library behind a socket) in a frame where the last datagram to them
         # ended (mavscope.mavlink.receivers), by port: the next datagram to them goes on with it. The native
         # walker hands every datagram to one of these ports back here.
@@ -148,8 +155,9 @@ class Dissector:
                                     raw, 2, length, iflags, cflags, seq, sysid, compid, md.id, crc, OK, md, sig, (),
                                     None)
                     pos += size
-                if pos and src is not None and src not in endpoints:
-                    endpoints.add(src)
+                if pos and src is not None and src not in endpoints and not self._learn(src):
+                    yield Anomaly(number, tuple(self._said))  # (the datagram's frames went out above)
+                    self._said.clear()
                 if pos == n:
                     continue
             self._index = index
@@ -193,6 +201,20 @@ class Dissector:
         record, text_note = self._text.take()
         return Anomaly(record, (text_note,))
 
+    def _learn(self, src: Endpoint) -> bool:
+        """Remember `src` as a source of valid MAVLink (False, and a give-up said onto `_said`, when the set
+        is full: the sources already known stay; what the newcomer loses is only that a datagram of it with
+        no valid frame, on a port MAVLink does not use by convention, is not scanned as MAVLink).
+
+        The native walker keeps the same bound: it hands back a record from a source it does not know once
+        the set is full (mavscope/native.py), so both engines note the same records."""
+        if len(self.mavlink_endpoints) < MAX_MAVLINK_ENDPOINTS:
+            self.mavlink_endpoints.add(src)
+            return True
+        self.endpoints_given_up.add(f"{src.text} not remembered: its datagrams without a valid frame are "
+                                    "scanned as MAVLink only on MAVLink's ports")
+        return False
+
     def _trusted(self, p: Payload) -> bool:
         if p.transport == TRANSPORT_TLOG:
             return True
@@ -216,10 +238,12 @@ class Dissector:
             if p.notes:
                 yield Anomaly(p.record, p.notes)
             return
-        if p.src is not None and found and found[0][2] is OK:
-            self.mavlink_endpoints.add(p.src)
-        base = p.offset
         pending: list[Note] = list(p.notes)
+        if p.src is not None and found and found[0][2] is OK and p.src not in self.mavlink_endpoints:
+            if not self._learn(p.src):
+                pending.extend(self._said)
+                self._said.clear()
+        base = p.offset
         sk = 0
         messages = self.messages
         hidden, given_up = self._receivers(p, data, found, skipped, base, udp)

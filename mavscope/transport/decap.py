@@ -37,7 +37,7 @@ _FAST_UDP_UNFRAGMENTED = 17  # no MF flag, fragment offset 0, protocol UDP (TTL 
 _FLOW = struct.Struct("!IIHH")
 _UDP = struct.Struct("!HHH")
 REBUILT_KEPT = 65536  # records of rebuilt 802.11 frames remembered (for the IP datagrams they complete)
-FLOW_CACHE = 65536  # (addresses, ports) -> names entries kept before the cache starts over
+FLOW_CACHE = 16384  # (addresses, ports) -> names entries kept before the cache starts over
 _TCP = struct.Struct("!HHIIBB")  # ports, sequence and acknowledgment numbers, data offset byte, flags byte
 
 _tuple_new = tuple.__new__

@@ -163,7 +163,7 @@ class Endpoints:
 
     __slots__ = ("_v4", "_v6", "limit")
 
-    def __init__(self, limit: int = 65536) -> None:
+    def __init__(self, limit: int = 16384) -> None:
         self._v4: dict[int, Endpoint] = {}
         self._v6: dict[tuple[bytes, int], Endpoint] = {}
         self.limit = limit

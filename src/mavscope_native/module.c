@@ -726,6 +726,7 @@ typedef struct {
     PyObject *columns;   /* ColumnsObject or NULL: column mode */
     PyObject *receivers; /* the Dissector's receivers (dict: UDP port -> receivers), or NULL */
     int waiting_stale;   /* Python may have changed `receivers` (it was handed a record) since they were read */
+    int endpoints_full;  /* `endpoints` reached MS_MAX_ENDPOINTS and was loaded into the walker's memory once */
     ms_buf out;
 } WalkerObject;
 
@@ -981,6 +982,52 @@ static int load_signers(WalkerObject *self) {
  * added, in order (`log`), and counts its clears (`epoch`): only the log's new entries are read, unless it
  * was cleared since. A plain set is read whole. (Reading the whole set before every batch was quadratic: a
  * batch ends at each record handed back, and with a key every new signing stream is one.) */
+/* How many new endpoints the Dissector's mavlink_endpoints still takes (Dissector._learn: at most
+ * MS_MAX_ENDPOINTS, the first ones kept). Once it is full it never changes again: its endpoints are loaded
+ * into the walker's memory of those reported, so that a source Python remembers is not handed back. */
+static int sync_endpoints(WalkerObject *self) {
+    Py_ssize_t size = PySet_GET_SIZE(self->endpoints);
+    ms_walker *w = &self->walker;
+    w->endpoint_room = size >= MS_MAX_ENDPOINTS ? 0 : (size_t)(MS_MAX_ENDPOINTS - size);
+    if (size < MS_MAX_ENDPOINTS || self->endpoints_full)
+        return 0;
+    PyObject *it = PyObject_GetIter(self->endpoints);
+    if (it == NULL)
+        return -1;
+    PyObject *ep;
+    while ((ep = PyIter_Next(it)) != NULL) {
+        PyObject *address = PyObject_GetAttrString(ep, "address");
+        PyObject *packed = address != NULL ? PyObject_GetAttrString(address, "packed") : NULL;
+        PyObject *port = packed != NULL ? PyObject_GetAttrString(ep, "port") : NULL;
+        long p = port != NULL ? PyLong_AsLong(port) : -1;
+        int ok = packed != NULL && PyBytes_Check(packed) && p >= 0 && p <= 65535 && !PyErr_Occurred();
+        if (ok) {
+            ms_endpoint e;
+            memset(&e, 0, sizeof e);
+            Py_ssize_t n = PyBytes_GET_SIZE(packed);
+            e.v6 = n == 16;
+            memcpy(e.addr, PyBytes_AS_STRING(packed), n == 16 ? 16 : 4);
+            e.port = (uint16_t)p;
+            ok = (n == 4 || n == 16) && ms_walker_remember_endpoint(w, &e) == 0;
+            if (!ok && !PyErr_Occurred())
+                PyErr_NoMemory();
+        }
+        Py_XDECREF(port);
+        Py_XDECREF(packed);
+        Py_XDECREF(address);
+        Py_DECREF(ep);
+        if (!ok) {
+            Py_DECREF(it);
+            return -1;
+        }
+    }
+    Py_DECREF(it);
+    if (PyErr_Occurred())
+        return -1;
+    self->endpoints_full = 1;
+    return 0;
+}
+
 static int sync_signers(WalkerObject *self) {
     PyObject *log = PyObject_GetAttrString(self->senders, "log");
     PyObject *epoch_obj = log != NULL ? PyObject_GetAttrString(self->senders, "epoch") : NULL;
@@ -1101,7 +1148,7 @@ static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds)
         Py_RETURN_NONE;
     if (limit < 1)
         limit = 1;
-    if (sync_signers(self) != 0)
+    if (sync_signers(self) != 0 || sync_endpoints(self) != 0)
         return NULL;
     if (self->waiting_stale && sync_waiting(self) != 0)
         return NULL;
@@ -1459,6 +1506,7 @@ PyMODINIT_FUNC PyInit__native(void) {
         PyModule_AddObject(m, "Stats", (PyObject *)&StatsType) < 0 ||
         PyModule_AddObject(m, "Block", (PyObject *)&BlockType) < 0 ||
         PyModule_AddObject(m, "Columns", (PyObject *)&ColumnsType) < 0 ||
+        PyModule_AddIntConstant(m, "MAX_ENDPOINTS", MS_MAX_ENDPOINTS) < 0 ||
         PyModule_AddIntConstant(m, "KIND_PCAP", MS_KIND_PCAP) < 0 ||
         PyModule_AddIntConstant(m, "KIND_PCAPNG", MS_KIND_PCAPNG) < 0 ||
         PyModule_AddIntConstant(m, "KIND_TLOG", MS_KIND_TLOG) < 0 ||

@@ -53,12 +53,23 @@ int ms_walker_waiting_room(ms_walker *w, size_t n) {
     return grow((void **)&w->waiting, &w->cap_waiting, n, sizeof *w->waiting);
 }
 
-/* Record `e` as a source of valid MAVLink unless it was reported already. */
-static int note_endpoint(ms_walker *w, const ms_endpoint *e) {
+/* `e` among the endpoints already reported: 1 if so, 0 if not. */
+static int seen_has(const ms_walker *w, const ms_endpoint *e) {
     if (w->have_last_noted && memcmp(&w->last_noted, e, sizeof *e) == 0)
+        return 1;
+    if (w->capseen == 0)
         return 0;
-    w->last_noted = *e;
-    w->have_last_noted = 1;
+    size_t j = ms_endpoint_hash(e) & (w->capseen - 1);
+    while (w->seen_used[j]) {
+        if (memcmp(&w->seen[j], e, sizeof *e) == 0)
+            return 1;
+        j = (j + 1) & (w->capseen - 1);
+    }
+    return 0;
+}
+
+/* Put `e` among the endpoints already reported: 1 if it was not there, 0 if it was, -1 out of memory. */
+static int seen_put(ms_walker *w, const ms_endpoint *e) {
     if (w->capseen == 0 || w->nseen * 2 >= w->capseen) {
         if (w->capseen >= 2 * SEEN_MAX) {
             memset(w->seen_used, 0, w->capseen); /* start over: re-adding to a Python set is harmless */
@@ -94,12 +105,29 @@ static int note_endpoint(ms_walker *w, const ms_endpoint *e) {
             return 0;
         j = (j + 1) & (w->capseen - 1);
     }
-    if (grow((void **)&w->new_endpoints, &w->cap_new_endpoints, w->n_new_endpoints + 1, sizeof *e) != 0)
-        return -1;
     w->seen[j] = *e;
     w->seen_used[j] = 1;
     w->nseen++;
-    w->new_endpoints[w->n_new_endpoints++] = *e;
+    return 1;
+}
+
+int ms_walker_remember_endpoint(ms_walker *w, const ms_endpoint *e) {
+    return seen_put(w, e) < 0 ? -1 : 0;
+}
+
+/* Record `e` as a source of valid MAVLink unless it was reported already. */
+static int note_endpoint(ms_walker *w, const ms_endpoint *e) {
+    if (w->have_last_noted && memcmp(&w->last_noted, e, sizeof *e) == 0)
+        return 0;
+    w->last_noted = *e;
+    w->have_last_noted = 1;
+    if (grow((void **)&w->new_endpoints, &w->cap_new_endpoints, w->n_new_endpoints + 1, sizeof *e) != 0)
+        return -1;
+    int r = seen_put(w, e);
+    if (r < 0)
+        return -1;
+    if (r > 0)
+        w->new_endpoints[w->n_new_endpoints++] = *e;
     return 0;
 }
 
@@ -331,6 +359,19 @@ static int note_source(ms_walker *w, const ms_udp *udp) {
     return note_endpoint(w, &e);
 }
 
+/* A datagram from a source Python's mavlink_endpoints would not take: the set is full (Dissector._learn) and
+ * the source is not in it. Python dissects it, and says the give-up on the same record as the pure path. */
+static int source_refused(const ms_walker *w, const ms_udp *udp) {
+    if (w->n_new_endpoints < w->endpoint_room)
+        return 0;
+    ms_endpoint e;
+    memset(&e, 0, sizeof e);
+    e.v6 = (uint8_t)udp->v6;
+    memcpy(e.addr, udp->src, udp->v6 ? 16 : 4);
+    e.port = udp->sport;
+    return !seen_has(w, &e);
+}
+
 /* The frames of a record written natively: counted, and what Python's Dissector._index would hold. */
 static int count_frames(ms_walker *w, const uint8_t *d, size_t count) {
     w->frames_native += count;
@@ -432,6 +473,8 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
         is_udp = 1;
         if (w->n_waiting != 0 && is_waiting(w, &udp))
             return MS_WALK_HANDBACK; /* its receivers read it on with a frame the last datagram began */
+        if (source_refused(w, &udp))
+            return MS_WALK_HANDBACK;
     }
     if (n > UINT32_MAX)
         return MS_WALK_HANDBACK;

@@ -66,6 +66,9 @@ typedef struct {
     size_t n_new_signers, cap_new_signers;
     ms_endpoint *new_endpoints; /* sources of valid MAVLink first seen by this batch */
     size_t n_new_endpoints, cap_new_endpoints;
+    size_t endpoint_room;       /* new endpoints Python's set still takes (MS_MAX_ENDPOINTS less its size, set by
+                                   the glue before each batch): past it, a record from an unknown source is
+                                   handed back (Dissector._learn says the give-up) */
     ms_endpoint *waiting;       /* UDP destinations whose receivers are in a frame where their last datagram
                                    ended (Python's Dissector.receivers): their next datagram is handed back */
     size_t n_waiting, cap_waiting;
@@ -98,6 +101,10 @@ typedef struct {
 int ms_walker_init(ms_walker *w, ms_source src, uint64_t size, int kind, const ms_table *table);
 /* Make room for n waiting destinations (w->waiting, w->n_waiting set by the caller): 0, or -1 (no memory). */
 int ms_walker_waiting_room(ms_walker *w, size_t n);
+/* Sources of valid MAVLink Python's Dissector remembers at most (its MAX_MAVLINK_ENDPOINTS). */
+#define MS_MAX_ENDPOINTS 16384
+/* Take `e` for reported (the glue loads Python's full set once): 0, or -1 out of memory. */
+int ms_walker_remember_endpoint(ms_walker *w, const ms_endpoint *e);
 void ms_walker_free(ms_walker *w);
 
 /* Walk records, appending JSON lines to `out`, until `out` holds at least `limit` bytes (MS_WALK_FULL),

@@ -158,7 +158,7 @@ SAID: dict[str, str] = {
     "capture/tlog.py:TEXT_MAX": "tlog-text", "capture/tlog.py:TS_MAX": "time-out-of-range",
     "pipeline/textrun.py:MAX_BYTES": "- a text run is reported and a new one starts",
     "mavlink/receivers.py:MAX_PER_PORT": "split-frame", "mavlink/receivers.py:MAX_STATES": "split-frame",
-    "mavlink/receivers.py:MAX_WAITING": "split-frame",
+    "mavlink/receivers.py:MAX_WAITING": "split-frame", "pipeline/dissect.py:MAX_MAVLINK_ENDPOINTS": "capacity",
     "mavlink/dialect_cache.py:MAX_ENTRIES": "- a cache of parsed files",
     "mavlink/dialect_cache.py:MAX_ENTRY": "- as MAX_ENTRIES",
     # analyses: each says it in its own output (docs/security.md's table)
@@ -179,7 +179,8 @@ SAID: dict[str, str] = {
     "object-unsafe-path", "analysis/objects/tracker.py:MAX_LISTED": "- listed",
     "analysis/events/log.py:MAX_PER_KIND": "- events: 'N more not listed'",
     "analysis/events/statustext.py:MAX_OPEN": "- the text is shown, its end said not seen (end: limit)",
-    "analysis/vehicles.py:MAX_SENDERS": "- the first kept (reported to the lead)",
+    "analysis/vehicles.py:MAX_SENDERS": "- every (system, component) pair: a table keyed by sender never fills",
+    "analysis/gnss.py:MAX_EPISODES": "capacity", "analysis/timeline.py:PENDING_REQUESTS": "capacity",
     "analysis/expert.py:MAX_NAMED": "- helper D", "analysis/replays.py:COPIES_KEPT": "- helper D",
     "analysis/sequence.py:GAPS_KEPT": "- counted beyond", "analysis/sequence.py:MAX_CHANNELS": "- helper D",
     "analysis/sequence.py:MAX_EXTRA": "- helper D", "analysis/framelist.py:MAX_FRAMES": "- listed",
