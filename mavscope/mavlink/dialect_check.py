@@ -46,7 +46,7 @@ import re
 import xml.parsers.expat as expat
 from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 from mavscope.errors import DialectError
 
@@ -133,7 +133,7 @@ class _Checker:
         self.fields = 0
         self.grown: dict[tuple[str, int], int] = {}  # mavparse's text attribute -> its length so far
 
-    def refuse(self, why: str) -> None:
+    def refuse(self, why: str) -> NoReturn:
         raise _Refused(f"line {self.parser.CurrentLineNumber}: {why}")
 
     def doctype(self, _name: str, system_id: str | None, public_id: str | None, internal: int) -> None:
@@ -299,8 +299,8 @@ def duplicates(records: list[tuple[Path, dict[str, Any]]]) -> None:
                 if key in entries:
                     raise DialectError(f"{where} enum {e[0]} value {entry[1]} is both {entry[0]} and "
                                        f"{entries[key][0]} ({entries[key][1].name})")
-                other = entry_names.get(entry[0])
-                if other is not None:
+                named = entry_names.get(entry[0])
+                if named is not None:
                     raise DialectError(f"{where} enum entry {entry[0]} is both {e[0]} {entry[1]} and "
-                                       f"{other[0]} {other[1]} ({other[2].name})")
+                                       f"{named[0]} {named[1]} ({named[2].name})")
                 entries[key], entry_names[entry[0]] = (entry[0], file), (e[0], entry[1], file)
