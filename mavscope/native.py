@@ -96,7 +96,7 @@ class NativeWalk:
     def __init__(self, path: str | os.PathLike[str] | None, dialect: Dialect, endpoints: set[Endpoint],
                  signed_senders: set[tuple[int, int]], kind: str | None = None, window: int = WINDOW,
                  summary: object | None = None, t0: float | None = None, stats: object | None = None,
-                 receivers: Mapping[Endpoint, object] | None = None) -> None:
+                 receivers: Mapping[int, object] | None = None) -> None:
         if _native is None:
             raise RuntimeError("mavscope._native is not built")
         self._file: IO[bytes] | None = None

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from rich.console import RenderableType
 from rich.text import Text
 from textual.widgets import DataTable, Label, Static
 
@@ -46,9 +47,9 @@ class Table(DataTable[Any]):
 
 
 class Pane(Static):
-    """A Static that shows a `str` escaped, never as markup."""
+    """A Static that shows a `str` escaped, never as markup (any other renderable as it is)."""
 
-    def __init__(self, content: Text | str = "", **kwargs: Any) -> None:
+    def __init__(self, content: RenderableType = "", **kwargs: Any) -> None:
         kwargs["markup"] = False
         super().__init__(cell(content), **kwargs)
 
