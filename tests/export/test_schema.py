@@ -76,7 +76,7 @@ def test_strings_and_invalid_utf8(tmp_path: Path, cli: Cli) -> None:
     frames = [mav.statustext_encode(6, t).pack(mav) for t in (b"hello", b"bad \xff byte", b"cut \xe2\x82")]
     path = write_raw(tmp_path, frames)
     texts = _tables(Path(path))["msg=STATUSTEXT"].column("text").to_pylist()
-    # the JSON Lines rule (pymavlink's): trailing NULs dropped, undecodable bytes as \xNN escapes
+    # the JSON Lines rule (pymavlink's): the bytes up to the first NUL, undecodable bytes as \xNN escapes
     assert texts == ["hello", "bad \\xff byte", "cut \\xe2\\x82"]
     assert texts == [r["fields"]["text"] for r in cli.jsonl(path)]
     payloads = _tables(Path(path))["frames"].column("payload").to_pylist()
