@@ -40,7 +40,7 @@ def int_constants() -> tuple[int, ...]:
         modes.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, modes.PX4_MAIN_AUTO, modes.PX4_MAIN_POSCTL,
         gnss.GPS_FIX_TYPE_NO_GPS, gnss.GPS_FIX_TYPE_NO_FIX, gnss.GPS_FIX_TYPE_2D, gnss.GPS_FIX_TYPE_3D,
         gnss.UNKNOWN_SATS, gnss.UNKNOWN_VEL, gnss.MIN_SATS, gnss.UNIX_MIN_US, stats.MAX_STREAMS,
-        stats.MAX_CONVERSATIONS, expert.MAX_NAMED, commanders.COMMANDERS_SHOWN, sequence.RING,
+        stats.MAX_CONVERSATIONS, expert.MAX_NAMED, commanders.COMMANDERS_SHOWN, sequence.RING, gnss.MAX_EPISODES,
     )
 
 

@@ -405,9 +405,10 @@ class GivenUp:
     """What one bounded structure gave up, said as `capacity` notes (docs/security.md, "Bounds"): every give-up
     counted, with the units it gave up (records, numbers, bytes); the 1st, 2nd, 4th, 8th... said, each with
     the counts so far (a flood is not noted one by one), onto `said`, a list the layer that owns the
-    structure empties onto the record being read."""
+    structure empties onto the record being read. An analysis's bound, which notes no frame, says the same as
+    one `capacity` finding (`finding()`), with the records where those give-ups came."""
 
-    __slots__ = ("what", "unit", "count", "units", "said")
+    __slots__ = ("what", "unit", "count", "units", "said", "records", "detail")
 
     def __init__(self, what: str, unit: str, said: list[Note] | None = None) -> None:
         self.what = what  # the structure and its bound, e.g. "802.11 duplicate detection (262,144 numbers)"
@@ -415,14 +416,29 @@ class GivenUp:
         self.count = 0
         self.units = 0
         self.said: list[Note] = [] if said is None else said
+        self.records: list[int] = []  # the records of the give-ups said (those `add` was given one for)
+        self.detail = ""  # the last give-up said
 
-    def add(self, detail: str, units: int = 1) -> None:
-        """One give-up of `units` (`detail`: what went, and what that means to the analyst)."""
+    def add(self, detail: str, units: int = 1, record: int | None = None) -> None:
+        """One give-up of `units` (`detail`: what went, and what that means to the analyst; `record`: the
+        record that made the bound give it up, for `finding`)."""
         self.count += 1
         self.units += units
         if not self.count & (self.count - 1):
+            self.detail = detail
             self.said.append(note("capacity", f"{self.what}: {detail} ({self.count:,} given up so far, "
                                   f"{self.units:,} {self.unit})"))
+            if record is not None:
+                self.records.append(record)
+
+    def finding(self) -> Finding | None:
+        """The `capacity` finding of what this bound gave up (None when nothing): how much, the last give-up
+        said, and the records where the 1st, 2nd, 4th... came."""
+        if not self.count:
+            return None
+        where = f" (frames {', '.join(map(str, self.records))})" if self.records else ""
+        return finding("capacity", f"{self.what}: {self.count:,} given up ({self.units:,} {self.unit}); the last "
+                                   f"said: {self.detail}{where}", self.records)
 
 
 def pop_newest(table: dict[K, V], keep: object) -> tuple[K, V]:

@@ -47,6 +47,7 @@ class Command:
     ack_frame: int | None = None
     ack_time: float | None = None
     src: str | None = None
+    given_up: bool = False  # waited past PENDING_MAX: mavscope stopped matching it (an ACK may have come)
 
     @property
     def latency_ms(self) -> float | None:
@@ -154,8 +155,9 @@ class CommandMatcher:
                 gone = next(newest)
                 gone = next(newest) if gone == key else gone
                 dropped.append(self._done(gone))
+                dropped[0].given_up = True
                 self.given_up.add(f"gave up {gone[0]} {gone[1]} from {gone[2][0]}/{gone[2][1]} (frame "
-                                  f"{dropped[0].frames[0]}) as unanswered")
+                                  f"{dropped[0].frames[0]}) as unanswered", record=f.record)
             return c, dropped
         cmd_id = int(fields["command"])  # type: ignore[call-overload]
         result = int(fields["result"])  # type: ignore[call-overload]
@@ -187,21 +189,26 @@ class CommandMatcher:
         return out
 
 
-def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> tuple[list[Command], list[dict[str, object]]]:
-    """(commands in the order first sent, ACKs that answer no command)."""
+def command_fields(f: Frame) -> dict[str, object] | None:
+    """The decoded fields of a command or ACK frame the matcher takes (None for any other frame)."""
+    md = f.msgdef
+    if md is None or md.name not in COMMAND_MESSAGES or f.crc_status is CrcStatus.BAD:
+        return None
+    return decode_payload(f)
+
+
+def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> tuple[list[Command], list[dict[str, object]], GivenUp]:
+    """(commands in the order first sent, ACKs that answer no command, what the matcher gave up)."""
     commands: list[Command] = []
     matcher = CommandMatcher(dialect)
     for f in frames:
-        md = f.msgdef
-        if md is None or md.name not in COMMAND_MESSAGES or f.crc_status is CrcStatus.BAD:
-            continue
-        fields = decode_payload(f)
+        fields = command_fields(f)
         if fields is None:
             continue
         new, _ = matcher.add(f, fields)
         if new is not None:
             commands.append(new)
-    return commands, matcher.orphans
+    return commands, matcher.orphans, matcher.given_up
 
 
 def _param_names(c: Command, dialect: Dialect) -> dict[str, str]:
@@ -224,7 +231,7 @@ def command_json(c: Command, dialect: Dialect) -> dict[str, object]:
         "command": _name(dialect, "MAV_CMD", c.command), "command_id": c.command, "message": c.message,
         "from": list(c.sender), "to": list(c.target), "src": c.src, "time": c.time,
         "result": _name(dialect, "MAV_RESULT", c.result), "result_id": c.result,
-        "answered": c.result is not None, "latency_ms": c.latency_ms, "retries": c.retries,
+        "answered": c.result is not None, "given_up": c.given_up, "latency_ms": c.latency_ms, "retries": c.retries,
         "progress": c.progress, "params": c.params,
         "param_labels": {k: v for k, v in labels.items() if k in c.params},
         "param_names": _param_names(c, dialect),

@@ -20,7 +20,11 @@
 
 Every interval is measured with the vehicle's own clocks (time_boot_ms, time_usec), never capture time:
 a SITL run at 25x speed (ArduPilot autotest) must not look like a vehicle moving 25x too fast. A boot
-clock that steps back is a reboot: the sender's state starts over. Bounded: MAX_SENDERS senders.
+clock that steps back is a reboot: the sender's state starts over. Bounded: MAX_SENDERS senders (every
+system/component pair: none is given up) and MAX_EPISODES (kind, sender, message) episodes, 10 a sender at
+most; past that an episode of the least established sender (fewest GNSS frames, in powers of two) is given
+up for one of a sender with more, else the new one: a flood of made-up ids, each a few frames, cannot push
+out the vehicle's, and what is given up is said (a `capacity` finding; docs/security.md, "Bounds").
 """
 
 from __future__ import annotations
@@ -32,7 +36,7 @@ from mavscope.analysis.framelist import frame_numbers
 from mavscope.analysis.vehicles import MAX_SENDERS
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Addr, Frame
-from mavscope.notes import Finding, FrameNumbers, finding
+from mavscope.notes import Finding, FrameNumbers, GivenUp, finding
 
 Fields = dict[str, object]
 
@@ -43,6 +47,7 @@ ACCEL_MPS2 = 15.0  # plus what an acceleration this strong adds over the interva
 MARGIN_M = 30.0  # plus this much for the receiver's accuracy (and 3x h_acc where reported)
 NULL_ISLAND = 0.01  # degrees: positions this close to 0, 0 are "no position yet" (ArduPilot before its EKF
 # origin is set reports offsets from 0, 0; the jump to the real position is no anomaly)
+MAX_EPISODES = MAX_SENDERS  # episodes held (the native pass hands over to this path past them: its plan's)
 MAX_GAP_S = 10.0  # positions further apart in time than this are not compared (a gap, not a jump)
 MIN_SATS = 6  # a fix with fewer satellites is weak
 COLLAPSE_WINDOW_S = 5.0  # a collapse falls this soon after a good fix
@@ -89,8 +94,9 @@ class _Episodes:
             self.worst, self.text = size, text
 
 
-@dataclass
+@dataclass(slots=True)
 class _Sender:
+    frames: int = 0  # its frames of WANTS: how established it is (the episodes of the fewest go first)
     fixes: dict[str, _Fix] = field(default_factory=dict)
     clocks: dict[str, float] = field(default_factory=dict)  # message -> last reading of its own clock (s)
     speed: float | None = None  # last ground speed of GLOBAL_POSITION_INT (for GPS_RAW_INT without one)
@@ -118,6 +124,10 @@ class GnssAnomalies:
     def __init__(self, dialect: Dialect | None = None) -> None:
         self.senders: dict[Addr, _Sender] = {}
         self.found: dict[tuple[str, Addr, str], _Episodes] = {}  # (code, sender, message) -> episodes
+        # the keys of `found` by how established their sender was (its frames' bit length) when last looked at
+        self.tiers: list[dict[tuple[str, Addr, str], None]] = [{} for _ in range(65)]
+        self.given_up = GivenUp(f"GNSS anomaly episodes (at most {MAX_EPISODES:,} (kind, sender, message) held)",
+                                "episodes")
         ekf = dialect.enums.get("EKF_STATUS_FLAGS") if dialect is not None else None
         est = dialect.enums.get("ESTIMATOR_STATUS_FLAGS") if dialect is not None else None
 
@@ -136,10 +146,35 @@ class GnssAnomalies:
         key = (code, me, msg)
         ep = self.found.get(key)
         if ep is None:
-            if len(self.found) >= MAX_SENDERS:
+            rank = self.senders[me].frames.bit_length()
+            if len(self.found) >= MAX_EPISODES and not self._room(rank, key, record):
+                self.given_up.add(f"{msg} {code} of {me[0]}/{me[1]} (frame {record}) not followed: every episode "
+                                  "held is of a sender with as many GNSS frames", record=record)
                 return
             ep = self.found[key] = _Episodes()
+            self.tiers[rank][key] = None
         ep.add(record, size, text)
+
+    def _room(self, rank: int, key: tuple[str, Addr, str], record: int) -> bool:
+        """Give up the newest episode of the least established sender below `rank` (its frames' bit length) for
+        `key`'s; False when every episode held is of a sender as established. An episode is looked at in the
+        tier of its sender's frames when it was made: one whose sender has sent more since moves up first."""
+        for low in range(rank):
+            tier = self.tiers[low]
+            while tier:
+                gone = next(reversed(tier))
+                del tier[gone]
+                now = self.senders[gone[1]].frames.bit_length()
+                if now != low:
+                    self.tiers[now][gone] = None
+                    continue
+                ep = self.found.pop(gone)
+                code, (sysid, compid), msg = gone
+                self.given_up.add(f"{msg} {code} of {sysid}/{compid} ({ep.frames.count} frame(s)) given up for "
+                                  f"{key[2]} {key[0]} of {key[1][0]}/{key[1][1]}, a sender with more GNSS frames",
+                                  record=record)
+                return True
+        return False
 
     def add(self, f: Frame, fields: Fields | None) -> None:
         md = f.msgdef
@@ -151,6 +186,7 @@ class GnssAnomalies:
             if len(self.senders) >= MAX_SENDERS:
                 return
             s = self.senders[me] = _Sender()
+        s.frames += 1
         name = md.name
         if not self._clock(s, name, fields):
             return
@@ -298,7 +334,8 @@ class GnssAnomalies:
         for (code, (sysid, compid), msg), ep in self.found.items():
             out.append(finding(code, f"{msg} of {sysid}/{compid}: {ep.frames.count} {what[code]}; the largest: "
                                      f"{ep.text}", ep.frames.nums))
-        return out
+        said = self.given_up.finding()
+        return out if said is None else [*out, said]
 
 
 # The sentences of the worst episode of each kind (the native accumulator's episodes are written by these too)

@@ -29,6 +29,7 @@ from typing import TypedDict
 
 from mavscope.analysis.selection import Selection
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
+from mavscope.notes import GivenUp, pop_newest
 
 UNIX_MIN = 1e9  # seconds: readings above this are wall-clock times (after 2001-09-09)
 DRIFT_MIN_SAMPLES = 10
@@ -36,7 +37,7 @@ DRIFT_MIN_SPAN = 10.0  # seconds
 RESTART_BACK = 1.0  # seconds a clock must step back to have restarted (less is jitter or a late frame)
 RESTARTS_LISTED = 20  # capture times of restarts listed per clock (all of them are counted)
 ROUND_TRIPS_LISTED = 1000  # round-trip times listed per pair (all of them are counted)
-PENDING_REQUESTS = 4096  # TIMESYNC/PING requests waiting for their answer (the oldest go first)
+PENDING_REQUESTS = 4096  # TIMESYNC/PING requests waiting for their answer (past it the newest go, said)
 MAX_CLOCKS = 16_384  # clocks followed: a capture names up to 65,280 senders x 256 signing links (the later
 # ones are counted, not followed: a real capture has tens)
 
@@ -143,6 +144,7 @@ class Timeline:
     clocks: dict[tuple[int, int, str], Clock]
     round_trips: dict[tuple[str, int, int], RoundTrips]
     unfollowed: int = 0  # readings of clocks beyond the first MAX_CLOCKS (not followed)
+    given_up: tuple[GivenUp, ...] = ()  # requests no longer waited for (PENDING_REQUESTS): TIMESYNC, PING
 
     def to_json(self, select: Selection | None = None) -> dict[str, object]:
         """The `timeline --json` document (the systems `select` selects; all without it)."""
@@ -173,24 +175,34 @@ class Timeline:
             })
         return {"start": self.start, "end": self.end,
                 "duration": None if self.start is None or self.end is None else self.end - self.start,
-                "systems": [systems[k] for k in sorted(systems)], "unfollowed_readings": self.unfollowed}
+                "systems": [systems[k] for k in sorted(systems)], "unfollowed_readings": self.unfollowed,
+                "findings": [f.to_json() for g in self.given_up if (f := g.finding()) is not None]}
 
 
 class _Pending(OrderedDict[object, tuple[int, float, int]]):
-    """Requests waiting for their answer, at most PENDING_REQUESTS (the oldest dropped first)."""
+    """Requests waiting for their answer, at most PENDING_REQUESTS: past it the newest but the one just made
+    is given up (notes.pop_newest: a flood of requests gives up its own, never those waiting before it), said
+    (`given_up`, a `capacity` finding)."""
+
+    def __init__(self, what: str) -> None:
+        super().__init__()
+        self.given_up = GivenUp(f"{what} requests waiting for their answer (at most {PENDING_REQUESTS:,})",
+                                "requests")
 
     def put(self, key: object, value: tuple[int, float, int]) -> None:
         self[key] = value
         if len(self) > PENDING_REQUESTS:
-            self.popitem(last=False)
+            _, (sysid, _, record) = pop_newest(self, key)
+            self.given_up.add(f"the request of system {sysid} in frame {record} is no longer waited for: its "
+                              "round trip is not measured", record=value[2])
 
 
 def reconstruct(frames: Iterable[Frame]) -> Timeline:
     """The clocks and round trips of `frames` (in capture order), in one pass and bounded state."""
     clocks: dict[tuple[int, int, str], Clock] = {}
     trips: dict[tuple[str, int, int], RoundTrips] = {}
-    ts_requests = _Pending()  # ts1 -> (requester sysid, time, record)
-    ping_requests = _Pending()  # (sysid, seq, time_usec) -> (sysid, time, record)
+    ts_requests = _Pending("TIMESYNC")  # ts1 -> (requester sysid, time, record)
+    ping_requests = _Pending("PING")  # (sysid, seq, time_usec) -> (sysid, time, record)
     start = end = None
     unfollowed = 0
 
@@ -256,4 +268,4 @@ def reconstruct(frames: Iterable[Frame]) -> Timeline:
                 req2 = ping_requests.get((target, seq, tu))
                 if req2 is not None:
                     trip("PING", target, f.sysid).add((t - req2[1]) * 1000, req2[2], f.record)
-    return Timeline(start, end, clocks, trips, unfollowed)
+    return Timeline(start, end, clocks, trips, unfollowed, (ts_requests.given_up, ping_requests.given_up))

@@ -2,7 +2,9 @@
 
 `Systems.see(frame, fields)` takes every HEARTBEAT (decoded `fields`); the analyses ask which system is
 a vehicle, whether it is armed, what its flight mode is called and which systems are ground stations.
-Bounded: at most MAX_SENDERS senders are remembered (a capture cannot grow the table without limit).
+Bounded: at most MAX_SENDERS senders, which is every (system id, component id) pair, so a table keyed by
+sender never fills: a flood of made-up ids cannot push a vehicle out of it, nothing is given up (the other
+analyses' sender tables take the same bound: control, gnss, events; docs/security.md, "Bounds").
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Addr, Frame
 from mavscope.mavlink.modes import armed, modes_for
 
-MAX_SENDERS = 4096
+MAX_SENDERS = 1 << 16  # 256 system ids x 256 component ids (a sender costs Systems about 400 bytes)
 MAV_STATE_CRITICAL, MAV_STATE_EMERGENCY, MAV_STATE_FLIGHT_TERMINATION = 5, 6, 8
 FAILSAFE_STATES = frozenset({MAV_STATE_CRITICAL, MAV_STATE_EMERGENCY, MAV_STATE_FLIGHT_TERMINATION})
 

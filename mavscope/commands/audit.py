@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 
+from mavscope.analysis.command_log import CommandMatcher, command_fields
 from mavscope.analysis.expert import Expert
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import Pass
@@ -19,7 +20,7 @@ from mavscope.mavlink.dialect import load_dialect
 from mavscope.notes import CODES, Finding, Group, Severity, sort_findings
 from mavscope.security.audit import Audit
 from mavscope.security.downgrade import Downgrades
-from mavscope.security.keystream import parse_known_plaintext
+from mavscope.security.keystream import frames_text, parse_known_plaintext
 from mavscope.security.passphrase import read_wordlist
 
 RECOVERED_SHOWN = 10
@@ -41,9 +42,10 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def merged(expert: list[Finding], own: list[Finding]) -> list[Finding]:
-    """The expert's security findings and the audit's own, a code both give once (the expert's)."""
-    security = [f for f in expert if CODES[f.code].group is Group.SECURITY]
-    codes = {f.code for f in security}
+    """The expert's security findings and the audit's own, a code both give once (the expert's); and every
+    `capacity` finding (what a bound of an analysis gave up: each its own, docs/security.md, "Bounds")."""
+    security = [f for f in expert if CODES[f.code].group in (Group.SECURITY, Group.CAPACITY)]
+    codes = {f.code for f in security if CODES[f.code].group is Group.SECURITY}
     return sort_findings(security + [f for f in own if f.code not in codes])
 
 
@@ -61,13 +63,22 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
             raise UsageError(f"audit: --wordlist {args.wordlist}: {exc.strerror or exc}") from None
         words = read_wordlist(args.wordlist)
     audit, expert, downgrades = Audit(), Expert(dialect), Downgrades()
+    matcher = CommandMatcher(dialect)  # `commands`' matching: what its bound gives up hides a command's answer
     with capture_session(args, env, dialect) as session:
         for frame in Pass(session, env, audit.anomaly):  # (damage and anomalies on stderr, as read says them)
             audit.add(frame)
             expert.add(frame)
             downgrades.add(frame)
+            fields = command_fields(frame)
+            if fields is not None:
+                try:
+                    matcher.add(frame, fields)
+                except (KeyError, TypeError, ValueError):  # a field that is not a number (as events skips it)
+                    pass
         frames = session.frame_count
     own, recoveries = audit.result(words=words, qgc=args.qgc, known=known, early=downgrades.judged())
+    gave_up = matcher.given_up.finding()
+    own += [gave_up] if gave_up is not None else []
     findings = merged(expert.findings(), own)
     status = ExitStatus.FINDINGS if any(f.severity >= Severity.WARN for f in findings) else ExitStatus.OK
     if args.json:
@@ -81,7 +92,9 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     if not findings:
         out.write("no findings\n")
     for f in findings:
-        out.write(f"[{f.severity.value}] {f.code}: {f.message}\n")
+        # the frames of a finding as the analyses give them (the audit's own messages name theirs already)
+        where = f" (frames {frames_text(list(f.frames))})" if f.frames and "(frames " not in f.message else ""
+        out.write(f"[{f.severity.value}] {f.code}: {f.message}{where}\n")
     if recoveries:
         out.write(f"\nRecovered without the key ({len(recoveries)} frames; first {RECOVERED_SHOWN}):\n")
         for r in recoveries[:RECOVERED_SHOWN]:

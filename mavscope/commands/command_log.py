@@ -23,13 +23,15 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     with analysis_pass(args, env) as frames:
         dialect, path, select = frames.session.dialect, frames.session.name, frames.selection
-        commands, orphans = reconstruct(frames, dialect)
+        commands, orphans, given_up = reconstruct(frames, dialect)
     commands = [c for c in commands if select.any_record(c.frames)]  # a row is its command (and retries)
     orphans = [o for o in orphans if select.any_record((int(o["frame"]),))]  # type: ignore[call-overload]
     docs = [command_json(c, dialect) for c in commands]
     unanswered = sum(1 for d in docs if not d["answered"])
+    capacity = given_up.finding()  # commands the matcher stopped waiting for (docs/security.md, "Bounds")
     if args.json:
-        write_json(env, {"file": path, "commands": docs, "unanswered": unanswered, "unmatched_acks": orphans})
+        write_json(env, {"file": path, "commands": docs, "unanswered": unanswered, "unmatched_acks": orphans,
+                         "given_up": given_up.count, "findings": [capacity.to_json()] if capacity else []})
         return ExitStatus.OK
     con = console(env)
 
@@ -43,7 +45,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         return [str(cast("list[int]", d["frames"])[0]), iso(cast("float | None", d["time"])),
                 "{}/{}".format(*sender), "{}/{}".format(*target),
                 str(d["command"]).removeprefix("MAV_CMD_"), params,
-                str(d["result"]).removeprefix("MAV_RESULT_") if d["answered"] else "UNANSWERED",
+                str(d["result"]).removeprefix("MAV_RESULT_") if d["answered"] else
+                "GIVEN UP" if d["given_up"] else "UNANSWERED",
                 fmt(d["latency_ms"], 1), str(d["retries"])]
 
     if docs:
@@ -54,6 +57,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         con.print(f"No command in {path} matches the display filter." if select.active
                   else f"No COMMAND_LONG or COMMAND_INT in {path}.")
     con.print(f"{len(docs)} commands, {unanswered} unanswered, {len(orphans)} ACKs matching no command")
+    if capacity is not None:  # (its words name messages of the dialect: shown as every line here is)
+        print_lines(con, (f"[{capacity.severity.value}] capacity: {capacity.message}",), plain=many(1))
     print_lines(con, (f"  frame {o['frame']}: ACK {o['command']} {o['result']} from {o['from'][0]}/{o['from'][1]}"  # type: ignore[index]
                       for o in orphans), plain=many(len(orphans)))
     return ExitStatus.OK

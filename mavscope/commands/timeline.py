@@ -62,6 +62,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         print_lines(con, (f"  {r['kind']} round trips to system {r['peer']}: {r['count']}, min {r['min_ms']:.3f} ms, "
                           f"mean {r['mean_ms']:.3f} ms, max {r['max_ms']:.3f} ms" for r in s["round_trips"]),
                     plain=plain)
+    print_lines(con, (f"[{f['severity']}] capacity: {f['message']}" for f in doc["findings"]),  # type: ignore[attr-defined]
+                plain=plain)
     if doc["unfollowed_readings"]:
         con.print(f"{doc['unfollowed_readings']:,} readings of clocks beyond the first {clocks.MAX_CLOCKS:,} were not "
                   "followed")

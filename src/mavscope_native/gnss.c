@@ -51,15 +51,20 @@ static int kind_index(int kind) {
     }
 }
 
-/* GnssAnomalies._note: the episode of (code, sender, message), its frame, and the worst one's numbers */
+/* GnssAnomalies._note: the episode of (code, sender, message), its frame, and the worst one's numbers. Past
+ * the plan's MS_K_MAX_EPISODES (gnss.MAX_EPISODES) the pure path chooses which episodes to give up (the least established
+ * senders', said): `full` is set and *err is 1, so the caller runs it. */
 static ms_episode *note(ms_acc *a, int code, unsigned sender, int g, uint64_t record, double size, int *err) {
     const uint64_t key = (uint64_t)code << 24 | (uint64_t)g << 16 | sender;
     uint32_t at;
     *err = 0;
     if (!ms_map_get(&a->episode_index, key, &at)) {
-        if (a->episodes.n >= (uint32_t)a->plan->k[MS_K_MAX_SENDERS])
+        if (a->episodes.n >= (uint32_t)a->plan->k[MS_K_MAX_EPISODES]) {
+            a->full = 1;
+            *err = 1;
             return NULL;
-        if (MS_VGROW(a, a->episodes, (uint32_t)a->plan->k[MS_K_MAX_SENDERS]) != 0 ||
+        }
+        if (MS_VGROW(a, a->episodes, (uint32_t)a->plan->k[MS_K_MAX_EPISODES]) != 0 ||
             ms_map_put(&a->episode_index, key, a->episodes.n) != 0) {
             *err = -1;
             return NULL;

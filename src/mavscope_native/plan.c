@@ -93,7 +93,8 @@ int ms_plan_parse(ms_plan *p, const uint8_t *blob, size_t len) {
         p->k[MS_K_COPIES_KEPT] < 1 || p->k[MS_K_COPIES_KEPT] > (1 << 20) || p->k[MS_K_MAX_SENDERS] < 256 ||
         p->k[MS_K_MAX_SENDERS] > (1 << 16) || p->k[MS_K_MAX_FRAMES] < 1 || p->k[MS_K_MAX_FRAMES] > 64 ||
         p->k[MS_K_MAX_STREAMS] < 0 || p->k[MS_K_MAX_CONVERSATIONS] < 0 || p->k[MS_K_MAX_NAMED] < 0 ||
-        p->k[MS_K_COMMANDERS_SHOWN] < 1 || p->k[MS_K_COMMANDERS_SHOWN] > MS_SHOWN_MAX || p->k[MS_K_RING] != MS_RING)
+        p->k[MS_K_COMMANDERS_SHOWN] < 1 || p->k[MS_K_COMMANDERS_SHOWN] > MS_SHOWN_MAX || p->k[MS_K_RING] != MS_RING ||
+        p->k[MS_K_MAX_EPISODES] < 0 || p->k[MS_K_MAX_EPISODES] > (1 << 20))
         return -1;
     uint32_t n = (uint32_t)ms_take(&c, 4);
     if (c.bad || n > 4096)

@@ -19,33 +19,30 @@ EMA = 0.2  # weight of the newest heartbeat interval in the running estimate of 
 class Signing:
     """Per sender: its first signed frame on each link id, its unsigned frames once it signs (one event, at
     the first, with their number), frames whose signature the security layer found invalid or replayed (one
-    event per sender and verdict, at the first); SETUP_SIGNING frames (the key itself is never shown)."""
+    event per sender and verdict, at the first); SETUP_SIGNING frames (the key itself is never shown). Every
+    table is keyed by sender (the links a sender signs on: one 256-bit mask), so none fills (MAX_SENDERS:
+    every pair): a flood of made-up signers cannot hide the vehicle's signing."""
 
     wants = frozenset({"SETUP_SIGNING"})
 
     def __init__(self) -> None:
-        self.links: set[tuple[Addr, int]] = set()
-        self.signers: set[Addr] = set()
+        self.signers: dict[Addr, int] = {}  # sender -> the link ids it signs on (bit i: link i)
         self.unsigned: dict[Addr, tuple[Frame, int]] = {}
-        self.verdicts: dict[tuple[Addr, str], tuple[Frame, int]] = {}
+        self.verdicts: dict[tuple[Addr, str], tuple[Frame, int]] = {}  # (at most 2 a sender)
 
     def _count(self, table: dict[Any, tuple[Frame, int]], key: object, f: Frame) -> None:
         entry = table.get(key)
-        if entry is not None:
-            table[key] = (entry[0], entry[1] + 1)
-        elif len(table) < MAX_SENDERS:
-            table[key] = (f, 1)
+        table[key] = (f, 1) if entry is None else (entry[0], entry[1] + 1)
 
     def add(self, f: Frame, fields: Fields | None) -> Iterable[Event]:
         me = (f.sysid, f.compid)
         out: list[Event] = []
         sig = f.signature
         if sig is not None:
-            key = (me, sig.link_id)
-            if key not in self.links and len(self.links) < MAX_SENDERS:
-                self.links.add(key)
-                first = me not in self.signers
-                self.signers.add(me)
+            links = self.signers.get(me, 0)
+            if not links >> sig.link_id & 1:
+                first = not links
+                self.signers[me] = links | 1 << sig.link_id
                 out.append(at(f, SIGNING, f"{addr(me)} signs its frames on link {sig.link_id}" if first else
                               f"{addr(me)} also signs on link {sig.link_id}", what="signed", link_id=sig.link_id))
             status = f.signature_status

@@ -52,7 +52,8 @@ class Commands:
             p1, p2 = c.params.get("param1"), c.params.get("param2")
             extra = " (arm" if p1 == 1 else " (disarm" if p1 == 0 else f" (param1 {p1}"
             extra += ", forced)" if p2 == FORCE_ARM_MAGIC else ")"
-        result = str(doc["result"]).removeprefix("MAV_RESULT_") if c.result is not None else "no ACK in the capture"
+        result = str(doc["result"]).removeprefix("MAV_RESULT_") if c.result is not None else \
+            "given up unmatched (more waiting than mavscope follows)" if c.given_up else "no ACK in the capture"
         latency = f" in {c.latency_ms:.1f} ms" if c.latency_ms is not None else ""
         retries = f" after {c.retries} retries" if c.retries else ""
         text = f"{addr(c.sender)} -> {addr(c.target)} {name}{extra}: {result}{latency}{retries}"
