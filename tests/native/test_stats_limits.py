@@ -3,8 +3,9 @@
 Each capture is made to go past one cap the pure path has (and the C port copies): the copies
 ReplayedCommands remembers (COPIES_KEPT, least recently seen first out: copies of frames it forgot are
 not copies, copies of frames it kept are), the senders Systems, ControlSources and GnssAnomalies follow
-(MAX_SENDERS), the channels of one sender (MAX_CHANNELS) and in all (MAX_EXTRA), and, lowered for the
-test (the plan reads them when it is built), the streams and conversations StatsBuilder follows
+(every (sysid, compid) pair: more than the 4,096 they once followed), the channels of one sender
+(MAX_CHANNELS) and in all (MAX_EXTRA), and, lowered for the test (the plan reads them when it is built),
+the streams and conversations StatsBuilder follows
 (MAX_STREAMS, MAX_CONVERSATIONS). The expected answers are the pure path's (the reference); the native
 pass must not give up on them. Past the sequence findings' counted names (MAX_NAMED, lowered too) it
 gives up, and the command prints the pure path's output.
@@ -65,10 +66,12 @@ def test_copies_past_what_replayed_commands_remembers() -> None:
 
 
 def test_more_senders_than_the_analyses_follow() -> None:
-    """MAX_SENDERS + 200 senders: HEARTBEATs of vehicles and GPS fixes (Systems, GnssAnomalies), then
-    17 armed vehicles each controlled by 255 others (ControlSources' intrusions, past MAX_SENDERS)."""
+    """4,296 senders (past the 4,096 the analyses once followed; MAX_SENDERS is now every pair): HEARTBEATs of
+    vehicles and GPS fixes (Systems, GnssAnomalies), then 17 armed vehicles each controlled by 255 others
+    (ControlSources' intrusions, 4,335 (vehicle, sender) pairs)."""
+    assert MAX_SENDERS == 256 * 256
     entries = []
-    senders = [(s, c) for s in range(1, 256) for c in range(1, 256)][: MAX_SENDERS + 200]
+    senders = [(s, c) for s in range(1, 256) for c in range(1, 256)][: 4096 + 200]
     for i, (s, c) in enumerate(senders):
         entries.append(frame("HEARTBEAT", {"type": 2, "autopilot": 3, "base_mode": 0x81, "custom_mode": 5},
                              i, s, c))
