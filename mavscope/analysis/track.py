@@ -107,8 +107,8 @@ class TrackBuilder:
         key = (f.sysid, f.compid, name)
         t = self.tracks.get(key)
         if t is None:
-            if len(self.tracks) >= MAX_SENDERS:
-                return
+            if len(self.tracks) >= MAX_SENDERS * len(SOURCES):
+                return  # (unreachable: every (system, component) pair has a track of each source message)
             t = self.tracks[key] = Track(f.sysid, f.compid, name)
         t.add(p)
 
