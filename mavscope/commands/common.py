@@ -9,8 +9,10 @@ from __future__ import annotations
 import argparse
 import codecs
 import os
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
+from enum import Enum
+from typing import Any, BinaryIO, cast
 
 from mavscope.capture.reader import CaptureReader
 from mavscope.cli import Env
@@ -58,6 +60,141 @@ def whole_number(minimum: int = 1, unit: str = "") -> Callable[[str], int]:
         return int(plain)
 
     return parse
+
+
+STDOUT = "-"  # an output option's name for standard output, as tshark's `-w -`
+
+
+class OutputKind(Enum):
+    """What an output option writes, which decides what `-` (standard output) does: text is written there;
+    bytes (pcap, PNG) are written to its binary buffer when it is not a terminal, else refused; a directory
+    is refused (a file literally named `-` is never created: `./-` names one)."""
+
+    TEXT = "text"
+    BINARY = "binary"
+    DIRECTORY = "directory"
+
+
+class OutputOption(argparse.Action):
+    """An option naming where a command writes its output (`add_output_option`): a store action that knows
+    its kind, so the rules of `-` are kept in one place (`check_outputs`) and a test walking the parsers
+    finds every output option."""
+
+    def __init__(self, option_strings: Sequence[str], dest: str, kind: OutputKind = OutputKind.TEXT,
+                 **kwargs: Any) -> None:
+        super().__init__(option_strings, dest, **kwargs)
+        self.kind = kind
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: object,
+                 option_string: str | None = None) -> None:
+        setattr(namespace, self.dest, values)
+
+
+_STDOUT_HELP = {OutputKind.TEXT: " ('-': standard output)",
+                OutputKind.BINARY: " ('-': standard output, when it is not a terminal)",
+                OutputKind.DIRECTORY: ""}
+
+
+def add_output_option(p: argparse.ArgumentParser | argparse._ArgumentGroup, *flags: str, kind: OutputKind,
+                      help: str, **kwargs: Any) -> argparse.Action:
+    """An option naming an output file or directory (`kind`), its help saying what `-` means; kept in the
+    parsed arguments (`args.outputs`: (option, dest, kind) each) for check_outputs."""
+    action = p.add_argument(*flags, action=OutputOption, kind=kind, help=help + _STDOUT_HELP[kind], **kwargs)
+    known = p.get_default("outputs") or ()
+    p.set_defaults(outputs=(*known, (max(action.option_strings, key=len), action.dest, kind)))
+    return action
+
+
+def output_options(parser: argparse.ArgumentParser) -> list[OutputOption]:
+    """The output options of a command's parser."""
+    return [a for a in parser._actions if isinstance(a, OutputOption)]
+
+
+def _binary_stdout(env: Env) -> BinaryIO | None:
+    """Standard output's binary buffer (None where the stream has none: bytes cannot go there)."""
+    buf = getattr(env.stdout, "buffer", None)
+    return cast("BinaryIO", buf) if buf is not None and hasattr(buf, "write") else None
+
+
+def _is_terminal(stream: object) -> bool:
+    try:
+        return bool(stream.isatty())  # type: ignore[attr-defined]
+    except (AttributeError, ValueError):
+        return False
+
+
+def check_outputs(args: argparse.Namespace, env: Env, *, stdout_used: str | None = None) -> Env:
+    """The rules of the output options of the command (`add_output_option`) as given, checked
+    before the capture is read; the Env the command's report (its text: tables, "written to" lines) is
+    written to.
+
+    A file output never names the capture (`not_the_capture`). `-` is standard output, as tshark's
+    `-w -`: at most one output goes there; a directory cannot; bytes only to a stream that is not a
+    terminal. When an output takes standard output nothing else is written there (tshark prints nothing
+    else on it): the report goes to stderr, and an output the user asked for on stdout as well
+    (`stdout_used`: "--json", "-V"...) is refused."""
+    command = args.command
+    to_stdout = []
+    for option, dest, kind in getattr(args, "outputs", ()):
+        out = getattr(args, dest, None)
+        if not out:
+            continue
+        if out != STDOUT:
+            if kind is not OutputKind.DIRECTORY and (getattr(args, "file", None) or getattr(args, "file_opt", None)):
+                not_the_capture(option, out, args)
+            continue
+        if kind is OutputKind.DIRECTORY:
+            raise UsageError(f"{command}: {option} -: {option} names a directory, which standard output cannot be "
+                             "(./- names a directory called '-')")
+        if kind is OutputKind.BINARY:
+            if _is_terminal(env.stdout):
+                raise UsageError(f"{command}: {option} -: standard output is a terminal; redirect it to a file "
+                                 "or a pipe (the output is binary)")
+            if _binary_stdout(env) is None:
+                raise UsageError(f"{command}: {option} -: standard output takes no bytes here")
+        to_stdout.append(option)
+    if len(to_stdout) > 1:
+        raise UsageError(f"{command}: only one output can go to stdout ({' and '.join(to_stdout)} are both -)")
+    if to_stdout and stdout_used:
+        raise UsageError(f"{command}: {to_stdout[0]} - writes to standard output, so {stdout_used} cannot "
+                         "(give one of them a file)")
+    if not to_stdout:
+        return env
+    return Env(stdout=env.stderr, stderr=env.stderr, environ=env.environ)
+
+
+def write_output(env: Env, args: argparse.Namespace, option: str, out: str, data: str | bytes) -> None:
+    """`data` written to the file `out` named by `option`, or to standard output for `-` (bytes to its
+    binary buffer: check_outputs has made sure there is one and that it is not a terminal)."""
+    if out == STDOUT:
+        if isinstance(data, str):
+            env.stdout.write(data)
+            env.stdout.flush()
+            return
+        env.stdout.flush()
+        buf = _binary_stdout(env)
+        assert buf is not None  # check_outputs refused a stream without one
+        buf.write(data)
+        buf.flush()
+        return
+    try:
+        if isinstance(data, str):
+            with open(out, "w", encoding="utf-8", newline="\n") as fh:
+                fh.write(data)
+        else:
+            with open(out, "wb") as fb:
+                fb.write(data)
+    except OSError as exc:
+        raise UsageError(f"{args.command}: {option} {out}: {exc.strerror or exc}") from None
+
+
+def binary_stdout(env: Env) -> BinaryIO:
+    """Standard output's binary buffer for an output option given as `-` (after check_outputs)."""
+    env.stdout.flush()
+    buf = _binary_stdout(env)
+    if buf is None:
+        raise UsageError("standard output takes no bytes here")
+    return buf
 
 
 def not_the_capture(option: str, out: str | None, args: argparse.Namespace) -> None:

@@ -11,8 +11,11 @@ from typing import TYPE_CHECKING
 
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.common import (
+    OutputKind,
     add_dialect_option,
     add_key_options,
+    add_output_option,
+    check_outputs,
     pipeline_options,
     warner,
     whole_number,
@@ -36,10 +39,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "dataset (same content) are skipped. Exit status 2 when a capture could "
                                    "not be read.")
     p.add_argument("paths", nargs="+", metavar="FILE_OR_DIR", help="captures, or directories holding them")
-    p.add_argument("--parquet", metavar="DIR", help="the dataset directory (created; added to when it exists)")
+    add_output_option(p, "--parquet", metavar="DIR", kind=OutputKind.DIRECTORY,
+                      help="the dataset directory (created; added to when it exists)")
     p.add_argument("-T", dest="format", choices=("parquet", "csv"), default="parquet",
                    help="parquet (default) or csv (mavlogdump-style, one file per message type and capture)")
-    p.add_argument("-o", dest="out", metavar="DIR", help="output directory (the dataset with -T parquet)")
+    add_output_option(p, "-o", dest="out", metavar="DIR", kind=OutputKind.DIRECTORY,
+                      help="output directory (the dataset with -T parquet)")
     p.add_argument("-j", dest="jobs", type=whole_number(1), default=1, metavar="N",
                    help="captures exported at once, in N worker processes (default 1)")
     p.add_argument("--engine", choices=("local", "dask"), default="local",
@@ -145,6 +150,7 @@ class Reporter:
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    check_outputs(args, env)  # (directories: never -)
     needs_fleet("pyarrow", "numpy")
     out = args.out or args.parquet
     if args.parquet and args.out and args.parquet != args.out:

@@ -20,10 +20,15 @@ from types import FrameType
 from mavscope.capture.base import Record
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.common import (
+    STDOUT,
+    OutputKind,
     Problems,
     add_dialect_option,
     add_filter_option,
     add_key_options,
+    add_output_option,
+    binary_stdout,
+    check_outputs,
     pipeline_options,
     plain_utf8,
     warner,
@@ -64,8 +69,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w)")
     p.add_argument("-c", dest="count", type=whole_number(1, " of frames"), metavar="N", help="stop after N frames")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
-    p.add_argument("-w", dest="write", metavar="OUT.pcap",
-                   help="write every packet received to a pcap as it goes (flushed at least every second)")
+    add_output_option(p, "-w", dest="write", metavar="OUT.pcap", kind=OutputKind.BINARY,
+                      help="write every packet received to a pcap as it goes (flushed at least every second; with "
+                           "- no frame is printed on standard output, as tshark's -w -)")
     p.add_argument("--ring", type=float, metavar="N",
                    help="with -w: keep only the last N MB (OUT and OUT.1 alternate)")
     p.add_argument("--rcvbuf", type=float, default=32, metavar="MB",
@@ -85,7 +91,9 @@ def _check(args: argparse.Namespace) -> None:
         raise UsageError("live: --forward goes with --udp (the port to relay from)")
     if args.ring is not None and not args.write:
         raise UsageError("live: --ring goes with -w OUT.pcap")
-    if args.write and not args.write.lower().endswith((".pcap", ".cap")):
+    if args.ring is not None and args.write == STDOUT:
+        raise UsageError("live: --ring keeps files on disk: it cannot go with -w -")
+    if args.write and args.write != STDOUT and not args.write.lower().endswith((".pcap", ".cap")):
         raise UsageError("live: -w writes a classic pcap: name it OUT.pcap")
     if args.rcvbuf <= 0 or args.queue < 1:
         raise UsageError("live: --rcvbuf and --queue need positive values")
@@ -185,6 +193,13 @@ def summary(source: LiveSource, frames: int, undecoded: int = 0) -> str:
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     _check(args)
+    # -w -: the packets on standard output and no frame printed there (tshark's -w -); a frame output asked
+    # for as well is refused, as for `read`
+    asked = "-V" if args.verbose else "-x" if args.hex else f"-T {args.format}" if args.format != "text" else None
+    check_outputs(args, env, stdout_used=asked)
+    packets_out = binary_stdout(env) if args.write == STDOUT else None
+    if packets_out is not None:
+        args.quiet = True
     dialect = load_dialect(args.dialect)
     source = make_source(args, env)
     try:
@@ -202,7 +217,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     problems = Problems(env, "live")
     try:
         if args.write:
-            writer = LivePcapWriter(args.write, source.linktype, args.ring)
+            writer = LivePcapWriter(args.write, source.linktype, args.ring, file=packets_out)
         if threading.current_thread() is threading.main_thread():
             def on_signal(signum: int, frame: FrameType | None) -> None:
                 source.stop(drain=stopper.signal())  # a second signal: stop draining too

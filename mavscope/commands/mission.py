@@ -9,7 +9,7 @@ import json
 from mavscope.analysis.mission import analyse, log_json, to_plan
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
-from mavscope.commands.common import console, not_the_capture, write_json
+from mavscope.commands.common import OutputKind, add_output_option, check_outputs, console, write_json, write_output
 from mavscope.errors import UsageError
 from mavscope.output.grid import columns, many, print_lines, print_table
 from mavscope.output.tables import fmt, iso, listed, param_text
@@ -23,9 +23,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "MISSION_ITEM(_INT), MISSION_ACK) in both directions, for missions, geofences "
                                    "and rally points, and the MISSION_CLEAR_ALL / MISSION_SET_CURRENT operations.")
     add_analysis_options(p)
-    p.add_argument("--plan", metavar="OUT.plan",
-                   help="write what the vehicle holds at the end of the capture (its last accepted upload, clear "
-                        "or download of each of mission, fence and rally) as a QGroundControl plan")
+    add_output_option(p, "--plan", metavar="OUT.plan", kind=OutputKind.TEXT,
+                      help="write what the vehicle holds at the end of the capture (its last accepted upload, clear "
+                           "or download of each of mission, fence and rally) as a QGroundControl plan")
     p.add_argument("--plan-transfer", metavar="N", type=int,
                    help="with --plan: export transfer N (as numbered in the output) for its mission type instead, "
                         "e.g. a mission the vehicle no longer holds")
@@ -33,7 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
-    not_the_capture("--plan", args.plan, args)
+    report = check_outputs(args, env, stdout_used="--json" if args.json else None)  # stderr's for --plan -
     with analysis_pass(args, env) as frames:
         dialect, path, select = frames.session.dialect, frames.session.name, frames.selection
         log = analyse(frames, dialect)
@@ -52,19 +52,14 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         export = to_plan(log, dialect, None if chosen is None else chosen - 1)
         if export is None:
             raise UsageError(f"mission: --plan: {path} holds no mission, fence or rally items to export")
-        try:
-            with open(args.plan, "w", encoding="utf-8") as fh:
-                json.dump(export.plan, fh, indent=4)
-                fh.write("\n")
-        except OSError as exc:
-            raise UsageError(f"mission: --plan {args.plan}: {exc.strerror or exc}") from None
+        write_output(env, args, "--plan", args.plan, json.dumps(export.plan, indent=4) + "\n")
         for warning in export.warnings:
             env.say(f"mission: --plan: warning: {warning}")
         doc["plan"] = {"file": args.plan, **export.json()}
     if args.json:
         write_json(env, {"file": path, **doc})
         return ExitStatus.OK
-    con = console(env)
+    con = console(report)
     transfers: list[dict] = doc["transfers"]  # type: ignore[assignment]
     events: list[dict] = doc["events"]  # type: ignore[assignment]
     if not transfers and not events:

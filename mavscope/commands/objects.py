@@ -12,7 +12,7 @@ from mavscope import __version__
 from mavscope.analysis.objects import Limits, ObjectTracker, objects_json, party
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
-from mavscope.commands.common import console, write_json
+from mavscope.commands.common import OutputKind, add_output_option, check_outputs, console, write_json
 from mavscope.errors import UsageError
 from mavscope.output.grid import columns, many, print_lines, print_table
 from mavscope.output.objects_out import ObjectWriter
@@ -30,7 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "images sent as ENCAPSULATED_DATA; offsets honoured, retries and NAKs "
                                    "handled, gaps kept as gaps (docs/analysis.md).")
     add_analysis_options(p)
-    p.add_argument("--out", metavar="DIR", help="write each object and DIR/manifest.json (DIR is created if missing)")
+    add_output_option(p, "--out", metavar="DIR", kind=OutputKind.DIRECTORY,
+                      help="write each object and DIR/manifest.json (DIR is created if missing)")
     p.add_argument("--max-object-mb", type=int, default=DEFAULTS.max_object // MIB, metavar="N",
                    help="keep at most N MiB of one object (default %(default)s)")
     p.add_argument("--max-memory-mb", type=int, default=DEFAULTS.max_total // MIB, metavar="N",
@@ -44,6 +45,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     if min(args.max_object_mb, args.max_memory_mb, args.max_holes_mb) < 1:
         raise UsageError("objects: --max-object-mb, --max-memory-mb and --max-holes-mb must be at least 1")
+    check_outputs(args, env)  # (a directory: never -)
     limits = Limits(max_object=args.max_object_mb * MIB, max_total=args.max_memory_mb * MIB,
                     max_holes=args.max_holes_mb * MIB)
     writer = ObjectWriter(args.out) if args.out else None

@@ -23,7 +23,7 @@ from mavscope.analysis.params import (
 from mavscope.analysis.params.values import Value
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
-from mavscope.commands.common import console, not_the_capture, write_json
+from mavscope.commands.common import OutputKind, add_output_option, check_outputs, console, write_json, write_output
 from mavscope.errors import UsageError
 from mavscope.output.grid import columns, print_table
 from mavscope.output.tables import iso
@@ -38,9 +38,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "when, over which link, signed or not, and whether the vehicle confirmed it; "
                                    "the final values; security-relevant changes as findings (docs/analysis.md).")
     add_analysis_options(p)
-    p.add_argument("--out", metavar="FILE",
-                   help="write the final parameters: FILE.params in QGroundControl's format (every component of "
-                        "the vehicle), anything else as a MAVProxy/Mission Planner .param (NAME,VALUE)")
+    add_output_option(p, "--out", metavar="FILE", kind=OutputKind.TEXT,
+                      help="write the final parameters: FILE.params in QGroundControl's format (every component of "
+                           "the vehicle), anything else (and -) as a MAVProxy/Mission Planner .param (NAME,VALUE)")
     p.add_argument("--diff", metavar="OTHER",
                    help="compare the final parameters with another capture or a .param/.params file")
     p.set_defaults(run=run)
@@ -91,7 +91,7 @@ def _other(args: argparse.Namespace, env: Env, log: ParamLog) -> tuple[str, dict
     return "capture", olog.final, "-" if main is None else f"{main[0]}/{main[1]}"
 
 
-def _export(path: str, log: ParamLog, capture: str) -> dict[str, object]:
+def _export(env: Env, args: argparse.Namespace, path: str, log: ParamLog, capture: str) -> dict[str, object]:
     header = [f"written by mavscope {__version__} from {os.path.basename(capture)}"]
     if path.endswith(".params"):
         main = log.main
@@ -106,30 +106,26 @@ def _export(path: str, log: ParamLog, capture: str) -> dict[str, object]:
         fmt, count = "param", len(log.final)
     if not count:
         raise UsageError(f"params: --out: {capture} holds no parameter values to write")
-    try:
-        with open(path, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(text)
-    except OSError as exc:
-        raise UsageError(f"params: --out {path}: {exc.strerror or exc}") from None
+    write_output(env, args, "--out", path, text)
     return {"file": path, "format": fmt, "written": count - len(left_out), "left_out": left_out}
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
-    not_the_capture("--out", args.out, args)
+    report = check_outputs(args, env, stdout_used="--json" if args.json else None)  # stderr's for --out -
     path, log, select = _analyse(args, env)
     doc: dict[str, object] = {"file": path, **params_json(log, select)}  # type: ignore[arg-type]
     if args.diff:
         kind, other, which = _other(args, env, log)
         doc["diff"] = {"other": args.diff, "other_kind": kind, "other_component": which, **diff(log.final, other)}
     if args.out:
-        out = _export(args.out, log, path)
+        out = _export(env, args, args.out, log, path)
         doc["out"] = out
         for name in out["left_out"]:  # type: ignore[attr-defined]
             env.say(f"params: --out: {name!r} left out (a name a parameter file cannot hold)")
     if args.json:
         write_json(env, doc)
         return ExitStatus.OK
-    _print(env, doc)
+    _print(report, doc)
     return ExitStatus.OK
 
 

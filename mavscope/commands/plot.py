@@ -9,13 +9,17 @@ import os
 from mavscope.analysis.series import Plotter
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.common import (
+    STDOUT,
+    OutputKind,
     Problems,
     add_dialect_option,
     add_filter_option,
     add_key_options,
+    add_output_option,
+    binary_stdout,
     capture_session,
+    check_outputs,
     console,
-    not_the_capture,
     whole_number,
     write_json,
 )
@@ -38,7 +42,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_key_options(p)
     p.add_argument("--interval", type=float, metavar="SECONDS",
                    help="bucket width (default: chosen from the capture's length, at most 1024 buckets)")
-    p.add_argument("--out", metavar="FILE.png|FILE.svg", help="draw to an image with matplotlib")
+    add_output_option(p, "--out", metavar="FILE.png|FILE.svg", kind=OutputKind.BINARY,
+                      help="draw to an image with matplotlib (- writes PNG)")
     p.add_argument("--width", type=whole_number(0), default=0,
                    help="terminal chart width in characters (default 0: the terminal's)")
     p.add_argument("--height", type=whole_number(2), default=12,
@@ -56,9 +61,9 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         args.file, exprs = words[0], words[1:]
     if not exprs:
         raise UsageError("plot: give at least one field after the capture file, e.g. GLOBAL_POSITION_INT.relative_alt")
-    if args.out and args.out.rsplit(".", 1)[-1].lower() not in ("png", "svg"):
+    if args.out and args.out != STDOUT and args.out.rsplit(".", 1)[-1].lower() not in ("png", "svg"):
         raise UsageError(f"plot: --out {args.out}: the file name must end in .png or .svg")
-    not_the_capture("--out", args.out, args)
+    report = check_outputs(args, env, stdout_used="--json" if args.json else None)  # stderr's for --out -
     with capture_session(args, env) as session:
         plotter = Plotter(FieldRegistry(session.dialect), exprs, args.interval)
         flt = session.display_filter
@@ -80,7 +85,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         from mavscope.output.plotting import image
 
         image(plotter.series, x_label, args.out, f"{os.path.basename(path)}" +
-              (f" ({args.display_filter})" if args.display_filter else ""))
+              (f" ({args.display_filter})" if args.display_filter else ""),
+              file=binary_stdout(env) if args.out == STDOUT else None)
     if args.json:
         write_json(env, {"file": path, "filter": args.display_filter, "x": x_label, "start": plotter.start,
                          "series": [s.to_json() for s in plotter.series],
@@ -89,7 +95,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     from mavscope.output.console import text
     from mavscope.output.plotting import chart, summary
 
-    con = console(env)
+    con = console(report)
     width = args.width if args.width > 0 else con.width
     for s in plotter.series:
         con.print(text(summary(s, x_label)) if args.out else chart(s, width, max(2, args.height), x_label))

@@ -5,16 +5,20 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, BinaryIO
 
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.common import (
+    STDOUT,
+    OutputKind,
     Problems,
     add_capture_options,
     add_filter_option,
     add_key_options,
+    add_output_option,
+    binary_stdout,
     capture_session,
-    not_the_capture,
+    check_outputs,
     plain_utf8,
     progress,
     whole_number,
@@ -36,13 +40,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-T", dest="format", choices=("text", "json", "jsonl"), default="text",
                    help="output format (default text)")
     p.add_argument("-c", dest="count", type=whole_number(1, " of frames"), metavar="N", help="stop after N frames")
-    p.add_argument("-w", dest="write", metavar="OUT", help="write the capture records holding the shown frames")
+    add_output_option(p, "-w", dest="write", metavar="OUT", kind=OutputKind.BINARY,
+                      help="write the capture records holding the shown frames (.pcapng, .tlog by the name; pcap "
+                           "otherwise and for -; with - nothing else is printed on standard output, as tshark's)")
     p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w)")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
-    not_the_capture("-w", args.write, args)
+    # -w - writes the records to standard output and prints no frame there (tshark's -w -); a frame output
+    # asked for as well is refused, as tshark refuses "-w - -V": both cannot go to standard output
+    asked = "-V" if args.verbose else "-x" if args.hex else f"-T {args.format}" if args.format != "text" else None
+    check_outputs(args, env, stdout_used=asked)
+    records_out = binary_stdout(env) if args.write == STDOUT else None
+    if records_out is not None:
+        args.quiet = True
     out_b = env.stdout_bytes
     if _native_eligible(args, env):
         return _run_native(args, env)
@@ -57,8 +69,9 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     with capture_session(args, env) as session, contextlib.ExitStack() as files:
         t0 = session.t0
         path, name, dialect = session.path, session.name, session.dialect
-        frame_writer = _open_writer(args.write, session.reader.kind) if args.write else None
-        out_file = files.enter_context(open_output(args.write)) if args.write and frame_writer is None else None
+        frame_writer = _open_writer(args.write, session.reader.kind, records_out) if args.write else None
+        out_file = records_out if records_out is not None and frame_writer is None else \
+            files.enter_context(open_output(args.write)) if args.write and frame_writer is None else None
         update, stop = progress(env, session.reader)
         printer = FramePrinter(env.stdout, out_b, dialect, args.format, verbose=args.verbose, hex=args.hex,
                                quiet=args.quiet, t0=t0)
@@ -170,12 +183,13 @@ class _Position:
         self.position = 0
 
 
-def _open_writer(out: str, kind: str) -> FrameWriter | None:
-    """Check `-w OUT` before reading; a FrameWriter for inputs without packets (tlog, raw), else None."""
+def _open_writer(out: str, kind: str, stdout: BinaryIO | None) -> FrameWriter | None:
+    """Check `-w OUT` before reading; a FrameWriter for inputs without packets (tlog, raw), else None
+    (`stdout`: standard output's bytes, for `-w -`)."""
     from mavscope.output.capture_out import FrameWriter
 
     if kind in ("tlog", "raw"):
-        return FrameWriter(out)
+        return FrameWriter(out, stdout)
     if out.lower().endswith(".tlog"):
         raise UsageError("read: -w: a packet capture is written as .pcap or .pcapng, not .tlog")
     return None

@@ -9,7 +9,7 @@ import json
 from mavscope.analysis.track import TrackBuilder
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
-from mavscope.commands.common import console, not_the_capture, write_json
+from mavscope.commands.common import OutputKind, add_output_option, check_outputs, console, write_json, write_output
 from mavscope.errors import UsageError
 from mavscope.output.geo import geojson, gpx, kml, xsd_time
 from mavscope.output.tables import iso
@@ -22,9 +22,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "GeoJSON (RFC 7946), KML or GPX 1.1 (docs/analysis.md).")
     add_analysis_options(p)
     out = p.add_argument_group("output (one or more)")
-    out.add_argument("--geojson", metavar="OUT", help="write GeoJSON to OUT ('-': stdout)")
-    out.add_argument("--kml", metavar="OUT", help="write KML to OUT ('-': stdout)")
-    out.add_argument("--gpx", metavar="OUT", help="write GPX 1.1 to OUT ('-': stdout)")
+    add_output_option(out, "--geojson", metavar="OUT", kind=OutputKind.TEXT, help="write GeoJSON to OUT")
+    add_output_option(out, "--kml", metavar="OUT", kind=OutputKind.TEXT, help="write KML to OUT")
+    add_output_option(out, "--gpx", metavar="OUT", kind=OutputKind.TEXT, help="write GPX 1.1 to OUT")
     p.set_defaults(run=run)
 
 
@@ -32,10 +32,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     targets = [(fmt, path) for fmt, path in (("geojson", args.geojson), ("kml", args.kml), ("gpx", args.gpx)) if path]
     if not targets and not args.json:
         raise UsageError("track: say where to write: --geojson OUT, --kml OUT or --gpx OUT (or --json for a summary)")
-    if sum(1 for _, path in targets if path == "-") > 1 or (args.json and any(path == "-" for _, path in targets)):
-        raise UsageError("track: only one output can go to stdout")
-    for fmt, out in targets:
-        not_the_capture(f"--{fmt}", out, args)
+    report = check_outputs(args, env, stdout_used="--json" if args.json else None)  # stderr's for an output -
     with analysis_pass(args, env) as frames:
         dialect, path = frames.session.dialect, frames.session.name
         builder = TrackBuilder(dialect)
@@ -47,14 +44,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     for fmt, out in targets:
         text = json.dumps(geojson(result, dialect), indent=1) + "\n" if fmt == "geojson" else \
             kml(result, dialect) if fmt == "kml" else gpx(result, dialect)
-        if out == "-":
-            env.stdout.write(text)
-            continue
-        try:
-            with open(out, "w", encoding="utf-8") as fh:
-                fh.write(text)
-        except OSError as exc:
-            raise UsageError(f"track: --{fmt} {out}: {exc.strerror or exc}") from None
+        write_output(env, args, f"--{fmt}", out, text)
     summary = [{"sysid": t.sysid, "compid": t.compid, "source": t.source, "positions": t.seen,
                 "points": len(t.points), "every": t.stride, "start": xsd_time(t.points[0].time),
                 "end": xsd_time(t.points[-1].time)} for t in result.tracks]
@@ -68,9 +58,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         write_json(env, {"file": path, "tracks": summary, **mission,
                          "written": [{"format": fmt, "file": out} for fmt, out in targets]})
         return ExitStatus.OK
-    if any(out == "-" for _, out in targets):
-        return ExitStatus.OK
-    con = console(env)
+    con = console(report)
     if not result.tracks:
         env.say(f"track: no positions in {path} (GLOBAL_POSITION_INT or GPS_RAW_INT with a fix)")
     for t in result.tracks:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable, Iterable
+from typing import BinaryIO
 
 from mavscope.capture.base import Record
 from mavscope.capture.writer import DEFAULT_SNAPLEN, PcapWriter
@@ -30,16 +31,19 @@ class LivePcapWriter:
     """Appends Records to a classic pcap of one link type, flushing every `flush_interval` seconds."""
 
     def __init__(self, path: str, linktype: int, ring_mb: float | None = None,
-                 flush_interval: float = FLUSH_INTERVAL) -> None:
+                 flush_interval: float = FLUSH_INTERVAL, file: BinaryIO | None = None) -> None:
+        """`file`: where to write instead of `path` (standard output for `-w -`: no ring, left open)."""
         if ring_mb is not None and ring_mb < 0.1:
             raise UsageError("live: --ring needs at least 0.1 MB")
+        if ring_mb is not None and file is not None:
+            raise UsageError("live: --ring keeps files on disk: it cannot go with -w -")
         self.path = path
         self.linktype = linktype
         self.half = int(ring_mb * MB) // 2 if ring_mb is not None else None
         self.flush_interval = flush_interval
         self.records = 0  # written, all files
         self.rotations = 0
-        self._writer = PcapWriter(path, linktype)
+        self._writer = PcapWriter(path if file is None else file, linktype)
         if self.half is not None and os.path.exists(path + ".1"):
             os.remove(path + ".1")  # a previous run's older half: OUT and OUT.1 belong to this run now
         self._size = _FILE_HEADER

@@ -72,8 +72,9 @@ def write_records(source: str | os.PathLike[str], out: str | os.PathLike[str], r
                 if writer is None:
                     writer = PcapWriter(target, rec.linktype)
                 elif rec.linktype != writer.linktype:
-                    raise UsageError(f"-w: the frames shown come from several link types; write them as "
-                                     f"{Path(out).with_suffix('.pcapng').name}")
+                    raise UsageError("-w: the frames shown come from several link types; write them as " + (
+                        "a .pcapng file (- writes pcap)" if os.fspath(out) == "-" else
+                        Path(out).with_suffix(".pcapng").name))
                 writer.write(rec.time, rec.data, rec.orig_len)
                 n += 1
             if writer is None:
@@ -85,16 +86,18 @@ def write_records(source: str | os.PathLike[str], out: str | os.PathLike[str], r
 
 
 class FrameWriter:
-    """Writes shown frames of a tlog or raw input to a pcap, pcapng or tlog file as they come."""
+    """Writes shown frames of a tlog or raw input to a pcap, pcapng or tlog file as they come (to `file`,
+    opened for `out`, when given: standard output for `read -w -`, left open)."""
 
-    def __init__(self, out: str | os.PathLike[str]) -> None:
+    def __init__(self, out: str | os.PathLike[str], file: BinaryIO | None = None) -> None:
         self.kind = _output_kind(out)
         self.count = 0
         self._w: TlogWriter | PcapWriter | PcapngWriter
+        target: str | os.PathLike[str] | BinaryIO = file if file is not None else out
         if self.kind == "tlog":
-            self._w = TlogWriter(out)
+            self._w = TlogWriter(target)
         else:
-            self._w = (PcapngWriter if self.kind == "pcapng" else PcapWriter)(out, LINKTYPE_ETHERNET)
+            self._w = (PcapngWriter if self.kind == "pcapng" else PcapWriter)(target, LINKTYPE_ETHERNET)
 
     def write(self, frame: Frame) -> None:
         if isinstance(self._w, TlogWriter):

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import BinaryIO
 
 from rich.text import Text
 
@@ -89,10 +90,11 @@ def chart(s: Series, width: int, height: int, x_label: str = "s") -> Text:
     return out
 
 
-def image(series: Sequence[Series], x_label: str, path: str, title: str) -> None:
+def image(series: Sequence[Series], x_label: str, path: str, title: str, file: BinaryIO | None = None) -> None:
     """The series (one panel each: the mean as a line, minimum to maximum shaded) written to `path`, a
-    .png or .svg, with matplotlib. UsageError when matplotlib is missing or the file cannot be written."""
-    fmt = path.rsplit(".", 1)[-1].lower() if "." in path else ""
+    .png or .svg, with matplotlib (or, as PNG, to `file`: standard output for `--out -`). UsageError when
+    matplotlib is missing or the file cannot be written."""
+    fmt = "png" if file is not None else path.rsplit(".", 1)[-1].lower() if "." in path else ""
     if fmt not in ("png", "svg"):
         raise UsageError(f"plot: --out {path}: the file name must end in .png or .svg")
     try:
@@ -115,7 +117,8 @@ def image(series: Sequence[Series], x_label: str, path: str, title: str) -> None
     fig.suptitle(title, fontsize=9)
     fig.tight_layout()
     try:
-        fig.savefig(path, format=fmt, metadata={"Software": None} if fmt == "png" else {"Date": None})
+        fig.savefig(path if file is None else file, format=fmt,
+                    metadata={"Software": None} if fmt == "png" else {"Date": None})
     except OSError as exc:
         raise UsageError(f"plot: --out {path}: {exc.strerror or exc}") from None
     finally:
