@@ -77,7 +77,7 @@ class Dissector:
         self.mavlink_endpoints: set[Endpoint] = set()
         self._said: list[Note] = []
         self.endpoints_given_up = GivenUp(f"sources of valid MAVLink (at most {MAX_MAVLINK_ENDPOINTS:,} remembered)",
-                                          "sources", self._said)
+                                          "datagrams", self._said)
         # UDP receivers (MAVLink's C library behind a socket) in a frame where the last datagram to them
         # ended (mavscope.mavlink.receivers), by port: the next datagram to them goes on with it. The native
         # walker hands every datagram to one of these ports back here.
@@ -155,7 +155,7 @@ class Dissector:
                                     raw, 2, length, iflags, cflags, seq, sysid, compid, md.id, crc, OK, md, sig, (),
                                     None)
                     pos += size
-                if pos and src is not None and src not in endpoints and not self._learn(src):
+                if pos and src is not None and src not in endpoints and not self._learn(src) and self._said:
                     yield Anomaly(number, tuple(self._said))  # (the datagram's frames went out above)
                     self._said.clear()
                 if pos == n:
@@ -211,8 +211,8 @@ class Dissector:
         if len(self.mavlink_endpoints) < MAX_MAVLINK_ENDPOINTS:
             self.mavlink_endpoints.add(src)
             return True
-        self.endpoints_given_up.add(f"{src.text} not remembered: its datagrams without a valid frame are "
-                                    "scanned as MAVLink only on MAVLink's ports")
+        self.endpoints_given_up.add(f"a datagram of {src.text}, a source not remembered: its datagrams without a "
+                                    "valid frame are scanned as MAVLink only on MAVLink's ports")
         return False
 
     def _trusted(self, p: Payload) -> bool:

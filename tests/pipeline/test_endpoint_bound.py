@@ -78,3 +78,18 @@ def test_the_native_walker_keeps_the_same_bound() -> None:
     if native is None:
         pytest.skip("built without the C extension")
     assert native.MAX_ENDPOINTS == CAP
+
+
+def test_a_source_refused_again_adds_no_empty_anomaly(tmp_path: Path, dialect: Dialect) -> None:
+    # the set full, then one refused source sending 5 datagrams: GivenUp says the 1st, 2nd and 4th give-up
+    # (records CAP+1, CAP+2, CAP+4); the 3rd and 5th datagrams are refused too, and say nothing at all
+    path = _flood(tmp_path / "flood.pcap", dialect, CAP - 1, vehicle_after=0)
+    with path.open("ab") as out:
+        pkt = link("ethernet", ipv4(bytes([10, 7, 7, 7]), bytes([10, 0, 0, 1]), 17,
+                                    udp(4000, 14550, frame_v2(dialect.messages[0], 0, bytes(9), 0, 1, 1))), False)
+        for n in range(5):
+            out.write(struct.pack("<IIII", 9000 + n, 0, len(pkt), len(pkt)) + pkt)
+    with open_capture(path) as reader:
+        anomalies = [a for a in Dissector(dialect).run(reader) if type(a) is Anomaly]
+    assert [a.record for a in anomalies] == [CAP + 1, CAP + 2, CAP + 4]
+    assert all(a.notes for a in anomalies)
