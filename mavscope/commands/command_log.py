@@ -40,7 +40,10 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         values = cast("dict[str, object]", d["params"])
         sender, target = cast("list[int]", d["from"]), cast("list[int]", d["to"])
         names = cast("dict[str, str]", d["param_names"])
-        params = ", ".join(f"{labels.get(k, k)} {names.get(k) or param_text(v)}" for k, v in values.items()
+        # COMMAND_INT's x/y: int32 on the wire, here in degrees or metres (not float32s)
+        wire_int = ("x", "y") if d["message"] == "COMMAND_INT" else ()
+        params = ", ".join(f"{labels.get(k, k)} {names.get(k) or param_text(v, k not in wire_int)}"
+                           for k, v in values.items()
                            if k in labels or (v not in (0, 0.0, None) and k != "confirmation"))
         return [str(cast("list[int]", d["frames"])[0]), iso(cast("float | None", d["time"])),
                 "{}/{}".format(*sender), "{}/{}".format(*target),

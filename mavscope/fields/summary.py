@@ -52,8 +52,9 @@ CONTAINER_MESSAGES = frozenset({"FILE_TRANSFER_PROTOCOL"})  # their Info is the 
 PYTHON_INFO = CONTAINER_MESSAGES | {"STATUSTEXT"}
 
 
-# How a summary shows one field: by its name, an enum's names, degE7 as degrees, or by the value's type.
-PLAIN, ENUM, DEGREES = 0, 1, 2
+# How a summary shows one field: by its name, an enum's names, degE7 as degrees, or by the value's type
+# (FLOAT32: a `float` field, the shortest text that reads back as the same float32; a double's repr).
+PLAIN, ENUM, DEGREES, FLOAT32 = 0, 1, 2, 3
 _Plan = tuple[tuple[str, int, dict[int, str]], ...]
 _PLANS: WeakKeyDictionary[Dialect, dict[int, tuple[MessageDef, _Plan]]] = WeakKeyDictionary()
 
@@ -70,13 +71,15 @@ def summary_plan(md: MessageDef, dialect: Dialect) -> _Plan:
     names = SUMMARY_FIELDS.get(md.name) or tuple(
         f.name for f in md.fields if not f.array_length or f.type == "char"
     )[:_MAX_DEFAULT]
-    plan = []
+    plan: list[tuple[str, int, dict[int, str]]] = []
     for name in names:
         fd = md.field(name)
         if fd is None:
             continue
         enum = dialect.enums.get(fd.enum) if fd.enum else None
-        if enum is not None and not (enum.bitmask or fd.display == "bitmask"):
+        if fd.type == "float":  # (whatever a dialect says of it: the native writer goes by the wire type)
+            plan.append((name, FLOAT32, {}))
+        elif enum is not None and not (enum.bitmask or fd.display == "bitmask"):
             plan.append((name, ENUM, {v: e.name for v, e in enum.entries.items()}))
         elif fd.units == "degE7" or (name in ("x", "y") and md.name in INT_COORDINATE_MESSAGES):
             plan.append((name, DEGREES, {}))
@@ -97,8 +100,8 @@ def _short(name: str, how: int, names: dict[int, str], value: object) -> str:
             return f"{name}={visible(text)}"
     elif how == DEGREES and isinstance(value, int):
         return f"{name}={value / DEGE7:.7f}"
-    if isinstance(value, float):
-        return f"{name}={float_text(value, '.4g')}"
+    if isinstance(value, float):  # (mavlink/floats.py: 30.48, not 30.4799995)
+        return f"{name}={float_text(value, how == FLOAT32)}"
     if isinstance(value, str):
         return f"{name}={value!r}"
     if isinstance(value, list):

@@ -50,10 +50,9 @@ class Item:
     generated: bool = False  # computed by mavscope, not on the wire (Wireshark's [brackets])
 
 
-def _fmt_float(v: float) -> str:
-    if math.isinf(v):
-        return str(v)
-    return float_text(v, ".7g")
+def _fmt_float(v: float, fd: FieldDef) -> str:
+    """A float field's value: the shortest text that reads back as the same float32 (double: repr)."""
+    return float_text(v, fd.type != "double")
 
 
 def format_value(fd: FieldDef, value: object, dialect: Dialect) -> str:
@@ -63,7 +62,7 @@ def format_value(fd: FieldDef, value: object, dialect: Dialect) -> str:
     if isinstance(value, list):
         if fd.type in ("uint8_t", "int8_t") and len(value) > 16:
             return bytes(v & 0xFF for v in value).hex(" ")
-        return "[" + ", ".join(_fmt_float(v) if isinstance(v, float) else str(v) for v in value) + "]"
+        return "[" + ", ".join(_fmt_float(v, fd) if isinstance(v, float) else str(v) for v in value) + "]"
     if isinstance(value, str):
         return repr(value)
     if fd.enum and isinstance(value, int):
@@ -78,7 +77,7 @@ def format_value(fd: FieldDef, value: object, dialect: Dialect) -> str:
         return degrees_text(value)
     if fd.display == "bitmask" and isinstance(value, int):
         return f"0x{value:x}"
-    text = _fmt_float(value) if isinstance(value, float) else str(value)
+    text = _fmt_float(value, fd) if isinstance(value, float) else str(value)
     return f"{text} {units}" if units and not (isinstance(value, float) and math.isnan(value)) else text
 
 

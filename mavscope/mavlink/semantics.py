@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 
+from mavscope.mavlink import floats
 from mavscope.mavlink.dialect import Dialect, MessageDef
 
 # MAV_FRAME values whose x/y are latitude/longitude: the MAV_FRAME_GLOBAL* entries of common.xml
@@ -54,9 +55,11 @@ def message_label(msgid: int, msgdef: MessageDef | None) -> str:
 NAN_TEXT = "NaN"  # how a NaN reads everywhere (PX4 and QGroundControl send it for "unset" / "unchanged")
 
 
-def float_text(v: float, spec: str) -> str:
-    """A float with format `spec`, or NAN_TEXT: one spelling of NaN in the tree, summaries and tables."""
-    return NAN_TEXT if math.isnan(v) else format(v, spec)
+def float_text(v: float, float32: bool = True) -> str:
+    """A float (`float32`: a MAVLink `float` field) or double value as the tree, summaries and tables show
+    it: the shortest text that reads back as the same value (mavlink/floats.py: 30.48, not 30.4799995),
+    NaN as NAN_TEXT (one spelling everywhere), infinities as `inf` and `-inf`."""
+    return NAN_TEXT if math.isnan(v) else repr(v) if math.isinf(v) else floats.float_text(v, float32)
 
 
 def finite(v: object) -> object:

@@ -10,7 +10,7 @@ from typing import IO
 
 import orjson
 
-from mavscope.mavlink.semantics import NAN_TEXT
+from mavscope.mavlink.semantics import NAN_TEXT, float_text
 
 BARS = "▁▂▃▄▅▆▇█"
 
@@ -62,12 +62,14 @@ def listed(values: Sequence[object], shown: int = SHOWN) -> str:
     return ", ".join(map(str, values[:shown])) + (f" and {more:,} more (--json lists them)" if more > 0 else "")
 
 
-def param_text(v: object) -> str:
-    """A command or mission parameter: 9 significant digits (degrees to the centimetre), and None (a NaN
-    in the frame: JSON carries it as null; PX4 and QGC send NaN for "unchanged") as NaN."""
+def param_text(v: object, float32: bool = True) -> str:
+    """A command or mission parameter: a float32 (`float32`: the wire's `float`, as param1..7 are) as the
+    shortest text that reads back as the same float32 (30.48, not 30.4799995), another float (COMMAND_INT's
+    x/y in degrees) as repr; None (a NaN in the frame: JSON carries it as null; PX4 and QGC send NaN for
+    "unchanged") as NaN."""
     if v is None:
         return NAN_TEXT
-    return f"{v:.9g}" if isinstance(v, float) else str(v)
+    return float_text(v, float32) if isinstance(v, float) else str(v)
 
 
 def iso(t: float | None) -> str:

@@ -32,7 +32,7 @@ static inline char *w_scalar(char *p, unsigned type, const uint8_t *v) {
     case MS_T_I32: return ms_w_i64(p, (int32_t)ms_le32(v));
     case MS_T_U64: return ms_w_u64(p, ms_le64(v));
     case MS_T_I64: return ms_w_i64(p, (int64_t)ms_le64(v));
-    case MS_T_F32: return ms_w_double(p, (double)f32_at(v));
+    case MS_T_F32: return ms_w_f32(p, f32_at(v)); /* the shortest text of the float32 */
     case MS_T_F64: return ms_w_double(p, f64_at(v));
     default: return MS_W_LIT(p, "null"); /* never: the table parser refuses other types */
     }

@@ -3,6 +3,7 @@
 #include <string.h>
 
 #include "vendor/ryu/ryu_d2d.h"
+#include "vendor/ryu/ryu_f2d.h"
 
 const char MS_DIGIT_PAIRS[200] = {
     '0', '0', '0', '1', '0', '2', '0', '3', '0', '4', '0', '5', '0', '6', '0', '7', '0', '8', '0', '9',
@@ -88,30 +89,8 @@ static inline int digits20(uint64_t v, char buf[64]) {
     return t + (v >= POW10[t]);
 }
 
-char *ms_w_double(char *out, double v) {
-    uint64_t bits;
-    memcpy(&bits, &v, sizeof bits);
-    const int sign = (int)(bits >> 63);
-    const uint64_t mant = bits & ((1ull << DOUBLE_MANTISSA_BITS) - 1);
-    const uint32_t expo = (uint32_t)((bits >> DOUBLE_MANTISSA_BITS) & 0x7FFu);
-    if (expo == 0x7FFu) {
-        memcpy(out, "null", 4);
-        return out + 4;
-    }
-    char *p = out;
-    if (sign)
-        *p++ = '-';
-    if (expo == 0 && mant == 0) {
-        memcpy(p, "0.0", 3);
-        return p + 3;
-    }
-    floating_decimal_64 fd = d2d(mant, expo);
-    /* digits[] is longer than any digit string so that fixed-size copies (vector moves) can be used;
-     * the room the caller made (MS_DOUBLE_MAX) covers what they write past the text. */
-    char buf[64];
-    const int n = digits20(fd.mantissa, buf);
-    const char *const digits = buf + 20 - n;
-    const int k = fd.exponent;   /* value = digits * 10^k */
+/* digits[0..n) * 10^k (n <= 17, digits readable 20 bytes on) laid out as orjson lays out a double */
+static char *w_json_layout(char *p, const char *digits, int n, int k) {
     const int x = n + k - 1;     /* value = d.ddd * 10^x */
     if (x >= -5 && x < 16) {
         if (k >= 0) { /* 1230000.0: the digits, k zeros (n + k <= 16), ".0" */
@@ -162,6 +141,107 @@ char *ms_w_double(char *out, double v) {
     *p++ = (char)('0' + e);
     return p;
 }
+
+/* digits[0..n) * 10^k laid out as Python's repr lays out a float: fixed notation for decimal exponents
+ * -4..15 with at least one decimal (`100.0`, `0.0001`), else `1e-05`, `3.4028235e+38` (two exponent digits
+ * at least) */
+static char *w_repr_layout(char *p, const char *digits, int n, int k) {
+    const int x = n + k - 1;
+    if (x >= -4 && x < 16) {
+        if (k >= 0) {
+            memcpy(p, digits, (size_t)n);
+            memset(p + n, '0', (size_t)k);
+            p += n + k;
+            memcpy(p, ".0", 2);
+            return p + 2;
+        }
+        if (x >= 0) {
+            memcpy(p, digits, (size_t)x + 1);
+            p[x + 1] = '.';
+            memcpy(p + x + 2, digits + x + 1, (size_t)(n - x - 1));
+            return p + n + 1;
+        }
+        memcpy(p, "0.000", 5);
+        memcpy(p + 1 - x, digits, (size_t)n);
+        return p + 1 - x + n;
+    }
+    p[0] = digits[0];
+    if (n > 1) {
+        p[1] = '.';
+        memcpy(p + 2, digits + 1, (size_t)n - 1);
+        p += n + 1;
+    } else {
+        p += 1;
+    }
+    *p++ = 'e';
+    int e = x;
+    *p++ = e < 0 ? '-' : '+';
+    if (e < 0)
+        e = -e;
+    if (e >= 100) {
+        *p++ = (char)('0' + e / 100);
+        e %= 100;
+    }
+    memcpy(p, MS_DIGIT_PAIRS + 2 * e, 2);
+    return p + 2;
+}
+
+enum { LAYOUT_JSON, LAYOUT_REPR };
+
+static char *w_digits(char *p, uint64_t mantissa, int exponent, int layout) {
+    /* buf is longer than any digit string so that the JSON layout's fixed-size copies (vector moves) can
+     * be used; the room the caller made (MS_DOUBLE_MAX) covers what they write past the text. */
+    char buf[64];
+    const int n = digits20(mantissa, buf);
+    const char *const digits = buf + 20 - n;
+    return layout == LAYOUT_JSON ? w_json_layout(p, digits, n, exponent) : w_repr_layout(p, digits, n, exponent);
+}
+
+static char *w_double(char *out, double v, int layout) {
+    uint64_t bits;
+    memcpy(&bits, &v, sizeof bits);
+    const int sign = (int)(bits >> 63);
+    const uint64_t mant = bits & ((1ull << DOUBLE_MANTISSA_BITS) - 1);
+    const uint32_t expo = (uint32_t)((bits >> DOUBLE_MANTISSA_BITS) & 0x7FFu);
+    if (expo == 0x7FFu) { /* (the repr layout's callers write NaN and infinities themselves) */
+        memcpy(out, "null", 4);
+        return out + 4;
+    }
+    char *p = out;
+    if (sign)
+        *p++ = '-';
+    if (expo == 0 && mant == 0) {
+        memcpy(p, "0.0", 3);
+        return p + 3;
+    }
+    floating_decimal_64 fd = d2d(mant, expo);
+    return w_digits(p, fd.mantissa, fd.exponent, layout);
+}
+
+static char *w_f32(char *out, float v, int layout) {
+    uint32_t bits;
+    memcpy(&bits, &v, sizeof bits);
+    const uint32_t mant = bits & ((1u << FLOAT_MANTISSA_BITS) - 1);
+    const uint32_t expo = (bits >> FLOAT_MANTISSA_BITS) & 0xFFu;
+    if (expo == 0xFFu) {
+        memcpy(out, "null", 4);
+        return out + 4;
+    }
+    char *p = out;
+    if (bits >> 31)
+        *p++ = '-';
+    if (expo == 0 && mant == 0) {
+        memcpy(p, "0.0", 3);
+        return p + 3;
+    }
+    floating_decimal_32 fd = f2d(mant, expo);
+    return w_digits(p, fd.mantissa, fd.exponent, layout);
+}
+
+char *ms_w_double(char *out, double v) { return w_double(out, v, LAYOUT_JSON); }
+char *ms_w_f32(char *out, float v) { return w_f32(out, v, LAYOUT_JSON); }
+char *ms_w_double_repr(char *out, double v) { return w_double(out, v, LAYOUT_REPR); }
+char *ms_w_f32_repr(char *out, float v) { return w_f32(out, v, LAYOUT_REPR); }
 
 int ms_fmt_double(double v, char *out) { return (int)(ms_w_double(out, v) - out); }
 

@@ -3,7 +3,8 @@
  * - integers in decimal;
  * - doubles as the shortest text that reads back to the same double (Ryu), laid out as orjson does:
  *   fixed notation with at least one decimal (`1.0`, `-0.0`, `0.00001`) while the decimal exponent is
- *   in [-5, 16), else `1e+16`, `1.5e-7`; NaN and infinities as `null`;
+ *   in [-5, 16), else `1e+16`, `1.5e-7`; NaN and infinities as `null`; float32 values (MAVLink `float`)
+ *   as the shortest text that reads back to the same float32 (Ryu's f2s), in the same layout;
  * - strings from bytes as mavscope's Python path makes them (`bytes.decode("utf-8", "backslashreplace")`,
  *   invalid bytes as `\xNN`), then escaped as orjson escapes (`\"`, `\\`, `\n`..., other control
  *   characters `\u00XX`; everything else as UTF-8).
@@ -97,6 +98,16 @@ static inline char *ms_w_i64(char *p, int64_t v) {
 #define MS_W_LIT(p, lit) (memcpy((p), (lit), sizeof(lit) - 1), (p) + sizeof(lit) - 1)
 
 char *ms_w_double(char *p, double v);
+/* A float32 as JSON: the shortest decimal that reads back as the same float32 (Ryu's f2s: 30.48, not the
+ * widened double's 30.479999542236328), laid out as ms_w_double lays out a double; NaN and infinities null.
+ * Room: MS_DOUBLE_MAX. */
+char *ms_w_f32(char *p, float v);
+/* Python's repr of a double (finite: NaN and infinities are the caller's), and the same layout of the
+ * shortest float32 decimal (mavscope/mavlink/floats.py f32_text): `30.48`, `100.0`, `1e-05`. Room:
+ * MS_REPR_MAX. */
+#define MS_REPR_MAX 32 /* -1.2345678901234567e-308: 24 */
+char *ms_w_double_repr(char *p, double v);
+char *ms_w_f32_repr(char *p, float v);
 
 /* The most ms_w_text writes for n input bytes: 6 per byte (\u00XX) and the quotes. */
 static inline size_t ms_text_max(size_t n) { return 6 * n + 2; }

@@ -41,7 +41,7 @@
  *         new_endpoints, (packed address, port) of the endpoint ids first used in this chunk, in id order
  *   COLUMN_NAMES: tuple[str, ...]       the names of those columns, in order
  *   format_double(x) -> bytes, text_json(b) -> bytes   (the JSON formatting, for the tests)
- *   format_g4(x), format_degrees(v, unsigned), format_reltime(t), repr_ascii(b) -> bytes | None
+ *   format_f32(x, repr), format_double_repr(x), format_degrees(v, unsigned), format_reltime(t), repr_ascii(b) -> bytes | None
  *                                        (the summary formatting, for the tests)
  *
  * The walker reads the file with pread(2) on `fd` (never a memory mapping: a file truncated while it is
@@ -1371,12 +1371,23 @@ static PyObject *text_json(PyObject *Py_UNUSED(mod), PyObject *arg) {
     return res;
 }
 
-static PyObject *format_g4(PyObject *Py_UNUSED(mod), PyObject *arg) {
+/* format_f32(x, layout): the float32 nearest x (as a C cast rounds) as JSON (layout 0) or repr (1) */
+static PyObject *format_f32(PyObject *Py_UNUSED(mod), PyObject *args) {
+    double v;
+    int layout;
+    if (!PyArg_ParseTuple(args, "di", &v, &layout))
+        return NULL;
+    char out[MS_DOUBLE_MAX];
+    const float f = (float)v;
+    return PyBytes_FromStringAndSize(out, (layout ? ms_w_f32_repr(out, f) : ms_w_f32(out, f)) - out);
+}
+
+static PyObject *format_double_repr(PyObject *Py_UNUSED(mod), PyObject *arg) {
     double v = PyFloat_AsDouble(arg);
     if (v == -1.0 && PyErr_Occurred())
         return NULL;
-    char out[MS_G4_MAX];
-    return PyBytes_FromStringAndSize(out, ms_w_g4(out, v) - out);
+    char out[MS_DOUBLE_MAX];
+    return PyBytes_FromStringAndSize(out, ms_w_double_repr(out, v) - out);
 }
 
 static PyObject *format_degrees(PyObject *Py_UNUSED(mod), PyObject *args) {
@@ -1446,7 +1457,8 @@ static PyObject *format_skew(PyObject *Py_UNUSED(mod), PyObject *arg) {
 static PyMethodDef module_methods[] = {
     {"sha256", sha256, METH_O, "SHA-256 of a bytes-like object by the native code (fed in uneven pieces)"},
     {"format_skew", format_skew, METH_O, "JSON text of round(x, 6) as the native writer makes a skew"},
-    {"format_g4", format_g4, METH_O, "format(x, '.4g') as the summary writer makes it (NaN as NaN)"},
+    {"format_f32", format_f32, METH_VARARGS, "format_f32(x, repr): a float32's shortest text, JSON or repr layout"},
+    {"format_double_repr", format_double_repr, METH_O, "repr(x) of a finite double as the summary writer makes it"},
     {"format_degrees", format_degrees, METH_VARARGS, "f'{v / 1e7:.7f}' of a 64-bit integer (bits, unsigned)"},
     {"format_reltime", format_reltime, METH_O, "f'{t:11.6f}' as the summary writer makes it, or None"},
     {"repr_ascii", repr_ascii, METH_O, "repr() of char_text(b), or None when b is not ASCII"},

@@ -154,7 +154,7 @@ int ms_summary_parse(ms_summary *s, const ms_table *t, const uint8_t *blob, size
             const ms_field *f = &tm->fields[it->field];
             const unsigned type = f->type & 0x7F;
             it->nentries = (uint32_t)n;
-            size_t value_max = MS_DEG_MAX > MS_G4_MAX ? MS_DEG_MAX : MS_G4_MAX; /* also any integer */
+            size_t value_max = MS_DEG_MAX > MS_REPR_MAX ? MS_DEG_MAX : MS_REPR_MAX; /* also any integer */
             if (take_entries(&c, &it->entries, n, is_signed_type(type), &value_max) != 0)
                 goto fail;
             if (type == MS_T_CHAR)
@@ -172,9 +172,6 @@ fail:
 
 /* ---- numbers and strings as Python formats them ------------------------------------------------ */
 
-static const double POW10D[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
-                                  1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
-
 static char *copy_printf(char *p, const char *fmt, double v) {
     char tmp[400];
     int n = snprintf(tmp, sizeof tmp, fmt, v);
@@ -184,82 +181,24 @@ static char *copy_printf(char *p, const char *fmt, double v) {
     return p + n;
 }
 
-/* v * 10**k, one correctly rounded operation (|k| <= 22) */
-static double scale10(double v, int k) { return k >= 0 ? v * POW10D[k] : v / POW10D[-k]; }
-
-char *ms_w_g4(char *p, double v) {
-    if (v != v)
-        return MS_W_LIT(p, "NaN"); /* semantics.NAN_TEXT */
-    if (signbit(v)) {
-        *p++ = '-';
-        v = -v;
+/* A float or double field's value as fields/summary.py `_short` writes it (mavlink/floats.py): the
+ * shortest text that reads back as the same float32, or repr of a double; NaN as semantics.NAN_TEXT */
+static char *w_float(char *p, unsigned type, const uint8_t *v) {
+    double d;
+    float f = 0;
+    if (type == MS_T_F32) {
+        uint32_t u = ms_le32(v);
+        memcpy(&f, &u, sizeof f);
+        d = f;
+    } else {
+        uint64_t u = ms_le64(v);
+        memcpy(&d, &u, sizeof d);
     }
-    if (isinf(v))
-        return MS_W_LIT(p, "inf");
-    if (v == 0.0) {
-        *p++ = '0';
-        return p;
-    }
-    if (!(v >= 1e-5 && v < 1e15))
-        return copy_printf(p, "%.4g", v); /* glibc: correctly rounded, ties to even, as Python */
-    /* four significant digits: d in [1000, 10000) with v ~ d * 10**(e - 3); the scaling is one rounded
-     * operation (error below 1e-11 at this size), so only values within 1e-7 of a tie need the slow path */
-    int e = (int)floor(log10(v));
-    double scaled = scale10(v, 3 - e);
-    if (scaled < 1000.0) {
-        e--;
-        scaled = scale10(v, 3 - e);
-    } else if (scaled >= 10000.0) {
-        e++;
-        scaled = scale10(v, 3 - e);
-    }
-    double fl = floor(scaled);
-    double frac = scaled - fl;
-    if (fabs(frac - 0.5) < 1e-7 || fl < 999.0 || fl > 9999.0)
-        return copy_printf(p, "%.4g", v);
-    unsigned d = (unsigned)fl + (frac > 0.5);
-    if (d >= 10000) {
-        d /= 10;
-        e++;
-    } else if (d < 1000) {
-        return copy_printf(p, "%.4g", v);
-    }
-    char dig[4] = {(char)('0' + d / 1000), (char)('0' + d / 100 % 10), (char)('0' + d / 10 % 10),
-                   (char)('0' + d % 10)};
-    int nd = 4;
-    while (nd > 1 && dig[nd - 1] == '0')
-        nd--;
-    if (e < -4 || e >= 4) {
-        *p++ = dig[0];
-        if (nd > 1) {
-            *p++ = '.';
-            memcpy(p, dig + 1, (size_t)nd - 1);
-            p += nd - 1;
-        }
-        *p++ = 'e';
-        *p++ = e < 0 ? '-' : '+';
-        unsigned ae = (unsigned)(e < 0 ? -e : e);
-        *p++ = (char)('0' + ae / 10);
-        *p++ = (char)('0' + ae % 10);
-        return p;
-    }
-    if (e >= 0) {
-        int whole = e + 1; /* digits before the point (<= 4) */
-        memcpy(p, dig, (size_t)whole);
-        p += whole;
-        if (nd > whole) {
-            *p++ = '.';
-            memcpy(p, dig + whole, (size_t)(nd - whole));
-            p += nd - whole;
-        }
-        return p;
-    }
-    *p++ = '0';
-    *p++ = '.';
-    for (int z = 0; z < -e - 1; z++)
-        *p++ = '0';
-    memcpy(p, dig, (size_t)nd);
-    return p + nd;
+    if (d != d)
+        return MS_W_LIT(p, "NaN");
+    if (isinf(d))
+        return d < 0 ? MS_W_LIT(p, "-inf") : MS_W_LIT(p, "inf");
+    return type == MS_T_F32 ? ms_w_f32_repr(p, f) : ms_w_double_repr(p, d);
 }
 
 /* n / 10**digits with exactly `digits` decimals (digits <= 9) */
@@ -449,7 +388,7 @@ static char *w_item(char *p, const ms_sitem *it, const ms_field *f, const uint8_
         return p;
     }
     if (type == MS_T_F32 || type == MS_T_F64)
-        return ms_w_g4(p, float_at(type, v));
+        return w_float(p, type, v);
     const int64_t x = int_at(type, v);
     const int sgn = is_signed_type(type);
     if (it->how == MS_HOW_ENUM) {

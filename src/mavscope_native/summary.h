@@ -82,8 +82,6 @@ static inline const ms_smessage *ms_summary_get(const ms_summary *s, const ms_me
 }
 
 /* Text writers, exactly as Python formats (for the writer and the tests); each returns the end. */
-#define MS_G4_MAX 32 /* format(v, '.4g'): "-1.234e-308", "inf", "NaN" */
-char *ms_w_g4(char *p, double v);
 #define MS_DEG_MAX 48 /* f"{v / 1e7:.7f}" of a 64-bit integer */
 char *ms_w_degrees(char *p, int64_t v, int is_unsigned);
 #define MS_REL_MAX 40 /* f"{t:11.6f}" for |t| < 1e15 */

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import struct
 
+from mavscope.mavlink.floats import f32_text, f32_value
 from mavscope.mavlink.frame import Frame, plaintext_payload
 
 Value = int | float | str
@@ -100,17 +101,14 @@ def value_text(v: Value | None) -> str:
         return "nan"
     if math.isinf(v):
         return "inf" if v > 0 else "-inf"
-    target = _f32(v)
-    if target is None:
-        return repr(v)
-    for digits in range(1, 10):
-        text = f"{v:.{digits}g}"
-        if _f32(float(text)) == target:
-            break
+    text = f32_text(v)  # (mavlink/floats.py; a double beyond float32's range as repr writes it)
     if "e" in text:  # a parameter file wants plain decimals where they are short enough
+        target = _f32(v)
         plain = f"{float(text):.12f}".rstrip("0").rstrip(".")
         if len(plain) <= 20 and _f32(float(plain)) == target:
             text = plain
+    elif text.endswith(".0"):  # and whole numbers as integers are written (100, not 100.0)
+        text = text[:-2]
     return text
 
 
@@ -120,5 +118,5 @@ def json_value(v: Value | None) -> object:
     if isinstance(v, float):
         if not math.isfinite(v):
             return value_text(v)
-        return float(value_text(v))
+        return f32_value(v)
     return v

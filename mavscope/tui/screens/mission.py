@@ -38,8 +38,10 @@ class MissionResult:
     track: list[tuple[float, float]]
 
 
-def _fmt(v: float) -> str:
-    return float_text(v, ".7g") if isinstance(v, float) else f"{v:.7g}"
+def _fmt(v: float, float32: bool = True) -> str:
+    """A parameter or coordinate: a float32 (`float32`) as the shortest text that reads back as the same
+    float32, another float as repr (MISSION_ITEM_INT's local x/y in metres)."""
+    return float_text(v, float32) if isinstance(v, float) else str(v)
 
 
 class MissionScreen(AnalysisScreen):
@@ -158,8 +160,9 @@ class MissionScreen(AnalysisScreen):
                 elif v and not (isinstance(v, float) and math.isnan(v)):
                     params.append(f"param{n} {_fmt(v)}")
             glob = is_global(it.frame)
-            lat = f"{it.x:.7f}°" if glob else _fmt(it.x)
-            lon = f"{it.y:.7f}°" if glob else _fmt(it.y)
+            wire_float = it.message != "MISSION_ITEM_INT"
+            lat = f"{it.x:.7f}°" if glob else _fmt(it.x, wire_float)
+            lon = f"{it.y:.7f}°" if glob else _fmt(it.y, wire_float)
             z_label = labels.get(7, ("Altitude", "m"))
             alt = f"{_fmt(it.z)} {z_label[1] or 'm'}"
             fname = (frames.name_of(it.frame) if frames else None) or str(it.frame)
