@@ -27,16 +27,19 @@ from mavscope.native_dump import Accumulator, plan_for
 from mavscope.notes import Finding
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.security.stage import SecurityStage
+from mavscope.transport.base import TRANSPORT_TLOG
 
 
 class NativeStats:
     """What a native pass made: the statistics, the expert findings, and how many frames it saw."""
 
-    def __init__(self, stats: Stats, findings: list[Finding], frames: int, size: int) -> None:
+    def __init__(self, stats: Stats, findings: list[Finding], frames: int, size: int,
+                 logged_in_part: frozenset[tuple[int, int]] = frozenset()) -> None:
         self.stats = stats
         self.findings = findings
         self.frames = frames
         self.size = size
+        self.logged_in_part = logged_in_part  # Expert.logged_in_part
 
 
 def native_stats(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityStage, problems: Reporter,
@@ -80,4 +83,6 @@ def native_stats(path: str | os.PathLike[str], dialect: Dialect, stage: Security
     if acc.full():
         return None
     stats, ex = acc.result(dialect)
-    return NativeStats(stats, ex.findings(), acc.frames + counters["frames_native"], counters["size"])
+    ex.recorded = any(c.transport == TRANSPORT_TLOG for c in stats.conversations.values())  # as Expert.add
+    return NativeStats(stats, ex.findings(), acc.frames + counters["frames_native"], counters["size"],
+                       ex.logged_in_part())

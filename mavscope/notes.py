@@ -257,6 +257,13 @@ CODES: dict[str, Code] = {
         Code("seq-shared-counter", _NOTE, Group.SEQUENCE, _C,
              "several system/component ids number their frames on one counter: the numbers one skips, the "
              "others used"),
+        Code("seq-logged-in-part", _NOTE, Group.SEQUENCE, _C,
+             "a ground station's own frames in a tlog, which logs them only in part: the numbers missing from "
+             "its sequence are not link loss",
+             "a tlog records what the ground station that wrote it received; its own frames, and those of the "
+             "ground stations it forwards (MAVProxy and Mission Planner, QGroundControl), are logged only in "
+             "part: the sequence numbers missing from a ground station's frames (HEARTBEAT type GCS) in a tlog "
+             "are not link loss, and are said in place of a seq-gap warning"),
         Code("new-commander", _WARN, Group.SECURITY, _C, "a second system commands a vehicle"),
         Code("unexpected-command-source", _WARN, Group.SECURITY, _C,
              "commands from a known sender arrive from another network endpoint"),

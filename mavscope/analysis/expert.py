@@ -26,6 +26,7 @@ from mavscope.analysis.sequence import GAP_MIN, SeqChannels, SeqTracker, totals
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
 from mavscope.notes import Finding, FrameNumbers, finding, sort_findings
+from mavscope.transport.base import TRANSPORT_TLOG
 
 BURST_MIN = 3  # bad-CRC frames...
 BURST_WINDOW_S = 1.0  # ...each within this long of the previous one make a burst
@@ -130,6 +131,7 @@ class SequenceAnomalies:
 
     def __init__(self) -> None:
         self.seqs = SeqChannels()
+        self.logged_in_part: frozenset[Link] = frozenset()  # senders a tlog logs in part (Expert.findings sets it)
         self.counts: Counter[Link] = Counter()
         self.events: dict[tuple[Link, str], FrameNumbers] = {}
         self.messages: dict[tuple[Link, str], Counter[str]] = {}  # the messages of each event's frames
@@ -189,6 +191,10 @@ class SequenceAnomalies:
             shared = [tr for tr in trackers if tr.counter_shared]
             if shared:
                 out.append(_shared_counter((sysid, compid), shared, totals(trackers).lost))
+            if (sysid, compid) in self.logged_in_part:  # said in place of seq-gap: not link loss
+                if lost := totals(trackers).lost:
+                    out.append(logged_in_part((sysid, compid), lost, trackers))
+                continue
             gaps = [(tr.missed_in(g), g) for tr in trackers for g in tr.gaps if tr.missed_in(g) >= GAP_MIN]
             if not gaps:
                 continue
@@ -235,6 +241,16 @@ class SequenceAnomalies:
                                    "or one sender's two MAVLink channels where the capture cannot tell them apart, "
                                    f"as in a tlog){_which(messages, cut)}", nums))
         return out
+
+
+def logged_in_part(key: Link, lost: int, trackers: list[SeqTracker]) -> Finding:
+    """`seq-logged-in-part`: ground station `key`'s frames in a tlog miss `lost` numbers (as the Links table
+    counts them), which the tlog did not log: not link loss. The frames: those after its large gaps."""
+    large = sorted(g.record for tr in trackers for g in tr.gaps)[:MAX_FRAMES]
+    return finding("seq-logged-in-part",
+                   f"link {key[0]}/{key[1]}: {lost} numbers missing from its sequence, as in the Links table: a "
+                   "ground station (HEARTBEAT type GCS) in a tlog; a tlog records what the ground station received, "
+                   "its own frames are logged only in part: this is not link loss", large)
 
 
 def _shared_counter(key: Link, trackers: list[SeqTracker], lost: int) -> Finding:
@@ -392,8 +408,11 @@ class Expert:
         self.detectors = [d(dialect) if d in DIALECT_DETECTORS else d()
                           for d in (DETECTORS if detectors is None else detectors)]
         self.decode = COMMANDING.union({"HEARTBEAT"}, *(getattr(d, "wants", ()) for d in self.detectors))
+        self.recorded = False  # frames from a tlog, a ground station's recording (the native pass sets it too)
 
     def add(self, f: Frame) -> None:
+        if f.transport == TRANSPORT_TLOG:
+            self.recorded = True
         fields = self.fields(f)
         for d in self.detectors:
             d.add(f, fields)
@@ -405,9 +424,23 @@ class Expert:
             return decode_payload(f)
         return None
 
+    def logged_in_part(self) -> frozenset[Link]:
+        """The senders whose own frames the capture logs only in part: in a tlog (`recorded`), every
+        component of a system that sent a HEARTBEAT of type GCS (CommandSources.gcs). A tlog holds what the
+        ground station that wrote it received, and its own frames (and those it forwards) only in part: the
+        numbers missing from their sequence are not link loss (`seq-logged-in-part`, stats' Links table)."""
+        seq = next((d for d in self.detectors if isinstance(d, SequenceAnomalies)), None)
+        cs = next((d for d in self.detectors if isinstance(d, CommandSources)), None)
+        if not self.recorded or seq is None or cs is None:
+            return frozenset()
+        return frozenset(s for s in seq.seqs.senders if s[0] in cs.gcs)
+
     def findings(self) -> list[Finding]:
         out: list[Finding] = []
+        part = self.logged_in_part()
         for d in self.detectors:
+            if isinstance(d, SequenceAnomalies):
+                d.logged_in_part = part
             if isinstance(d, BadCrcBursts):  # (the native pass hands over one made without the dialect)
                 d.dialect = self.dialect
             out.extend(d.findings())

@@ -10,7 +10,9 @@ destination endpoints, for MAVLink counts per channel), modulo 256 (`SeqTracker`
 number is ahead of the last one by d counts d - 1 lost; the same number again is a duplicate; a number
 behind (by up to 128) is a late frame: it fills a gap already counted (loss - 1, `reordered`) or, if no
 gap holds it, is a duplicate. Gaps of more than 127 cannot be told from late frames and count as late.
-A link's row sums its channels.
+A link's row sums its channels. A ground station's frames in a tlog are logged only in part (the tlog holds
+what it received): its row says so (`logged_in_part`), and the totals count its missing numbers apart
+(`lost_logged_in_part`, part of `lost`), not as link loss.
 """
 
 from __future__ import annotations
@@ -168,6 +170,9 @@ class Stats:
     signature: Counter[str]
     unfollowed_streams: int = 0  # frames of (sender, message) streams beyond the first MAX_STREAMS
     unfollowed_conversations: int = 0  # frames of conversations beyond the first MAX_CONVERSATIONS
+    # senders whose own frames the capture logs only in part (ground stations in a tlog: Expert.logged_in_part,
+    # which the command sets): their `lost` is said to be no link loss, and totalled apart
+    logged_in_part: frozenset[tuple[int, int]] = frozenset()
 
     @property
     def duration(self) -> float | None:
@@ -194,6 +199,7 @@ class Stats:
             out.append({
                 "sysid": sysid, "compid": compid, "received": lk.received, "lost": seq.lost,
                 "loss_pct": round(100.0 * seq.lost / expected, 3) if expected > 0 else 0.0,
+                "logged_in_part": (sysid, compid) in self.logged_in_part,
                 "duplicates": seq.duplicates, "unchanged_seq": seq.unchanged, "reordered": seq.reordered,
                 "bytes": lk.bytes,
                 "v1": lk.v1, "v2": lk.v2, "crc": dict(sorted(lk.crc.items())),
@@ -221,6 +227,8 @@ class Stats:
             "frames": self.frames, "bytes": self.bytes, "start": self.first, "duration": self.duration,
             "links": len(self.links), "messages": len({k[2] for k in self.streams}),
             "lost": sum(totals(lk.channels.values()).lost for lk in self.links.values()),
+            "lost_logged_in_part": sum(totals(lk.channels.values()).lost for key, lk in self.links.items()
+                                       if key in self.logged_in_part),
             "v1": self.versions.get(1, 0), "v2": self.versions.get(2, 0),
             "crc": dict(sorted(self.crc.items())), "signature": dict(sorted(self.signature.items())),
             "unfollowed_stream_frames": self.unfollowed_streams,

@@ -19,6 +19,9 @@ from mavscope.output.grid import columns, print_table
 from mavscope.output.tables import fmt, iso, listed, sparkline
 
 SPARK_WIDTH = 40
+PARTIAL_MARK = "*"  # a link whose own frames the capture logs only in part (Stats.logged_in_part)
+PARTIAL_TEXT = ("ground station (HEARTBEAT type GCS) in a tlog: a tlog records what the ground station received; "
+                "its own frames are logged only in part: this is not link loss")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -53,7 +56,9 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         return [f"{m['sysid']}/{m['compid']}", str(m["msgname"]), str(m["count"]), rate, str(m["bytes"]), line]
 
     def link(lk: dict) -> list[str]:
-        return [f"{lk['sysid']}/{lk['compid']}", str(lk["received"]), str(lk["lost"]), fmt(lk["loss_pct"], 2),
+        mark = PARTIAL_MARK if lk["logged_in_part"] else ""
+        return [f"{lk['sysid']}/{lk['compid']}", str(lk["received"]), str(lk["lost"]) + mark,
+                fmt(lk["loss_pct"], 2) + mark,
                 str(lk["duplicates"]), str(lk["reordered"]), str(lk["v1"]), str(lk["v2"]),
                 _counts(lk["crc"]), _counts(lk["signature"]), listed(lk["endpoints"])]
 
@@ -69,6 +74,10 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                              "signature", "endpoints",
                              right=("sysid/compid", "received", "lost", "loss %", "dup", "late", "v1", "v2")),
                 cast("list[dict]", doc["links"]), link, title="Links (sysid, compid)")
+    partial = [f"{lk['sysid']}/{lk['compid']}" for lk in cast("list[dict]", doc["links"])
+               if lk["logged_in_part"] and lk["lost"]]
+    if partial:
+        con.print(f"{PARTIAL_MARK} {', '.join(partial)}: {PARTIAL_TEXT}", highlight=False, markup=False)
     print_table(con, columns("transport", "A", "B", "frames", "A→B", "B→A", "bytes", "start", "duration s", "systems",
                              right=("frames", "A→B", "B→A", "bytes", "duration s")),
                 cast("list[dict]", doc["conversations"]), conversation, title="Conversations")
@@ -76,7 +85,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     tot = cast("dict", doc["totals"])
     shown = f" (-Y matched {tot['matched']}; rows with a matched frame shown)" if "matched" in tot else ""
     con.print(f"Totals{shown}: {tot['frames']} frames, {tot['bytes']} bytes, {fmt(tot['duration'])} s, "
-              f"{tot['links']} links, {tot['messages']} message types, {tot['lost']} lost; "
+              f"{tot['links']} links, {tot['messages']} message types, {_lost(tot)}; "
               f"v1 {tot['v1']}, v2 {tot['v2']}; CRC {_counts(tot['crc'])}; "
               f"signature {_counts(tot['signature'])}")
     for key, rows, what, limit in (
@@ -98,7 +107,9 @@ def _pure(args: argparse.Namespace, env: Env) -> tuple[Stats, list[Finding], str
             builder.add(frame)
             expert.add(frame)
         path, select = frames.session.name, frames.selection
-    return builder.result(), [f for f in expert.findings() if select.any_record(f.frames)], path, select
+    stats = builder.result()
+    stats.logged_in_part = expert.logged_in_part()
+    return stats, [f for f in expert.findings() if select.any_record(f.frames)], path, select
 
 
 def _native_eligible(args: argparse.Namespace, env: Env) -> bool:
@@ -140,7 +151,17 @@ def _native(args: argparse.Namespace, env: Env) -> tuple[Stats, list[Finding], s
     env.stderr.write(held.stderr.getvalue())  # type: ignore[attr-defined]
     if result.frames == 0:
         env.say(f"no MAVLink frames found in {name} ({result.size} bytes, detected as {kind})")
+    result.stats.logged_in_part = result.logged_in_part
     return result.stats, result.findings, name, Selection()
+
+
+def _lost(tot: dict) -> str:
+    """The totals' loss: on the links, and apart the numbers missing from ground stations' own frames in a tlog."""
+    part = tot["lost_logged_in_part"]
+    if not part:
+        return f"{tot['lost']} lost"
+    return (f"{tot['lost'] - part} lost on the links ({part} more missing from ground stations' own frames, "
+            f"which a tlog logs only in part{PARTIAL_MARK})")
 
 
 def _counts(d: dict[str, int]) -> str:

@@ -84,6 +84,15 @@ def test_wrap_repeats_with_loss_are_not_replays(cli: Cli, tmp_path: Path) -> Non
     lose = set(range(300, 330)) | {50, 260, 400, 512, 640}
     found = _findings(cli, flows.write_tlog(tmp_path, _gcs_flow(lose)))
     assert "replayed-command" not in found
+    # a ground station's own frames in a tlog: its 35 missing numbers are said, not warned as link loss
+    assert "seq-gap" not in found
+    (part,) = found["seq-logged-in-part"]
+    assert part["severity"] == "note" and "35 numbers missing" in part["message"]
+    # the same frames captured on the wire (UDP): lost on the link
+    pcap = flows.write_udp_pcap(tmp_path / "flow.pcap", [(("10.0.0.2", 14550), ("10.0.0.1", 14555), frame)
+                                                         for _, frame in _gcs_flow(lose)])
+    found = _findings(cli, str(pcap))
+    assert "replayed-command" not in found and "seq-logged-in-part" not in found
     (gap,) = found["seq-gap"]
     assert "30 frames lost in 1 gap" in gap["message"] and "35 lost in all" in gap["message"]
 

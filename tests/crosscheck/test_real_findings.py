@@ -4,6 +4,8 @@ captures, against what each capture shows when read without mavscope.
 For the tlogs, the expected sequence and command-source findings are derived here from the tlog read by
 hand and decoded by pymavlink (`_frames`), by the rule each finding states in docs/analysis.md:
 - seq-gap: a sender's counter jumps over 10 or more numbers and 10 or more of them never come;
+- seq-logged-in-part, in place of seq-gap in a tlog: a sender of a system that sent a HEARTBEAT of type GCS
+  (a tlog logs a ground station's own frames only in part) whose counter skipped numbers no late frame filled;
 - seq-reordered: a frame fills a number skipped before; seq-duplicate: a copy of the frame before, or a
   frame behind the counter that fills nothing; seq-unchanged: the previous frame's number, other bytes;
 - seq-interleaved: frames stepping back are 5 or more and at least 5 % of the sender's;
@@ -96,7 +98,9 @@ def _frames(data: bytes) -> list[F]:
     return out
 
 
-def _sequence_findings(frames: list[F]) -> set[tuple[str, str]]:
+def _sequence_findings(frames: list[F], gcs: frozenset[int] = frozenset()) -> set[tuple[str, str]]:
+    """`gcs`: in a tlog, the systems that sent a HEARTBEAT of type GCS (6): a tlog logs their own frames
+    in part, and their numbers still missing are seq-logged-in-part in place of seq-gap."""
     by: dict[tuple[int, int], list[F]] = defaultdict(list)
     for f in frames:
         by[f.src].append(f)
@@ -106,7 +110,7 @@ def _sequence_findings(frames: list[F]) -> set[tuple[str, str]]:
         top, prev = lst[0].seq, lst[0].raw
         missing: dict[int, int] = {}  # position still missing (and not yet too far behind) -> its gap
         remaining: dict[int, int] = {}  # gap of 10 or more -> how many of its numbers never came
-        late = copies = behind = unchanged = 0
+        late = copies = behind = unchanged = skipped = 0
         run: list[int] = []
         names: set[str] = set()  # the messages of the frames listed as copies, behind (a run's too) or late
         for f in lst[1:]:
@@ -120,6 +124,7 @@ def _sequence_findings(frames: list[F]) -> set[tuple[str, str]]:
                     unchanged += 1
                 run = []
             elif delta < 128:
+                skipped += delta - 1
                 if delta - 1 >= 10:
                     remaining[top] = delta - 1
                 for p in range(top + 1, top + delta):
@@ -143,7 +148,10 @@ def _sequence_findings(frames: list[F]) -> set[tuple[str, str]]:
                     top += 256 + (run[-1] - top) % 256
                     missing, run = {}, []
             prev = f.raw
-        if any(n >= 10 for n in remaining.values()):
+        if src[0] in gcs:
+            if skipped > late:  # numbers skipped that no late frame filled
+                out.add(("seq-logged-in-part", link))
+        elif any(n >= 10 for n in remaining.values()):
             out.add(("seq-gap", link))
         if unchanged:
             out.add(("seq-unchanged", link))
@@ -225,7 +233,9 @@ def _reported(cli: Cli, path: Path, expected: set[tuple[str, str]] | None = None
 @pytest.mark.parametrize("name", TLOGS)
 def test_tlog_findings_are_those_the_capture_shows(cli: Cli, real_captures: Path, name: str) -> None:
     frames = _frames((real_captures / name).read_bytes())
-    expected = _sequence_findings(frames) | _shared_counters(frames) | _command_findings(frames)
+    gcs = frozenset(f.src[0] for f in frames if f.msg is not None and not isinstance(f.msg, mavlink.MAVLink_bad_data)
+                    and f.msg.get_type() == "HEARTBEAT" and f.msg.type == 6)
+    expected = _sequence_findings(frames, gcs) | _shared_counters(frames) | _command_findings(frames)
     assert _reported(cli, real_captures / name) == expected
 
 
