@@ -32,7 +32,11 @@ gets IPv4 datagrams too, as IPv4-mapped addresses). The model, per UDP port:
   IPv6 addresses, a host on two networks). A frame only this state reads is shown with that condition.
 The bounds (MAX_PER_PORT hosts a port, MAX_STATES in all) give up the newest state (house policy:
 mavscope.notes.pop_newest), never what was there before a flood, and say so (`capacity` notes with the
-records and bytes given up), so a flood cannot choose what the analyst loses or lose it silently.
+records and bytes given up), so a flood cannot choose what the analyst loses or lose it silently. The
+broadcast's state (`Port.anon`) is never given up for the hosts that left it: past MAX_MOVED hosts told
+apart the newest but the one just reached is forgotten (said), and a host not told apart is then read from
+each state it may be in (the broadcast's, an idle receiver's, `Port.others`): a frame may be shown twice,
+none is hidden for it.
 """
 
 from __future__ import annotations
@@ -52,6 +56,9 @@ LOOPBACK = "loopback"
 WILD = "*"  # the key of a port's state that every datagram to it reaches
 FRESH = "idle"  # the key of an idle receiver's walk, where a broadcast needs one besides
 ANON = "broadcast"  # the key of the state of the hosts a broadcast left in a frame that had no state of their own
+OTHER = "other"  # the keys (OTHER0, OTHER1...) of the other states a host forgotten from Port.moved may be in
+MAX_MOVED = 4 * MAX_PER_PORT  # hosts a port tells apart from those a broadcast left in a frame (the newest forgotten)
+MAX_OTHERS = 4  # states besides ANON's and an idle one that a forgotten host may be in (the first kept)
 _BCAST_BITS = 0x7F  # an IPv4 address whose last 7 bits are ones is taken for a subnet's broadcast (/25 or wider)
 
 
@@ -136,15 +143,21 @@ def host_of(address: str) -> str | None:
 @dataclass(slots=True)
 class Port:
     """The receivers on one UDP port that are in a frame: per host (oldest first), the hosts' that a
-    broadcast left in one (`anon`, which every host not in `moved` is in), and the wildcard socket's."""
+    broadcast left in one (`anon`, which every host not in `moved` is in), and the wildcard socket's.
+
+    `moved` is bounded (MAX_MOVED, the newest but the one just added forgotten); once a host is forgotten
+    (`forgot`), a host not in `moved` may be in `anon`, idle, or in one of `others` (where broadcasts since
+    took an idle one), and its datagram is walked from each: a frame may be shown twice, never hidden."""
 
     hosts: dict[str, Waiting] = field(default_factory=dict)
     anon: Waiting | None = None
-    moved: set[str] = field(default_factory=set)  # hosts that went on from `anon` (or were not in it)
+    moved: dict[str, None] = field(default_factory=dict)  # hosts that went on from `anon` (or were not in it)
     wild: Waiting | None = None
+    forgot: bool = False  # a host was forgotten from `moved`: a host not in it may not be in `anon`
+    others: tuple[Waiting, ...] = ()  # (forgot) the states besides `anon` and idle such a host may be in
 
     def empty(self) -> bool:
-        return not self.hosts and self.anon is None and self.wild is None
+        return not self.hosts and self.anon is None and self.wild is None and not self.others
 
 
 class Sockets:
@@ -154,28 +167,37 @@ class Sockets:
     def __init__(self) -> None:
         self.ports: dict[int, Port] = {}
         self.states = 0
-        self.given_up = GivenUp(f"UDP receivers in a frame ({MAX_PER_PORT} hosts a port, {MAX_STATES:,} in all)",
-                                "bytes of frames given up")
+        self.given_up = GivenUp(f"UDP receivers in a frame ({MAX_PER_PORT} hosts a port, {MAX_STATES:,} in all, "
+                                f"{MAX_OTHERS} states a forgotten host may be in)", "bytes of frames given up")
+        self.forgotten = GivenUp(f"UDP hosts told apart from those a broadcast left in a frame ({MAX_MOVED} a port)",
+                                 "hosts")
 
     def reach(self, dst: Endpoint) -> list[tuple[str, Waiting | None]]:
-        """The receiver states a datagram to `dst` goes on with, by key (a host, ANON, WILD, and FRESH where an
-        idle receiver's walk is needed besides), None for an idle one. A unicast datagram walks its host's,
-        a broadcast every host's and ANON; WILD is always there (the same object where the states are one)."""
+        """The receiver states a datagram to `dst` goes on with, by key (a host, ANON, WILD, FRESH where an
+        idle receiver's walk is needed besides, OTHER+i for `Port.others`), None for an idle one. A unicast
+        datagram walks its host's (each it may be in: `Port.forgot`), a broadcast every host's, ANON and the
+        others; WILD is always there (the same object where the states are one)."""
         port = self.ports.get(dst.port)
         host = host_of(dst.host)
         if port is None:
             return [(ANON if host is None else host, None), (WILD, None)]
         out: list[tuple[str, Waiting | None]] = []
+        others = [(f"{OTHER}{i}", w) for i, w in enumerate(port.others)]
         if host is None:
             out.extend(port.hosts.items())
             out.append((ANON, port.anon))
-            if port.anon is not None and port.moved.difference(port.hosts):
+            out.extend(others)
+            if port.anon is not None and (port.forgot or any(h not in port.hosts for h in port.moved)):
                 out.append((FRESH, None))
         else:
             own = port.hosts.get(host)
-            if own is None and port.anon is not None and host not in port.moved:
+            unknown = own is None and host not in port.moved
+            if unknown and port.anon is not None:
                 own = port.anon
             out.append((host, own))
+            if unknown and port.forgot:  # (a host forgotten from `moved`: idle, or in one of the others)
+                out.append((FRESH, None))
+                out.extend(others)
         out.append((WILD, port.wild))
         return out
 
@@ -186,47 +208,77 @@ class Sockets:
         if port is None:
             port = self.ports[dst.port] = Port()
         before = _count(port)
+        said = self.given_up.said = self.forgotten.said = []
         host = host_of(dst.host)
         port.wild = left.pop(WILD, None)
         fresh = left.pop(FRESH, None)
+        outs: list[Waiting | None] = [left.pop(f"{OTHER}{i}", None) for i in range(len(port.others))]
         if host is None:  # a broadcast: each host's receiver went on with it, the idle ones' from ANON's
             was = port.anon
             port.anon = left.pop(ANON, None)
-            if was is None:  # every host without a state of its own was idle: they are in the new ANON
-                port.moved = set(port.hosts)
+            if was is None:  # (the ANON walk was an idle receiver's)
+                fresh = port.anon
+            if was is None and not port.others:  # every host without a state of its own was idle: they are in
+                port.moved = dict.fromkeys(port.hosts)  # the new ANON
+                port.forgot = False
             else:  # the hosts that had left ANON and were idle are where an idle receiver is now
-                idle = port.moved.difference(port.hosts)
-                port.moved.update(port.hosts)
+                idle = [h for h in port.moved if h not in port.hosts]
+                port.moved.update(dict.fromkeys(port.hosts))
                 if fresh is not None:
-                    left.update(dict.fromkeys(sorted(idle), fresh))
-        elif port.anon is not None:
-            port.moved.add(host)
+                    left.update(dict.fromkeys(idle, fresh))
+                if port.forgot:  # a forgotten host that was idle is where an idle receiver is now, too
+                    outs.append(fresh)
+                    self._keep_others(port, outs, dst.port)
+        else:
+            if host in left and port.forgot and port.hosts.get(host) is None and host not in port.moved:
+                # a forgotten host, walked from each state it may be in: the first kept (ANON's, the others',
+                # an idle receiver's: what came first), every other one given up
+                ways = {id(w): w for w in (left[host], *outs, fresh) if w is not None}
+                kept = next(iter(ways.values()), None)
+                left[host] = kept
+                for way in ways.values():
+                    if way is not kept and way is not port.wild:
+                        self._let_go(way, f"one of the states the receiver at {dst.host}:{dst.port} may be in")
+            if port.anon is not None or port.forgot:
+                port.moved[host] = None
         for h, w in left.items():
             port.hosts.pop(h, None)
             if w is not None:
                 port.hosts[h] = w  # the newest last
-        said = self.given_up.said = []
         while len(port.hosts) > MAX_PER_PORT:
             newest = [h for h in port.hosts if h != host][-1]
             w = port.hosts.pop(newest)
             if w is not port.wild and w is not port.anon:  # (else the frame is still followed there)
                 self._let_go(w, f"the receiver at {newest}:{dst.port}")
-        if port.anon is None:
+        if port.anon is None and not port.others:  # every host without a state of its own is idle
             port.moved.clear()
-        elif len(port.moved) > 4 * MAX_PER_PORT:  # too many hosts to tell apart: the broadcast's state goes
-            if port.anon is not port.wild:
-                self._let_go(port.anon, f"the receivers a broadcast to port {dst.port} left in a frame")
-            port.anon = None
-            port.moved.clear()
+            port.forgot = False
+        while len(port.moved) > MAX_MOVED:  # the broadcast's state stays; a host forgotten is taken to be in it
+            gone, _ = pop_newest(port.moved, host)
+            port.forgot = True
+            self.forgotten.add(f"{gone}:{dst.port} is no longer told apart from the hosts a broadcast to the port "
+                               "left in a frame: its datagrams are read from each state it may be in (a frame may "
+                               "be shown twice, none is hidden)")
         self.states += _count(port) - before
         if port.empty():
             del self.ports[dst.port]
         while self.states > MAX_STATES and len(self.ports) > 1:  # the newest port's go (house policy)
-            k, gone = pop_newest(self.ports, dst.port)
-            self.states -= _count(gone)
-            for w in {id(w): w for w in (*gone.hosts.values(), gone.anon, gone.wild) if w is not None}.values():
+            k, gone_port = pop_newest(self.ports, dst.port)
+            self.states -= _count(gone_port)
+            for w in {id(w): w for w in (*gone_port.hosts.values(), gone_port.anon, gone_port.wild,
+                                         *gone_port.others) if w is not None}.values():
                 self._let_go(w, f"a receiver on port {k}")
         return said
+
+    def _keep_others(self, port: Port, outs: list[Waiting | None], number: int) -> None:
+        """`Port.others` after a broadcast: where the others and an idle receiver (`outs`) are now, one of each
+        state (those that are ANON's or idle drop out), at most MAX_OTHERS (the first kept, the rest given up)."""
+        ways = {id(w): w for w in outs if w is not None and w is not port.anon}
+        kept = tuple(ways.values())[:MAX_OTHERS]
+        for w in tuple(ways.values())[MAX_OTHERS:]:
+            if w is not port.wild:
+                self._let_go(w, f"one of the states a forgotten host on port {number} may be in")
+        port.others = kept
 
     def _let_go(self, w: Waiting, who: str) -> None:
         _, records, dsts = w.locate(0)
@@ -237,7 +289,7 @@ class Sockets:
 
 def _count(port: Port) -> int:
     """The receiver states a port holds (one object where several receivers are in the same state)."""
-    return len({id(w) for w in (*port.hosts.values(), port.anon, port.wild) if w is not None})
+    return len({id(w) for w in (*port.hosts.values(), port.anon, port.wild, *port.others) if w is not None})
 
 
 def split_note(h: Hidden, before: int, records: tuple[int, ...], dsts: tuple[str, ...], offset: int | None,

@@ -118,3 +118,82 @@ def test_a_flood_of_waiting_receivers_does_not_hide_the_arm_and_is_said(cli, tmp
         # was shown above); each give-up is counted, the 1st, 2nd, 4th... said with the count so far
         assert f"({1 << (given.bit_length() - 1):,} given up so far" in out, (name, given)
         assert f"({(1 << given.bit_length()):,} given up so far" not in out, (name, given)
+
+
+def flood_hosts(n: int) -> list[tuple[str, int]]:
+    """`n` other hosts on the vehicle's port, none an address taken for a broadcast (last octet 1..100)."""
+    return [(f"10.{i // 10000}.{i // 100 % 100}.{i % 100 + 1}", 14550) for i in range(n)]
+
+
+def shown_as_built(rows: list[dict], record: int, built: bytes) -> bool:
+    """The frame shown at `record` is `built` as pymavlink decodes it (independent of mavscope's decoding)."""
+    from pymavlink.dialects.v20 import common
+
+    m = common.MAVLink(None).decode(bytearray(built))
+    hdr = m.get_header()
+    return any(r["frame"] == record and r["msgname"] == m.get_type() and r["seq"] == hdr.seq
+               and r["sysid"] == hdr.srcSystem and r["compid"] == hdr.srcComponent
+               and r["crc"] == int.from_bytes(built[-2:], "little") and r["crc_status"] == "ok"
+               and r["fields"]["command"] == m.command and r["fields"]["param1"] == m.param1 for r in rows)
+
+
+def capacity(rows: list[dict]) -> str:
+    """The `capacity` notes on the frames shown, one a line."""
+    return "\n".join(n["message"] for r in rows for n in r["notes"] if n["code"] == "capacity")
+
+
+def test_a_broadcast_half_outlives_a_flood_of_hosts_on_its_port(cli, tmp_path: Path,  # type: ignore[no-untyped-def]
+                                                                 cparser: CParser) -> None:
+    # The ARM's first 20 bytes to 255.255.255.255:14550, then clean HEARTBEATs to n other hosts on port 14550
+    # (each reaches only its own host), then the rest to the vehicle. The vehicle's socket gets the broadcast
+    # and the rest only: the C parser kept across them reads the ARM (its 44 bytes, ending in the second). The
+    # hosts the HEARTBEATs reach go on from the broadcast's state (mavscope follows at most 64 a port and tells
+    # at most 256 apart): the broadcast's state must outlive them (it was there before the flood).
+    d1, d2 = half_datagrams()
+    assert cparser.frames([d1, d2], keep=True) == [set(), {(-20, len(arm()))}]
+    hb = pmav.heartbeat(pmav.mav2())
+    for n in (10, 300, 10_000):
+        packets = [(GCS, ("255.255.255.255", 14550), d1), *((GCS, h, hb) for h in flood_hosts(n)), (GCS, VEHICLE, d2)]
+        path = write_udp_pcap(tmp_path / f"bcast{n}.pcap", packets)
+        rows = both(cli, path)
+        assert [r for r, codes in arms(rows) if "split-frame" in codes] == [len(packets)], n
+        assert shown_as_built(rows, len(packets), arm()), n
+        status, out, _ = cli("audit", path, environ=PURE)
+        if n == 10:  # far from every bound: nothing given up
+            assert "capacity" not in out, out
+            continue
+        # what was given up (the newest hosts' receivers, the newest hosts told apart) is an audit finding,
+        # and each is said on its record
+        assert "[warn] capacity" in out, (n, out)
+        said = capacity(rows)
+        assert "is no longer told apart from the hosts a broadcast to the port left in a frame" in said, n
+        assert "the receiver at 10." in said and "was let go in a frame of which 41 bytes had come" in said, n
+        assert "a broadcast to port 14550 left in a frame was let go" not in said
+
+
+def test_a_host_forgotten_past_the_bound_is_read_from_each_state_it_may_be_in(cli, tmp_path: Path,  # type: ignore[no-untyped-def]
+                                                                              cparser: CParser) -> None:
+    # A broadcast leaves every receiver on port 14550 two bytes into a frame (the start of a 21-byte frame);
+    # 318 HEARTBEATs to other hosts each end it there (CRC wrong, idle after), so each host is told apart from
+    # those still in it, past the 256 a port holds. The vehicle gets a HEARTBEAT too, and one more host after
+    # it: the vehicle is the host forgotten (the newest but the one just added), the 64th (318 + 2 - 256),
+    # said. Then the ARM in two halves to the vehicle. The vehicle's socket gets the broadcast, its HEARTBEAT
+    # and the two halves: the C parser kept across them reads the ARM in the last one.
+    d1, d2 = half_datagrams()
+    stub = b"\xfd\x09"
+    hb = pmav.heartbeat(pmav.mav2())
+    assert cparser.frames([stub, hb, d1, d2], keep=True)[3] == {(-20, len(arm()))}
+    hosts = flood_hosts(319)
+    packets = [(GCS, ("192.168.1.255", 14550), stub), *((GCS, h, hb) for h in hosts[:318]), (GCS, VEHICLE, hb),
+               (GCS, hosts[318], hb), (GCS, VEHICLE, d1), (GCS, VEHICLE, d2)]
+    path = write_udp_pcap(tmp_path / "forgotten.pcap", packets)
+    rows = both(cli, path)
+    assert [r for r, codes in arms(rows) if "split-frame" in codes] == [len(packets)]
+    assert shown_as_built(rows, len(packets), arm())
+    # read by the vehicle's own receiver (every datagram went to its address or a broadcast), not only by the
+    # port's wildcard state, whose note would say the condition "if ... reach one receiving socket"
+    note = next(n["message"] for r in rows if r["frame"] == len(packets) for n in r["notes"]
+                if n["code"] == "split-frame")
+    assert not note.startswith("if "), note
+    assert "192.168.1.10:14550 is no longer told apart" in capacity(rows)
+    assert "(64 given up so far, 64 hosts)" in capacity(rows)
