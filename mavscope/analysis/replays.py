@@ -8,16 +8,17 @@ of the sender's sequence, or a signature timestamp that did not advance (docs/an
 
 from __future__ import annotations
 
-from collections import Counter, OrderedDict
+from collections import Counter
 
 from mavscope.analysis.commanders import COMMANDING, Fields, Link
+from mavscope.analysis.framelist import MAX_FRAMES
 from mavscope.analysis.framelist import frame_numbers as _frames
-from mavscope.analysis.sequence import RESET_RUN, SeqChannels
+from mavscope.analysis.sequence import SeqChannels
 from mavscope.mavlink.frame import CrcStatus, Frame, SignatureStatus
-from mavscope.notes import Finding, FrameNumbers, finding
+from mavscope.notes import Finding, FrameNumbers, GivenUp, finding, pop_newest
 
-COPIES_KEPT = 65_536  # commanding frames remembered for replay detection (the oldest go first)
-HOLD = RESET_RUN  # copies behind their channel's counter held at once per channel (src/mavscope_native: MS_HOLD)
+COPIES_KEPT = 65_536  # commanding frames remembered for replay detection (past it the newest but the new one goes)
+LISTED = MAX_FRAMES // 2  # copies of a run held with their frames (acc.h MS_LISTED): beyond, counted by message
 IN_PLACE = frozenset({"first", "next", "late", "reset"})  # a copy with this step is where its sender's counter is
 PASSED = frozenset({"next", "gap", "reset"})  # the counter moved past the number a copy ahead of it took
 
@@ -25,15 +26,19 @@ PASSED = frozenset({"next", "gap", "reset"})  # the counter moved past the numbe
 class _Held:
     """Copies of one channel whose place in the sender's sequence the frames after them tell: a run ahead
     of the counter (a jump forward, and the copies that follow it number by number: later frames say
-    whether the counter ran on past them), and up to HOLD behind it (the counter ran on from before them,
-    or it restarted)."""
+    whether the counter ran on past them), and those behind it (the counter ran on from before them, or it
+    restarted). The copies of each are judged together: the first LISTED with their frames (a finding lists
+    MAX_FRAMES frame numbers, two a copy: those after them would not be listed), the others counted per
+    message, with the order of the first (so nothing is given up and memory stays bounded)."""
 
-    __slots__ = ("ahead", "ahead_seq", "behind")
+    __slots__ = ("ahead", "ahead_seq", "ahead_more", "behind", "behind_more")
 
     def __init__(self) -> None:
-        self.ahead: list[tuple[int, int, str]] = []  # (original, copy, message), at most HOLD
+        self.ahead: list[tuple[int, int, str]] = []  # (original, copy, message), at most LISTED
         self.ahead_seq = 0  # the number of the run's first copy
-        self.behind: list[tuple[int, int, int, str]] = []  # (order held, original, copy, message)
+        self.ahead_more: dict[str, list[int]] = {}  # message -> [copies past LISTED, order unused]
+        self.behind: list[tuple[int, int, int, str]] = []  # (order held, original, copy, message), at most LISTED
+        self.behind_more: dict[str, list[int]] = {}  # message -> [copies past LISTED, order of the first]
 
 
 class ReplayedCommands:
@@ -53,11 +58,15 @@ class ReplayedCommands:
       sent again): a replay when the run's first number comes again before the counter moves past the run
       (the sender's own frames fill the jump and reach it), in place when the counter moves on.
     - A signed copy is a replay wherever it is: its signature timestamp did not advance.
-    Copies held at once per channel: HOLD ahead and HOLD behind (past them, the oldest let go unjudged)."""
+    Bounds (docs/security.md, "Bounds"): COPIES_KEPT frames remembered; past it the newest remembered but the
+    one just seen is forgotten (a flood of distinct frames churns its own, the commands seen before it stay),
+    said as a `capacity` finding. Copies held per channel: every one judged (_Held)."""
 
     def __init__(self) -> None:
         self.seqs = SeqChannels()
-        self.seen: OrderedDict[bytes, int] = OrderedDict()  # raw -> record (least recently seen first)
+        self.seen: dict[bytes, int] = {}  # raw -> its last record (in the order first seen)
+        self.forgotten = GivenUp(f"replay detection's remembered command and setpoint frames (at most "
+                                 f"{COPIES_KEPT:,})", "frames")
         self.held: dict[int, tuple[Link, _Held]] = {}  # id(channel tracker) -> its sender and held copies
         self.order = 0  # copies held so far (the order the end of the capture judges them in)
         self.copies: dict[Link, tuple[FrameNumbers, Counter[str]]] = {}
@@ -79,8 +88,11 @@ class ReplayedCommands:
         entry = self.held.get(channel)
         if entry is not None:
             held = entry[1]
-            if held.ahead and prev is not None and step == "next" and f.signature is None and len(held.ahead) < HOLD:
-                held.ahead.append((prev, f.record, name))  # the run ahead goes on
+            if held.ahead and prev is not None and step == "next" and f.signature is None:  # the run ahead goes on
+                if len(held.ahead) < LISTED:
+                    held.ahead.append((prev, f.record, name))
+                else:
+                    held.ahead_more.setdefault(name, [0, 0])[0] += 1
                 self._resolve_behind(link, held, step)
                 return
             self._resolve(link, held, f.seq, step)
@@ -97,32 +109,36 @@ class ReplayedCommands:
             return
         if prev is None or step in IN_PLACE:
             self.seen[raw] = f.record
-            self.seen.move_to_end(raw)
             if len(self.seen) > COPIES_KEPT:
-                self.seen.popitem(last=False)
+                _, record = pop_newest(self.seen, raw)
+                self.forgotten.add(f"the frame of record {record} forgotten for the one of record {f.record}: a "
+                                   "later copy of it is not recognised", record=f.record)
             return
         entry = self.held.get(channel)
         if entry is None:
             entry = self.held[channel] = (link, _Held())
         held = entry[1]
         if step == "gap":
-            held.ahead = [(prev, f.record, name)]
+            held.ahead, held.ahead_more = [(prev, f.record, name)], {}
             held.ahead_seq = f.seq
             return
-        held.behind.append((self.order, prev, f.record, name))
+        if len(held.behind) < LISTED:
+            held.behind.append((self.order, prev, f.record, name))
+        else:
+            held.behind_more.setdefault(name, [0, self.order])[0] += 1
         self.order += 1
-        if len(held.behind) > HOLD:
-            del held.behind[0]
 
     def _resolve(self, link: Link, held: _Held, seq: int, step: str) -> None:
         """What the frame after them (number `seq`, `step` on the channel) tells of the copies held."""
         if held.ahead:
             if step in PASSED:
-                held.ahead = []
+                held.ahead, held.ahead_more = [], {}
             elif seq == held.ahead_seq and step in ("duplicate", "unchanged"):
                 for orig, copy, name in held.ahead:
                     self._count(self.copies, link, (orig, copy), name)
-                held.ahead = []
+                for name, (n, _) in held.ahead_more.items():
+                    self._count(self.copies, link, (), name, n)
+                held.ahead, held.ahead_more = [], {}
         self._resolve_behind(link, held, step)
 
     def _resolve_behind(self, link: Link, held: _Held, step: str) -> None:
@@ -130,28 +146,33 @@ class ReplayedCommands:
             if step in ("next", "gap"):
                 for _, orig, copy, name in held.behind:
                     self._count(self.copies, link, (orig, copy), name)
-                held.behind = []
+                for name, (n, _) in held.behind_more.items():
+                    self._count(self.copies, link, (), name, n)
+                held.behind, held.behind_more = [], {}
             elif step == "reset":
-                held.behind = []
+                held.behind, held.behind_more = [], {}
 
     def finish(self) -> None:
-        """The end of the capture: copies still behind their counter are replays (in the order they came);
-        one still ahead of it is in place (nothing came to say otherwise)."""
-        left = sorted((c, link) for link, held in self.held.values() for c in held.behind)
+        """The end of the capture: copies still behind their counter are replays (in the order they came: those
+        counted per message at the first's); one still ahead of it is in place (nothing came to say otherwise)."""
+        left: list[tuple[int, Link, tuple[int, ...], str, int]] = []
+        for link, held in self.held.values():
+            left += [(order, link, (orig, copy), name, 1) for order, orig, copy, name in held.behind]
+            left += [(order, link, (), name, n) for name, (n, order) in held.behind_more.items()]
         self.held = {}
-        for (_, orig, copy, name), link in left:
-            self._count(self.copies, link, (orig, copy), name)
+        for _, link, records, name, n in sorted(left, key=lambda c: c[0]):
+            self._count(self.copies, link, records, name, n)
 
     @staticmethod
     def _count(table: dict[Link, tuple[FrameNumbers, Counter[str]]], link: Link, records: tuple[int, ...],
-               name: str) -> None:
-        """Count one frame of message `name` (listing `records`: the copy, and its original if known)."""
+               name: str, n: int = 1) -> None:
+        """Count `n` frames of message `name` (listing `records`: the copy, and its original if known)."""
         entry = table.get(link)
         if entry is None:
             entry = table[link] = (_frames(), Counter())
         for r in records:
             entry[0].add(r)
-        entry[1][name] += 1
+        entry[1][name] += n
 
     def findings(self) -> list[Finding]:
         self.finish()
@@ -167,4 +188,6 @@ class ReplayedCommands:
             kinds = ", ".join(f"{n} {c}" for n, c in names.most_common())
             out.append(finding("replay", f"link {sysid}/{compid}: {frames.count} frame(s) whose signature verifies "
                                          f"with a timestamp not newer than its stream's ({kinds})", frames.nums))
+        gave_up = self.forgotten.finding()
+        out += [gave_up] if gave_up is not None else []
         return out

@@ -197,6 +197,8 @@ void ms_acc_free(ms_acc *a) {
     free(a->copies.v);
     free(a->replays.v);
     ms_seen_free(a->seen);
+    for (uint32_t i = 0; i < a->helds.n; i++)
+        ms_held_free(&a->helds.v[i]);
     free(a->helds.v);
     free(a->candidates.v);
     ms_map_free(&a->candidate_index);

@@ -104,18 +104,27 @@ typedef struct {
     ms_seq seq;
 } ms_chan;
 
-/* replays.ReplayedCommands: the copies of one channel judged by the frames after them (_Held) */
-#define MS_HOLD 10 /* replays.HOLD (sequence.RESET_RUN) */
+#define MS_VEC(T) struct { T *v; uint32_t n, cap; }
+
+/* replays.ReplayedCommands: the copies of one channel judged by the frames after them (_Held): the first
+ * MS_LISTED of a run with their frames, the others counted per message (ahead_more, behind_more) */
+#define MS_LISTED 25 /* replays.LISTED (framelist.MAX_FRAMES // 2) */
+#define MS_MORE_MAX 64 /* messages counted past MS_LISTED in one run (COMMANDING has 19): past it, `full` */
 typedef struct {
     uint64_t order, orig, copy;
     uint32_t label;
 } ms_held_copy;
 typedef struct {
+    uint64_t count, order; /* copies past MS_LISTED, the order of the first (ahead: unused) */
+    uint32_t label;
+} ms_held_more;
+typedef MS_VEC(ms_held_copy) ms_held_copies;
+typedef MS_VEC(ms_held_more) ms_held_mores;
+typedef struct {
     uint16_t sender;
     uint8_t ahead_seq;
-    uint32_t nahead, nbehind;
-    ms_held_copy ahead[MS_HOLD]; /* their `order` unused */
-    ms_held_copy behind[MS_HOLD];
+    ms_held_copies ahead, behind; /* the ahead copies' `order` unused */
+    ms_held_mores ahead_more, behind_more;
 } ms_held;
 #define MS_SHARED (-2)
 
@@ -247,7 +256,6 @@ typedef struct {
     int64_t n[4];
 } ms_episode;
 
-#define MS_VEC(T) struct { T *v; uint32_t n, cap; }
 typedef MS_VEC(int32_t) ms_ivec;
 
 typedef struct {
@@ -370,6 +378,7 @@ int ms_expert_finish(ms_acc *a);
 int ms_control_add(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg *pm);
 int ms_gnss_add(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg *pm);
 void ms_seen_free(struct ms_seen *s);
+void ms_held_free(ms_held *h); /* its copies' arrays */
 size_t ms_mode_name(const ms_plan *p, unsigned autopilot, unsigned type, unsigned base, uint64_t custom, char *out);
 
 #endif

@@ -1,7 +1,7 @@
 /* The expert detectors of analysis/expert.py that look at every frame: SequenceAnomalies (its sequence
  * counters are StatsBuilder's, fed the same frames: the step comes from acc.c), CommandSources,
  * ReplayedCommands (on the channels' steps, its copies held per channel until the frames after them tell,
- * and the copies it has seen, least recently seen first out) and UnsignedCommands; then ControlSources (control.c) and GnssAnomalies (gnss.c). */
+ * and the copies it has seen: past MS_K_COPIES_KEPT, `full`, the pure path forgets and says it) and UnsignedCommands; then ControlSources (control.c) and GnssAnomalies (gnss.c). */
 #include <stdlib.h>
 #include <string.h>
 
@@ -67,19 +67,17 @@ static uint32_t label_of(const ms_acc_frame *f) {
     return f->known ? f->msgid : f->msgid | 0x80000000u; /* f.msgname or str(f.msgid) */
 }
 
-/* ---- the copies ReplayedCommands has seen: raw bytes -> record, an LRU ------------------------- */
+/* ---- the copies ReplayedCommands has seen: raw bytes -> record ------------------------------------ */
 
 typedef struct {
     uint64_t hash, record;
-    int32_t prev, next;
     uint16_t len;
     uint8_t raw[MS_RAW_MAX];
 } seen_entry;
 
 struct ms_seen {
     seen_entry *e;
-    uint32_t n, cap, used; /* entries allocated, their capacity, entries in use */
-    int32_t head, tail, free_list;
+    uint32_t n, cap; /* entries, their capacity */
     int32_t *slots;
     uint32_t nslots;
 };
@@ -109,63 +107,20 @@ static int32_t seen_find(const struct ms_seen *s, const uint8_t *raw, size_t n, 
     return -1;
 }
 
-/* Remove entry `k` from the slots (linear probing: the entries after it shift back). */
-static void seen_unslot(struct ms_seen *s, int32_t k) {
-    uint32_t mask = s->nslots - 1;
-    uint32_t i = (uint32_t)s->e[k].hash & mask;
-    while (s->slots[i] != k)
-        i = (i + 1) & mask;
-    for (uint32_t j = (i + 1) & mask; s->slots[j] >= 0; j = (j + 1) & mask) {
-        uint32_t home = (uint32_t)s->e[s->slots[j]].hash & mask;
-        /* the entry at j may move to i when its home is not within (i, j] */
-        if ((j > i && (home <= i || home > j)) || (j < i && (home <= i && home > j))) {
-            s->slots[i] = s->slots[j];
-            i = j;
-        }
-    }
-    s->slots[i] = -1;
-}
-
-static void lru_unlink(struct ms_seen *s, int32_t k) {
-    seen_entry *e = &s->e[k];
-    if (e->prev >= 0)
-        s->e[e->prev].next = e->next;
-    else
-        s->head = e->next;
-    if (e->next >= 0)
-        s->e[e->next].prev = e->prev;
-    else
-        s->tail = e->prev;
-}
-
-static void lru_append(struct ms_seen *s, int32_t k) {
-    s->e[k].prev = s->tail;
-    s->e[k].next = -1;
-    if (s->tail >= 0)
-        s->e[s->tail].next = k;
-    else
-        s->head = k;
-    s->tail = k;
-}
-
-/* seen[raw] = record; seen.move_to_end(raw); drop the oldest beyond `kept`. */
+/* seen[raw] = record. A new entry past `kept`: 1 (the pure path forgets the newest but this one, and says
+ * so: replays.ReplayedCommands.forgotten), so `full` is set. */
 static int seen_put(ms_acc *a, const uint8_t *raw, size_t n, uint64_t h, int32_t k, uint64_t record) {
     struct ms_seen *s = a->seen;
     const uint32_t kept = (uint32_t)a->plan->k[MS_K_COPIES_KEPT];
     if (k >= 0) {
         s->e[k].record = record;
-        lru_unlink(s, k);
-        lru_append(s, k);
         return 0;
     }
-    if (s->free_list >= 0) {
-        k = s->free_list;
-        s->free_list = s->e[k].next;
-    } else {
-        if (ms_vec_grow((void **)&s->e, &s->cap, s->n + 1, sizeof *s->e, kept + 1) != 0)
-            return -1;
-        k = (int32_t)s->n++;
-    }
+    if (s->n >= kept)
+        return 1;
+    if (ms_vec_grow((void **)&s->e, &s->cap, s->n + 1, sizeof *s->e, kept) != 0)
+        return -1;
+    k = (int32_t)s->n++;
     seen_entry *e = &s->e[k];
     e->hash = h;
     e->record = record;
@@ -176,15 +131,6 @@ static int seen_put(ms_acc *a, const uint8_t *raw, size_t n, uint64_t h, int32_t
     while (s->slots[i] >= 0)
         i = (i + 1) & mask;
     s->slots[i] = k;
-    lru_append(s, k);
-    if (++s->used > kept) { /* popitem(last=False) */
-        int32_t old = s->head;
-        lru_unlink(s, old);
-        seen_unslot(s, old);
-        s->e[old].next = s->free_list;
-        s->free_list = old;
-        s->used--;
-    }
     return 0;
 }
 
@@ -202,7 +148,6 @@ static int seen_init(ms_acc *a) {
     }
     memset(s->slots, 0xFF, (size_t)n * sizeof *s->slots);
     s->nslots = n;
-    s->head = s->tail = s->free_list = -1;
     a->seen = s;
     return 0;
 }
@@ -328,18 +273,63 @@ static int count_copy(ms_acc *a, ms_link *lk, const ms_held_copy *c) {
     return ms_count_named(a, &lk->copies, &a->copies, lk->sender, records, 2, c->label);
 }
 
+/* ReplayedCommands._count(..., (), name, n): `m`'s copies counted past the listed ones (no frame listed) */
+static int count_more(ms_acc *a, ms_link *lk, const ms_held_more *m) {
+    int r = ms_count_named(a, &lk->copies, &a->copies, lk->sender, NULL, 0, m->label);
+    if (r == 0 && m->count > 1)
+        r = ms_pairs_count(&a->names, (uint32_t)lk->copies, m->label, m->count - 1);
+    return r;
+}
+
+/* The copies of a run, listed then counted per message, all counted as replays (then let go). */
+static int count_run(ms_acc *a, ms_link *lk, ms_held_copies *listed, ms_held_mores *more) {
+    int r;
+    for (uint32_t i = 0; i < listed->n; i++)
+        if ((r = count_copy(a, lk, &listed->v[i])) != 0)
+            return r;
+    for (uint32_t i = 0; i < more->n; i++)
+        if ((r = count_more(a, lk, &more->v[i])) != 0)
+            return r;
+    listed->n = more->n = 0;
+    return 0;
+}
+
+/* One more copy of a run: listed while it has fewer than MS_LISTED, else counted per message (`order`: the
+ * order of the first of its message). 0, -1 nomem, 1 full (more than MS_MORE_MAX messages). */
+static int hold_copy(ms_held_copies *listed, ms_held_mores *more, const ms_held_copy *c) {
+    int g;
+    if (listed->n < MS_LISTED) {
+        if ((g = ms_vec_grow((void **)&listed->v, &listed->cap, listed->n + 1, sizeof *listed->v, MS_LISTED)) != 0)
+            return g;
+        listed->v[listed->n++] = *c;
+        return 0;
+    }
+    for (uint32_t i = 0; i < more->n; i++)
+        if (more->v[i].label == c->label) {
+            more->v[i].count++;
+            return 0;
+        }
+    if ((g = ms_vec_grow((void **)&more->v, &more->cap, more->n + 1, sizeof *more->v, MS_MORE_MAX)) != 0)
+        return g;
+    ms_held_more m = {1, c->order, c->label};
+    more->v[more->n++] = m;
+    return 0;
+}
+
+void ms_held_free(ms_held *h) {
+    free(h->ahead.v);
+    free(h->behind.v);
+    free(h->ahead_more.v);
+    free(h->behind_more.v);
+}
+
 /* ReplayedCommands._resolve_behind */
 static int resolve_behind(ms_acc *a, ms_link *lk, ms_held *h, int step) {
-    int r;
-    if (h->nbehind) {
-        if (step == MS_STEP_NEXT || step == MS_STEP_GAP) {
-            for (uint32_t i = 0; i < h->nbehind; i++)
-                if ((r = count_copy(a, lk, &h->behind[i])) != 0)
-                    return r;
-            h->nbehind = 0;
-        } else if (step == MS_STEP_RESET) {
-            h->nbehind = 0;
-        }
+    if (h->behind.n) {
+        if (step == MS_STEP_NEXT || step == MS_STEP_GAP)
+            return count_run(a, lk, &h->behind, &h->behind_more);
+        if (step == MS_STEP_RESET)
+            h->behind.n = h->behind_more.n = 0;
     }
     return 0;
 }
@@ -347,14 +337,12 @@ static int resolve_behind(ms_acc *a, ms_link *lk, ms_held *h, int step) {
 /* ReplayedCommands._resolve: what the frame after them (number `seq`, `step`) tells of the copies held */
 static int resolve(ms_acc *a, ms_link *lk, ms_held *h, unsigned seq, int step) {
     int r;
-    if (h->nahead) {
+    if (h->ahead.n) {
         if (step == MS_STEP_NEXT || step == MS_STEP_GAP || step == MS_STEP_RESET) {
-            h->nahead = 0;
+            h->ahead.n = h->ahead_more.n = 0;
         } else if (seq == h->ahead_seq && (step == MS_STEP_DUPLICATE || step == MS_STEP_UNCHANGED)) {
-            for (uint32_t i = 0; i < h->nahead; i++)
-                if ((r = count_copy(a, lk, &h->ahead[i])) != 0)
-                    return r;
-            h->nahead = 0;
+            if ((r = count_run(a, lk, &h->ahead, &h->ahead_more)) != 0)
+                return r;
         }
     }
     return resolve_behind(a, lk, h, step);
@@ -378,9 +366,10 @@ static int replayed_commands(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg
     }
     ms_held *h = ch->held >= 0 ? &a->helds.v[ch->held] : NULL;
     if (h != NULL) {
-        if (h->nahead && k >= 0 && step == MS_STEP_NEXT && !f->has_signature && h->nahead < MS_HOLD) {
+        if (h->ahead.n && k >= 0 && step == MS_STEP_NEXT && !f->has_signature) { /* the run ahead goes on */
             ms_held_copy c = {0, a->seen->e[k].record, f->record, label_of(f)};
-            h->ahead[h->nahead++] = c; /* the run ahead goes on */
+            if ((r = hold_copy(&h->ahead, &h->ahead_more, &c)) != 0)
+                return r;
             return resolve_behind(a, lk, h, step);
         }
         if ((r = resolve(a, lk, h, f->seq, step)) != 0)
@@ -407,52 +396,59 @@ static int replayed_commands(ms_acc *a, const ms_acc_frame *f, const ms_plan_msg
     }
     ms_held_copy c = {a->held_order, a->seen->e[k].record, f->record, label_of(f)};
     if (step == MS_STEP_GAP) {
-        h->ahead[0] = c;
-        h->nahead = 1;
+        h->ahead.n = h->ahead_more.n = 0;
         h->ahead_seq = (uint8_t)f->seq;
-        return 0;
+        return hold_copy(&h->ahead, &h->ahead_more, &c);
     }
     a->held_order++;
-    if (h->nbehind == MS_HOLD) { /* del held.behind[0] */
-        memmove(h->behind, h->behind + 1, (MS_HOLD - 1) * sizeof *h->behind);
-        h->nbehind--;
-    }
-    h->behind[h->nbehind++] = c;
-    return 0;
+    return hold_copy(&h->behind, &h->behind_more, &c);
 }
 
 typedef struct {
-    ms_held_copy c;
+    uint64_t order;
+    ms_held_copy c; /* a listed copy, or (`more`) the message and count of those counted */
+    uint64_t more;  /* 0: a listed copy; else how many counted */
     uint16_t sender;
 } left_copy;
 
 static int by_order(const void *x, const void *y) {
-    const uint64_t a = ((const left_copy *)x)->c.order, b = ((const left_copy *)y)->c.order;
+    const uint64_t a = ((const left_copy *)x)->order, b = ((const left_copy *)y)->order;
     return a < b ? -1 : a > b;
 }
 
+/* ReplayedCommands.finish: the copies still behind their counter are replays, in the order they came (those
+ * counted per message at the first's) */
 int ms_expert_finish(ms_acc *a) {
     size_t n = 0;
     for (uint32_t i = 0; i < a->helds.n; i++)
-        n += a->helds.v[i].nbehind;
+        n += a->helds.v[i].behind.n + a->helds.v[i].behind_more.n;
     left_copy *left = n ? malloc(n * sizeof *left) : NULL;
     if (n && left == NULL)
         return -1;
     n = 0;
     for (uint32_t i = 0; i < a->helds.n; i++) {
         ms_held *h = &a->helds.v[i];
-        for (uint32_t j = 0; j < h->nbehind; j++) {
-            left[n].c = h->behind[j];
-            left[n++].sender = h->sender;
+        for (uint32_t j = 0; j < h->behind.n; j++) {
+            left_copy l = {h->behind.v[j].order, h->behind.v[j], 0, h->sender};
+            left[n++] = l;
         }
-        h->nbehind = 0;
-        h->nahead = 0;
+        for (uint32_t j = 0; j < h->behind_more.n; j++) {
+            const ms_held_more *m = &h->behind_more.v[j];
+            left_copy l = {m->order, {m->order, 0, 0, m->label}, m->count, h->sender};
+            left[n++] = l;
+        }
+        h->behind.n = h->behind_more.n = h->ahead.n = h->ahead_more.n = 0;
     }
     qsort(left, n, sizeof *left, by_order);
     int r = 0;
     for (size_t i = 0; i < n && r == 0; i++) {
         ms_link *lk = &a->links.v[a->link_of[left[i].sender]];
-        r = count_copy(a, lk, &left[i].c);
+        if (left[i].more) {
+            ms_held_more m = {left[i].more, left[i].order, left[i].c.label};
+            r = count_more(a, lk, &m);
+        } else {
+            r = count_copy(a, lk, &left[i].c);
+        }
     }
     free(left);
     return r;

@@ -1,8 +1,8 @@
 """The Python analyses' own limits, reached on the native engine as on the pure path.
 
 Each capture is made to go past one cap the pure path has (and the C port copies): the copies
-ReplayedCommands remembers (COPIES_KEPT, least recently seen first out: copies of frames it forgot are
-not copies, copies of frames it kept are), the senders Systems, ControlSources and GnssAnomalies follow
+ReplayedCommands remembers (COPIES_KEPT, the newest but the one just seen forgotten: the native pass hands
+over there), the senders Systems, ControlSources and GnssAnomalies follow
 (every (sysid, compid) pair: more than the 4,096 they once followed), the channels of one sender
 (MAX_CHANNELS) and in all (MAX_EXTRA), and, lowered for the test (the plan reads them when it is built),
 the streams and conversations StatsBuilder follows
@@ -51,9 +51,9 @@ def check(data: bytes) -> dict[str, object]:
 
 
 def test_copies_past_what_replayed_commands_remembers() -> None:
-    """COPIES_KEPT + 2000 different COMMAND_LONGs (the first 2000 forgotten, least recently seen first),
-    then copies out of the sender's sequence of forgotten and of remembered ones, and of one seen again
-    (moved to the end) just before it would have been forgotten."""
+    """COPIES_KEPT + 2000 different COMMAND_LONGs (past the bound the newest remembered but the one just seen
+    is forgotten), then copies out of the sender's sequence of forgotten and of remembered ones. The native
+    pass hands over at the bound (the pure path forgets and says it: tests/analysis/test_replay_bounds.py)."""
     n = COPIES_KEPT + 2000
     frames = [frame("COMMAND_LONG", {"target_system": 1, "command": 511, "param1": float(i)}, i, 255, 190)
               for i in range(n)]
@@ -61,8 +61,11 @@ def test_copies_past_what_replayed_commands_remembers() -> None:
     entries.insert(1500, frames[2100])  # seen again: a copy? (its position tells) and remembered anew
     entries += [frames[5], frames[1999], frames[2100], frames[n - 3], frames[n - 300], frames[40_000]]
     data = nh.tlog([(T0 + i * 1000, f) for i, f in enumerate(entries)])
-    found = check(data)
-    assert any(f["code"] == "replayed-command" for f in found["findings"])  # type: ignore[attr-defined,index]
+    with capture_file(data) as path:
+        found = pure_stats(path, DIALECT)
+        assert native_stats_of(path, DIALECT) is None
+    codes = [f["code"] for f in found["findings"]]  # type: ignore[attr-defined]
+    assert "replayed-command" in codes and "capacity" in codes
 
 
 def test_more_senders_than_the_analyses_follow() -> None:
