@@ -8,10 +8,16 @@ header and payload, the X.25 step is invertible: exactly one byte accumulated la
 (`fitting_extra`, O(1)). A damaged frame fits a random byte 1 time in 256; the frames of one sender and
 id that all fit one other CRC_EXTRA are that sender's definition of the id (`dialect-mismatch`, with the
 definitions of pymavlink's dialects and of the loaded dialect that have it), not noise.
+
+Bounded (docs/security.md, "Bounds"): MAX_GROUPS groups are followed. Crafted bad-CRC frames can each fit a
+new group; past the bound the newest group of one frame goes for the new one (a flood churns its own), a
+group of two frames or more is never given up (when every group has two, the new frame's group is), and
+each give-up is said as a `capacity` finding.
 """
 
 from __future__ import annotations
 
+from collections import Counter
 from functools import cache
 
 from fastcrc import crc16
@@ -19,11 +25,12 @@ from fastcrc import crc16
 from mavscope.analysis.framelist import frame_numbers
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame
-from mavscope.notes import Finding, FrameNumbers, finding
+from mavscope.notes import Finding, FrameNumbers, GivenUp, finding, pop_newest
 from mavscope.wire import HEADER_V1, HEADER_V2, STX_V2
 
 MISMATCH_MIN = 5  # frames of one sender and id fitting one other CRC_EXTRA that make a dialect mismatch
 NAMES_SHOWN = 4  # definitions named in a finding
+MAX_GROUPS = 4096  # (sender, id, CRC_EXTRA that fits) groups followed (past it: the newest of one frame goes)
 Group = tuple[int, int, int, int]  # (sysid, compid, msgid, the CRC_EXTRA that fits)
 
 
@@ -104,11 +111,17 @@ def definitions(msgid: int, extra: int, dialect: Dialect | None) -> list[str]:
 
 class Mismatches:
     """Bad-CRC frames per (sender, id, CRC_EXTRA that fits): `add` returns the frame's group and whether that
-    group is a mismatch so far (MISMATCH_MIN frames or more); `findings` at the end."""
+    group is a mismatch so far (MISMATCH_MIN frames or more); `joined` says which run of bad CRCs a frame of a
+    group not yet a mismatch joined (BadCrcBursts takes them out of the run if it becomes one); `findings`
+    at the end. At most MAX_GROUPS groups (see the module's doc)."""
 
     def __init__(self) -> None:
         self.fits: dict[Group, FrameNumbers] = {}
+        self.single: dict[Group, None] = {}  # the groups of one frame, in the order they came
+        self.runs: dict[Group, Counter[int]] = {}  # a group's frames per run (BadCrcBursts' serial) they joined
         self.expected: dict[int, tuple[str, int]] = {}  # msgid -> (name, CRC_EXTRA) of the loaded dialect
+        self.given_up = GivenUp(f"dialect-mismatch groups of bad-CRC frames (at most {MAX_GROUPS:,} (sender, id, "
+                                "CRC_EXTRA that fits) followed)", "frames")
 
     def add(self, f: Frame) -> tuple[Group | None, bool]:
         g = fit_of(f)
@@ -116,19 +129,43 @@ class Mismatches:
             return None, False
         fn = self.fits.get(g)
         if fn is None:
+            if len(self.fits) >= MAX_GROUPS and not self._room(g, f.record):
+                return None, False
             fn = self.fits[g] = frame_numbers()
+            self.single[g] = None
             md = f.msgdef
             if md is not None:
                 self.expected.setdefault(f.msgid, (md.name, md.crc_extra))
+        elif fn.count == 1:
+            del self.single[g]
         fn.add(f.record)
         return g, fn.count >= MISMATCH_MIN
+
+    def _room(self, g: Group, record: int) -> bool:
+        """Room for group `g`, new at `record`, in a full table: the newest group of one frame given up (said),
+        or none of one frame, `g` given up (False)."""
+        if not self.single:
+            self.given_up.add(f"the frame of {_group_text(g)} not followed (every group followed has 2 frames "
+                              "or more)", record=record)
+            return False
+        old, _ = pop_newest(self.single, g)
+        del self.fits[old]
+        self.runs.pop(old, None)
+        self.given_up.add(f"the group of {_group_text(old)} (1 frame) given up for a new one", record=record)
+        return True
+
+    def joined(self, g: Group, run: int) -> None:
+        """A frame of group `g` (not yet a mismatch) joined run `run` of bad CRCs."""
+        if g in self.fits:
+            self.runs.setdefault(g, Counter())[run] += 1
 
     def groups(self) -> set[Group]:
         """The groups that are mismatches."""
         return {g for g, fn in self.fits.items() if fn.count >= MISMATCH_MIN}
 
     def findings(self, dialect: Dialect | None) -> list[Finding]:
-        out = []
+        gave_up = self.given_up.finding()
+        out = [gave_up] if gave_up is not None else []
         for g in sorted(self.groups()):
             sysid, compid, msgid, extra = g
             fn = self.fits[g]
@@ -143,3 +180,7 @@ class Mismatches:
                                f"{extra}: the sender defines message {msgid} otherwise (another dialect or version "
                                f"of it), not line noise{named}; load its dialect (--dialect)", fn.nums))
         return out
+
+
+def _group_text(g: Group) -> str:
+    return f"message id {g[2]} from {g[0]}/{g[1]} fitting CRC_EXTRA {g[3]}"

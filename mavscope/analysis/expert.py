@@ -49,15 +49,15 @@ def _link(f: Frame) -> str:
 class _Run:
     """A run of bad-CRC frames close together, as it accumulates (frame numbers with the group each fits)."""
 
-    __slots__ = ("count", "nums", "first", "last", "links", "groups")
+    __slots__ = ("count", "nums", "first", "last", "links", "serial")
 
-    def __init__(self) -> None:
+    def __init__(self, serial: int = 0) -> None:
+        self.serial = serial  # its number among the runs begun (Mismatches.joined counts frames per run)
         self.count = 0
         self.nums: list[tuple[int, Group | None]] = []  # the first MAX_FRAMES (record, group it fits)
         self.first: float | None = None
         self.last: float | None = None
         self.links: Counter[str] = Counter()
-        self.groups: Counter[Group] = Counter()  # frames fitting another CRC_EXTRA, per group
 
 
 class BadCrcBursts:
@@ -77,7 +77,7 @@ class BadCrcBursts:
     def _close(self) -> None:
         if self.run.count >= BURST_MIN:
             self.runs.append(self.run)
-        self.run = _Run()
+        self.run = _Run(self.run.serial + 1)
 
     def add(self, f: Frame, fields: Fields | None) -> None:
         if f.crc_status is not CrcStatus.BAD:
@@ -97,19 +97,22 @@ class BadCrcBursts:
         run.last = t
         run.links[_link(f)] += 1
         if group is not None:
-            run.groups[group] += 1
+            self.mismatches.joined(group, run.serial)
 
     def findings(self) -> list[Finding]:
         self._close()
         groups = self.mismatches.groups()
+        taken: dict[int, list[tuple[Group, int]]] = {}  # run serial -> (mismatch group, its frames in the run)
+        for g in groups:
+            for serial, n in self.mismatches.runs.get(g, {}).items():
+                taken.setdefault(serial, []).append((g, n))
         out = []
         for run in self.runs:
             links = Counter(run.links)
             count = run.count
-            for g, n in run.groups.items():
-                if g in groups:
-                    count -= n
-                    links[f"{g[0]}/{g[1]}"] -= n
+            for g, n in taken.get(run.serial, ()):
+                count -= n
+                links[f"{g[0]}/{g[1]}"] -= n
             if count < BURST_MIN:
                 continue
             span = (run.last - run.first) if run.first is not None and run.last is not None else None

@@ -182,6 +182,7 @@ SAID: dict[str, str] = {
     "analysis/vehicles.py:MAX_SENDERS": "- every (system, component) pair: a table keyed by sender never fills",
     "analysis/gnss.py:MAX_EPISODES": "capacity", "analysis/timeline.py:PENDING_REQUESTS": "capacity",
     "analysis/expert.py:MAX_NAMED": "- helper D", "analysis/replays.py:COPIES_KEPT": "capacity",
+    "analysis/crcextra.py:MAX_GROUPS": "capacity",
     "analysis/sequence.py:GAPS_KEPT": "- counted beyond", "analysis/sequence.py:MAX_CHANNELS": "- helper D",
     "analysis/sequence.py:MAX_EXTRA": "- helper D", "analysis/framelist.py:MAX_FRAMES": "- listed",
     "analysis/gnss.py:MAX_GAP_S": "- a time gap, no bound",
