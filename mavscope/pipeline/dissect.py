@@ -49,7 +49,6 @@ MAX_MAVLINK_ENDPOINTS = 16384
 # a frame the receivers read that the framer does not show: (its Hidden by position in the datagram, the bytes
 # it is in, its position there, file offset, the earlier records it began in or None, its notes)
 Placed = tuple[Hidden, bytes, int, "int | None", "tuple[int, ...] | None", list[Note]]
-LATER_KEPT = 1 << 16  # records whose last frame index is kept for frames a TCP hole dates by them later
 _CUT = frozenset({"record-snapped", "record-truncated", "malformed-packet"})  # notes of a payload cut short
 
 
@@ -88,7 +87,11 @@ class Dissector:
         self._raw_frames = 0  # frames of a raw byte stream so far (they are numbered 1..N)
         self._time: float | None = None
         self._text = TextRun()  # non-MAVLink tlog entries, reported as one anomaly per run
-        self._indices: dict[int, int] = {}  # record -> the last frame index given, for records TCP holes dated later
+        # record -> the last frame index it gave, for the records a later one may date frames by (_later): kept
+        # while TCP reassembly holds bytes beyond a hole or a stream framer holds bytes readable at that record
+        self._indices: dict[int, int] = {}
+        self._prune_at = 0  # (the size of _indices past which what nothing can date by any more is dropped)
+        self._held = False  # a stream framer fed in this record holds bytes readable at it
 
     def run(self, records: Iterable[Record]) -> Iterator[Frame | Anomaly]:
         """Every frame and anomaly of the capture, in order."""
@@ -116,13 +119,12 @@ class Dissector:
         messages = self.messages
         endpoints = self.mavlink_endpoints
         index = 0
-        streamed = False
+        self._held = False
         for p in self.decap.feed(rec):
             if p.stream is not None:
                 self._index = index
                 yield from self._stream(p)
                 index = self._index
-                streamed = True
                 continue
             # Fast path: a datagram that is a run of clean v2 frames (known message, good CRC,
             # no unknown flags). Anything else goes to the general scanner from where it stops.
@@ -163,7 +165,8 @@ class Dissector:
             self._index = index
             yield from self._datagram(p, pos)
             index = self._index
-        ended = self.decap.tcp.ended
+        tcp = self.decap.tcp
+        ended = tcp.ended
         if ended:  # TCP streams that ended or were released: decide what their framers still hold
             self._index = index
             while ended:
@@ -171,9 +174,8 @@ class Dissector:
                 if key in self.streams:
                     yield from self._finish(key)
             index = self._index
-        if index and (streamed or self.decap.tcp.holding):  # a later record may give frames dated by this one
-            # (a frame a hole or the stream's end cuts, or bytes held beyond a hole)
-            self._later(number, index)
+        if self._indices or self._held or tcp.holding:  # (clean traffic: nothing held, nothing to number later)
+            self._hold(number, index, tcp.holding)
 
     def finish(self) -> Iterator[Frame | Anomaly]:
         """The end of the capture: what TCP reassembly and the stream framers still hold."""
@@ -355,15 +357,30 @@ class Dissector:
         if orphans:
             yield Anomaly(self._raw_frames if raw else self._record, tuple(orphans))
 
-    def _later(self, record: int, index: int | None = None) -> int:
-        """The index of one more frame of `record`, an earlier record than the one read (else `index`, the
-        last one it gave, is remembered): frames a TCP hole held back (LATER_KEPT records kept)."""
-        later = self._indices
-        index = later.pop(record, 0) + 1 if index is None else index
-        later[record] = index
-        if len(later) > LATER_KEPT:
-            del later[next(iter(later))]
+    def _later(self, record: int) -> int:
+        """The index of one more frame of `record`, an earlier record than the one read: a frame a TCP hole held
+        back, or one a hole or the stream's end cut (`_hold` kept the last index `record` gave)."""
+        index = self._indices.get(record, 0) + 1
+        self._indices[record] = index
         return index
+
+    def _hold(self, number: int, index: int, holding: bool) -> None:
+        """Record `number` gave frames up to `index`: remember it while a later record may date frames by it
+        (bytes readable at it that a stream framer holds, or TCP reassembly holds bytes beyond a hole, which
+        it may give out dated by a record of the hole's lifetime); forget what nothing can date by any more.
+
+        The bound is the holes' lifetime and the bytes the framers hold, not a count: a record forgotten
+        while something could still be dated by it would number a frame twice."""
+        later = self._indices
+        if index and (holding or self._held):
+            later[number] = index
+        if holding or len(later) <= self._prune_at:
+            return
+        # TCP reassembly holds nothing: only the bytes the stream framers hold can still be dated by a record
+        live = {ready[0] for sf in self.streams.values() for _, _, _, ready in sf.segs}
+        for r in [r for r in later if r not in live]:
+            del later[r]
+        self._prune_at = max(2 * len(later), len(self.streams)) + 64  # (amortised: a walk per as many records)
 
     def _stream(self, p: Payload) -> Iterator[Frame | Anomaly]:
         sf = self.streams.get(p.stream)
@@ -382,6 +399,11 @@ class Dissector:
             sf.trusted = p.transport == TRANSPORT_RAW
         sf.feed(p.data, p.record, p.offset, p.notes, p.ready or (self._record, self._time))
         yield from self._emit(sf, p.transport, p.src, p.dst, False)
+        if sf.segs and not self._held and p.transport != TRANSPORT_RAW:
+            # bytes readable at this record held for a later one (a frame begun): it may date a frame a hole or
+            # the stream's end cuts
+            rec = self._record
+            self._held = any(ready[0] == rec for _, _, _, ready in sf.segs)
 
     def _finish(self, key: Hashable) -> Iterator[Frame | Anomaly]:
         sf = self.streams.pop(key)

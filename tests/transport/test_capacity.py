@@ -149,7 +149,7 @@ SAID: dict[str, str] = {
     "transport/defrag.py:RECORDS_KEPT": "- records a note names (all counted)",
     "transport/tcp.py:MAX_BUFFERED": "tcp-gap", "transport/tcp.py:MAX_TOTAL_BUFFERED": "tcp-gap",
     "transport/tcp.py:MAX_DIRECTIONS": "tcp-gap", "transport/tcp.py:ENDED_KEPT": "- ended streams' keys (helper C)",
-    "transport/tcp_direction.py:HOLES_KEPT": "tcp-late", "pipeline/dissect.py:LATER_KEPT": "- frame indices",
+    "transport/tcp_direction.py:HOLES_KEPT": "tcp-late",
     "transport/ip.py:MAX_EXT_HEADERS": "malformed-packet", "transport/tunnel.py:MAX_DEPTH": "malformed-packet",
     "transport/wifi.py:MAX_PRESENT_WORDS": "malformed-packet", "transport/wifi.py:MAX_SUBFRAMES": "malformed-packet",
     "transport/ccmp.py:MAX_MPDU": "wifi-fragment",
@@ -158,7 +158,8 @@ SAID: dict[str, str] = {
     "capture/tlog.py:TEXT_MAX": "tlog-text", "capture/tlog.py:TS_MAX": "time-out-of-range",
     "pipeline/textrun.py:MAX_BYTES": "- a text run is reported and a new one starts",
     "mavlink/receivers.py:MAX_PER_PORT": "split-frame", "mavlink/receivers.py:MAX_STATES": "split-frame",
-    "mavlink/receivers.py:MAX_WAITING": "split-frame", "pipeline/dissect.py:MAX_MAVLINK_ENDPOINTS": "capacity",
+    "mavlink/receivers.py:MAX_WAITING": "split-frame", "mavlink/receivers.py:MAX_MOVED": "capacity",
+    "mavlink/receivers.py:MAX_OTHERS": "capacity", "pipeline/dissect.py:MAX_MAVLINK_ENDPOINTS": "capacity",
     "mavlink/dialect_cache.py:MAX_ENTRIES": "- a cache of parsed files",
     "mavlink/dialect_cache.py:MAX_ENTRY": "- as MAX_ENTRIES",
     # analyses: each says it in its own output (docs/security.md's table)
