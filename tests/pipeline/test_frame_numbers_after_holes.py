@@ -79,3 +79,21 @@ def test_frame_numbers_are_unique_past_a_long_hole(cli, tmp_path: Path) -> None:
     # cut frame after b0 (4.2)
     assert rest in ([(2, 1), (4, 2)], [(3, 3), (4, 2)]), rest
     assert cli.jsonl(path, environ=NATIVE) == rows
+
+
+def test_frame_numbers_are_unique_with_many_holes(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
+    # 300 HEARTBEATs cut into 7-byte segments (frames begun in one record, cut by the next hole), every 5th
+    # segment missed, each pair of segments swapped (bytes held beyond a hole), with and without the ground
+    # station's ACKs, all at one time or a second apart: whichever way each hole is given up, no two frames
+    # share a number
+    segs = tf.chunks(tf.heartbeats(300), 7, period=0.0)
+    order = [i ^ 1 for i in range(len(segs)) if i ^ 1 < len(segs)]
+    for acks in (True, False):
+        for n, seg in enumerate((segs, tf.chunks(tf.heartbeats(300), 7, period=1.0))):
+            cap = tf.build(seg, missed=set(range(3, len(seg), 5)), order=order, acks=acks, fin=n == 0)
+            rows = cli.jsonl(cap.write(tmp_path / f"holes{acks}{n}.pcap"), environ=PURE)
+            numbers = [(r["frame"], r["index"]) for r in rows]
+            assert rows and len(numbers) == len(set(numbers)), (acks, n)
+            # every frame is dated by one of the stream's captured data segments (the construction's records)
+            assert {r["frame"] for r in rows} <= set(cap.record_of.values()), (acks, n)
+            assert cli.jsonl(tmp_path / f"holes{acks}{n}.pcap", environ=NATIVE) == rows
