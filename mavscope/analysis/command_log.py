@@ -189,12 +189,33 @@ class CommandMatcher:
         return out
 
 
+def takes(f: Frame) -> bool:
+    """Whether the matcher takes frame `f`: a command or ACK whose CRC is not bad."""
+    md = f.msgdef
+    return md is not None and md.name in COMMAND_MESSAGES and f.crc_status is not CrcStatus.BAD
+
+
 def command_fields(f: Frame) -> dict[str, object] | None:
     """The decoded fields of a command or ACK frame the matcher takes (None for any other frame)."""
-    md = f.msgdef
-    if md is None or md.name not in COMMAND_MESSAGES or f.crc_status is CrcStatus.BAD:
-        return None
-    return decode_payload(f)
+    return decode_payload(f) if takes(f) else None
+
+
+def feed_command(matcher: CommandMatcher, f: Frame,
+                 fields: dict[str, object] | None = None) -> tuple[Command | None, list[Command]]:
+    """The one way a frame reaches a CommandMatcher (`commands`, `events`, `audit`, the export): what
+    `matcher.add` returns, or nothing for a frame it does not take (`takes`) and for a command whose fields
+    are not numbers (a hostile dialect's COMMAND_LONG: it names no command to follow). `fields`: the frame's
+    decoded payload where the caller has decoded it already (decoded once), else decoded here."""
+    if not takes(f):
+        return None, []
+    if fields is None:
+        fields = decode_payload(f)
+        if fields is None:
+            return None, []
+    try:
+        return matcher.add(f, fields)
+    except (KeyError, TypeError, ValueError, OverflowError):
+        return None, []
 
 
 def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> tuple[list[Command], list[dict[str, object]], GivenUp]:
@@ -202,10 +223,7 @@ def reconstruct(frames: Iterable[Frame], dialect: Dialect) -> tuple[list[Command
     commands: list[Command] = []
     matcher = CommandMatcher(dialect)
     for f in frames:
-        fields = command_fields(f)
-        if fields is None:
-            continue
-        new, _ = matcher.add(f, fields)
+        new, _ = feed_command(matcher, f)
         if new is not None:
             commands.append(new)
     return commands, matcher.orphans, matcher.given_up

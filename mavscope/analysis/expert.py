@@ -413,12 +413,14 @@ class Expert:
         self.decode = COMMANDING.union({"HEARTBEAT"}, *(getattr(d, "wants", ()) for d in self.detectors))
         self.recorded = False  # frames from a tlog, a ground station's recording (the native pass sets it too)
 
-    def add(self, f: Frame) -> None:
+    def add(self, f: Frame) -> Fields | None:
+        """Frame `f` to every detector; the fields decoded for them (`fields`), for a caller that wants them."""
         if f.transport == TRANSPORT_TLOG:
             self.recorded = True
         fields = self.fields(f)
         for d in self.detectors:
             d.add(f, fields)
+        return fields
 
     def fields(self, f: Frame) -> Fields | None:
         """The decoded payload the detectors get with `f`: of the messages they decode, CRC not bad."""

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from mavscope.analysis.command_log import Command, CommandMatcher, command_json
+from mavscope.analysis.command_log import Command, CommandMatcher, command_json, feed_command
 from mavscope.analysis.events.model import COMMAND, MISSION, Event, Fields, addr, at
 from mavscope.analysis.mission import TRACKED_MESSAGES, MissionTracker, event_text
 from mavscope.analysis.vehicles import Systems
@@ -72,10 +72,7 @@ class Commands:
             mode = self.systems.modes.name(autopilot, mav_type, base, custom)
             return (at(f, COMMAND, f"{addr((f.sysid, f.compid))} -> {target} SET_MODE {mode}", (target, 0),
                        message="SET_MODE", mode=mode, base_mode=base, custom_mode=custom),)
-        try:
-            new, done = self.matcher.add(f, fields)
-        except (KeyError, TypeError, ValueError):  # a field that is not a number
-            return ()
+        new, done = feed_command(self.matcher, f, fields)
         if new is not None and new.command == MAV_CMD_DO_SET_MODE:
             p = new.params
             try:
