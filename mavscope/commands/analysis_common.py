@@ -71,13 +71,14 @@ def print_findings(con, findings: Sequence[Finding]) -> None:  # type: ignore[no
     if not findings:
         return
     from mavscope.output.console import text
-    from mavscope.output.grid import columns, print_table
+    from mavscope.output.grid import Column, print_table
+    from mavscope.output.tables import listed
 
-    def row(f: Finding) -> list[Cell]:
-        nums = ", ".join(map(str, f.frames[:8])) + (" …" if len(f.frames) > 8 else "")
-        return [f.severity.value, f.code, nums, text(f.message)]
+    def row(f: Finding) -> list[Cell]:  # (the first frames and how many more: --json lists them all)
+        return [f.severity.value, f.code, listed(f.frames), text(f.message)]
 
-    print_table(con, columns("severity", "code", "frames", "message"), findings, row, title="Expert findings")
+    print_table(con, [Column("severity", key=True), Column("code", key=True), Column("frames"), Column("message")],
+                findings, row, title="Expert findings")
 
 
 @contextmanager

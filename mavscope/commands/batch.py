@@ -168,8 +168,9 @@ def _render(env: Env, command: str, rows: list[dict[str, object]], status: ExitS
     con = console(env)
     # a capture's path is what a reader greps for: whole on its line where it takes up to a third of the width
     longest = max((len(str(r["file"])) for r in rows), default=0)
-    cols = [Column("capture", fold=True, min_width=max(7, min(longest, con.width // 3))), Column("status", fold=True),
-            Column("frames", right=True, fold=True), Column("summary", fold=True), Column("problems", fold=True)]
+    cols = [Column("capture", fold=True, min_width=max(7, min(longest, con.width // 3))),
+            Column("status", fold=True, key=True), Column("frames", right=True, fold=True),
+            Column("summary", fold=True), Column("problems", fold=True)]
 
     def row(r: dict[str, object]) -> list[Cell]:
         frames, problems = r["frames"], r["problems"]

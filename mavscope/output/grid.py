@@ -13,6 +13,14 @@ line (never cut, nothing hidden), and one long cell cannot widen every line of t
 grep and for a reader. Styles (the colour of an event's kind) are rich's alone. rich is imported when a
 table is printed (a command writing JSON never loads it).
 
+Nothing rich lays out is cut: every column folds a cell too long for it onto more lines (never an
+ellipsis). Written to a file or a pipe, a table is as wide as its widest cells (the console is widened for
+it): no cell is wrapped. On a terminal (or at the width $COLUMNS asks for) its key columns (frame numbers,
+times, system/component, message and command names, verdicts: `Column.key`, and by name in `columns`) keep
+the width of their widest cell and never wrap; the other columns share what is left, each at least KEEP
+cells (or its widest cell), folding their cells. A table whose key columns cannot fit so is written in the
+plain layout instead (one line a row, uncut: the terminal wraps it).
+
 Lines a command prints one per thing the capture holds (a mission transfer, an unmatched ACK) cost rich
 about as much as a row; `print_lines` writes them plain past RICH_ROWS too, and a command printing many
 small tables and lines (`mission`) decides once for all of them with `many`.
@@ -36,20 +44,29 @@ _CHUNK = 512  # lines written at once in the plain layout
 T = TypeVar("T")
 
 
+KEEP = 5  # cells a column that is not a key keeps at least where a table fits a width (if its cells are as wide)
+# the columns of the commands' tables that are keys by their name (frames, times, parties, names, verdicts)
+KEY_NAMES = frozenset({"frame", "#", "seq", "time", "start", "from", "to", "from -> to", "sysid/compid", "comp",
+                       "message", "command", "result", "kind", "severity", "code", "status", "clock",
+                       "parameter", "transport", "signature", "valid", "invalid", "replay", "injected"})
+
+
 @dataclass(frozen=True, slots=True)
 class Column:
-    """A column: its heading, right-aligned (numbers) or not, and for rich's layout whether a long cell folds
-    onto more lines (a path, an SQL value) rather than ending in an ellipsis, and a width it keeps."""
+    """A column: its heading, right-aligned (numbers) or not; `key`: kept whole on a terminal (never wrapped,
+    as wide as its widest cell); `fold` is kept for its callers (every column folds: nothing is cut); a
+    width it keeps at least."""
 
     name: str
     right: bool = False
     fold: bool = False
     min_width: int | None = None
+    key: bool = False
 
 
 def columns(*names: str, right: Sequence[str] = ()) -> list[Column]:
-    """Columns by name, those named in `right` right-aligned."""
-    return [Column(n, right=n in right) for n in names]
+    """Columns by name, those named in `right` right-aligned, those in KEY_NAMES key columns."""
+    return [Column(n, right=n in right, key=n in KEY_NAMES) for n in names]
 
 
 def many(rows: int) -> bool:
@@ -64,9 +81,9 @@ def print_table(con: Any, cols: Sequence[Column], items: Sequence[T], row: Calla
     str cell is the capture's words, shown as `console.text` shows them (never highlighted, a line break
     escaped) rather than as rich renders a str. `plain`: the layout (None: plain past RICH_ROWS rows)."""
     if not (many(len(items)) if plain is None else plain):
-        _rich(con, cols, items, row, title, edge, words)
-    else:
-        _plain(con, cols, items, row, title)
+        if _rich(con, cols, items, row, title, edge, words):
+            return
+    _plain(con, cols, items, row, title)
 
 
 def print_lines(con: Any, lines: Iterable[str], *, plain: bool) -> None:
@@ -95,21 +112,60 @@ def _write(con: Any, lines: Iterable[str]) -> None:
     con.file.flush()
 
 
+def _fit_width(con: Any) -> bool:
+    """Whether tables fit the console's width (a terminal, or $COLUMNS asked: mavscope.output.tables.console)
+    rather than take the width of their cells (a file or a pipe)."""
+    fit = getattr(con, "fit_width", None)
+    if fit is not None:
+        return bool(fit)
+    try:
+        return bool(con.file.isatty())
+    except (AttributeError, ValueError):
+        return False
+
+
 def _rich(con: Any, cols: Sequence[Column], items: Sequence[T], row: Callable[[T], Sequence[Cell]], title: Cell,
-          edge: bool, words: bool) -> None:
+          edge: bool, words: bool) -> bool:
+    """The table in rich's layout; False (nothing written) where its key columns cannot fit the terminal."""
+    from rich.cells import cell_len
     from rich.table import Table
 
-    from mavscope.output.console import text
+    from mavscope.output.console import text, visible
 
+    rows = [[(text(c) if isinstance(c, str) else c) if words else c for c in row(item)] for item in items]
+
+    def width(c: Cell) -> int:  # the widest line of a cell as rich shows it
+        shown = visible(c, keep_newlines=True) if isinstance(c, str) else c.plain
+        return max((cell_len(line) for line in shown.split("\n")), default=0)
+
+    widest = [max(width(text(c.name)), c.min_width or 0, *(width(r[j]) for r in rows if j < len(r)))
+              for j, c in enumerate(cols)]
+    terminal = _fit_width(con)
+    border = (len(cols) + 1) if edge else max(0, len(cols) - 1)
+    padding = 2 * len(cols)
+    if terminal:
+        keep = [w if c.key else min(w, max(KEEP, c.min_width or 0)) for c, w in zip(cols, widest)]
+        if sum(keep) + border + padding > con.width:
+            return False
     t = Table(title=(text(title) if isinstance(title, str) else title) if title else None, title_justify="left",
               show_edge=edge)
-    for c in cols:
-        t.add_column(text(c.name), justify="right" if c.right else "left", min_width=c.min_width,
-                     overflow="fold" if c.fold else "ellipsis")
-    for item in items:
-        cells = row(item)
-        t.add_row(*((text(c) if isinstance(c, str) else c for c in cells) if words else cells))
-    con.print(t)
+    for c, w in zip(cols, widest):
+        kept = w if c.key else min(w, max(KEEP, c.min_width or 0)) if terminal else w
+        t.add_column(text(c.name), justify="right" if c.right else "left", min_width=kept or None,
+                     no_wrap=c.key or not terminal, overflow="fold")
+    for cells in rows:
+        t.add_row(*cells)
+    full = sum(widest) + border + padding
+    if terminal or full <= con.width:
+        con.print(t)
+        return True
+    saved = con.width  # a file or a pipe: the table as wide as its cells, none wrapped
+    con.width = full
+    try:
+        con.print(t)
+    finally:
+        con.width = saved
+    return True
 
 
 def _plain(con: Any, cols: Sequence[Column], items: Sequence[T], row: Callable[[T], Sequence[Cell]],

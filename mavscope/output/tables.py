@@ -16,19 +16,27 @@ BARS = "▁▂▃▄▅▆▇█"
 
 
 def console(out: IO[str], environ: Mapping[str, str]):  # type: ignore[no-untyped-def]
-    """A rich Console writing to `out`: colour only on a terminal, wide tables when piped ($COLUMNS); no markup,
-    and a capture's control characters escaped (mavscope.output.console)."""
+    """A rich Console writing to `out`: colour only on a terminal (as wide as $COLUMNS says where it is set,
+    else as the terminal is); written to a file or a pipe, lines as long as they are (never wrapped: one line
+    of text is one line for grep) and tables as wide as their cells (mavscope.output.grid), unless $COLUMNS
+    asks for a width: then text and tables fit it as on a terminal (folded, never cut). `fit_width` on the
+    console says which (mavscope.output.grid reads it). No markup, and a capture's control characters
+    escaped (mavscope.output.console)."""
     from mavscope.output.console import SafeConsole as Console
 
     try:
         tty = out.isatty()
     except (AttributeError, ValueError):
         tty = False
+    text = environ.get("COLUMNS", "")
+    width = int(text) if text.isascii() and text.isdigit() and int(text) > 0 else None
     if tty:
-        return Console(file=out, emoji=False)
-    width = environ.get("COLUMNS", "")
-    return Console(file=out, no_color=True, color_system=None, highlight=False, emoji=False,
-                   width=int(width) if width.isascii() and width.isdigit() else 160)
+        con = Console(file=out, emoji=False, width=width)
+    else:
+        con = Console(file=out, no_color=True, color_system=None, highlight=False, emoji=False,
+                      width=width or 160, soft_wrap=width is None)
+    setattr(con, "fit_width", tty or width is not None)  # noqa: B010 - an attribute rich's Console lacks
+    return con
 
 
 def sparkline(values: Sequence[float]) -> str:
