@@ -12,6 +12,8 @@ from mavscope.commands.common import console, write_json
 from mavscope.output.grid import columns, many, print_lines, print_table
 from mavscope.output.tables import fmt, iso, param_text
 
+UNLABELLED = {"x": "param5", "y": "param6", "z": "param7"}  # COMMAND_INT's fields for params 5..7, by number
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("commands",
@@ -42,9 +44,11 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         names = cast("dict[str, str]", d["param_names"])
         # COMMAND_INT's x/y: int32 on the wire, here in degrees or metres (not float32s)
         wire_int = ("x", "y") if d["message"] == "COMMAND_INT" else ()
-        params = ", ".join(f"{labels.get(k, k)} {names.get(k) or param_text(v, k not in wire_int)}"
+        # a parameter the dialect labels is shown, with its label; one it leaves unlabelled only when it holds
+        # something (not 0, nor NaN: "no value", JSON's null), as paramN (COMMAND_INT's x, y, z: param5..7)
+        params = ", ".join(f"{labels.get(k) or UNLABELLED.get(k, k)} {names.get(k) or param_text(v, k not in wire_int)}"
                            for k, v in values.items()
-                           if k in labels or (v not in (0, 0.0, None) and k != "confirmation"))
+                           if labels.get(k) or (v not in (0, 0.0, None) and k != "confirmation"))
         return [str(cast("list[int]", d["frames"])[0]), iso(cast("float | None", d["time"])),
                 "{}/{}".format(*sender), "{}/{}".format(*target),
                 str(d["command"]).removeprefix("MAV_CMD_"), params,
