@@ -15,7 +15,7 @@ from mavscope.mavlink.frame import EncryptionStatus, Frame, SignatureStatus
 from mavscope.notes import Finding, FrameNumbers, Note, explanation, finding, sort_findings
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.security.downgrade import Judged
-from mavscope.security.keystream import DAMAGED, Collector, Recovery, frames_text, keystream_audit
+from mavscope.security.keystream import DAMAGED, Collector, Recovery, keystream_audit
 from mavscope.security.passphrase import Stream, Targets, default_key_findings, passphrase_findings
 from mavscope.security.signing import NEW_STREAM_WINDOW
 
@@ -31,11 +31,6 @@ AHEAD_S = 3600.0  # a signing stream that starts this much further ahead of the 
 def _records() -> FrameNumbers:
     """Frame numbers of one kind of verdict: the first RECORDS_LISTED, and the count."""
     return FrameNumbers(RECORDS_LISTED, repeats=True)
-
-
-def _text(r: FrameNumbers) -> str:
-    more = r.count - len(r.nums)
-    return frames_text(r.nums) + (f" (and {more} not listed)" if more > 0 else "")
 
 
 class Audit:
@@ -98,16 +93,16 @@ class Audit:
 
     def verdict_findings(self) -> list[Finding]:
         """One finding per kind of verdict the security stage gave (with the frames that got it)."""
-        findings = [finding(code, f"{r.count} frame(s): {explanation(code)} (frames {_text(r)})", r.nums)
+        findings = [finding(code, f"{r.count} frame(s): {explanation(code)}", r.nums)
                     for code, r in self.by.items()]
         if self.failed.count:
             findings.append(finding("decryption-failed",
                                     f"{self.failed.count} encrypted frame(s) did not decrypt with the configured "
-                                    f"cipher (frames {_text(self.failed)})", self.failed.nums))
+                                    "cipher", self.failed.nums))
         if self.no_cipher.count:
             findings.append(finding("encrypted-no-key",
-                                    f"{self.no_cipher.count} encrypted frame(s) without a cipher for their method "
-                                    f"(frames {_text(self.no_cipher)})", self.no_cipher.nums))
+                                    f"{self.no_cipher.count} encrypted frame(s) without a cipher for their method",
+                                    self.no_cipher.nums))
         return findings
 
     def result(self, *, words: Iterable[bytes] | None = None, qgc: bool = False,

@@ -13,14 +13,7 @@ from mavscope.mavlink.frame import CrcStatus, Frame
 from mavscope.notes import Finding, finding
 from mavscope.security.ciphers import xor_bytes
 
-SHOWN = 8  # frames listed by number in a message
 ENCRYPTED_KEPT = 20_000  # encrypted frames per method the audit looks at (the first ones)
-
-
-def frames_text(records: list[int]) -> str:
-    """"1, 2, 3 and 5 more": the first frame numbers of a finding, for its message."""
-    head = ", ".join(map(str, records[:SHOWN]))
-    return head + (f" and {len(records) - SHOWN} more" if len(records) > SHOWN else "")
 
 
 @dataclass
@@ -104,7 +97,7 @@ def _repeats(method: int, group: list[Frame]) -> Finding | None:
     return finding("keystream-reuse",
                    f"method {method}: {len(records)} of {len(group)} encrypted frames repeat the ciphertext of an "
                    f"earlier frame with another sequence number ({', '.join(names)}): every frame is encrypted with "
-                   f"the same keystream (frames {frames_text(records)})", records)
+                   "the same keystream", records)
 
 
 def _agreed_prefix(candidates: list[bytes]) -> int:

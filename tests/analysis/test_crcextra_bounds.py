@@ -97,3 +97,17 @@ def test_when_every_group_is_established_the_new_one_goes(tmp_path: Path, monkey
     assert set(m.fits) == {(1, 1, 30, 77), (2, 1, 0, 77)}
     (f,) = [x for x in m.findings(dialect) if x.code == "capacity"]
     assert f.frames == (21,) and "the frame of message id 0 from 3/1 fitting CRC_EXTRA 77 not followed" in f.message
+
+
+def test_audit_writes_each_findings_frames_once_from_its_frames(cli: Cli, tmp_path: Path) -> None:
+    """No finding's message lists its frames (--json: they are `frames`); audit's text writes them once after
+    the message, the first 8 and how many more (notes.finding_line): the capacity finding above, its 10
+    records, as "(frames 4106, 4107, 4109, 4113, 4121, 4137, 4169, 4233 and 2 more)"."""
+    path = flood_capture(tmp_path)
+    doc = json.loads(cli("audit", path, "--json", environ=PURE).out)
+    assert not [f for f in doc["findings"] if "(frames " in f["message"]]
+    out = cli("audit", path, environ=PURE).out
+    lines = [line for line in out.splitlines() if line.startswith("[")]
+    assert all(line.count("(frames ") == 1 for line in lines)
+    (capacity,) = [line for line in lines if "] capacity: " in line]
+    assert capacity.endswith("(frames 4106, 4107, 4109, 4113, 4121, 4137, 4169, 4233 and 2 more)")
