@@ -48,8 +48,10 @@ def test_securemav_xor_method_7_decrypts_without_options(cli: Cli, tmp_path: Pat
     assert all(r["crc_status"] == "ok" for r in rows)
     assert [r["encryption"] for r in rows] == [{"method": 7, "scheme": "xor", "status": "decrypted"}] * 3
     assert [r["fields"]["time_boot_ms"] for r in rows] == [1000, 1001, 1002]
-    yawspeed = struct.unpack("<f", struct.pack("<f", -0.03))[0]
-    assert rows[0]["fields"]["roll"] == 0.125 and rows[0]["fields"]["yawspeed"] == yawspeed
+    # a float field's JSON number reads back as the float32 that was sent (docs/json-format.md): -0.03 packed
+    # by pymavlink above, compared as float32 bits
+    yawspeed = rows[0]["fields"]["yawspeed"]
+    assert rows[0]["fields"]["roll"] == 0.125 and struct.pack("<f", yawspeed) == struct.pack("<f", -0.03)
 
 
 def ctr_encrypt(key: bytes):  # type: ignore[no-untyped-def]
