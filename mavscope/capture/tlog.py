@@ -174,6 +174,7 @@ class TlogReader(CaptureReader):
         tuple_new = tuple.__new__
         R = Record
         LT = LINKTYPE_MAVLINK_TLOG
+        lo_ts, hi_ts, behind, ahead, stxs = TS_MIN, TS_MAX, RESYNC_BEHIND, RESYNC_AHEAD, STXS
         n = 0
         pos = base = 0
         buf = b""
@@ -187,21 +188,28 @@ class TlogReader(CaptureReader):
                 p = pos - base
                 blen = len(buf)
                 last = blen - LOOKAHEAD if base + blen < size else blen - 11  # entries decidable in the window
-                while p <= last:
-                    ts = ts_unpack(buf, p)[0]
+                # (each entry's timestamp is read once: the test that an entry starts where one ends reads the
+                # next one's, which is then its own, in range; near() inlined)
+                ts = ts_unpack(buf, p)[0] if p <= last else 0
+                while p <= last and lo_ts <= ts < hi_ts:
                     flen = size_of(buf, p + 8)
                     if flen < 0:
                         break
                     end = p + 8 + flen
-                    if end > blen or not TS_MIN <= ts < TS_MAX:
+                    if end > blen:
                         break
-                    if end + 9 <= blen and not (buf[end + 8] in STXS and near(ts_unpack(buf, end)[0], ts)):
-                        break  # no entry starts where it ends: the slow path looks for one inside it
+                    if end + 9 <= blen:
+                        nts = ts_unpack(buf, end)[0]
+                        if buf[end + 8] not in stxs or not (lo_ts <= nts < hi_ts and ts - behind <= nts <= ts + ahead):
+                            break  # no entry starts where it ends: the slow path looks for one inside it
+                    else:  # (the file's last entry: the loop ends with it)
+                        nts = 0
                     n += 1
                     last_ts = ts
                     yield tuple_new(R, (n, ts / 1e6, LT, buf[p + 8:end], base + p + 8, end - p - 8, pending))
                     pending = ()
                     p = end
+                    ts = nts
                     if not n & 1023:
                         self.position = base + p
                 pos = base + p

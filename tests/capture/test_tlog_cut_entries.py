@@ -97,3 +97,35 @@ def test_real_tlogs_both_engines_and_what_the_c_parser_reads(cli, real_captures:
         reads = c_reads(cparser, path.read_bytes())
         got = shown(cli, path, dialect)
         assert reads <= got, (name, sorted(reads - got)[:10])
+
+
+def test_the_fast_path_reads_each_timestamp_once(tmp_path: Path) -> None:
+    """The reader's tight loop tests that an entry starts where each one ends (the cut-entry rule above) by
+    reading the next entry's timestamp, which is then that entry's own: one struct unpack an entry, no Python
+    call besides the record's. Counted with a profiler (the work, not the time: tests/support/cost.py's rule)."""
+    import sys
+
+    from mavscope.capture.tlog import TlogReader
+
+    s = Sender(1, 1)
+    n = 2000
+    path = tmp_path / "clean.tlog"
+    path.write_bytes(tlog([(T0 + i * 0.01, s.pack(heartbeat())) for i in range(n)]))
+    calls: dict[str, int] = {}
+
+    def prof(frame, event, arg):  # type: ignore[no-untyped-def]
+        if event == "c_call":
+            calls[arg.__name__] = calls.get(arg.__name__, 0) + 1
+        elif event == "call":
+            calls[frame.f_code.co_name] = calls.get(frame.f_code.co_name, 0) + 1
+
+    reader = TlogReader(str(path))
+    sys.setprofile(prof)
+    try:
+        records = list(reader)
+    finally:
+        sys.setprofile(None)
+    assert len(records) == n and all(r.time == pytest.approx(T0 + i * 0.01) for i, r in enumerate(records))
+    # the entries past the first window's lookahead are the tight loop's; allow the window edges a few more
+    assert calls.get("unpack_from", 0) <= n + 64, calls
+    assert calls.get("near", 0) <= 16, calls
