@@ -34,6 +34,7 @@ from mavscope.mavlink.frame import CrcStatus, Frame, SignatureStatus, plaintext_
 from mavscope.mavlink.semantics import message_label
 from mavscope.native_plan import build_plan
 from mavscope.notes import FrameNumbers
+from mavscope.transport.base import TRANSPORT_TLOG
 
 TRANSPORTS = ("udp", "tcp", "tlog", "raw")  # acc.h MS_TR_*
 CRC = tuple(CrcStatus)  # MS_CRC_*: ok, bad, unchecked, truncated
@@ -92,6 +93,7 @@ class Accumulator:
         dump = self.acc.dump()
         self.acc = None
         stats, ex = rebuild(dump, dialect)
+        ex.recorded = any(c.transport == TRANSPORT_TLOG for c in stats.conversations.values())  # as Expert.add
         ex.detectors[ex.detectors.index(_one(ex, BadCrcBursts))] = self.bursts
         ex.detectors[ex.detectors.index(_one(ex, KeyLeaks))] = self.leaks
         ex.detectors[ex.detectors.index(_one(ex, HiddenFrames))] = self.hidden

@@ -27,7 +27,6 @@ from mavscope.native_dump import Accumulator, plan_for
 from mavscope.notes import Finding
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.security.stage import SecurityStage
-from mavscope.transport.base import TRANSPORT_TLOG
 
 
 class NativeStats:
@@ -83,6 +82,5 @@ def native_stats(path: str | os.PathLike[str], dialect: Dialect, stage: Security
     if acc.full():
         return None
     stats, ex = acc.result(dialect)
-    ex.recorded = any(c.transport == TRANSPORT_TLOG for c in stats.conversations.values())  # as Expert.add
     return NativeStats(stats, ex.findings(), acc.frames + counters["frames_native"], counters["size"],
                        ex.logged_in_part())
