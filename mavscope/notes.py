@@ -303,6 +303,13 @@ CODES: dict[str, Code] = {
              "a vehicle path that would leave the output directory, or holds NUL or control characters",
              "vehicle paths with '..' components, NUL or control characters, or of absurd length: a server does "
              "not send these by accident; the files are written under safe names"),
+        Code("image-incomplete", _NOTE, Group.REASSEMBLY, _C, "images with ENCAPSULATED_DATA packets missing",
+             "images sent as DATA_TRANSMISSION_HANDSHAKE and ENCAPSULATED_DATA whose packets the capture misses: "
+             "their bytes are zeros in the files written, a raw image's missing rows zero rows in its PNG"),
+        Code("image-format", _NOTE, Group.PROTOCOL, _C, "images whose bytes contradict their handshake's type",
+             "images whose bytes (a file signature, or width x height bytes) are another format than their "
+             "handshake's type names in common.xml: the older numbering of MAVLINK_DATA_STREAM_TYPE, from 1 "
+             "(PX4FLOW's RAW8U is type 3), or a sender that says one format and sends another"),
         Code("object-limit", _WARN, Group.UNDECODED, _C, "a limit of the object reconstruction cut data",
              "the object reconstruction reached one of its limits (object size, memory, transfers at once, "
              "objects): what it gave up is listed"),
@@ -443,9 +450,8 @@ class GivenUp:
         said, and the records where the 1st, 2nd, 4th... came."""
         if not self.count:
             return None
-        where = f" (frames {', '.join(map(str, self.records))})" if self.records else ""
         return finding("capacity", f"{self.what}: {self.count:,} given up ({self.units:,} {self.unit}); the last "
-                                   f"said: {self.detail}{where}", self.records)
+                                   f"said: {self.detail}", self.records)
 
 
 def pop_newest(table: dict[K, V], keep: object) -> tuple[K, V]:
@@ -462,6 +468,18 @@ def pop_newest(table: dict[K, V], keep: object) -> tuple[K, V]:
 def finding(code: str, message: str, frames: Iterable[int] = ()) -> Finding:
     """A Finding for a registered code, with the code's severity (KeyError for an unregistered one)."""
     return Finding(code, CODES[code].severity, message, tuple(frames))
+
+
+FRAMES_SHOWN = 8  # frame numbers a finding's text line lists (--json lists them all)
+
+
+def finding_line(f: Finding) -> str:
+    """A finding as one line of text: "[SEVERITY] CODE: MESSAGE (frames 1, 2, 3 and 5 more)", its frames from
+    `Finding.frames` (a message never lists them: this is the one place they are written as text)."""
+    nums = f.frames
+    shown = ", ".join(map(str, nums[:FRAMES_SHOWN])) + (f" and {len(nums) - FRAMES_SHOWN} more"
+                                                         if len(nums) > FRAMES_SHOWN else "")
+    return f"[{f.severity.value}] {f.code}: {f.message}" + (f" (frames {shown})" if nums else "")
 
 
 def explanation(code: str) -> str:

@@ -50,6 +50,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                     max_holes=args.max_holes_mb * MIB)
     writer = ObjectWriter(args.out) if args.out else None
     files: dict[int, str] = {}
+    pngs: dict[int, tuple[str | None, str | None]] = {}  # image -> (its PNG's name, why none)
     try:
         with analysis_pass(args, env) as frames:
             path, select = frames.session.name, frames.selection
@@ -60,6 +61,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                 for rec in tracker.take():
                     if writer is not None and select.any_record(rec.frames):
                         files[rec.number] = writer.write(rec)
+                        if (png := writer.write_png(rec)) != (None, None):
+                            pngs[rec.number] = png
 
             for f in frames:
                 tracker.feed(f)
@@ -67,7 +70,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                     drain()
             log = tracker.finish()
             drain()
-        doc = objects_json(log, files, select)
+        doc = objects_json(log, files, select, pngs)
         if writer is not None:
             manifest = {"file": path, "generated_by": f"mavscope {__version__}", **doc}
             writer.write_manifest(orjson.dumps(manifest, option=orjson.OPT_INDENT_2 | orjson.OPT_APPEND_NEWLINE))
@@ -122,7 +125,7 @@ def _print(env: Env, path: str, doc: dict, out: str | None) -> None:
                      o["path"] or o["name"], f"{party(sender)} -> {party(receiver)}", f"{o['size']:,}", _state(o),
                      frames, _signatures(o["signatures"]), o["sha256"][:16]]
             if out:
-                cells.append(o["file"] or "-")
+                cells.append((o["file"] or "-") + (f" + {o['png']}" if o.get("png") else ""))
             return cells
 
         print_table(con, columns(*names, *(["file"] if out else []), right=("#", "size")), objs, row,

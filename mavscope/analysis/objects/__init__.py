@@ -5,7 +5,7 @@ DATA_TRANSMISSION_HANDSHAKE/ENCAPSULATED_DATA.
 `tracker.py` runs the trackers in one pass (`ftp.py`, `logs.py`, `images.py`) over a shared `Context`
 (limits, memory budget, transfers in progress); `content.py` holds an object's bytes as they arrive;
 `model.py` is what it reports (`ObjectRecord`, `FtpOperation`); `names.py` makes safe file names;
-`export.py` the JSON (the manifest).
+`export.py` the JSON (the manifest); `imageformat.py` says how an image reads and makes its PNG (`png.py`).
 """
 
 from mavscope.analysis.objects.export import manifest_entry, objects_json

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 from mavscope.analysis.objects.context import Context
 from mavscope.analysis.objects.ftp import FtpTracker
-from mavscope.analysis.objects.images import ImageTracker
+from mavscope.analysis.objects.images import ImageTracker, image_findings
 from mavscope.analysis.objects.logs import LogTracker
 from mavscope.analysis.objects.model import FTP_WRITE, FtpOperation, Limits, ObjectRecord, party
 from mavscope.analysis.objects.names import unsafe_reasons
@@ -135,6 +135,7 @@ def object_findings(log: ObjectLog) -> list[Finding]:
         out.append(finding("object-unsafe-path", f"{len(unsafe)} vehicle path(s) that cannot be used as file "
                                                  f"names as they are ({text}); their files are named safely",
                            [n for _, _, n in unsafe[:MAX_LISTED]]))
+    out += image_findings(objs)
     if log.given_up:
         text = "; ".join(f"{k} ({v}x)" if v > 1 else k for k, v in list(log.given_up.items())[:MAX_LISTED])
         out.append(finding("object-limit", f"limits of the reconstruction cut some data: {text}"))
