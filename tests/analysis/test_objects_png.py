@@ -246,3 +246,21 @@ def test_a_header_declaring_more_than_it_holds(cli: Cli, tmp_path: Path, kind: i
             b"BM" + struct.pack("<IHHI", 0, 0, 0, 54) + struct.pack("<IiiHHI", 40, 65535, 65535, 1, 24, 0))
     _, obj, out = _one(cli, tmp_path, _tlog(tmp_path, f"big{kind}.tlog", kind, head.ljust(300, b"\0"), 8, 8))
     assert obj["png"] is None and "more than its 300 bytes hold" in obj["png_not_written"]
+
+
+@pytest.mark.parametrize("mode", ["P", "L", "RGB", "RGBA"])
+def test_bmp_files_pillow_writes(cli: Cli, tmp_path: Path, mode: str) -> None:
+    """BMPs as another program writes them (Pillow: an 8-bit palette for P and L, 24 and 32 bits), sent as
+    type 1: the PNG holds the pixels Pillow reads from the BMP, as RGB."""
+    pil = pytest.importorskip("PIL.Image")
+    import io
+
+    im = pil.new("RGB", (5, 3))
+    im.putdata([(i * 10, i * 20 % 256, 255 - i * 15) for i in range(15)])
+    im = im.convert(mode)
+    buf = io.BytesIO()
+    im.save(buf, "BMP")
+    _, obj, out = _one(cli, tmp_path, _tlog(tmp_path, f"{mode}.tlog", 1, buf.getvalue(), 5, 3))
+    with pil.open(io.BytesIO(buf.getvalue())) as back:
+        want = back.convert("RGB").tobytes()
+    assert decode_png((out / obj["png"]).read_bytes()) == ((5, 3, 8, 2), want)
