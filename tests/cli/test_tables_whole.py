@@ -211,3 +211,16 @@ def test_key_columns_that_cannot_fit_the_terminal_are_written_plain_and_whole(mo
     body = _no_codes(tty.getvalue()).splitlines()
     assert body[-1].split() == list(cells)
     assert grid.RICH_ROWS > 1  # (the plain layout here is the terminal's width's doing, not the row count)
+
+
+def test_verify_table_whole(real_captures: Path) -> None:
+    """verify's per-stream table (13 columns) on the real capture whose injected frame verifies with
+    SHA-256("key") (PROVENANCE.md): each stream and its key whole, piped and at 80 columns."""
+    argv = ["verify", str(REAL_CAPTURES / "ap_sitl_attack1_signed_knownkey.pcap"), "--key", "passphrase:key"]
+    _, doc = _run([*argv, "--json"], io.StringIO(), {})
+    streams = json.loads(doc)["streams"]
+    expected = [f"{s['sysid']}/{s['compid']}" for s in streams] + [k for s in streams for k in s["keys"]]
+    assert len(streams) == 2 and expected
+    for out, environ in ((io.StringIO(), {}), (_Terminal(), {"COLUMNS": "80"})):
+        _, text = _run(argv, out, environ)
+        assert "…" not in text and all(v in _no_codes(text) for v in expected), text
