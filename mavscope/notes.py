@@ -208,8 +208,12 @@ CODES: dict[str, Code] = {
              "shows as other frames or skipped: inside frames it drops for unknown incompat flags (pymavlink and "
              "Wireshark show only those), or past damaged frames it reads whole: what a vehicle reads, hidden "
              "from length-based tools"),
-        Code("split-frame", _WARN, Group.PROTOCOL, _F,
-             "frame split over datagrams to one destination, which the receivers' parser reads whole"),
+        Code("split-frame", _WARN, Group.PROTOCOL, _B,
+             "frame split over datagrams to one destination, which the receivers' parser reads whole",
+             "frames split over UDP datagrams to one receiving socket: the vehicle's MAVLink parser (PX4, ArduPilot, "
+             "QGroundControl keep one parser per socket) reads them whole, while tools that decode each datagram "
+             "alone (pymavlink's per-datagram decoding, Wireshark) show a frame cut short and bytes that are not "
+             "MAVLink: serial-to-UDP bridges split frames so, and an attacker can, to hide a command from them"),
         Code("encrypted-payload", _NOTE, Group.SECURITY, _F, "payload encrypted (incompat flag bits 5-7)"),
         # bounds of mavscope's own state, anywhere (docs/security.md, "Bounds: what each gives up and how it is said")
         Code("capacity", _WARN, Group.CAPACITY, _B,

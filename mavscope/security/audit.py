@@ -20,8 +20,8 @@ from mavscope.security.passphrase import Stream, Targets, default_key_findings, 
 from mavscope.security.signing import NEW_STREAM_WINDOW
 
 # The notes of the security stage that the audit sums up, in the order it reports them first.
-_NOTE_CODES = ("key-leak", "hidden-frame", "unsigned-in-signed-stream", "v1-in-signed-stream", "nonce-reuse",
-               "signature-skew", "ip-fragment-overlap", "ip-fragment-conflict", "tcp-conflict",
+_NOTE_CODES = ("key-leak", "hidden-frame", "split-frame", "unsigned-in-signed-stream", "v1-in-signed-stream",
+               "nonce-reuse", "signature-skew", "ip-fragment-overlap", "ip-fragment-conflict", "tcp-conflict",
                "wifi-retry-conflict", "wifi-fragment-mixed", "wifi-unprotected", "wifi-replay", "wifi-decrypt-failed",
                "ip-bad-checksum", "tcp-bad-checksum", "udp-bad-checksum", "capacity")
 RECORDS_LISTED = 10_000  # frame numbers kept per kind of verdict (all of them are counted)

@@ -13,6 +13,7 @@ gets IPv4 datagrams as IPv4-mapped addresses and IPv6 ones too. The ARM is pymav
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -80,6 +81,11 @@ def test_the_vehicles_socket_reads_the_arm_whatever_address_its_halves_went_to(c
         assert ("if " in note.split(",")[0]) == (name == "dual stack"), (name, note)
     status, out, _ = cli("commands", write_udp_pcap(tmp_path / "c.pcap", cases["subnet broadcast"]), environ=PURE)
     assert status == 0 and "ARM" in out.upper()
+    # audit, the security command, says so: a command per-datagram tools never show (exit 1, the ARM's frame)
+    for env in (PURE, NATIVE):
+        doc = json.loads(cli("audit", tmp_path / "c.pcap", "--json", environ=env).out)
+        split = [f["frames"] for f in doc["findings"] if f["code"] == "split-frame"]
+        assert split == [[2]]
 
 
 def test_a_flood_of_waiting_receivers_does_not_hide_the_arm_and_is_said(cli, tmp_path: Path,  # type: ignore[no-untyped-def]
