@@ -1,25 +1,22 @@
 """`mavscope audit FILE`: security findings (leaked keys, replays, forged and injected frames, weak
 passphrases, fixed keystreams) as a list, or `{"findings": [...]}` with --json.
 
-One pass serves every finding: the audit's own (mavscope.security.audit, with the unsigned frames of
-signing senders judged at the end: mavscope.security.downgrade) and every security-group finding of the
-expert detectors, the very pass `stats` runs (mavscope.analysis.expert): a code both report (`replay`,
-`key-leak`, `hidden-frame`) is given once, as the expert words it, as `stats` shows it."""
+One pass serves every finding: the audit's own and every security-group finding of the expert detectors,
+the very pass `stats` runs (mavscope.analysis.expert), put together by mavscope.analysis.audit_pass (the
+one implementation the export's findings table uses too)."""
 
 from __future__ import annotations
 
 import argparse
 
-from mavscope.analysis.command_log import CommandMatcher, command_fields
+from mavscope.analysis.audit_pass import AuditPass
 from mavscope.analysis.expert import Expert
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import Pass
 from mavscope.commands.common import add_capture_options, add_key_options, capture_session, write_json
 from mavscope.errors import UsageError
 from mavscope.mavlink.dialect import load_dialect
-from mavscope.notes import CODES, Finding, Group, Severity, sort_findings
-from mavscope.security.audit import Audit
-from mavscope.security.downgrade import Downgrades
+from mavscope.notes import Severity
 from mavscope.security.keystream import frames_text, parse_known_plaintext
 from mavscope.security.passphrase import read_wordlist
 
@@ -41,14 +38,6 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(run=run)
 
 
-def merged(expert: list[Finding], own: list[Finding]) -> list[Finding]:
-    """The expert's security findings and the audit's own, a code both give once (the expert's); and every
-    `capacity` finding (what a bound of an analysis gave up: each its own, docs/security.md, "Bounds")."""
-    security = [f for f in expert if CODES[f.code].group in (Group.SECURITY, Group.CAPACITY)]
-    codes = {f.code for f in security if CODES[f.code].group is Group.SECURITY}
-    return sort_findings(security + [f for f in own if f.code not in codes])
-
-
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     if args.qgc and not args.wordlist:
         raise UsageError("audit: --qgc needs --wordlist")
@@ -62,24 +51,12 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         except OSError as exc:
             raise UsageError(f"audit: --wordlist {args.wordlist}: {exc.strerror or exc}") from None
         words = read_wordlist(args.wordlist)
-    audit, expert, downgrades = Audit(), Expert(dialect), Downgrades()
-    matcher = CommandMatcher(dialect)  # `commands`' matching: what its bound gives up hides a command's answer
+    audit, expert = AuditPass(dialect), Expert(dialect)
     with capture_session(args, env, dialect) as session:
         for frame in Pass(session, env, audit.anomaly):  # (damage and anomalies on stderr, as read says them)
-            audit.add(frame)
-            expert.add(frame)
-            downgrades.add(frame)
-            fields = command_fields(frame)
-            if fields is not None:
-                try:
-                    matcher.add(frame, fields)
-                except (KeyError, TypeError, ValueError):  # a field that is not a number (as events skips it)
-                    pass
+            audit.add(frame, expert.add(frame))  # the fields the expert decoded, decoded once
         frames = session.frame_count
-    own, recoveries = audit.result(words=words, qgc=args.qgc, known=known, early=downgrades.judged())
-    gave_up = matcher.given_up.finding()
-    own += [gave_up] if gave_up is not None else []
-    findings = merged(expert.findings(), own)
+    findings, recoveries = audit.result(expert.findings(), words=words, qgc=args.qgc, known=known)
     status = ExitStatus.FINDINGS if any(f.severity >= Severity.WARN for f in findings) else ExitStatus.OK
     if args.json:
         doc: dict[str, object] = {"frames": frames, "findings": [f.to_json() for f in findings]}

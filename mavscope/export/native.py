@@ -32,7 +32,15 @@ from mavscope.export.columns import AnomalyColumns, MessageTables, frame_batch
 from mavscope.export.native_columns import Chunk, Names, frames_batch, message_batch, message_plan
 from mavscope.export.native_findings import NativeFeed, window_rows
 from mavscope.export.options import ExportOptions, Progress, Warn, dialect_for
-from mavscope.export.pure import Analyses, CaptureSummary, captures_batch, expert_pass, findings_batch, python_source
+from mavscope.export.pure import (
+    Analyses,
+    CaptureSummary,
+    captures_batch,
+    command_pass,
+    expert_pass,
+    findings_batch,
+    python_source,
+)
 from mavscope.export.schema import FINDINGS, FRAMES, frames_schema
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import Frame
@@ -316,13 +324,16 @@ class _Export:
     def settle(self) -> None:
         """The expert's detectors with the state of the whole capture (after `run`): the accumulator's, or
         where it could not hold the capture (a table at its cap; a dialect it cannot be told), those of a
-        pure pass."""
+        pure pass; and the audit's command matcher, from a pure pass where the capture sent more commands
+        than it holds (native_commands.CommandKeys; else it gives up none, unfed)."""
         if not self.want_findings:
             return
         if self.acc is not None and not self.acc.full():
             self.analyses.expert = self.acc.result(self.dialect)[1]
         else:
             self.analyses.expert = expert_pass(self.path, self.options, self.dialect)
+        if self.feed.commands.may_give_up:
+            self.analyses.audit_pass.matcher = command_pass(self.path, self.options, self.dialect)
 
     def finish(self) -> Iterator[pa.RecordBatch]:
         yield from self.pending.flush()

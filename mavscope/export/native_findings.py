@@ -32,10 +32,13 @@ from mavscope.analysis.params.tracker import MAV_AUTOPILOT_INVALID, MAV_AUTOPILO
 from mavscope.analysis.params.tracker import MESSAGES as PARAM_MESSAGES
 from mavscope.endpoint import Endpoint
 from mavscope.export.native_columns import Chunk
+from mavscope.export.native_commands import CommandKeys, payload_rows
 from mavscope.export.pure import Analyses
 from mavscope.mavlink.dialect import MessageDef, char_text
 from mavscope.mavlink.frame import CrcStatus, Frame, Signature, SignatureStatus, new_frame
 from mavscope.pipeline.dissect import Anomaly
+from mavscope.security.downgrade import Downgrades, signs, unsigned
+from mavscope.security.stage import RADIO_STATUS
 
 _TRANSPORT = {1: "udp", 2: "tlog"}  # columns.h MS_TRANSPORT_*
 
@@ -72,18 +75,6 @@ def _param_value_layout(position: int, md: MessageDef) -> tuple[int, int, int, i
     return (position, md.length, value, count_at, id_at, type_at)
 
 
-def _payload_rows(parts: Sequence[tuple[int, Any, Any, int]], position: int, length: int,
-                  ) -> tuple[np.ndarray, np.ndarray] | None:
-    """The window's rows of the message at `position` of the table (`length` bytes each): the index of
-    each in the chunk and their payloads (count x length), or None when the window has none."""
-    part = next((p for p in parts if p[0] == position), None)
-    if part is None:
-        return None
-    _, rows, frames, count = part
-    at = np.frombuffer(frames, np.uint32, count=count).astype(np.int64)
-    return at, np.frombuffer(rows, np.uint8, count=count * length).reshape(count, length)
-
-
 def _times(c: Chunk, idx: np.ndarray) -> list[float | None]:
     """The capture times of chunk rows `idx` as a Frame holds them (None where the capture gave none)."""
     return [t if ok else None for t, ok in zip(c.time[idx].tolist(), c.time_ok[idx].tolist())]
@@ -115,6 +106,9 @@ class Window:
         self.built: dict[int, Frame] = {}
 
     def _join(self, native: np.ndarray, py: list[int]) -> np.ndarray:
+        """Per row: `native`'s value for a native frame, `py`'s for a handed-back one."""
+        if not py:
+            return native  # the rows are the native frames
         out = np.empty(self.size, np.int64)
         out[self.gn] = native
         out[self.gp] = np.asarray(py, np.int64)
@@ -171,6 +165,8 @@ class NativeFeed:
         self.messages = messages
         self.objects_msgs = self._mask(lambda md: md.name in TRACKED_MESSAGES)
         self.params_msgs = self._mask(lambda md: md.name in PARAM_MESSAGES)
+        self.commands = CommandKeys(messages)  # whether the audit's command matcher could give up a command
+        self.signing = np.zeros(1 << 16, np.bool_)  # per sender (sysid << 8 | compid): Downgrades.signers
         self.seen = 0  # frames of the capture before the current window
         # HEARTBEAT's table position and the offsets of the two fields the parameter tracker reads
         self.heartbeat: tuple[int, int, int, int] | None = None  # (position, length, type, autopilot)
@@ -206,6 +202,9 @@ class NativeFeed:
         build[given] = False
         w.build(w.native_rows(build))
         self._audit(w, anomalies)
+        self._downgrades(w)
+        if not self.commands.may_give_up:
+            self.commands.window(c, py, parts)
         self._objects(w, params, reports)
         self.seen += w.size
 
@@ -217,7 +216,7 @@ class NativeFeed:
         if self.param_value is None:
             return np.empty(0, np.int64), {}
         position, length, v_at, n_at, id_at, t_at = self.param_value
-        got = _payload_rows(parts, position, length)
+        got = payload_rows(parts, position, length)
         if got is None:
             return np.empty(0, np.int64), {}
         at, payload = got
@@ -254,7 +253,7 @@ class NativeFeed:
         if self.heartbeat is None:
             return np.empty(0, np.int64)
         position, length, t_at, a_at = self.heartbeat
-        got = _payload_rows(parts, position, length)
+        got = payload_rows(parts, position, length)
         if got is None:
             return np.empty(0, np.int64)
         at, payload = got
@@ -320,6 +319,77 @@ class NativeFeed:
             s = int(stream[g[0]])
             members = rows[g].tolist()
             audit.targets.add_run((s >> 16, (s >> 8) & 255, s & 255), len(g), _nth(w, members))
+
+    def _downgrades(self, w: Window) -> None:
+        """`Downgrades.add` for every frame of the window, in bulk: the rows of senders not yet seen signing,
+        each up to its first signing frame (`signs`: a native signed frame always is, the stage checked no
+        signature of it); the unsigned ones but RADIO_STATUS counted per sender, the first listed (as many
+        as `room` allows, EARLY_TOTAL's share taken in capture order), no Frame built."""
+        d = self.a.audit_pass.downgrades
+        c, py = w.c, w.py
+        sender = w.sender
+        live = np.flatnonzero(~self.signing[sender])  # rows of senders not yet seen signing
+        if not len(live):
+            return
+        native = w.native[live]
+        sign, plain = np.empty(len(live), np.bool_), np.empty(len(live), np.bool_)
+        i = w.at[live[native]]
+        sign[native] = c.signed[i] & (c.version[i] == 2)
+        plain[native] = ~sign[native] & (c.msgid[i] != RADIO_STATUS)
+        if not native.all():  # the handed-back frames among them
+            fs = [py[j] for j in w.at[live[~native]].tolist()]
+            sign[~native] = [signs(f) for f in fs]
+            plain[~native] = [unsigned(f) and f.msgid != RADIO_STATUS for f in fs]
+        who = sender[live]
+        first = np.full(1 << 16, w.size, np.int64)  # each sender's first signing row of the window
+        if sign.any():
+            signers, at = np.unique(who[sign], return_index=True)
+            first[signers] = live[sign][at]
+        early = live[plain & (live < first[who])]
+        if len(early):
+            self._early(d, w, early)
+        if sign.any():
+            self.signing[signers] = True
+            d.signers.update((int(s) >> 8, int(s) & 255) for s in signers.tolist())
+
+    def _early(self, d: Downgrades, w: Window, early: np.ndarray) -> None:
+        """Rows `early` (ascending) of senders not yet signing, unsigned, before their sender's first signing
+        frame: counted and listed into `d` (Downgrades) as its `add` would."""
+        who = w.sender[early]
+        counts = np.bincount(who, minlength=1 << 16)
+        present = np.flatnonzero(counts)  # the senders, ascending
+        native = w.native[early]
+        v1_rows = np.empty(len(early), np.bool_)
+        v1_rows[native] = w.c.version[w.at[early[native]]] == 1
+        v1_rows[~native] = [w.py[j].version == 1 for j in w.at[early[~native]].tolist()]
+        v1 = np.bincount(who[v1_rows], minlength=1 << 16)[present].tolist()
+        total = counts[present].tolist()
+        keys = [(s >> 8, s & 255) for s in present.tolist()]
+        order = range(len(keys))
+        if any(k not in d.early for k in keys):  # senders first heard here: in the order first heard, as `add`
+            _, first_at = np.unique(who, return_index=True)
+            order = np.argsort(first_at, kind="stable").tolist()
+        rooms = [d.room(k) for k in keys]
+        listed: dict[int, list[tuple[int, int, int, str]]] = {}
+        if any(rooms):
+            group = np.searchsorted(present, who)  # each row's sender, as its place in `present`
+            by = np.argsort(group, kind="stable")  # rank of each row among its sender's
+            starts = np.concatenate([[0], np.cumsum(total)[:-1]]).astype(np.int64)
+            rank = np.empty(len(early), np.int64)
+            rank[by] = np.arange(len(early)) - starts[group[by]]
+            kept = np.flatnonzero(rank < np.asarray(rooms, np.int64)[group])[:d.room()]
+            for j in kept.tolist():
+                listed.setdefault(int(group[j]), []).append(self._listed(w, int(early[j])))
+        for g in order:
+            d.unsigned_run(keys[g], v1[g], total[g] - v1[g], listed.get(g, ()))
+
+    def _listed(self, w: Window, row: int) -> tuple[int, int, int, str]:
+        """(version, record, index, message name) of a row, as `Downgrades.add` lists a frame."""
+        if not w.native[row]:
+            f = w.py[int(w.at[row])]
+            return (f.version, f.record, f.index, f.msgname or str(f.msgid))
+        c, i = w.c, int(w.at[row])
+        return (int(c.version[i]), int(c.record[i]), int(c.index[i]), self.messages[int(c.message[i])].name)
 
     def _objects(self, w: Window, params_rows: np.ndarray, reports: dict[int, tuple[Any, ...]]) -> None:
         """The object and parameter trackers (`params_rows`: the native frames the latter is given; `reports`:

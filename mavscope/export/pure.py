@@ -9,13 +9,15 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, replace
 from datetime import datetime, timezone
 
 import pyarrow as pa
 
 from mavscope import __version__
+from mavscope.analysis.audit_pass import AuditPass
+from mavscope.analysis.command_log import CommandMatcher
 from mavscope.analysis.expert import Expert
 from mavscope.analysis.objects import ObjectTracker
 from mavscope.analysis.params import ParamTracker
@@ -27,7 +29,6 @@ from mavscope.mavlink.frame import Frame
 from mavscope.notes import CODES, Finding, Note, is_capture_damage, problem_line
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.pipeline.session import open_session
-from mavscope.security.audit import Audit
 
 PYTHON = "python"
 
@@ -82,21 +83,22 @@ class CaptureSummary:
 
 class Analyses:
     """The analyses whose findings make the findings table: `stats`' expert detectors, `audit` (no
-    wordlist), `objects` and `params` with their default limits."""
+    wordlist: its one pass, `AuditPass`, whose `audit` part is `audit` here), `objects` and `params` with
+    their default limits."""
 
     def __init__(self, dialect: Dialect) -> None:
-        self.expert, self.audit = Expert(dialect), Audit()
+        self.expert, self.audit_pass = Expert(dialect), AuditPass(dialect)
+        self.audit = self.audit_pass.audit
         self.objects, self.params = ObjectTracker(), ParamTracker()
         self.objects.use_dialect(dialect)
 
     def anomaly(self, item: Anomaly) -> None:
         """What belongs to no frame, in capture order (the audit's IP fragment findings)."""
-        self.audit.anomaly(item)
+        self.audit_pass.anomaly(item)
 
     def add(self, f: Frame) -> None:
         """One frame, in capture order."""
-        self.expert.add(f)
-        self.audit.add(f)
+        self.audit_pass.add(f, self.expert.add(f))  # the fields the expert decoded, decoded once
         self.objects.feed(f)
         self.took(self.objects)
         self.params.feed(f)
@@ -107,22 +109,37 @@ class Analyses:
             objects.take()  # the findings need no object's bytes: let them go
 
     def findings(self) -> list[tuple[str, Finding]]:
-        """(source, finding) of every analysis, at the end of the capture."""
-        return ([("stats", f) for f in self.expert.findings()] + [("audit", f) for f in self.audit.result()[0]]
+        """(source, finding) of every analysis, at the end of the capture (`audit`'s as the command gives
+        them: with the expert's security findings, mavscope.analysis.audit_pass)."""
+        expert = self.expert.findings()
+        return ([("stats", f) for f in expert] + [("audit", f) for f in self.audit_pass.result(expert)[0]]
                 + [("objects", f) for f in self.objects.finish().findings]
                 + [("params", f) for f in self.params.finish().findings])
 
 
-def expert_pass(path: str, options: ExportOptions, dialect: Dialect) -> Expert:
-    """The expert's detectors over every frame of the capture, one pass of the pure pipeline (the native
-    source's fallback when its accumulator cannot hold a capture)."""
+def pure_pass(path: str, options: ExportOptions, dialect: Dialect, take: Callable[[Frame], object]) -> None:
+    """Every frame of the capture to `take`, one pass of the pure pipeline (the native source's fallback
+    for an analysis it cannot serve on a capture)."""
     popts = replace(options.pipeline, display_filter=None)
-    ex = Expert(dialect)
     with open_session(path, popts, dialect=dialect, warn=lambda _m: None) as session:
         for item in session.items:
             if type(item) is not Anomaly:
-                ex.add(item)
+                take(item)
+
+
+def expert_pass(path: str, options: ExportOptions, dialect: Dialect) -> Expert:
+    """The expert's detectors over a pure pass (where the native accumulator cannot hold a capture)."""
+    ex = Expert(dialect)
+    pure_pass(path, options, dialect, ex.add)
     return ex
+
+
+def command_pass(path: str, options: ExportOptions, dialect: Dialect) -> CommandMatcher:
+    """The audit's command matcher over a pure pass (where the native feed's commands could have reached
+    its bound: native_commands.CommandKeys.may_give_up)."""
+    audit = AuditPass(dialect)
+    pure_pass(path, options, dialect, audit.command)
+    return audit.matcher
 
 
 def python_source(path: str, capture_id: str, options: ExportOptions, progress: Progress | None,

@@ -15,7 +15,9 @@ verified, or, where no signing key material was given, a signed frame with a goo
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from itertools import islice
 
 from mavscope.mavlink.frame import CrcStatus, Frame, SignatureStatus
 from mavscope.security.stage import RADIO_STATUS
@@ -91,6 +93,31 @@ class Downgrades:
         if len(e.listed) < EARLY_LISTED and self.listed < EARLY_TOTAL:
             self.listed += 1
             e.listed.append((f.version, f.record, f.index, f.msgname or str(f.msgid)))
+
+    def room(self, sender: Sender | None = None) -> int:
+        """How many more of `sender`'s unsigned frames are listed (the rest are counted): EARLY_LISTED a sender,
+        EARLY_TOTAL over all of them (`sender` None: how many more over all senders)."""
+        total = EARLY_TOTAL - self.listed
+        if sender is None:
+            return max(0, total)
+        e = self.early.get(sender)
+        return max(0, min(EARLY_LISTED - (0 if e is None else len(e.listed)), total))
+
+    def unsigned_run(self, sender: Sender, v1: int, v2: int, listed: Iterable[tuple[int, int, int, str]]) -> None:
+        """`v1` MAVLink v1 and `v2` unsigned v2 frames of `sender`, not RADIO_STATUS, `sender` not yet seen
+        signing: what `add` does with each of them (a caller that counts frames in bulk: the export's native
+        source); `listed`: (version, record, index, name) of the first of them, in capture order, of which
+        `room(sender)` are kept (a caller listing across senders takes EARLY_TOTAL's share in capture order)."""
+        e = self.early.get(sender)
+        if e is None:
+            e = self.early[sender] = Early()
+        e.v1 += v1
+        e.v2 += v2
+        room = self.room(sender)
+        if room:
+            kept = list(islice(listed, room))
+            e.listed += kept
+            self.listed += len(kept)
 
     def judged(self) -> list[Judged]:
         """Per sender that signs, in the order of senders first heard, its unsigned frames before its first

@@ -77,6 +77,9 @@ def state(a: Analyses) -> dict[str, object]:
         "plain": sorted(a.audit.keystreams.plain.items()),
         "targets": list(a.audit.targets.seen.items()),
         "target_frames": [(s, [(f.record, f.index, f.raw) for f in fs]) for s, fs in a.audit.targets.frames.items()],
+        # the unsigned frames of senders before their first signed frame (the native feed's in bulk)
+        "downgrades": (sorted(a.audit_pass.downgrades.signers), a.audit_pass.downgrades.listed,
+                       [(s, e.v1, e.v2, e.listed) for s, e in a.audit_pass.downgrades.early.items()]),
         "ticks": (a.objects.ctx.tick, a.params.objects.ctx.tick),
         "now": a.params.now,
         # what the parameter tracker holds (the native source leaves out HEARTBEATs that change nothing)
