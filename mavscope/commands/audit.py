@@ -16,8 +16,8 @@ from mavscope.commands.analysis_common import Pass
 from mavscope.commands.common import add_capture_options, add_key_options, capture_session, write_json
 from mavscope.errors import UsageError
 from mavscope.mavlink.dialect import load_dialect
-from mavscope.notes import Severity
-from mavscope.security.keystream import frames_text, parse_known_plaintext
+from mavscope.notes import Severity, finding_line
+from mavscope.security.keystream import parse_known_plaintext
 from mavscope.security.passphrase import read_wordlist
 
 RECOVERED_SHOWN = 10
@@ -69,9 +69,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     if not findings:
         out.write("no findings\n")
     for f in findings:
-        # the frames of a finding as the analyses give them (the audit's own messages name theirs already)
-        where = f" (frames {frames_text(list(f.frames))})" if f.frames and "(frames " not in f.message else ""
-        out.write(f"[{f.severity.value}] {f.code}: {f.message}{where}\n")
+        out.write(finding_line(f) + "\n")
     if recoveries:
         out.write(f"\nRecovered without the key ({len(recoveries)} frames; first {RECOVERED_SHOWN}):\n")
         for r in recoveries[:RECOVERED_SHOWN]:
