@@ -385,15 +385,6 @@ class StreamFramer:
             off = None if o is None else o + (pos - start)
         return rec, off
 
-    def _ready(self, pos: int) -> Ready:
-        """When buffer position `pos` became readable: the record (and time) of its piece."""
-        ready = self.segs[0][3]
-        for start, _, _, r in self.segs:
-            if start > pos:
-                break
-            ready = r
-        return ready
-
     def feed(self, data: bytes, record: int, offset: int | None, notes: tuple[Note, ...] = (),
              ready: Ready = (0, None)) -> None:
         """Append the next in-order bytes of the stream (`ready`: the record, and its capture time, at which
@@ -422,6 +413,9 @@ class StreamFramer:
         out = []
         orphans = []
         sk = 0
+        segs = self.segs
+        last = len(segs) - 1
+        i = 0  # the piece holding the frame's first byte (frames come by position: it only moves on)
         for (pos, size, status, crc), h in merged(found, hidden):
             if status is OK:
                 self.trusted = True
@@ -429,13 +423,23 @@ class StreamFramer:
                 s_pos, s_count = skipped[sk]
                 sk += 1
                 self.pending.append(skipped_note(s_count, self._locate(s_pos)[1]))
-            first_rec, off = self._locate(pos)
-            span = tuple(sorted({r for start, r, _, _ in self.segs if pos <= start < pos + size} | {first_rec}))
+            while i < last and segs[i + 1][0] <= pos:
+                i += 1
+            start, first_rec, o, done = segs[i]
+            off = None if o is None else o + (pos - start)
+            j, end = i, pos + size
+            while j < last and segs[j + 1][0] < end:  # the piece holding its last byte
+                j += 1
+            if j == i:  # (most frames: one piece, one record)
+                span: tuple[int, ...] = (first_rec,)
+            else:  # the records holding its bytes, in record order; dated by the piece of its last byte
+                span = tuple(sorted({seg[1] for seg in segs[i:j + 1]}))
+                done = segs[j][3]
             if h is not None:
                 self.pending.append(hidden_note(h, off))
             notes = tuple(self.pending)
             self.pending = []
-            out.append((buf, pos, size, status, crc, off, span, notes, self._ready(pos + size - 1)))
+            out.append((buf, pos, size, status, crc, off, span, notes, done))
         for s_pos, s_count in skipped[sk:]:
             if self.trusted:
                 self.pending.append(skipped_note(s_count, self._locate(s_pos)[1]))

@@ -40,7 +40,7 @@ from collections.abc import Hashable
 from mavscope.endpoint import Endpoint
 from mavscope.notes import Note, note
 from mavscope.transport.base import TRANSPORT_TCP, Payload
-from mavscope.transport.tcp_direction import HOLES_KEPT, MOD, NEVER, Direction
+from mavscope.transport.tcp_direction import HALF, HOLES_KEPT, MOD, NEVER, Direction
 
 TCP_FIN = 0x01
 TCP_SYN = 0x02
@@ -85,7 +85,9 @@ class TcpReassembler:
         self._slots: dict[tuple[Endpoint, Endpoint], list[Direction]] = {}  # (src, dst) -> generations, oldest first
         self._lru: OrderedDict[Hashable, Direction] = OrderedDict()  # every direction, least recently active first
         self._buffering: OrderedDict[Hashable, Direction] = OrderedDict()  # those holding bytes, oldest first
-        self._holes: OrderedDict[Hashable, Direction] = OrderedDict()  # those waiting on a hole, about by `since`
+        self._holes: dict[Hashable, Direction] = {}  # those waiting on a hole (`since` not NEVER) ...
+        self._due: list[tuple[float, int, Hashable]] = []  # ... a heap of their (since, serial, key), stale ones too
+        self._dues = 0  # serials of `_due`'s entries
         self._notes: dict[tuple[Endpoint, Endpoint], list[Note]] = {}  # notes for the next payload of a (src, dst)
         self._serial = 0
         # keys of streams that ended (FIN, RST) or were released, oldest first, for a consumer to let their
@@ -130,11 +132,12 @@ class TcpReassembler:
             self._close(d, seq, flags, len(data), out)
         if ack is not None and flags & TCP_ACK:
             peer = self._slots.get((dst, src))
-            if peer is not None:
+            # (an ACK changes nothing unless it passes the bytes delivered: _ack; most do not)
+            if peer is not None and (len(peer) > 1 or 0 < (ack - peer[0].next) % MOD < HALF):
                 self._ack(peer, ack, record, out)
-        if k in self._notes:
+        if self._notes and k in self._notes:
             self._attach(k, out)
-        if self._holes and self.clock - next(iter(self._holes.values())).since > HOLE_TIMEOUT:
+        if self._due and self.clock - self._due[0][0] > HOLE_TIMEOUT:
             self._expire(out)
         if self.total > self.max_total or len(self._lru) > self.max_directions or \
                 record - next(iter(self._lru.values())).last > self.idle_records:
@@ -405,23 +408,41 @@ class TcpReassembler:
 
     def _wait(self, d: Direction) -> None:
         """Keep `_holes` (the directions waiting on a hole, for HOLE_TIMEOUT) up to date with `d`: a hole
-        with bytes beyond it (since they came), or bytes its receiver acknowledged unseen (since the ACK)."""
+        with bytes beyond it (since the first segment beyond it came: the clock at its arrival, which a hole
+        left when an earlier one was filled may have waited long already), or bytes its receiver acknowledged
+        unseen (since the ACK). `_due` has the holes by `since`, so the oldest is given up first, whichever
+        direction it is on and whenever it was found."""
         if d.pending or (d.acked is not None and d.acked > d.next and not d.closed):
             if d.since == NEVER or d.hole != d.next:  # a new hole
-                d.hole, d.since = d.next, d.pending[0][6] if d.pending else self.clock
+                since = d.pending[0][6] if d.pending else self.clock
+                if since != d.since:  # (an entry with this `since` serves it already, else)
+                    self._dues += 1
+                    heapq.heappush(self._due, (since, self._dues, d.key))
+                d.hole, d.since = d.next, since
                 self._holes[d.key] = d
-                self._holes.move_to_end(d.key)
+                if len(self._due) > 2 * len(self._holes) + 64:  # mostly stale: keep only the live entries
+                    self._due = [e for e in self._due if (h := self._holes.get(e[2])) is not None and h.since == e[0]]
+                    heapq.heapify(self._due)
         elif d.since != NEVER:
             d.since = NEVER
             self._holes.pop(d.key, None)
 
     def _expire(self, out: list[Payload]) -> None:
-        """Give up the holes nothing filled for HOLE_TIMEOUT after the bytes beyond them came (or their ACK)."""
-        while self._holes:
-            d = next(iter(self._holes.values()))
-            waited = self.clock - d.since
+        """Give up the holes nothing filled for HOLE_TIMEOUT after the bytes beyond them came (or their ACK),
+        the oldest first."""
+        due = self._due
+        while due:
+            since, _, key = due[0]
+            d = self._holes.get(key)
+            if d is None or d.since != since:  # stale: the hole was filled, given up, or moved on
+                heapq.heappop(due)
+                continue
+            waited = self.clock - since
             if waited <= HOLE_TIMEOUT:
                 return
+            heapq.heappop(due)
+            d.since = NEVER  # (what is left, if any, is waited for anew: _wait, by _drain's or below)
+            del self._holes[key]
             if d.pending:
                 self._drain(d, out, d.pending[0][0], f"the capture missed them: nothing filled them in {waited:.3g} "
                             "s after the bytes beyond them came")
@@ -429,8 +450,6 @@ class TcpReassembler:
             if d.hole == d.next and d.acked is not None and d.acked > d.next and not d.closed:
                 why = f"the receiver acknowledged them (record {d.acked_by}): the capture missed them"
                 out.append(self._empty(d, (self._gap(d, d.acked, why, None),)))
-            d.since = NEVER  # (bytes came since: the rest, if any, is waited for anew)
-            self._holes.pop(d.key, None)
             self._wait(d)
 
     def _gap(self, d: Direction, stop: int, reason: str, offset: int | None) -> Note:
