@@ -100,6 +100,14 @@ class FrameIndex:
         self._raw: dict[int, bytes] = {}
         self._notes: dict[int, tuple[Note, ...]] = {}
         self._spans: dict[int, tuple[int, ...]] = {}
+        # Frames come in the order the pipeline completes them, not always in record order: a TCP hole
+        # holds bytes back, and the frames they complete come out later, each its own earlier record's.
+        # Such a "late" row (its record below the highest before it) is kept here, sparse: its position ->
+        # the highest record before it (so that column, the running maximum, is sorted: find_record
+        # bisects it), and each record's first late position.
+        self._late: dict[int, int] = {}
+        self._late_first: dict[int, int] = {}
+        self._top = 0  # the highest record of the rows appended so far
         self.anomalies: list[Anomaly] = []
         self._count = 0
         self.first = 0  # the oldest row held (rows dropped from the front so far, in a bounded live index)
@@ -183,6 +191,10 @@ class FrameIndex:
             self._notes[i] = frame.notes
         if frame.span is not None:
             self._spans[i] = frame.span
+        if frame.record < self._top:
+            self._late_row(i, frame.record)
+        else:
+            self._top = frame.record
         self._record.append(frame.record)
         self._index.append(min(frame.index, 0xFFFF))
         self._time.append(t if t is not None else float("nan"))
@@ -230,7 +242,13 @@ class FrameIndex:
             tmap[code] = tr
         if self.first_time is None and chunk.time_ok.any():
             self.first_time = float(chunk.time[int(np.argmax(chunk.time_ok))])
-        self._record.frombytes(_bytes_of(chunk.record.astype(np.uint32)))
+        records = chunk.record.astype(np.uint32)
+        if n:
+            top = np.maximum.accumulate(np.concatenate([np.array([self._top], np.int64), chunk.record]))
+            for j in np.flatnonzero(chunk.record < top[:-1]).tolist():  # late rows (none, unless after a hole)
+                self._late_row(self._count + j, int(chunk.record[j]), int(top[j]))
+            self._top = int(top[-1])
+        self._record.frombytes(_bytes_of(records))
         self._index.frombytes(_bytes_of(np.minimum(chunk.index, 0xFFFF).astype(np.uint16)))
         timed = chunk.time_ok.all()
         self._time.frombytes(_bytes_of(chunk.time if timed else np.where(chunk.time_ok != 0, chunk.time, np.nan)))
@@ -251,6 +269,12 @@ class FrameIndex:
         self._msgid.frombytes(_bytes_of(chunk.msgid))
         self._security.frombytes(bytes(4 * n))  # no verdict
         self._count += n  # published last: readers only look below _count
+
+    def _late_row(self, i: int, record: int, top: int | None = None) -> None:
+        """Row position `i` holds a frame of `record`, below the highest record before it (`top`, default
+        the highest so far): remember it for find_record."""
+        self._late[i] = self._top if top is None else top
+        self._late_first.setdefault(record, i)
 
     def _security_id(self, sec: Security) -> int:
         sid = self._security_ids.get(sec)
@@ -297,6 +321,10 @@ class FrameIndex:
             self._raw = {k - n: v for k, v in self._raw.items() if k >= n}
             self._notes = {k - n: v for k, v in self._notes.items() if k >= n}
             self._spans = {k - n: v for k, v in self._spans.items() if k >= n}
+            self._late = {k - n: v for k, v in self._late.items() if k >= n}
+            self._late_first = {}
+            for k in sorted(self._late):
+                self._late_first.setdefault(self._record[k], k)
             self._count -= n
             self.first += n
             self._details.clear()  # a dropped frame is gone everywhere
@@ -428,11 +456,20 @@ class FrameIndex:
         return count, None if first is None else problem_line(first[1], first[2])
 
     def find_record(self, record: int) -> int | None:
-        """The first row of capture record `record` (binary search: records are in capture order)."""
+        """The first row of capture record `record`. Rows are in the order frames were completed: in record
+        order, but for the late rows of a TCP stream after a hole (see `_late`). A binary search over the
+        running maximum of the records finds the record's first row in order; its first late row, if any,
+        comes after that one (a late row's record is below one before it), so it counts only without one."""
         with self.lock:
-            col = self._record
-            lo = bisect_left(col, record, 0, self._count)
-            return lo + self.first if lo < self._count and col[lo] == record else None
+            col, late, count = self._record, self._late, self._count
+            if late:
+                lo = bisect_left(range(count), record, key=lambda i: late.get(i, col[i]))
+            else:
+                lo = bisect_left(col, record, 0, count)
+            if lo < count and col[lo] == record and lo not in late:
+                return lo + self.first
+            at = self._late_first.get(record)
+            return None if at is None else at + self.first
 
     def column(self, name: str, rows: Iterable[int]) -> list[int | float | None]:
         """One column's values for `rows`, without rebuilding frames (to pick rows out of a whole
@@ -452,7 +489,7 @@ class FrameIndex:
                 self._security)
         total = sum(c.buffer_info()[1] * c.itemsize for c in cols)
         total += sum(len(b) + 33 for b in self._raw.values()) + 100 * len(self._raw)
-        total += 150 * (len(self._notes) + len(self._spans))
+        total += 150 * (len(self._notes) + len(self._spans)) + 100 * (len(self._late) + len(self._late_first))
         return total
 
     def close(self) -> None:

@@ -12,7 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from scapy.layers.inet import IP, TCP
+from scapy.layers.inet import IP, TCP, UDP
 from scapy.layers.l2 import Ether
 from scapy.utils import wrpcap
 
@@ -22,6 +22,7 @@ T0 = 1_700_000_000.0
 VEHICLE = ("10.0.0.1", 5760)
 GCS = ("10.0.0.2", 40000)
 V_ISN, G_ISN = 999, 4999  # the first data bytes are 1000 (vehicle) and 5000 (ground station)
+UDP_SRC, UDP_DST = ("10.0.0.3", 14550), ("10.0.0.4", 14550)  # another vehicle's link, over UDP (build's `udp`)
 
 
 @dataclass(frozen=True, slots=True)
@@ -48,11 +49,20 @@ class Capture:
     packets: list = field(default_factory=list)
     record_of: dict[int, int] = field(default_factory=dict)  # segment index -> its record (captured ones)
     ack_of: dict[int, int] = field(default_factory=dict)  # segment index -> the record of the ACK of its end
+    udp_of: dict[int, int] = field(default_factory=dict)  # segment index -> the record of the datagram after it
 
     def add(self, src: tuple[str, int], dst: tuple[str, int], seq: int, ack: int, flags: str, t: float,
             data: bytes = b"") -> int:
         p = Ether(src="02:00:00:00:00:01", dst="02:00:00:00:00:02") / IP(src=src[0], dst=dst[0]) / TCP(
             sport=src[1], dport=dst[1], seq=seq % (1 << 32), ack=ack % (1 << 32), flags=flags) / data
+        p.time = T0 + t
+        self.packets.append(p)
+        return len(self.packets)
+
+    def datagram(self, payload: bytes, t: float) -> int:
+        """A UDP datagram of another link (UDP_SRC -> UDP_DST) at time `t`; its record."""
+        p = Ether(src="02:00:00:00:00:03", dst="02:00:00:00:00:04") / IP(src=UDP_SRC[0], dst=UDP_DST[0]) / UDP(
+            sport=UDP_SRC[1], dport=UDP_DST[1]) / payload
         p.time = T0 + t
         self.packets.append(p)
         return len(self.packets)
@@ -84,9 +94,12 @@ def chunks(frames: list[bytes], size: int, period: float = 1.0) -> list[Segment]
 
 
 def build(segments: list[Segment], missed: set[int] = frozenset(), order: list[int] | None = None,  # type: ignore[assignment]
-          acks: bool = True, handshake: bool = True, fin: bool = False, ack_delay: float = 0.01) -> Capture:
+          acks: bool = True, handshake: bool = True, fin: bool = False, ack_delay: float = 0.01,
+          udp: list[bytes] | None = None) -> Capture:
     """The capture of `segments`, the ones in `missed` not captured (the receiver had them: its ACKs, when
-    `acks`, say so, `ack_delay` after each segment), the rest in `order` (segment indices; default: as sent)."""
+    `acks`, say so, `ack_delay` after each segment), the rest in `order` (segment indices; default: as sent).
+    With `udp`, the k-th segment in that order (captured or not) is followed, half a second after it, by a
+    datagram carrying udp[k] on another link (`udp_of`)."""
     cap = Capture()
     if handshake:
         cap.add(GCS, VEHICLE, G_ISN, 0, "S", -0.3)
@@ -98,6 +111,8 @@ def build(segments: list[Segment], missed: set[int] = frozenset(), order: list[i
             cap.record_of[i] = cap.add(VEHICLE, GCS, s.seq, G_ISN + 1, "PA", s.t, s.data)
         if acks:
             cap.ack_of[i] = cap.add(GCS, VEHICLE, G_ISN + 1, s.seq + len(s.data), "A", s.t + ack_delay)
+        if udp is not None and len(cap.udp_of) < len(udp):
+            cap.udp_of[i] = cap.datagram(udp[len(cap.udp_of)], s.t + 0.5)
     if fin:
         last = segments[-1]
         cap.add(VEHICLE, GCS, last.seq + len(last.data), G_ISN + 1, "FA", last.t + 0.5)
