@@ -9,6 +9,7 @@ from mavscope.analysis.command_log import command_json, reconstruct
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
 from mavscope.commands.common import console, write_json
+from mavscope.notes import finding_line
 from mavscope.output.grid import columns, many, print_lines, print_table
 from mavscope.output.tables import fmt, iso, param_text
 
@@ -65,7 +66,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                   else f"No COMMAND_LONG or COMMAND_INT in {path}.")
     con.print(f"{len(docs)} commands, {unanswered} unanswered, {len(orphans)} ACKs matching no command")
     if capacity is not None:  # (its words name messages of the dialect: shown as every line here is)
-        print_lines(con, (f"[{capacity.severity.value}] capacity: {capacity.message}",), plain=many(1))
+        print_lines(con, (finding_line(capacity),), plain=many(1))
     print_lines(con, (f"  frame {o['frame']}: ACK {o['command']} {o['result']} from {o['from'][0]}/{o['from'][1]}"  # type: ignore[index]
                       for o in orphans), plain=many(len(orphans)))
     return ExitStatus.OK
