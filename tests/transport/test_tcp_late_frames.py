@@ -243,3 +243,23 @@ def test_the_stream_framer_dates_a_frame_by_the_piece_of_its_last_byte(dialect) 
     found, _ = sf.take(False)
     assert [(bytes(b[p:p + s]), off, span, done) for b, p, s, _, _, off, span, _, done in found] == [
         (hbs[0], 100, (4,), (7, 1.0)), (hbs[1], 121, (4, 5), (8, 2.0)), (hbs[2], 300, (6,), (9, 3.0))]
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_no_hole_waits_past_the_timeout_among_many(seed: int) -> None:
+    """Random segments (and ACKs) among 6 endpoints, the clock moving by up to 0.5 s now and then: after each
+    segment no hole has waited more than HOLE_TIMEOUT since the bytes beyond it came (the rule, checked on
+    the reassembler's state), and the heap of holes stays within twice the holes waiting (stale entries go)."""
+    import random
+
+    rng = random.Random(seed)
+    eps = [Endpoint(f"10.0.0.{i}", 1) for i in range(6)]
+    r, t = TcpReassembler(), 0.0
+    for n in range(20_000):
+        src, dst = rng.sample(eps, 2)
+        if rng.random() < 0.01:
+            t += rng.random() * 0.5
+        ack = rng.randrange(4000) if rng.random() < 0.3 else None
+        r.segment(src, dst, rng.randrange(4000), TCP_ACK, b"x" * rng.randrange(1, 30), n + 1, 0, ack, t)
+        assert all(r.clock - d.since <= HOLE_TIMEOUT for d in r._holes.values()), n
+        assert len(r._due) <= 2 * len(r._holes) + 65
