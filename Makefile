@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 
-.PHONY: demo test lint captures bench snapshots fuzz fuzz-native clean
+.PHONY: demo test test-slow lint captures bench snapshots fuzz fuzz-native clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -37,9 +37,15 @@ demo: $(STAMP)
 	@echo "--- the return-to-launch command as JSON Lines (-T jsonl) ---"
 	$(BIN)/mavscope read captures/px4_sitl_udp.pcap -Y 'COMMAND_LONG.command == MAV_CMD_NAV_RETURN_TO_LAUNCH' -T jsonl
 
-# one test process per core (pytest-xdist): the suite is CPU-bound and its tests are independent
+# one test process per core (pytest-xdist): the suite is CPU-bound and its tests are independent.
+# Two tiers (docs/testing.md, "Tiers"; tests/support/tiers.py): `test` guards every behaviour with a tenth of
+# each property test's examples and one or two representatives of each sweep; `test-slow` runs the rest (the
+# sweeps over every capture, scale tests, mypy) and every property test with all its examples. CI runs both.
 test: $(TSTAMP)
-	$(BIN)/python -m pytest -q -n auto
+	$(BIN)/python -m pytest -q -n auto -m "not slow"
+
+test-slow: $(TSTAMP)
+	HYPOTHESIS_PROFILE=full $(BIN)/python -m pytest -q -n auto -m "slow or hypothesis"
 
 lint: $(TSTAMP)
 	$(BIN)/ruff check mavscope scripts benchmarks tests

@@ -22,6 +22,11 @@ import pytest
 from mavscope.cli import Env, main
 from mavscope.mavlink.dialect import Dialect, load_dialect
 from mavscope.mavlink.dialect_cache import CACHE_ENV, NO_CACHE_ENV
+from tests.support import tiers
+
+# The hypothesis profiles (`fast` by default, `full` for `make test-slow`), loaded before any test module makes
+# its settings; the tiers themselves are in tests/support/tiers.py (docs/testing.md, "Tiers").
+tiers.register_profiles()
 
 ROOT = Path(__file__).resolve().parents[1]
 CAPTURES = ROOT / "captures"
@@ -60,6 +65,12 @@ class Cli:
 
 
 _SAVED_ENV: dict[str, str | None] = {}
+
+
+@pytest.hookimpl(tryfirst=True)  # before `-m` selects by the markers
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """The `slow` marker and the fast tier's property-test examples, from tests/support/tiers.py."""
+    tiers.mark(items)
 
 
 def pytest_configure(config: pytest.Config) -> None:
