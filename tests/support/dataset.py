@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+import struct
 from collections import Counter
 from pathlib import Path
 
@@ -120,9 +121,13 @@ def arrow_counts(root: Path) -> Counts:
 
 
 def same(a: object, b: object) -> bool:
-    """Values equal, a NaN in Parquet being the JSON's null (JSON cannot carry NaN)."""
+    """Values equal, a NaN in Parquet being the JSON's null (JSON cannot carry NaN), and a float32 column's
+    value (a float32 widened to a double) the JSON's shortest decimal of that float32 (docs/json-format.md)."""
     if isinstance(a, float) and math.isnan(a):
         return b is None
     if isinstance(a, list) and isinstance(b, list):
         return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b))
+    if isinstance(a, float) and isinstance(b, float) and a != b and abs(a) < 3.4e38 and abs(b) < 3.4e38:
+        f32 = struct.Struct("<f")
+        return f32.unpack(f32.pack(a))[0] == a and f32.pack(a) == f32.pack(b)
     return a == b
