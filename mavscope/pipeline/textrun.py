@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from mavscope.capture.base import LINKTYPE_MAVLINK_TLOG, Record
 from mavscope.notes import Note, note
+from mavscope.visible import quoted
 
 MAX_BYTES = 4096  # bytes a run keeps before it is reported and a new one starts
 PREVIEW = 160  # characters of the text shown
@@ -48,7 +49,7 @@ class TextRun:
     def take(self) -> tuple[int, Note]:
         """(first record, the note) of the run so far; the run starts over."""
         text = self.data.decode("utf-8", "backslashreplace")
-        shown = repr(text[:PREVIEW]) + ("..." if len(text) > PREVIEW else "")
+        shown = quoted(text[:PREVIEW]) + ("..." if len(text) > PREVIEW else "")  # (escaped once where shown)
         which = f"tlog entry {self.first}" if self.entries == 1 else f"tlog entries {self.first}-{self.last}"
         size = len(self.data)
         result = (self.first, note("tlog-text", f"{which}: {size} {'byte that is' if size == 1 else 'bytes that are'} "
