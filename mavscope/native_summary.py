@@ -166,7 +166,7 @@ def build_summary_table(dialect: Dialect) -> bytes:
     return SUMMARY_MAGIC + struct.pack("<II", SUMMARY_VERSION, len(entries)) + b"".join(entries)
 
 
-_summary: list[tuple[Dialect, object]] = []  # the last Dialect compiled and its summary table
+_summary: list[tuple[Dialect, object, object]] = []  # the last Dialect compiled, its Table and its summary table
 
 
 def summary_for(dialect: Dialect) -> object:
@@ -174,9 +174,10 @@ def summary_for(dialect: Dialect) -> object:
     native = native_module()
     if native is None:
         raise RuntimeError("mavscope._native is not built")
-    if not _summary or _summary[0][0] is not dialect:
-        _summary[:] = [(dialect, native.Summary(table_for(dialect), build_summary_table(dialect)))]
-    return _summary[0][1]
+    table = table_for(dialect)  # (a Summary is over one Table: table_for keeps the last Dialect's only)
+    if not _summary or _summary[0][0] is not dialect or _summary[0][1] is not table:
+        _summary[:] = [(dialect, table, native.Summary(table, build_summary_table(dialect)))]
+    return _summary[0][2]
 
 
 def write_summary(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityStage, out: IO[bytes],

@@ -454,15 +454,32 @@ def load_dialect(
     file's definition that meets an earlier one: Dialect.load) goes to `warn`, by default one line on
     stderr, escaped (that of the command line within `warnings_to`), once."""
     cache = cache_dir(environ)
-    d = Dialect()
-    d.load(base if base is not None else pymavlink_dialect_path("all"), cache)
-    d.standard = frozenset(mid for mid, m in d.messages.items() if m.source in STANDARD_FILES)
     folder = Path(dissectors) if dissectors is not None else default_dissectors_dir()
-    if folder.is_dir():
-        for xml in sorted(folder.glob("*.xml")):
+    files = sorted(folder.glob("*.xml")) if folder.is_dir() else []
+    extra = list(extra)
+    # The default dialect is loaded once per process (a Dialect is never changed once loaded): every command
+    # run in one process (batch, the TUI, the tests) would parse it again. Keyed by the files' sizes and times.
+    key = None if extra or base is not None or dissectors is not None or environ is not None else (
+        str(cache), *((str(f), f.stat().st_size, f.stat().st_mtime_ns) for f in [Path(_base_path()), *files]))
+    d = _LOADED.get(key) if key is not None else None
+    if d is None:
+        d = Dialect()
+        d.load(base if base is not None else _base_path(), cache)
+        d.standard = frozenset(mid for mid, m in d.messages.items() if m.source in STANDARD_FILES)
+        for xml in files:
             d.load(xml, cache)
-    for path in extra:
-        d.load(path, cache)
+        for path in extra:
+            d.load(path, cache)
+        if key is not None:
+            _LOADED.clear()  # (one default dialect is kept: a changed file makes another key)
+            _LOADED[key] = d
     for line in d.warnings:
         (warn or _warn)(line)
     return d
+
+
+_LOADED: dict[object, Dialect] = {}
+
+
+def _base_path() -> Path:
+    return pymavlink_dialect_path("all")
