@@ -25,7 +25,7 @@ from collections.abc import Callable, Iterable, Iterator
 from functools import partial
 from itertools import product, repeat
 from operator import attrgetter, itemgetter
-from typing import Generic, Protocol, TypeVar
+from typing import Any, Generic, Protocol, TypeVar
 
 from mavscope.analysis.mission.model import Event, Transfer
 from mavscope.mavlink.frame import Addr
@@ -143,25 +143,25 @@ def open_events() -> PartyIndex[Event]:
     return PartyIndex(_target)
 
 
+def _refile(index: PartyIndex[Any], item: Any, attr: str, value: Addr) -> None:
+    """Set `item`'s party `attr` to `value`; an item open in `index` is filed again under it."""
+    filed = item in index
+    if filed:
+        index._unfile(item)
+    setattr(item, attr, value)
+    if filed:
+        index._file(item)
+
+
 def narrow(index: PartyIndex[Transfer], t: Transfer, receiver: Addr) -> None:
     """Set the receiver of `t` (open or not) to `receiver` (the party that answered); an open transfer
     keeps its place among the open ones."""
-    if t not in index:
-        t.receiver = receiver
-        return
-    index._unfile(t)
-    t.receiver = receiver
-    index._file(t)
+    _refile(index, t, "receiver", receiver)
 
 
 def retarget(index: PartyIndex[Event], ev: Event, target: Addr) -> None:
     """Set the target of an event (open or not) to the party that answered it."""
-    if ev not in index:
-        ev.target = target
-        return
-    index._unfile(ev)
-    ev.target = target
-    index._file(ev)
+    _refile(index, ev, "target", target)
 
 
 class Timed(Protocol):
