@@ -77,17 +77,7 @@ def test_thirty_copies_behind_the_counter_are_thirty_replays(cli: Cli, tmp_path:
     (record 131) then runs on from 99: all 30 are replays. The finding lists its first 50 frame numbers,
     (original, copy) in order: 41, 101, 43, 102, ..., 89, 125. The old bound (10 held behind, the oldest
     dropped) reported 10."""
-    gcs = flows.Sender(*GCS)
-    entries: list[tuple[float, bytes]] = []
-    recorded: list[bytes] = []
-    for i in range(400):
-        if i == 100:
-            entries += [(flows.T0 + i * 0.05 - 0.01, f) for f in recorded]
-        cmd = 40 <= i < 100 and i % 2 == 0
-        frame = gcs.pack(flows.command_long(400 + i) if cmd else flows.manual_control(x=i))
-        if cmd:
-            recorded.append(frame)
-        entries.append((flows.T0 + i * 0.05, frame))
+    entries = flows.run_sent_again(flows.Sender(*GCS), lambda i: 40 <= i < 100 and i % 2 == 0, 100)
     path = flows.write_tlog(tmp_path, entries)
     (replay,) = both(cli, path)["replayed-command"]
     assert replay["message"].startswith("link 255/190: 30 command or setpoint frame(s)")
@@ -105,16 +95,7 @@ def test_a_run_of_thirty_copies_ahead_of_the_counter_is_thirty_replays(cli: Cli,
     again before the counter passed the run: all 30 copies were ahead of the counter, replays. Listed:
     41, 201, 42, 202, ..., 65, 225. The old bound (10 held ahead) judged the run in place at its 11th copy:
     no replay at all."""
-    gcs = flows.Sender(*GCS)
-    entries: list[tuple[float, bytes]] = []
-    recorded: list[bytes] = []
-    for i in range(400):
-        if i == 200:
-            entries += [(flows.T0 + i * 0.05 - 0.01, f) for f in recorded]
-        frame = gcs.pack(flows.command_long(400 + i) if 40 <= i < 70 else flows.manual_control(x=i))
-        if 40 <= i < 70:
-            recorded.append(frame)
-        entries.append((flows.T0 + i * 0.05, frame))
+    entries = flows.run_sent_again(flows.Sender(*GCS), lambda i: 40 <= i < 70, 200)
     path = flows.write_tlog(tmp_path, entries)
     found = both(cli, path)
     (replay,) = found["replayed-command"]

@@ -113,17 +113,7 @@ def test_a_recorded_run_sent_again_behind_the_counter(cli: Cli, tmp_path: Path) 
     while the GCS's neutral stream goes on (its counter at 99, so 40 is 197 ahead: behind it, in the 8-bit
     counter's terms): every copy is behind a counter that then runs on (100 next), 3 replays, listed with
     their originals."""
-    gcs = flows.Sender(*GCS)
-    entries: list[tuple[float, bytes]] = []
-    recorded: list[bytes] = []
-    for i in range(400):
-        if i == 100:
-            entries += [(flows.T0 + i * 0.05 - 0.01, f) for f in recorded]
-        msg = flows.command_long(400 + i) if 40 <= i < 43 else flows.manual_control()
-        frame = gcs.pack(msg)
-        if 40 <= i < 43:
-            recorded.append(frame)
-        entries.append((flows.T0 + i * 0.05, frame))
+    entries = flows.run_sent_again(flows.Sender(*GCS), lambda i: 40 <= i < 43, 100, lambda i: flows.manual_control())
     (replay,) = both(cli, flows.write_tlog(tmp_path, entries))["replayed-command"]
     assert replay["frames"] == [41, 101, 42, 102, 43, 103]  # (original, copy) each, in the order they came
     assert "COMMAND_LONG 3" in replay["message"]
@@ -133,17 +123,7 @@ def test_a_recorded_run_sent_again_ahead_of_the_counter(cli: Cli, tmp_path: Path
     """The three COMMAND_LONGs (seq 40-42, records 41-43) sent again after the GCS's frame numbered 199 (tlog
     record 200): 40 is 97 ahead of 199, a jump forward, and the copies follow it number by number; the GCS's
     own frames then fill 200..39 and reach 40 again (its frame 296), so the run was ahead: 3 replays."""
-    gcs = flows.Sender(*GCS)
-    entries: list[tuple[float, bytes]] = []
-    recorded: list[bytes] = []
-    for i in range(400):
-        if i == 200:
-            entries += [(flows.T0 + i * 0.05 - 0.01, f) for f in recorded]
-        msg = flows.command_long(400 + i) if 40 <= i < 43 else flows.manual_control(x=i % 1000)
-        frame = gcs.pack(msg)
-        if 40 <= i < 43:
-            recorded.append(frame)
-        entries.append((flows.T0 + i * 0.05, frame))
+    entries = flows.run_sent_again(flows.Sender(*GCS), lambda i: 40 <= i < 43, 200)  # (x = i: i < 1000)
     (replay,) = both(cli, flows.write_tlog(tmp_path, entries))["replayed-command"]
     assert replay["frames"] == [41, 201, 42, 202, 43, 203]
 

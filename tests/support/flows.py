@@ -7,6 +7,7 @@ A tlog entry is an 8-byte big-endian timestamp in microseconds, then one frame (
 from __future__ import annotations
 
 import struct
+from collections.abc import Callable
 from pathlib import Path
 
 from pymavlink.dialects.v20 import ardupilotmega as v2
@@ -43,6 +44,24 @@ def manual_control(x: int = 0, y: int = 0, z: int = 500, r: int = 0) -> object:
 
 def command_long(command: int = 400, p1: float = 1.0, target: int = 1) -> object:
     return v2.MAVLink_command_long_message(target, 1, command, 0, p1, 0, 0, 0, 0, 0, 0)
+
+
+def run_sent_again(gcs: Sender, is_command: Callable[[int], bool], again_at: int,
+                   neutral: Callable[[int], object] = lambda i: manual_control(x=i), frames: int = 400
+                   ) -> list[tuple[float, bytes]]:
+    """A GCS's `frames` frames 0.05 s apart (frame i: sequence i % 256, tlog record i + 1): COMMAND_LONG
+    400 + i where `is_command(i)`, `neutral(i)` otherwise; just before its frame `again_at` the commands sent
+    so far are sent again, byte for byte, 0.01 s earlier (a recorded run replayed)."""
+    entries: list[tuple[float, bytes]] = []
+    recorded: list[bytes] = []
+    for i in range(frames):
+        if i == again_at:
+            entries += [(T0 + i * 0.05 - 0.01, f) for f in recorded]
+        frame = gcs.pack(command_long(400 + i) if is_command(i) else neutral(i))
+        if is_command(i):
+            recorded.append(frame)
+        entries.append((T0 + i * 0.05, frame))
+    return entries
 
 
 def tlog(entries: list[tuple[float, bytes]]) -> bytes:
