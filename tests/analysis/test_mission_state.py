@@ -114,6 +114,14 @@ def test_deadlines_stay_small_when_the_clock_runs_backwards() -> None:
     assert d.due(20.0, lambda x: True) == [o]
 
 
+def _frames_of(tmp_path: Path, name: str, raws: list[bytes]) -> list:  # type: ignore[type-arg]
+    """`raws` as a tlog (one frame a millisecond), read back through the pipeline."""
+    path = tmp_path / name
+    path.write_bytes(b"".join(struct.pack(">Q", 1_700_000_000_000_000 + i * 1000) + r for i, r in enumerate(raws)))
+    with open_session(str(path), PipelineOptions()) as s:
+        return list(s.frames())
+
+
 def test_a_frame_costs_the_same_however_many_transfers_are_open(tmp_path: Path, dialect: Dialect) -> None:
     """OPEN_MAX transfers open (MISSION_COUNTs between as many pairs of systems), then frames that look for
     theirs: an item, a request, an ACK, a COUNT of a new pair (which closes the oldest), a CLEAR_ALL."""
@@ -128,12 +136,8 @@ def test_a_frame_costs_the_same_however_many_transfers_are_open(tmp_path: Path, 
               apm.MAVLink_mission_ack_message(1, 1, 1, 0).pack(veh),
               apm.MAVLink_mission_count_message(200, 1, 3, 0).pack(apm.MAVLink(None, srcSystem=9, srcComponent=1)),
               apm.MAVLink_mission_clear_all_message(100, 1, 0).pack(mav)]
-    path = tmp_path / "open.tlog"
-    path.write_bytes(b"".join(struct.pack(">Q", 1_700_000_000_000_000 + i * 1000) + r
-                             for i, r in enumerate(raws + probes)))
+    frames = _frames_of(tmp_path, "open.tlog", raws + probes)
     tracker = MissionTracker(dialect)
-    with open_session(str(path), PipelineOptions()) as s:
-        frames = list(s.frames())
     for f in frames[:OPEN_MAX]:
         tracker.feed(f)
     assert len(tracker.open) == OPEN_MAX
@@ -179,12 +183,9 @@ def test_an_item_resent_many_times_keeps_its_frames_in_order_at_a_constant_cost(
     for k in range(300):
         gcs.seq = k % 256
         raws.append(apm.MAVLink_mission_item_int_message(1, 1, 0, 3, 16, 0, 1, 0, 0, 0, 0, 0, 0, 10, 0).pack(gcs))
-    path = tmp_path / "resent.tlog"
-    path.write_bytes(b"".join(struct.pack(">Q", 1_700_000_000_000_000 + i * 1000) + r for i, r in enumerate(raws)))
     tracker = MissionTracker(dialect)
-    with open_session(str(path), PipelineOptions()) as s:
-        for f in s.frames():
-            tracker.feed(f)
+    for f in _frames_of(tmp_path, "resent.tlog", raws):
+        tracker.feed(f)
     [t] = tracker.finish().transfers
     assert t.items[0].frames == list(range(3, 303))
     assert copied <= 300
@@ -206,12 +207,8 @@ def test_broadcast_frames_cost_the_same_however_many_transfers_are_open(tmp_path
               apm.MAVLink_mission_ack_message(0, 0, 0, 0).pack(veh),
               apm.MAVLink_mission_clear_all_message(0, 0, 0).pack(gcs),
               apm.MAVLink_mission_ack_message(0, 0, 0, 0).pack(veh)]
-    path = tmp_path / "bcast.tlog"
-    path.write_bytes(b"".join(struct.pack(">Q", 1_700_000_000_000_000 + i * 1000) + r
-                             for i, r in enumerate(raws + probes)))
+    frames = _frames_of(tmp_path, "bcast.tlog", raws + probes)
     tracker = MissionTracker(dialect)
-    with open_session(str(path), PipelineOptions()) as s:
-        frames = list(s.frames())
     for f in frames[:OPEN_MAX]:
         tracker.feed(f)
     for f in frames[OPEN_MAX:]:
