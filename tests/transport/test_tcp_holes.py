@@ -383,7 +383,11 @@ def test_tshark_names_the_same_lost_segments(tmp_path: Path, dialect) -> None:  
         gaps = gap_notes(dissect(path, dialect))
         assert flagged(path, "tcp.analysis.lost_segment") == [r for r, _ in gaps] == [cap.record_of[6]]
         if acks:
-            assert flagged(path, "tcp.analysis.ack_lost_segment") == [cap.ack_of[5]]
+            # tshark flags the ACK of the missing segment first. Wireshark 4.0 (4.0.17 checked) flags the next
+            # ACK too: after a hole its "max seq to be acked" is not advanced by the segment that follows, so
+            # the ACK of segment 6 (captured, record_of[6]) reads as unseen. mavscope names only the first.
+            acked = flagged(path, "tcp.analysis.ack_lost_segment")
+            assert acked[0] == cap.ack_of[5] and set(acked) <= {cap.ack_of[5], cap.ack_of[6]}, acked
             assert f"record {cap.ack_of[5]})" in gaps[0][1]
 
 
