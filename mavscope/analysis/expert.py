@@ -10,6 +10,7 @@ bounded state, so a capture of any length is analysed in one pass without holdin
 
 from __future__ import annotations
 
+import heapq
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from typing import Protocol
@@ -25,11 +26,12 @@ from mavscope.analysis.replays import ReplayedCommands
 from mavscope.analysis.sequence import GAP_MIN, SeqChannels, SeqTracker, totals
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
-from mavscope.notes import Finding, FrameNumbers, finding, sort_findings
+from mavscope.notes import Finding, FrameNumbers, GivenUp, finding, sort_findings
 from mavscope.transport.base import TRANSPORT_TLOG
 
 BURST_MIN = 3  # bad-CRC frames...
 BURST_WINDOW_S = 1.0  # ...each within this long of the previous one make a burst
+MAX_BURSTS = 1024  # bursts listed: past it the smallest goes (the newest of those), said as `capacity`
 # Messages a ground station may number on a counter of their own, apart from its other messages: both real
 # GCS tlogs we hold show it (QGroundControl with ArduSub; Mission Planner through MAVProxy with ArduPlane):
 # REQUEST_DATA_STREAM numbered 1..7, one per stream, burst after burst. Commanding messages never qualify:
@@ -64,20 +66,29 @@ class BadCrcBursts:
     """Runs of bad-CRC frames close together: interference, a failing link, or injection attempts; and the
     bad-CRC frames another definition of their message explains (`dialect-mismatch`, crcextra.Mismatches),
     which are not noise: a frame of a group that is a mismatch so far joins no run, and the few frames
-    of a group that came before it was one are taken out of the runs at the end."""
+    of a group that came before it was one are taken out of the runs at the end. MAX_BURSTS bursts are
+    listed: past it the smallest goes (of equals the newest), said as a `capacity` finding."""
 
     clean: frozenset[str | int] = frozenset()  # bad-CRC frames only (see Detector)
     dialect: Dialect | None = None  # the loaded dialect, to name the definitions (Expert.findings sets it)
 
     def __init__(self) -> None:
-        self.runs: list[_Run] = []
+        self.runs: list[tuple[int, int, _Run]] = []  # a heap of (frames, -serial, run): the first to go on top
         self.run = _Run()
         self.mismatches = Mismatches()
+        self.given_up = GivenUp(f"bad-CRC bursts (the {MAX_BURSTS:,} largest listed)", "frames")
 
     def _close(self) -> None:
-        if self.run.count >= BURST_MIN:
-            self.runs.append(self.run)
-        self.run = _Run(self.run.serial + 1)
+        run = self.run
+        if run.count >= BURST_MIN:  # past MAX_BURSTS the smallest goes, the newest of equals: a flood of small
+            # bursts churns its own, a larger or earlier burst stays
+            if len(self.runs) < MAX_BURSTS:
+                heapq.heappush(self.runs, (run.count, -run.serial, run))
+            else:
+                g = heapq.heappushpop(self.runs, (run.count, -run.serial, run))[2]
+                self.given_up.add(f"a burst of {g.count:,} bad-CRC frames from frame {g.nums[0][0]} not listed "
+                                  "(no larger than any listed)", g.count, g.nums[0][0])
+        self.run = _Run(run.serial + 1)
 
     def add(self, f: Frame, fields: Fields | None) -> None:
         if f.crc_status is not CrcStatus.BAD:
@@ -106,8 +117,9 @@ class BadCrcBursts:
         for g in groups:
             for serial, n in self.mismatches.runs.get(g, {}).items():
                 taken.setdefault(serial, []).append((g, n))
-        out = []
-        for run in self.runs:
+        gave_up = self.given_up.finding()
+        out = [gave_up] if gave_up is not None else []
+        for run in sorted((r for _, _, r in self.runs), key=lambda r: r.serial):
             links = Counter(run.links)
             count = run.count
             for g, n in taken.get(run.serial, ()):

@@ -199,6 +199,7 @@ SAID: dict[str, str] = {
     "analysis/gnss.py:MAX_EPISODES": "capacity",
     "analysis/timeline.py:PENDING_REQUESTS": "capacity",
     "analysis/expert.py:MAX_NAMED": "- an event's later messages not named, all counted",
+    "analysis/expert.py:MAX_BURSTS": "capacity",
     "analysis/replays.py:COPIES_KEPT": "capacity",
     "analysis/crcextra.py:MAX_GROUPS": "capacity",
     "analysis/sequence.py:GAPS_KEPT": "- counted beyond",
