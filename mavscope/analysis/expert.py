@@ -413,6 +413,8 @@ class Detector(Protocol):
 DETECTORS: list[Callable[..., Detector]] = [BadCrcBursts, SequenceAnomalies, CommandSources, ReplayedCommands,
                                             UnsignedCommands, KeyLeaks, ControlSources, GnssAnomalies, HiddenFrames]
 DIALECT_DETECTORS: frozenset[Callable[..., Detector]] = frozenset({ControlSources, GnssAnomalies})
+# The detectors Expert.logged_in_part reads: an Expert of only these gives that verdict (the TUI's statistics)
+LOGGED_IN_PART_DETECTORS: tuple[Callable[..., Detector], ...] = (SequenceAnomalies, CommandSources)
 
 
 class Expert:

@@ -21,6 +21,7 @@ from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
+from mavscope.analysis.expert import Expert
 from mavscope.analysis.selection import Selection
 from mavscope.analysis.sequence import Endpoints, SeqChannels, SeqTracker, totals
 from mavscope.mavlink.frame import Frame, signature_status
@@ -337,9 +338,18 @@ class StatsBuilder:
                      self.versions, self.sigs, self.unfollowed_streams, self.unfollowed_conversations)
 
 
-def compute_stats(frames: Iterable[Frame]) -> Stats:
-    """The statistics of `frames` (in capture order)."""
+def compute_stats(frames: Iterable[Frame], expert: Expert | None = None) -> Stats:
+    """The statistics of `frames` (in capture order). With `expert`, which is given every frame too, the
+    senders it finds logged in part (`Expert.logged_in_part`) are marked (`Stats.logged_in_part`): `stats`
+    gives it every detector (its findings), the TUI's statistics screen those that verdict reads."""
     builder = StatsBuilder()
+    if expert is None:
+        for f in frames:
+            builder.add(f)
+        return builder.result()
     for f in frames:
         builder.add(f)
-    return builder.result()
+        expert.add(f)
+    stats = builder.result()
+    stats.logged_in_part = expert.logged_in_part()
+    return stats

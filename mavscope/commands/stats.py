@@ -10,18 +10,15 @@ from typing import cast
 from mavscope.analysis import stats as model
 from mavscope.analysis.expert import Expert
 from mavscope.analysis.selection import Selection
-from mavscope.analysis.stats import Stats, StatsBuilder
+from mavscope.analysis.stats import Stats, compute_stats
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass, print_findings
 from mavscope.commands.common import console, whole_number, write_json
 from mavscope.notes import Finding
 from mavscope.output.grid import columns, print_table
-from mavscope.output.tables import fmt, iso, listed, sparkline
+from mavscope.output.tables import PARTIAL_MARK, fmt, iso, listed, partial_line, sparkline
 
 SPARK_WIDTH = 40
-PARTIAL_MARK = "*"  # a link whose own frames the capture logs only in part (Stats.logged_in_part)
-PARTIAL_TEXT = ("ground station (HEARTBEAT type GCS) in a tlog: a tlog records what the ground station received; "
-                "its own frames are logged only in part: this is not link loss")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -74,10 +71,9 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                              "signature", "endpoints",
                              right=("sysid/compid", "received", "lost", "loss %", "dup", "late", "v1", "v2")),
                 cast("list[dict]", doc["links"]), link, title="Links (sysid, compid)")
-    partial = [f"{lk['sysid']}/{lk['compid']}" for lk in cast("list[dict]", doc["links"])
-               if lk["logged_in_part"] and lk["lost"]]
+    partial = partial_line(cast("list[dict]", doc["links"]))
     if partial:
-        con.print(f"{PARTIAL_MARK} {', '.join(partial)}: {PARTIAL_TEXT}", highlight=False, markup=False)
+        con.print(partial, highlight=False, markup=False)
     print_table(con, columns("transport", "A", "B", "frames", "A→B", "B→A", "bytes", "start", "duration s", "systems",
                              right=("frames", "A→B", "B→A", "bytes", "duration s")),
                 cast("list[dict]", doc["conversations"]), conversation, title="Conversations")
@@ -100,15 +96,10 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
 
 def _pure(args: argparse.Namespace, env: Env) -> tuple[Stats, list[Finding], str, Selection]:
     """The statistics and the findings (those about a selected frame), the capture's name, the selection."""
-    builder = StatsBuilder()
     with analysis_pass(args, env) as frames:
         expert = Expert(frames.session.dialect)
-        for frame in frames:
-            builder.add(frame)
-            expert.add(frame)
+        stats = compute_stats(frames, expert)
         path, select = frames.session.name, frames.selection
-    stats = builder.result()
-    stats.logged_in_part = expert.logged_in_part()
     return stats, [f for f in expert.findings() if select.any_record(f.frames)], path, select
 
 

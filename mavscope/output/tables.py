@@ -70,6 +70,18 @@ def listed(values: Sequence[object], shown: int = SHOWN) -> str:
     return ", ".join(map(str, values[:shown])) + (f" and {more:,} more (--json lists them)" if more > 0 else "")
 
 
+PARTIAL_MARK = "*"  # a link whose own frames the capture logs only in part (Stats.logged_in_part)
+PARTIAL_TEXT = ("ground station (HEARTBEAT type GCS) in a tlog: a tlog records what the ground station received; "
+                "its own frames are logged only in part: this is not link loss")
+
+
+def partial_line(links: Sequence[Mapping[str, object]]) -> str | None:
+    """The line under a Links table (`stats`, the TUI's statistics) that explains the marked rows: the links
+    (Stats.links_json rows) logged in part that miss numbers; None when there are none."""
+    partial = [f"{lk['sysid']}/{lk['compid']}" for lk in links if lk["logged_in_part"] and lk["lost"]]
+    return f"{PARTIAL_MARK} {', '.join(partial)}: {PARTIAL_TEXT}" if partial else None
+
+
 def param_text(v: object, float32: bool = True) -> str:
     """A command or mission parameter: a float32 (`float32`: the wire's `float`, as param1..7 are) as the
     shortest text that reads back as the same float32 (30.48, not 30.4799995), another float (COMMAND_INT's
