@@ -15,6 +15,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 from mavscope.analysis.command_log import CommandMatcher, feed_command
+from mavscope.analysis.events import EventLog
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
 from mavscope.notes import CODES, Finding, Group, sort_findings
@@ -37,10 +38,13 @@ class AuditPass:
     `result(expert_findings)`. A caller that feeds frames in bulk (the export's native source) gives each
     part what `add` would: `audit`, `downgrades`, and `command(frame)` for the command messages."""
 
-    def __init__(self, dialect: Dialect) -> None:
+    def __init__(self, dialect: Dialect, *, story: bool = False) -> None:
         self.audit = Audit()
         self.downgrades = Downgrades()
         self.matcher = CommandMatcher(dialect)  # `commands`' matching: what its bound gives up hides an answer
+        # `story`: the flight's story too (`events`, and through it `mission`), for what its bounds give up (a
+        # flood that hides an arming, a command or an upload from those lists is said; `audit` runs it)
+        self.story = EventLog(dialect) if story else None
 
     def anomaly(self, item: Anomaly) -> None:
         """A record's notes that belong to no frame."""
@@ -51,6 +55,8 @@ class AuditPass:
         self.audit.add(f)
         self.downgrades.add(f)
         self.command(f, fields)
+        if self.story is not None:
+            self.story.add(f)
 
     def command(self, f: Frame, fields: dict[str, object] | None = None) -> None:
         """A frame to the command matcher, if it is a command or an ACK (command_log.feed_command)."""
@@ -63,4 +69,6 @@ class AuditPass:
         own, recoveries = self.audit.result(words=words, qgc=qgc, known=known, early=self.downgrades.judged())
         gave_up = self.matcher.given_up.finding()
         own += [gave_up] if gave_up is not None else []
+        if self.story is not None:
+            own += self.story.finish().capacity
         return merged(expert, own), recoveries

@@ -51,7 +51,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         except OSError as exc:
             raise UsageError(f"audit: --wordlist {args.wordlist}: {exc.strerror or exc}") from None
         words = read_wordlist(args.wordlist)
-    audit, expert = AuditPass(dialect), Expert(dialect)
+    audit, expert = AuditPass(dialect, story=True), Expert(dialect)
     with capture_session(args, env, dialect) as session:
         for frame in Pass(session, env, audit.anomaly):  # (damage and anomalies on stderr, as read says them)
             audit.add(frame, expert.add(frame))  # the fields the expert decoded, decoded once

@@ -5,11 +5,12 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING, cast
 
-from mavscope.analysis.events import KINDS, MAX_PER_KIND, EventLog
+from mavscope.analysis.events import FIRST_KEPT, KINDS, LAST_KEPT, EventLog
 from mavscope.analysis.expert import Expert
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass, print_findings
 from mavscope.commands.common import console, write_json
+from mavscope.notes import sort_findings
 from mavscope.output.grid import columns, print_table
 from mavscope.output.tables import iso
 
@@ -45,7 +46,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     kinds = set(args.kind)
     if kinds:
         result.events = [e for e in result.events if e.kind in kinds]
-    findings = [f for f in expert.findings() if select.any_record(f.frames)]
+    # with what the story's bounds gave up (capacity: the events left out, transfers not followed)
+    findings = [f for f in sort_findings([*expert.findings(), *result.capacity]) if select.any_record(f.frames)]
     doc = result.to_json(select if select.active else None)
     if args.json:
         write_json(env, {"file": path, "filter": args.display_filter, **doc,
@@ -69,7 +71,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     counts = ", ".join(f"{k} {n}" for k, n in doc["counts"].items())  # type: ignore[attr-defined]
     con.print(f"{len(shown)} events listed; in the capture: {counts or 'none'}")
     for kind, n in doc["dropped"].items():  # type: ignore[attr-defined]
-        con.print(f"{n} more {kind} events not listed (at most {MAX_PER_KIND} per kind)")
+        con.print(f"{n} more {kind} events not listed (of each kind and sender the first {FIRST_KEPT:,} and the "
+                  f"last {LAST_KEPT:,} are, and a bound in all: the capacity finding says which)")
     print_findings(con, findings)
     return ExitStatus.OK
 

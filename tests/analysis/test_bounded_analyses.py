@@ -57,3 +57,67 @@ def test_a_flood_of_small_bad_crc_bursts_keeps_the_large_one(cli, tmp_path: Path
         assert cap["frames"] == [17, 20, 26]
         assert "4 given up (12 frames)" in cap["message"]
         assert stats["capacity"] == audit["capacity"]
+
+
+def _hb(armed: bool, gcs: bool = False) -> object:
+    from pymavlink.dialects.v20 import ardupilotmega as v2
+
+    if gcs:
+        return v2.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3)
+    return v2.MAVLink_heartbeat_message(2, 3, 209 if armed else 81, 0, 4, 3)  # a quadrotor, ArduPilot, STABILIZE
+
+
+def test_a_flood_of_made_up_vehicles_keeps_the_vehicles_arming_and_the_arm_command(  # type: ignore[no-untyped-def]
+        cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The events' listing with 2 first and 2 last events per (kind, sender), 6 events listed in all and 4
+    STATUSTEXT/link events. Built:
+      1-20 the vehicle 1/1 HEARTBEAT disarmed (its `vehicle` event at 1); 21-40 the GCS 255/190 HEARTBEAT;
+      41 the GCS's ARM (COMMAND_LONG 400) to 1/1, 42 its ACK (the `command` event, dated 41); 43 1/1 armed;
+      44-123 40 made-up senders 100+i/1, each a HEARTBEAT disarmed (a `vehicle` event) and one armed (an
+      `arming` event); 124 1/1 disarmed (`arming`); 125-154 30 STATUSTEXTs of 1/1; 155-164 one STATUSTEXT
+      each of 10 made-up senders 200+i/1.
+    By hand: the 6 first events fill the bound (1, 41, 43, 44, 45, 46). Sender 101/1's arming (47) is the 7th:
+    the least established sender is one with 2 frames (1/1 has 22, 255/190 21, 100/1 and 101/1 2), the newest
+    group of those is 101/1's arming itself, given up; every later flood event likewise gives up itself (48-
+    123: 76 more). 1/1's disarm (124) gives up the newest group of the least established, 101/1's vehicle
+    event (46). 1/1's 30 STATUSTEXTs keep the first 2 and the last 2 (125, 126, 153, 154), 26 between left
+    out; each made-up sender's STATUSTEXT (1 frame) then gives up itself (10). In all 77 + 1 + 26 + 10 = 114
+    give-ups (vehicle 39, arming 39, statustext 36), said at the 1st, 2nd, 4th, ..., 64th: the events of
+    frames 47, 48, 50, 54, 62, 78, 110 (give-up n for n <= 77 is frame 46 + n). Under the old policy (the
+    first N of a kind) the vehicle's disarm at 124 was left out for the flood's."""
+    from pymavlink.dialects.v20 import ardupilotmega as v2
+
+    from mavscope.analysis.events import log
+
+    for name, value in (("FIRST_KEPT", 2), ("LAST_KEPT", 2), ("MAX_EVENTS", 6), ("MAX_CHATTER", 4)):
+        monkeypatch.setattr(log, name, value)
+    veh, gcs = flows.Sender(1, 1), flows.Sender(255, 190)
+    t = flows.T0
+    entries = [(t + i * 0.05, veh.pack(_hb(False))) for i in range(20)]
+    entries += [(t + 1 + i * 0.05, gcs.pack(_hb(False, gcs=True))) for i in range(20)]
+    entries += [(t + 2, gcs.pack(flows.command_long(400, 1.0))),
+                (t + 2.1, veh.pack(v2.MAVLink_command_ack_message(400, 0))), (t + 2.2, veh.pack(_hb(True)))]
+    for i in range(40):
+        made_up = flows.Sender(100 + i, 1)
+        entries += [(t + 3 + i * 0.01, made_up.pack(_hb(False))), (t + 3.005 + i * 0.01, made_up.pack(_hb(True)))]
+    entries.append((t + 4, veh.pack(_hb(False))))
+    entries += [(t + 4.1 + i * 0.01, veh.pack(v2.MAVLink_statustext_message(6, b"text %d" % i))) for i in range(30)]
+    entries += [(t + 5 + i * 0.01, flows.Sender(200 + i, 1).pack(v2.MAVLink_statustext_message(6, b"flood")))
+                for i in range(10)]
+    path = flows.write_tlog(tmp_path, entries)
+    for environ in ENGINES:
+        cli.environ = environ
+        doc = cli.json("events", path)
+        assert doc["counts"] == {"vehicle": 41, "arming": 42, "statustext": 40, "command": 1}
+        assert [(e["frame"], e["kind"], e["from"]) for e in doc["events"]] == [
+            (1, "vehicle", [1, 1]), (41, "command", [255, 190]), (43, "arming", [1, 1]),
+            (44, "vehicle", [100, 1]), (45, "arming", [100, 1]), (124, "arming", [1, 1]),
+            (125, "statustext", [1, 1]), (126, "statustext", [1, 1]), (153, "statustext", [1, 1]),
+            (154, "statustext", [1, 1])]
+        assert doc["dropped"] == {"vehicle": 39, "arming": 39, "statustext": 36}
+        (said,) = [f for f in doc["findings"] if f["code"] == "capacity"]
+        assert said["frames"] == [47, 48, 50, 54, 62, 78, 110] and "114 given up (114 events)" in said["message"]
+        audit = findings(cli, "audit", path)
+        assert said in audit["capacity"]
+        status, out, _ = cli("events", path)
+        assert "39 more arming events not listed" in out

@@ -203,14 +203,22 @@ def test_link_loss_and_recovery_and_reboot(tmp_path: Path, dialect: Dialect) -> 
     assert reboot.frame == 10 and (reboot.details["before_ms"], reboot.details["after_ms"]) == (900_000, 2_000)
 
 
-def test_events_of_a_kind_are_capped(tmp_path: Path, dialect: Dialect, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(event_log, "MAX_PER_KIND", 10)
+def test_events_of_a_kind_and_sender_are_capped(tmp_path: Path, dialect: Dialect,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """30 STATUSTEXTs from 1/1 (records 1-30), then its HEARTBEAT (31). With the first 5 and the last 5 of a kind
+    and sender listed: records 1-5 and 26-30, the 20 between left out (counted, and said as a capacity
+    finding); the HEARTBEAT's vehicle event is another kind, listed."""
+    monkeypatch.setattr(event_log, "FIRST_KEPT", 5)
+    monkeypatch.setattr(event_log, "LAST_KEPT", 5)
     s = Sender(1, 1)
     entries = [(T0 + i * 0.01, s.pack(v2.MAVLink_statustext_message(6, b"spam"))) for i in range(30)]
     entries.append((T0 + 1, s.pack(_hb())))
     result = _story(write_tlog(tmp_path, entries), dialect)
-    assert len(_of(result.events, "statustext")) == 10 and result.dropped["statustext"] == 20
+    assert [e.frame for e in _of(result.events, "statustext")] == [1, 2, 3, 4, 5, 26, 27, 28, 29, 30]
+    assert result.dropped["statustext"] == 20
     assert result.counts["statustext"] == 30 and len(_of(result.events, "vehicle")) == 1
+    (said,) = result.capacity
+    assert said.code == "capacity" and "20 given up (20 events)" in said.message
 
 
 def test_sources_are_pluggable(dialect: Dialect) -> None:

@@ -9,8 +9,18 @@ capture in one pass (`EventLog`, `story`). Plugging in another source: add its f
 `log.SOURCES` (or pass a list to `EventLog`).
 """
 
-from mavscope.analysis.events.log import MAX_PER_KIND, SOURCES, EventList, EventLog, SourceFactory, story
+from mavscope.analysis.events.log import (
+    FIRST_KEPT,
+    LAST_KEPT,
+    MAX_CHATTER,
+    MAX_EVENTS,
+    SOURCES,
+    EventList,
+    EventLog,
+    SourceFactory,
+    story,
+)
 from mavscope.analysis.events.model import KINDS, Event, EventSource
 
-__all__ = ["KINDS", "MAX_PER_KIND", "SOURCES", "Event", "EventList", "EventLog", "EventSource", "SourceFactory",
-           "story"]
+__all__ = ["FIRST_KEPT", "KINDS", "LAST_KEPT", "MAX_CHATTER", "MAX_EVENTS", "SOURCES", "Event", "EventList", "EventLog",
+           "EventSource", "SourceFactory", "story"]
