@@ -8,7 +8,9 @@ traffic, ...) at about 1,000 frames/s; pymavlink encodes and signs every frame (
     clean     Ethernet/IPv4/UDP pcap, all v2 unsigned; ~10% of vehicle datagrams carry 2-3 frames
     mixsign   the same, but the vehicle signs 1 frame in 4 (chosen at random), the rest unsigned
     signedv1  the vehicle signs every frame; the ground station speaks MAVLink v1 (v10 dialect: no extensions)
-    badcrc    clean, with 3% of the frames' last CRC byte XORed with a random non-zero byte
+    badcrc    clean, with 3% of the frames' last CRC byte XORed with a random non-zero byte (never two
+              damaged frames in a row in a datagram: mavscope shows the first of such a pair as skipped
+              bytes, not as a frame, where MAVLink's C parser would report two bad CRCs)
     tcp       clean's frames as one TCP connection (vehicle :5760, GCS :40412): handshake, each direction's
               bytes cut into segments of 48-600 bytes (1 in 10: 5-24) at arbitrary points (several frames per segment,
               frames across segments), a leftover flushed after 20 ms, pure ACKs every second segment
@@ -48,7 +50,7 @@ from scripts.capgen.constants import (  # noqa: E402
     SIGNING_KEY,
 )
 
-GEN_VERSION = 1  # bump when a generated capture changes
+GEN_VERSION = 3  # bump when a generated capture changes
 KINDS = ("clean", "mixsign", "signedv1", "badcrc", "tcp", "tlog", "raw")
 SIGNED_KINDS = ("mixsign", "signedv1")
 SUFFIX = {"tlog": ".tlog", "raw": ".raw"}  # the others: .pcap
@@ -131,8 +133,10 @@ def _corrupt(sends: Sends, rng: random.Random) -> tuple[dict[int, bytes], int]:
     """3% of the frames with their last CRC byte damaged: {id(frame): damaged bytes}, and how many."""
     bad: dict[int, bytes] = {}
     for _, _, frames in sends:
+        prev = False  # never two damaged frames in a row in one datagram (see the module's docstring)
         for f in frames:
-            if rng.random() < BAD_CRC_SHARE:
+            prev = rng.random() < BAD_CRC_SHARE and not prev
+            if prev:
                 d = bytearray(f.data)
                 d[-1] ^= rng.randint(1, 255)  # unsigned v2: the last byte is the CRC's high byte
                 bad[id(f)] = bytes(d)
@@ -159,8 +163,9 @@ def _tcp_pcap(path: Path, sends: Sends, rng: random.Random) -> int:
         src, dst = _ends(who)
         ipid[who] = (ipid[who] + 1) & 0xFFFF
         last[0] = t = max(t, last[0])
+        ack = nxt[other[who]] if flags & 0x10 else 0  # no ACK flag (the first SYN): no ACK number
         pkts.append(Pkt(t * 1000, _packet(dst[0] + src[0] + b"\x08\x00", src[1], dst[1], port[who],
-                                          port[other[who]], nxt[who], nxt[other[who]], flags, data, ipid[who])))
+                                          port[other[who]], nxt[who], ack, flags, data, ipid[who])))
         nxt[who] += len(data) + (1 if flags & 0x03 else 0)  # SYN and FIN take a sequence number
 
     seg(0, "G", 0x02)
@@ -217,7 +222,7 @@ def _raw(path: Path, sends: Sends, rng: random.Random) -> tuple[int, int, int]:
             assert_no_stx(junk, "line noise")
             out += junk
             noise += 1
-        keep = rng.randint(3, len(f) - 1)
+        keep = rng.randint(10, len(f) - 1)  # its header whole (v2), some of the rest
         quiet = max(quiet - 1, 0)
         cut_here = (rng.random() < CUT_SHARE and not quiet and i + 2 < len(frames)
                      and b"\xfd" not in f[1:keep] and b"\xfe" not in f[1:keep]

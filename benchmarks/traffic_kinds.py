@@ -20,7 +20,8 @@ command also runs once with MAVSCOPE_PURE=1; its output must be byte for byte th
 Every output is checked against the generator's truth, so that a run which reads nothing fails: one JSON
 line (and one summary line) per complete frame and per truncated frame, `crc_status` ok / bad /
 truncated as generated, every signed frame `valid` with the key, the `stats` totals likewise; the
-baseline must find every frame with a good CRC.
+baseline must find every frame with a good CRC (but for the frame after each truncated one, which
+pymavlink's robust parsing loses: it does not look again inside the bytes of a frame cut short).
 `--write-doc` replaces the block between the traffic_kinds markers in docs/performance.md.
 """
 
@@ -208,7 +209,10 @@ def measure(kind: str, path: Path, truth: dict[str, Any], args: argparse.Namespa
     secs, _, err = run(base, out, args.repeat)
     m = re.search(r"frames=(\d+)", err)
     found = int(m.group(1)) if m else -1
-    check(f"{kind} baseline: frames with a good CRC", found, truth["frames"] - truth["bad_crc"])
+    good = truth["frames"] - truth["bad_crc"]
+    # pymavlink does not look again inside a frame cut short: it may lose the frame after each cut
+    if not good - truth["truncated"] <= found <= good:
+        check(f"{kind} baseline: frames with a good CRC", found, good)
     res["baseline"] = (secs, 0)
     return res
 
