@@ -9,7 +9,9 @@ the loaded Dialect, the plan fields/summary.py `summary_plan` makes for the pure
 the first scalar fields, enum names, degE7 as degrees) into the byte string `_native.Summary` takes (its
 layout: summary.h), beside the layout table of mavscope.native. The command messages' param1 is named
 as semantics.command_param_name names it: per MAV_CMD entry, the names of its param 1's enum or, for a
-"Message ID" param, the dialect's message names; for a bitmask, the names of the bits (Enum.flags_of).
+"Message ID" param, the dialect's message names; for a bitmask, the names of the bits (Enum.flags_of). A
+command message's parameters the MAV_CMD entry leaves unlabelled are left out when they hold nothing
+(semantics.param_shown, as fields/summary.py and `commands`): per entry, which of params 1..7 it labels.
 Containers (FILE_TRANSFER_PROTOCOL shows the inner protocol) and STATUSTEXT (a chunk says which) are
 marked Python-only (fields/summary.py PYTHON_INFO), so their records are handed back.
 """
@@ -26,14 +28,14 @@ from mavscope.fields.summary import DEGREES, ENUM, PLAIN, PYTHON_INFO, summary_p
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import Frame
 from mavscope.mavlink.native_table import python_only as layout_python_only
-from mavscope.mavlink.semantics import COMMAND_MESSAGES, MESSAGE_ID_LABELS
+from mavscope.mavlink.semantics import COMMAND_MESSAGES, COMMAND_PARAM_INDEX, MESSAGE_ID_LABELS
 from mavscope.native import Reporter, native_module, table_for, write_lines
 from mavscope.output.text import summary_line
 from mavscope.security.stage import SecurityStage
 from mavscope.visible import visible
 
 SUMMARY_MAGIC = b"MSSM"
-SUMMARY_VERSION = 1
+SUMMARY_VERSION = 2
 NO_FIELD = 0xFFFF
 
 # the integer wire types and the values they hold; other types (float, double, char, arrays) are shown
@@ -88,38 +90,48 @@ def _command_names(dialect: Dialect, command: int) -> tuple[int, dict[int, str]]
     return 0, {}
 
 
+def _labelled(dialect: Dialect, command: int) -> int:
+    """The params MAV_CMD `command` labels (Dialect.command_params), bit i - 1 for param i."""
+    return sum({1 << (i - 1) for i, label, _ in dialect.command_params(command) if 1 <= i <= 7 and label})
+
+
 def _commands(dialect: Dialect) -> bytes:
-    """The command table of a command message (summary.h): per MAV_CMD entry with param 1 names."""
+    """The command table of a command message (summary.h): per MAV_CMD entry with param 1 names or a label.
+    (A command field holds at most 32 bits, _command_fields: an entry beyond int64 is never sent.)"""
     mav_cmd = dialect.enums.get("MAV_CMD")
     parts: list[bytes] = []
     for command in sorted(mav_cmd.entries if mav_cmd is not None else ()):
-        if not 0 <= command <= 0xFFFF_FFFF:
+        if not -(1 << 63) <= command < (1 << 63):
             continue
         flags, names = _command_names(dialect, command)
-        if not names:
+        labelled = _labelled(dialect, command)
+        if not names and not labelled:
             continue
         if flags & CMD_BITS and min(names) < 0:
             flags, names = CMD_PYTHON, {}
         table = _entries(names, -(1 << 63), (1 << 63) - 1)
         if table is None:
             flags, table = CMD_PYTHON, struct.pack("<I", 0)
-        parts.append(struct.pack("<IB", command, flags) + table)
+        parts.append(struct.pack("<qBB", command, flags, labelled) + table)
     return struct.pack("<I", len(parts)) + b"".join(parts)
 
 
-_NO_PARAM1 = struct.pack("<HHI", NO_FIELD, 0, 0)
+_NO_COMMAND = struct.pack("<HHI", NO_FIELD, NO_FIELD, 0)
+_COMMAND_TYPES = frozenset(t for t in _INT_RANGES if "64" not in t)  # summary.c int_at: exact in int64
 
 
-def _param1(md: MessageDef, dialect: Dialect, commands: Callable[[], bytes]) -> bytes | None:
-    """The param1 part of a message's header: a command message's param1 and command fields and the
-    command table (`commands()`); None when they are not a float and an integer (Python's)."""
+def _command_fields(md: MessageDef, commands: Callable[[], bytes]) -> bytes | None:
+    """The command part of a message's header: a command message's param1 and command fields and the
+    command table (`commands()`); None when they are not a float and an integer of at most 32 bits (Python's)."""
     index = {f.name: i for i, f in enumerate(md.fields)}
     p1, cmd = md.field("param1"), md.field("command")
-    if md.name not in COMMAND_MESSAGES or p1 is None:
-        return _NO_PARAM1
-    if p1.type != "float" or p1.array_length or cmd is None or cmd.type not in _INT_RANGES or cmd.array_length:
+    if md.name not in COMMAND_MESSAGES:
+        return _NO_COMMAND
+    if cmd is None or cmd.type not in _COMMAND_TYPES or cmd.array_length:
         return None
-    return struct.pack("<HH", index["param1"], index["command"]) + commands()
+    if p1 is not None and (p1.type != "float" or p1.array_length):
+        return None
+    return struct.pack("<HH", NO_FIELD if p1 is None else index["param1"], index["command"]) + commands()
 
 
 def _message_entry(md: MessageDef, dialect: Dialect, commands: Callable[[], bytes]) -> bytes:
@@ -133,6 +145,10 @@ def _message_entry(md: MessageDef, dialect: Dialect, commands: Callable[[], byte
         fd = md.fields[i]
         label = _text(f"{name}=")
         scalar_int = fd.type in _INT_RANGES and not fd.array_length
+        # a command's parameter: left out when unlabelled and holding nothing (numbers only: C compares them)
+        param = COMMAND_PARAM_INDEX.get(name, 0) if md.name in COMMAND_MESSAGES else 0
+        if param and not (scalar_int or (fd.type in ("float", "double") and not fd.array_length)):
+            python_only = True
         entries: bytes | None = struct.pack("<I", 0)
         if how == ENUM and scalar_int:  # an empty name shows the number, as _short does
             entries = _entries({v: t for v, t in names.items() if t}, *_INT_RANGES[fd.type])
@@ -140,14 +156,14 @@ def _message_entry(md: MessageDef, dialect: Dialect, commands: Callable[[], byte
             python_only = True
             continue
         code = how if scalar_int and how in (ENUM, DEGREES) else PLAIN
-        items.append(struct.pack("<HBB", i, code, len(label)) + label + entries)
+        items.append(struct.pack("<HBBB", i, code, param, len(label)) + label + entries)
     title = _text(md.name)
     if title is None or len(items) > 255:
         python_only, title = True, b"?"
-    param1 = _param1(md, dialect, commands)
-    if python_only or param1 is None:
-        python_only, items, param1 = True, [], _NO_PARAM1
-    return (struct.pack("<IBBH", md.id, int(python_only), len(items), len(title)) + title + param1
+    command = _command_fields(md, commands)
+    if python_only or command is None:
+        python_only, items, command = True, [], _NO_COMMAND
+    return (struct.pack("<IBBH", md.id, int(python_only), len(items), len(title)) + title + command
             + b"".join(items))
 
 

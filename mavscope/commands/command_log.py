@@ -9,6 +9,7 @@ from mavscope.analysis.command_log import command_json, reconstruct
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
 from mavscope.commands.common import console, write_json
+from mavscope.mavlink.semantics import param_shown
 from mavscope.notes import finding_line
 from mavscope.output.grid import columns, many, print_lines, print_table
 from mavscope.output.tables import fmt, iso, param_text
@@ -46,10 +47,9 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         # COMMAND_INT's x/y: int32 on the wire, here in degrees or metres (not float32s)
         wire_int = ("x", "y") if d["message"] == "COMMAND_INT" else ()
         # a parameter the dialect labels is shown, with its label; one it leaves unlabelled only when it holds
-        # something (not 0, nor NaN: "no value", JSON's null), as paramN (COMMAND_INT's x, y, z: param5..7)
+        # something (semantics.param_shown, as the summary lines), as paramN (COMMAND_INT's x, y, z: param5..7)
         params = ", ".join(f"{labels.get(k) or UNLABELLED.get(k, k)} {names.get(k) or param_text(v, k not in wire_int)}"
-                           for k, v in values.items()
-                           if labels.get(k) or (v not in (0, 0.0, None) and k != "confirmation"))
+                           for k, v in values.items() if k != "confirmation" and param_shown(labels.get(k), v))
         return [str(cast("list[int]", d["frames"])[0]), iso(cast("float | None", d["time"])),
                 "{}/{}".format(*sender), "{}/{}".format(*target),
                 str(d["command"]).removeprefix("MAV_CMD_"), params,

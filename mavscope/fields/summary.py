@@ -15,11 +15,14 @@ from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, CrcStatus, Frame, SignatureStatus, decode_payload
 from mavscope.mavlink.semantics import (
     COMMAND_MESSAGES,
+    COMMAND_PARAM_INDEX,
     DEGE7,
     INT_COORDINATE_MESSAGES,
+    command_param,
     command_param_name,
     float_text,
     message_label,
+    param_shown,
 )
 from mavscope.visible import visible
 from mavscope.wire import IFLAG_SIGNED
@@ -123,7 +126,12 @@ def summary_info(frame: Frame, dialect: Dialect, fields: dict[str, object] | Non
         if inner is not None:
             parts.append(inner)  # (its paths as `repr` writes them: fields/containers/ftp.py summary)
         elif fields is not None:
-            parts.extend(_short(name, how, names, fields.get(name)) for name, how, names in summary_plan(md, dialect))
+            plan = summary_plan(md, dialect)
+            if md.name in COMMAND_MESSAGES:  # a parameter its MAV_CMD entry leaves unlabelled: shown if not 0
+                command = fields.get("command")
+                plan = tuple(p for p in plan if p[0] not in COMMAND_PARAM_INDEX or param_shown(
+                    (command_param(dialect, md.name, p[0], command) or ("",))[0], fields.get(p[0])))
+            parts.extend(_short(name, how, names, fields.get(name)) for name, how, names in plan)
             if md.name == "STATUSTEXT" and fields.get("id"):
                 parts.append(f"[chunk {fields.get('chunk_seq')} of id {fields.get('id')}]")
             if md.name in COMMAND_MESSAGES and "param1" in fields:  # the value's name where the XML gives one

@@ -111,3 +111,15 @@ def command_param(dialect: Dialect, message: str, field: str, command: object) -
         if i == index:
             return label, units
     return None
+
+
+def holds_nothing(value: object) -> bool:
+    """A command parameter's value that says nothing: 0 (or -0.0), or NaN ("no value": JSON's null, None)."""
+    return value is None or (isinstance(value, (int, float)) and (value == 0 or value != value))
+
+
+def param_shown(label: str | None, value: object) -> bool:
+    """Whether a command's parameter (param1..7, COMMAND_INT's and MISSION_ITEM*'s x, y, z) is shown, in
+    `commands` and the summary lines alike: when its MAV_CMD entry labels it (`label`: the <param>'s label,
+    Dialect.command_params), or when it holds something (`holds_nothing`); an unlabelled 0 is left out."""
+    return bool(label) or not holds_nothing(value)

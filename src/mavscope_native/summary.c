@@ -81,7 +81,7 @@ int ms_summary_parse(ms_summary *s, const ms_table *t, const uint8_t *blob, size
         return -1;
     memcpy(s->blob, blob, len);
     ms_cursor c = {s->blob + 4, s->blob + len, 0};
-    if (ms_take(&c, 4) != 1 || ms_take(&c, 4) != t->count)
+    if (ms_take(&c, 4) != 2 || ms_take(&c, 4) != t->count)
         goto fail;
     s->messages = calloc(t->count ? t->count : 1, sizeof *s->messages);
     if (s->messages == NULL)
@@ -103,14 +103,15 @@ int ms_summary_parse(ms_summary *s, const ms_table *t, const uint8_t *blob, size
         uint64_t ncommands = ms_take(&c, 4);
         if (c.bad || ncommands > MAX_ENTRIES)
             goto fail;
-        if (m->param1 != MS_NO_FIELD) {
-            if (m->param1 >= tm->nfields || m->command >= tm->nfields ||
-                tm->fields[m->param1].type != MS_T_F32 || (tm->fields[m->command].type & MS_T_ARRAY) ||
-                (tm->fields[m->command].type & 0x7F) > MS_T_I64)
+        if (m->command != MS_NO_FIELD) { /* a scalar integer of at most 32 bits: int_at is exact */
+            if (m->command >= tm->nfields || tm->fields[m->command].type < MS_T_U8 ||
+                tm->fields[m->command].type > MS_T_I32)
                 goto fail;
-        } else if (ncommands) {
+        } else if (ncommands || m->param1 != MS_NO_FIELD) {
             goto fail;
         }
+        if (m->param1 != MS_NO_FIELD && (m->param1 >= tm->nfields || tm->fields[m->param1].type != MS_T_F32))
+            goto fail;
         m->commands = calloc(ncommands ? ncommands : 1, sizeof *m->commands);
         if (m->commands == NULL)
             goto fail;
@@ -118,8 +119,9 @@ int ms_summary_parse(ms_summary *s, const ms_table *t, const uint8_t *blob, size
         size_t longest = 0;
         for (uint32_t k = 0; k < ncommands; k++) {
             ms_command *cmd = &m->commands[k];
-            cmd->value = (uint32_t)ms_take(&c, 4);
+            cmd->value = (int64_t)ms_take(&c, 8);
             cmd->flags = (uint8_t)(ms_take(&c, 1) & (MS_CMD_PYTHON | MS_CMD_BITS));
+            cmd->labelled = (uint8_t)(ms_take(&c, 1) & 0x7F);
             uint64_t n = ms_take(&c, 4);
             if (c.bad || (k && cmd->value <= m->commands[k - 1].value))
                 goto fail;
@@ -146,13 +148,17 @@ int ms_summary_parse(ms_summary *s, const ms_table *t, const uint8_t *blob, size
             ms_sitem *it = &m->items[k];
             it->field = (uint16_t)ms_take(&c, 2);
             it->how = (uint8_t)ms_take(&c, 1);
+            it->param = (uint8_t)ms_take(&c, 1);
             it->label_len = (uint8_t)ms_take(&c, 1);
             it->label = take_text(&c, it->label_len);
             uint64_t n = ms_take(&c, 4);
-            if (c.bad || it->field >= tm->nfields || it->how > MS_HOW_DEGREES || n > MAX_ENTRIES)
+            if (c.bad || it->field >= tm->nfields || it->how > MS_HOW_DEGREES || n > MAX_ENTRIES || it->param > 7)
                 goto fail;
             const ms_field *f = &tm->fields[it->field];
             const unsigned type = f->type & 0x7F;
+            if (it->param && (m->command == MS_NO_FIELD || (f->type & MS_T_ARRAY) || type < MS_T_U8 ||
+                              type > MS_T_F64))
+                goto fail; /* a command parameter is a number of a command message */
             it->nentries = (uint32_t)n;
             size_t value_max = MS_DEG_MAX > MS_REPR_MAX ? MS_DEG_MAX : MS_REPR_MAX; /* also any integer */
             if (take_entries(&c, &it->entries, n, is_signed_type(type), &value_max) != 0)
@@ -405,41 +411,56 @@ static char *w_item(char *p, const ms_sitem *it, const ms_field *f, const uint8_
 
 enum { NAMED = 1, UNNAMED = 0, PYTHON = -1 };
 
-/* semantics.command_param_name(dialect, command, 1, param1) for a command message's param1: NAMED
- * (*cmd the command, *n the whole value: an entry's name, or with MS_CMD_BITS the names of its bits),
- * UNNAMED (the value is shown), or PYTHON (an infinite param1, on which Python raises; a negative value
- * for bits) */
-static int param1_name(const ms_smessage *sm, const ms_message *m, const uint8_t *padded, const ms_command **cmd,
-                       int64_t *n) {
-    const double v = float_at(MS_T_F32, padded + m->fields[sm->param1].offset);
-    if (isinf(v))
-        return PYTHON;
-    if (v != v || v != trunc(v))
-        return UNNAMED; /* NaN, not whole */
-    const int in_range = fabs(v) < 9.2e18; /* else no entry's value; Python's flags_of shows it in hex */
+/* The entry of the command a command message carries (its MAV_CMD value), or NULL: none in the table */
+static const ms_command *find_command(const ms_smessage *sm, const ms_message *m, const uint8_t *padded) {
     const ms_field *cf = &m->fields[sm->command];
     const int64_t command = int_at(cf->type & 0x7F, padded + cf->offset);
     size_t lo = 0, hi = sm->ncommands;
     while (lo < hi) {
         size_t mid = lo + (hi - lo) / 2;
         const ms_command *c = &sm->commands[mid];
-        if ((int64_t)c->value == command) {
-            *cmd = c;
-            if (c->flags & MS_CMD_PYTHON)
-                return PYTHON;
-            if (c->flags & MS_CMD_BITS) /* flags_of(0) is empty: None; negative or huge values: Python */
-                return !in_range || v < 0 ? PYTHON : v > 0 ? (*n = (int64_t)v, NAMED) : UNNAMED;
-            if (!in_range)
-                return UNNAMED;
-            *n = (int64_t)v;
-            return lookup(c->entries, c->nentries, *n, 1) != NULL ? NAMED : UNNAMED;
-        }
-        if ((int64_t)c->value < command)
+        if (c->value == command)
+            return c;
+        if (c->value < command)
             lo = mid + 1;
         else
             hi = mid;
     }
-    return UNNAMED;
+    return NULL;
+}
+
+/* semantics.command_param_name(dialect, command, 1, param1) for a command message's param1, `c` its
+ * command's entry (or NULL): NAMED (*n the whole value: an entry's name, or with MS_CMD_BITS the names of
+ * its bits), UNNAMED (the value is shown), or PYTHON (an infinite param1, on which Python raises; a
+ * negative value for bits) */
+static int param1_name(const ms_smessage *sm, const ms_message *m, const uint8_t *padded, const ms_command *c,
+                       int64_t *n) {
+    const double v = float_at(MS_T_F32, padded + m->fields[sm->param1].offset);
+    if (isinf(v))
+        return PYTHON;
+    if (v != v || v != trunc(v))
+        return UNNAMED; /* NaN, not whole */
+    if (c == NULL)
+        return UNNAMED;
+    const int in_range = fabs(v) < 9.2e18; /* else no entry's value; Python's flags_of shows it in hex */
+    if (c->flags & MS_CMD_PYTHON)
+        return PYTHON;
+    if (c->flags & MS_CMD_BITS) /* flags_of(0) is empty: None; negative or huge values: Python */
+        return !in_range || v < 0 ? PYTHON : v > 0 ? (*n = (int64_t)v, NAMED) : UNNAMED;
+    if (!in_range)
+        return UNNAMED;
+    *n = (int64_t)v;
+    return lookup(c->entries, c->nentries, *n, 1) != NULL ? NAMED : UNNAMED;
+}
+
+/* semantics.holds_nothing: a number field that holds 0 (or -0.0) or NaN */
+static int holds_nothing(const ms_field *f, const uint8_t *padded) {
+    const unsigned type = f->type & 0x7F;
+    if (type == MS_T_F32 || type == MS_T_F64) {
+        const double d = float_at(type, padded + f->offset);
+        return d == 0 || d != d;
+    }
+    return int_at(type, padded + f->offset) == 0;
 }
 
 /* Dialect enum flags_of(n) joined by " | ": the names of the entries whose bits n holds, the rest in hex */
@@ -524,16 +545,19 @@ int ms_write_summary(const ms_summary *s, ms_buf *out, uint64_t number, const ch
             len = m->length; /* never: the scan hands longer payloads back */
         memcpy(padded, f + hlen, len);
         memset(padded + len, 0, (size_t)m->length - len);
-        const ms_command *cmd = NULL;
+        const ms_command *cmd = sm->command != MS_NO_FIELD ? find_command(sm, m, padded) : NULL;
+        const unsigned labelled = cmd != NULL ? cmd->labelled : 0;
         int64_t whole = 0;
         int named = UNNAMED;
         if (sm->param1 != MS_NO_FIELD) {
-            named = param1_name(sm, m, padded, &cmd, &whole);
+            named = param1_name(sm, m, padded, cmd, &whole);
             if (named == PYTHON)
                 return 1;
         }
         for (size_t k = 0; k < sm->nitems; k++) {
             const ms_sitem *it = &sm->items[k];
+            if (it->param && !(labelled >> (it->param - 1) & 1) && holds_nothing(&m->fields[it->field], padded))
+                continue; /* semantics.param_shown: unlabelled, holding nothing */
             *p++ = ' ';
             memcpy(p, it->label, it->label_len);
             p += it->label_len;

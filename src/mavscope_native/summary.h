@@ -4,16 +4,19 @@
  * same `summary_plan` of fields/summary.py the pure path uses: SUMMARY_FIELDS, enum names, degE7 as
  * degrees) and handed to C as one byte string, parallel to the layout table (table.h):
  *
- *   "MSSM", u32 version (1), u32 message count (= the layout table's, in its order), then per message:
+ *   "MSSM", u32 version (2), u32 message count (= the layout table's, in its order), then per message:
  *   u32 msgid, u8 flags (bit 0: Python only), u8 item count, u16 name length, the name (UTF-8);
  *   u16 param1 field index (0xFFFF: none; a command message's param1, named after its command's <param>
- *   and never infinite, as semantics.command_param_name requires), u16 command field index, u32 command
- *   count, per command (sorted by value): u32 value, u8 flags (MS_CMD_*: Python names it; bits), u32
- *   entry count and entries (as below, sorted as signed values: the whole number param1 holds -> its
- *   name, or the names of the bits it holds, as Enum.flags_of);
- *   per item: u16 field index (into the layout table's fields), u8 how (MS_HOW_*), u8 label length, the
- *   label ("name="), u32 entry count, then per entry (an enum's names, sorted by value as the field's
- *   type compares: signed or unsigned): u64 value, u8 name length, the name.
+ *   and never infinite, as semantics.command_param_name requires), u16 command field index (0xFFFF: not a
+ *   command message; an integer of at most 32 bits), u32 command count, per command (sorted by value):
+ *   i64 value, u8 flags (MS_CMD_*: Python names it; bits), u8 labelled (bit i - 1: the MAV_CMD entry
+ *   labels param i), u32 entry count and entries (as below, sorted as signed values: the whole number
+ *   param1 holds -> its name, or the names of the bits it holds, as Enum.flags_of);
+ *   per item: u16 field index (into the layout table's fields), u8 how (MS_HOW_*), u8 param (1..7: the
+ *   command parameter the field is, left out when its command does not label it and it holds nothing,
+ *   semantics.param_shown; 0: none), u8 label length, the label ("name="), u32 entry count, then per entry
+ *   (an enum's names, sorted by value as the field's type compares: signed or unsigned): u64 value, u8
+ *   name length, the name.
  *
  * ms_summary_parse checks every length, every field index, that entries are strictly sorted, and that no
  * text holds a newline (a line is one line). */
@@ -37,6 +40,7 @@ typedef struct {
 typedef struct {
     uint16_t field;
     uint8_t how;
+    uint8_t param; /* 1..7: the command parameter this field is (a number); 0: none */
     uint8_t label_len;
     const char *label;
     uint32_t nentries;
@@ -46,8 +50,9 @@ typedef struct {
 enum { MS_CMD_PYTHON = 1, MS_CMD_BITS = 2 };
 
 typedef struct {
-    uint32_t value;
-    uint8_t flags; /* MS_CMD_PYTHON: Python names param1; MS_CMD_BITS: the entries are bits (flags_of) */
+    int64_t value;
+    uint8_t flags;    /* MS_CMD_PYTHON: Python names param1; MS_CMD_BITS: the entries are bits (flags_of) */
+    uint8_t labelled; /* bit i - 1: the MAV_CMD entry labels param i */
     uint32_t nentries;
     ms_enum_entry *entries;
 } ms_command;
@@ -57,7 +62,7 @@ typedef struct {
 typedef struct {
     uint8_t python_only;
     uint16_t param1;  /* field index, or MS_NO_FIELD */
-    uint16_t command; /* field index (with param1) */
+    uint16_t command; /* field index of a command message's command, or MS_NO_FIELD */
     uint32_t ncommands;
     ms_command *commands;
     uint8_t nitems;
