@@ -25,6 +25,8 @@ import math
 import struct
 from decimal import Decimal
 
+from mavscope.mavlink.dialect import MessageDef
+
 _F32 = struct.Struct("<f")
 _U32 = struct.Struct("<I")
 _pack, _unpack, _bits = _F32.pack, _F32.unpack, _U32.unpack
@@ -132,3 +134,43 @@ def float_text(v: float, float32: bool) -> str:
     reads back as the same value (`f32_text`, or repr for a double); NaN and infinities as repr
     writes them (each output spells those its own way first)."""
     return f32_text(v) if float32 else repr(v)
+
+
+def f32_shown(v: object) -> object:
+    """A float32 field's decoded value as JSON and text carry it: a float as `f32_value` (its repr, orjson's
+    and json's number are the shortest decimal), each float of a list (a `float[N]` array) so; anything else
+    (None for a NaN an analysis made "no value", an int of a hostile dialect's field) as it is. Only for
+    shown values: an analysis computes with the float32 itself (a whole number above 2**24, a PX4 custom
+    mode in DO_SET_MODE's param2, reads back as itself but its shortest text is another whole number)."""
+    if type(v) is float:
+        return f32_value(v)
+    if isinstance(v, list):
+        return [f32_value(x) if type(x) is float else x for x in v]
+    return v
+
+
+# A message's float32 fields (name, is an array), by the MessageDef (a memo: dialects loaded again and again)
+_FLOAT32: dict[int, tuple[MessageDef, frozenset[str]]] = {}
+
+
+def float32_fields(md: MessageDef) -> frozenset[str]:
+    """The names of `md`'s `float` (float32) fields, scalars and arrays."""
+    hit = _FLOAT32.get(id(md))
+    if hit is not None and hit[0] is md:
+        return hit[1]
+    names = frozenset(f.name for f in md.fields if f.type == "float")
+    if len(_FLOAT32) >= 4096:
+        _FLOAT32.clear()
+    _FLOAT32[id(md)] = (md, names)
+    return names
+
+
+def shortest_fields(md: MessageDef | None, values: dict[str, object]) -> dict[str, object]:
+    """`values` (a decoded payload, or an analysis's values keyed by field name) with each value of a
+    float32 field of `md` as `f32_shown` gives it: a new dict (`values` itself when `md` has no float32
+    field). Keys that are no float32 field of `md` (a double, an integer, a value the analysis computed
+    under a field's name, such as COMMAND_INT's x in degrees) keep their value."""
+    names = float32_fields(md) if md is not None else frozenset()
+    if not names:
+        return values
+    return {k: f32_shown(v) if k in names else v for k, v in values.items()}

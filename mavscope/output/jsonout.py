@@ -15,8 +15,7 @@ from operator import itemgetter
 import orjson
 
 from mavscope.fields.registry import ENCRYPTION_BLOCK, FIELDS, MISSING, SIGNATURE_BLOCK, Field
-from mavscope.mavlink.dialect import MessageDef
-from mavscope.mavlink.floats import f32_value
+from mavscope.mavlink.floats import shortest_fields
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
 from mavscope.wire import IFLAG_SIGNED
 
@@ -67,36 +66,6 @@ def _block(frame: Frame, fields: tuple[Field, ...]) -> dict[str, object]:
     return out
 
 
-# A message's float32 fields (name, is an array): their JSON numbers are the shortest decimal that reads
-# back as the same float32 (30.48, not 30.479999542236328; docs/json-format.md), as the native writer's.
-_FLOAT32: dict[int, tuple[MessageDef, tuple[tuple[str, bool], ...]]] = {}
-
-
-def _float32_fields(md: MessageDef) -> tuple[tuple[str, bool], ...]:
-    hit = _FLOAT32.get(id(md))
-    if hit is not None and hit[0] is md:
-        return hit[1]
-    names = tuple((f.name, bool(f.array_length)) for f in md.fields if f.type == "float")
-    if len(_FLOAT32) >= 4096:  # (dialects loaded again and again: a memo, not a record)
-        _FLOAT32.clear()
-    _FLOAT32[id(md)] = (md, names)
-    return names
-
-
-def _shortest_floats(md: MessageDef, fields: dict[str, object]) -> dict[str, object]:
-    """`fields` with each float32 value as the double of its shortest text (f32_value)."""
-    names = _float32_fields(md)
-    if names:
-        fields = dict(fields)
-        for name, array in names:
-            v = fields.get(name)
-            if array and isinstance(v, list):
-                fields[name] = [f32_value(x) if isinstance(x, float) else x for x in v]
-            elif isinstance(v, float):
-                fields[name] = f32_value(v)
-    return fields
-
-
 def frame_to_json(frame: Frame, fields: dict[str, object] | None = None, decode: bool = True) -> dict[str, object]:
     """The contract object of one frame. `fields` may be passed in when already decoded.
 
@@ -116,7 +85,9 @@ def frame_to_json(frame: Frame, fields: dict[str, object] | None = None, decode:
                 fields = md.decode(frame.raw[h : h + frame.length])
         else:
             fields = decode_payload(frame)
-    out["fields"] = fields if fields is None or md is None else _shortest_floats(md, fields)
+    # a float32 field's number is the shortest decimal that reads back as the same float32 (30.48, not
+    # 30.479999542236328; docs/json-format.md), as the native writer's
+    out["fields"] = fields if fields is None else shortest_fields(md, fields)
     out["signature"] = None if frame.signature is None else _block(frame, _SIGNATURE)
     sec = frame.security
     out["encryption"] = None if sec is None or sec.encryption is None else _block(frame, _ENCRYPTION)
