@@ -15,6 +15,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from mavscope.mavlink.dialect import Dialect
+from mavscope.mavlink.floats import shortest_fields
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
 from mavscope.mavlink.semantics import (
     COMMAND_PARAM_INDEX,
@@ -250,7 +251,9 @@ def command_json(c: Command, dialect: Dialect) -> dict[str, object]:
         "from": list(c.sender), "to": list(c.target), "src": c.src, "time": c.time,
         "result": _name(dialect, "MAV_RESULT", c.result), "result_id": c.result,
         "answered": c.result is not None, "given_up": c.given_up, "latency_ms": c.latency_ms, "retries": c.retries,
-        "progress": c.progress, "params": c.params,
+        # a float32 parameter (param1..7, COMMAND_INT's z) as the shortest decimal that reads back as it (30.48);
+        # the matching and the names above use the values themselves
+        "progress": c.progress, "params": shortest_fields(dialect.by_name.get(c.message), c.params),
         "param_labels": {k: v for k, v in labels.items() if k in c.params},
         "param_names": _param_names(c, dialect),
         "frames": c.frames, "ack_frame": c.ack_frame,

@@ -12,7 +12,7 @@ from mavscope.analysis.mission import TRACKED_MESSAGES, MissionTracker, event_te
 from mavscope.analysis.vehicles import Systems
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
-from mavscope.mavlink.semantics import enum_name
+from mavscope.mavlink.semantics import NAN_TEXT, enum_name, float_text
 
 MAV_CMD_DO_SET_MODE, MAV_CMD_COMPONENT_ARM_DISARM = 176, 400
 FORCE_ARM_MAGIC = 21196  # param2 of COMPONENT_ARM_DISARM: arm or disarm whatever the checks say
@@ -50,7 +50,8 @@ class Commands:
             extra = f" to {mode}"
         elif c.command == MAV_CMD_COMPONENT_ARM_DISARM:
             p1, p2 = c.params.get("param1"), c.params.get("param2")
-            extra = " (arm" if p1 == 1 else " (disarm" if p1 == 0 else f" (param1 {p1}"
+            shown = NAN_TEXT if p1 is None else float_text(p1) if isinstance(p1, float) else p1  # (a float32)
+            extra = " (arm" if p1 == 1 else " (disarm" if p1 == 0 else f" (param1 {shown}"
             extra += ", forced)" if p2 == FORCE_ARM_MAGIC else ")"
         result = str(doc["result"]).removeprefix("MAV_RESULT_") if c.result is not None else \
             "given up unmatched (more waiting than mavscope follows)" if c.given_up else "no ACK in the capture"
