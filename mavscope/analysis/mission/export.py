@@ -24,7 +24,7 @@ from mavscope.analysis.mission.model import (
     role,
 )
 from mavscope.mavlink.dialect import Dialect
-from mavscope.mavlink.semantics import coordinate_unit, enum_name, finite, is_global
+from mavscope.mavlink.semantics import coordinate_unit, enum_name, float_text, is_global
 
 MAV_AUTOPILOT_ARDUPILOTMEGA = 3
 # *_INT frame variants -> the frame QGroundControl writes in a .plan
@@ -42,15 +42,16 @@ def _ack_json(a: Ack, dialect: Dialect) -> dict[str, object]:
 
 def item_json(item: Item, dialect: Dialect) -> dict[str, object]:
     labels = {i: label for i, label, _ in dialect.command_params(item.command)}
+    params, x, y, z = item.shown()  # (a float32 as its shortest decimal: 30.48)
     return {
         "seq": item.seq,
         "command": enum_name(dialect, "MAV_CMD", item.command),
         "command_id": item.command,
         "frame": enum_name(dialect, "MAV_FRAME", item.frame),
         "frame_id": item.frame,
-        "params": [finite(p) for p in item.params],
+        "params": params,
         "param_labels": [labels.get(i) for i in range(1, 8)],
-        "x": finite(item.x), "y": finite(item.y), "z": finite(item.z),
+        "x": x, "y": y, "z": z,
         "units": coordinate_unit(item.frame),
         "current": item.current, "autocontinue": item.autocontinue,
         "message": item.message, "frames": item.frames,
@@ -149,7 +150,7 @@ def _vehicle(log: MissionLog, t: Transfer) -> tuple[tuple[int, int], tuple[int, 
 def _simple_item(it: Item, jump_id: int) -> dict[str, object]:
     doc: dict[str, object] = {}
     if is_global(it.frame) and (it.x or it.y):  # QGroundControl writes these for items with a position
-        doc.update({"AMSLAltAboveTerrain": None, "Altitude": finite(it.z), "AltitudeMode": ALTITUDE_MODE[it.frame]})
+        doc.update({"AMSLAltAboveTerrain": None, "Altitude": it.shown()[3], "AltitudeMode": ALTITUDE_MODE[it.frame]})
     doc.update({"autoContinue": bool(it.autocontinue), "command": it.command, "doJumpId": jump_id,
                 "frame": PLAN_FRAME.get(it.frame, it.frame), "params": it.plan_params(), "type": "SimpleItem"})
     return doc
@@ -157,9 +158,10 @@ def _simple_item(it: Item, jump_id: int) -> dict[str, object]:
 
 def _position(it: Item) -> list[float] | None:
     """The item's latitude and longitude, None when either is not a finite number (MISSION_ITEM's floats
-    can be NaN or infinite: no point of a .plan, a GeoJSON, a KML or a GPX file)."""
-    x, y = it.x, it.y
-    return [x, y] if math.isfinite(x) and math.isfinite(y) else None
+    can be NaN or infinite: no point of a .plan, a GeoJSON, a KML or a GPX file); MISSION_ITEM's float32s as
+    their shortest decimals (Item.shown)."""
+    _, x, y, _ = it.shown()
+    return [x, y] if isinstance(x, float) and isinstance(y, float) else None
 
 
 def _vertex_count(p: float) -> int | None:
@@ -191,8 +193,8 @@ def _fence(t: Transfer, warnings: list[str]) -> dict[str, object]:
             if not poly:
                 count = _vertex_count(it.params[0])
                 if count is None:
-                    warnings.append(f"fence item {seq}: vertex count {it.params[0]} is not a whole number of 1 to "
-                                    "65535: left out")
+                    warnings.append(f"fence item {seq}: vertex count {float_text(it.params[0])} is not a whole number "
+                                    "of 1 to 65535: left out")
                     last = seq
                     continue
                 want, inclusion = count, it.command == POLY_IN
@@ -204,11 +206,11 @@ def _fence(t: Transfer, warnings: list[str]) -> dict[str, object]:
         if poly:  # a polygon's vertices are consecutive items
             close()
         if it.command in (CIRCLE_IN, CIRCLE_OUT, FENCE_RETURN):
-            where, radius = _position(it), finite(it.params[0])
+            where, radius = _position(it), it.shown()[0][0]
             if where is None or (it.command != FENCE_RETURN and radius is None):
                 warnings.append(f"fence item {seq}: its position or radius is not a finite number: left out")
             elif it.command == FENCE_RETURN:
-                doc["breachReturn"] = [*where, finite(it.z)]
+                doc["breachReturn"] = [*where, it.shown()[3]]
             else:
                 circles.append({"circle": {"center": where, "radius": radius},
                                 "inclusion": it.command == CIRCLE_IN, "version": 1})
@@ -256,7 +258,7 @@ def to_plan(log: MissionLog, dialect: Dialect, chosen: int | None = None) -> Pla
             seqs = [s for s in seqs if s != 0]
             zero = mission.items.get(0)
             if zero is not None and (zero.x or zero.y):
-                home, source = [zero.x, zero.y, finite(zero.z)], "mission item 0 (ArduPilot home)"
+                home, source = list(zero.shown()[1:]), "mission item 0 (ArduPilot home)"
             elif zero is not None:
                 warnings.append("mission item 0 (ArduPilot's home) is at 0, 0: home was not set yet")
             else:
@@ -267,7 +269,7 @@ def to_plan(log: MissionLog, dialect: Dialect, chosen: int | None = None) -> Pla
     if home is None and mission_items is not None:
         located = [it for _, it in sorted(mission_items.items.items()) if is_global(it.frame) and (it.x or it.y)]
         if located:
-            home, source = [located[0].x, located[0].y, 0.0], "first item's position"
+            home, source = [*located[0].shown()[1:3], 0.0], "first item's position"
             warnings.append("plannedHomePosition is the first item's position at altitude 0 (no HOME_POSITION)")
     if home is None:
         home, source = [0, 0, 0], "none"
@@ -283,7 +285,7 @@ def to_plan(log: MissionLog, dialect: Dialect, chosen: int | None = None) -> Pla
             elif where is None:
                 warnings.append(f"rally item {seq}: its position is not a finite number: left out")
             else:
-                points.append([*where, finite(it.z)])
+                points.append([*where, it.shown()[3]])
     plan = {
         "fileType": "Plan",
         "geoFence": fence,

@@ -8,6 +8,7 @@ import struct
 from dataclasses import dataclass, field
 
 from mavscope.analysis.runs import missing_runs
+from mavscope.mavlink.floats import f32_shown
 from mavscope.mavlink.frame import Addr
 from mavscope.mavlink.semantics import finite
 
@@ -56,8 +57,18 @@ class Item:
     message: str
     frames: list[int] = field(default_factory=list)
 
+    def shown(self) -> tuple[list[object], object, object, object]:
+        """(param1..4, x, y, z) as JSON, the .plan and the tables carry them: NaN and infinities as None, each
+        float32 of the wire (all but MISSION_ITEM_INT's x and y, integers made degrees or metres) as the double
+        of its shortest text (30.48, not 30.479999542236328: mavlink/floats.py)."""
+        x, y = finite(self.x), finite(self.y)
+        if self.message != "MISSION_ITEM_INT":
+            x, y = f32_shown(x), f32_shown(y)
+        return [f32_shown(finite(p)) for p in self.params], x, y, f32_shown(finite(self.z))
+
     def plan_params(self) -> list[object]:
-        return [finite(p) for p in self.params] + [finite(self.x), finite(self.y), finite(self.z)]
+        params, x, y, z = self.shown()
+        return [*params, x, y, z]
 
     def content(self) -> tuple[object, ...]:
         """What the item says, comparable between copies (NaN, "unchanged" in PX4 and QGC, equals itself)."""
