@@ -20,6 +20,7 @@ from dataclasses import dataclass
 
 from mavscope.errors import UsageError
 from mavscope.fields.registry import BY_NAME, FLOAT, INT, MISSING, Field, FieldRegistry, PayloadField
+from mavscope.mavlink.floats import f32_value
 from mavscope.mavlink.frame import Frame, decode_payload
 
 MAX_BUCKETS = 1024
@@ -66,6 +67,10 @@ def field_getter(registry: FieldRegistry, expr: str) -> tuple[Getter, str]:
         if index is not None and not (fd.array_length and index < fd.array_length):
             raise UsageError(f"plot: {expr}: {fd.filter_name} has no element {index}")
     names = {msgid: (fd.message, fd.name) for msgid, fd in defs.items()}
+    # a float32 field's values as the doubles of their shortest decimals (mavlink/floats.py): the minimum and
+    # maximum are values of the field, shown as such (30.48, not 30.479999542236328); a mean moves by less
+    # than half a float32 step
+    float32 = frozenset(msgid for msgid, fd in defs.items() if fd.type == "float")
     units = {fd.units for fd in defs.values()}
 
     def payload(f: Frame) -> float | None:
@@ -78,7 +83,7 @@ def field_getter(registry: FieldRegistry, expr: str) -> tuple[Getter, str]:
         v = fields.get(want[1])
         if index is not None:
             v = v[index] if isinstance(v, list) and index < len(v) else None
-        return _number(v)
+        return f32_value(v) if type(v) is float and f.msgid in float32 else _number(v)
     return payload, units.pop() if len(units) == 1 else ""
 
 

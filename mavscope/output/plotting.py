@@ -21,7 +21,15 @@ DOTS = ((0x01, 0x08), (0x02, 0x10), (0x04, 0x20), (0x40, 0x80))  # [row][col] bi
 
 
 def _num(v: float) -> str:
+    """A computed number (a mean, an interval, an axis label) to 6 significant digits."""
     return f"{v:.6g}"
+
+
+def _value(v: float) -> str:
+    """A value of the field (the minimum, the maximum) as the shortest text that reads back as it: a float32
+    field's values are the doubles of their shortest decimals (analysis/series.py), so repr writes 30.48; an
+    integer field's whole numbers as integers (473977419, not 4.73977e+08)."""
+    return str(int(v)) if v.is_integer() and abs(v) < 2**53 and repr(v) != "-0.0" else repr(v)
 
 
 def summary(s: Series, x_label: str) -> str:
@@ -30,7 +38,7 @@ def summary(s: Series, x_label: str) -> str:
     skipped = f" ({s.not_finite} NaN or infinite left out)" if s.not_finite else ""
     if not s.count:
         return f"{s.name}{units}: no values{skipped}"
-    return (f"{s.name}{units}: {s.count} values{skipped}, min {_num(s.low)}, max {_num(s.high)}, "
+    return (f"{s.name}{units}: {s.count} values{skipped}, min {_value(s.low)}, max {_value(s.high)}, "
             f"mean {_num(s.total / s.count)}; interval {_num(s.width)} {x_label}")
 
 
