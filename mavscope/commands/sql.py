@@ -112,15 +112,30 @@ def _default(v: object) -> object:
     return str(v) if out is v else out  # never raise on a type DuckDB may add
 
 
+def _values(column: pa.Array) -> list[object]:
+    """A result column's values: a FLOAT (float32) column's, and a list of them, as the doubles of their
+    shortest decimals, which the text, CSV and JSON write as the shortest text that reads back as the same
+    float32 (30.48, not 30.479999542236328: mavlink/floats.py); a DOUBLE's as they are."""
+    import pyarrow as pa
+
+    from mavscope.mavlink.floats import f32_shown
+
+    t = column.type
+    if pa.types.is_list(t) or pa.types.is_large_list(t) or pa.types.is_fixed_size_list(t):
+        t = t.value_type
+    return [f32_shown(v) for v in column.to_pylist()] if pa.types.is_float32(t) else column.to_pylist()
+
+
 def _rows(batches: Iterator[pa.RecordBatch]) -> Iterator[dict[str, object]]:
     for b in batches:
-        yield from b.to_pylist()
+        names = b.schema.names
+        yield from (dict(zip(names, row)) for row in zip(*(_values(c) for c in b.columns)))
 
 
 def _tuples(batches: Iterator[pa.RecordBatch]) -> Iterator[tuple[object, ...]]:
     """Rows as tuples (a query may name two columns alike)."""
     for b in batches:
-        yield from zip(*(c.to_pylist() for c in b.columns))
+        yield from zip(*(_values(c) for c in b.columns))
 
 
 def _json(env: Env, batches: Iterator[pa.RecordBatch]) -> None:

@@ -2,9 +2,11 @@
 
 As `mavlogdump.py --format csv --types MSG` writes it: a header `timestamp,MSG.field,...` (fields in
 XML order), then one line per frame: the capture time with 8 decimals, then each value as Python's
-`str()` writes it (arrays as `[1, 2, 3]`, which the CSV quotes; char arrays as their text). Only frames
-whose CRC verifies, as pymavlink gives them. The rows come from the same record batches as the
-dataset (`record_batches`, message tables only), so the CSV and the Parquet agree.
+`str()` writes it (arrays as `[1, 2, 3]`, which the CSV quotes; char arrays as their text), but a float32
+(a `float` field) as the shortest text that reads back as the same float32 (30.48 where mavlogdump writes
+the double 30.479999542236328; mavlink/floats.py). Only frames whose CRC verifies, as pymavlink gives
+them. The rows come from the same record batches as the dataset (`record_batches`, message tables only),
+so the CSV and the Parquet agree.
 
 One difference from mavlogdump, for safety: the text comes from whoever sent the frames, and a
 spreadsheet runs a cell that begins with `=`, `+`, `-`, `@`, a tab or a carriage return as a formula
@@ -26,6 +28,8 @@ import pyarrow.compute as pc
 from mavscope.export.dataset import inside
 from mavscope.export.schema import CAPTURES, IDENTITY, MESSAGE_PREFIX, message_columns, table_of
 from mavscope.export.source import ExportOptions, Progress, Warn, dialect_for, record_batches
+from mavscope.mavlink.dialect import FieldDef
+from mavscope.mavlink.floats import f32_shown
 
 _SKIP = 1 + len(IDENTITY)  # capture_id and the frame identity come before the fields
 
@@ -61,6 +65,13 @@ def guarded_note(command: str, cells: int) -> str:
     """The line a command writes on stderr when it guarded `cells` text cells."""
     return (f"{command}: {cells:,} text cell(s) began with = + - @, a tab or a carriage return, which a spreadsheet "
             "runs as a formula: written with a leading ' (--unsafe-csv writes them as they are)")
+
+
+def _shown(column: list[object], fd: FieldDef) -> list[object]:
+    """A column's values as written: a float32 field's as the doubles of their shortest decimals, which
+    `str()` writes as the shortest text that reads back as the same float32 (30.48, not mavlogdump's
+    30.479999542236328: mavlink/floats.py), arrays' elements too; NaN and infinities as `str()` writes them."""
+    return [f32_shown(v) for v in column] if fd.type == "float" else column
 
 
 def _text(v: object) -> str:
@@ -112,7 +123,7 @@ def write_capture_csv(path: str, folder: Path, options: ExportOptions | None = N
             ok = pc.equal(batch.column("_crc_status"), "ok")
             rows = batch.filter(ok)
             times = rows.column("_time").to_pylist()
-            values = [rows.column(_SKIP + j).to_pylist() for j in range(len(cols.fields))]
+            values = [_shown(rows.column(_SKIP + j).to_pylist(), fd) for j, (_, fd) in enumerate(cols.fields)]
             if guard:
                 guarded += sum(guard_cells(v) for v in values)
             for i, t in enumerate(times):

@@ -2,7 +2,11 @@
 
 mavlogdump writes a row as `"{:.8f}".format(m._timestamp)` then `str(value)` per field of
 `m.to_dict()`; the expected rows here are made that way from pymavlink reading the tlog itself, and
-one type is compared with mavlogdump's own output. Timestamps agree to a microsecond: both are the
+one type is compared with mavlogdump's own output. One difference by design (issue 35 item 15): a
+float32 (a `float` field) is written as the shortest text that reads back as the same float32, where
+mavlogdump writes the double (30.48, not 30.479999542236328): expected here as numpy's float32 finds the
+digits, `str(numpy.float32(v))`, laid out by Python's repr (`repr(float(digits))`), element by element
+in an array; NaN and infinities as `str()` writes them. Timestamps agree to a microsecond: both are the
 tlog's microseconds as a double, printed with 8 decimals, beyond a double's precision at 1.7e9 s
 (pymavlink multiplies by 1e-6 where mavscope divides by 1e6: they may differ in the last bit).
 """
@@ -10,11 +14,13 @@ tlog's microseconds as a double, printed with 8 decimals, beyond a double's prec
 from __future__ import annotations
 
 import csv
+import math
 import subprocess
 import sys
 from collections import defaultdict
 from pathlib import Path
 
+import numpy as np
 from pymavlink import mavutil
 
 from tests.conftest import CAPTURES, Cli
@@ -31,6 +37,16 @@ def _same_row(got: list[str], want: list[str]) -> bool:
     return abs(float(got[0]) - float(want[0])) < 1e-6 and got[1:] == want[1:]
 
 
+def _f32(v: float) -> str:
+    return repr(float(str(np.float32(v)))) if math.isfinite(v) else str(v)
+
+
+def _cell(value: object, float32: bool) -> str:
+    if float32 and isinstance(value, list):
+        return "[" + ", ".join(_f32(x) for x in value) + "]"
+    return _f32(value) if float32 and isinstance(value, float) else str(value)
+
+
 def _pymavlink_rows() -> dict[str, list[list[str]]]:
     conn = mavutil.mavlink_connection(str(TLOG), dialect="all")
     out: dict[str, list[list[str]]] = defaultdict(list)
@@ -38,7 +54,8 @@ def _pymavlink_rows() -> dict[str, list[list[str]]]:
         if m.get_type() == "BAD_DATA":
             continue
         data = m.to_dict()
-        out[m.get_type()].append(["{:.8f}".format(m._timestamp)] + [str(data[f]) for f in m.fieldnames])
+        out[m.get_type()].append(["{:.8f}".format(m._timestamp)] + [_cell(data[f], t == "float")
+                                                                    for f, t in zip(m.fieldnames, m.fieldtypes)])
     return out
 
 
