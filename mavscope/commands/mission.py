@@ -11,6 +11,7 @@ from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass
 from mavscope.commands.common import OutputKind, add_output_option, check_outputs, console, write_json, write_output
 from mavscope.errors import UsageError
+from mavscope.notes import finding_line
 from mavscope.output.grid import columns, many, print_lines, print_table
 from mavscope.output.tables import iso, listed, param_text
 
@@ -85,6 +86,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                                  right=("seq", "z")), d["items"], _item_row, plain=plain)
     print_lines(con, (f"Event {n}: {e['text']}; at {iso(e['time'])}; frames {', '.join(map(str, e['frames']))}"
                       for n, e in enumerate(events, 1)), plain=plain)
+    if log.given_up is not None:  # what the tracker's bounds gave up (capacity), as audit prints it
+        print_lines(con, [finding_line(log.given_up)], plain=plain)
     if args.plan and export is not None:
         for what, c in export.cleared.items():
             by = f"transfer {c['transfer']}" if c["transfer"] is not None else f"event {c['event']}"

@@ -121,3 +121,66 @@ def test_a_flood_of_made_up_vehicles_keeps_the_vehicles_arming_and_the_arm_comma
         assert said in audit["capacity"]
         status, out, _ = cli("events", path)
         assert "39 more arming events not listed" in out
+
+
+def test_a_flood_of_mission_counts_and_requests_keeps_the_upload_under_way(  # type: ignore[no-untyped-def]
+        cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """At most 3 transfers open and 2 MISSION_REQUEST_LISTs awaiting their COUNT. Built (records):
+      1-2 HEARTBEATs of the vehicle 1/1 and the GCS 255/190; 3 the GCS's MISSION_COUNT 2 to 1/1, 4 the vehicle's
+      MISSION_REQUEST_INT 0, 5 item 0; 6-11 six made-up GCSs 100+i/190 each a MISSION_COUNT 3 to 200+i/1 (never
+      answered); 12 the GCS's MISSION_REQUEST_LIST of the fence (type 1) to 1/1; 13-15 three made-up GCSs
+      150+i/190 the same; 16 the vehicle's MISSION_REQUEST_INT 1, 17 item 1, 18 its MISSION_ACK ACCEPTED; 19 the
+      vehicle's MISSION_COUNT 0 of the fence to the GCS (the answer to record 12).
+    By hand: the upload and the COUNTs of 6 and 7 fill the 3; the COUNT of 8 gives up the newest unanswered but
+    itself (7), 9 gives up 8, 10 gives up 9, 11 gives up 10 (4 evicted). The REQUEST_LISTs: 12 and 13 fill the
+    2; 14 gives up 13, 15 gives up 14. 6 give-ups, said at the 1st, 2nd and 4th: records 8, 9, 11. The upload
+    completes (accepted, both items), the fence download pairs with its REQUEST_LIST (the old policy closed the
+    oldest transfer: the upload, `evicted`, its ACK then matching nothing)."""
+    from pymavlink.dialects.v20 import ardupilotmega as v20
+
+    import importlib
+
+    from mavscope.analysis.mission import model
+
+    reconstruct = importlib.import_module("mavscope.analysis.mission.reconstruct")  # (the package's name is a function)
+    from tests.analysis.mission_exchange import Exchange, item_int
+
+    monkeypatch.setattr(model, "OPEN_MAX", 3)
+    monkeypatch.setattr(reconstruct, "OPEN_MAX", 3)
+    monkeypatch.setattr(reconstruct, "WAITING_MAX", 2)
+
+    def made_up(x: Exchange, sysid: int, name: str, *args: object) -> None:
+        mav = v20.MAVLink(None, srcSystem=sysid, srcComponent=190)
+        x.t += 0.005
+        x.frames.append((x.t, getattr(mav, f"{name.lower()}_encode")(*args).pack(mav)))
+
+    x = Exchange()
+    x.heartbeats(2, 3)
+    x.send("gcs", "MISSION_COUNT", 1, 1, 2, 0)
+    x.send("veh", "MISSION_REQUEST_INT", 255, 190, 0, 0)
+    item_int(x, "gcs", (1, 1), 0, 16, 47.39, 8.54, 20)
+    for i in range(6):
+        made_up(x, 100 + i, "MISSION_COUNT", 200 + i, 1, 3, 0)
+    x.send("gcs", "MISSION_REQUEST_LIST", 1, 1, 1)
+    for i in range(3):
+        made_up(x, 150 + i, "MISSION_REQUEST_LIST", 1, 1, 1)
+    x.send("veh", "MISSION_REQUEST_INT", 255, 190, 1, 0)
+    item_int(x, "gcs", (1, 1), 1, 16, 47.40, 8.55, 20)
+    x.send("veh", "MISSION_ACK", 255, 190, 0, 0)
+    x.send("veh", "MISSION_COUNT", 255, 190, 0, 1)
+    assert len(x.frames) == 19
+    path = x.tlog(tmp_path / "flood.tlog")
+    for environ in ENGINES:
+        cli.environ = environ
+        doc = cli.json("mission", path)
+        upload, *flood, fence = doc["transfers"]
+        assert (upload["frames"][0], upload["outcome"], upload["closed"]) == (3, "complete", "ack")
+        assert [t["closed"] for t in flood] == ["end", "evicted", "evicted", "evicted", "evicted", "end"]
+        assert (fence["frames"], fence["direction"]) == ([12, 19], "download")
+        (said,) = doc["findings"]
+        assert said["code"] == "capacity" and said["frames"] == [8, 9, 11]
+        assert "6 given up (6 exchanges)" in said["message"]
+        assert said in findings(cli, "audit", path)["capacity"]
+        assert said in findings(cli, "events", path)["capacity"]
+        _, out, _ = cli("mission", path)
+        assert "capacity" in out and "6 given up" in out

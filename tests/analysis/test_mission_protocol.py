@@ -349,10 +349,12 @@ def test_a_count_of_65535_costs_what_its_items_cost(cli: Cli, tmp_path: Path) ->
     assert len(out) < 50 * 8000  # each transfer's JSON: its items and four runs
 
 
-def test_more_open_transfers_than_followed_close_the_oldest(cli: Cli, tmp_path: Path) -> None:
+def test_more_open_transfers_than_followed_give_up_the_newest_unanswered(cli: Cli, tmp_path: Path) -> None:
     """Hostile: a ground station starts uploads to 1,100 vehicles (sysid 1..250, compid 1..5) that nothing
     answers. Every mission frame is compared with every open transfer, so at most OPEN_MAX (1,024) stay
-    open: the 76 oldest are closed as `evicted`, the rest at the capture's end; none is lost."""
+    open: each COUNT past them closes the newest unanswered transfer but itself as `evicted` (docs/security.md,
+    "Bounds": what was open before the flood stays), so by hand transfers 1,024..1,099 (the 76 before the
+    last) are evicted, the first 1,023 and the last closed at the capture's end; none is lost."""
     from mavscope.analysis.mission.model import OPEN_MAX
 
     x = Exchange()
@@ -361,5 +363,5 @@ def test_more_open_transfers_than_followed_close_the_oldest(cli: Cli, tmp_path: 
         x.send("gcs", "MISSION_COUNT", *t, 3, 0, dt=0.0001)
     doc = cli.json("mission", x.tlog(tmp_path / "many.tlog"))
     assert [tuple(t["to"]) for t in doc["transfers"]] == targets
-    assert [t["closed"] for t in doc["transfers"]] == ["evicted"] * 76 + ["end"] * OPEN_MAX
+    assert [t["closed"] for t in doc["transfers"]] == ["end"] * (OPEN_MAX - 1) + ["evicted"] * 76 + ["end"]
     assert all(t["outcome"] == "abandoned" for t in doc["transfers"])

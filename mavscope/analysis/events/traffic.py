@@ -106,6 +106,7 @@ class Missions:
 
     def finish(self) -> Iterable[Event]:
         log = self.tracker.finish()
+        self.capacity = [log.given_up] if log.given_up is not None else []  # (EventLog: events and audit say it)
         out = []
         for t in log.transfers:
             if not t.frames:

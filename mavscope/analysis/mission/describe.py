@@ -39,7 +39,8 @@ def run_text(spans: list[list[int]]) -> str:
 
 _WHY = {"restarted": "a new MISSION_COUNT or MISSION_REQUEST_LIST between the two systems followed",
         "timeout": "no frame of it for longer than the protocol timeout",
-        "evicted": f"more transfers were open at once than mavscope follows ({OPEN_MAX:,}): the oldest was closed",
+        "evicted": f"more transfers were open at once than mavscope follows ({OPEN_MAX:,}): this one, the newest "
+                   "not yet answered, was given up",
         "end": "the capture ends"}
 
 

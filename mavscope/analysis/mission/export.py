@@ -96,7 +96,8 @@ def event_json(ev: Event, dialect: Dialect) -> dict[str, object]:
 def log_json(log: MissionLog, dialect: Dialect) -> dict[str, object]:
     return {"transfers": [transfer_json(t, dialect) for t in log.transfers],
             "events": [event_json(ev, dialect) for ev in log.events],
-            "duplicates": log.duplicates}
+            "duplicates": log.duplicates,
+            "findings": [log.given_up.to_json()] if log.given_up is not None else []}  # capacity: bounds' give-ups
 
 
 @dataclass

@@ -11,6 +11,7 @@ from mavscope.analysis.runs import missing_runs
 from mavscope.mavlink.floats import f32_shown
 from mavscope.mavlink.frame import Addr
 from mavscope.mavlink.semantics import finite
+from mavscope.notes import Finding
 
 MAV_MISSION_ACCEPTED = 0
 MAV_MISSION_TYPE_ALL = 255
@@ -22,7 +23,7 @@ TRANSFER_TIMEOUT = 10.0
 
 # Outcomes of a transfer (Transfer.outcome)
 COMPLETE = "complete"  # the receiver accepted it and every item is in the capture
-OPEN_MAX = 1024  # transfers followed at once (more: the oldest is closed, "evicted")
+OPEN_MAX = 1024  # transfers followed at once (more: the newest unanswered but the new one closed, "evicted")
 ACCEPTED_MISSING = "accepted-items-missing"  # accepted, but some items are not in the capture
 UNACKNOWLEDGED = "unacknowledged"  # every item is in the capture, no MISSION_ACK closed it
 NACK = "nack"  # the receiver refused it (its last ACK was an error and nothing followed)
@@ -206,6 +207,7 @@ class MissionLog:
     heartbeats: dict[Addr, tuple[int, int]]  # sender -> (MAV_TYPE, MAV_AUTOPILOT) of its last HEARTBEAT
     homes: dict[int, tuple[float, float, float]]  # sysid -> last HOME_POSITION (deg, deg, m AMSL)
     duplicates: int = 0  # mission frames ignored as byte copies of an earlier one
+    given_up: Finding | None = None  # the `capacity` finding of what the tracker's bounds gave up
 
     def heartbeat_of(self, addr: Addr) -> tuple[int, int] | None:
         return heartbeat_of(self.heartbeats, addr)

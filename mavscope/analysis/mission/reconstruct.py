@@ -44,10 +44,11 @@ from mavscope.analysis.mission.model import (
     role,
     same,
 )
-from mavscope.analysis.mission.state import Deadlines, Timed, narrow, open_events, open_transfers
+from mavscope.analysis.mission.state import Deadlines, Timed, narrow, newest_young, open_events, open_transfers, party
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
 from mavscope.mavlink.semantics import int_coordinate
+from mavscope.notes import GivenUp, pop_newest
 
 MISSION_MESSAGES = frozenset({"MISSION_COUNT", "MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ITEM",
                               "MISSION_ITEM_INT", "MISSION_ACK", "MISSION_REQUEST_LIST", "MISSION_CLEAR_ALL",
@@ -60,6 +61,8 @@ DUPLICATE_FRAMES = 64  # frames of the sender: a byte copy further back is a new
 RECENT = 8  # mission frames remembered per sender for duplicate detection
 RECENTLY_CLOSED = 16  # closed transfers kept for late frames when the capture has no times
 ORPHANS_ACTIVE = 1024  # stray-frame events still gathering frames (the oldest stops first; it stays listed)
+WAITING_MAX = 1024  # REQUEST_LISTs awaiting their COUNT, and CLEAR_ALLs their ACK (more: the newest but the new
+# one is no longer followed, listed unanswered; said as `capacity`)
 
 
 def _num(fields: dict[str, object], name: str, default: int = 0) -> int:
@@ -102,6 +105,9 @@ class MissionTracker(Answers):
         self.duplicates = 0
         self.now: float | None = None
         self.order = 0
+        self.young: dict[int, Transfer] = {}  # open transfers by order, some not yet answered (OPEN_MAX's first)
+        self.given_up = GivenUp(f"mission exchanges followed (at most {OPEN_MAX:,} transfers open, "
+                                f"{WAITING_MAX:,} requests awaiting an answer)", "exchanges")
 
     # -- input ---------------------------------------------------------------------------------------
 
@@ -273,18 +279,44 @@ class MissionTracker(Answers):
         if broadcast(t.receiver):
             self.families.pop((me, mtype), None)
             self.families[(me, mtype)] = self.last_family[mtype] = [t]
-            if len(self.families) > OPEN_MAX:  # the oldest broadcast COUNT takes no more answerers (theirs: orphans)
-                del self.families[next(iter(self.families))]
+            if len(self.families) > OPEN_MAX:  # the newest broadcast COUNT but this one takes no more answerers
+                _, (gone, *_) = pop_newest(self.families, (me, mtype))
+                self.given_up.add(f"the broadcast MISSION_COUNT of {party(gone.sender)} (frame {gone.frames[0]}) "
+                                  "takes no more answerers (theirs shown as orphans)", record=f.record)
         self.adopt(t)
         return t
 
     def adopt(self, t: Transfer) -> None:
-        """Follow a new transfer."""
+        """Follow a new transfer. Past OPEN_MAX open, the newest not yet answered but `t` is given up (a flood
+        of COUNTs churns its own; an exchange under way stays), else `t` itself."""
         self.transfers.append(t)
         self.open.add(t)
         self.deadlines.push(t)
         if len(self.open) > OPEN_MAX:
-            self._close(self.open.oldest(), "evicted")
+            victim = newest_young(self.young, self.open) or t
+            self._close(victim, "evicted")
+            self.given_up.add(f"the transfer of {victim.count} items {party(victim.sender)} -> "
+                              f"{party(victim.addressed or victim.receiver)} (frame {victim.frames[0]}) given up "
+                              "unanswered", record=t.frames[-1])
+        if t in self.open:
+            self.young[t.order] = t
+
+    def _wait(self, ev: Event, key: object = None) -> None:
+        """Past WAITING_MAX REQUEST_LISTs (`key` in `lists`) or CLEAR_ALLs awaiting an answer, the newest but
+        `ev` is no longer awaited (listed unanswered; its answer, if it comes, is shown apart)."""
+        if ev.kind == "request-list":
+            if len(self.lists) <= WAITING_MAX:
+                return
+            _, old = pop_newest(self.lists, key)
+            self.listed.remove(old)
+            self._event(old)
+        else:
+            if len(self.clears) <= WAITING_MAX:
+                return
+            old = self.clears.newest_but(ev)
+            self.clears.remove(old)
+        self.given_up.add(f"a {old.kind} of {party(old.sender)} (frame {old.frames[0]}) no longer awaited: its "
+                          "answer would be shown apart", record=ev.frames[-1])
 
     def _request_list(self, f: Frame, me: Addr, tgt: Addr, mtype: int) -> object:
         for old in self.open.matching(mtype, tgt, me):
@@ -298,6 +330,7 @@ class MissionTracker(Answers):
             ev = self.lists[key] = self._new_event("request-list", f, me, tgt, mtype)
             ev.addressed = tgt
             self.listed.add(ev)
+            self._wait(ev, key)
         else:
             ev.frames.append(f.record)
             ev.last = f.time
@@ -383,6 +416,7 @@ class MissionTracker(Answers):
         ev = self._event(self._new_event("clear-all", f, me, tgt, mtype))
         ev.addressed = tgt
         self.clears.add(ev)
+        self._wait(ev)
         return ev
 
     def _set_current(self, f: Frame, me: Addr, tgt: Addr, seq: int) -> Event:
@@ -429,7 +463,8 @@ class MissionTracker(Answers):
             if not t.direction:
                 t.direction, t.direction_basis = self._direction(t)
             t.reason = reason(t, self.dialect)
-        return MissionLog(self.transfers, self.events, dict(self.heartbeats), dict(self.homes), self.duplicates)
+        return MissionLog(self.transfers, self.events, dict(self.heartbeats), dict(self.homes), self.duplicates,
+                          self.given_up.finding())
 
     def _direction(self, t: Transfer) -> tuple[str, str]:
         """Upload or download from who is a vehicle: the sender's HEARTBEAT, else the receiver's."""

@@ -80,6 +80,12 @@ class PartyIndex(Generic[P]):
     def oldest(self) -> P:
         return next(iter(self._all.values()))
 
+    def newest_but(self, x: P) -> P:
+        """The one that began last other than `x` (there are two or more)."""
+        it = reversed(self._all.values())
+        y = next(it)
+        return next(it) if y is x else y
+
     def _keys(self, x: P) -> Iterator[tuple[int, int, int, int, int]]:
         """Each end filed under its own system and component and under ANY for each (16 keys)."""
         (ssys, scomp), (rsys, rcomp) = x.sender, self._other(x)
@@ -133,6 +139,21 @@ class PartyIndex(Generic[P]):
         """Those of `mtype` between `a` and `b`, either way, oldest first."""
         both = {x.order: x for x in (*self.matching(mtype, a, b), *self.matching(mtype, b, a))}
         return [both[k] for k in sorted(both)]
+
+
+def party(a: Addr) -> str:
+    return f"{a[0]}/{a[1]}"
+
+
+def newest_young(young: dict[int, Transfer], index: PartyIndex[Transfer]) -> Transfer | None:
+    """Take out of `young` (open transfers by order, some since answered or closed) the newest still open and
+    unanswered; those answered or closed on the way leave it (each once: amortised O(1))."""
+    while young:
+        k = next(reversed(young))
+        t = young.pop(k)
+        if not t.answered and t in index:
+            return t
+    return None
 
 
 def open_transfers() -> PartyIndex[Transfer]:
