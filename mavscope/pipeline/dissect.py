@@ -29,12 +29,12 @@ from mavscope.mavlink.framing import (
     unpack_v2,
 )
 from mavscope.mavlink.hidden import ACROSS, Hidden, Scanned, hidden_note, merged
-from mavscope.mavlink.receivers import WILD, Sockets, Waiting, across, split_note
+from mavscope.mavlink.receivers import WILD, Port, Sockets, Waiting, across, split_note
 from mavscope.notes import GivenUp, Note
 from mavscope.pipeline.textrun import TextRun, is_text_entry
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
 from mavscope.transport.decap import Decapsulator
-from mavscope.transport.tcp import GAP
+from mavscope.transport.tcp import GAP, TcpReassembler
 from mavscope.transport.wpa import WifiKey, Wpa
 from mavscope.wire import SIGNATURE_LEN, STX_V2
 
@@ -61,6 +61,23 @@ class Anomaly:
     notes: tuple[Note, ...]
 
 
+class Receivers(dict[int, Port]):
+    """The UDP receivers in a frame, by port (mavlink.receivers.Sockets.ports), as the native walker is given
+    them: it hands back every datagram to one of these ports, and every record while `hand_back` (a TCP hole
+    waits, and any record's time may end the wait: TcpReassembler.tick, as `feed` does it), so both engines
+    give a hole up at the same record."""
+
+    __slots__ = ("tcp",)
+
+    def __init__(self, tcp: TcpReassembler) -> None:
+        super().__init__()
+        self.tcp = tcp
+
+    @property
+    def hand_back(self) -> bool:
+        return self.tcp.waiting
+
+
 class Dissector:
     """Finds and checks the MAVLink frames of a capture. One instance per capture (it keeps stream state)."""
 
@@ -81,7 +98,7 @@ class Dissector:
         # ended (mavscope.mavlink.receivers), by port: the next datagram to them goes on with it. The native
         # walker hands every datagram to one of these ports back here.
         self.sockets = Sockets()
-        self.receivers = self.sockets.ports
+        self.sockets.ports = self.receivers = Receivers(self.decap.tcp)
         self._record = 0
         self._index = 0
         self._raw_frames = 0  # frames of a raw byte stream so far (they are numbered 1..N)
@@ -166,6 +183,11 @@ class Dissector:
             yield from self._datagram(p, pos)
             index = self._index
         tcp = self.decap.tcp
+        if tcp.waiting:  # a TCP hole waits: this record's time (whatever it carried) may end the wait
+            self._index = index
+            for p in tcp.tick(number, time):
+                yield from self._stream(p) if p.stream is not None else self._datagram(p, 0)
+            index = self._index
         ended = tcp.ended
         if ended:  # TCP streams that ended or were released: decide what their framers still hold
             self._index = index
@@ -191,7 +213,9 @@ class Dissector:
         entries, mavscope/native.py): keep the state `feed` would have kept from them. Returns what `feed`
         would have reported first: a run of tlog text entries held from before them ends here. Frames
         completed at the end of the capture belong to record `number` and its `time`; `index`, when not
-        None, is the frame index the general scanner would have left (records with a MAVLink 1 frame)."""
+        None, is the frame index the general scanner would have left (records with a MAVLink 1 frame). No TCP
+        hole waits over such records (the walker hands every record back while one does: Receivers.hand_back),
+        so the reassembler's clock needs no tick here."""
         out = [self._take_text()] if self._text else []
         self._record = number
         self._time = time

@@ -17,7 +17,10 @@ given up, noted `tcp-gap` (its size, sequence numbers and why) on the bytes afte
   segment fills it within HOLE_TIMEOUT of capture time after the bytes beyond it came (a retransmission
   after a lost segment comes in about a round trip, or after a retransmission timeout, at least 1 s by
   RFC 6298), or more than FAR_SEGMENTS segments or FAR_BYTES bytes came beyond it; a FIN or RST; the end
-  of the capture; a memory bound below.
+  of the capture; a memory bound below. Time is any record's, not only the stream's: the dissector ticks
+  the reassembler (`tick`) with every record while a hole waits (`waiting`), so a hole among other
+  traffic is given up on time, and after HOLE_RECORDS records whatever the clock says (a capture whose
+  time stands still would hold it, and the records a later frame may be dated by, for ever).
 The bytes after a hole are then read at once, each piece `ready` at the record where it became readable
 in order (its own record, or the later one that filled the range before it), so a frame is dated by the
 record that completed it, never by the moment reassembly gave up. Bytes that come after their range was
@@ -40,7 +43,7 @@ from collections.abc import Hashable
 from mavscope.endpoint import Endpoint
 from mavscope.notes import Note, note
 from mavscope.transport.base import TRANSPORT_TCP, Payload
-from mavscope.transport.tcp_direction import HALF, HOLES_KEPT, MOD, NEVER, Direction
+from mavscope.transport.tcp_direction import HALF, HOLES_KEPT, MOD, NEVER, Direction, Waits
 
 TCP_FIN = 0x01
 TCP_SYN = 0x02
@@ -58,6 +61,7 @@ PENDING_NOTES = 16  # suspicious-SYN notes held for a direction before they go o
 HOLE_TIMEOUT = 2.0  # seconds of capture time a hole is waited for after the bytes beyond it came
 FAR_SEGMENTS = 64  # segments beyond a hole that give it up ...
 FAR_BYTES = 1 << 16  # ... or bytes beyond it (the largest window without window scaling, RFC 7323)
+HOLE_RECORDS = 1 << 18  # records (of any kind) a hole is waited for after the bytes beyond it came, whatever the time
 
 _tuple_new = tuple.__new__
 
@@ -85,9 +89,8 @@ class TcpReassembler:
         self._slots: dict[tuple[Endpoint, Endpoint], list[Direction]] = {}  # (src, dst) -> generations, oldest first
         self._lru: OrderedDict[Hashable, Direction] = OrderedDict()  # every direction, least recently active first
         self._buffering: OrderedDict[Hashable, Direction] = OrderedDict()  # those holding bytes, oldest first
-        self._holes: dict[Hashable, Direction] = {}  # those waiting on a hole (`since` not NEVER) ...
-        self._due: list[tuple[float, int, Hashable]] = []  # ... a heap of their (since, serial, key), stale ones too
-        self._dues = 0  # serials of `_due`'s entries
+        self.waits = Waits()  # those waiting on a hole, by how long
+        self._holes, self._due = self.waits.holes, self.waits.due  # (the same objects)
         self._notes: dict[tuple[Endpoint, Endpoint], list[Note]] = {}  # notes for the next payload of a (src, dst)
         self._serial = 0
         # keys of streams that ended (FIN, RST) or were released, oldest first, for a consumer to let their
@@ -137,11 +140,27 @@ class TcpReassembler:
                 self._ack(peer, ack, record, out)
         if self._notes and k in self._notes:
             self._attach(k, out)
-        if self._due and self.clock - self._due[0][0] > HOLE_TIMEOUT:
+        if self.waits.any_due(self.clock, record, HOLE_TIMEOUT, HOLE_RECORDS):
             self._expire(out)
         if self.total > self.max_total or len(self._lru) > self.max_directions or \
                 record - next(iter(self._lru.values())).last > self.idle_records:
             self._sweep(record, out)
+        return out
+
+    @property
+    def waiting(self) -> bool:
+        """Whether a hole is waited for: every record (of any kind) must then be `tick`ed."""
+        return bool(self._holes)
+
+    def tick(self, record: int, time: float | None) -> list[Payload]:
+        """Record `record` (of capture time `time`) was read, whatever it carried: the holes it ends the
+        wait for (HOLE_TIMEOUT, HOLE_RECORDS) are given up, and what they held back is returned."""
+        out: list[Payload] = []
+        self.current = record
+        if time is not None and time > self.clock:
+            self.clock = time
+        if self.waits.any_due(self.clock, record, HOLE_TIMEOUT, HOLE_RECORDS):
+            self._expire(out)
         return out
 
     @property
@@ -407,45 +426,24 @@ class TcpReassembler:
         return ""
 
     def _wait(self, d: Direction) -> None:
-        """Keep `_holes` (the directions waiting on a hole, for HOLE_TIMEOUT) up to date with `d`: a hole
-        with bytes beyond it (since the first segment beyond it came: the clock at its arrival, which a hole
-        left when an earlier one was filled may have waited long already), or bytes its receiver acknowledged
-        unseen (since the ACK). `_due` has the holes by `since`, so the oldest is given up first, whichever
-        direction it is on and whenever it was found."""
+        """Keep the waits (the directions waiting on a hole, for HOLE_TIMEOUT or HOLE_RECORDS) up to date with
+        `d`: a hole with bytes beyond it (since the first segment beyond it came: the clock at its arrival,
+        which a hole left when an earlier one was filled may have waited long already), or bytes its receiver
+        acknowledged unseen (since the ACK). The oldest is given up first, whichever direction it is on and
+        whenever it was found."""
         if d.pending or (d.acked is not None and d.acked > d.next and not d.closed):
             if d.since == NEVER or d.hole != d.next:  # a new hole
-                since = d.pending[0][6] if d.pending else self.clock
-                if since != d.since:  # (an entry with this `since` serves it already, else)
-                    self._dues += 1
-                    heapq.heappush(self._due, (since, self._dues, d.key))
-                d.hole, d.since = d.next, since
-                self._holes[d.key] = d
-                if len(self._due) > 2 * len(self._holes) + 64:  # mostly stale: keep only the live entries
-                    self._due = [e for e in self._due if (h := self._holes.get(e[2])) is not None and h.since == e[0]]
-                    heapq.heapify(self._due)
+                self.waits.wait(d, d.pending[0][6] if d.pending else self.clock, self.current or 0)
         elif d.since != NEVER:
-            d.since = NEVER
-            self._holes.pop(d.key, None)
+            self.waits.stop(d)
 
     def _expire(self, out: list[Payload]) -> None:
         """Give up the holes nothing filled for HOLE_TIMEOUT after the bytes beyond them came (or their ACK),
-        the oldest first."""
-        due = self._due
-        while due:
-            since, _, key = due[0]
-            d = self._holes.get(key)
-            if d is None or d.since != since:  # stale: the hole was filled, given up, or moved on
-                heapq.heappop(due)
-                continue
-            waited = self.clock - since
-            if waited <= HOLE_TIMEOUT:
-                return
-            heapq.heappop(due)
-            d.since = NEVER  # (what is left, if any, is waited for anew: _wait, by _drain's or below)
-            del self._holes[key]
+        or for HOLE_RECORDS records, the oldest first: the bytes after each are read."""
+        while (due := self.waits.next_due(self.clock, self.current or 0, HOLE_TIMEOUT, HOLE_RECORDS)) is not None:
+            d, waited = due  # (what is left, if any, is waited for anew: _wait, by _drain's or below)
             if d.pending:
-                self._drain(d, out, d.pending[0][0], f"the capture missed them: nothing filled them in {waited:.3g} "
-                            "s after the bytes beyond them came")
+                self._drain(d, out, d.pending[0][0], f"the capture missed them: {waited}")
                 continue
             if d.hole == d.next and d.acked is not None and d.acked > d.next and not d.closed:
                 why = f"the receiver acknowledged them (record {d.acked_by}): the capture missed them"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import heapq
+from collections import deque
 from collections.abc import Hashable
 
 from mavscope.endpoint import Endpoint
@@ -100,3 +102,59 @@ class Direction:
             elif a < b:
                 parts.append((a, b))
         return parts
+
+
+class Waits:
+    """The directions waiting on a hole (`since` not NEVER), found by how long they have waited: a heap of
+    (since, serial, key) for the capture time, a queue of (record then, key, since) for the records; stale
+    entries (a hole filled, given up or moved on since) are dropped as they surface or when most are."""
+
+    __slots__ = ("holes", "due", "records", "_serial")
+
+    def __init__(self) -> None:
+        self.holes: dict[Hashable, Direction] = {}
+        self.due: list[tuple[float, int, Hashable]] = []
+        self.records: deque[tuple[int, Hashable, float]] = deque()
+        self._serial = 0
+
+    def wait(self, d: Direction, since: float, record: int) -> None:
+        """`d` waits on the hole at its `next` since clock `since` (the bytes beyond it came in `record`)."""
+        if since != d.since:  # (an entry with this `since` serves it already, else)
+            self._serial += 1
+            heapq.heappush(self.due, (since, self._serial, d.key))
+            self.records.append((record, d.key, since))
+        d.hole, d.since = d.next, since
+        self.holes[d.key] = d
+        if len(self.due) > 2 * len(self.holes) + 64:  # mostly stale: keep only the live entries
+            self.due[:] = [e for e in self.due if self._live(e[2], e[0])]
+            heapq.heapify(self.due)
+            self.records = deque(e for e in self.records if self._live(e[1], e[2]))
+
+    def stop(self, d: Direction) -> None:
+        d.since = NEVER
+        self.holes.pop(d.key, None)
+
+    def _live(self, key: Hashable, since: float) -> bool:
+        d = self.holes.get(key)
+        return d is not None and d.since == since
+
+    def any_due(self, clock: float, record: int, timeout: float, records: int) -> bool:
+        return bool(self.due) and (clock - self.due[0][0] > timeout or record - self.records[0][0] > records)
+
+    def next_due(self, clock: float, record: int, timeout: float, records: int) -> tuple[Direction, str] | None:
+        """The next direction to give up (no longer waiting), and for how long it waited; None when none."""
+        due, queue = self.due, self.records
+        while due and not self._live(due[0][2], due[0][0]):
+            heapq.heappop(due)
+        if due and clock - due[0][0] > timeout:
+            since, _, key = heapq.heappop(due)
+            d = self.holes[key]
+            self.stop(d)
+            return d, f"nothing filled them in {clock - since:.3g} s after the bytes beyond them came"
+        while queue and not self._live(queue[0][1], queue[0][2]):
+            queue.popleft()
+        if queue and record - queue[0][0] > records:
+            d = self.holes[queue.popleft()[1]]
+            self.stop(d)
+            return d, f"nothing filled them in {records:,} records after the bytes beyond them came"
+        return None

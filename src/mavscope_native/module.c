@@ -12,7 +12,9 @@
  *          receivers: dict | None = None)
  *                                        with `receivers` (the Dissector's: UDP port -> receivers): a datagram
  *                                        to one of its ports is handed back (read after each record
- *                                        handed back, the only thing that changes it)
+ *                                        handed back, the only thing that changes it); every record while
+ *                                        its `hand_back` (a dict subclass's attribute, read per `next`) is
+ *                                        true (a TCP hole waits, which any record's time may end)
  *                                        with `summary`: summary lines (relative to t0) instead of JSON;
  *                                        with `stats`: no text, the frames go to the accumulator
  *                                        (with `columns` too: the export's findings; once `full` the
@@ -1152,6 +1154,17 @@ static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds)
         return NULL;
     if (self->waiting_stale && sync_waiting(self) != 0)
         return NULL;
+    self->walker.hand_back_all = 0;
+    if (self->receivers != NULL && !PyDict_CheckExact(self->receivers)) {
+        /* the Dissector's receivers say whether every record must be handed back (`hand_back`: a TCP hole waits,
+         * and any record's time may end it); only Python changes it, between calls */
+        PyObject *all = PyObject_GetAttrString(self->receivers, "hand_back");
+        int yes = all == NULL ? -1 : PyObject_IsTrue(all);
+        Py_XDECREF(all);
+        if (yes < 0)
+            return NULL;
+        self->walker.hand_back_all = yes;
+    }
     ColumnsObject *cols = (ColumnsObject *)self->columns;
     if (cols != NULL && (cols->busy || cols->cols.failed)) {
         PyErr_SetString(PyExc_RuntimeError, cols->busy ? "another Walker is filling these Columns"

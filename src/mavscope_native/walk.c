@@ -448,7 +448,7 @@ static int is_waiting(const ms_walker *w, const ms_udp *udp) {
 
 /* MS_WALK_FULL when the record was written (or had nothing), MS_WALK_HANDBACK, or MS_WALK_NOMEM. */
 static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
-    if (rec->notes->n != 0 || w->reader.kind == MS_KIND_RAW)
+    if (rec->notes->n != 0 || w->reader.kind == MS_KIND_RAW || w->hand_back_all)
         return MS_WALK_HANDBACK;
     double t = 0.0;
     int has_time = ms_record_time(rec, &t);

@@ -72,6 +72,8 @@ typedef struct {
     ms_endpoint *waiting;       /* UDP destinations whose receivers are in a frame where their last datagram
                                    ended (Python's Dissector.receivers): their next datagram is handed back */
     size_t n_waiting, cap_waiting;
+    int hand_back_all;          /* every record is handed back: Python's TCP reassembly waits on a hole, which any
+                                   record's time may end (Dissector.receivers.hand_back, read per Walker.next) */
     ms_endpoint *seen;          /* endpoints already reported (open addressing, `used` marks a slot) */
     uint8_t *seen_used;
     size_t nseen, capseen;

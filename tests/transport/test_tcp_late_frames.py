@@ -44,8 +44,9 @@ def interleaved(tmp: Path) -> tuple[tf.Capture, Path]:
 
 def expected_order(cap: tf.Capture) -> list[int]:
     """The records of the frames in the order they are completed, by the rule: the TCP HEARTBEATs of t=6, 7
-    and 8 wait for the hole of t=5 until the first TCP segment more than 2 s after t=6, t=9's, and come out
-    there before t=9's own; each datagram's frame comes out at its record, half a second after its segment."""
+    and 8 wait for the hole of t=5 until the first record more than 2 s after t=6 (any record ticks the
+    reassembler's clock: the datagram of t=8.5), and come out there after its own frame, before t=9's; each
+    datagram's frame comes out at its record, half a second after its segment."""
     assert HOLE_TIMEOUT == 2.0
     order: list[int] = []
     for i in range(N):
