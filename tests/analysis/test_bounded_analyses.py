@@ -136,9 +136,9 @@ def test_a_flood_of_mission_counts_and_requests_keeps_the_upload_under_way(  # t
     2; 14 gives up 13, 15 gives up 14. 6 give-ups, said at the 1st, 2nd and 4th: records 8, 9, 11. The upload
     completes (accepted, both items), the fence download pairs with its REQUEST_LIST (the old policy closed the
     oldest transfer: the upload, `evicted`, its ACK then matching nothing)."""
-    from pymavlink.dialects.v20 import ardupilotmega as v20
-
     import importlib
+
+    from pymavlink.dialects.v20 import ardupilotmega as v20
 
     from mavscope.analysis.mission import model
 
