@@ -426,6 +426,7 @@ class Expert:
                           for d in (DETECTORS if detectors is None else detectors)]
         self.decode = COMMANDING.union({"HEARTBEAT"}, *(getattr(d, "wants", ()) for d in self.detectors))
         self.recorded = False  # frames from a tlog, a ground station's recording (the native pass sets it too)
+        self.seqs = SeqChannels()  # the sequence counters batches are fed to (expert_batch.feed) without steps
 
     def add(self, f: Frame) -> Fields | None:
         """Frame `f` to every detector; the fields decoded for them (`fields`), for a caller that wants them."""

@@ -328,18 +328,33 @@ class SeqChannels:
 
     def feed(self, f: Frame) -> tuple[str, int]:
         """What the frame's sequence number was on its channel (`SeqTracker.feed`)."""
-        tr = self.tracker(f)
+        return self.feed_one(self.tracker(f), f.sysid << 8 | f.compid, f.seq, f.record, f.raw)
+
+    def peek(self, sender: Sender, ends: Endpoints) -> SeqTracker | None:
+        """The tracker `tracker_for` gives, None where it would make one."""
+        chans = self.senders.get(sender)
+        if not chans:
+            return None
+        tr = chans.get(ends)
+        if tr is None and (len(chans) >= MAX_CHANNELS or self.extra >= MAX_EXTRA):
+            tr = chans.get(SHARED)
+        return tr
+
+    @staticmethod
+    def feed_one(tr: SeqTracker, sender: int, seq: int, record: int, raw: bytes) -> tuple[str, int]:
+        """A frame of `sender` (sysid << 8 | compid) to its tracker `tr` (`SeqTracker.feed`, with the
+        numbers other ids on its channel took)."""
         ch = tr.channel
         if ch is None:
-            return tr.feed(f.seq, f.record, f.raw)
+            return tr.feed(seq, record, raw)
         taken, partner, mate = 0, -1, None
         last = tr.last
-        if last is not None and 1 < (d := (f.seq - last) % 256) < LATE_WINDOW:
+        if last is not None and 1 < (d := (seq - last) % 256) < LATE_WINDOW:
             taken, partner, mate = ch.taken(tr, last, d)
-        out = tr.feed(f.seq, f.record, f.raw, taken, partner, mate)
+        out = tr.feed(seq, record, raw, taken, partner, mate)
         ch.frames = tr.at = ch.frames + 1  # the channel heard one more frame, this one of tr's
         if tr.slot < 0 or ch.ring[tr.slot] is not tr:
-            ch.admit(tr, f.sysid << 8 | f.compid)
+            ch.admit(tr, sender)
         return out
 
     def totals(self, sender: Sender) -> SeqTotals:

@@ -20,12 +20,17 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from itertools import islice
 
+import numpy as np
+
+from mavscope.analysis import expert_batch
 from mavscope.analysis.expert import Expert
 from mavscope.analysis.selection import Selection
 from mavscope.analysis.sequence import Endpoints, SeqChannels, SeqTracker, totals
+from mavscope.analysis.sequence_batch import Steps, feed_batch
 from mavscope.mavlink.frame import Frame, signature_status
-from mavscope.mavlink.semantics import message_label
+from mavscope.pipeline.batch import CRC_STATUSES, TRANSPORTS, VERDICTS, FrameBatch, Tables
 
 RATE_BINS = 256  # a stream's frame times are counted in at most this many bins (bounded whatever the span)
 RATE_MIN_FRAMES = 3  # a rate needs this many frames...
@@ -35,6 +40,7 @@ RATE_MIN_SPAN = 1.0  # ...over at least this many seconds; fewer seconds make a 
 # Frames of later streams and conversations count in the totals and their link, and as unfollowed.
 MAX_STREAMS = 65_536
 MAX_CONVERSATIONS = 65_536
+BATCH = 4096  # frames per batch where frames come one by one (compute_stats)
 
 
 @dataclass(kw_only=True)
@@ -66,26 +72,43 @@ class RateHistogram:
         self.start = 0
         self.bins: list[int] = []
 
-    def add(self, t: float) -> None:
-        i = int((t - self.origin) / self.width) if t > self.origin else 0
+    def _double(self) -> None:
+        """Bins twice as wide: each pair of bins (from an even start) becomes one."""
         bins = self.bins
-        while i >= RATE_BINS:
-            self.width *= 2
-            if self.start % 2:
-                bins.insert(0, 0)
-                self.start -= 1
-            bins = self.bins = [sum(bins[k : k + 2]) for k in range(0, len(bins), 2)]
-            self.start //= 2
-            i //= 2
+        self.width *= 2
+        if self.start % 2:
+            bins.insert(0, 0)
+            self.start -= 1
+        self.bins = [sum(bins[k : k + 2]) for k in range(0, len(bins), 2)]
+        self.start //= 2
+
+    def add(self, t: float) -> None:
+        """One frame at `t`."""
+        self.add_many(np.array([t], np.float64))
+
+    def add_many(self, times: np.ndarray) -> None:
+        """Frames at `times` (seconds). The bins are those frames added one by one would leave: the width
+        doubles until the latest fits in RATE_BINS (floor(x / 2w) is floor(floor(x / w) / 2)), and the bins
+        run from the earliest frame's to the latest's."""
+        if not len(times):
+            return
+        ahead = times > self.origin
+        span = float((times[ahead] - self.origin).max()) if ahead.any() else 0.0
+        while int(span / self.width) >= RATE_BINS:
+            self._double()
+        i = np.where(ahead, np.floor((times - self.origin) / self.width), 0.0).astype(np.int64)
+        lo, hi = int(i.min()), int(i.max())
+        bins = self.bins
         if not bins:
-            self.start = i
-        elif i < self.start:
-            bins[:0] = [0] * (self.start - i)
-            self.start = i
-        j = i - self.start
-        if j >= len(bins):
-            bins.extend([0] * (j + 1 - len(bins)))
-        bins[j] += 1
+            self.start = lo
+        elif lo < self.start:
+            bins[:0] = [0] * (self.start - lo)
+            self.start = lo
+        if hi - self.start >= len(bins):
+            bins.extend([0] * (hi - self.start + 1 - len(bins)))
+        counts = np.bincount(i - self.start)
+        for j in np.flatnonzero(counts).tolist():
+            bins[j] += int(counts[j])
 
     def series(self, span: float, buckets: int) -> list[float]:
         """Frames per second in at most `buckets` equal slices of `span` seconds from the origin, each slice
@@ -271,67 +294,117 @@ class StatsBuilder:
         self.unfollowed_streams = 0
         self.unfollowed_conversations = 0
 
-    def add(self, f: Frame) -> None:
-        self.total += 1
-        size = len(f.raw)
-        self.nbytes += size
-        t = f.time
-        if t is not None:
+    def add_batch(self, b: FrameBatch, steps: Steps | None = None) -> Steps:
+        """The frames of batch `b`, in capture order: what `add`ing them one by one gave, counted per
+        column (streams, links and conversations admitted in the order of their first frame). The
+        sequence counters take them through `SeqChannels.feed_batch` unless `steps` (what it gave for
+        this batch, where the caller fed them) is given. Returns the steps."""
+        n = b.n
+        if steps is None:
+            steps = feed_batch(self.seqs, b)
+        if not n:
+            return steps
+        self.total += n
+        size = b.size.astype(np.int64)
+        self.nbytes += int(size.sum())
+        timed = np.flatnonzero(b.timed)
+        if len(timed):
             if self.first is None:
-                self.first = t
-            self.last = t
-        name = message_label(f.msgid, f.msgdef)
-        key = (f.sysid, f.compid, name)
-        s = self.streams.get(key)
-        if s is None and len(self.streams) < MAX_STREAMS:
-            s = self.streams[key] = _Stream()
-        if s is None:
-            self.unfollowed_streams += 1
-        else:
-            s.count += 1
-            s.bytes += size
-            s.see(t)
-            if t is not None:
-                if s.rates is None:
-                    s.rates = RateHistogram(self.first)  # type: ignore[arg-type]  # set with the first time
-                s.rates.add(t)
-        lk = self.links.get(key[:2])
-        if lk is None:
-            lk = self.links[key[:2]] = _Link()
-            lk.channels = self.seqs.senders.setdefault(key[:2], {})
-        lk.received += 1
-        lk.bytes += size
-        if f.version == 1:
-            lk.v1 += 1
-        else:
-            lk.v2 += 1
-        status = f.crc_status.value
-        lk.crc[status] += 1
-        self.crc[status] += 1
-        self.versions[f.version] += 1
-        verdict = signature_verdict(f)
-        lk.signature[verdict] += 1
-        self.sigs[verdict] += 1
-        self.seqs.feed(f)
-        lk.see(t)
-        if f.src is not None:
-            lk.endpoints.add(f.src.text)
-        a, b = str(f.src or f.transport), str(f.dst or "")
-        ck = (f.transport, a, b) if a <= b else (f.transport, b, a)
-        c = self.convs.get(ck)
-        if c is None:
-            if len(self.convs) >= MAX_CONVERSATIONS:
-                self.unfollowed_conversations += 1
-                return
-            c = self.convs[ck] = _Conversation(ck[1], ck[2], f.transport)
-        if a == c.a:
-            c.frames_ab += 1
-            c.bytes_ab += size
-        else:
-            c.frames_ba += 1
-            c.bytes_ba += size
-        c.see(t)
-        c.systems.add(key[:2])
+                self.first = float(b.time[timed[0]])
+            self.last = float(b.time[timed[-1]])
+        sender = b.sender
+        labels, texts = b.tables.labels, b.tables.texts
+        self._streams(b, sender << 32 | b.label, size, labels)
+        self._links(b, sender, size, texts)
+        self._conversations(b, sender, size, texts)
+        return steps
+
+    def _streams(self, b: FrameBatch, key: np.ndarray, size: np.ndarray, labels: list[str]) -> None:
+        for k, rows in _groups(key):
+            s = int(k)
+            skey = (s >> 40, (s >> 32) & 255, labels[s & 0xFFFFFFFF])
+            st = self.streams.get(skey)
+            if st is None and len(self.streams) < MAX_STREAMS:
+                st = self.streams[skey] = _Stream()
+            if st is None:
+                self.unfollowed_streams += len(rows)
+                continue
+            st.count += len(rows)
+            st.bytes += int(size[rows].sum())
+            t = b.time[rows[b.timed[rows]]]
+            if len(t):
+                st.see(float(t[0]))
+                st.last = float(t[-1])
+                if st.rates is None:
+                    st.rates = RateHistogram(self.first)  # type: ignore[arg-type]  # set with the first time
+                st.rates.add_many(t)
+
+    def _links(self, b: FrameBatch, sender: np.ndarray, size: np.ndarray, texts: list[str]) -> None:
+        for k, rows in _groups(sender):
+            key = (int(k) >> 8, int(k) & 255)
+            lk = self.links.get(key)
+            if lk is None:
+                lk = self.links[key] = _Link()
+                lk.channels = self.seqs.senders.setdefault(key, {})
+            lk.received += len(rows)
+            lk.bytes += int(size[rows].sum())
+            v1 = int(np.count_nonzero(b.version[rows] == 1))
+            lk.v1 += v1
+            lk.v2 += len(rows) - v1
+            for code, count in _counts(b.crc[rows]):
+                status = CRC_STATUSES[code].value
+                lk.crc[status] += count
+                self.crc[status] += count
+            for code, count in _counts(b.verdict[rows]):
+                lk.signature[VERDICTS[code]] += count
+                self.sigs[VERDICTS[code]] += count
+            t = b.time[rows[b.timed[rows]]]
+            if len(t):
+                lk.see(float(t[0]))
+                lk.last = float(t[-1])
+            src = b.src[rows]
+            lk.endpoints.update(texts[e] for e in np.unique(src[src >= 0]).tolist())
+        for code, count in _counts(b.version):
+            self.versions[code] += count
+
+    def _conversations(self, b: FrameBatch, sender: np.ndarray, size: np.ndarray, texts: list[str]) -> None:
+        route = (b.transport.astype(np.int64) << 50) | ((b.src.astype(np.int64) + 1) << 25) | (b.dst + 1)
+        routes = _groups(route)
+        conv = np.empty(b.n, np.int64)  # per row: its conversation's place in `found` (-1: unfollowed)
+        ahead = np.empty(b.n, np.bool_)  # per row: from the conversation's `a`
+        found: list[_Conversation] = []
+        where: dict[tuple[str, str, str], int] = {}
+        for k, rows in routes:  # in the order of their first frame, as conversations are admitted
+            transport = TRANSPORTS[k >> 50]
+            src, dst = ((k >> 25) & 0x1FFFFFF) - 1, (k & 0x1FFFFFF) - 1
+            a, z = texts[src] if src >= 0 else transport, texts[dst] if dst >= 0 else ""
+            ck = (transport, a, z) if a <= z else (transport, z, a)
+            j = where.get(ck)
+            if j is None:
+                c = self.convs.get(ck)
+                if c is None and len(self.convs) < MAX_CONVERSATIONS:
+                    c = self.convs[ck] = _Conversation(ck[1], ck[2], transport)
+                j = where[ck] = -1 if c is None else len(found)
+                if c is not None:
+                    found.append(c)
+            conv[rows] = j
+            ahead[rows] = j >= 0 and a == found[j].a
+        self.unfollowed_conversations += int(np.count_nonzero(conv < 0))
+        for j, rows in _groups(conv):
+            if j < 0:
+                continue
+            c = found[j]
+            ab = ahead[rows]
+            n_ab = int(np.count_nonzero(ab))
+            c.frames_ab += n_ab
+            c.frames_ba += len(rows) - n_ab
+            c.bytes_ab += int(size[rows[ab]].sum())
+            c.bytes_ba += int(size[rows[~ab]].sum())
+            t = b.time[rows[b.timed[rows]]]
+            if len(t):
+                c.see(float(t[0]))
+                c.last = float(t[-1])
+            c.systems.update((s >> 8, s & 255) for s in np.unique(sender[rows]).tolist())
 
     def result(self) -> Stats:
         return Stats(self.streams, self.links, self.convs, self.total, self.nbytes, self.first, self.last, self.crc,
@@ -339,17 +412,44 @@ class StatsBuilder:
 
 
 def compute_stats(frames: Iterable[Frame], expert: Expert | None = None) -> Stats:
-    """The statistics of `frames` (in capture order). With `expert`, which is given every frame too, the
-    senders it finds logged in part (`Expert.logged_in_part`) are marked (`Stats.logged_in_part`): `stats`
-    gives it every detector (its findings), the TUI's statistics screen those that verdict reads."""
+    """The statistics of `frames` (in capture order), in batches of BATCH frames. With `expert`, which is
+    given every frame too, the senders it finds logged in part (`Expert.logged_in_part`) are marked
+    (`Stats.logged_in_part`): `stats` gives it every detector (its findings), the TUI's statistics screen
+    those that verdict reads."""
     builder = StatsBuilder()
-    if expert is None:
-        for f in frames:
-            builder.add(f)
-        return builder.result()
-    for f in frames:
-        builder.add(f)
-        expert.add(f)
+    tables = Tables()
+    for chunk in batched(frames, BATCH):
+        b = FrameBatch.of_frames(chunk, tables)
+        steps = builder.add_batch(b)
+        if expert is not None:
+            expert_batch.feed(expert, b, steps)
     stats = builder.result()
-    stats.logged_in_part = expert.logged_in_part()
+    if expert is not None:
+        stats.logged_in_part = expert.logged_in_part()
     return stats
+
+
+def batched(items: Iterable[Frame], n: int) -> Iterable[list[Frame]]:
+    """`items` in lists of `n` (the last shorter)."""
+    it = iter(items)
+    while chunk := list(islice(it, n)):
+        yield chunk
+
+
+def _groups(keys: np.ndarray) -> list[tuple[int, np.ndarray]]:
+    """(key, its rows ascending) per distinct key, in the order of each key's first row."""
+    if not len(keys):
+        return []
+    order = np.argsort(keys, kind="stable")
+    ordered = keys[order]
+    cut = np.flatnonzero(ordered[1:] != ordered[:-1]) + 1
+    starts = np.concatenate(([0], cut))
+    groups = np.split(order, cut)
+    firsts = order[starts]
+    return [(int(ordered[starts[g]]), groups[g]) for g in np.argsort(firsts, kind="stable").tolist()]
+
+
+def _counts(codes: np.ndarray) -> list[tuple[int, int]]:
+    """(code, how many rows hold it) for each code present, ascending."""
+    counts = np.bincount(codes)
+    return [(int(c), int(counts[c])) for c in np.flatnonzero(counts)]

@@ -291,9 +291,10 @@ def capture_session(args: argparse.Namespace, env: Env, dialect: Dialect | None 
     with open_session(capture_path(args), pipeline_options(args, env), dialect=dialect,
                       warn=warner(env)) as session:
         yield session
-        if session.frame_count == 0 and session.reader.position >= session.reader.size:
-            env.say(f"no MAVLink frames found in {session.name} ({session.reader.size} bytes, "
-                    f"detected as {session.reader.kind})")
+        walked = session.walked  # the native walker's counts, where it read the capture
+        size = walked["size"] if walked else session.reader.size
+        if session.frame_count == 0 and (walked["position"] if walked else session.reader.position) >= size:
+            env.say(f"no MAVLink frames found in {session.name} ({size} bytes, detected as {session.reader.kind})")
 
 
 class Problems:
@@ -323,6 +324,13 @@ class Problems:
         for note in frame.notes:
             if is_capture_damage(note):
                 self._line(note.code, f"frame {frame.number}", note)
+
+    def item(self, item: Frame | Anomaly) -> None:
+        """An anomaly or a frame with notes (`Session.batches` reports each)."""
+        if type(item) is Anomaly:
+            self.anomaly(item)
+        else:
+            self.frame(item)
 
     def close(self) -> None:
         """One line per code whose lines were cut short."""

@@ -7,13 +7,14 @@ import io
 import os
 from typing import cast
 
+from mavscope.analysis import expert_batch
 from mavscope.analysis import stats as model
 from mavscope.analysis.expert import Expert
 from mavscope.analysis.selection import Selection
-from mavscope.analysis.stats import Stats, compute_stats
+from mavscope.analysis.stats import Stats, StatsBuilder, compute_stats
 from mavscope.cli import Env, ExitStatus
 from mavscope.commands.analysis_common import add_analysis_options, analysis_pass, print_findings
-from mavscope.commands.common import console, whole_number, write_json
+from mavscope.commands.common import Problems, capture_session, console, whole_number, write_json
 from mavscope.notes import Finding
 from mavscope.output.grid import columns, print_table
 from mavscope.output.tables import PARTIAL_MARK, fmt, iso, listed, partial_line, sparkline
@@ -95,12 +96,29 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
 
 
 def _pure(args: argparse.Namespace, env: Env) -> tuple[Stats, list[Finding], str, Selection]:
-    """The statistics and the findings (those about a selected frame), the capture's name, the selection."""
-    with analysis_pass(args, env) as frames:
-        expert = Expert(frames.session.dialect)
-        stats = compute_stats(frames, expert)
-        path, select = frames.session.name, frames.selection
-    return stats, [f for f in expert.findings() if select.any_record(f.frames)], path, select
+    """The statistics and the findings (those about a selected frame), the capture's name, the selection.
+
+    Without a display filter every frame goes in column batches (`Session.batches`); a filter must see
+    every frame as a Frame, which `analysis_pass` gives."""
+    if args.display_filter:
+        with analysis_pass(args, env) as frames:
+            expert = Expert(frames.session.dialect)
+            stats = compute_stats(frames, expert)
+            path, select = frames.session.name, frames.selection
+        return stats, [f for f in expert.findings() if select.any_record(f.frames)], path, select
+    builder = StatsBuilder()
+    with capture_session(args, env) as session:
+        expert = Expert(session.dialect)
+        problems = Problems(env, session.name)
+        try:
+            for b in session.batches(problems.item, env.environ, native=False):
+                expert_batch.feed(expert, b, builder.add_batch(b))
+        finally:
+            problems.close()
+        path = session.name
+    stats = builder.result()
+    stats.logged_in_part = expert.logged_in_part()
+    return stats, expert.findings(), path, Selection()
 
 
 def _native_eligible(args: argparse.Namespace, env: Env) -> bool:

@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import itertools
 import os
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 from mavscope.capture.base import Record
@@ -24,6 +24,9 @@ from mavscope.capture.detect import open_capture
 from mavscope.capture.reader import CaptureReader
 from mavscope.mavlink.dialect import Dialect, load_dialect
 from mavscope.mavlink.frame import Frame
+from mavscope.native_tables import table_for
+from mavscope.pipeline import windows
+from mavscope.pipeline.batch import FrameBatch, Tables
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.pipeline.options import PipelineOptions
 from mavscope.security.keys import KEYRING_ENV, build_material
@@ -33,6 +36,7 @@ if TYPE_CHECKING:  # the filter compiler is imported by make_filter, when a filt
     from mavscope.filter import DisplayFilter
 
 Warn = Callable[[str], object]
+BATCH = 4096  # frames per batch the Python pipeline's frames are given in (Session.batches)
 
 
 def _quiet(_message: str) -> None:
@@ -96,6 +100,7 @@ class Session:
     display_filter: DisplayFilter | None
     t0: float | None  # time of the capture's first record: relative times count from it (as tshark's)
     frame_count: int = 0  # frames that came out of the security stage so far (before the filter)
+    walked: dict[str, int] = field(default_factory=dict)  # the native walker's counts (size...), when it ran
 
     def _counted(self, items: Iterator[Frame | Anomaly]) -> Iterator[Frame | Anomaly]:
         for item in items:
@@ -116,6 +121,45 @@ class Session:
     def frames(self) -> Iterator[Frame]:
         """Every frame (no anomalies, no filter)."""
         return (item for item in self.items if type(item) is not Anomaly)
+
+    def batches(self, report: Callable[[Frame | Anomaly], object], environ: Mapping[str, str] | None = None,
+                native: bool = False) -> Iterator[FrameBatch]:
+        """Every frame (no filter) as column batches, in capture order; `report` gets each anomaly and each
+        frame with notes, in capture order too. The engine is chosen here: the native walker's windows
+        (pipeline.windows) where the extension is built, `native` allows it, MAVSCOPE_PURE is not set and
+        it reads the capture's kind, else the Python pipeline's frames BATCH at a time."""
+        tables = Tables()
+        if native and windows.available(environ) and self.reader.kind in windows.KINDS:
+            messages = windows.messages_of(self.dialect)
+            for w in windows.windows(self.path, self.reader.kind, self.dialect, self.security,
+                                     table_for(self.dialect), stats=self.walked):
+                after = iter(w.anomalies)
+                j, anomaly = next(after, (-1, None))
+                for k, f in enumerate(w.py):
+                    while anomaly is not None and j <= k:
+                        report(anomaly)
+                        j, anomaly = next(after, (-1, None))
+                    if f.notes:
+                        report(f)
+                while anomaly is not None:
+                    report(anomaly)
+                    j, anomaly = next(after, (-1, None))
+                self.frame_count += w.chunk.n + len(w.py)
+                yield FrameBatch.of_window(w.chunk, w.py, w.pos, w.ends, messages, tables, w.reset)
+            return
+        chunk: list[Frame] = []
+        for item in self.items:
+            if type(item) is Anomaly:
+                report(item)
+                continue
+            if item.notes:
+                report(item)
+            chunk.append(item)
+            if len(chunk) == BATCH:
+                yield FrameBatch.of_frames(chunk, tables)
+                chunk = []
+        if chunk:
+            yield FrameBatch.of_frames(chunk, tables)
 
 
 def peek_time(records: Iterator[Record]) -> tuple[float | None, Iterator[Record]]:

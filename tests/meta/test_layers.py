@@ -39,6 +39,7 @@ LAYERS: tuple[tuple[str, int], ...] = (
     ("mavscope.fields", 6),
     ("mavscope.filter", 6),
     ("mavscope.pipeline.session", 7),
+    ("mavscope.pipeline.windows", 7),  # the native walker's windows: the dissector and security stage composed
     ("mavscope.analysis", 8),
     ("mavscope.browse", 9),
     ("mavscope.export", 9),  # captures into a columnar dataset: builds on pipeline.session and the analyses
@@ -53,10 +54,10 @@ LAYERS: tuple[tuple[str, int], ...] = (
     # into the analyses' objects: `stats` and the export's findings both use them.
     ("mavscope.native_plan", 9),
     ("mavscope.native_dump", 9),
-    ("mavscope.native_tables", 9),  # the dialect's compiled layout table: read, stats, export, the TUI's index
+    ("mavscope.native_tables", 4),  # the dialect's compiled layout table: read, stats, export, the TUI's index
     # The C extension it wraps reads, dissects and writes in one; its column mode also serves the export's
     # native batch source (export/native.py), so it sits in the export's layer (it imports nothing).
-    ("mavscope._native", 9),
+    ("mavscope._native", 4),
     ("mavscope.cli", 10),
     ("mavscope.commands", 10),
     ("mavscope.tui", 10),

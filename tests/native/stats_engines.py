@@ -13,11 +13,12 @@ import io
 from pathlib import Path
 
 from mavscope.analysis.expert import Expert
-from mavscope.analysis.stats import Stats, StatsBuilder
+from mavscope.analysis.stats import Stats, compute_stats
 from mavscope.capture.detect import open_capture
 from mavscope.cli import Env
 from mavscope.commands.common import Problems
 from mavscope.mavlink.dialect import Dialect
+from mavscope.mavlink.frame import Frame
 from mavscope.notes import Finding
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.security.stage import SecurityStage
@@ -38,8 +39,9 @@ def observed(stats: Stats, findings: list[Finding], err: str) -> dict[str, objec
 def pure_stats(path: str | Path, dialect: Dialect, keys: str = "none") -> dict[str, object]:
     err = io.StringIO()
     problems = Problems(Env(stdout=io.StringIO(), stderr=err, environ={}), str(path))
-    builder, expert = StatsBuilder(), Expert(dialect)
+    expert = Expert(dialect)
     stage = SecurityStage(material(keys))
+    frames: list[Frame] = []
     with open_capture(path) as reader:
         for item in stage.run(Dissector(dialect).run(reader)):
             if type(item) is Anomaly:
@@ -47,10 +49,11 @@ def pure_stats(path: str | Path, dialect: Dialect, keys: str = "none") -> dict[s
                 continue
             if item.notes:
                 problems.frame(item)
-            builder.add(item)
-            expert.add(item)
+            frames.append(item)
     problems.close()
-    return observed(builder.result(), expert.findings(), err.getvalue())
+    stats = compute_stats(frames, expert)
+    stats.logged_in_part = frozenset()  # the accumulator's Stats leaves it to the command
+    return observed(stats, expert.findings(), err.getvalue())
 
 
 def native_stats_of(path: str | Path, dialect: Dialect, keys: str = "none",

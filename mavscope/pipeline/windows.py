@@ -1,0 +1,189 @@
+"""The native walker's column mode: a capture as windows of frames in capture order.
+
+`windows(path, kind, dialect, stage)` walks the capture with the C extension (src/mavscope_native,
+column mode: columns.h): the records whose frames are all clean fill column buffers in bulk (a `Chunk`
+of numpy views), every other record is handed back, in capture order, to `Dissector.feed` and the
+security stage, and its frames and anomalies join the window after as many native rows as came before
+them. A `Window` holds at most `limit` rows; `FrameBatch.of_window` makes one batch of it. The export
+(its tables) and `stats` (its analyses) read the same windows.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+from mavscope.capture.reader import WINDOW, handed_back_record, open_file
+from mavscope.endpoint import Endpoint
+from mavscope.mavlink.dialect import Dialect, MessageDef
+from mavscope.mavlink.frame import Frame
+from mavscope.pipeline.dissect import Anomaly, Dissector
+from mavscope.security.stage import SecurityStage
+
+_native: ModuleType | None
+try:
+    from mavscope import _native  # type: ignore[attr-defined,no-redef]
+except ImportError:  # built without a compiler
+    _native = None
+
+PURE_ENV = "MAVSCOPE_PURE"  # set (but to 0 or empty), the Python pipeline serves: the reference engine
+
+
+def available(environ: Mapping[str, str] | None = None) -> bool:
+    """Whether the native walker runs: the extension is built and MAVSCOPE_PURE is not set."""
+    env = os.environ if environ is None else environ
+    return _native is not None and env.get(PURE_ENV, "") in ("", "0")
+
+
+KINDS = {"pcap": 1, "pcapng": 2, "tlog": 3, "raw": 4}  # capture.h MS_KIND_*
+WINDOW_FRAMES = 65_536  # rows per window
+
+
+class Chunk:
+    """One chunk of frames the C walker took, as numpy views of its buffers."""
+
+    def __init__(self, n: int, columns: Sequence[Any], names: Sequence[str]) -> None:
+        """`columns`: the chunk's `_native.Block`s (buffers), named by `names` (the module's COLUMN_NAMES)."""
+        self.n = n
+        self.blocks: dict[str, Any] = dict(zip(names, columns))
+        b = self.blocks
+
+        def view(name: str, dtype: str) -> np.ndarray:
+            return np.frombuffer(b[name], np.dtype(dtype).newbyteorder("="), count=n)
+
+        self.record = view("record", "i8")
+        self.index = view("index", "i4")
+        self.time = view("time", "f8")
+        self.time_ok = view("time_ok", "u1").astype(np.bool_)
+        self.transport = view("transport", "u1")
+        self.src = view("src", "i4")
+        self.dst = view("dst", "i4")
+        self.version = view("version", "u1")
+        self.len = view("len", "u1")
+        self.iflags = view("incompat_flags", "u1")
+        self.cflags = view("compat_flags", "u1")
+        self.seq = view("seq", "u1")
+        self.sysid = view("sysid", "u1")
+        self.compid = view("compid", "u1")
+        self.msgid = view("msgid", "u4")
+        self.message = view("message", "i4")
+        self.crc = view("crc", "u2")
+        self.sig_link = view("signature_link_id", "u1")
+        self.sig_time = view("signature_timestamp", "i8")
+        self.sig_value = np.frombuffer(b["signature_value"], np.uint8, count=6 * n).reshape(n, 6)
+        self.offset = view("offset", "i8")
+        self.raw_at = np.frombuffer(b["raw_at"], np.int32, count=n + 1 if n else 0)
+        self.raw = bytes(b["raw"]) if n else b""
+        self.payload_at = np.frombuffer(b["payload_at"], np.int32, count=n + 1 if n else 0)
+        self.payload = memoryview(b["payload"])
+        self.signed = (self.iflags & 1).astype(np.bool_)
+
+    def payload_of(self, i: int) -> bytes:
+        """The payload of frame `i` of the chunk, as on the wire."""
+        return bytes(self.payload[self.payload_at[i]:self.payload_at[i + 1]])
+
+    def raw_of(self, i: int) -> bytes:
+        """The wire bytes of frame `i` of the chunk."""
+        return self.raw[self.raw_at[i]:self.raw_at[i + 1]]
+
+
+@dataclass
+class Window:
+    """A window's rows: chunk `chunk`'s and the handed-back frames `py`, the j-th after `pos[j]` native
+    rows; its anomalies, each after so many of `py`; the walker's endpoints (`ends`: its ids index them;
+    `reset`: the list began anew here) and, per message, its payload rows (`_native.Columns.take`)."""
+
+    chunk: Chunk
+    py: list[Frame] = field(default_factory=list)
+    pos: list[int] = field(default_factory=list)
+    anomalies: list[tuple[int, Anomaly]] = field(default_factory=list)
+    ends: list[Endpoint] = field(default_factory=list)
+    reset: bool = False
+    parts: list[tuple[int, Any, Any, int]] = field(default_factory=list)
+
+
+def messages_of(dialect: Dialect) -> list[MessageDef]:
+    """The dialect's messages in the layout table's order (native_table.build_table's)."""
+    return sorted(dialect.messages.values(), key=lambda m: m.id)
+
+
+class _Walk:
+    def __init__(self, stage: SecurityStage, dissector: Dissector) -> None:
+        self.stage, self.dissector = stage, dissector
+        self.py: list[Frame] = []
+        self.pos: list[int] = []
+        self.anomalies: list[tuple[int, Anomaly]] = []
+        self.ends: list[Endpoint] = []
+
+    def python(self, items: Iterable[Frame | Anomaly], at: int) -> None:
+        """Items of the Python pipeline, after `at` native frames of the window."""
+        for item in self.stage.run(items):
+            if type(item) is Anomaly:
+                self.anomalies.append((len(self.py), item))
+            else:
+                self.pos.append(at)
+                self.py.append(item)
+
+    def take(self, taken: tuple[int, bool, list[tuple[bytes, int]], list[Any], list[tuple[int, Any, Any, int]]],
+             ) -> Window:
+        assert _native is not None
+        n, reset, new_ends, columns, parts = taken
+        if reset:
+            self.ends = []
+        self.ends = self.ends + [Endpoint.from_packed(a, port) for a, port in new_ends]
+        w = Window(Chunk(n, columns, _native.COLUMN_NAMES), self.py, self.pos, self.anomalies, self.ends, reset,
+                   parts)
+        self.py, self.pos, self.anomalies = [], [], []
+        return w
+
+
+def windows(path: str, kind: str, dialect: Dialect, stage: SecurityStage, table: object,
+            limit: int = WINDOW_FRAMES, progress: Any = None, stats: dict[str, int] | None = None,
+            ) -> Iterator[Window]:
+    """The capture's frames in windows of at most `limit` rows (see the module docstring). `table`: the
+    dialect's `_native.Table`; `progress(position)` after each window; `stats` gets the walker's counts."""
+    assert _native is not None
+    dissector = Dissector(dialect, stage.material.wifi)
+    walk = _Walk(stage, dissector)
+    _, f, size = open_file(path)
+    try:
+        cols = _native.Columns(table, limit)
+        walker = _native.Walker(f.fileno(), size, KINDS[kind], table, dissector.mavlink_endpoints,
+                                Endpoint.from_packed, stage.signed_senders, WINDOW, columns=cols, stats=None,
+                                receivers=dissector.receivers)
+        try:
+            step, walked, told = walker.next, walker.walked, None
+            while True:
+                before = cols.frames
+                cols.limit = max(1, limit - len(walk.py))
+                segs = step(not stage.check_signatures, 1 << 20, None)
+                if segs is None:
+                    last = walked()
+                    if last is not None and last != told:
+                        walk.python(dissector.passed(*last), cols.frames)
+                    break
+                told = walked()
+                if told is not None:
+                    held = dissector.passed(*told)
+                    if held:
+                        walk.python(held, before)
+                for seg in segs:
+                    if type(seg) is tuple:
+                        walk.python(dissector.feed(handed_back_record(seg)), cols.frames)
+                if cols.frames + len(walk.py) >= limit:
+                    yield walk.take(cols.take())
+                    if progress is not None:
+                        progress(int(walker.stats()["position"]))
+            walk.python(dissector.finish(), cols.frames)
+            yield walk.take(cols.take())
+            if stats is not None:
+                stats.update(walker.stats())
+        finally:
+            walker.close()
+    finally:
+        f.close()
