@@ -140,14 +140,14 @@ def test_a_flood_of_mission_counts_and_requests_keeps_the_upload_under_way(  # t
 
     from pymavlink.dialects.v20 import ardupilotmega as v20
 
-    from mavscope.analysis.mission import model
+    from mavscope.analysis.mission import answers, model
 
     reconstruct = importlib.import_module("mavscope.analysis.mission.reconstruct")  # (the package's name is a function)
     from tests.analysis.mission_exchange import Exchange, item_int
 
     monkeypatch.setattr(model, "OPEN_MAX", 3)
     monkeypatch.setattr(reconstruct, "OPEN_MAX", 3)
-    monkeypatch.setattr(reconstruct, "WAITING_MAX", 2)
+    monkeypatch.setattr(answers, "WAITING_MAX", 2)
 
     def made_up(x: Exchange, sysid: int, name: str, *args: object) -> None:
         mav = v20.MAVLink(None, srcSystem=sysid, srcComponent=190)
@@ -184,3 +184,40 @@ def test_a_flood_of_mission_counts_and_requests_keeps_the_upload_under_way(  # t
         assert said in findings(cli, "events", path)["capacity"]
         _, out, _ = cli("mission", path)
         assert "capacity" in out and "6 given up" in out
+
+
+def test_a_flood_of_mission_counts_keeps_the_listing_of_the_upload_before_it(  # type: ignore[no-untyped-def]
+        cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """At most 3 transfers listed. Built (records): 1-2 HEARTBEATs; 3-8 the GCS's accepted upload of 2 items to
+    1/1 (COUNT, REQUEST_INT 0, item 0, REQUEST_INT 1, item 1, ACK); 9-18 ten made-up GCSs 100+i/190 each a
+    MISSION_COUNT 3 to 200+i/1. By hand: the upload and the COUNTs of 9 and 10 fill the listing; each later
+    COUNT (11-18) takes the newest listed but itself out of it (10, 11, ..., 17: 8 give-ups, said at the 1st,
+    2nd, 4th and 8th: records 11, 12, 14, 18). Listed: the upload (complete) and the COUNTs of 9 and 18. Before,
+    every transfer was listed, without bound (100,000 such COUNTs, a 2.4 MB tlog, took `mission` 590 MB)."""
+    from pymavlink.dialects.v20 import ardupilotmega as v20
+
+    from mavscope.analysis.mission import state
+    from tests.analysis.mission_exchange import Exchange, item_int
+
+    monkeypatch.setattr(state, "LISTED_MAX", 3)
+    x = Exchange()
+    x.heartbeats(2, 3)
+    x.send("gcs", "MISSION_COUNT", 1, 1, 2, 0)
+    for seq in range(2):
+        x.send("veh", "MISSION_REQUEST_INT", 255, 190, seq, 0)
+        item_int(x, "gcs", (1, 1), seq, 16, 47.39 + seq / 100, 8.54, 20)
+    x.send("veh", "MISSION_ACK", 255, 190, 0, 0)
+    for i in range(10):
+        mav = v20.MAVLink(None, srcSystem=100 + i, srcComponent=190)
+        x.t += 0.005
+        x.frames.append((x.t, mav.mission_count_encode(200 + i, 1, 3, 0).pack(mav)))
+    assert len(x.frames) == 18
+    path = x.tlog(tmp_path / "listing.tlog")
+    for environ in ENGINES:
+        cli.environ = environ
+        doc = cli.json("mission", path)
+        assert [(t["frames"][0], t["outcome"]) for t in doc["transfers"]] == [
+            (3, "complete"), (9, "abandoned"), (18, "abandoned")]
+        (said,) = doc["findings"]
+        assert said["frames"] == [11, 12, 14, 18] and "8 given up (8 exchanges)" in said["message"]
+        assert said in findings(cli, "audit", path)["capacity"]

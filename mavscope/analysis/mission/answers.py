@@ -37,11 +37,14 @@ from mavscope.analysis.mission.model import (
     broadcast,
     same,
 )
-from mavscope.analysis.mission.state import Deadlines, PartyIndex, narrow, retarget
+from mavscope.analysis.mission.state import Deadlines, PartyIndex, narrow, party, retarget
 from mavscope.mavlink.frame import Frame
+from mavscope.notes import GivenUp, pop_newest
 
 ANSWERED_KEPT = 16  # answered clears remembered for the repeats of their ACK and other answerers of a broadcast
 MAX_FORKS = 16  # parties answering one broadcast MISSION_COUNT or MISSION_CLEAR_ALL each get their own exchange
+WAITING_MAX = 1024  # REQUEST_LISTs awaiting their COUNT, and CLEAR_ALLs their ACK (more: the newest but the new
+# one is no longer followed, listed unanswered; said as `capacity`)
 
 
 def recent(t_last: float | None, now: float | None) -> bool:
@@ -59,6 +62,25 @@ class Answers:
     deadlines: Deadlines
     events: list[Event]
     order: int
+    lists: dict[tuple[Addr, int, int], Event]
+    given_up: GivenUp
+
+    def wait_bound(self, ev: Event, key: object = None) -> None:
+        """Past WAITING_MAX REQUEST_LISTs (`key` in `lists`) or CLEAR_ALLs awaiting an answer, the newest but
+        `ev` is no longer awaited (listed unanswered; its answer, if it comes, is shown apart)."""
+        if ev.kind == "request-list":
+            if len(self.lists) <= WAITING_MAX:
+                return
+            _, old = pop_newest(self.lists, key)
+            self.listed.remove(old)
+            self._event(old)
+        else:
+            if len(self.clears) <= WAITING_MAX:
+                return
+            old = self.clears.newest_but(ev)
+            self.clears.remove(old)
+        self.given_up.add(f"a {old.kind} of {party(old.sender)} (frame {old.frames[0]}) no longer awaited: its "
+                          "answer would be shown apart", record=ev.frames[-1])
 
     # the tracker's own (reconstruct.MissionTracker)
     def adopt(self, t: Transfer) -> None:

@@ -29,7 +29,7 @@ from collections import deque
 from collections.abc import Iterable
 from typing import cast
 
-from mavscope.analysis.mission.answers import Answers
+from mavscope.analysis.mission.answers import WAITING_MAX, Answers
 from mavscope.analysis.mission.describe import reason
 from mavscope.analysis.mission.model import (
     OPEN_MAX,
@@ -44,7 +44,17 @@ from mavscope.analysis.mission.model import (
     role,
     same,
 )
-from mavscope.analysis.mission.state import Deadlines, Timed, narrow, newest_young, open_events, open_transfers, party
+from mavscope.analysis.mission.state import (
+    LISTED_MAX,
+    Deadlines,
+    Timed,
+    listed,
+    narrow,
+    newest_young,
+    open_events,
+    open_transfers,
+    party,
+)
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, decode_payload
 from mavscope.mavlink.semantics import int_coordinate
@@ -61,8 +71,6 @@ DUPLICATE_FRAMES = 64  # frames of the sender: a byte copy further back is a new
 RECENT = 8  # mission frames remembered per sender for duplicate detection
 RECENTLY_CLOSED = 16  # closed transfers kept for late frames when the capture has no times
 ORPHANS_ACTIVE = 1024  # stray-frame events still gathering frames (the oldest stops first; it stays listed)
-WAITING_MAX = 1024  # REQUEST_LISTs awaiting their COUNT, and CLEAR_ALLs their ACK (more: the newest but the new
-# one is no longer followed, listed unanswered; said as `capacity`)
 
 
 def _num(fields: dict[str, object], name: str, default: int = 0) -> int:
@@ -106,8 +114,9 @@ class MissionTracker(Answers):
         self.now: float | None = None
         self.order = 0
         self.young: dict[int, Transfer] = {}  # open transfers by order, some not yet answered (OPEN_MAX's first)
-        self.given_up = GivenUp(f"mission exchanges followed (at most {OPEN_MAX:,} transfers open, "
-                                f"{WAITING_MAX:,} requests awaiting an answer)", "exchanges")
+        self.given_up = GivenUp(f"mission exchanges followed (at most {OPEN_MAX:,} transfers open, {WAITING_MAX:,} "
+                                f"requests awaiting an answer, {LISTED_MAX:,} transfers and operations listed)",
+                                "exchanges")
 
     # -- input ---------------------------------------------------------------------------------------
 
@@ -227,6 +236,7 @@ class MissionTracker(Answers):
 
     def _event(self, ev: Event) -> Event:
         self.events.append(ev)
+        listed(self.events, "a mission operation", self.given_up)
         return ev
 
     def _new_event(self, kind: str, f: Frame, me: Addr, tgt: Addr, mtype: int) -> Event:
@@ -290,6 +300,7 @@ class MissionTracker(Answers):
         """Follow a new transfer. Past OPEN_MAX open, the newest not yet answered but `t` is given up (a flood
         of COUNTs churns its own; an exchange under way stays), else `t` itself."""
         self.transfers.append(t)
+        listed(self.transfers, "a mission transfer", self.given_up)
         self.open.add(t)
         self.deadlines.push(t)
         if len(self.open) > OPEN_MAX:
@@ -300,23 +311,6 @@ class MissionTracker(Answers):
                               "unanswered", record=t.frames[-1])
         if t in self.open:
             self.young[t.order] = t
-
-    def _wait(self, ev: Event, key: object = None) -> None:
-        """Past WAITING_MAX REQUEST_LISTs (`key` in `lists`) or CLEAR_ALLs awaiting an answer, the newest but
-        `ev` is no longer awaited (listed unanswered; its answer, if it comes, is shown apart)."""
-        if ev.kind == "request-list":
-            if len(self.lists) <= WAITING_MAX:
-                return
-            _, old = pop_newest(self.lists, key)
-            self.listed.remove(old)
-            self._event(old)
-        else:
-            if len(self.clears) <= WAITING_MAX:
-                return
-            old = self.clears.newest_but(ev)
-            self.clears.remove(old)
-        self.given_up.add(f"a {old.kind} of {party(old.sender)} (frame {old.frames[0]}) no longer awaited: its "
-                          "answer would be shown apart", record=ev.frames[-1])
 
     def _request_list(self, f: Frame, me: Addr, tgt: Addr, mtype: int) -> object:
         for old in self.open.matching(mtype, tgt, me):
@@ -330,7 +324,7 @@ class MissionTracker(Answers):
             ev = self.lists[key] = self._new_event("request-list", f, me, tgt, mtype)
             ev.addressed = tgt
             self.listed.add(ev)
-            self._wait(ev, key)
+            self.wait_bound(ev, key)
         else:
             ev.frames.append(f.record)
             ev.last = f.time
@@ -416,7 +410,7 @@ class MissionTracker(Answers):
         ev = self._event(self._new_event("clear-all", f, me, tgt, mtype))
         ev.addressed = tgt
         self.clears.add(ev)
-        self._wait(ev)
+        self.wait_bound(ev)
         return ev
 
     def _set_current(self, f: Frame, me: Addr, tgt: Addr, seq: int) -> Event:

@@ -29,6 +29,7 @@ from typing import Any, Generic, Protocol, TypeVar
 
 from mavscope.analysis.mission.model import Event, Transfer
 from mavscope.mavlink.frame import Addr
+from mavscope.notes import GivenUp
 
 ANY = -1  # the index's system or component key that any system or component matches
 
@@ -139,6 +140,19 @@ class PartyIndex(Generic[P]):
         """Those of `mtype` between `a` and `b`, either way, oldest first."""
         both = {x.order: x for x in (*self.matching(mtype, a, b), *self.matching(mtype, b, a))}
         return [both[k] for k in sorted(both)]
+
+
+LISTED_MAX = 1 << 14  # transfers listed, and operations (clears, set-currents, requests, stray frames) listed
+
+
+def listed(items: list[Any], what: str, given_up: GivenUp) -> None:
+    """`items`, the transfers or the operations listed, the one just added last: past LISTED_MAX the newest but
+    that one leaves the listing (a flood of COUNTs or stray frames churns its own; what came before stays),
+    said on `given_up`. (It may still be followed: what it gets is not listed.)"""
+    if len(items) > LISTED_MAX:
+        old, new = items.pop(-2), items[-1]
+        at = f" (frame {old.frames[0]})" if old.frames else ""
+        given_up.add(f"{what} of {party(old.sender)}{at} not listed", record=new.frames[-1] if new.frames else None)
 
 
 def party(a: Addr) -> str:
