@@ -70,5 +70,5 @@ class AuditPass:
         gave_up = self.matcher.given_up.finding()
         own += [gave_up] if gave_up is not None else []
         if self.story is not None:
-            own += self.story.finish().capacity
+            own += [f for f in self.story.finish().capacity if f not in own]  # (its command matcher's is ours)
         return merged(expert, own), recoveries

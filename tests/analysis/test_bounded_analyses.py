@@ -221,3 +221,31 @@ def test_a_flood_of_mission_counts_keeps_the_listing_of_the_upload_before_it(  #
         (said,) = doc["findings"]
         assert said["frames"] == [11, 12, 14, 18] and "8 given up (8 exchanges)" in said["message"]
         assert said in findings(cli, "audit", path)["capacity"]
+
+
+def test_events_say_the_commands_their_matcher_gave_up_and_audit_says_it_once(  # type: ignore[no-untyped-def]
+        cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """At most 3 commands waiting for their ACK (command_log.PENDING_MAX). Built (records): 1 the GCS 255/190's
+    ARM to 1/1; 2-6 COMMAND_LONGs 400 of made-up senders 100+i/1 to 1/1; 7 the vehicle's ACK (ACCEPTED) to
+    255/190. By hand: the ARM and the commands of 2 and 3 fill the 3; 4, 5 and 6 each give up the newest waiting
+    but themselves (3, 4, 5: 3 give-ups, said at the 1st and 2nd: records 4, 5). The ARM is answered at 7 (not
+    given up), so `events` lists it ACCEPTED and says the give-ups; `audit` (which runs the same matching for
+    itself and within the story) reports that finding once."""
+    from pymavlink.dialects.v20 import ardupilotmega as v2
+
+    from mavscope.analysis import command_log
+
+    monkeypatch.setattr(command_log, "PENDING_MAX", 3)
+    t = flows.T0
+    entries = [(t, flows.Sender(255, 190).pack(flows.command_long(400, 1.0)))]
+    entries += [(t + 0.1 * (i + 1), flows.Sender(100 + i, 1).pack(flows.command_long(400, 1.0))) for i in range(5)]
+    entries.append((t + 1, flows.Sender(1, 1).pack(v2.MAVLink_command_ack_message(400, 0, 0, 0, 255, 190))))
+    path = flows.write_tlog(tmp_path, entries)
+    for environ in ENGINES:
+        cli.environ = environ
+        doc = cli.json("events", path)
+        arm = [e for e in doc["events"] if e["kind"] == "command" and e["from"] == [255, 190]]
+        assert [(e["frame"], "ACCEPTED" in e["text"]) for e in arm] == [(1, True)]
+        (said,) = [f for f in doc["findings"] if f["code"] == "capacity"]
+        assert said["frames"] == [4, 5] and "3 given up (3 commands)" in said["message"]
+        assert findings(cli, "audit", path)["capacity"] == [said]

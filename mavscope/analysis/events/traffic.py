@@ -86,7 +86,10 @@ class Commands:
         return [self._event(c) for c in done]
 
     def finish(self) -> Iterable[Event]:
-        return [self._event(c) for c in self.matcher.finish()]
+        out = [self._event(c) for c in self.matcher.finish()]
+        said = self.matcher.given_up.finding()  # commands given up waiting for their ACK (EventLog says it)
+        self.capacity = [said] if said is not None else []
+        return out
 
 
 class Missions:
