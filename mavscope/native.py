@@ -28,6 +28,8 @@ from collections.abc import Callable, Iterator, Mapping
 from types import ModuleType, TracebackType
 from typing import IO, NamedTuple, Protocol
 
+import orjson
+
 from mavscope.capture.base import Record
 from mavscope.capture.detect import detect_kind
 from mavscope.capture.reader import WINDOW, handed_back_record, open_file
@@ -37,7 +39,7 @@ from mavscope.mavlink.frame import Frame
 from mavscope.native_tables import table_for
 from mavscope.output.jsonout import jsonl_bytes
 from mavscope.pipeline.dissect import Anomaly, Dissector
-from mavscope.security.stage import SecurityStage
+from mavscope.security.stage import SecurityStage, unsigned_note
 
 _native: ModuleType | None
 try:
@@ -49,6 +51,23 @@ PURE_ENV = "MAVSCOPE_PURE"
 BATCH_BYTES = 1 << 20  # JSON text per batch handed to Python
 
 _KINDS = {"pcap": 1, "pcapng": 2, "tlog": 3, "raw": 4}
+
+
+_NAME, _SENDER, _OFFSET = "\x01", "\x02", 7_777_777_777_777  # where the walker writes its own
+
+
+def unsigned_templates() -> tuple[tuple[bytes, bytes, bytes, bytes], ...]:
+    """The JSON of the note security.stage.unsigned_note makes for a MAVLink 2 and a MAVLink 1 frame, each
+    cut where the message's name, the sender ("sysid/compid") and the offset go: the native walker writes
+    that note for an unsigned frame of a sender that signs (walk.c), so the text has one definition."""
+    out = []
+    for version in (2, 1):
+        text = orjson.dumps(unsigned_note(version, _NAME, _SENDER, _OFFSET)[1].to_json())
+        a, rest = text.split(b"\\u0001")
+        b, rest = rest.split(b"\\u0002")
+        c, d = rest.split(str(_OFFSET).encode())
+        out.append((a, b, c, d))
+    return tuple(out)
 
 
 def native_module() -> ModuleType | None:
@@ -109,7 +128,7 @@ class NativeWalk:
         try:
             self.walker = _native.Walker(fd, self.opened_size, _KINDS[self.kind], table_for(dialect), endpoints,
                                          Endpoint.from_packed, signed_senders, window, summary, t0, stats,
-                                         receivers=receivers)
+                                         receivers=receivers, notes=unsigned_templates())
         except BaseException:
             self.close_file()
             raise

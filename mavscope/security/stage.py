@@ -85,6 +85,16 @@ class SignedSenders(set[tuple[int, int]]):
         self.epoch += 1
 
 
+def unsigned_note(version: int, message: str, sender: str, offset: int | None) -> tuple[SignatureReason, Note]:
+    """The verdict and note of an unsigned frame (MAVLink 1 or 2) of message `message` from `sender`
+    ("sysid/compid"), a sender that signs (but RADIO_STATUS, which a radio adds unsigned). The native walker
+    writes the same note from a template made of this one (mavscope.native.unsigned_templates)."""
+    what = f"{message} from {sender}, which sends signed frames"
+    if version == 1:
+        return SignatureReason.V1_IN_SIGNED_STREAM, note("v1-in-signed-stream", f"MAVLink v1 {what}", offset)
+    return SignatureReason.UNSIGNED_IN_SIGNED_STREAM, note("unsigned-in-signed-stream", f"unsigned {what}", offset)
+
+
 class SecurityStage:
     """One instance per capture: it keeps the replay state, the senders seen signing, the epochs."""
 
@@ -202,13 +212,9 @@ class SecurityStage:
             elif frame.crc_status is _OK and sender not in self.signed_senders:
                 self.signed_senders.add(sender)
         elif sender in self.signed_senders and frame.msgid != RADIO_STATUS:
-            what = f"{frame.msgname or frame.msgid} from {sender[0]}/{sender[1]}, which sends signed frames"
-            if frame.version == 1:
-                reason = SignatureReason.V1_IN_SIGNED_STREAM
-                notes.append(note("v1-in-signed-stream", f"MAVLink v1 {what}", frame.offset))
-            else:
-                reason = SignatureReason.UNSIGNED_IN_SIGNED_STREAM
-                notes.append(note("unsigned-in-signed-stream", f"unsigned {what}", frame.offset))
+            reason, n = unsigned_note(frame.version, str(frame.msgname or frame.msgid), f"{sender[0]}/{sender[1]}",
+                                      frame.offset)
+            notes.append(n)
         enc: Encryption | None = None
         if frame.version == 2 and iflags & 0xE0:
             enc = self.decrypt(frame, notes)

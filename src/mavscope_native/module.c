@@ -758,16 +758,31 @@ static void Walker_dealloc(WalkerObject *self) {
 
 static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
     static char *kwlist[] = {"fd", "size", "kind", "table", "endpoints", "endpoint", "signed_senders", "window",
-                             "summary", "t0", "stats", "columns", "receivers", NULL};
+                             "summary", "t0", "stats", "columns", "receivers", "notes", NULL};
     PyObject *table, *endpoints, *endpoint, *senders, *summary = Py_None, *t0 = Py_None, *stats = Py_None;
-    PyObject *columns = Py_None, *receivers = Py_None;
+    PyObject *columns = Py_None, *receivers = Py_None, *notes = Py_None;
     int fd, kind;
     unsigned long long size;
     Py_ssize_t window = MS_WINDOW;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|nOOOOO", kwlist, &fd, &size, &kind, &TableType, &table,
-                                     &PySet_Type, &endpoints, &endpoint, &PySet_Type, &senders, &window,
-                                     &summary, &t0, &stats, &columns, &receivers))
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|nOOOOOO", kwlist, &fd, &size, &kind, &TableType,
+                                     &table, &PySet_Type, &endpoints, &endpoint, &PySet_Type, &senders, &window,
+                                     &summary, &t0, &stats, &columns, &receivers, &notes))
         return -1;
+    if (notes != Py_None) { /* two tuples of four bytes objects, each at most MS_NOTE_TPL_MAX long */
+        int ok = PyTuple_Check(notes) && PyTuple_GET_SIZE(notes) == 2;
+        for (Py_ssize_t i = 0; ok && i < 2; i++) {
+            PyObject *t = PyTuple_GET_ITEM(notes, i);
+            ok = PyTuple_Check(t) && PyTuple_GET_SIZE(t) == 4;
+            for (Py_ssize_t j = 0; ok && j < 4; j++) {
+                PyObject *b = PyTuple_GET_ITEM(t, j);
+                ok = PyBytes_Check(b) && PyBytes_GET_SIZE(b) <= MS_NOTE_TPL_MAX;
+            }
+        }
+        if (!ok) {
+            PyErr_SetString(PyExc_TypeError, "notes must be two tuples of four bytes (at most 256 each), or None");
+            return -1;
+        }
+    }
     if (receivers != Py_None && !PyDict_Check(receivers)) {
         PyErr_SetString(PyExc_TypeError, "receivers must be a dict (the Dissector's receivers) or None");
         return -1;
@@ -849,6 +864,22 @@ static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
         Py_INCREF(columns);
         self->columns = columns;
         self->walker.cols = &((ColumnsObject *)columns)->cols;
+    }
+    if (notes != Py_None) {
+        for (Py_ssize_t i = 0; i < 2; i++)
+            for (Py_ssize_t j = 0; j < 4; j++) {
+                PyObject *b = PyTuple_GET_ITEM(PyTuple_GET_ITEM(notes, i), j);
+                size_t n = (size_t)PyBytes_GET_SIZE(b);
+                char *copy = malloc(n + 1);
+                if (copy == NULL) {
+                    ms_walker_free(&self->walker);
+                    PyErr_NoMemory();
+                    return -1;
+                }
+                memcpy(copy, PyBytes_AS_STRING(b), n);
+                self->walker.note_tpl[i][j] = copy;
+                self->walker.note_tpl_len[i][j] = n;
+            }
     }
     self->have_walker = 1;
     self->ended = 0;

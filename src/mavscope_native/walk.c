@@ -10,6 +10,7 @@
 
 #define SETUP_SIGNING 256
 #define KEY_EXCHANGE 65100
+#define RADIO_STATUS 109 /* a radio adds it unsigned to a signed stream: no note (security/stage.py) */
 #define SEEN_MAX 65536 /* endpoints remembered as reported; past that the memory starts over */
 
 int ms_walker_init(ms_walker *w, ms_source src, uint64_t size, int kind, const ms_table *table) {
@@ -29,6 +30,10 @@ void ms_walker_free(ms_walker *w) {
     free(w->seen);
     free(w->seen_used);
     free(w->frames);
+    free(w->fnote);
+    for (int i = 0; i < 2; i++)
+        for (int j = 0; j < 4; j++)
+            free(w->note_tpl[i][j]);
     free(w->tentative);
     free(w->sig_keys);
     free(w->pending);
@@ -260,11 +265,20 @@ static int scan_clean(ms_walker *w, const uint8_t *d, size_t n, size_t *count, s
                     return NOMEM;
                 w->tentative[t++] = (uint16_t)sender;
             }
-        } else if (known) {
-            return NOT_CLEAN; /* unsigned-in-signed-stream (or RADIO_STATUS): Python */
         }
-        if (grow((void **)&w->frames, &w->cap_frames, 2 * k + 2, sizeof *w->frames) != 0)
+        uint8_t fnote = MS_FNOTE_NONE;
+        if (!is_signed && known) {
+            /* an unsigned frame of a sender that signs: its note, which the JSON Lines and summary walks write
+             * (security/stage.py unsigned_note); the statistics and column modes hand it back */
+            if (w->note_tpl[0][0] == NULL || w->acc != NULL || w->cols != NULL)
+                return NOT_CLEAN;
+            if (m->msgid != RADIO_STATUS)
+                fnote = f[0] == MS_STX_V2 ? MS_FNOTE_UNSIGNED : MS_FNOTE_V1;
+        }
+        if (grow((void **)&w->frames, &w->cap_frames, 2 * k + 2, sizeof *w->frames) != 0 ||
+            grow((void **)&w->fnote, &w->cap_fnote, k + 1, sizeof *w->fnote) != 0)
             return NOMEM;
+        w->fnote[k] = fnote;
         w->frames[2 * k] = (uint32_t)pos;
         w->frames[2 * k + 1] = (uint32_t)size;
         k++;
@@ -285,7 +299,7 @@ static int scan_clean(ms_walker *w, const uint8_t *d, size_t n, size_t *count, s
  * `,"time":` to `"version":`; `has_time`, `t`: the record's time (a judged signature's skew). Room is
  * made once per line for the most it can hold. */
 static int write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t count, const char *lead,
-                        size_t lead_len, const char *mid, size_t mid_len, int has_time, double t) {
+                        size_t lead_len, const char *mid, size_t mid_len, int has_time, double t, uint64_t base) {
     for (size_t i = 0; i < count; i++) {
         const uint8_t *f = d + w->frames[2 * i];
         const size_t size = w->frames[2 * i + 1];
@@ -294,7 +308,9 @@ static int write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t coun
         const size_t len = f[1];
         const uint32_t msgid = v2 ? (uint32_t)f[7] | ((uint32_t)f[8] << 8) | ((uint32_t)f[9] << 16) : f[5];
         const ms_message *m = ms_table_get(w->table, msgid); /* found by scan_clean */
-        const size_t room = LINE_ROOM + m->name_len + m->json_max + MS_SIGNATURE_VALID_EXTRA;
+        const int fnote = w->fnote[i];
+        const size_t room = LINE_ROOM + m->name_len + m->json_max + MS_SIGNATURE_VALID_EXTRA +
+                            (fnote ? 4 * MS_NOTE_TPL_MAX + m->name_len + 40 : 0);
         (void)lead_len;
         char *const start = ms_buf_room(out, room);
         if (start == NULL)
@@ -338,6 +354,25 @@ static int write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t coun
                 p = ms_w_signature_nokey(p, f + size - MS_SIGNATURE_LEN);
             }
             p = MS_W_LIT(p, ",\"encryption\":null,\"notes\":[]}\n");
+        } else if (fnote) {
+            p = MS_W_LIT(p, ",\"signature\":null,\"encryption\":null,\"notes\":[");
+            char *const *tpl = w->note_tpl[fnote - 1];
+            const size_t *tl = w->note_tpl_len[fnote - 1];
+            memcpy(p, tpl[0], tl[0]);
+            p += tl[0];
+            memcpy(p, m->name + 1, m->name_len - 2); /* the name's JSON text inside its quotes */
+            p += m->name_len - 2;
+            memcpy(p, tpl[1], tl[1]);
+            p += tl[1];
+            p = ms_w_u8(p, f[v2 ? 5 : 3]);
+            *p++ = '/';
+            p = ms_w_u8(p, f[v2 ? 6 : 4]);
+            memcpy(p, tpl[2], tl[2]);
+            p += tl[2];
+            p = ms_w_u64(p, base + w->frames[2 * i]);
+            memcpy(p, tpl[3], tl[3]);
+            p += tl[3];
+            p = MS_W_LIT(p, "]}\n");
         } else {
             p = MS_W_LIT(p, ",\"signature\":null,\"encryption\":null,\"notes\":[]}\n");
         }
@@ -551,7 +586,8 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
         MID(",\"transport\":\"tlog\",\"src\":null,\"dst\":null,\"version\":");
     }
 #undef MID
-    if (write_frames(w, out, d, count, lead, lead_len, mid, mid_len, has_time, t) != 0)
+    if (write_frames(w, out, d, count, lead, lead_len, mid, mid_len, has_time, t,
+                     rec->offset + (uint64_t)(d - rec->data)) != 0)
         return MS_WALK_NOMEM;
     return count_frames(w, d, count);
 }

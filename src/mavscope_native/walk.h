@@ -36,6 +36,9 @@
  * here against the shared signing state (MS_SIGNED_VERIFY: a known stream, its key's MAC, a newer
  * timestamp is written as `valid`; anything else is handed back for the Python verifier). */
 enum { MS_SIGNED_HANDBACK = 0, MS_SIGNED_NOKEY = 1, MS_SIGNED_VERIFY = 2 };
+/* a frame's note the walker writes itself: none, an unsigned or a MAVLink 1 frame of a sender that signs */
+enum { MS_FNOTE_NONE = 0, MS_FNOTE_UNSIGNED = 1, MS_FNOTE_V1 = 2 };
+#define MS_NOTE_TPL_MAX 256 /* bytes of one template piece */
 enum { MS_WALK_NOMEM = -1, MS_WALK_END = 0, MS_WALK_FULL = 1, MS_WALK_HANDBACK = 2 };
 
 typedef struct {
@@ -79,6 +82,12 @@ typedef struct {
     size_t nseen, capseen;
     uint32_t *frames;           /* scratch: (position, size) of the frames of the current record */
     size_t cap_frames;
+    uint8_t *fnote;             /* scratch: per frame of the current record its note (MS_FNOTE_*) */
+    size_t cap_fnote;
+    char *note_tpl[2][4];       /* the JSON of the unsigned-in-signed-stream (0) and v1-in-signed-stream (1)
+                                   notes, cut where the name, the sender and the offset go (mavscope.native.
+                                   unsigned_templates); NULL: such frames are handed back */
+    size_t note_tpl_len[2][4];
     uint16_t *tentative;        /* scratch: senders the current record would add */
     size_t cap_tentative;
     uint32_t *sig_keys;         /* scratch, MS_SIGNED_VERIFY: per frame of the current record the key slot
