@@ -13,7 +13,7 @@ from mavscope.commands.common import OutputKind, add_output_option, check_output
 from mavscope.errors import UsageError
 from mavscope.notes import finding_line
 from mavscope.output.grid import columns, many, print_lines, print_table
-from mavscope.output.tables import iso, listed, param_text
+from mavscope.output.tables import coord_text, iso, listed, param_text
 
 STATE = {"complete": "complete", "unacknowledged": "unacknowledged"}  # every other outcome: INCOMPLETE
 
@@ -98,19 +98,6 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     return ExitStatus.OK
 
 
-def _coord(v: float | None, unit: str, float32: bool) -> str:
-    """x or y: a float32 (MISSION_ITEM's) as the shortest text that reads back as it; MISSION_ITEM_INT's
-    degrees to their 7 decimals (degE7), its metres (1e-4 m) as repr, its raw parameter (MAV_FRAME_MISSION)
-    as the integer it is."""
-    if v is None:
-        return "-"
-    if not float32 and unit == "°":
-        return f"{v:.7f}°"
-    if not float32 and not unit and v.is_integer():
-        return str(int(v))
-    return param_text(v, float32) + unit
-
-
 def _item_row(it: dict) -> list[str]:
     labels = it["param_labels"]
     params = ", ".join(f"{labels[i] or f'param{i + 1}'} {param_text(v)}" for i, v in enumerate(it["params"])
@@ -118,4 +105,5 @@ def _item_row(it: dict) -> list[str]:
     unit = {"deg": "°", "m": " m"}.get(it["units"], "")
     float32 = it["message"] != "MISSION_ITEM_INT"  # (x and y of MISSION_ITEM_INT are integers on the wire)
     return [str(it["seq"]), it["command"].removeprefix("MAV_CMD_"), it["frame"].removeprefix("MAV_FRAME_"), params,
-            _coord(it["x"], unit, float32), _coord(it["y"], unit, float32), param_text(it["z"]), listed(it["frames"])]
+            coord_text(it["x"], unit, float32), coord_text(it["y"], unit, float32), param_text(it["z"]),
+            listed(it["frames"])]

@@ -92,6 +92,19 @@ def param_text(v: object, float32: bool = True) -> str:
     return float_text(v, float32) if isinstance(v, float) else str(v)
 
 
+def coord_text(v: float | None, unit: str, float32: bool) -> str:
+    """A mission item's x or y: a float32 (MISSION_ITEM's) as the shortest text that reads back as it;
+    MISSION_ITEM_INT's degrees to their 7 decimals (degE7), its metres (1e-4 m) as repr, its raw parameter
+    (MAV_FRAME_MISSION) as the integer it is. `mission` and the TUI's mission screen both show it so."""
+    if v is None:
+        return "-"
+    if not float32 and unit == "°":
+        return f"{v:.7f}°"
+    if not float32 and not unit and v.is_integer():
+        return str(int(v))
+    return param_text(v, float32) + unit
+
+
 def iso(t: float | None) -> str:
     """ISO-8601 UTC to the millisecond; a time the calendar cannot hold (a pcapng may state one before year 1
     or after 9999) as its number of seconds since 1970; "-" for none."""

@@ -23,6 +23,7 @@ from mavscope.analysis.selection import Selection
 from mavscope.mavlink.frame import Frame, decode_payload
 from mavscope.mavlink.semantics import float_text, is_global
 from mavscope.output.console import text
+from mavscope.output.tables import coord_text
 from mavscope.tui.screens.analysis import AnalysisScreen, first_rows
 from mavscope.tui.verdicts import GREEN, ORANGE, RED
 from mavscope.tui.widgets.track_plot import TrackPlot
@@ -161,8 +162,8 @@ class MissionScreen(AnalysisScreen):
                     params.append(f"param{n} {_fmt(v)}")
             glob = is_global(it.frame)
             wire_float = it.message != "MISSION_ITEM_INT"
-            lat = f"{it.x:.7f}°" if glob else _fmt(it.x, wire_float)
-            lon = f"{it.y:.7f}°" if glob else _fmt(it.y, wire_float)
+            lat = coord_text(it.x, "°", wire_float) if glob else _fmt(it.x, wire_float)
+            lon = coord_text(it.y, "°", wire_float) if glob else _fmt(it.y, wire_float)
             z_label = labels.get(7, ("Altitude", "m"))
             alt = f"{_fmt(it.z)} {z_label[1] or 'm'}"
             fname = (frames.name_of(it.frame) if frames else None) or str(it.frame)
