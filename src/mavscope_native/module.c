@@ -1,4 +1,4 @@
-/* mavscope._native: the CPython face of the native core (see mavscope/native.py for the Python side).
+/* mavscope._native: the CPython face of the native core (see mavscope/native/ for the Python side).
  *
  *   Table(blob: bytes)                  the message layouts, compiled by mavscope.native from a Dialect
  *   Summary(table, blob: bytes)         what summary lines show per message (mavscope.native_summary)
@@ -42,6 +42,9 @@
  *         messages, (position in the table, rows, frame positions, count) per message with rows;
  *         new_endpoints, (packed address, port) of the endpoint ids first used in this chunk, in id order
  *   COLUMN_NAMES: tuple[str, ...]       the names of those columns, in order
+ *   KIND_*: the capture kinds a Walker takes (capture.h MS_KIND_*); COLUMN_TRANSPORT_*: the codes of the
+ *       transport column (columns.h MS_TRANSPORT_*); STATS_TRANSPORT_*: Stats.add's transport (acc.h MS_TR_*).
+ *       Python reads them from here only (mavscope/native/core.py; the typed contract: mavscope/_native.pyi)
  *   format_double(x) -> bytes, text_json(b) -> bytes   (the JSON formatting, for the tests)
  *   format_f32(x, repr), format_double_repr(x), format_degrees(v, unsigned), format_reltime(t), repr_ascii(b) -> bytes | None
  *                                        (the summary formatting, for the tests)
@@ -1567,6 +1570,12 @@ PyMODINIT_FUNC PyInit__native(void) {
         PyModule_AddIntConstant(m, "KIND_PCAPNG", MS_KIND_PCAPNG) < 0 ||
         PyModule_AddIntConstant(m, "KIND_TLOG", MS_KIND_TLOG) < 0 ||
         PyModule_AddIntConstant(m, "KIND_RAW", MS_KIND_RAW) < 0 ||
+        PyModule_AddIntConstant(m, "COLUMN_TRANSPORT_UDP", MS_TRANSPORT_UDP) < 0 ||
+        PyModule_AddIntConstant(m, "COLUMN_TRANSPORT_TLOG", MS_TRANSPORT_TLOG) < 0 ||
+        PyModule_AddIntConstant(m, "STATS_TRANSPORT_UDP", MS_TR_UDP) < 0 ||
+        PyModule_AddIntConstant(m, "STATS_TRANSPORT_TCP", MS_TR_TCP) < 0 ||
+        PyModule_AddIntConstant(m, "STATS_TRANSPORT_TLOG", MS_TR_TLOG) < 0 ||
+        PyModule_AddIntConstant(m, "STATS_TRANSPORT_RAW", MS_TR_RAW) < 0 ||
         PyModule_AddIntConstant(m, "TABLE_VERSION", 1) < 0 || ms_py_add_receiver(m) < 0) {
         Py_DECREF(m);
         return NULL;
