@@ -11,7 +11,7 @@ Generates the capture in a temporary directory (px4_sitl_udp.pcap's records repe
 4. times FrameIndex.rejudge over the whole index (what a key added in the live TUI costs per kept frame).
 
 With --big: the 1M-frame bench pcap (benchmarks/out/bench_1000000_v2.pcap) `--copies` times behind one pcap
-header (10,000,000 frames, as native_stats.py makes it), indexed natively (mavscope.browse.native): time to
+header (10,000,000 frames, as native_stats.py makes it), indexed natively (mavscope.native.index): time to
 the first rows (the first progress callback), to the whole index (every row navigable), bytes per frame;
 then display filters over the 10M rows through the column filter (mavscope.browse.fastfilter), best of
 `--repeat` each; with --app, the app's own first-rows and indexed times on that capture.
@@ -32,10 +32,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from mavscope.browse.fastfilter import ColumnFilter  # noqa: E402
 from mavscope.browse.index import FrameIndex  # noqa: E402
-from mavscope.browse.native import native_build  # noqa: E402
 from mavscope.capture.detect import open_capture  # noqa: E402
 from mavscope.filter import compile_filter  # noqa: E402
 from mavscope.mavlink.dialect import load_dialect  # noqa: E402
+from mavscope.native.index import native_build  # noqa: E402
 from mavscope.pipeline.dissect import Dissector  # noqa: E402
 from mavscope.pipeline.options import PipelineOptions  # noqa: E402
 from mavscope.pipeline.session import make_security_stage  # noqa: E402

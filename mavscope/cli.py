@@ -124,7 +124,7 @@ class _Version(argparse.Action):
 
     def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace, values: object,
                  option_string: str | None = None) -> None:
-        from mavscope.native import engine
+        from mavscope.native.core import engine
 
         sys.stdout.write(f"mavscope {__version__} (engine: {engine(self.environ)})\n")  # as argparse's version
         parser.exit()

@@ -21,9 +21,9 @@ from pathlib import Path
 
 from mavscope.capture.detect import detect_kind
 from mavscope.mavlink.dialect import load_dialect
-from mavscope.mavlink.native_table import build_table
-from mavscope.native_plan import build_plan
-from mavscope.native_summary import build_summary_table
+from mavscope.native.plan import build_plan
+from mavscope.native.summary import build_summary_table
+from mavscope.native.table_blob import build_table
 
 ROOT = Path(__file__).resolve().parents[1]
 SELECTOR = {"pcap": 0, "pcapng": 1, "tlog": 2, "raw": 3}

@@ -222,7 +222,7 @@ class FrameIndex:
         return got
 
     def extend(self, chunk: Any, ends: Any, transports: tuple[str, ...]) -> None:
-        """Append a native chunk of clean frames (mavscope.browse.native: numpy columns, `ends` mapping its
+        """Append a native chunk of clean frames (mavscope.native.index: numpy columns, `ends` mapping its
         endpoint ids + 1 to this index's, None when they are the same; `transports` its transport codes to
         names), as `add` would
         append each frame: CRC ok, no note, span or security verdict, the bytes at their offset."""

@@ -115,11 +115,11 @@ def make_source(args: argparse.Namespace, env: Env) -> LiveSource:
 
 def _receiver(env: Env) -> Callable[[bytes, int], BatchReceiver] | None:
     """The native batch receiver when the native engine runs (MAVSCOPE_PURE unset, extension built)."""
-    from mavscope.native import engine
+    from mavscope.native.core import engine
 
     if engine(env.environ) != "native":
         return None
-    from mavscope.native_live import receiver_factory
+    from mavscope.native.live import receiver_factory
 
     return receiver_factory()  # type: ignore[return-value]
 
@@ -127,14 +127,14 @@ def _receiver(env: Env) -> Callable[[bytes, int], BatchReceiver] | None:
 def _native_lines(args: argparse.Namespace, env: Env, source: LiveSource) -> bool:
     """Whether the native walker writes the lines: a batched source and plain JSON Lines or summary lines
     (no filter, -V or -x; summary lines to a stream that is not a terminal and takes UTF-8), as for `read`,
-    or -q (lines made and dropped: the frames are counted, problems reported) (mavscope.native_live)."""
+    or -q (lines made and dropped: the frames are counted, problems reported) (mavscope.native.live)."""
     if not isinstance(source, UdpSource) or not source.batched:
         return False
     if args.display_filter or args.verbose or args.hex:
         return False
     if args.format != "jsonl" and not args.quiet and not plain_utf8(env):
         return False
-    from mavscope.native import engine
+    from mavscope.native.core import engine
 
     return engine(env.environ) == "native"
 
@@ -151,8 +151,8 @@ class _Discard(io.RawIOBase):
 
 def _write_native(args: argparse.Namespace, env: Env, source: LiveSource, dialect: Dialect, stopper: Stopper,
                   writer: LivePcapWriter | None, problems: Problems, printer: FramePrinter) -> int:
-    """The lines of the live capture through mavscope.native_live; returns the frames written."""
-    from mavscope.native_live import write_live
+    """The lines of the live capture through mavscope.native.live; returns the frames written."""
+    from mavscope.native.live import write_live
     from mavscope.output.jsonout import jsonl_bytes
     from mavscope.output.text import summary_line
     from mavscope.pipeline.session import make_security_stage

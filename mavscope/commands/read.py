@@ -121,14 +121,14 @@ def _native_eligible(args: argparse.Namespace, env: Env) -> bool:
             return False
     elif args.format != "text" or args.verbose or args.hex or not plain_utf8(env):
         return False
-    from mavscope.native import engine
+    from mavscope.native.core import engine
 
     return engine(env.environ) == "native"
 
 
 def _run_native(args: argparse.Namespace, env: Env) -> ExitStatus:
     """`read -T jsonl` through mavscope.native.write_jsonl, the summary lines through
-    mavscope.native_summary.write_summary: what capture_session and the loop of `run` do, in the same
+    mavscope.native.summary.write_summary: what capture_session and the loop of `run` do, in the same
     order (dialect, capture file and its first record's time, key options; problems on stderr, then the
     no-frames line)."""
     from mavscope.capture.detect import detect_kind, open_capture
@@ -158,12 +158,12 @@ def _run_native(args: argparse.Namespace, env: Env) -> ExitStatus:
 
     try:
         if args.format == "text":
-            from mavscope.native_summary import write_summary
+            from mavscope.native.summary import write_summary
 
             stats = write_summary(path, dialect, stage, out_b, problems, t0, args.count, progress=advance,
                                   kind=kind)
         else:
-            from mavscope.native import write_jsonl
+            from mavscope.native.walk import write_jsonl
 
             stats = write_jsonl(path, dialect, stage, out_b, problems, progress=advance, kind=kind)
     finally:

@@ -126,21 +126,21 @@ def _native_eligible(args: argparse.Namespace, env: Env) -> bool:
     Frame: the pure path runs it), when it is built and MAVSCOPE_PURE is not set (docs/native.md)."""
     if args.display_filter:
         return False
-    from mavscope.native import engine
+    from mavscope.native.core import engine
 
     return engine(env.environ) == "native"
 
 
 def _native(args: argparse.Namespace, env: Env) -> tuple[Stats, list[Finding], str, Selection] | None:
-    """What `_pure` gives, from mavscope.native_stats: what capture_session and Pass do, in the same order
+    """What `_pure` gives, from mavscope.native.stats: what capture_session and Pass do, in the same order
     (dialect, capture file, key options; problems on stderr, then the no-frames line). None when the native
     pass gave up (the dialect cannot be described to C, a table of the accumulator filled up): what it
     wrote on stderr is held back until then, so that the pure path starts from nothing."""
     from mavscope.capture.detect import detect_kind
     from mavscope.commands.common import Problems, capture_path, pipeline_options, warner
     from mavscope.mavlink.dialect import load_dialect
-    from mavscope.native_dump import plan_for
-    from mavscope.native_stats import native_stats
+    from mavscope.native.dump import plan_for
+    from mavscope.native.stats import native_stats
     from mavscope.pipeline.session import make_security_stage
 
     path = capture_path(args)

@@ -24,10 +24,11 @@ import pyarrow as pa
 
 from mavscope.capture.reader import open_file, pread
 from mavscope.errors import CaptureError, UsageError
-from mavscope.export import native
 from mavscope.export.options import AUTO, BatchSource, ExportOptions, Progress, Warn, dialect_for
 from mavscope.export.pure import PYTHON, python_source
 from mavscope.export.schema import table_of
+from mavscope.native import export as native
+from mavscope.native.core import available
 
 __all__ = ["SOURCES", "BatchSource", "ExportOptions", "Progress", "Warn", "content_id", "dialect_for",
            "record_batches", "register_source", "source_name"]
@@ -61,7 +62,7 @@ def source_name(name: str, environ: Mapping[str, str] | None = None) -> str:
     """The source `name` runs: `auto` is `native` where the extension is built and MAVSCOPE_PURE is not set."""
     if name != AUTO:
         return name
-    return native.NATIVE if native.available(environ) else PYTHON
+    return native.NATIVE if available(environ) else PYTHON
 
 
 def record_batches(path: str | os.PathLike[str], options: ExportOptions | None = None, *,

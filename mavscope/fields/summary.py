@@ -64,7 +64,7 @@ _PLANS: WeakKeyDictionary[Dialect, dict[int, tuple[MessageDef, _Plan]]] = WeakKe
 
 def summary_plan(md: MessageDef, dialect: Dialect) -> _Plan:
     """(name, how, enum names) for the fields the summary of `md` shows: worked out once per message (the
-    native summary writer compiles the same plan, mavscope/native_summary.py)."""
+    native summary writer compiles the same plan, mavscope/native/summary.py)."""
     cache = _PLANS.get(dialect)
     if cache is None:
         cache = _PLANS[dialect] = {}

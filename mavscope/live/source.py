@@ -214,7 +214,7 @@ class LiveSource:
         self, on_idle: Callable[[], None] | None = None, idle_interval: float = 0.25
     ) -> Iterator[Chunk]:
         """The queue as the native receiver filled it: Chunks of pcap records, in arrival order, until stop()
-        (for the native walker, mavscope.native_live). Records are counted and numbered as records() would
+        (for the native walker, mavscope.native.live). Records are counted and numbered as records() would
         (the records of a Chunk are records `delivered - datagrams + 1` .. `delivered` after it is yielded).
         Only for a source that queues Chunks (`UdpSource.batched`)."""
         for item in self._items(on_idle, idle_interval):

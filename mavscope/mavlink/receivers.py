@@ -162,7 +162,7 @@ class Port:
 
 class Sockets:
     """The receiving sockets of a capture's UDP ports (the module's model). `ports` holds only ports with a
-    receiver in a frame (the native walker hands every datagram to one of them back: mavscope/native.py)."""
+    receiver in a frame (the native walker hands every datagram to one of them back: mavscope/native/walk.py)."""
 
     def __init__(self) -> None:
         self.ports: dict[int, Port] = {}

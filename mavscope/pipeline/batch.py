@@ -27,6 +27,7 @@ from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import MessageDef
 from mavscope.mavlink.frame import CrcStatus, Frame, Signature, SignatureStatus, new_frame
 from mavscope.mavlink.semantics import message_label
+from mavscope.native.core import COLUMN_TRANSPORTS
 
 TRANSPORTS: tuple[str, ...] = ("udp", "tcp", "tlog", "raw")  # FrameBatch.transport codes
 CRC_STATUSES: tuple[CrcStatus, ...] = tuple(CrcStatus)  # FrameBatch.crc codes
@@ -36,7 +37,8 @@ CRC_OK = CRC_STATUSES.index(CrcStatus.OK)
 _CRC_CODE = {s: k for k, s in enumerate(CRC_STATUSES)}
 _VERDICT_CODE = {s: k for k, s in enumerate(VERDICTS)}
 _TRANSPORT_CODE = {t: k for k, t in enumerate(TRANSPORTS)}
-_NATIVE_TRANSPORT = np.array([0, _TRANSPORT_CODE["udp"], _TRANSPORT_CODE["tlog"]], np.uint8)  # columns.h MS_TRANSPORT_*
+# the native transport column's codes -> FrameBatch's (0 where the walker writes none)
+_NATIVE_TRANSPORT = np.array([0 if t is None else _TRANSPORT_CODE[t] for t in COLUMN_TRANSPORTS] or [0], np.uint8)
 
 
 class Tables:
@@ -92,7 +94,7 @@ class Tables:
 
 
 class NativeChunk(Protocol):
-    """What a native column chunk holds (mavscope.export.native_columns.Chunk)."""
+    """What a native column chunk holds (mavscope.native.chunk.Chunk)."""
 
     n: int
     record: np.ndarray

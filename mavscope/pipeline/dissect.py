@@ -4,7 +4,7 @@
 problem that could not be attached to a frame (`Anomaly`), so nothing the input holds is lost.
 `feed(record)` and `finish()` do the same one record at a time (live capture, the native fast path
 handing records back); `passed(number, time, index)` is told of records dissected elsewhere (the
-native engine, mavscope/native.py), so that what follows them comes out as if they had been fed.
+native engine, mavscope/native/walk.py), so that what follows them comes out as if they had been fed.
 """
 
 from __future__ import annotations
@@ -210,7 +210,7 @@ class Dissector:
 
     def passed(self, number: int, time: float | None, index: int | None = None) -> list[Anomaly]:
         """Records up to `number` were dissected elsewhere (the native engine: clean datagrams and tlog
-        entries, mavscope/native.py): keep the state `feed` would have kept from them. Returns what `feed`
+        entries, mavscope/native/walk.py): keep the state `feed` would have kept from them. Returns what `feed`
         would have reported first: a run of tlog text entries held from before them ends here. Frames
         completed at the end of the capture belong to record `number` and its `time`; `index`, when not
         None, is the frame index the general scanner would have left (records with a MAVLink 1 frame). No TCP
@@ -233,7 +233,7 @@ class Dissector:
         no valid frame, on a port MAVLink does not use by convention, is not scanned as MAVLink).
 
         The native walker keeps the same bound: it hands back a record from a source it does not know once
-        the set is full (mavscope/native.py), so both engines note the same records."""
+        the set is full (mavscope/native/walk.py), so both engines note the same records."""
         if len(self.mavlink_endpoints) < MAX_MAVLINK_ENDPOINTS:
             self.mavlink_endpoints.add(src)
             return True

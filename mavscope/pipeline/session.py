@@ -24,8 +24,8 @@ from mavscope.capture.detect import open_capture
 from mavscope.capture.reader import CaptureReader
 from mavscope.mavlink.dialect import Dialect, load_dialect
 from mavscope.mavlink.frame import Frame
-from mavscope.native_tables import table_for
-from mavscope.pipeline import windows
+from mavscope.native import windows
+from mavscope.native.tables import table_for
 from mavscope.pipeline.batch import FrameBatch, Tables
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.pipeline.options import PipelineOptions

@@ -14,8 +14,6 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
 
 from mavscope.browse.index import FrameIndex
-from mavscope.browse.native import available as native_available
-from mavscope.browse.native import native_build
 from mavscope.browse.rows import Progress
 from mavscope.capture.detect import open_capture
 from mavscope.capture.reader import CaptureReader
@@ -23,6 +21,8 @@ from mavscope.endpoint import Endpoint
 from mavscope.live.udp import UdpSource, parse_endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
+from mavscope.native.index import available as native_available
+from mavscope.native.index import native_build
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.pipeline.options import PipelineOptions
 from mavscope.pipeline.session import build_pipeline, make_security_stage, peek_time
@@ -69,7 +69,7 @@ class FrameSource:
 
     def index_natively(self, index: FrameIndex, on_progress: Callable[[Progress], object],
                        cancelled: Callable[[], bool]) -> bool:
-        """Fill `index` through the native engine (mavscope.browse.native) when it can read this capture;
+        """Fill `index` through the native engine (mavscope.native.index) when it can read this capture;
         False (nothing done) when the pure pipeline must (no extension, MAVSCOPE_PURE, a raw stream)."""
         with open_capture(self.path) as reader:  # the capture's errors as the pure path raises them
             kind = reader.kind

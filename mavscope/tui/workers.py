@@ -23,7 +23,7 @@ Cancelled = Callable[[], bool]
 
 def fill_index(index: FrameIndex, source: FrameSource, post: Post, cancelled: Cancelled) -> None:
     """Walk `source`'s pipeline into `index`, posting IndexProgress as it goes (natively where the
-    engine reads the capture: mavscope.browse.native)."""
+    engine reads the capture: mavscope.native.index)."""
     if source.index_natively(index, lambda p: post(IndexProgress(index, p)), cancelled):
         return
     reader, items, index.t0 = source.open()

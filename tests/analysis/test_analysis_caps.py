@@ -20,8 +20,8 @@ from pathlib import Path
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as v2
 
-from mavscope import native_dump
 from mavscope.analysis import command_log, gnss, timeline, vehicles
+from mavscope.native import dump as native_dump
 from tests.conftest import Cli
 from tests.support.flows import T0, Sender, command_long, write_tlog
 

@@ -175,7 +175,7 @@ def test_hostile_frames_through_the_expert_alike_in_batches(dialect: Dialect) ->
 def test_native_windows_give_the_python_pipelines_batches(path: Path) -> None:
     """pipeline/windows.py (the C walker's column mode and the records it hands back) against the Python
     pipeline's frames: the same columns row for row, and the same Frames."""
-    from mavscope.pipeline import windows
+    from mavscope.native import windows
 
     if not windows.available({}):
         pytest.skip("the C extension is not built")

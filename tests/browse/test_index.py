@@ -124,7 +124,7 @@ def test_large_capture_first_rows_before_the_index_completes(tmp_path: Path, dia
     7 by assuming it)."""
     import threading
 
-    from mavscope.browse import native
+    from mavscope.native import index as native
 
     if engine == "native" and not native.available("pcap"):
         pytest.skip("the native engine is not built")

@@ -1,4 +1,4 @@
-"""The native build of the TUI's index (mavscope.browse.native) against the pure build, row for row.
+"""The native build of the TUI's index (mavscope.native.index) against the pure build, row for row.
 
 The pure build (`FrameIndex.build` over the Python pipeline: Dissector then security stage, as the TUI
 ran it before) is the reference; the native one fills the columns from the C walker's chunks and the
@@ -18,10 +18,10 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mavscope.browse import native
 from mavscope.browse.index import FrameIndex
 from mavscope.capture.detect import open_capture
 from mavscope.mavlink.dialect import Dialect, load_dialect
+from mavscope.native import index as native
 from mavscope.pipeline.dissect import Dissector
 from mavscope.security.stage import SecurityStage
 from tests.conftest import CAPTURES

@@ -105,7 +105,7 @@ def test_usage_errors_are_the_full_parsers(argv: list[str]) -> None:
 def test_native_jsonl_imports_no_filter_printer_or_xml_parser() -> None:
     """`read -T jsonl` on the native engine, dialect cache warm: no display filter compiler, no Python
     printer, no pymavlink XML parser (the modules only the Python path or a cache miss needs)."""
-    from mavscope.native import engine
+    from mavscope.native.core import engine
 
     if engine({}) != "native":
         pytest.skip("the native extension is not built")
@@ -116,6 +116,6 @@ def test_native_jsonl_imports_no_filter_printer_or_xml_parser() -> None:
     proc = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0, proc.stderr
     modules = set(proc.stdout.split())
-    assert "mavscope.native" in modules  # the probe ran the native path
+    assert "mavscope.native.walk" in modules  # the probe ran the native path
     assert not modules & {"mavscope.filter", "mavscope.filter.compiler", "mavscope.output.printer",
                           "mavscope.output.capture_out", "pymavlink.generator.mavparse"}

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from pymavlink.dialects.v20 import all as v2
 
-from mavscope.export import native
+from mavscope.native import export as native
 from mavscope.pipeline.options import PipelineOptions
 from mavscope.security import downgrade
 from tests.conftest import CAPTURES, Cli

@@ -1,4 +1,4 @@
-"""The native source feeds the findings' analyses in bulk (mavscope/export/native_findings.py): the state it
+"""The native source feeds the findings' analyses in bulk (mavscope/export/findings_feed.py): the state it
 leaves them in must be the state the pure one-frame-at-a-time pass leaves, not only the findings (most
 captures do not reach the limits and rare paths where a difference would show in a finding).
 
@@ -23,12 +23,13 @@ from mavscope.analysis.objects import ObjectTracker
 from mavscope.analysis.objects.tracker import FTP_MESSAGE, TRACKED_MESSAGES
 from mavscope.analysis.params.tracker import ParamTracker
 from mavscope.capture.detect import open_capture
-from mavscope.export import native, record_batches
-from mavscope.export.native_columns import decoded, message_plan
+from mavscope.export import record_batches
 from mavscope.export.options import ExportOptions, dialect_for
 from mavscope.export.pure import Analyses
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import CrcStatus, Frame, Signature, new_frame
+from mavscope.native import export as native
+from mavscope.native.columns import decoded, message_plan
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.pipeline.options import PipelineOptions
 from mavscope.pipeline.session import make_security_stage, open_session

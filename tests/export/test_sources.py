@@ -25,9 +25,9 @@ from hypothesis import strategies as st
 
 from mavscope.errors import UsageError
 from mavscope.export import ExportOptions, record_batches, register_source
-from mavscope.export import native as native_source
 from mavscope.export.source import SOURCES, source_name
 from mavscope.mavlink.dialect import Dialect
+from mavscope.native import export as native_source
 from mavscope.pipeline.options import PipelineOptions
 from tests.conftest import CAPTURES, Cli
 from tests.native import build as nh

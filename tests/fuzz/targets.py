@@ -26,13 +26,13 @@ with atheris.instrument_imports():
     from mavscope.capture.detect import open_capture
     from mavscope.endpoint import Endpoint
     from mavscope.errors import MavscopeError
-    from mavscope.export import native as native_export
     from mavscope.export.source import record_batches  # noqa: F401  (instrumented before the comparison imports it)
     from mavscope.fields.summary import summary_info
     from mavscope.fields.tree import frame_items
     from mavscope.filter import compile_filter
     from mavscope.mavlink.dialect import load_dialect
     from mavscope.mavlink.framing import mcrf4xx
+    from mavscope.native import export as native_export
     from mavscope.output.jsonout import jsonl_bytes
     from mavscope.pipeline.dissect import Anomaly, Dissector
     from mavscope.pipeline.options import PipelineOptions

@@ -1,4 +1,4 @@
-"""`live --udp` on the native engine (mavscope.native_live) against the pure path, and its batched receiver.
+"""`live --udp` on the native engine (mavscope.native.live) against the pure path, and its batched receiver.
 
 - The C record maker (`_native.udp_record`) against capture.synth.udp_packet (the pure receiver's
   packet), byte for byte, over address families, ports and payload lengths.
@@ -104,16 +104,16 @@ class Replay(UdpSource):
 
 
 def both(cli: Cli, monkeypatch: pytest.MonkeyPatch, chunks: list[Chunk], *argv: str) -> tuple[str, str]:
-    import mavscope.native_live
+    import mavscope.native.live
 
     calls = []
-    write_live = mavscope.native_live.write_live
+    write_live = mavscope.native.live.write_live
 
     def spy(*args, **kwargs):  # type: ignore[no-untyped-def]
         calls.append(1)
         return write_live(*args, **kwargs)
 
-    monkeypatch.setattr(mavscope.native_live, "write_live", spy)
+    monkeypatch.setattr(mavscope.native.live, "write_live", spy)
     outputs = []
     for environ in (PURE, {}):
         monkeypatch.setattr("mavscope.commands.live.make_source", lambda args, env: Replay(chunks))
@@ -217,7 +217,7 @@ def test_batched_and_per_datagram_receivers_give_the_same_records() -> None:
 
 
 def test_fed_walker_refuses_what_it_cannot_take(dialect) -> None:  # type: ignore[no-untyped-def]
-    from mavscope.native import NativeWalk
+    from mavscope.native.walk import NativeWalk
 
     with NativeWalk(CAPTURES / "px4_sitl_udp.pcap", dialect, set(), set()) as walk:
         with pytest.raises(TypeError):

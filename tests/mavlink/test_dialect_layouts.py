@@ -21,7 +21,7 @@ from pathlib import Path
 from pymavlink.generator import mavcrc, mavparse
 
 from mavscope.mavlink.dialect import load_dialect
-from mavscope.mavlink.native_table import python_only
+from mavscope.native.table_blob import python_only
 from tests.conftest import Cli
 from tests.native.engines import same
 from tests.support.flows import T0, write_tlog

@@ -23,9 +23,9 @@ from pymavlink.dialects.v20 import all as mavlink
 from mavscope.capture.base import LINKTYPE_ETHERNET, Record
 from mavscope.capture.synth import udp_packet
 from mavscope.capture.writer import PcapWriter
-from mavscope.export import native as export_native
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame
+from mavscope.native import export as export_native
 from mavscope.notes import note
 from mavscope.pipeline.dissect import Dissector
 from tests.mavlink.test_hidden_frames import arm, datagrams

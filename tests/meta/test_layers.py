@@ -39,25 +39,34 @@ LAYERS: tuple[tuple[str, int], ...] = (
     ("mavscope.fields", 6),
     ("mavscope.filter", 6),
     ("mavscope.pipeline.session", 7),
-    ("mavscope.pipeline.windows", 7),  # the native walker's windows: the dissector and security stage composed
     ("mavscope.analysis", 8),
     ("mavscope.browse", 9),
     ("mavscope.export", 9),  # captures into a columnar dataset: builds on pipeline.session and the analyses
     ("mavscope.output", 10),
-    # The native engine of `read -T jsonl` composes the dissector and the security stage (as
-    # pipeline.session does) and writes output.jsonout's JSON Lines, so it sits with the front ends.
-    ("mavscope.native", 10),
-    ("mavscope.native_summary", 10),
-    ("mavscope.native_live", 10),
-    ("mavscope.native_stats", 10),
+    # mavscope/native/: the glue to the C extension, each module in the layer of what it serves. The
+    # package and its core (the extension's one import, the engine choice, the contract's constants: they
+    # name transport.base's transports) and the column chunk's numpy views import nothing above transport.
+    ("mavscope.native", 2),
+    ("mavscope.native.core", 2),
+    ("mavscope.native.chunk", 2),
+    ("mavscope.native.table_blob", 3),  # the dialect's layouts as the blob C takes (from mavlink's MessageDefs)
+    ("mavscope.native.tables", 4),  # the dialect's compiled layout table: read, stats, export, the TUI's index
+    ("mavscope.native.windows", 7),  # the native walker's windows: the dissector and security stage composed
     # The `stats` accumulator's plan (compiled from the dialect and the analyses) and its state read back
     # into the analyses' objects: `stats` and the export's findings both use them.
-    ("mavscope.native_plan", 9),
-    ("mavscope.native_dump", 9),
-    ("mavscope.native_tables", 4),  # the dialect's compiled layout table: read, stats, export, the TUI's index
-    # The C extension it wraps reads, dissects and writes in one; its column mode also serves the export's
-    # native batch source (export/native.py), so it sits in the export's layer (it imports nothing).
-    ("mavscope._native", 4),
+    ("mavscope.native.plan", 9),
+    ("mavscope.native.dump", 9),
+    ("mavscope.native.index", 9),  # the TUI's index filled from native chunks (browse's layer)
+    ("mavscope.native.columns", 9),  # the export's Arrow columns from native chunks (the export's layer)
+    ("mavscope.native.export", 9),  # the export's native batch source
+    # The native engine of `read -T jsonl` composes the dissector and the security stage (as
+    # pipeline.session does) and writes output.jsonout's JSON Lines, so it sits with the front ends.
+    ("mavscope.native.walk", 10),
+    ("mavscope.native.summary", 10),
+    ("mavscope.native.live", 10),
+    ("mavscope.native.stats", 10),
+    # The C extension (not a .py: listed for the record) imports nothing; mavscope.native.core imports it.
+    ("mavscope._native", 2),
     ("mavscope.cli", 10),
     ("mavscope.commands", 10),
     ("mavscope.tui", 10),

@@ -112,7 +112,7 @@ def native_output(path: str | Path, dialect: Dialect, keys: str | KeyMaterial = 
                   window: int | None = None) -> tuple[bytes, str, dict[str, int]]:
     """(stdout, stderr, walk counters) of `read -T jsonl` on the native path, through the API (the walker
     reading `window` bytes at a time when given)."""
-    from mavscope.native import write_jsonl
+    from mavscope.native.walk import write_jsonl
 
     return _native(lambda *a, **k: write_jsonl(*a, **k), path, dialect, keys, threaded, window)
 
@@ -121,7 +121,7 @@ def native_summary_output(path: str | Path, dialect: Dialect, keys: str | KeyMat
                           threaded: bool = False, window: int | None = None,
                           count: int | None = None) -> tuple[bytes, str, dict[str, int]]:
     """(stdout, stderr, walk counters) of `read FILE` (summary lines) on the native path, through the API."""
-    from mavscope.native_summary import write_summary
+    from mavscope.native.summary import write_summary
 
     with open_capture(path) as reader:
         first = next(iter(reader), None)

@@ -1,7 +1,7 @@
 """Both engines of `mavscope stats`, through the API, as comparable values.
 
 `pure_stats` is the pure path as the command runs it (Dissector, SecurityStage, StatsBuilder and Expert
-over every frame, problems through `Problems`); `native_stats_of` is mavscope.native_stats. `observed`
+over every frame, problems through `Problems`); `native_stats_of` is mavscope.native.stats. `observed`
 turns either into what the command's outputs are made of: the `--json` document (rows, totals,
 findings), the order of the streams (the busiest ones are picked by a stable sort: ties keep it) and of
 the conversations, every stream's sparkline series, and what went to stderr.
@@ -60,7 +60,7 @@ def native_stats_of(path: str | Path, dialect: Dialect, keys: str = "none",
                     window: int | None = None) -> dict[str, object] | None:
     """The native pass's observed outputs, or None when it gave up (a cap of the accumulator)."""
     from mavscope.capture.reader import WINDOW
-    from mavscope.native_stats import native_stats
+    from mavscope.native.stats import native_stats
 
     err = io.StringIO()
     problems = Problems(Env(stdout=io.StringIO(), stderr=err, environ={}), str(path))

@@ -15,7 +15,7 @@ from mavscope.capture.reader import make_record
 from mavscope.cli import Env, main
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
-from mavscope.mavlink.native_table import build_table
+from mavscope.native.table_blob import build_table
 from mavscope.pipeline.dissect import Dissector
 from tests.conftest import CAPTURES
 from tests.native import build as nh
@@ -24,7 +24,7 @@ from tests.support.pmav import heartbeat, mav2
 
 native_mod = pytest.importorskip("mavscope._native", reason="the native extension is not built")
 
-from mavscope import native  # noqa: E402 - after the skip
+from mavscope.native import walk as native  # noqa: E402 - after the skip
 
 
 def test_table_describes_every_message_from_the_dialect(dialect: Dialect) -> None:
@@ -195,8 +195,10 @@ def test_version_names_the_engine(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_without_the_extension_the_engine_is_pure(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(native, "_native", None)
-    assert native.engine({}) == "pure-python"
+    from mavscope.native import core
+
+    monkeypatch.setattr(core, "_native", None)
+    assert core.engine({}) == "pure-python" and not core.available({})
 
 
 def test_recycled_buffers_give_the_same_text(dialect: Dialect) -> None:

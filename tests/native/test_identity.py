@@ -48,7 +48,7 @@ def test_the_rover_tlog_with_console_text(real_captures: Path, cli: Cli) -> None
     (joined into tlog-text problems), the 96,646 frames (as pymavlink counts them, docs: issue 11) are
     written natively around them."""
     from mavscope.mavlink.dialect import load_dialect
-    from mavscope.native import NativeWalk
+    from mavscope.native.walk import NativeWalk
 
     path = real_captures / "ap_rover_mission_fence_rally_params.tlog"
     result = native(cli, path)  # identity with the pure path: test_real_capture
@@ -64,7 +64,7 @@ def test_the_rover_tlog_with_console_text(real_captures: Path, cli: Cli) -> None
 
 
 def test_engine_is_named_and_pure_can_be_forced() -> None:
-    from mavscope.native import engine
+    from mavscope.native.core import engine
 
     assert engine({}) == "native"
     assert engine({"MAVSCOPE_PURE": "1"}) == "pure-python"

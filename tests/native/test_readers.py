@@ -50,7 +50,7 @@ def truncated_when_opened(path: Path, size: int, monkeypatch: pytest.MonkeyPatch
     """The capture is cut to `size` bytes right after a reader (or the native walker) opened it: both see a
     file that shrank before their first read."""
     import mavscope.capture.reader as reader
-    import mavscope.native as native
+    import mavscope.native.walk as native
 
     original = reader.open_file
 
@@ -84,7 +84,7 @@ def walk_while_shrinking(path: str) -> None:
     """Walk a capture in small batches, reading 4 KiB at a time; after the first batch cut the file to a
     third: the walk goes on to the end without a fault, and ends with the shrink note; nothing is made up."""
     from mavscope.mavlink.dialect import load_dialect
-    from mavscope.native import NativeWalk
+    from mavscope.native.walk import NativeWalk
 
     dialect = load_dialect()
     full = Path(path).read_bytes()
@@ -140,7 +140,7 @@ def test_tlog_text_runs_end_at_frames_written_natively(tmp_path: Path, cli: Cli)
     """Console text one byte an entry, a frame, more text, frames: two separate tlog-text problems, the
     second one not joined to the first across the frame the walker wrote."""
     from mavscope.mavlink.dialect import load_dialect
-    from mavscope.native import NativeWalk
+    from mavscope.native.walk import NativeWalk
 
     mav = mav2()
     entries = [b"a", b"b", heartbeat(mav), b"c", b"d", b"e", heartbeat(mav), heartbeat(mav)]
@@ -162,7 +162,7 @@ def test_frames_released_at_once_are_written_in_chunks(tmp_path: Path, dialect: 
     reassembly holds them all until the first segment comes, then releases 2,000 frames from one record.
     They were put as one chunk of 2,000 lines (100,000 segments out of order held 400 MB of lines); now
     no write holds more than LineSink.LINES lines, and the output is the pure path's, line for line."""
-    from mavscope.native import LineSink
+    from mavscope.native.walk import LineSink
 
     mav = mav2()
     frames = []
@@ -202,7 +202,7 @@ def test_the_writer_holds_at_most_queued_chunks_for_a_slow_reader() -> None:
     import threading
     import time
 
-    from mavscope.native import _Writer
+    from mavscope.native.walk import _Writer
 
     gate = threading.Event()
 

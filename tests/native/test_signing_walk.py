@@ -121,7 +121,7 @@ def test_state_is_shared_between_c_and_python() -> None:
 
 
 def test_state_ends_where_both_paths_left_it() -> None:
-    from mavscope import native
+    from mavscope.native import walk as native
 
     cap = sg.Capture([[sg.signed_frame(KEY_A, 1, 1, 0, sg.TS0 + i)] for i in range(1, 6)])
     stage = SecurityStage(KeyMaterial(signing=[SigningKey("ka", KEY_A)]))
@@ -326,7 +326,7 @@ def test_the_walker_reads_only_the_senders_python_added_since_the_last_batch() -
     set once and then the senders Python logged. The output is the pure path's, every frame valid (the
     model of tests/native/signed.py). A clear() of the set (new key material) starts a new epoch, which
     makes a walker read the whole set again."""
-    from mavscope import native
+    from mavscope.native import walk as native
     from mavscope.security.stage import SignedSenders
 
     walked = 0

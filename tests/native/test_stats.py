@@ -88,7 +88,7 @@ def test_a_dialect_without_a_plan_runs_the_pure_path(tmp_path: Path, cli: Cli) -
     xml.write_text('<?xml version="1.0"?><mavlink><messages><message id="42424" name="UNKNOWN_7">'
                    '<description>x</description><field type="uint8_t" name="a">a</field></message>'
                    "</messages></mavlink>")
-    from mavscope.native_plan import build_plan
+    from mavscope.native.plan import build_plan
 
     assert build_plan(load_dialect([xml])) is None
     assert build_plan(DIALECT) is not None

@@ -17,13 +17,13 @@ from collections.abc import Callable
 
 import pytest
 
-from mavscope import native_dump
 from mavscope.analysis import expert, stats
 from mavscope.analysis.expert import COPIES_KEPT
 from mavscope.analysis.framelist import MAX_FRAMES
 from mavscope.analysis.sequence import MAX_CHANNELS, MAX_EXTRA
 from mavscope.analysis.vehicles import MAX_SENDERS
 from mavscope.mavlink.dialect import load_dialect
+from mavscope.native import dump as native_dump
 from tests.conftest import Cli
 from tests.native import build as nh
 from tests.native.engines import PURE, capture_file

@@ -153,7 +153,7 @@ def test_the_native_summary_serves_only_a_utf8_stream_that_is_not_a_terminal(mon
     too. Told apart by a native writer that fails."""
     import io
 
-    import mavscope.native_summary
+    import mavscope.native.summary
     from mavscope.cli import Env, main
 
     class Used(Exception):
@@ -162,7 +162,7 @@ def test_the_native_summary_serves_only_a_utf8_stream_that_is_not_a_terminal(mon
     def fail(*args: object, **kwargs: object) -> dict[str, int]:
         raise Used
 
-    monkeypatch.setattr(mavscope.native_summary, "write_summary", fail)
+    monkeypatch.setattr(mavscope.native.summary, "write_summary", fail)
 
     class Terminal(io.StringIO):
         def isatty(self) -> bool:

@@ -69,9 +69,10 @@ def test_unsigned_frames_of_a_signing_sender_get_the_stages_note_on_both_engines
 
 def test_the_native_walk_hands_none_of_them_back(tmp_path: Path) -> None:
     from mavscope.mavlink.dialect import load_dialect
-    from mavscope.native import NativeWalk, native_module
+    from mavscope.native.core import _native
+    from mavscope.native.walk import NativeWalk
 
-    if native_module() is None:
+    if _native is None:
         pytest.skip("the C extension is not built")
     path, _ = _capture(tmp_path)
     with NativeWalk(path, load_dialect(()), set(), set()) as walk:

@@ -72,9 +72,8 @@ def test_both_engines_say_it_on_the_same_records(tmp_path: Path, dialect: Dialec
 
 
 def test_the_native_walker_keeps_the_same_bound() -> None:
-    from mavscope.native import native_module
+    from mavscope.native.core import _native as native
 
-    native = native_module()
     if native is None:
         pytest.skip("built without the C extension")
     assert native.MAX_ENDPOINTS == CAP

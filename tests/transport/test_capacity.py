@@ -137,7 +137,7 @@ def test_a_forgotten_relay_is_said() -> None:
 # up is said: a registered code, or "-" with why nothing is given up (a listing, a resolution, an input
 # refused as malformed). docs/security.md's table says the same. A new bound fails this test until it is here.
 SAID: dict[str, str] = {
-    "native_tables.py:_KEPT": "- a cache of compiled tables, built again",
+    "native/tables.py:_KEPT": "- a cache of compiled tables, built again",
     "analysis/objects/names.py:MAX_VEHICLE_PATH": "object-unsafe-path",
     "transport/air.py:MAX_REMEMBERED": "capacity",
     "transport/air.py:RELAYS_KEPT": "capacity",
@@ -224,7 +224,7 @@ SAID: dict[str, str] = {
     "analysis/objects/imageformat.py:MAX_SIDE": "- no PNG written, the manifest says why (png_not_written)",
     "analysis/objects/images.py:MAX_LISTED": "- listed",
     "mavlink/floats.py:_CACHE_MAX": "- a memo, cleared",
-    "mavlink/native_table.py:MAX_PAYLOAD": "- such a message is handed to the pure path",
+    "native/table_blob.py:MAX_PAYLOAD": "- such a message is handed to the pure path",
 }
 BOUND = re.compile(r"^((?:MAX|[A-Z0-9_]+_MAX|[A-Z0-9_]*_?KEPT|[A-Z0-9_]*LIMIT|MIN_MAX)[A-Z0-9_]*) *[:=]", re.M)
 OUTSIDE = ("tui/", "output/", "commands/", "export/", "filter/", "fields/", "live/", "mavlink/dialect_check.py",

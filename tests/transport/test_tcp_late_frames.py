@@ -78,7 +78,7 @@ def test_frames_held_by_a_hole_come_after_later_records(tmp_path: Path, dialect)
 def _index_by(path: Path, dialect, how: str) -> FrameIndex:  # type: ignore[no-untyped-def]
     index = FrameIndex(dialect, path)
     if how == "native":
-        from mavscope.browse import native
+        from mavscope.native import index as native
         from mavscope.security.stage import SecurityStage
         from tests.native.engines import material
 
@@ -114,7 +114,7 @@ def test_the_tui_index_finds_every_record_out_of_order(tmp_path: Path, dialect, 
 def test_an_index_chunk_out_of_order_is_found_too(tmp_path: Path, dialect) -> None:  # type: ignore[no-untyped-def]
     """`extend` (a native chunk) after a row of record 8: its rows of records 10, 5, 11 and 5 hold late rows
     of record 5 (the 2nd and 4th); record 5's first row is the chunk's 2nd, 10's its 1st."""
-    from mavscope.browse.native import Chunk
+    from mavscope.native.index import Chunk
 
     index = FrameIndex(dialect)
     one = tf.build(tf.one_per_segment(tf.heartbeats(1)), acks=False).write(tmp_path / "one.pcap")

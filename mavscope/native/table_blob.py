@@ -1,7 +1,7 @@
 """The message layouts as the byte string the C extension's `Table` takes (src/mavscope_native/table.h).
 
 Compiled from mavscope's MessageDef/FieldDef, so from pymavlink's parser: never written by hand. Both the
-native `read` path (mavscope.native) and the export's native batch source (mavscope.export.native) hand it
+native `read` path (mavscope.native.walk) and the export's native batch source (mavscope.native.export) hand it
 to C.
 """
 
@@ -66,7 +66,7 @@ def python_only(md: MessageDef) -> bool:
     to C (`_fields`). A message over 255 bytes is one: pymavlink takes such a layout (mavparse checks no
     length) and decodes a frame of it as any, its payload (at most 255 bytes on the wire) padded with
     zeros, which is what the Python path does; no frame can carry the whole of it. Every table built on
-    the layout table (the native summary's, mavscope.native_summary) marks the same messages."""
+    the layout table (the native summary's, mavscope.native.summary) marks the same messages."""
     return not _fields(md)[1]
 
 

@@ -10,86 +10,21 @@ them. A `Window` holds at most `limit` rows; `FrameBatch.of_window` makes one ba
 
 from __future__ import annotations
 
-import os
-from collections.abc import Iterable, Iterator, Mapping, Sequence
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
-from types import ModuleType
 from typing import Any
-
-import numpy as np
 
 from mavscope.capture.reader import WINDOW, handed_back_record, open_file
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import Frame
+from mavscope.native.chunk import Chunk
+from mavscope.native.core import KINDS, _native
+from mavscope.native.core import available as available  # the engine choice, for the session
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.security.stage import SecurityStage
 
-_native: ModuleType | None
-try:
-    from mavscope import _native  # type: ignore[attr-defined,no-redef]
-except ImportError:  # built without a compiler
-    _native = None
-
-PURE_ENV = "MAVSCOPE_PURE"  # set (but to 0 or empty), the Python pipeline serves: the reference engine
-
-
-def available(environ: Mapping[str, str] | None = None) -> bool:
-    """Whether the native walker runs: the extension is built and MAVSCOPE_PURE is not set."""
-    env = os.environ if environ is None else environ
-    return _native is not None and env.get(PURE_ENV, "") in ("", "0")
-
-
-KINDS = {"pcap": 1, "pcapng": 2, "tlog": 3, "raw": 4}  # capture.h MS_KIND_*
 WINDOW_FRAMES = 65_536  # rows per window
-
-
-class Chunk:
-    """One chunk of frames the C walker took, as numpy views of its buffers."""
-
-    def __init__(self, n: int, columns: Sequence[Any], names: Sequence[str]) -> None:
-        """`columns`: the chunk's `_native.Block`s (buffers), named by `names` (the module's COLUMN_NAMES)."""
-        self.n = n
-        self.blocks: dict[str, Any] = dict(zip(names, columns))
-        b = self.blocks
-
-        def view(name: str, dtype: str) -> np.ndarray:
-            return np.frombuffer(b[name], np.dtype(dtype).newbyteorder("="), count=n)
-
-        self.record = view("record", "i8")
-        self.index = view("index", "i4")
-        self.time = view("time", "f8")
-        self.time_ok = view("time_ok", "u1").astype(np.bool_)
-        self.transport = view("transport", "u1")
-        self.src = view("src", "i4")
-        self.dst = view("dst", "i4")
-        self.version = view("version", "u1")
-        self.len = view("len", "u1")
-        self.iflags = view("incompat_flags", "u1")
-        self.cflags = view("compat_flags", "u1")
-        self.seq = view("seq", "u1")
-        self.sysid = view("sysid", "u1")
-        self.compid = view("compid", "u1")
-        self.msgid = view("msgid", "u4")
-        self.message = view("message", "i4")
-        self.crc = view("crc", "u2")
-        self.sig_link = view("signature_link_id", "u1")
-        self.sig_time = view("signature_timestamp", "i8")
-        self.sig_value = np.frombuffer(b["signature_value"], np.uint8, count=6 * n).reshape(n, 6)
-        self.offset = view("offset", "i8")
-        self.raw_at = np.frombuffer(b["raw_at"], np.int32, count=n + 1 if n else 0)
-        self.raw = bytes(b["raw"]) if n else b""
-        self.payload_at = np.frombuffer(b["payload_at"], np.int32, count=n + 1 if n else 0)
-        self.payload = memoryview(b["payload"])
-        self.signed = (self.iflags & 1).astype(np.bool_)
-
-    def payload_of(self, i: int) -> bytes:
-        """The payload of frame `i` of the chunk, as on the wire."""
-        return bytes(self.payload[self.payload_at[i]:self.payload_at[i + 1]])
-
-    def raw_of(self, i: int) -> bytes:
-        """The wire bytes of frame `i` of the chunk."""
-        return self.raw[self.raw_at[i]:self.raw_at[i + 1]]
 
 
 @dataclass
@@ -108,7 +43,7 @@ class Window:
 
 
 def messages_of(dialect: Dialect) -> list[MessageDef]:
-    """The dialect's messages in the layout table's order (native_table.build_table's)."""
+    """The dialect's messages in the layout table's order (table_blob.build_table's)."""
     return sorted(dialect.messages.values(), key=lambda m: m.id)
 
 
@@ -142,7 +77,7 @@ class _Walk:
         return w
 
 
-def windows(path: str, kind: str, dialect: Dialect, stage: SecurityStage, table: object,
+def windows(path: str, kind: str, dialect: Dialect, stage: SecurityStage, table: _native.Table,
             limit: int = WINDOW_FRAMES, progress: Any = None, stats: dict[str, int] | None = None,
             ) -> Iterator[Window]:
     """The capture's frames in windows of at most `limit` rows (see the module docstring). `table`: the

@@ -8,9 +8,9 @@ output is the reference. The two paths share their state explicitly: the dissect
 each batch and adds to after it, `Dissector.passed` is told of the records each batch walked, and the
 signature verifier's replay state is a `_native.SigningState` the walker judges known streams against.
 
-- `engine(environ)`: "native" or "pure-python" (MAVSCOPE_PURE=1, or no compiled extension: pure).
-- `table_for(dialect)` (mavscope.native_tables): the compiled `_native.Table` of the message layouts,
-  from `mavlink.native_table.build_table` (mavscope's MessageDef/FieldDef, so pymavlink's parser), never
+- The extension's import and the engine choice (`engine(environ)`) are mavscope.native.core's.
+- `table_for(dialect)` (mavscope.native.tables): the compiled `_native.Table` of the message layouts,
+  from `native.table_blob.build_table` (mavscope's MessageDef/FieldDef, so pymavlink's parser), never
   written by hand.
 - `NativeWalk`: the batch walker over a capture file: `Batch`es of JSON text and handed-back Records.
 - `write_jsonl(...)`: the whole `read -T jsonl` output of a capture, both paths interleaved.
@@ -24,8 +24,8 @@ from __future__ import annotations
 import os
 import queue
 import threading
-from collections.abc import Callable, Iterator, Mapping
-from types import ModuleType, TracebackType
+from collections.abc import Callable, Iterator
+from types import TracebackType
 from typing import IO, NamedTuple, Protocol
 
 import orjson
@@ -36,51 +36,30 @@ from mavscope.capture.reader import WINDOW, handed_back_record, open_file
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
-from mavscope.native_tables import table_for
+from mavscope.native.core import KINDS, _native
+from mavscope.native.tables import table_for
 from mavscope.output.jsonout import jsonl_bytes
-from mavscope.pipeline.dissect import Anomaly, Dissector
+from mavscope.pipeline.dissect import Anomaly, Dissector, Receivers
 from mavscope.security.stage import SecurityStage, unsigned_note
 
-_native: ModuleType | None
-try:
-    from mavscope import _native  # type: ignore[attr-defined,no-redef]
-except ImportError:  # built without a compiler: the pure-Python path serves
-    _native = None
-
-PURE_ENV = "MAVSCOPE_PURE"
 BATCH_BYTES = 1 << 20  # JSON text per batch handed to Python
-
-_KINDS = {"pcap": 1, "pcapng": 2, "tlog": 3, "raw": 4}
 
 
 _NAME, _SENDER, _OFFSET = "\x01", "\x02", 7_777_777_777_777  # where the walker writes its own
 
 
-def unsigned_templates() -> tuple[tuple[bytes, bytes, bytes, bytes], ...]:
+def unsigned_templates() -> tuple[tuple[bytes, bytes, bytes, bytes], tuple[bytes, bytes, bytes, bytes]]:
     """The JSON of the note security.stage.unsigned_note makes for a MAVLink 2 and a MAVLink 1 frame, each
     cut where the message's name, the sender ("sysid/compid") and the offset go: the native walker writes
     that note for an unsigned frame of a sender that signs (walk.c), so the text has one definition."""
-    out = []
-    for version in (2, 1):
+    def cut(version: int) -> tuple[bytes, bytes, bytes, bytes]:
         text = orjson.dumps(unsigned_note(version, _NAME, _SENDER, _OFFSET)[1].to_json())
         a, rest = text.split(b"\\u0001")
         b, rest = rest.split(b"\\u0002")
         c, d = rest.split(str(_OFFSET).encode())
-        out.append((a, b, c, d))
-    return tuple(out)
+        return a, b, c, d
 
-
-def native_module() -> ModuleType | None:
-    """The compiled extension, or None when this install has none."""
-    return _native
-
-
-def engine(environ: Mapping[str, str] | None = None) -> str:
-    """Which engine `read -T jsonl` runs: "native", or "pure-python" (no extension, or MAVSCOPE_PURE set)."""
-    env = os.environ if environ is None else environ
-    if _native is None or env.get(PURE_ENV, "") not in ("", "0"):
-        return "pure-python"
-    return "native"
+    return cut(2), cut(1)
 
 
 # (number, time, index) of the last record a batch walked natively: what Dissector.passed is told
@@ -101,8 +80,8 @@ class NativeWalk:
 
     The file is opened here (CaptureError as the readers raise it) and read by the walker with pread, a
     `window` of bytes at a time as the Python readers read it (the tests make it small).
-    With `summary` (a `_native.Summary`, mavscope.native_summary) the text is summary lines, their
-    times relative to `t0`, instead of JSON Lines; with `stats` (a `_native.Stats`, mavscope.native_stats)
+    With `summary` (a `_native.Summary`, mavscope.native.summary) the text is summary lines, their
+    times relative to `t0`, instead of JSON Lines; with `stats` (a `_native.Stats`, mavscope.native.stats)
     there is no text: the frames go to that accumulator.
     `endpoints` and `signed_senders` are the Python sets both paths share (the dissector's
     `mavlink_endpoints` and the security stage's `signed_senders`), `receivers` the dissector's (a
@@ -114,19 +93,19 @@ class NativeWalk:
 
     def __init__(self, path: str | os.PathLike[str] | None, dialect: Dialect, endpoints: set[Endpoint],
                  signed_senders: set[tuple[int, int]], kind: str | None = None, window: int = WINDOW,
-                 summary: object | None = None, t0: float | None = None, stats: object | None = None,
-                 receivers: Mapping[int, object] | None = None) -> None:
+                 summary: _native.Summary | None = None, t0: float | None = None,
+                 stats: _native.Stats | None = None, receivers: Receivers | None = None) -> None:
         if _native is None:
             raise RuntimeError("mavscope._native is not built")
         self._file: IO[bytes] | None = None
-        if path is None:  # a pcap that grows: `feed` it whole records (live capture, mavscope.native_live)
+        if path is None:  # a pcap that grows: `feed` it whole records (live capture, mavscope.native.live)
             self.kind, self.path, self.opened_size, fd = "pcap", "", 0, -1
         else:
             self.kind = kind or detect_kind(path)
             self.path, self._file, self.opened_size = open_file(path)
             fd = self._file.fileno()
         try:
-            self.walker = _native.Walker(fd, self.opened_size, _KINDS[self.kind], table_for(dialect), endpoints,
+            self.walker = _native.Walker(fd, self.opened_size, KINDS[self.kind], table_for(dialect), endpoints,
                                          Endpoint.from_packed, signed_senders, window, summary, t0, stats,
                                          receivers=receivers, notes=unsigned_templates())
         except BaseException:
@@ -144,7 +123,7 @@ class NativeWalk:
 
     def batches(self, signed_nokey: Callable[[], bool] = lambda: False, limit: int = BATCH_BYTES,
                 buffers: Callable[[], bytearray | None] | None = None,
-                signing: Callable[[], object | None] = lambda: None) -> Iterator[Batch]:
+                signing: Callable[[], _native.SigningState | None] = lambda: None) -> Iterator[Batch]:
         """The walk, batch by batch.
 
         The text comes as bytes, or, with `buffers`, in the bytearray it returns for each batch (the
@@ -170,7 +149,7 @@ class NativeWalk:
             text: bytes | bytearray | None = None
             record: Record | None = None
             for seg in segs:
-                if type(seg) is tuple:
+                if isinstance(seg, tuple):
                     record = handed_back_record(seg)
                 else:
                     text = seg
@@ -336,7 +315,7 @@ class LineSink:
         self.left -= n
 
 
-def share_signing(stage: SecurityStage) -> Callable[[], object | None]:
+def share_signing(stage: SecurityStage) -> Callable[[], _native.SigningState | None]:
     """Make `stage` keep its signature replay state in a `_native.SigningState` (before it has judged any
     frame), and return what the walker is given before each batch: the verifier's store (the stage may
     start over with new material), or None when it is not one."""
@@ -345,7 +324,7 @@ def share_signing(stage: SecurityStage) -> Callable[[], object | None]:
     state_type = _native.SigningState
     stage.use_signing_store(state_type)  # the verifier's replay state is the one the walker judges with
 
-    def signing() -> object | None:
+    def signing() -> _native.SigningState | None:
         store = stage.verifier.store
         return store if type(store) is state_type else None
 
@@ -355,7 +334,7 @@ def share_signing(stage: SecurityStage) -> Callable[[], object | None]:
 def drive(walk: NativeWalk, dissector: Dissector, stage: SecurityStage, sink: LineSink,
           buffers: Callable[[], bytearray | None] | None = None,
           progress: Callable[[int], None] | None = None,
-          signing: Callable[[], object | None] = lambda: None) -> None:
+          signing: Callable[[], _native.SigningState | None] = lambda: None) -> None:
     """The walk's batches into `sink` until the walk's end (or `sink.done`): native text as it is, the
     handed-back records through `dissector` (told first of the records walked natively before them);
     `progress` with the file offset after each native batch; `signing` (share_signing) before each
@@ -392,7 +371,7 @@ def write_jsonl(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityS
 
 
 def write_lines(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityStage, out: IO[bytes],
-                problems: Reporter, render: Callable[[Frame], bytes], *, summary: object | None = None,
+                problems: Reporter, render: Callable[[Frame], bytes], *, summary: _native.Summary | None = None,
                 t0: float | None = None, count: int | None = None, threaded: bool = True,
                 progress: Callable[[int], None] | None = None, kind: str | None = None,
                 window: int = WINDOW) -> dict[str, int]:

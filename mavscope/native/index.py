@@ -5,7 +5,7 @@ The C walker (src/mavscope_native, column mode: columns.h) takes the records who
 while no signing key is configured), and hands every other record back, in capture order. Here its
 chunks become index rows with a few numpy operations per chunk (`FrameIndex.extend`), and the records it
 hands back go through the pure path's `Dissector.feed` and security stage into `FrameIndex.add`, exactly
-as the export's native batch source (mavscope/export/native.py) merges the two. What a native row holds
+as the export's native batch source (mavscope/native/export.py) merges the two. What a native row holds
 is what `add` would have stored for the same frame: the frame is clean, so its CRC code is ok, it has no
 note, no span and no security verdict (the stage leaves a clean frame alone: an unsigned plaintext
 frame, or a signed one while no key is configured), and its bytes lie at its offset in the file.
@@ -16,9 +16,7 @@ index takes, not the payloads, wire bytes and message rows the export reads.
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Iterable, Mapping
-from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -29,30 +27,22 @@ from mavscope.capture.reader import WINDOW, handed_back_record, open_file
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
-from mavscope.native_tables import table_for
+from mavscope.native import core
+from mavscope.native.core import COLUMN_TRANSPORTS, KINDS, _native
+from mavscope.native.tables import table_for
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.security.stage import SecurityStage
-from mavscope.transport.base import TRANSPORT_TLOG, TRANSPORT_UDP
 
-_native: ModuleType | None
-try:
-    from mavscope import _native  # type: ignore[attr-defined,no-redef]
-except ImportError:  # built without a compiler: the pure build serves
-    _native = None
-
-PURE_ENV = "MAVSCOPE_PURE"  # as for `read` and `export`: set, the pure build runs
 FIRST_CHUNK = 256  # frames in the first chunk: the first rows go out at once
 CHUNK = 1 << 18  # frames per chunk afterwards
-_KINDS = {"pcap": 1, "pcapng": 2, "tlog": 3}  # capture.h MS_KIND_* (raw streams stay on the pure path)
-_TRANSPORTS = ("", TRANSPORT_UDP, TRANSPORT_TLOG)  # columns.h MS_TRANSPORT_* (0: never written)
+_RAW = "raw"  # raw streams stay on the pure path
+_TRANSPORTS = tuple(t or "" for t in COLUMN_TRANSPORTS)  # the transport column's codes -> names ("": none)
 
 
 def available(kind: str | None = None, environ: Mapping[str, str] | None = None) -> bool:
     """Whether a capture of `kind` is indexed natively: the extension is built, MAVSCOPE_PURE is not set,
     and the walker reads that kind."""
-    env = os.environ if environ is None else environ
-    return (_native is not None and env.get(PURE_ENV, "") in ("", "0")
-            and (kind is None or kind in _KINDS))
+    return core.available(environ) and (kind is None or (kind in KINDS and kind != _RAW))
 
 
 class Chunk:
@@ -124,7 +114,7 @@ def native_build(index: Any, path: str, dialect: Dialect, stage: SecurityStage, 
             items[0] += n
 
     try:
-        walker = _native.Walker(f.fileno(), size, _KINDS[kind], table_for(dialect), dissector.mavlink_endpoints,
+        walker = _native.Walker(f.fileno(), size, KINDS[kind], table_for(dialect), dissector.mavlink_endpoints,
                                 Endpoint.from_packed, stage.signed_senders, WINDOW, columns=cols,
                                 receivers=dissector.receivers)
         try:

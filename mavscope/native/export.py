@@ -17,9 +17,8 @@ schemas and rows are the pure source's (tests/export/test_sources.py); batches h
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator
 from dataclasses import replace
-from types import ModuleType
 from typing import Any
 
 import numpy as np
@@ -29,8 +28,7 @@ from mavscope.capture.detect import open_capture
 from mavscope.capture.reader import WINDOW, handed_back_record, open_file
 from mavscope.endpoint import Endpoint
 from mavscope.export.columns import AnomalyColumns, MessageTables, frame_batch
-from mavscope.export.native_columns import Chunk, Names, frames_batch, message_batch, message_plan
-from mavscope.export.native_findings import NativeFeed, window_rows
+from mavscope.export.findings_feed import NativeFeed, window_rows
 from mavscope.export.options import ExportOptions, Progress, Warn, dialect_for
 from mavscope.export.pure import (
     Analyses,
@@ -44,34 +42,22 @@ from mavscope.export.pure import (
 from mavscope.export.schema import FINDINGS, FRAMES, frames_schema
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import Frame
-from mavscope.native_dump import Accumulator, plan_for
-from mavscope.native_tables import table_for
+from mavscope.native.chunk import Chunk
+from mavscope.native.columns import Names, frames_batch, message_batch, message_plan
+from mavscope.native.core import KINDS, _native
+from mavscope.native.dump import Accumulator, plan_for
+from mavscope.native.tables import table_for
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.pipeline.session import make_security_stage
 from mavscope.security.stage import SecurityStage
 
-_native: ModuleType | None
-try:
-    from mavscope import _native  # type: ignore[attr-defined,no-redef]
-except ImportError:  # built without a compiler: the pure source serves
-    _native = None
-
-NATIVE = "native"
-PURE_ENV = "MAVSCOPE_PURE"  # as for `read` (mavscope.native.engine): set, the pure source runs
+NATIVE = "native"  # the source's name (export --source; `auto` runs it where core.available())
 WINDOW_FRAMES = 65_536  # native frames per window
-_KINDS = {"pcap": 1, "pcapng": 2, "tlog": 3, "raw": 4}  # capture.h MS_KIND_*
+
+_tables: dict[int, tuple[Dialect, _native.Table, list[MessageDef], pa.Array]] = {}  # id(dialect) -> compiled
 
 
-def available(environ: Mapping[str, str] | None = None) -> bool:
-    """Whether `auto` runs this source: the extension is built and MAVSCOPE_PURE is not set."""
-    env = os.environ if environ is None else environ
-    return _native is not None and env.get(PURE_ENV, "") in ("", "0")
-
-
-_tables: dict[int, tuple[Dialect, object, list[MessageDef], pa.Array]] = {}  # id(dialect) -> compiled
-
-
-def _compiled(dialect: Dialect) -> tuple[object, list[MessageDef], pa.Array]:
+def _compiled(dialect: Dialect) -> tuple[_native.Table, list[MessageDef], pa.Array]:
     """The dialect's `_native.Table`, its messages in table order and their names (once per Dialect)."""
     got = _tables.get(id(dialect))
     if got is None or got[0] is not dialect:
@@ -274,7 +260,7 @@ class _Export:
         spath, f, size = open_file(self.path)
         try:
             cols = _native.Columns(self.table, WINDOW_FRAMES)
-            walker = _native.Walker(f.fileno(), size, _KINDS[self.kind], self.table, self.dissector.mavlink_endpoints,
+            walker = _native.Walker(f.fileno(), size, KINDS[self.kind], self.table, self.dissector.mavlink_endpoints,
                                     Endpoint.from_packed, self.stage.signed_senders, WINDOW, columns=cols,
                                     stats=None if self.acc is None else self.acc.acc,
                                     receivers=self.dissector.receivers)
@@ -289,22 +275,23 @@ class _Export:
         if progress is not None:
             progress(int(stats["position"]))
 
-    def _walk(self, walker: object, cols: object, progress: Progress | None) -> Iterator[pa.RecordBatch]:
-        step, walked, told = walker.next, walker.walked, None  # type: ignore[attr-defined]
+    def _walk(self, walker: _native.Walker, cols: _native.Columns, progress: Progress | None,
+              ) -> Iterator[pa.RecordBatch]:
+        step, walked, told = walker.next, walker.walked, None
         dissector = self.dissector
         while True:
-            before = cols.frames  # type: ignore[attr-defined]
+            before = cols.frames
             # windows of WINDOW_FRAMES rows, native and handed back together, less what the frames table
             # carries over (a handed-back record of several frames can overshoot a window): so that frames
             # batches of as many rows are windows as they are, not copies. The walker stops where the native
             # rows fill the window.
             goal = WINDOW_FRAMES - self.pending.frames_held % WINDOW_FRAMES
-            cols.limit = goal - len(self.py)  # type: ignore[attr-defined]  # > cols.frames here
+            cols.limit = goal - len(self.py)  # > cols.frames here
             segs = step(not self.stage.check_signatures, 1 << 20, None)
             if segs is None:
                 last = walked()
                 if last is not None and last != told:
-                    yield from self.python(dissector.passed(*last), cols.frames)  # type: ignore[attr-defined]
+                    yield from self.python(dissector.passed(*last), cols.frames)
                 break
             told = walked()
             if told is not None:
@@ -313,13 +300,13 @@ class _Export:
                     yield from self.python(held, before)
             for seg in segs:
                 if type(seg) is tuple:
-                    yield from self.python(dissector.feed(handed_back_record(seg)), cols.frames)  # type: ignore[attr-defined]
-            if cols.frames + len(self.py) >= goal:  # type: ignore[attr-defined]
-                yield from self.window(cols.take())  # type: ignore[attr-defined]
+                    yield from self.python(dissector.feed(handed_back_record(seg)), cols.frames)
+            if cols.frames + len(self.py) >= goal:
+                yield from self.window(cols.take())
                 if progress is not None:
-                    progress(int(walker.stats()["position"]))  # type: ignore[attr-defined]
-        yield from self.python(dissector.finish(), cols.frames)  # type: ignore[attr-defined]
-        yield from self.window(cols.take())  # type: ignore[attr-defined]
+                    progress(int(walker.stats()["position"]))
+        yield from self.python(dissector.finish(), cols.frames)
+        yield from self.window(cols.take())
 
     def settle(self) -> None:
         """The expert's detectors with the state of the whole capture (after `run`): the accumulator's, or

@@ -22,8 +22,10 @@ from mavscope.analysis.stats import Stats
 from mavscope.capture.reader import WINDOW
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
-from mavscope.native import NativeWalk, Reporter, native_module, table_for
-from mavscope.native_dump import Accumulator, plan_for
+from mavscope.native.core import _native
+from mavscope.native.dump import Accumulator, plan_for
+from mavscope.native.tables import table_for
+from mavscope.native.walk import NativeWalk, Reporter
 from mavscope.notes import Finding
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.security.stage import SecurityStage
@@ -46,11 +48,10 @@ def native_stats(path: str | os.PathLike[str], dialect: Dialect, stage: Security
     """Statistics and findings of a whole capture, as `stats` computes them on the pure path (every frame,
     no filter); anomalies and frames with notes go to `problems` as there. None when the dialect has no
     plan or a table of the accumulator filled up: run the pure path instead (nothing was printed)."""
-    native = native_module()
     plan = plan_for(dialect)
-    if native is None or plan is None:
+    if _native is None or plan is None:
         return None
-    acc = Accumulator(native.Stats(table_for(dialect), plan))
+    acc = Accumulator(_native.Stats(table_for(dialect), plan))
     dissector = Dissector(dialect, stage.material.wifi)
     run = stage.run
     nokey: Callable[[], bool] = lambda: not stage.check_signatures  # noqa: E731 - asked per batch

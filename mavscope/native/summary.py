@@ -27,9 +27,11 @@ from mavscope.capture.reader import WINDOW
 from mavscope.fields.summary import DEGREES, ENUM, PLAIN, PYTHON_INFO, summary_plan
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import Frame
-from mavscope.mavlink.native_table import python_only as layout_python_only
 from mavscope.mavlink.semantics import COMMAND_MESSAGES, COMMAND_PARAM_INDEX, MESSAGE_ID_LABELS
-from mavscope.native import Reporter, native_module, table_for, write_lines
+from mavscope.native.core import _native
+from mavscope.native.table_blob import python_only as layout_python_only
+from mavscope.native.tables import table_for
+from mavscope.native.walk import Reporter, write_lines
 from mavscope.output.text import summary_line
 from mavscope.security.stage import SecurityStage
 from mavscope.visible import visible
@@ -169,7 +171,7 @@ def _message_entry(md: MessageDef, dialect: Dialect, commands: Callable[[], byte
 
 def build_summary_table(dialect: Dialect) -> bytes:
     """What the summary of every message of `dialect` shows, as the blob of `_native.Summary` (in the
-    order of mavscope.mavlink.native_table.build_table: by message id)."""
+    order of mavscope.native.table_blob.build_table: by message id)."""
     made: list[bytes] = []
 
     def commands() -> bytes:  # the same for every command message: made once
@@ -182,17 +184,17 @@ def build_summary_table(dialect: Dialect) -> bytes:
     return SUMMARY_MAGIC + struct.pack("<II", SUMMARY_VERSION, len(entries)) + b"".join(entries)
 
 
-_summary: list[tuple[Dialect, object, object]] = []  # the last Dialect compiled, its Table and its summary table
+# the last Dialect compiled, its Table and its summary table
+_summary: list[tuple[Dialect, _native.Table, _native.Summary]] = []
 
 
-def summary_for(dialect: Dialect) -> object:
+def summary_for(dialect: Dialect) -> _native.Summary:
     """The compiled `_native.Summary` of `dialect` (over `table_for(dialect)`), built once per Dialect."""
-    native = native_module()
-    if native is None:
+    if _native is None:
         raise RuntimeError("mavscope._native is not built")
     table = table_for(dialect)  # (a Summary is over one Table: table_for keeps the last Dialect's only)
     if not _summary or _summary[0][0] is not dialect or _summary[0][1] is not table:
-        _summary[:] = [(dialect, table, native.Summary(table, build_summary_table(dialect)))]
+        _summary[:] = [(dialect, table, _native.Summary(table, build_summary_table(dialect)))]
     return _summary[0][2]
 
 

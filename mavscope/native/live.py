@@ -15,7 +15,6 @@ split from the Chunk), and a stopping capture counts what it no longer decodes (
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
-from types import ModuleType
 from typing import Protocol
 
 from mavscope.capture.base import LINKTYPE_ETHERNET, Record
@@ -24,8 +23,9 @@ from mavscope.live.source import Chunk, LiveSource, chunk_items
 from mavscope.live.stop import Stopper
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
-from mavscope.native import LineSink, NativeWalk, Reporter, _native, drive, share_signing
-from mavscope.native_summary import summary_for
+from mavscope.native.core import _native
+from mavscope.native.summary import summary_for
+from mavscope.native.walk import LineSink, NativeWalk, Reporter, drive, share_signing
 from mavscope.pipeline.dissect import Dissector
 from mavscope.security.stage import SecurityStage
 
@@ -38,10 +38,8 @@ class Output(Protocol):
     def flush(self) -> object: ...
 
 
-def _ext() -> ModuleType:
-    if _native is None:
-        raise RuntimeError("mavscope._native is not built")
-    return _native
+def _not_built() -> RuntimeError:
+    return RuntimeError("mavscope._native is not built")
 
 
 def receiver_factory() -> Callable[[bytes, int], object] | None:
@@ -51,8 +49,9 @@ def receiver_factory() -> Callable[[bytes, int], object] | None:
 
 def pcap_header() -> bytes:
     """The global header of the pcap a Chunk's records belong to."""
-    header: bytes = _ext().UDP_PCAP_HEADER
-    return header
+    if _native is None:
+        raise _not_built()
+    return _native.UDP_PCAP_HEADER
 
 
 def write_live(source: LiveSource, dialect: Dialect, stage: SecurityStage, out: Output, problems: Reporter,
@@ -105,7 +104,9 @@ def write_live(source: LiveSource, dialect: Dialect, stage: SecurityStage, out: 
 
 def _write_pcap(writer: LivePcapWriter, chunk: Chunk) -> None:
     """The Chunk's records into the pcap, as the pure path writes each Record (microsecond times)."""
-    micro, count = _ext().records_to_micro(chunk.records)
+    if _native is None:
+        raise _not_built()
+    micro, count = _native.records_to_micro(chunk.records)
     writer.write_batch(micro, count, lambda: _records(chunk))
 
 

@@ -31,16 +31,17 @@ from mavscope.analysis.objects.tracker import TRACKED_MESSAGES
 from mavscope.analysis.params.tracker import MAV_AUTOPILOT_INVALID, MAV_AUTOPILOT_PX4, MAV_TYPE_GCS
 from mavscope.analysis.params.tracker import MESSAGES as PARAM_MESSAGES
 from mavscope.endpoint import Endpoint
-from mavscope.export.native_columns import Chunk
-from mavscope.export.native_commands import CommandKeys, payload_rows
+from mavscope.export.command_keys import CommandKeys, payload_rows
 from mavscope.export.pure import Analyses
 from mavscope.mavlink.dialect import MessageDef, char_text
 from mavscope.mavlink.frame import CrcStatus, Frame, Signature, SignatureStatus, new_frame
+from mavscope.native.chunk import Chunk
+from mavscope.native.core import COLUMN_TRANSPORTS
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.security.downgrade import Downgrades, signs, unsigned
 from mavscope.security.stage import RADIO_STATUS
 
-_TRANSPORT = {1: "udp", 2: "tlog"}  # columns.h MS_TRANSPORT_*
+_TRANSPORT = {k: t for k, t in enumerate(COLUMN_TRANSPORTS) if t is not None}  # the transport column's codes
 
 
 def _nth(w: Window, rows: list[int]) -> Callable[[int], Frame]:

@@ -32,11 +32,12 @@ from mavscope.analysis.stats import RateHistogram, Stats, _Conversation, _Link, 
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame, SignatureStatus, plaintext_payload
 from mavscope.mavlink.semantics import message_label
-from mavscope.native_plan import build_plan
+from mavscope.native.core import STATS_TRANSPORTS
+from mavscope.native.plan import build_plan
 from mavscope.notes import FrameNumbers
 from mavscope.transport.base import TRANSPORT_TLOG
 
-TRANSPORTS = ("udp", "tcp", "tlog", "raw")  # acc.h MS_TR_*
+TRANSPORTS = STATS_TRANSPORTS  # Stats.add's transport codes (the extension's STATS_TRANSPORT_*)
 CRC = tuple(CrcStatus)  # MS_CRC_*: ok, bad, unchecked, truncated
 SIGNATURES = ("unsigned", *(s.value for s in (SignatureStatus.VALID, SignatureStatus.INVALID, SignatureStatus.NO_KEY,
                                               SignatureStatus.REPLAY, SignatureStatus.TRUNCATED)))  # MS_SIG_*

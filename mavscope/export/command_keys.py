@@ -18,9 +18,9 @@ from typing import Any
 import numpy as np
 
 from mavscope.analysis.command_log import PENDING_MAX, command_fields
-from mavscope.export.native_columns import Chunk
 from mavscope.mavlink.dialect import MessageDef
 from mavscope.mavlink.frame import Frame
+from mavscope.native.chunk import Chunk
 
 SENT = ("COMMAND_LONG", "COMMAND_INT")  # the messages that send a command (the matcher's waiting ones)
 

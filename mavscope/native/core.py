@@ -1,0 +1,67 @@
+"""The one door to the C extension: its import, the engine choice, and the contract's constants.
+
+`mavscope._native` is optional (setup.py builds it where a compiler is found); every module that talks to
+it imports it from here (`from mavscope.native.core import _native`), and chooses the engine here:
+
+- `available(environ)`: whether the native engine runs: the extension is built and MAVSCOPE_PURE is
+  unset (or empty, or 0). `engine(environ)` says the same as "native" or "pure-python".
+- `KINDS`: capture kind -> the Walker's `kind` (capture.h's enum, as the module exports it: KIND_*).
+- `COLUMN_TRANSPORTS`: the transport column's code (columns.h, COLUMN_TRANSPORT_*) -> the transport's
+  name (None: a code never written); `STATS_TRANSPORTS`: Stats.add's transport code (acc.h,
+  STATS_TRANSPORT_*) -> name. The names are mavscope.transport.base's.
+
+The typed contract of the extension is mavscope/_native.pyi (tests/meta/test_native_contract.py holds
+it to the built module). Without the extension the constants are empty: nothing walks natively then.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+
+from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TCP, TRANSPORT_TLOG, TRANSPORT_UDP
+
+try:
+    from mavscope import _native
+except ImportError:  # built without a compiler: the pure-Python path serves
+    # mypy types `_native` as the module (the stub); whether it is built is `_native is not None`
+    _native = None  # type: ignore[assignment]
+
+PURE_ENV = "MAVSCOPE_PURE"  # set (but not to "" or "0"): the pure-Python engine runs, built or not
+NATIVE, PURE = "native", "pure-python"  # engine()'s answers
+
+
+def available(environ: Mapping[str, str] | None = None) -> bool:
+    """Whether the native engine runs: the extension is built and MAVSCOPE_PURE is not set."""
+    env = os.environ if environ is None else environ
+    return _native is not None and env.get(PURE_ENV, "") in ("", "0")
+
+
+def engine(environ: Mapping[str, str] | None = None) -> str:
+    """Which engine runs: "native", or "pure-python" (no extension, or MAVSCOPE_PURE set)."""
+    return NATIVE if available(environ) else PURE
+
+
+def _by_code(codes: Mapping[int, str]) -> tuple[str | None, ...]:
+    """A tuple indexed by code: the name of each code, None where there is none."""
+    return tuple(codes.get(k) for k in range(max(codes, default=-1) + 1))
+
+
+def _dense(codes: Mapping[int, str]) -> tuple[str, ...]:
+    """A tuple indexed by code of codes numbered 0, 1, ... without a gap."""
+    if sorted(codes) != list(range(len(codes))):
+        raise ImportError(f"mavscope._native: codes {sorted(codes)} are not 0..{len(codes) - 1}")
+    return tuple(codes[k] for k in range(len(codes)))
+
+
+KINDS: Mapping[str, int] = {}
+COLUMN_TRANSPORTS: tuple[str | None, ...] = ()
+STATS_TRANSPORTS: tuple[str, ...] = ()
+if _native is not None:
+    KINDS = {"pcap": _native.KIND_PCAP, "pcapng": _native.KIND_PCAPNG, "tlog": _native.KIND_TLOG,
+             "raw": _native.KIND_RAW}
+    COLUMN_TRANSPORTS = _by_code({_native.COLUMN_TRANSPORT_UDP: TRANSPORT_UDP,
+                                  _native.COLUMN_TRANSPORT_TLOG: TRANSPORT_TLOG})
+    STATS_TRANSPORTS = _dense({_native.STATS_TRANSPORT_UDP: TRANSPORT_UDP, _native.STATS_TRANSPORT_TCP: TRANSPORT_TCP,
+                               _native.STATS_TRANSPORT_TLOG: TRANSPORT_TLOG,
+                             _native.STATS_TRANSPORT_RAW: TRANSPORT_RAW})
