@@ -34,13 +34,16 @@ from mavscope.notes import GivenUp, Note
 from mavscope.pipeline.textrun import TextRun, is_text_entry
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
 from mavscope.transport.decap import Decapsulator
+from mavscope.transport.dispatch import TABLES
 from mavscope.transport.tcp import GAP, TcpReassembler
 from mavscope.transport.wpa import WifiKey, Wpa
 from mavscope.wire import SIGNATURE_LEN, STX_V2
 
-# Ports MAVLink uses by convention (DOMAIN.md). Datagrams on them are taken for MAVLink even when no
-# frame in them has a valid CRC; on any other port, a valid frame must have been seen first.
-MAVLINK_PORTS = frozenset({14550, 14540, 14555, 14557, 14560, 14580, 18570, 5760, 5761, 5762, 5763})
+# Ports MAVLink uses by convention (DOMAIN.md): the UDP ports bound to PortRole.MAVLINK in the transport's
+# dispatch tables (mavscope.transport.dispatch UDP_PORTS; Decapsulator.mavlink_ports). Datagrams on them are
+# taken for MAVLink even when no frame in them has a valid CRC; on any other port, a valid frame must have
+# been seen first. MAVLINK_PORTS: the default tables' (a dissector's own are its decap.mavlink_ports).
+MAVLINK_PORTS = TABLES.mavlink_ports()
 # Sources of valid MAVLink remembered (Dissector.mavlink_endpoints); the native walker's MS_MAX_ENDPOINTS
 # (src/mavscope_native/walk.h) is the same number (tests/pipeline/test_endpoint_bound.py checks it).
 MAX_MAVLINK_ENDPOINTS = 16384
@@ -246,7 +249,8 @@ class Dissector:
             return True
         if p.src in self.mavlink_endpoints or p.dst in self.mavlink_endpoints:
             return True
-        return any(ep is not None and ep.port in MAVLINK_PORTS for ep in (p.src, p.dst))
+        ports = self.decap.mavlink_ports
+        return any(ep is not None and ep.port in ports for ep in (p.src, p.dst))
 
     def _datagram(self, p: Payload, start: int) -> Iterator[Frame | Anomaly]:
         """The general path: scan a datagram from `start` (the frames before it were clean)."""

@@ -3,19 +3,8 @@
 from __future__ import annotations
 
 import struct
+from collections.abc import Callable
 
-from mavscope.capture.base import (
-    LINKTYPE_ETHERNET,
-    LINKTYPE_IEEE802_11,
-    LINKTYPE_IEEE802_11_RADIOTAP,
-    LINKTYPE_IPV4,
-    LINKTYPE_IPV6,
-    LINKTYPE_LINUX_SLL,
-    LINKTYPE_LINUX_SLL2,
-    LINKTYPE_LOOP,
-    LINKTYPE_NULL,
-    LINKTYPE_RAW,
-)
 from mavscope.transport.air import Air
 from mavscope.transport.wifi import Rebuilt, Subframes, Undecoded, strip_80211, strip_radiotap
 
@@ -37,21 +26,15 @@ _U32BE = struct.Struct(">I").unpack_from
 LinkResult = tuple[int, int] | str | Undecoded | Subframes | Rebuilt | None
 
 
-def _family(af: int) -> int:
-    """The ethertype for a BSD address family, 0 for one that is not IP."""
-    if af == AF_INET:
-        return ETHERTYPE_IPV4
-    if af in AF_INET6:
-        return ETHERTYPE_IPV6
-    return 0
+_FAMILIES = {AF_INET: ETHERTYPE_IPV4, **dict.fromkeys(AF_INET6, ETHERTYPE_IPV6)}  # BSD address family -> ethertype
+_IP_VERSIONS = {4: ETHERTYPE_IPV4, 6: ETHERTYPE_IPV6}  # a bare IP header's version nibble -> ethertype
 
 
 def _ip_version(data: bytes, off: int) -> int:
     """The ethertype for a bare IP header at `off`, from its version nibble (0 if neither 4 nor 6)."""
     if off >= len(data):
         return 0
-    v = data[off] >> 4
-    return ETHERTYPE_IPV4 if v == 4 else ETHERTYPE_IPV6 if v == 6 else 0
+    return _IP_VERSIONS.get(data[off] >> 4, 0)
 
 
 def ethernet_at(data: bytes, start: int) -> tuple[int, int] | str:
@@ -71,45 +54,69 @@ def ethernet_at(data: bytes, start: int) -> tuple[int, int] | str:
     return (et, off)
 
 
-def strip_link(linktype: int, data: bytes, air: Air | None = None, whole: bool = True) -> LinkResult:
-    """Where the network header starts: (ethertype, offset) (`air`: the capture's 802.11 state, for the Wi-Fi
-    link types; a decrypted frame comes back as its plaintext; `whole`: the record was not snapped, so that a
-    radiotap frame's FCS is checked).
+# The link-layer decoders, one a link type: (data, air, whole) -> LinkResult (`air`: the capture's 802.11 state,
+# for the Wi-Fi link types, a decrypted frame coming back as its plaintext; `whole`: the record was not snapped,
+# so that a radiotap frame's FCS is checked). Each returns (ethertype or 0 for a packet that is not IP, offset
+# of the network header), or an error message (str) when the link header is malformed or cut short.
+LinkDecoder = Callable[[bytes, Air | None, bool], LinkResult]
 
-    Returns None for a link type this module does not decode, and an error message (str) when the link
-    header is malformed or cut short. Non-IP packets come back with their ethertype (or 0) for the caller
-    to ignore.
-    """
-    n = len(data)
-    if linktype == LINKTYPE_ETHERNET:
-        return ethernet_at(data, 0)
-    if linktype == LINKTYPE_RAW:
-        return (_ip_version(data, 0), 0)
-    if linktype == LINKTYPE_IPV4:
-        return (ETHERTYPE_IPV4, 0)
-    if linktype == LINKTYPE_IPV6:
-        return (ETHERTYPE_IPV6, 0)
-    if linktype == LINKTYPE_NULL:
-        if n < 4:
-            return f"loopback header needs 4 bytes, packet has {n}"
-        af = _U32LE(data)[0]
-        if af > 0xFFFF:  # written on a big-endian host
-            af = _U32BE(data)[0]
-        return (_family(af), 4)
-    if linktype == LINKTYPE_LOOP:
-        if n < 4:
-            return f"loopback header needs 4 bytes, packet has {n}"
-        return (_family(_U32BE(data)[0]), 4)
-    if linktype == LINKTYPE_LINUX_SLL:
-        if n < 16:
-            return f"Linux cooked header needs 16 bytes, packet has {n}"
-        return (_U16(data, 14)[0], 16)
-    if linktype == LINKTYPE_LINUX_SLL2:
-        if n < 20:
-            return f"Linux cooked v2 header needs 20 bytes, packet has {n}"
-        return (_U16(data, 0)[0], 20)
-    if linktype == LINKTYPE_IEEE802_11_RADIOTAP:
-        return strip_radiotap(data, air, whole)
-    if linktype == LINKTYPE_IEEE802_11:
-        return strip_80211(data, air=air, whole=whole)
-    return None
+
+def ethernet(data: bytes, air: Air | None, whole: bool) -> LinkResult:
+    """Ethernet II (and 802.3), past 802.1Q / 802.1ad tags."""
+    return ethernet_at(data, 0)
+
+
+def raw_ip(data: bytes, air: Air | None, whole: bool) -> LinkResult:
+    """LINKTYPE_RAW: a bare IPv4 or IPv6 header, told by its version nibble."""
+    return (_ip_version(data, 0), 0)
+
+
+def ipv4(data: bytes, air: Air | None, whole: bool) -> LinkResult:
+    """LINKTYPE_IPV4: a bare IPv4 header."""
+    return (ETHERTYPE_IPV4, 0)
+
+
+def ipv6(data: bytes, air: Air | None, whole: bool) -> LinkResult:
+    """LINKTYPE_IPV6: a bare IPv6 header."""
+    return (ETHERTYPE_IPV6, 0)
+
+
+def bsd_null(data: bytes, air: Air | None, whole: bool) -> LinkResult:
+    """BSD loopback: a 4-byte address family in the capturing host's byte order."""
+    if len(data) < 4:
+        return f"loopback header needs 4 bytes, packet has {len(data)}"
+    af = _U32LE(data)[0]
+    if af > 0xFFFF:  # written on a big-endian host
+        af = _U32BE(data)[0]
+    return (_FAMILIES.get(af, 0), 4)
+
+
+def openbsd_loop(data: bytes, air: Air | None, whole: bool) -> LinkResult:
+    """OpenBSD loopback: a 4-byte address family in network byte order."""
+    if len(data) < 4:
+        return f"loopback header needs 4 bytes, packet has {len(data)}"
+    return (_FAMILIES.get(_U32BE(data)[0], 0), 4)
+
+
+def linux_sll(data: bytes, air: Air | None, whole: bool) -> LinkResult:
+    """Linux cooked capture (any interface): 16 bytes, the protocol last."""
+    if len(data) < 16:
+        return f"Linux cooked header needs 16 bytes, packet has {len(data)}"
+    return (_U16(data, 14)[0], 16)
+
+
+def linux_sll2(data: bytes, air: Air | None, whole: bool) -> LinkResult:
+    """Linux cooked capture v2: 20 bytes, the protocol first."""
+    if len(data) < 20:
+        return f"Linux cooked v2 header needs 20 bytes, packet has {len(data)}"
+    return (_U16(data, 0)[0], 20)
+
+
+def radiotap(data: bytes, air: Air | None, whole: bool) -> LinkResult:
+    """802.11 behind a radiotap header (monitor mode)."""
+    return strip_radiotap(data, air, whole)
+
+
+def ieee802_11(data: bytes, air: Air | None, whole: bool) -> LinkResult:
+    """Bare 802.11 frames."""
+    return strip_80211(data, air=air, whole=whole)

@@ -16,17 +16,24 @@ from mavscope.transport.link import ETHERTYPE_IPV4, ETHERTYPE_IPV6, ethernet_at
 PROTO_IPIP = 4
 PROTO_IPV6_IN_IP = 41
 PROTO_GRE = 47
-TUNNEL_PROTOS = frozenset((PROTO_IPIP, PROTO_IPV6_IN_IP, PROTO_GRE))
-VXLAN_PORTS = frozenset((4789, 8472))  # IANA's, and the Linux kernel's default
+VXLAN_PORT = 4789  # IANA's
+VXLAN_PORT_LINUX = 8472  # the Linux kernel's default
 ETHERTYPE_TEB = 0x6558  # GRE's transparent Ethernet bridging: an Ethernet frame inside
 MAX_DEPTH = 4  # tunnels inside tunnels decoded at most
 
-Inner = tuple[int, int] | str  # (ethertype or 0: not IP, offset of the inner header), or a problem
+# (ethertype or 0: not IP, offset of the inner header), a problem, or None: not this tunnel after all (a UDP
+# datagram to a tunnel's port that is not the tunnel's is read as any other datagram)
+Inner = tuple[int, int] | str | None
 
 
-def ip_in_ip(proto: int, l4: int) -> Inner:
-    """The inner header of an IP-in-IP or IPv6-in-IP packet whose payload starts at `l4`."""
-    return (ETHERTYPE_IPV4 if proto == PROTO_IPIP else ETHERTYPE_IPV6, l4)
+def ipip(data: bytes, start: int, end: int) -> Inner:
+    """The IPv4 packet inside an IP-in-IP packet (RFC 2003) whose payload starts at `start`."""
+    return (ETHERTYPE_IPV4, start)
+
+
+def ipv6_in_ip(data: bytes, start: int, end: int) -> Inner:
+    """The IPv6 packet inside an IPv6-in-IP packet (RFC 4213) whose payload starts at `start`."""
+    return (ETHERTYPE_IPV6, start)
 
 
 def gre(data: bytes, l4: int, end: int) -> Inner:
@@ -45,7 +52,7 @@ def gre(data: bytes, l4: int, end: int) -> Inner:
     return (et, off)
 
 
-def vxlan(data: bytes, payload: int, end: int) -> Inner | None:
+def vxlan(data: bytes, payload: int, end: int) -> Inner:
     """The packet inside the VXLAN header at `payload` (a UDP payload to a VXLAN port); None when its I flag
     is clear (not VXLAN: the datagram is read as any other)."""
     if payload + 8 > end or not data[payload] & 0x08:
