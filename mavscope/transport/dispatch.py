@@ -36,7 +36,7 @@ default), so bind before opening a capture. Binding an entry, the way a user wou
 
 or on a copy, for one capture: `tables = dispatch.TABLES.copy(); tables.bind_udp_port(...);
 Decapsulator(tables=tables)`. The native core (src/mavscope_native/netlayers.c) decodes the built-in entries
-itself: where `TABLES.builtin()` is False the pure-Python path is the one that reads the bindings.
+itself: where `TABLES.builtin()` is False, the bindings are read by the pure-Python path (MAVSCOPE_PURE=1).
 """
 
 from __future__ import annotations
