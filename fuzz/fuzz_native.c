@@ -803,6 +803,35 @@ static void learn_streams(ms_signing *s, const uint8_t *d, size_t n) {
     }
 }
 
+/* The notes the walker writes itself (mavscope.native.walk.note_templates, which the glue hands over) and
+ * MAVLink's ports (Dissector.MAVLINK_PORTS): set on every walk, so the unsigned-in-signed and bad-CRC frames
+ * are written natively as the glue has them written. */
+static const char *const TPL[MS_NOTE_TPLS][4] = {
+    {"{\"code\":\"unsigned-in-signed-stream\",\"severity\":\"warn\",\"message\":\"unsigned ", " from ",
+     ", which sends signed frames\",\"offset\":", "}"},
+    {"{\"code\":\"v1-in-signed-stream\",\"severity\":\"warn\",\"message\":\"MAVLink v1 ", " from ",
+     ", which sends signed frames\",\"offset\":", "}"},
+    {"{\"code\":\"bad-crc\",\"severity\":\"error\",\"message\":\"CRC 0x", " does not match the frame\",\"offset\":",
+     "}", NULL},
+};
+static const uint16_t PORTS[] = {5760, 5761, 5762, 5763, 14540, 14550, 14555, 14557, 14560, 14580, 18570};
+
+static void set_notes(ms_walker *w) {
+    for (int i = 0; i < MS_NOTE_TPLS; i++)
+        for (int j = 0; j < 4 && TPL[i][j] != NULL; j++) {
+            w->note_tpl[i][j] = strdup(TPL[i][j]);
+            if (w->note_tpl[i][j] == NULL)
+                abort();
+            w->note_tpl_len[i][j] = strlen(TPL[i][j]);
+        }
+    uint16_t *ports = malloc(sizeof PORTS);
+    if (ports == NULL)
+        abort();
+    memcpy(ports, PORTS, sizeof PORTS);
+    w->ports = ports;
+    w->nports = sizeof PORTS / sizeof PORTS[0];
+}
+
 /* One walk of the file in `mf` (as JSON Lines, or as summary lines with `sum`), checking what comes out. */
 static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigned sel, unsigned control,
                       const ms_summary *sum, ms_acc *acc, ms_cols *cols) {
@@ -826,6 +855,7 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
     }
     w.fuzz_any_crc = (sel & 8) != 0;
     w.fuzz_any_mac = (sel & 8) != 0;
+    set_notes(&w);
     if (sum != NULL) {
         static const double T0[4] = {0.0, 1.7e9, 0.0, 0.0};
         w.summary = sum;

@@ -291,7 +291,7 @@ def build_frame(
     if status is TRUNCATED:
         extra.append(note("truncated-frame", f"frame truncated: {size} of {announced_size(raw)} bytes present", offset))
     elif status is BAD:
-        extra.append(note("bad-crc", f"CRC 0x{crc:04x} does not match the frame", offset))
+        extra.append(bad_crc_note(f"{crc:04x}", offset))
     elif status is UNCHECKED:
         extra.append(note("unknown-msgid", f"message id {msgid} is not in the loaded dialects: CRC unchecked", offset))
     if iflags & ~KNOWN_IFLAGS:
@@ -315,6 +315,12 @@ def build_frame(
         notes = notes + tuple(extra)
     return new_frame(record, index, time, transport, src, dst, offset, raw, version, length, iflags, cflags, seq,
                      sysid, compid, msgid, crc, status, md, sig, notes, span)
+
+
+def bad_crc_note(crc_hex: str, offset: int | None) -> Note:
+    """The note of a frame whose CRC (as sent, 4 hex digits) does not match; the native walker writes it from
+    a template made of this one (mavscope.native.walk.note_templates)."""
+    return note("bad-crc", f"CRC 0x{crc_hex} does not match the frame", offset)
 
 
 def char_notes(md: MessageDef, payload: bytes, offset: int | None) -> list[Note]:

@@ -36,10 +36,11 @@ from mavscope.capture.reader import WINDOW, handed_back_record, open_file
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
+from mavscope.mavlink.framing import bad_crc_note
 from mavscope.native.core import KINDS, _native
 from mavscope.native.tables import table_for
 from mavscope.output.jsonout import jsonl_bytes
-from mavscope.pipeline.dissect import Anomaly, Dissector, Receivers
+from mavscope.pipeline.dissect import MAVLINK_PORTS, Anomaly, Dissector, Receivers
 from mavscope.security.stage import SecurityStage, unsigned_note
 
 BATCH_BYTES = 1 << 20  # JSON text per batch handed to Python
@@ -48,18 +49,25 @@ BATCH_BYTES = 1 << 20  # JSON text per batch handed to Python
 _NAME, _SENDER, _OFFSET = "\x01", "\x02", 7_777_777_777_777  # where the walker writes its own
 
 
-def unsigned_templates() -> tuple[tuple[bytes, bytes, bytes, bytes], tuple[bytes, bytes, bytes, bytes]]:
-    """The JSON of the note security.stage.unsigned_note makes for a MAVLink 2 and a MAVLink 1 frame, each
-    cut where the message's name, the sender ("sysid/compid") and the offset go: the native walker writes
-    that note for an unsigned frame of a sender that signs (walk.c), so the text has one definition."""
-    def cut(version: int) -> tuple[bytes, bytes, bytes, bytes]:
+Template = tuple[bytes, ...]  # a note's JSON cut where its values go
+
+
+def note_templates() -> tuple[Template, Template, Template]:
+    """The JSON of the notes the native walker writes itself, each cut where its values go (walk.h
+    MS_TPL_*), made by the functions that make them on the Python path, so each text has one definition:
+    security.stage.unsigned_note for a MAVLink 2 and a MAVLink 1 frame (the message's name, the sender
+    "sysid/compid", the offset) and framing.bad_crc_note (the CRC's 4 hex digits, the offset)."""
+    def unsigned(version: int) -> Template:
         text = orjson.dumps(unsigned_note(version, _NAME, _SENDER, _OFFSET)[1].to_json())
         a, rest = text.split(b"\\u0001")
         b, rest = rest.split(b"\\u0002")
         c, d = rest.split(str(_OFFSET).encode())
         return a, b, c, d
 
-    return cut(2), cut(1)
+    text = orjson.dumps(bad_crc_note(_NAME, _OFFSET).to_json())
+    a, rest = text.split(b"\\u0001")
+    b, c = rest.split(str(_OFFSET).encode())
+    return unsigned(2), unsigned(1), (a, b, c)
 
 
 # (number, time, index) of the last record a batch walked natively: what Dissector.passed is told
@@ -107,7 +115,8 @@ class NativeWalk:
         try:
             self.walker = _native.Walker(fd, self.opened_size, KINDS[self.kind], table_for(dialect), endpoints,
                                          Endpoint.from_packed, signed_senders, window, summary, t0, stats,
-                                         receivers=receivers, notes=unsigned_templates())
+                                         receivers=receivers, notes=note_templates(),
+                                         ports=tuple(sorted(MAVLINK_PORTS)))
         except BaseException:
             self.close_file()
             raise

@@ -88,7 +88,7 @@ class SignedSenders(set[tuple[int, int]]):
 def unsigned_note(version: int, message: str, sender: str, offset: int | None) -> tuple[SignatureReason, Note]:
     """The verdict and note of an unsigned frame (MAVLink 1 or 2) of message `message` from `sender`
     ("sysid/compid"), a sender that signs (but RADIO_STATUS, which a radio adds unsigned). The native walker
-    writes the same note from a template made of this one (mavscope.native.unsigned_templates)."""
+    writes the same note from a template made of this one (mavscope.native.walk.note_templates)."""
     what = f"{message} from {sender}, which sends signed frames"
     if version == 1:
         return SignatureReason.V1_IN_SIGNED_STREAM, note("v1-in-signed-stream", f"MAVLink v1 {what}", offset)

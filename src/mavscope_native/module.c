@@ -761,28 +761,42 @@ static void Walker_dealloc(WalkerObject *self) {
 
 static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
     static char *kwlist[] = {"fd", "size", "kind", "table", "endpoints", "endpoint", "signed_senders", "window",
-                             "summary", "t0", "stats", "columns", "receivers", "notes", NULL};
+                             "summary", "t0", "stats", "columns", "receivers", "notes", "ports", NULL};
     PyObject *table, *endpoints, *endpoint, *senders, *summary = Py_None, *t0 = Py_None, *stats = Py_None;
-    PyObject *columns = Py_None, *receivers = Py_None, *notes = Py_None;
+    PyObject *columns = Py_None, *receivers = Py_None, *notes = Py_None, *ports = Py_None;
     int fd, kind;
     unsigned long long size;
     Py_ssize_t window = MS_WINDOW;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|nOOOOOO", kwlist, &fd, &size, &kind, &TableType,
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|nOOOOOOO", kwlist, &fd, &size, &kind, &TableType,
                                      &table, &PySet_Type, &endpoints, &endpoint, &PySet_Type, &senders, &window,
-                                     &summary, &t0, &stats, &columns, &receivers, &notes))
+                                     &summary, &t0, &stats, &columns, &receivers, &notes, &ports))
         return -1;
-    if (notes != Py_None) { /* two tuples of four bytes objects, each at most MS_NOTE_TPL_MAX long */
-        int ok = PyTuple_Check(notes) && PyTuple_GET_SIZE(notes) == 2;
-        for (Py_ssize_t i = 0; ok && i < 2; i++) {
+    static const Py_ssize_t pieces[MS_NOTE_TPLS] = {4, 4, 3}; /* walk.h MS_TPL_*: the values between them */
+    if (notes != Py_None) { /* MS_NOTE_TPLS tuples of bytes objects, each at most MS_NOTE_TPL_MAX long */
+        int ok = PyTuple_Check(notes) && PyTuple_GET_SIZE(notes) == MS_NOTE_TPLS;
+        for (Py_ssize_t i = 0; ok && i < MS_NOTE_TPLS; i++) {
             PyObject *t = PyTuple_GET_ITEM(notes, i);
-            ok = PyTuple_Check(t) && PyTuple_GET_SIZE(t) == 4;
-            for (Py_ssize_t j = 0; ok && j < 4; j++) {
+            ok = PyTuple_Check(t) && PyTuple_GET_SIZE(t) == pieces[i];
+            for (Py_ssize_t j = 0; ok && j < pieces[i]; j++) {
                 PyObject *b = PyTuple_GET_ITEM(t, j);
                 ok = PyBytes_Check(b) && PyBytes_GET_SIZE(b) <= MS_NOTE_TPL_MAX;
             }
         }
         if (!ok) {
-            PyErr_SetString(PyExc_TypeError, "notes must be two tuples of four bytes (at most 256 each), or None");
+            PyErr_SetString(PyExc_TypeError, "notes must be 3 tuples of 4, 4 and 3 bytes (at most 256 each), or None");
+            return -1;
+        }
+    }
+    if (ports != Py_None) { /* a tuple of UDP ports */
+        int ok = PyTuple_Check(ports) && PyTuple_GET_SIZE(ports) <= 1024;
+        for (Py_ssize_t i = 0; ok && i < PyTuple_GET_SIZE(ports); i++) {
+            PyObject *v = PyTuple_GET_ITEM(ports, i);
+            long port = PyLong_Check(v) ? PyLong_AsLong(v) : -1;
+            ok = 0 <= port && port <= 65535;
+        }
+        if (!ok) {
+            PyErr_Clear();
+            PyErr_SetString(PyExc_TypeError, "ports must be a tuple of at most 1024 UDP ports, or None");
             return -1;
         }
     }
@@ -868,9 +882,22 @@ static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
         self->columns = columns;
         self->walker.cols = &((ColumnsObject *)columns)->cols;
     }
+    if (ports != Py_None && PyTuple_GET_SIZE(ports) > 0) {
+        const Py_ssize_t np = PyTuple_GET_SIZE(ports);
+        uint16_t *list = malloc((size_t)np * sizeof *list);
+        if (list == NULL) {
+            ms_walker_free(&self->walker);
+            PyErr_NoMemory();
+            return -1;
+        }
+        for (Py_ssize_t i = 0; i < np; i++)
+            list[i] = (uint16_t)PyLong_AsLong(PyTuple_GET_ITEM(ports, i));
+        self->walker.ports = list;
+        self->walker.nports = (size_t)np;
+    }
     if (notes != Py_None) {
-        for (Py_ssize_t i = 0; i < 2; i++)
-            for (Py_ssize_t j = 0; j < 4; j++) {
+        for (Py_ssize_t i = 0; i < MS_NOTE_TPLS; i++)
+            for (Py_ssize_t j = 0; j < pieces[i]; j++) {
                 PyObject *b = PyTuple_GET_ITEM(PyTuple_GET_ITEM(notes, i), j);
                 size_t n = (size_t)PyBytes_GET_SIZE(b);
                 char *copy = malloc(n + 1);

@@ -497,7 +497,7 @@ static char *w_flags(char *p, const ms_command *cmd, uint64_t n) {
 #define LINE_HEAD_MAX 96 /* "12.3" (up to 41 bytes), "255/255 v2 seq 255 " and the newline */
 
 int ms_write_summary(const ms_summary *s, ms_buf *out, uint64_t number, const char *prefix, size_t prefix_len,
-                     const uint8_t *d, const uint32_t *frames, size_t count) {
+                     const uint8_t *d, const uint32_t *frames, const uint8_t *bad, size_t count) {
     char num[2 * MS_U64_MAX + 2];
     const size_t num_len = (size_t)(ms_w_u64(num, number) - num);
     for (size_t i = 0; i < count; i++) {
@@ -513,7 +513,7 @@ int ms_write_summary(const ms_summary *s, ms_buf *out, uint64_t number, const ch
         const ms_smessage *sm = ms_summary_get(s, m);
         if (sm->python_only)
             return 1;
-        const size_t room = prefix_len + LINE_HEAD_MAX + sm->info_max;
+        const size_t room = prefix_len + LINE_HEAD_MAX + sm->info_max + 16; /* + " [CRC bad]" */
         char *const start = ms_buf_room(out, room);
         if (start == NULL)
             return -1;
@@ -575,6 +575,8 @@ int ms_write_summary(const ms_summary *s, ms_buf *out, uint64_t number, const ch
             if (p == NULL)
                 return 1;
         }
+        if (bad[i])
+            p = MS_W_LIT(p, " [CRC bad]"); /* summary_info: a CRC verdict that is not ok */
         if (v2 && (f[2] & 1)) {
             p = MS_W_LIT(p, " [signed link ");
             p = ms_w_u8(p, f[size - MS_SIGNATURE_LEN]);

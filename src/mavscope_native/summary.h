@@ -107,6 +107,6 @@ size_t ms_summary_prefix(char *out, int has_time, double t, int has_t0, double t
  * 0 when written, 1 when the record must go to the Python path (out->len may then hold some of its
  * lines: the caller resets it), -1 when memory ran out. */
 int ms_write_summary(const ms_summary *s, ms_buf *out, uint64_t number, const char *prefix, size_t prefix_len,
-                     const uint8_t *d, const uint32_t *frames, size_t count);
+                     const uint8_t *d, const uint32_t *frames, const uint8_t *bad, size_t count);
 
 #endif

@@ -31,7 +31,9 @@ void ms_walker_free(ms_walker *w) {
     free(w->seen_used);
     free(w->frames);
     free(w->fnote);
-    for (int i = 0; i < 2; i++)
+    free(w->fbad);
+    free((void *)w->ports);
+    for (int i = 0; i < MS_NOTE_TPLS; i++)
         for (int j = 0; j < 4; j++)
             free(w->note_tpl[i][j]);
     free(w->tentative);
@@ -247,8 +249,17 @@ static int scan_clean(ms_walker *w, const uint8_t *d, size_t n, size_t *count, s
             return NOT_CLEAN; /* bytes after a string's NUL: the char-after-nul note, Python */
         uint16_t crc = ms_crc16(f + 1, hlen - 1 + len, 0xFFFF);
         crc = ms_crc16(&m->crc_extra, 1, crc);
-        if (crc != ms_le16(f + hlen + len) && !w->fuzz_any_crc)
-            return NOT_CLEAN;
+        uint8_t bad = 0;
+        if (crc != ms_le16(f + hlen + len) && !w->fuzz_any_crc) {
+            /* a frame with a bad CRC, as the framer takes one (framing.py: it ends where the data ends or a
+             * CRC-valid frame begins, checked at the next frame), unsigned (a receiver reads a bad frame's
+             * signature afresh) and not ending in an STX byte (mavlink_parse_char starts a frame there:
+             * hidden.py), in the JSON Lines and summary walks; anything else is the Python path's */
+            if (w->note_tpl[MS_TPL_BAD_CRC][0] == NULL || w->acc != NULL || w->cols != NULL || is_signed ||
+                f[size - 1] == MS_STX_V2 || f[size - 1] == MS_STX_V1 || (k > 0 && w->fbad[k - 1]))
+                return NOT_CLEAN;
+            bad = 1;
+        }
         int known = ms_signer_has(w, sender);
         for (size_t i = 0; i < t && !known; i++)
             known = w->tentative[i] == sender;
@@ -276,9 +287,11 @@ static int scan_clean(ms_walker *w, const uint8_t *d, size_t n, size_t *count, s
                 fnote = f[0] == MS_STX_V2 ? MS_FNOTE_UNSIGNED : MS_FNOTE_V1;
         }
         if (grow((void **)&w->frames, &w->cap_frames, 2 * k + 2, sizeof *w->frames) != 0 ||
-            grow((void **)&w->fnote, &w->cap_fnote, k + 1, sizeof *w->fnote) != 0)
+            grow((void **)&w->fnote, &w->cap_fnote, k + 1, sizeof *w->fnote) != 0 ||
+            grow((void **)&w->fbad, &w->cap_fbad, k + 1, sizeof *w->fbad) != 0)
             return NOMEM;
         w->fnote[k] = fnote;
+        w->fbad[k] = bad;
         w->frames[2 * k] = (uint32_t)pos;
         w->frames[2 * k + 1] = (uint32_t)size;
         k++;
@@ -310,7 +323,8 @@ static int write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t coun
         const ms_message *m = ms_table_get(w->table, msgid); /* found by scan_clean */
         const int fnote = w->fnote[i];
         const size_t room = LINE_ROOM + m->name_len + m->json_max + MS_SIGNATURE_VALID_EXTRA +
-                            (fnote ? 4 * MS_NOTE_TPL_MAX + m->name_len + 40 : 0);
+                            (fnote ? 4 * MS_NOTE_TPL_MAX + m->name_len + 40 : 0) +
+                            (w->fbad[i] ? 3 * MS_NOTE_TPL_MAX + 40 : 0);
         (void)lead_len;
         char *const start = ms_buf_room(out, room);
         if (start == NULL)
@@ -343,7 +357,11 @@ static int write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t coun
         p = ms_w_padded(p, m->name, m->name_len);
         p = MS_W_LIT(p, ",\"crc\":");
         p = ms_w_u32(p, ms_le16(f + hlen + len));
-        p = MS_W_LIT(p, ",\"crc_status\":\"ok\",\"fields\":");
+        const int bad = w->fbad[i];
+        if (bad)
+            p = MS_W_LIT(p, ",\"crc_status\":\"bad\",\"fields\":");
+        else
+            p = MS_W_LIT(p, ",\"crc_status\":\"ok\",\"fields\":");
         p = ms_w_fields(p, m, f + hlen, len);
         if (v2 && (f[2] & 1)) {
             p = MS_W_LIT(p, ",\"signature\":");
@@ -354,8 +372,28 @@ static int write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t coun
                 p = ms_w_signature_nokey(p, f + size - MS_SIGNATURE_LEN);
             }
             p = MS_W_LIT(p, ",\"encryption\":null,\"notes\":[]}\n");
-        } else if (fnote) {
+        } else if (fnote || bad) {
             p = MS_W_LIT(p, ",\"signature\":null,\"encryption\":null,\"notes\":[");
+            if (bad) { /* the framer's note first (build_frame), then the security stage's */
+                char *const *b = w->note_tpl[MS_TPL_BAD_CRC];
+                const size_t *bl = w->note_tpl_len[MS_TPL_BAD_CRC];
+                static const char hex[] = "0123456789abcdef";
+                const unsigned crc = ms_le16(f + hlen + len);
+                memcpy(p, b[0], bl[0]);
+                p += bl[0];
+                for (int sh = 12; sh >= 0; sh -= 4)
+                    *p++ = hex[(crc >> sh) & 15];
+                memcpy(p, b[1], bl[1]);
+                p += bl[1];
+                p = ms_w_u64(p, base + w->frames[2 * i]);
+                memcpy(p, b[2], bl[2]);
+                p += bl[2];
+                if (!fnote) {
+                    p = MS_W_LIT(p, "]}\n");
+                    goto written;
+                }
+                *p++ = ',';
+            }
             char *const *tpl = w->note_tpl[fnote - 1];
             const size_t *tl = w->note_tpl_len[fnote - 1];
             memcpy(p, tpl[0], tl[0]);
@@ -376,6 +414,7 @@ static int write_frames(ms_walker *w, ms_buf *out, const uint8_t *d, size_t coun
         } else {
             p = MS_W_LIT(p, ",\"signature\":null,\"encryption\":null,\"notes\":[]}\n");
         }
+    written:
         if ((size_t)(p - start) > room)
             abort(); /* the bound above is wrong: memory is already corrupt, stop here */
         out->len += (size_t)(p - start);
@@ -411,7 +450,8 @@ static int source_refused(const ms_walker *w, const ms_udp *udp) {
 static int count_frames(ms_walker *w, const uint8_t *d, size_t count) {
     w->frames_native += count;
     for (size_t i = 0; i < count; i++) {
-        if (d[w->frames[2 * i]] == MS_STX_V1) { /* Python's fast path stops there: its scanner counts them all */
+        if (d[w->frames[2 * i]] == MS_STX_V1 || w->fbad[i]) { /* Python's fast path stops there: its scanner
+                                                                 counts them all */
             w->py_index = (int64_t)count;
             break;
         }
@@ -435,7 +475,7 @@ static int write_summary_record(ms_walker *w, const ms_record *rec, ms_buf *out,
     if (n == 0)
         return MS_WALK_HANDBACK;
     const size_t mark = out->len;
-    int r = ms_write_summary(w->summary, out, rec->number, prefix, n, d, w->frames, count);
+    int r = ms_write_summary(w->summary, out, rec->number, prefix, n, d, w->frames, w->fbad, count);
     if (r < 0)
         return MS_WALK_NOMEM;
     if (r > 0) {
@@ -481,6 +521,24 @@ static int is_waiting(const ms_walker *w, const ms_udp *udp) {
     return 0;
 }
 
+/* A datagram Python's Dissector._trusted takes for MAVLink without a CRC-valid frame: to or from one of
+ * MAVLink's ports, or a source of valid MAVLink this walker knows (others: Python decides). */
+static int trusted(const ms_walker *w, const ms_udp *udp) {
+    for (size_t i = 0; i < w->nports; i++)
+        if (w->ports[i] == udp->sport || w->ports[i] == udp->dport)
+            return 1;
+    ms_endpoint e;
+    memset(&e, 0, sizeof e);
+    e.v6 = (uint8_t)udp->v6;
+    memcpy(e.addr, udp->src, udp->v6 ? 16 : 4);
+    e.port = udp->sport;
+    if (seen_has(w, &e))
+        return 1;
+    memcpy(e.addr, udp->dst, udp->v6 ? 16 : 4);
+    e.port = udp->dport;
+    return seen_has(w, &e);
+}
+
 /* MS_WALK_FULL when the record was written (or had nothing), MS_WALK_HANDBACK, or MS_WALK_NOMEM. */
 static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
     if (rec->notes->n != 0 || w->reader.kind == MS_KIND_RAW || w->hand_back_all)
@@ -521,6 +579,13 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
         return MS_WALK_HANDBACK;
     if (count == 0)
         return MS_WALK_FULL; /* an empty datagram */
+    if (is_udp && w->fbad[0]) {
+        int any_ok = 0;
+        for (size_t i = 0; i < count && !any_ok; i++)
+            any_ok = !w->fbad[i];
+        if (!any_ok && !trusted(w, &udp))
+            return MS_WALK_HANDBACK; /* no valid frame, no reason to expect MAVLink: Python decides */
+    }
     if (w->summary != NULL) {
         int r = write_summary_record(w, rec, out, d, count, has_time, t, is_udp ? &udp : NULL);
         if (r != MS_WALK_FULL)
@@ -538,7 +603,7 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
     }
     for (size_t i = 0; i < w->n_pending; i++) /* the streams exist: no allocation, cannot fail */
         (void)ms_signing_put(w->signing, w->pending[i].stream, w->pending[i].last, w->pending[i].key);
-    if (is_udp && note_source(w, &udp) != 0)
+    if (is_udp && !w->fbad[0] && note_source(w, &udp) != 0) /* (a source is learnt from a first frame that is valid) */
         return MS_WALK_NOMEM;
     if (w->acc != NULL && w->cols == NULL)
         return stats_record(w, rec, d, count, has_time, t, is_udp ? &udp : NULL);

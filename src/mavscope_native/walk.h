@@ -39,6 +39,7 @@ enum { MS_SIGNED_HANDBACK = 0, MS_SIGNED_NOKEY = 1, MS_SIGNED_VERIFY = 2 };
 /* a frame's note the walker writes itself: none, an unsigned or a MAVLink 1 frame of a sender that signs */
 enum { MS_FNOTE_NONE = 0, MS_FNOTE_UNSIGNED = 1, MS_FNOTE_V1 = 2 };
 #define MS_NOTE_TPL_MAX 256 /* bytes of one template piece */
+enum { MS_TPL_UNSIGNED = 0, MS_TPL_V1 = 1, MS_TPL_BAD_CRC = 2, MS_NOTE_TPLS = 3 };
 enum { MS_WALK_NOMEM = -1, MS_WALK_END = 0, MS_WALK_FULL = 1, MS_WALK_HANDBACK = 2 };
 
 typedef struct {
@@ -84,10 +85,16 @@ typedef struct {
     size_t cap_frames;
     uint8_t *fnote;             /* scratch: per frame of the current record its note (MS_FNOTE_*) */
     size_t cap_fnote;
-    char *note_tpl[2][4];       /* the JSON of the unsigned-in-signed-stream (0) and v1-in-signed-stream (1)
-                                   notes, cut where the name, the sender and the offset go (mavscope.native.
-                                   unsigned_templates); NULL: such frames are handed back */
-    size_t note_tpl_len[2][4];
+    char *note_tpl[MS_NOTE_TPLS][4]; /* the JSON of the notes the walker writes itself, each cut where its values
+                                   go (mavscope.native.walk.note_templates): unsigned-in-signed-stream and
+                                   v1-in-signed-stream (name, sender, offset), bad-crc (CRC, offset); NULL:
+                                   frames needing them are handed back */
+    size_t note_tpl_len[MS_NOTE_TPLS][4];
+    uint8_t *fbad;              /* scratch: per frame of the current record, 1 when its CRC is bad */
+    size_t cap_fbad;
+    const uint16_t *ports;      /* MAVLink's well-known UDP ports (Dissector's MAVLINK_PORTS): a datagram to or
+                                   from one is taken for MAVLink without a valid frame */
+    size_t nports;
     uint16_t *tentative;        /* scratch: senders the current record would add */
     size_t cap_tentative;
     uint32_t *sig_keys;         /* scratch, MS_SIGNED_VERIFY: per frame of the current record the key slot
