@@ -1,16 +1,19 @@
 """Small MAVLink flows built with pymavlink for the analysis tests, written as a tlog.
 
 Each test states what it built; the expected answers come from that construction, never from mavscope.
-A tlog entry is an 8-byte big-endian timestamp in microseconds, then one frame (captures/README.md).
+The messages and the file writers are tests/support/builders.py's.
 """
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Callable
-from pathlib import Path
 
 from pymavlink.dialects.v20 import ardupilotmega as v2
+
+from tests.support.builders import command_long_msg, heartbeat_msg
+from tests.support.builders import tlog as tlog
+from tests.support.builders import write_tlog as write_tlog
+from tests.support.builders import write_udp_pcap as write_udp_pcap
 
 T0 = 1_773_482_400.0  # 2026-03-14T10:00:00Z
 
@@ -35,7 +38,8 @@ class Sender:
 
 
 def heartbeat(gcs: bool = False) -> object:
-    return v2.MAVLink_heartbeat_message(6 if gcs else 10, 8 if gcs else 3, 0, 0, 4, 3)
+    """A ground rover's HEARTBEAT (MAV_TYPE_GROUND_ROVER, MAV_AUTOPILOT_ARDUPILOTMEGA), or a GCS's."""
+    return heartbeat_msg(6, 8) if gcs else heartbeat_msg(10, 3)
 
 
 def manual_control(x: int = 0, y: int = 0, z: int = 500, r: int = 0) -> object:
@@ -43,7 +47,7 @@ def manual_control(x: int = 0, y: int = 0, z: int = 500, r: int = 0) -> object:
 
 
 def command_long(command: int = 400, p1: float = 1.0, target: int = 1) -> object:
-    return v2.MAVLink_command_long_message(target, 1, command, 0, p1, 0, 0, 0, 0, 0, 0)
+    return command_long_msg(command, p1, target_system=target)
 
 
 def run_sent_again(gcs: Sender, is_command: Callable[[int], bool], again_at: int,
@@ -62,26 +66,3 @@ def run_sent_again(gcs: Sender, is_command: Callable[[int], bool], again_at: int
             recorded.append(frame)
         entries.append((T0 + i * 0.05, frame))
     return entries
-
-
-def tlog(entries: list[tuple[float, bytes]]) -> bytes:
-    return b"".join(struct.pack(">Q", round(t * 1e6)) + frame for t, frame in entries)
-
-
-def write_tlog(tmp: Path, entries: list[tuple[float, bytes]], name: str = "flow.tlog") -> str:
-    path = tmp / name
-    path.write_bytes(tlog(entries))
-    return str(path)
-
-
-def write_udp_pcap(path: Path, packets: list[tuple[tuple[str, int], tuple[str, int], bytes]], t0: float = 1.0) -> Path:
-    """UDP datagrams (source, destination, payload) as an Ethernet pcap, one a second from `t0`: IPv4, or
-    IPv6 where an end is an IPv6 address (an IPv4 end then written IPv4-mapped)."""
-    from mavscope.capture.base import LINKTYPE_ETHERNET
-    from mavscope.capture.synth import udp_packet
-    from mavscope.capture.writer import PcapWriter
-
-    with PcapWriter(path, LINKTYPE_ETHERNET) as w:
-        for i, (src, dst, payload) in enumerate(packets):
-            w.write(t0 + i, udp_packet(*src, *dst, payload))
-    return path

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import asyncio
-import struct
+import itertools
 import time
 from collections.abc import Awaitable, Callable
 from pathlib import Path
 
 from mavscope.capture.detect import open_capture
 from tests.conftest import CAPTURES
+from tests.support.builders import write_pcap
 
 SIZE = (120, 40)
 
@@ -51,22 +52,9 @@ async def type_text(pilot, text: str) -> None:  # type: ignore[no-untyped-def]
 def write_big_capture(path: Path, frames: int, source: Path = CAPTURES / "px4_sitl_udp.pcap") -> int:
     """A pcap of about `frames` frames: the records of `source` repeated, times shifted. Returns records."""
     with open_capture(source) as r:
-        recs = [(rec.time, rec.data) for rec in r]
+        recs = [(rec.time or 0.0, rec.data) for rec in r]  # (the bundled capture's records all have a time)
     t0 = recs[0][0]
     span = recs[-1][0] - t0 + 0.01
-    header = struct.Struct("<IIII")
-    n = 0
-    rep = 0
-    with open(path, "wb") as out:
-        out.write(struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 262144, 1))
-        while n < frames:
-            for t, data in recs:
-                tt = t + rep * span
-                sec = int(tt)
-                out.write(header.pack(sec, int((tt - sec) * 1e6), len(data), len(data)))
-                out.write(data)
-                n += 1
-                if n >= frames:
-                    break
-            rep += 1
-    return n
+    records = ((t + rep * span, data) for rep in itertools.count() for t, data in recs)
+    write_pcap(path, itertools.islice(records, frames))
+    return frames

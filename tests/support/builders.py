@@ -1,0 +1,160 @@
+"""The tests' one set of fixture builders: capture files and MAVLink frames.
+
+Files are written with mavscope's own writers (capture/writer.py, tested against the formats' definitions
+in tests/capture) around packets from capture/synth.py (Ethernet/IPv4 or IPv6/UDP with correct checksums);
+frames are encoded by pymavlink, an implementation independent of mavscope's framer, signed by it when the
+encoder is given a key. Files whose every byte a test chooses (byte order, time resolution, link headers,
+checksums left 0) are packed by hand in tests/native/build.py; a test that needs a layout neither makes (a
+broken header on purpose) keeps its own and says why.
+
+A tlog entry is an 8-byte big-endian timestamp in microseconds, then one frame (captures/README.md).
+"""
+
+from __future__ import annotations
+
+import io
+import struct
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import BinaryIO
+
+from pymavlink.dialects.v10 import common as v1
+from pymavlink.dialects.v20 import all as v2
+
+from mavscope.capture.base import LINKTYPE_ETHERNET
+from mavscope.capture.synth import udp_packet
+from mavscope.capture.writer import DEFAULT_SNAPLEN, PcapWriter
+
+Address = tuple[str, int]
+Datagram = tuple[Address, Address, bytes]  # (source, destination, UDP payload)
+EPOCH_2026 = (1_773_482_400 - 1_420_070_400) * 100_000  # signature timestamp of 2026-03-14T10:00:00Z
+
+
+# --- capture files ---------------------------------------------------------------------------------
+
+
+def pcap_bytes(records: Iterable[tuple[float | None, bytes]], linktype: int = LINKTYPE_ETHERNET,
+               nanosecond: bool = False, snaplen: int = DEFAULT_SNAPLEN) -> bytes:
+    """A little-endian classic pcap of (time, link-layer packet) records, in `linktype`."""
+    buf = io.BytesIO()
+    _write_pcap(buf, records, linktype, nanosecond, snaplen)
+    return buf.getvalue()
+
+
+def write_pcap(path: Path, records: Iterable[tuple[float | None, bytes]], linktype: int = LINKTYPE_ETHERNET,
+               nanosecond: bool = False, snaplen: int = DEFAULT_SNAPLEN) -> Path:
+    """`pcap_bytes` written to `path` as the records come."""
+    _write_pcap(path, records, linktype, nanosecond, snaplen)
+    return path
+
+
+def _write_pcap(out: Path | BinaryIO, records: Iterable[tuple[float | None, bytes]], linktype: int,
+                nanosecond: bool, snaplen: int) -> None:
+    with PcapWriter(out, linktype, snaplen=snaplen, nanosecond=nanosecond) as w:
+        for t, data in records:
+            w.write(t, data)
+
+
+def udp_records(datagrams: Sequence[Datagram], t0: float = 1.0, step: float = 1.0) -> list[tuple[float, bytes]]:
+    """UDP datagrams as Ethernet records, one every `step` seconds from `t0`: IPv4, or IPv6 where an end is an
+    IPv6 address (an IPv4 end then written IPv4-mapped)."""
+    return [(t0 + i * step, udp_packet(*src, *dst, payload)) for i, (src, dst, payload) in enumerate(datagrams)]
+
+
+def write_udp_pcap(path: Path, datagrams: Sequence[Datagram], t0: float = 1.0, step: float = 1.0) -> Path:
+    """`udp_records` as an Ethernet pcap."""
+    return write_pcap(path, udp_records(datagrams, t0, step))
+
+
+def tlog_us(entries: Iterable[tuple[int, bytes]]) -> bytes:
+    """A tlog of (microseconds since the epoch, frame) entries."""
+    return b"".join(struct.pack(">Q", us) + frame for us, frame in entries)
+
+
+def tlog(entries: Iterable[tuple[float, bytes]]) -> bytes:
+    """A tlog of (seconds since the epoch, frame) entries, times rounded to the microsecond."""
+    return tlog_us((round(t * 1e6), frame) for t, frame in entries)
+
+
+def write_tlog(tmp: Path, entries: list[tuple[float, bytes]], name: str = "flow.tlog") -> str:
+    path = tmp / name
+    path.write_bytes(tlog(entries))
+    return str(path)
+
+
+def write_raw(tmp: Path, frames: list[bytes], name: str = "cap.raw") -> str:
+    """A raw byte stream (a serial log): the frames back to back."""
+    path = tmp / name
+    path.write_bytes(b"".join(frames))
+    return str(path)
+
+
+# --- MAVLink frames (pymavlink) ---------------------------------------------------------------------
+
+
+def mav2(sysid: int = 1, compid: int = 1, seq: int = 0) -> v2.MAVLink:
+    """A MAVLink 2 encoder for `sysid`/`compid` whose next frame has sequence number `seq`."""
+    mav = v2.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+    mav.seq = seq
+    return mav
+
+
+def mav1(sysid: int = 1, compid: int = 1) -> v1.MAVLink:
+    return v1.MAVLink(None, srcSystem=sysid, srcComponent=compid)
+
+
+def signer(key: bytes | None, sysid: int = 255, compid: int = 190, link_id: int = 1,
+           timestamp: int = EPOCH_2026) -> v2.MAVLink:
+    """A pymavlink encoder that signs with `key` (None: unsigned), explicit timestamps."""
+    mav = mav2(sysid, compid)
+    if key is not None:
+        mav.signing.secret_key = key
+        mav.signing.link_id = link_id
+        mav.signing.sign_outgoing = True
+        mav.signing.timestamp = timestamp
+    return mav
+
+
+def heartbeat_msg(mav_type: int = 2, autopilot: int = 12, base_mode: int = 0, custom_mode: int = 0,
+                  system_status: int = 4, version: int = 3) -> v2.MAVLink_heartbeat_message:
+    """A HEARTBEAT message (for an encoder's `pack`, or flows.Sender's)."""
+    return v2.MAVLink_heartbeat_message(mav_type, autopilot, base_mode, custom_mode, system_status, version)
+
+
+def heartbeat(mav: v2.MAVLink | v1.MAVLink, mav_type: int = 2, autopilot: int = 12, base_mode: int = 81,
+              custom_mode: int = 0, system_status: int = 4, version: int = 3) -> bytes:
+    """The next HEARTBEAT frame of `mav` (MAVLink 1 or 2, signed if it signs); by default a quadrotor's
+    (MAV_TYPE_QUADROTOR, MAV_AUTOPILOT_PX4, base mode 81, MAV_STATE_ACTIVE)."""
+    return bytes(mav.heartbeat_encode(mav_type, autopilot, base_mode, custom_mode, system_status, version).pack(mav))
+
+
+def gcs_heartbeat(mav: v2.MAVLink | v1.MAVLink, base_mode: int = 0) -> bytes:
+    """A ground station's HEARTBEAT (MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID)."""
+    return heartbeat(mav, 6, 8, base_mode)
+
+
+def command_long_msg(command: int = 400, *params: float, target_system: int = 1, target_component: int = 1,
+                     confirmation: int = 0) -> v2.MAVLink_command_long_message:
+    """A COMMAND_LONG message: param1.. as given, the rest 0."""
+    p = [*params, *[0.0] * (7 - len(params))]
+    return v2.MAVLink_command_long_message(target_system, target_component, command, confirmation, *p)
+
+
+def command_long(mav: v2.MAVLink | v1.MAVLink, command: int = 20, *params: float, target_system: int = 1,
+                 target_component: int = 1, confirmation: int = 0) -> bytes:
+    """The next COMMAND_LONG frame of `mav` (by default MAV_CMD_NAV_RETURN_TO_LAUNCH to 1/1)."""
+    p = [*params, *[0.0] * (7 - len(params))]
+    return bytes(mav.command_long_encode(target_system, target_component, command, confirmation, *p).pack(mav))
+
+
+def statustext(mav: v2.MAVLink | v1.MAVLink, text: str = "hello", severity: int = 6) -> bytes:
+    return bytes(mav.statustext_encode(severity, text.encode()).pack(mav))
+
+
+def attitude(mav: v2.MAVLink | v1.MAVLink, time_boot_ms: int = 0, roll: float = 0.0, pitch: float = 0.0,
+             yaw: float = 0.0) -> bytes:
+    return bytes(mav.attitude_encode(time_boot_ms, roll, pitch, yaw, 0, 0, 0).pack(mav))
+
+
+def radio_status(mav: v2.MAVLink) -> bytes:
+    return bytes(mav.radio_status_encode(200, 190, 100, 50, 40, 0, 0).pack(mav))
