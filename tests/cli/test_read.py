@@ -8,12 +8,10 @@ from pathlib import Path
 import jsonschema
 import pytest
 
-from mavscope.capture.base import LINKTYPE_ETHERNET
-from mavscope.capture.synth import udp_packet
-from mavscope.capture.writer import PcapWriter
 from mavscope.cli import ExitStatus
 from tests.conftest import ROOT, Cli
 from tests.support import pmav
+from tests.support.builders import write_pcap, write_udp_pcap
 
 SCHEMA = json.loads((ROOT / "docs" / "frame.schema.json").read_text())
 
@@ -34,11 +32,7 @@ def sample(tmp_path: Path) -> Path:
         (("127.0.0.1", 14580), ("127.0.0.1", 14550), pmav.heartbeat(vehicle)[:15]),
         (("10.0.0.1", 53), ("10.0.0.2", 53), b"\xfd\x01not mavlink at all"),
     ]
-    path = tmp_path / "sample.pcap"
-    with PcapWriter(path, LINKTYPE_ETHERNET) as w:
-        for i, (src, dst, payload) in enumerate(packets):
-            w.write(1_700_000_000 + i * 0.25, udp_packet(*src, *dst, payload))
-    return path
+    return write_udp_pcap(tmp_path / "sample.pcap", packets, t0=1_700_000_000, step=0.25)
 
 
 def test_summary_lines(cli: Cli, sample: Path) -> None:
@@ -97,8 +91,7 @@ def test_write_round_trip(cli: Cli, sample: Path, tmp_path: Path) -> None:
 
 def test_empty_capture(cli: Cli, tmp_path: Path) -> None:
     empty = tmp_path / "empty.pcap"
-    with PcapWriter(empty, LINKTYPE_ETHERNET):
-        pass
+    write_pcap(empty, [])
     assert cli("read", str(empty), "-T", "json")[:2] == (0, "[]\n")
 
 
@@ -143,8 +136,7 @@ def test_dialect_option_adds_messages(cli: Cli, sample: Path, tmp_path: Path) ->
     crc = crc16.mcrf4xx(md.crc_extra_byte, crc16.mcrf4xx(bytes(frame[1:])))
     frame += crc.to_bytes(2, "little")
     cap = tmp_path / "custom.pcap"
-    with PcapWriter(cap, LINKTYPE_ETHERNET) as w:
-        w.write(1.0, udp_packet("127.0.0.1", 14580, "127.0.0.1", 14550, bytes(frame) + pmav.heartbeat(mav)))
+    write_udp_pcap(cap, [(("127.0.0.1", 14580), ("127.0.0.1", 14550), bytes(frame) + pmav.heartbeat(mav))])
     _, without, _ = cli("read", str(cap), "-T", "jsonl")
     _, with_dialect, _ = cli("read", str(cap), "-T", "jsonl", "--dialect", str(xml))
     assert json.loads(without.splitlines()[0])["crc_status"] == "unchecked"

@@ -22,7 +22,6 @@ from pymavlink.dialects.v20 import all as mavlink
 
 from mavscope.capture.base import LINKTYPE_ETHERNET, Record
 from mavscope.capture.synth import udp_packet
-from mavscope.capture.writer import PcapWriter
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame
 from mavscope.native import export as export_native
@@ -30,6 +29,7 @@ from mavscope.notes import note
 from mavscope.pipeline.dissect import Dissector
 from tests.mavlink.test_hidden_frames import arm, datagrams
 from tests.support import pmav
+from tests.support.builders import write_udp_pcap
 from tests.support.cparser import CParser, require_c_parser
 from tests.support.sources import same_tables
 
@@ -40,13 +40,6 @@ GCS, VEHICLE, OTHER = ("10.0.0.2", 14550), ("10.0.0.1", 14555), ("10.0.0.9", 145
 @pytest.fixture(scope="module")
 def cparser() -> CParser:
     return require_c_parser()
-
-
-def write_pcap(path: Path, packets: list[tuple[tuple[str, int], tuple[str, int], bytes]]) -> Path:
-    with PcapWriter(path, LINKTYPE_ETHERNET) as w:
-        for i, (src, dst, payload) in enumerate(packets):
-            w.write(1.0 + i, udp_packet(*src, *dst, payload))
-    return path
 
 
 def split_arm() -> bytes:
@@ -79,7 +72,7 @@ def test_an_arm_whose_second_half_is_a_clean_heartbeat(cli, tmp_path: Path, cpar
     m = mavlink.MAVLink(None)
     m.robust_parsing = True
     assert [msg.get_type() for msg in m.parse_buffer(d1 + d2) or []] == ["HEARTBEAT", "COMMAND_LONG"]  # pymavlink's
-    path = write_pcap(tmp_path / "split.pcap", [(GCS, VEHICLE, d1), (GCS, VEHICLE, d2), (GCS, VEHICLE, hb)])
+    path = write_udp_pcap(tmp_path / "split.pcap", [(GCS, VEHICLE, d1), (GCS, VEHICLE, d2), (GCS, VEHICLE, hb)])
     rows = {}
     for engine in ("", "1"):  # native and pure: the second datagram is clean, the walker hands it back
         rows[engine] = cli.jsonl(path, environ={"MAVSCOPE_PURE": engine})
@@ -175,7 +168,7 @@ def test_both_engines_agree_on_split_frames(cli, tmp_path: Path, seed: int) -> N
                     else (GCS, dst, bytes(data[cut:]))]
         if rng.random() < 0.5:
             packets.append((GCS, dst, bytes(data[cut:])))
-    path = write_pcap(tmp_path / f"split{seed}.pcap", packets)
+    path = write_udp_pcap(tmp_path / f"split{seed}.pcap", packets)
     native, pure = ({"MAVSCOPE_PURE": ""}, {"MAVSCOPE_PURE": "1"})
     rows = cli.jsonl(path, environ=pure)
     assert any(n["code"] == "split-frame" for r in rows for n in r["notes"])

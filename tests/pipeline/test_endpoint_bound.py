@@ -13,7 +13,6 @@ the k-th refusal is record 1 + CAP + k - 1 ... worked out below from those count
 from __future__ import annotations
 
 import json
-import struct
 from pathlib import Path
 
 import pytest
@@ -24,7 +23,7 @@ from mavscope.mavlink.dialect import Dialect
 from mavscope.pipeline.dissect import MAX_MAVLINK_ENDPOINTS as CAP
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from tests.conftest import Cli
-from tests.native.build import frame_v2, ipv4, link, udp
+from tests.native.build import LINKTYPES, frame_v2, ipv4, link, pcap, udp
 from tests.native.engines import same
 
 VEHICLE = (bytes([10, 9, 9, 9]), 14555)
@@ -37,11 +36,9 @@ def _flood(path: Path, dialect: Dialect, spoofed: int, vehicle_after: int = 3) -
     hb = frame_v2(dialect.messages[0], 0, bytes([0, 0, 0, 0, 2, 3, 0, 4, 3]), 0, 1, 1)
     sources = [VEHICLE] + [(bytes([10, 0, (i >> 8) & 255, i & 255]), 1024 + i) for i in range(spoofed)]
     sources += [VEHICLE] * vehicle_after
-    parts = [struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, 1)]
-    for n, (addr, port) in enumerate(sources):
-        pkt = link("ethernet", ipv4(addr, bytes([10, 0, 0, 1]), 17, udp(port, 14550, hb)), False)
-        parts.append(struct.pack("<IIII", 1000 + n, 0, len(pkt), len(pkt)) + pkt)
-    path.write_bytes(b"".join(parts))
+    records = [(1000 + n, 0, link("ethernet", ipv4(addr, bytes([10, 0, 0, 1]), 17, udp(port, 14550, hb)), False))
+               for n, (addr, port) in enumerate(sources)]
+    path.write_bytes(pcap(records, LINKTYPES["ethernet"]))
     return path
 
 
@@ -86,8 +83,7 @@ def test_a_source_refused_again_adds_no_empty_anomaly(tmp_path: Path, dialect: D
     with path.open("ab") as out:
         pkt = link("ethernet", ipv4(bytes([10, 7, 7, 7]), bytes([10, 0, 0, 1]), 17,
                                     udp(4000, 14550, frame_v2(dialect.messages[0], 0, bytes(9), 0, 1, 1))), False)
-        for n in range(5):
-            out.write(struct.pack("<IIII", 9000 + n, 0, len(pkt), len(pkt)) + pkt)
+        out.write(pcap([(9000 + n, 0, pkt) for n in range(5)], LINKTYPES["ethernet"])[24:])  # its records only
     with open_capture(path) as reader:
         anomalies = [a for a in Dissector(dialect).run(reader) if type(a) is Anomaly]
     assert [a.record for a in anomalies] == [CAP + 1, CAP + 2, CAP + 4]

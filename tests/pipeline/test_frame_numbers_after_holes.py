@@ -16,10 +16,9 @@ from pathlib import Path
 from scapy.layers.inet import IP, TCP
 from scapy.layers.l2 import Ether
 
-from mavscope.capture.base import LINKTYPE_ETHERNET
 from mavscope.capture.synth import udp_packet
-from mavscope.capture.writer import PcapWriter
 from tests.support import tcpflows as tf
+from tests.support.builders import write_pcap
 
 FLOOD = 66_000  # UDP records with a frame each while the hole lives (more than the 65,536 once kept)
 PURE, NATIVE = {"MAVSCOPE_PURE": "1"}, {"MAVSCOPE_PURE": ""}
@@ -55,9 +54,7 @@ def capture(path: Path) -> tuple[Path, dict[tuple[int, int], str]]:
                 for i in range(FLOOD)]
     ack, fin = len(packets) + 1, len(packets) + 2
     packets += [tcp(gcs, va, 5000, "A", ack=isn_a + starts[6]), tcp(vb, gcs, isn_b + len(b[0]) + 10, "FA")]
-    with PcapWriter(path, LINKTYPE_ETHERNET) as w:
-        for p in packets:
-            w.write(1.0, p)
+    write_pcap(path, [(1.0, p) for p in packets])
     expected = {(1, 1): "a0", (1, 2): "a1", (3, 1): "a2", (3, 2): "a3", (4, 1): "b0"}
     expected |= {(5 + i, 1): "udp" for i in range(FLOOD)}
     # a5, given out when the ACK gives a4's hole up, is dated by an earlier record (its own or the one that

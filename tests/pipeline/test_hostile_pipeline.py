@@ -3,28 +3,21 @@ low-order X25519 key. Each input is built here; the expectation is what a correc
 
 from __future__ import annotations
 
-import struct
 from pathlib import Path
 
 from scripts.capgen.encode import encode_frame
 from scripts.capgen.kex import KEY_EXCHANGE_MSGID, key_exchange_crc_extra, key_exchange_payload
 from tests.conftest import ROOT, Cli
 from tests.support import flows
+from tests.support.builders import write_udp_pcap
 
 HEARTBEAT = flows.Sender(1, 1).pack(flows.heartbeat())
 
 
 def pcap(tmp: Path, payloads: list[bytes], port: int = 14550, name: str = "c.pcap") -> str:
-    """Ethernet/IPv4/UDP records 127.0.0.1:`port` -> 127.0.0.1:`port`, one per payload."""
-    out = [struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, 1)]
-    for i, data in enumerate(payloads):
-        udp = struct.pack("!HHHH", port, port, 8 + len(data), 0) + data
-        ip = struct.pack("!BBHHHBBH4s4s", 0x45, 0, 20 + len(udp), 0, 0, 64, 17, 0, b"\x7f\0\0\1", b"\x7f\0\0\1")
-        pkt = b"\0" * 12 + b"\x08\x00" + ip + udp
-        out.append(struct.pack("<IIII", 1_773_482_400 + i, 0, len(pkt), len(pkt)) + pkt)
-    path = tmp / name
-    path.write_bytes(b"".join(out))
-    return str(path)
+    """Ethernet/IPv4/UDP records 127.0.0.1:`port` -> 127.0.0.1:`port`, one per payload, a second apart."""
+    lo = ("127.0.0.1", port)
+    return str(write_udp_pcap(tmp / name, [(lo, lo, data) for data in payloads], t0=1_773_482_400))
 
 
 def test_a_datagram_of_junk_on_a_mavlink_port(cli: Cli, tmp_path: Path) -> None:
