@@ -224,7 +224,10 @@ class Decapsulator:
                 return [], (*outer, *(() if dropped is None else (dropped,)))
             return self._fragment(fragment._replace(header_zero=zero), proto, src, dst, data[l4:end], rec,
                                   at.at(l4), at.depth)
-        return self._upper(Packet(at, v4, proto, src, dst, data, l4, end, whole, dropped, zero))
+        decode = self.ip_protocols.get(proto)  # (what _upper does, inline: every packet comes this way)
+        if decode is None:
+            return [], outer if dropped is None else (*outer, dropped)
+        return decode(self, Packet(at, v4, proto, src, dst, data, l4, end, whole, dropped, zero))
 
     def _fragment(self, frag: FragmentInfo, proto: int, src: bytes, dst: bytes, data: bytes, rec: Record,
                   offset: int | None, depth: int) -> Decoded:

@@ -1,13 +1,17 @@
 """What one step of the transport dispatch hands the next (mavscope.transport.dispatch): where a packet lies
 (`Carrier`), an IP packet's upper layer (`Packet`), a tunnel (`Tunnel`), and the state the decoders share
-(`Layers`: the Decapsulator)."""
+(`Layers`: the Decapsulator).
+
+Carrier and Packet are NamedTuples, as Payload and Record are: immutable records made for every packet on the
+general path, where a frozen dataclass's construction (a checked setattr a field) cost 2 µs a packet, a fifth
+of that path's time on a TCP capture."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 from mavscope.capture.base import Record
 from mavscope.notes import Note, note
@@ -21,8 +25,7 @@ from mavscope.transport.tunnel import Inner
 Decoded = tuple[list[Payload], tuple[Note, ...]]  # the Payloads of a packet and the notes on it
 
 
-@dataclass(frozen=True, slots=True)
-class Carrier:
+class Carrier(NamedTuple):
     """Where a network-layer packet lies: in record `rec`, at file offset `base` of its bytes' byte 0 (None: not
     in the file as such, a rebuilt 802.11 frame or a reassembled datagram), reassembled from the records in
     `span` (else None), inside `depth` tunnels; `outer`: the notes on the tunnel packet carrying it, which a
@@ -45,8 +48,7 @@ class Carrier:
         return f" (reassembled from {records_text(self.span)})" if self.span is not None else ""
 
 
-@dataclass(frozen=True, slots=True)
-class Packet:
+class Packet(NamedTuple):
     """An IP packet's upper layer, data[l4:end], as IP_PROTOCOLS' decoders get it: the IP header's protocol and
     addresses, `whole` (the packet ends at `end` as its header says, so a checksum can be judged), `dropped`
     (the note on an IP header a receiver drops the packet for), `header_zero` (an IPv4 header checksum of 0,

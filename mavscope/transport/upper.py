@@ -17,8 +17,9 @@ _TCP = struct.Struct("!HHIIBB")  # ports, sequence and acknowledgment numbers, d
 
 def udp(layers: Layers, pkt: Packet) -> Decoded:
     """A UDP datagram's payload, or the packet inside it where a tunnel bound to its destination port finds one."""
-    at, data, l4, end, v4 = pkt.at, pkt.data, pkt.l4, pkt.end, pkt.v4
-    first = pkt.first()
+    at, v4, _, src, dst, data, l4, end, whole, dropped, header_zero = pkt
+    rec, base, span, _, outer, _ = at
+    first = outer if dropped is None else (*outer, dropped)
     if l4 + 8 > end:
         return [], (*first, note("malformed-packet", f"UDP header cut short at byte {l4}{at.where()}", at.at(l4)))
     sport, dport, ulen = _UDP.unpack_from(data, l4)
@@ -29,51 +30,52 @@ def udp(layers: Layers, pkt: Packet) -> Decoded:
         ulen = end - l4  # IPv6 jumbogram
     stop = min(l4 + ulen, end)
     notes, placeholder = first, False
-    if pkt.whole:
-        more, placeholder = _udp_dropped(v4, pkt.src, pkt.dst, data, l4, ulen, end, at.where(), at.at(l4))
+    if whole:
+        more, placeholder = _udp_dropped(v4, src, dst, data, l4, ulen, end, at.where(), at.at(l4))
         notes += more
     bound = layers.udp_ports.get(dport)
     if isinstance(bound, Tunnel):  # (a receiver that drops the tunnel's datagram never reads what it carries)
-        got = bound.decode(layers, at, data, l4 + 8, stop, notes, pkt.header_zero or placeholder)
+        got = bound.decode(layers, at, data, l4 + 8, stop, notes, header_zero or placeholder)
         if got is not None:
             return got
     ep = layers.endpoints
-    s = ep.v4_bytes(pkt.src, sport) if v4 else ep.v6(pkt.src, sport)
-    d = ep.v4_bytes(pkt.dst, dport) if v4 else ep.v6(pkt.dst, dport)
-    return [Payload(TRANSPORT_UDP, s, d, data[l4 + 8:stop], None, at.rec.number, at.at(l4 + 8), (), at.span)], notes
+    s = ep.v4_bytes(src, sport) if v4 else ep.v6(src, sport)
+    d = ep.v4_bytes(dst, dport) if v4 else ep.v6(dst, dport)
+    return [Payload(TRANSPORT_UDP, s, d, data[l4 + 8:stop], None, rec.number, None if base is None else base + l4 + 8,
+                    (), span)], notes
 
 
 def tcp(layers: Layers, pkt: Packet) -> Decoded:
     """A TCP segment to reassembly, unless a receiver drops it (mavscope.transport.checksum Directions.fate)."""
-    at, data, l4, end, v4 = pkt.at, pkt.data, pkt.l4, pkt.end, pkt.v4
-    first, outer = pkt.first(), at.outer
+    at, v4, _, src, dst, data, l4, end, whole, dropped, header_zero = pkt
+    rec, base, span, _, outer, _ = at
     if l4 + 20 > end:
-        return [], (*first, note("malformed-packet", f"TCP header cut short at byte {l4}{at.where()}", at.at(l4)))
+        return [], (*pkt.first(), note("malformed-packet", f"TCP header cut short at byte {l4}{at.where()}",
+                                       at.at(l4)))
     sport, dport, seq, ack, doff, flags = _TCP.unpack_from(data, l4)
     hlen = (doff >> 4) * 4
     if hlen < 20 or l4 + hlen > end:
-        return [], (*first, note("malformed-packet", f"TCP header length {hlen} does not fit at byte "
-                                 f"{l4}{at.where()}", at.at(l4)))
+        return [], (*pkt.first(), note("malformed-packet", f"TCP header length {hlen} does not fit at byte "
+                                       f"{l4}{at.where()}", at.at(l4)))
     ep = layers.endpoints
-    s = ep.v4_bytes(pkt.src, sport) if v4 else ep.v6(pkt.src, sport)
-    d = ep.v4_bytes(pkt.dst, dport) if v4 else ep.v6(pkt.dst, dport)
-    dropped = pkt.dropped
+    s = ep.v4_bytes(src, sport) if v4 else ep.v6(src, sport)
+    d = ep.v4_bytes(dst, dport) if v4 else ep.v6(dst, dport)
     if dropped is None and outer:
         dropped = note(outer[0].code, "carried in a tunnel packet that a receiver drops", outer[0].offset)
-    verdict, field, right = (judge(not v4, pkt.src, pkt.dst, PROTO_TCP, data, l4, end) if pkt.whole and dropped is None
+    verdict, field, right = (judge(not v4, src, dst, PROTO_TCP, data, l4, end) if whole and dropped is None
                              else (Checksum.ABSENT, 0, 0))
-    said, drop = layers.directions.fate((s, d), end - l4 - hlen, dropped, verdict, field, right, pkt.header_zero,
-                                        at.at(l4), at.span is not None)
-    rec = at.rec
+    header = None if base is None else base + l4  # the file offsets of the TCP header and of its payload
+    body = None if header is None else header + hlen
+    said, drop = layers.directions.fate((s, d), end - l4 - hlen, dropped, verdict, field, right, header_zero,
+                                        header, span is not None)
     if said is None:
-        if flags & (TCP_FIN | TCP_RST) and verdict is Checksum.RIGHT and not pkt.header_zero:
+        if flags & (TCP_FIN | TCP_RST) and verdict is Checksum.RIGHT and not header_zero:
             layers.directions.forget((s, d))  # its connection ends: a new one on the 4-tuple starts unknown
-        return layers.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], rec.number, at.at(l4 + hlen), ack,
-                                  rec.time), outer
+        return layers.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], rec.number, body, ack, rec.time), outer
     # the note is the record's, now (not one for the stream's next frame to carry)
-    out = [Payload(TRANSPORT_TCP, s, d, b"", None, rec.number, at.at(l4), (said,))]
+    out = [Payload(TRANSPORT_TCP, s, d, b"", None, rec.number, header, (said,))]
     if not drop:  # (else the receiver dropped it: its flags and bytes change nothing)
-        out += layers.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], rec.number, at.at(l4 + hlen), ack, rec.time)
+        out += layers.tcp.segment(s, d, seq, flags, data[l4 + hlen:end], rec.number, body, ack, rec.time)
     return out, outer
 
 
