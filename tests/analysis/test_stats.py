@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import struct
 import tracemalloc
 from pathlib import Path
 
@@ -12,9 +11,11 @@ from hypothesis import strategies as st
 
 from mavscope.analysis.sequence import SeqTracker
 from mavscope.analysis.stats import RATE_BINS, compute_stats
+from mavscope.capture.synth import udp_packet
 from mavscope.mavlink.dialect import Dialect
 from tests.conftest import CAPTURES, Cli
 from tests.support import flows
+from tests.support.builders import write_pcap, write_udp_pcap
 from tests.support.captures import EXPECTED, frames, truth
 
 LOSS = str(CAPTURES / "stats_loss.pcap")
@@ -97,12 +98,8 @@ def test_a_burst_has_no_rate(cli: Cli, tmp_path: Path) -> None:
 def test_two_records_56_years_apart_keep_the_rate_series_bounded(cli: Cli, tmp_path: Path) -> None:
     """Issue: a 182-byte pcap whose records are 56 years apart built one entry per second of the span."""
     frame = flows.Sender(1, 1).pack(flows.heartbeat())
-    udp = struct.pack("!HHHH", 14550, 14550, 8 + len(frame), 0) + frame
-    ip = struct.pack("!BBHHHBBH4s4s", 0x45, 0, 20 + len(udp), 0, 0, 64, 17, 0, b"\x7f\0\0\1", b"\x7f\0\0\1")
-    pkt = b"\0" * 12 + b"\x08\x00" + ip + udp
-    records = b"".join(struct.pack("<IIII", sec, 0, len(pkt), len(pkt)) + pkt for sec in (1, 56 * 365 * 86400))
-    path = tmp_path / "far.pcap"
-    path.write_bytes(struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, 1) + records)
+    packet = udp_packet("127.0.0.1", 14550, "127.0.0.1", 14550, frame)
+    path = write_pcap(tmp_path / "far.pcap", [(sec, packet) for sec in (1, 56 * 365 * 86400)])
     status, out, err = cli("stats", str(path))
     assert status == 0 and "HEARTBEAT" in out, err
     stats = compute_stats(f for f in [])  # the histogram itself: at most RATE_BINS bins whatever the span
@@ -270,18 +267,10 @@ def test_a_link_with_many_endpoints_lists_eight_in_its_cell(cli: Cli, tmp_path: 
     """One vehicle (1/1) sending a HEARTBEAT (pymavlink) from each of 12 UDP ports, 10.0.0.2:5001-5012:
     the JSON lists all 12, the text table's cell the first 8 in the JSON's order and "and 4 more" (a
     capture can give one link an endpoint per frame: rich wrapped a cell of 200,000 for 6 s)."""
-    from tests.native import build as nh
     from tests.support.pmav import heartbeat, mav2
 
-    mav = mav2()
-    records = []
-    for k in range(12):
-        datagram = nh.udp(5001 + k, 14550, heartbeat(mav))
-        mav.seq += 1
-        records.append((1_700_000_000 + k, 0, nh.link("ethernet", nh.ipv4(b"\x0a\0\0\x02", b"\x0a\0\0\x01", 17,
-                                                                            datagram), False)))
-    path = tmp_path / "ports.pcap"
-    path.write_bytes(nh.pcap(records, nh.LINKTYPES["ethernet"]))
+    packets = [(("10.0.0.2", 5001 + k), ("10.0.0.1", 14550), heartbeat(mav2(seq=k))) for k in range(12)]
+    path = write_udp_pcap(tmp_path / "ports.pcap", packets, t0=1_700_000_000)
     [link] = cli.json("stats", path)["links"]
     assert sorted(link["endpoints"]) == sorted(f"10.0.0.2:{5001 + k}" for k in range(12))
     status, out, _ = cli("stats", path, environ={"COLUMNS": "400"})

@@ -16,8 +16,8 @@ from pymavlink.dialects.v20 import ardupilotmega as v2
 
 from mavscope.analysis import expert, stats
 from tests.conftest import Cli
-from tests.native import build as nh
 from tests.support import flows
+from tests.support.builders import write_udp_pcap
 
 PURE = {"MAVSCOPE_PURE": "1"}
 
@@ -43,13 +43,9 @@ def test_streams_past_the_limit_count_in_totals_links_and_as_unfollowed(
 
 
 def udp_pcap(tmp: Path, datagrams: list[tuple[int, bytes]]) -> str:
-    """Ethernet/IPv4/UDP records 127.0.0.1:port -> 127.0.0.1:14550, one per (port, payload)."""
-    lo = b"\x7f\0\0\1"
-    records = [(1_773_482_400 + i, 0, nh.link("ethernet", nh.ipv4(lo, lo, 17, nh.udp(port, 14550, data)), False))
-               for i, (port, data) in enumerate(datagrams)]
-    path = tmp / "c.pcap"
-    path.write_bytes(nh.pcap(records, nh.LINKTYPES["ethernet"]))
-    return str(path)
+    """Ethernet/IPv4/UDP records 127.0.0.1:port -> 127.0.0.1:14550, one per (port, payload), a second apart."""
+    packets = [(("127.0.0.1", port), ("127.0.0.1", 14550), data) for port, data in datagrams]
+    return str(write_udp_pcap(tmp / "c.pcap", packets, t0=1_773_482_400))
 
 
 def test_conversations_past_the_limit_are_unfollowed(cli: Cli, tmp_path: Path,

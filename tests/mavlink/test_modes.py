@@ -13,6 +13,7 @@ from pymavlink.dialects.v20 import all as pm
 
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.modes import Modes, px4_mode_name
+from tests.support.builders import heartbeat_msg
 
 AP, PX4 = pm.MAV_AUTOPILOT_ARDUPILOTMEGA, pm.MAV_AUTOPILOT_PX4
 CUSTOM = pm.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
@@ -31,10 +32,6 @@ def table_name(table: dict[int, str]) -> str:
                 if getattr(mavutil, f"mode_mapping_{n}") is table)
 
 
-def _heartbeat(mav_type: int, autopilot: int, base: int, custom: int) -> pm.MAVLink_heartbeat_message:
-    return pm.MAVLink_heartbeat_message(mav_type, autopilot, base, custom, 4, 3)
-
-
 @pytest.mark.parametrize("mav_type", sorted(mavutil.AP_MAV_TYPE_MODE_MAP_DEFAULT), ids=str)
 def test_ardupilot_modes_agree_with_mavutil(dialect: Dialect, mav_type: int) -> None:
     modes = Modes(dialect)
@@ -46,7 +43,7 @@ def test_ardupilot_modes_agree_with_mavutil(dialect: Dialect, mav_type: int) -> 
             assert theirs in XML_LACKS.get(table_name(table), {theirs}), (mav_type, number, theirs)
             continue
         assert SPELLINGS.get(ours, ours) == theirs, (mav_type, number)
-        assert mavutil.mode_string_v10(_heartbeat(mav_type, AP, CUSTOM, number)) == theirs
+        assert mavutil.mode_string_v10(heartbeat_msg(mav_type, AP, CUSTOM, number)) == theirs
         compared += 1
     assert compared >= (0 if mav_type == pm.MAV_TYPE_AIRSHIP else 6)
 

@@ -25,6 +25,7 @@ from scapy.utils import checksum, rdpcap, wrpcap
 from mavscope.capture.detect import open_capture
 from mavscope.transport.checksum import PROTO_TCP, PROTO_UDP, Checksum, judge
 from mavscope.transport.decap import Decapsulator
+from tests.support.builders import command_long, gcs_heartbeat, mav2
 
 MACS = {"src": "02:00:00:00:00:02", "dst": "02:00:00:00:00:01"}
 V4 = {"src": "10.0.0.2", "dst": "10.0.0.1"}
@@ -32,18 +33,12 @@ V6 = {"src": "fd00::2", "dst": "fd00::1"}
 ENGINES = ({"MAVSCOPE_PURE": "0"}, {"MAVSCOPE_PURE": "1"})
 
 
-def gcs() -> mavlink.MAVLink:
-    return mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
-
-
 def heartbeat() -> bytes:
-    m = gcs()
-    return m.heartbeat_encode(6, 8, 0, 0, 4).pack(m)
+    return gcs_heartbeat(mav2(255, 190))
 
 
 def arm(value: int) -> bytes:
-    m = gcs()
-    return m.command_long_encode(1, 1, 400, 0, value, 0, 0, 0, 0, 0, 0).pack(m)
+    return command_long(mav2(255, 190), 400, value)
 
 
 def pseudo_sum(src: bytes, dst: bytes, proto: int, length: int) -> int:

@@ -24,6 +24,7 @@ from mavscope.mavlink.frame import CrcStatus, Frame
 from mavscope.notes import CODES, Severity
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.transport.tcp import TCP_FIN, TCP_RST, TCP_SYN, TcpReassembler
+from tests.support import builders
 from tests.support.pmav import command_long_rtl, heartbeat, mav2
 
 CLIENT, SERVER = b"\x0a\x00\x00\x01", b"\x0a\x00\x00\x02"
@@ -41,10 +42,7 @@ def tcp_packet(src: bytes, dst: bytes, sport: int, dport: int, seq: int, flags: 
 
 
 def write_pcap(path: Path, packets: list[bytes]) -> None:
-    with open(path, "wb") as f:
-        f.write(struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 262144, 1))
-        for i, p in enumerate(packets):
-            f.write(struct.pack("<IIII", 1_700_000_000 + i, 0, len(p), len(p)) + p)
+    builders.write_pcap(path, [(1_700_000_000 + i, p) for i, p in enumerate(packets)])  # a second apart
 
 
 def dissect(path: Path, dialect) -> tuple[list[Frame], list[str]]:  # type: ignore[no-untyped-def]

@@ -25,14 +25,13 @@ from scapy.utils import wrpcap
 from mavscope.capture.base import LINKTYPE_IEEE802_11_RADIOTAP, Record
 from mavscope.transport.air import Retries
 from mavscope.transport.decap import Decapsulator
+from tests.support.builders import gcs_heartbeat, mav2
 
 AP, STA, STA2 = "02:00:00:00:00:01", "02:00:00:00:00:02", "02:00:00:00:00:03"
 
 
 def heartbeat(seq: int) -> bytes:
-    gcs = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
-    gcs.seq = seq
-    return gcs.heartbeat_encode(6, 8, 0, 0, 4).pack(gcs)
+    return gcs_heartbeat(mav2(255, 190, seq))
 
 
 def frame(a1: str, a2: str, sn: int, seq: int, retry: bool = False, tid: int | None = None,
