@@ -19,7 +19,8 @@ import pytest
 from mavscope.capture.base import LINKTYPE_ETHERNET, LINKTYPE_RAW, Record
 from mavscope.capture.detect import open_capture
 from mavscope.capture.synth import udp_packet
-from mavscope.capture.writer import PcapngWriter, PcapWriter
+from mavscope.capture.writer import PcapngWriter
+from tests.support.builders import tlog, write_pcap
 from tests.support.pmav import heartbeat, mav2, statustext
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -36,16 +37,15 @@ def make_capture(path: Path, kind: str) -> None:
     """A capture of COUNT MAVLink frames of `kind` (pcap, pcapng, tlog, raw), a few hundred KB."""
     frames = _frames()
     if kind == "pcap":
-        with PcapWriter(path, LINKTYPE_ETHERNET) as w:
-            for i, f in enumerate(frames):
-                w.write(T0 + i / 100, udp_packet("10.0.0.1", 14550, "10.0.0.2", 14540, f))
+        write_pcap(path, [(T0 + i / 100, udp_packet("10.0.0.1", 14550, "10.0.0.2", 14540, f))
+                          for i, f in enumerate(frames)])
     elif kind == "pcapng":
         with PcapngWriter(path, LINKTYPE_ETHERNET, nanosecond=True) as w:
             for i, f in enumerate(frames):
                 pkt = udp_packet("10.0.0.1", 14550, "10.0.0.2", 14540, f)
                 w.write(T0 + i / 100, pkt[14:] if i % 2 else pkt, linktype=LINKTYPE_RAW if i % 2 else None)
     elif kind == "tlog":
-        path.write_bytes(b"".join(struct.pack(">Q", int((T0 + i / 100) * 1e6)) + f for i, f in enumerate(frames)))
+        path.write_bytes(tlog([(T0 + i / 100, f) for i, f in enumerate(frames)]))
     else:
         path.write_bytes(b"\x00garbage" + b"".join(frames) * 4)
 

@@ -6,19 +6,19 @@ spell, and which entries hold the pymavlink-encoded frames.
 
 from __future__ import annotations
 
-import struct
 from pathlib import Path
 
 from mavscope.capture.detect import open_capture
 from mavscope.pipeline import textrun
 from tests.conftest import Cli
+from tests.support.builders import tlog_us
 from tests.support.pmav import heartbeat, mav2
 
 T0 = 1_746_714_528_149_261  # µs
 
 
 def _tlog(entries: list[bytes]) -> bytes:
-    return b"".join(struct.pack(">Q", T0 + 20 * i) + e for i, e in enumerate(entries))
+    return tlog_us((T0 + 20 * i, e) for i, e in enumerate(entries))  # 20 µs apart
 
 
 def test_a_tlog_that_starts_with_console_text_is_a_tlog(tmp_path: Path, cli: Cli) -> None:

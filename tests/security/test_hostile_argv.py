@@ -15,10 +15,9 @@ from pathlib import Path
 
 import pytest
 
-from mavscope.capture.synth import udp_packet
-from mavscope.capture.writer import PcapWriter
 from mavscope.errors import UsageError
 from mavscope.security.keys import QGC_ITERATIONS, QGC_SALT, build_material, passphrase_key, qgc_key
+from tests.support.builders import write_udp_pcap
 from tests.support.security import heartbeat, signer
 
 LATIN1 = b"caf\xe9 cr\xe8me"  # not UTF-8
@@ -50,9 +49,8 @@ def test_a_lone_surrogate_is_a_usage_error_not_a_crash() -> None:
 @pytest.mark.skipif(not FSENC_UTF8, reason="argv decodes with surrogate escapes only under a UTF-8 locale")
 def test_verify_with_a_latin1_passphrase_on_the_command_line(tmp_path: Path) -> None:
     """The real entry point, the argument passed as bytes: the frame signed with SHA-256(bytes) verifies."""
-    path = tmp_path / "signed.pcap"
-    with PcapWriter(path, 1) as w:
-        w.write(1_773_482_400.0, udp_packet("10.0.0.1", 14550, "10.0.0.2", 14540, heartbeat(signer(SHA))))
+    datagram = (("10.0.0.1", 14550), ("10.0.0.2", 14540), heartbeat(signer(SHA)))
+    path = write_udp_pcap(tmp_path / "signed.pcap", [datagram], t0=1_773_482_400.0)
     exe = Path(sys.executable).with_name("mavscope")
     env = {**os.environ, "LC_ALL": "C.UTF-8", "PYTHONUTF8": "1"}
     proc = subprocess.run([exe, "verify", str(path).encode(), b"--key", b"passphrase:" + LATIN1],

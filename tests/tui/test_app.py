@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import struct
 from array import array
 from pathlib import Path
 
@@ -20,6 +19,7 @@ from mavscope.tui.screens.mission import MissionScreen
 from mavscope.tui.screens.stats import StatsScreen
 from mavscope.tui.widgets.hex_view import ASCII_START, byte_column
 from tests.conftest import Cli
+from tests.support.builders import heartbeat_msg, tlog_us, write_pcap
 from tests.support.tui import CAPTURES, SIZE, open_analysis, ready, run, type_text, wait_for
 
 PX4 = CAPTURES / "px4_sitl_udp.pcap"
@@ -411,8 +411,7 @@ def test_problems_reading_the_capture_are_said_once_it_is_indexed(cli: Cli, tmp_
     indexed, a notification gives the count of problems and the first as `read` writes it on stderr, and
     the status line keeps the count (stop 20: nothing said; a capture of no frame showed an empty list)."""
     empty = tmp_path / "other-link.pcap"  # one record of a link type mavscope does not decode (DLT 147: USER0)
-    empty.write_bytes(struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, 147)
-                      + struct.pack("<IIII", 1, 0, 4, 4) + b"\xfd\x00\x00\x00")
+    write_pcap(empty, [(1.0, b"\xfd\x00\x00\x00")], linktype=147, snaplen=65535)
 
     async def scenario(path: Path, head: str | None) -> None:
         _, _, err = cli("read", path)
@@ -440,8 +439,8 @@ def test_the_events_screen_shows_a_statustexts_escape_sequences_escaped(tmp_path
     mav = apm.MAVLink(None, srcSystem=1, srcComponent=1)
     words = b"\x1b[31mRED\x1b]8;;http://e.example\x07x [/bold]"
     path = tmp_path / "words.tlog"
-    path.write_bytes(b"".join(struct.pack(">Q", 1_700_000_000_000_000 + i) + m.pack(mav) for i, m in enumerate(
-        [apm.MAVLink_heartbeat_message(2, 3, 0, 0, 4, 3), apm.MAVLink_statustext_message(6, words, 0, 0)])))
+    path.write_bytes(tlog_us((1_700_000_000_000_000 + i, m.pack(mav)) for i, m in enumerate(
+        [heartbeat_msg(2, 3), apm.MAVLink_statustext_message(6, words, 0, 0)])))
 
     async def scenario() -> None:
         app = create_app(path)
