@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import os
 import struct
 import tempfile
@@ -19,10 +20,11 @@ from mavscope.capture.base import (
 )
 from mavscope.capture.detect import open_capture
 from mavscope.capture.synth import udp_packet
-from mavscope.capture.writer import PcapngWriter, PcapWriter
+from mavscope.capture.writer import PcapngWriter
 from mavscope.notes import CODES
 from mavscope.transport.base import Payload
 from mavscope.transport.decap import Decapsulator
+from tests.support.builders import pcap_bytes, tlog_us
 
 FUZZ = settings(max_examples=150, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
@@ -32,17 +34,12 @@ FRAMES = [bytes([0xFD, 3, 0, 0, i, 1, 1, 0, 0, 0, 1, 2, 3, 0xAA, 0xBB]) for i in
 
 
 def _pcap() -> tuple[bytes, list[int]]:
-    import io
-
-    buf = io.BytesIO()
-    with PcapWriter(buf, LINKTYPE_ETHERNET) as w:
-        for i, p in enumerate(PACKETS):
-            w.write(T0 + i, p)
+    content = pcap_bytes((T0 + i, p) for i, p in enumerate(PACKETS))
     ends, pos = [24], 24
     for p in PACKETS:
         pos += 16 + len(p)
         ends.append(pos)
-    return buf.getvalue(), ends
+    return content, ends
 
 
 def _pcapng() -> tuple[bytes, list[int]]:
@@ -61,10 +58,8 @@ def _pcapng() -> tuple[bytes, list[int]]:
 
 
 def _tlog() -> tuple[bytes, list[int]]:
-    out, ends = b"", []
-    for i, f in enumerate(FRAMES):
-        out += struct.pack(">Q", int(T0 * 1e6) + i * 1000) + f
-        ends.append(len(out))
+    out = tlog_us((int(T0 * 1e6) + i * 1000, f) for i, f in enumerate(FRAMES))
+    ends = list(itertools.accumulate(8 + len(f) for f in FRAMES))  # each entry: 8-byte time, then its frame
     return out, ends
 
 

@@ -49,8 +49,7 @@ def export_seeds() -> list[bytes]:
 def fragment_seed() -> bytes:
     """A pcap of IP fragments (mavscope.transport.defrag): a UDP datagram of two HEARTBEATs in three IPv4
     fragments sent last to first, then fragments that overlap, and an IPv6 datagram in two fragments."""
-    from mavscope.capture.base import LINKTYPE_ETHERNET
-    from mavscope.capture.writer import PcapWriter
+    from tests.support.builders import pcap_bytes
 
     hb = b"\xfd\x09\x00\x00\x00\x01\x01\x00\x00\x00" + bytes(9) + b"\x00\x00"
     dgram = struct.pack("!HHHH", 14550, 14555, 8 + 2 * len(hb), 0) + hb * 2
@@ -68,14 +67,7 @@ def fragment_seed() -> bytes:
     packets = [v4(1, 32, False, dgram[32:]), v4(1, 16, True, dgram[16:32]), v4(1, 0, True, dgram[:16]),
                v4(2, 16, True, dgram[16:32]), v4(2, 0, True, dgram[:16]), v4(2, 8, True, dgram[8:24]),
                v6(3, 0, True, dgram[:24]), v6(3, 24, False, dgram[24:])]
-    path = ROOT / ".cache" / "fuzz" / "fragments.tmp"
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with PcapWriter(path, LINKTYPE_ETHERNET) as w:
-        for i, pkt in enumerate(packets):
-            w.write(1.0 + i / 100, pkt)
-    data = path.read_bytes()
-    path.unlink()
-    return data
+    return pcap_bytes((1.0 + i / 100, pkt) for i, pkt in enumerate(packets))
 
 
 def wifi_seed() -> bytes:
