@@ -23,6 +23,7 @@ from pymavlink.dialects.v20 import ardupilotmega as v2
 from mavscope.analysis import command_log, gnss, timeline, vehicles
 from mavscope.native import dump as native_dump
 from tests.conftest import Cli
+from tests.support.builders import vehicle_heartbeat_msg
 from tests.support.flows import T0, Sender, command_long, write_tlog
 
 PURE, NATIVE = {"MAVSCOPE_PURE": "1"}, {"MAVSCOPE_PURE": "0"}
@@ -93,7 +94,7 @@ def test_a_timesync_flood_keeps_the_request_waiting_before_it(cli: Cli, tmp_path
 
 
 def _hb(armed: bool) -> object:
-    return v2.MAVLink_heartbeat_message(2, 3, 1 | (128 if armed else 0), 5, 4, 3)  # a quadrotor, ArduPilot
+    return vehicle_heartbeat_msg(armed, 5)  # a quadrotor, ArduPilot, LOITER
 
 
 def _gps(sec: float, lat: int, sats: int = 12) -> object:

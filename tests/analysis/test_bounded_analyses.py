@@ -14,6 +14,7 @@ import pytest
 
 from mavscope.analysis import expert
 from tests.support import flows
+from tests.support.builders import heartbeat_msg, vehicle_heartbeat_msg
 
 ENGINES = ({"MAVSCOPE_PURE": "0"}, {"MAVSCOPE_PURE": "1"})
 
@@ -60,11 +61,9 @@ def test_a_flood_of_small_bad_crc_bursts_keeps_the_large_one(cli, tmp_path: Path
 
 
 def _hb(armed: bool, gcs: bool = False) -> object:
-    from pymavlink.dialects.v20 import ardupilotmega as v2
-
     if gcs:
-        return v2.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3)
-    return v2.MAVLink_heartbeat_message(2, 3, 209 if armed else 81, 0, 4, 3)  # a quadrotor, ArduPilot, STABILIZE
+        return heartbeat_msg(6, 8)
+    return vehicle_heartbeat_msg(armed, base_mode=81)  # a quadrotor, ArduPilot, STABILIZE (base 81, armed 209)
 
 
 def test_a_flood_of_made_up_vehicles_keeps_the_vehicles_arming_and_the_arm_command(  # type: ignore[no-untyped-def]

@@ -17,6 +17,7 @@ from mavscope.mavlink.dialect import Dialect
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from tests.conftest import CAPTURES, Cli
 from tests.support import flows
+from tests.support.builders import vehicle_heartbeat_msg
 from tests.support.captures import frames
 from tests.support.flows import T0, Sender, write_tlog
 
@@ -102,7 +103,7 @@ def _story(path: str, dialect: Dialect):  # type: ignore[no-untyped-def]
 
 
 def _hb(mode: int = 5, armed: bool = False, status: int = 4) -> object:
-    return v2.MAVLink_heartbeat_message(2, 3, 1 | (128 if armed else 0), mode, status, 3)
+    return vehicle_heartbeat_msg(armed, mode, system_status=status)
 
 
 def test_statustext_chunks_are_joined_and_failsafe_texts_marked(tmp_path: Path, dialect: Dialect) -> None:

@@ -18,6 +18,7 @@ from mavscope.mavlink.frame import decode_payload
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from tests.conftest import CAPTURES
 from tests.support import flows
+from tests.support.builders import heartbeat_msg, vehicle_heartbeat_msg
 from tests.support.captures import frames
 from tests.support.flows import T0, Sender, write_tlog
 
@@ -70,11 +71,11 @@ def _findings(tmp: Path, entries: list[tuple[float, bytes]], dialect: Dialect) -
 
 
 def _vehicle_hb(armed: bool, mode: int = 5, mav_type: int = 2) -> object:
-    return v2.MAVLink_heartbeat_message(mav_type, 3, 1 | (128 if armed else 0), mode, 4, 3)
+    return vehicle_heartbeat_msg(armed, mode, mav_type)
 
 
 def _gcs_hb() -> object:
-    return v2.MAVLink_heartbeat_message(6, 8, 0, 0, 4, 3)
+    return heartbeat_msg(6, 8)
 
 
 def _gpi(boot_ms: int, lat: int, lon: int, rel_mm: int = 20_000, vx: int = 500) -> object:

@@ -25,6 +25,7 @@ from mavscope.analysis.params import (
 )
 from mavscope.mavlink.dialect import Dialect
 from scripts.capgen.parampck import pack
+from tests.support.builders import heartbeat_msg
 from tests.support.ftpflows import Flow, frames_of
 
 names = st.text("ABCDEFGHIJKLMNOPQRSTUVWXYZ_0123456789", min_size=1, max_size=16)
@@ -66,7 +67,7 @@ def ps(name: str, value: float, ptype: int, target: tuple[int, int] = (1, 1)) ->
 
 
 def hb(autopilot: int) -> object:
-    return v2.MAVLink_heartbeat_message(2, autopilot, 0, 0, 4, 3)
+    return heartbeat_msg(2, autopilot, 0)
 
 
 def int_as_float(v: int) -> float:

@@ -121,6 +121,13 @@ def heartbeat_msg(mav_type: int = 2, autopilot: int = 12, base_mode: int = 0, cu
     return v2.MAVLink_heartbeat_message(mav_type, autopilot, base_mode, custom_mode, system_status, version)
 
 
+def vehicle_heartbeat_msg(armed: bool = False, custom_mode: int = 0, mav_type: int = 2, base_mode: int = 1,
+                          system_status: int = 4, autopilot: int = 3) -> v2.MAVLink_heartbeat_message:
+    """An ArduPilot vehicle's HEARTBEAT (by default a quadrotor), MAV_MODE_FLAG_SAFETY_ARMED (128) added to
+    `base_mode` when `armed`; `custom_mode` is its flight mode (ArduCopter: 0 STABILIZE, 5 LOITER)."""
+    return heartbeat_msg(mav_type, autopilot, base_mode | (128 if armed else 0), custom_mode, system_status)
+
+
 def heartbeat(mav: v2.MAVLink | v1.MAVLink, mav_type: int = 2, autopilot: int = 12, base_mode: int = 81,
               custom_mode: int = 0, system_status: int = 4, version: int = 3) -> bytes:
     """The next HEARTBEAT frame of `mav` (MAVLink 1 or 2, signed if it signs); by default a quadrotor's
