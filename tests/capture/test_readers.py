@@ -24,6 +24,7 @@ T0 = 1_700_000_000
 def pcap_bytes(records: list[tuple[int, int, bytes, int]], endian: str = "<", ns: bool = False,
                linktype: int = LINKTYPE_ETHERNET, snaplen: int = 65535) -> bytes:
     """A pcap file of (seconds, fraction, data, orig_len) records."""
+    # not tests/native/build.pcap: each record's original length is chosen here (the readers' cut records)
     magic = 0xA1B23C4D if ns else 0xA1B2C3D4
     out = [struct.pack(endian + "IHHiIII", magic, 2, 4, 0, 0, snaplen, linktype)]
     for sec, frac, data, orig in records:

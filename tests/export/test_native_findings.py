@@ -253,7 +253,7 @@ def test_heartbeats_left_out_change_nothing_the_parameter_tracker_holds(
     monkeypatch.setattr(native, "WINDOW_FRAMES", window)
     hb, pv = dialect.by_name["HEARTBEAT"], dialect.by_name["PARAM_VALUE"]
 
-    def heartbeat(autopilot: int, kind: int) -> bytes:
+    def heartbeat(autopilot: int, kind: int) -> bytes:  # a payload in the dialect's layout, for nh.frame_v2
         payload = bytearray(hb.length)
         payload[hb.field("type").offset] = kind  # type: ignore[union-attr]
         payload[hb.field("autopilot").offset] = autopilot  # type: ignore[union-attr]

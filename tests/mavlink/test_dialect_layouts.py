@@ -18,11 +18,12 @@ import json
 import struct
 from pathlib import Path
 
-from pymavlink.generator import mavcrc, mavparse
+from pymavlink.generator import mavparse
 
 from mavscope.mavlink.dialect import load_dialect
 from mavscope.native.table_blob import python_only
 from tests.conftest import Cli
+from tests.native.build import frame_v2
 from tests.native.engines import same
 from tests.support.flows import T0, write_tlog
 
@@ -55,10 +56,7 @@ def crc_extras(path: Path) -> dict[int, int]:
 def frame(msgid: int, payload: bytes, crc_extra: int, seq: int) -> bytes:
     payload = payload.rstrip(b"\x00") or b"\x00"  # MAVLink 2 drops trailing zeros (keeps one byte)
     assert len(payload) <= 255
-    header = struct.pack("<BBBBBB", len(payload), 0, 0, seq, 1, 1) + msgid.to_bytes(3, "little")
-    crc = mavcrc.x25crc(header + payload)
-    crc.accumulate(bytes([crc_extra]))
-    return b"\xfd" + header + payload + struct.pack("<H", crc.crc)
+    return frame_v2(None, msgid, payload, seq, 1, 1, crc_extra=crc_extra)
 
 
 def test_layouts_past_the_native_table_read_alike_on_both_engines(tmp_path: Path, cli: Cli) -> None:

@@ -36,6 +36,7 @@ def cparser() -> CParser:
 def frame_v2(msgid: int, payload: bytes, iflags: int = 0, seq: int = 7, sysid: int = 1, compid: int = 1,
              good_crc: bool = True) -> bytes:
     """A v2 frame written by hand: any incompat flags, CRC with the message's CRC_EXTRA (or spoiled)."""
+    # not tests/native/build.frame_v2: the signed flag here comes without a signature, on purpose
     hdr = bytes([0xFD, len(payload), iflags, 0, seq, sysid, compid]) + msgid.to_bytes(3, "little")
     extra = mavlink.mavlink_map[msgid].crc_extra
     crc = crc16.mcrf4xx(bytes([extra]), crc16.mcrf4xx(hdr[1:] + payload))
