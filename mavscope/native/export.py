@@ -25,7 +25,7 @@ import numpy as np
 import pyarrow as pa
 
 from mavscope.capture.detect import open_capture
-from mavscope.capture.reader import WINDOW, handed_back_record, open_file
+from mavscope.capture.reader import WINDOW, open_file
 from mavscope.endpoint import Endpoint
 from mavscope.export.columns import AnomalyColumns, MessageTables, frame_batch
 from mavscope.export.findings_feed import NativeFeed, window_rows
@@ -47,6 +47,7 @@ from mavscope.native.columns import Names, frames_batch, message_batch, message_
 from mavscope.native.core import KINDS, _native
 from mavscope.native.dump import Accumulator, plan_for
 from mavscope.native.tables import table_for
+from mavscope.native.windows import DONE, FINISH, column_steps
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.pipeline.session import make_security_stage
 from mavscope.security.stage import SecurityStage
@@ -277,36 +278,24 @@ class _Export:
 
     def _walk(self, walker: _native.Walker, cols: _native.Columns, progress: Progress | None,
               ) -> Iterator[pa.RecordBatch]:
-        step, walked, told = walker.next, walker.walked, None
-        dissector = self.dissector
-        while True:
-            before = cols.frames
-            # windows of WINDOW_FRAMES rows, native and handed back together, less what the frames table
-            # carries over (a handed-back record of several frames can overshoot a window): so that frames
-            # batches of as many rows are windows as they are, not copies. The walker stops where the native
-            # rows fill the window.
-            goal = WINDOW_FRAMES - self.pending.frames_held % WINDOW_FRAMES
-            cols.limit = goal - len(self.py)  # > cols.frames here
-            segs = step(not self.stage.check_signatures, 1 << 20, None)
-            if segs is None:
-                last = walked()
-                if last is not None and last != told:
-                    yield from self.python(dissector.passed(*last), cols.frames)
-                break
-            told = walked()
-            if told is not None:
-                held = dissector.passed(*told)
-                if held:
-                    yield from self.python(held, before)
-            for seg in segs:
-                if type(seg) is tuple:
-                    yield from self.python(dissector.feed(handed_back_record(seg)), cols.frames)
-            if cols.frames + len(self.py) >= goal:
+        # windows of WINDOW_FRAMES rows, native and handed back together, less what the frames table carries
+        # over (a handed-back record of several frames can overshoot a window): so that frames batches of as
+        # many rows are windows as they are, not copies. The walker stops where the native rows fill the window.
+        def goal() -> int:
+            return WINDOW_FRAMES - self.pending.frames_held % WINDOW_FRAMES
+
+        cols.limit = goal()
+        for kind, items, at in column_steps(walker, cols, self.dissector, lambda: not self.stage.check_signatures):
+            yield from self.python(items, at)
+            if kind == FINISH:
                 yield from self.window(cols.take())
-                if progress is not None:
-                    progress(int(walker.stats()["position"]))
-        yield from self.python(dissector.finish(), cols.frames)
-        yield from self.window(cols.take())
+                break
+            if kind == DONE:
+                if cols.frames + len(self.py) >= goal():
+                    yield from self.window(cols.take())
+                    if progress is not None:
+                        progress(int(walker.stats()["position"]))
+                cols.limit = goal() - len(self.py)  # > cols.frames here
 
     def settle(self) -> None:
         """The expert's detectors with the state of the whole capture (after `run`): the accumulator's, or

@@ -23,13 +23,14 @@ import numpy as np
 
 from mavscope.browse.rows import Progress
 from mavscope.capture.detect import open_capture
-from mavscope.capture.reader import WINDOW, handed_back_record, open_file
+from mavscope.capture.reader import WINDOW, open_file
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
 from mavscope.native import core
 from mavscope.native.core import COLUMN_TRANSPORTS, KINDS, _native
 from mavscope.native.tables import table_for
+from mavscope.native.windows import DONE, FINISH, NATIVE, column_steps
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.security.stage import SecurityStage
 
@@ -118,24 +119,17 @@ def native_build(index: Any, path: str, dialect: Dialect, stage: SecurityStage, 
                                 Endpoint.from_packed, stage.signed_senders, WINDOW, columns=cols,
                                 receivers=dissector.receivers)
         try:
-            step, walked, told = walker.next, walker.walked, None
             first = True
-            while True:
-                segs = step(not stage.check_signatures, 1 << 20, None)
-                if segs is None:
-                    last = walked()
-                    if last is not None and last != told:
-                        python(dissector.passed(*last))
+            for kind_, got, _at in column_steps(walker, cols, dissector, lambda: not stage.check_signatures):
+                if kind_ == NATIVE:
+                    chunk()  # the batch's native rows, before the records it handed back
+                    continue
+                python(got)
+                if kind_ == FINISH:
+                    chunk()
                     break
-                told = walked()
-                if told is not None:
-                    held = dissector.passed(*told)
-                    if held:
-                        python(held)
-                chunk()
-                for seg in segs:
-                    if type(seg) is tuple:
-                        python(dissector.feed(handed_back_record(seg)))
+                if kind_ != DONE:
+                    continue
                 if first and items[0]:
                     first = False
                     cols.limit = CHUNK
@@ -150,8 +144,6 @@ def native_build(index: Any, path: str, dialect: Dialect, stage: SecurityStage, 
                         if on_progress is not None:
                             on_progress(index.progress)
                         return index.progress
-            python(dissector.finish())
-            chunk()
         finally:
             walker.close()
     finally:

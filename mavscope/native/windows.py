@@ -10,7 +10,7 @@ them. A `Window` holds at most `limit` rows; `FrameBatch.of_window` makes one ba
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -77,6 +77,43 @@ class _Walk:
         return w
 
 
+# what `column_steps` yields: items of the Python pipeline (records handed back, what the dissector held),
+# the walker's return after a batch of native rows, and the end of the capture's items
+HELD, NATIVE, BACK, DONE, FINISH = "held", "native", "back", "done", "finish"
+Step = tuple[str, Iterable[Frame | Anomaly], int]
+
+
+def column_steps(walker: _native.Walker, cols: _native.Columns, dissector: Dissector,
+                 signed_nokey: Callable[[], bool]) -> Iterator[Step]:
+    """The one walk of the column mode, in capture order (the export, the TUI's index and `windows` read it):
+    per batch of the walker, what the dissector held from before the batch's records (HELD, placed before the
+    batch's native rows: `at` counts the native rows before them), then NATIVE (the batch's rows are in
+    `cols`), then each record it handed back through the dissector (BACK), then DONE (the batch is over:
+    where a consumer takes a chunk and sets `cols.limit` for the next); at the end what the dissector's
+    finish gives (FINISH)."""
+    step, walked, told = walker.next, walker.walked, None
+    none: tuple[Frame | Anomaly, ...] = ()
+    while True:
+        before = cols.frames
+        segs = step(signed_nokey(), 1 << 20, None)
+        if segs is None:
+            last = walked()
+            if last is not None and last != told:
+                yield HELD, dissector.passed(*last), cols.frames
+            break
+        told = walked()
+        if told is not None:
+            held = dissector.passed(*told)
+            if held:
+                yield HELD, held, before
+        yield NATIVE, none, cols.frames
+        for seg in segs:
+            if type(seg) is tuple:
+                yield BACK, dissector.feed(handed_back_record(seg)), cols.frames
+        yield DONE, none, cols.frames
+    yield FINISH, dissector.finish(), cols.frames
+
+
 def windows(path: str, kind: str, dialect: Dialect, stage: SecurityStage, table: _native.Table,
             limit: int = WINDOW_FRAMES, progress: Any = None, stats: dict[str, int] | None = None,
             ) -> Iterator[Window]:
@@ -92,30 +129,17 @@ def windows(path: str, kind: str, dialect: Dialect, stage: SecurityStage, table:
                                 Endpoint.from_packed, stage.signed_senders, WINDOW, columns=cols, stats=None,
                                 receivers=dissector.receivers)
         try:
-            step, walked, told = walker.next, walker.walked, None
-            while True:
-                before = cols.frames
-                cols.limit = max(1, limit - len(walk.py))
-                segs = step(not stage.check_signatures, 1 << 20, None)
-                if segs is None:
-                    last = walked()
-                    if last is not None and last != told:
-                        walk.python(dissector.passed(*last), cols.frames)
-                    break
-                told = walked()
-                if told is not None:
-                    held = dissector.passed(*told)
-                    if held:
-                        walk.python(held, before)
-                for seg in segs:
-                    if type(seg) is tuple:
-                        walk.python(dissector.feed(handed_back_record(seg)), cols.frames)
-                if cols.frames + len(walk.py) >= limit:
+            cols.limit = limit
+            for kind_, items, at in column_steps(walker, cols, dissector, lambda: not stage.check_signatures):
+                walk.python(items, at)
+                if kind_ == FINISH:
                     yield walk.take(cols.take())
-                    if progress is not None:
-                        progress(int(walker.stats()["position"]))
-            walk.python(dissector.finish(), cols.frames)
-            yield walk.take(cols.take())
+                elif kind_ == DONE:
+                    if cols.frames + len(walk.py) >= limit:
+                        yield walk.take(cols.take())
+                        if progress is not None:
+                            progress(int(walker.stats()["position"]))
+                    cols.limit = max(1, limit - len(walk.py))
             if stats is not None:
                 stats.update(walker.stats())
         finally:
