@@ -20,6 +20,7 @@ import os
 from collections.abc import Mapping
 
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TCP, TRANSPORT_TLOG, TRANSPORT_UDP
+from mavscope.transport.dispatch import TABLES
 
 try:
     from mavscope import _native
@@ -32,9 +33,11 @@ NATIVE, PURE = "native", "pure-python"  # engine()'s answers
 
 
 def available(environ: Mapping[str, str] | None = None) -> bool:
-    """Whether the native engine runs: the extension is built and MAVSCOPE_PURE is not set."""
+    """Whether the native engine runs: the extension is built, MAVSCOPE_PURE is not set and the transport's
+    dispatch tables are the built-in ones (the native core decodes those alone: a link type, protocol or port
+    bound with transport.dispatch is read by the Python pipeline)."""
     env = os.environ if environ is None else environ
-    return _native is not None and env.get(PURE_ENV, "") in ("", "0")
+    return _native is not None and env.get(PURE_ENV, "") in ("", "0") and TABLES.builtin()
 
 
 def engine(environ: Mapping[str, str] | None = None) -> str:

@@ -184,3 +184,17 @@ def test_the_meta_check_finds_a_chain() -> None:
     code = ("def f(linktype, dport):\n    if linktype == LINKTYPE_MAVLINK_TLOG:\n        return 1\n"
             "    elif linktype == c.LINKTYPE_RAW or dport in VXLAN_PORTS:\n        return 2\n")
     assert _compared_names(ast.parse(code)) == {"LINKTYPE_MAVLINK_TLOG", "LINKTYPE_RAW", "VXLAN_PORTS"}
+
+
+def test_a_binding_of_ones_own_puts_the_python_pipeline_in_charge(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The native core decodes the built-in entries alone (netlayers.c): with a binding added the engine
+    is the Python pipeline's, which reads the tables (native.core.available)."""
+    from mavscope.native import core
+    from mavscope.transport import dispatch
+
+    built = core.available({})
+    assert not built or dispatch.TABLES.builtin()
+    monkeypatch.setattr(dispatch, "TABLES", dispatch.TABLES.copy())
+    monkeypatch.setattr(core, "TABLES", dispatch.TABLES)
+    dispatch.TABLES.bind_udp_port(4790, dispatch.TABLES.udp_ports[4789])
+    assert not dispatch.TABLES.builtin() and not core.available({})
