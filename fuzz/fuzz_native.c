@@ -7,7 +7,9 @@
  * preset as seen signing; bit 7: a hostile file: a control byte follows the selector, giving the read
  * window (64 << (c & 7) bytes, so records and resynchronisation scans cross window boundaries) and, in
  * bits 3-5, a file that shrinks after k reads to k/7 of its size (k = 1..6) or whose second read fails
- * (7). The file is read through a memory source, in windows, as the extension reads a file with pread.
+ * (7); bit 6: the Dissector's set of MAVLink sources nearly full (room for 1 to 3, by the input's length),
+ * so that records from sources beyond it are handed back, else room for MS_MAX_ENDPOINTS as the glue
+ * gives it before each batch (the sources the walks learn counted against it). The file is read through a memory source, in windows, as the extension reads a file with pread.
  * The batch limit is small so batches end mid-capture. Every JSON line written is checked to be
  * well-formed JSON; every record handed back must hold exactly the file's bytes at its offset (nothing
  * made up), and its notes are read whole, so the sanitizers see every byte the Python glue would. The
@@ -17,8 +19,16 @@
  * Every input is then walked a second time by the summary writer (summary.c: the lines of `read FILE`,
  * with the summary table of $MAVSCOPE_FUZZ_SUMMARY and a t0 picked by the input's length: none, the
  * capture's era, 0, or NaN); each line must end in one newline and hold printable ASCII and the route's
- * arrow only. The summary number and string writers (ms_w_g4, ms_w_degrees, ms_w_reltime,
- * ms_w_repr_ascii) run on the input's bytes into buffers of exactly their claimed room too.
+ * arrow only. The summary number and string writers (ms_w_f32_repr and ms_w_double_repr, the shortest
+ * text of a float32 and Python's repr of a double, in MS_REPR_MAX; ms_w_degrees, ms_w_reltime,
+ * ms_w_repr_ascii) run on the input's bytes into buffers of exactly their claimed room too. Every float
+ * text (JSON's ms_w_double and ms_w_f32, the summary's repr layouts) must read back (strtod, strtof) as the
+ * value written, and a float32's hold no more digits than the fewest printf's %.*e reads back with.
+ *
+ * Every walk is given the notes the walker writes itself and MAVLink's UDP ports, as the glue gives them
+ * ($MAVSCOPE_FUZZ_NOTES, written by the script from mavscope.native.walk.note_templates): unsigned and
+ * MAVLink 1 frames of a sender seen signing (the preset sender, bits 4-6) and frames with a bad CRC (bit 3
+ * clear) are written natively with their notes, JSON and summary (" [CRC bad]") alike.
  *
  * Live capture's parts run on every input too: ms_udp_record (recv.c) on addresses, ports and a payload
  * taken from the input (lengths and checksums checked), and a pcap input is walked again fed in pieces
@@ -50,6 +60,7 @@
  *
  * Build and run: scripts/fuzz-native.sh SECONDS (docs/native.md). The message table comes from
  * mavscope's default dialect, written by the script to the file named in $MAVSCOPE_FUZZ_TABLE. */
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -72,6 +83,43 @@
 static ms_table table;
 static ms_summary summary;
 static ms_plan plan;
+/* the note templates (walk.h MS_TPL_*) and ports of $MAVSCOPE_FUZZ_NOTES, pointing into notes_blob */
+static uint8_t notes_blob[4096];
+static const char *tpl[MS_NOTE_TPLS][4];
+static size_t tpl_len[MS_NOTE_TPLS][4];
+static uint16_t tpl_ports[64];
+static size_t tpl_nports;
+
+/* notes.bin (scripts/fuzz_native_inputs.py notes_blob): per template u8 piece count, then per piece u16
+ * length and bytes; u16 port count, u16 ports (little-endian). 0, or -1 when malformed. */
+static int parse_notes(size_t n) {
+    size_t p = 0;
+    for (int i = 0; i < MS_NOTE_TPLS; i++) {
+        if (p >= n || notes_blob[p] == 0 || notes_blob[p] > 4)
+            return -1;
+        const unsigned pieces = notes_blob[p++];
+        for (unsigned j = 0; j < pieces; j++) {
+            if (n - p < 2)
+                return -1;
+            const size_t len = (size_t)notes_blob[p] | (size_t)notes_blob[p + 1] << 8;
+            p += 2;
+            if (len > MS_NOTE_TPL_MAX || n - p < len)
+                return -1;
+            tpl[i][j] = (const char *)notes_blob + p;
+            tpl_len[i][j] = len;
+            p += len;
+        }
+    }
+    if (n - p < 2)
+        return -1;
+    tpl_nports = (size_t)notes_blob[p] | (size_t)notes_blob[p + 1] << 8;
+    p += 2;
+    if (tpl_nports > sizeof tpl_ports / sizeof tpl_ports[0] || n - p != 2 * tpl_nports)
+        return -1;
+    for (size_t i = 0; i < tpl_nports; i++, p += 2)
+        tpl_ports[i] = (uint16_t)(notes_blob[p] | notes_blob[p + 1] << 8);
+    return 0;
+}
 
 int LLVMFuzzerInitialize(int *argc, char ***argv);
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
@@ -126,6 +174,22 @@ int LLVMFuzzerInitialize(int *argc, char ***argv) {
     fclose(f);
     if (ms_plan_parse(&plan, blob, n) != 0) {
         fprintf(stderr, "fuzz_native: %s is not a statistics plan\n", ppath);
+        abort();
+    }
+    const char *npath = getenv("MAVSCOPE_FUZZ_NOTES");
+    if (npath == NULL) {
+        fprintf(stderr, "fuzz_native: set MAVSCOPE_FUZZ_NOTES to the note templates (scripts/fuzz-native.sh)\n");
+        abort();
+    }
+    f = fopen(npath, "rb");
+    if (f == NULL) {
+        perror(npath);
+        abort();
+    }
+    n = fread(notes_blob, 1, sizeof notes_blob, f);
+    fclose(f);
+    if (n == sizeof notes_blob || parse_notes(n) != 0) {
+        fprintf(stderr, "fuzz_native: %s is not a notes blob\n", npath);
         abort();
     }
     return 0;
@@ -250,13 +314,81 @@ static void check_lines(const char *text, size_t len) {
     }
 }
 
-/* ms_w_double on doubles and widened floats from the input, ms_w_text on a piece of it, each into a
- * heap buffer of exactly the room it claims */
+/* The significant digits of a number's text (its digits before any exponent, leading and trailing zeros
+ * not counted). */
+static int significant_digits(const char *s, const char *e) {
+    int n = 0, zeros = 0, started = 0;
+    for (; s < e && *s != 'e' && *s != 'E'; s++) {
+        if (*s < '0' || *s > '9')
+            continue;
+        if (*s == '0') {
+            zeros += started;
+            continue;
+        }
+        n += started ? zeros + 1 : 1;
+        zeros = 0;
+        started = 1;
+    }
+    return n;
+}
+
+/* A float text [s, e) of the double d (f32: of the float32 f): JSON's `null` for NaN and infinities (json),
+ * else a number (a JSON one with json) that strtod/strtof reads back as exactly the value (its sign too);
+ * with `shortest`, a float32's or a double's text holds no more significant digits than the fewest that
+ * printf's correctly rounded %.*e reads back with (the shortest may be fewer: a power of two's interval is
+ * lopsided). */
+static void check_float_text(const char *s, const char *e, int f32, double d, float f, int json, int shortest) {
+    char buf[64];
+    const size_t len = (size_t)(e - s);
+    if (e <= s || len >= sizeof buf)
+        abort();
+    memcpy(buf, s, len);
+    buf[len] = '\0';
+    const double v = f32 ? (double)f : d;
+    if (!isfinite(v)) {
+        if (json && strcmp(buf, "null") != 0)
+            abort();
+        return;
+    }
+    const char *q = s;
+    if (json && (!json_number(&q, e) || q != e))
+        abort();
+    char *stop;
+    errno = 0;
+    if (f32) {
+        const float back = strtof(buf, &stop);
+        if (*stop != '\0' || memcmp(&back, &f, sizeof f) != 0)
+            abort(); /* the text does not read back as the float32 written */
+    } else {
+        const double back = strtod(buf, &stop);
+        if (*stop != '\0' || memcmp(&back, &d, sizeof d) != 0)
+            abort();
+    }
+    if (!shortest || v == 0)
+        return;
+    const int most = f32 ? 9 : 17;
+    int fewest = most;
+    for (int p = 1; p < most; p++) {
+        char t[64];
+        snprintf(t, sizeof t, "%.*e", p - 1, v);
+        if (f32 ? strtof(t, NULL) == f : strtod(t, NULL) == d) {
+            fewest = p;
+            break;
+        }
+    }
+    if (significant_digits(s, e) > fewest)
+        abort(); /* not the shortest text that reads back */
+}
+
+/* ms_w_double on doubles and widened floats from the input, ms_w_f32 on its float32s (JSON Lines' float
+ * fields), ms_w_text on a piece of it, each into a heap buffer of exactly the room it claims; each number
+ * reads back as the value written, the first ones' texts the shortest. */
 static void check_writers(const uint8_t *data, size_t size) {
     char *room = malloc(MS_DOUBLE_MAX);
     if (room == NULL)
         return;
     for (size_t i = 0; i + 8 <= size && i < 512; i += 8) {
+        const int shortest = i < 64;
         uint64_t bits;
         memcpy(&bits, data + i, 8);
         double d;
@@ -264,11 +396,20 @@ static void check_writers(const uint8_t *data, size_t size) {
         char *end = ms_w_double(room, d);
         if (end <= room || end > room + 24)
             abort(); /* no double text is longer than 24 bytes */
+        check_float_text(room, end, 0, d, 0, 1, shortest);
         float f;
         memcpy(&f, data + i, 4);
         end = ms_w_double(room, (double)f);
         if (end <= room || end > room + 24)
             abort();
+        check_float_text(room, end, 0, (double)f, 0, 1, 0);
+        for (int k = 0; k < 2; k++) {
+            memcpy(&f, data + i + 4 * k, 4);
+            end = ms_w_f32(room, f);
+            if (end <= room || end > room + 19)
+                abort(); /* "-1234567800000000.0": 9 digits at most, 16 before the point */
+            check_float_text(room, end, 1, 0, f, 1, shortest);
+        }
     }
     free(room);
     size_t n = size < 256 ? size : 256;
@@ -360,18 +501,34 @@ static void check_summary_lines(const char *text, size_t len) {
 
 /* The summary formatters on the input's bytes, into buffers of exactly their claimed room. */
 static void check_summary_writers(const uint8_t *data, size_t size) {
-    char *g = malloc(MS_G4_MAX), *deg = malloc(MS_DEG_MAX), *rel = malloc(MS_REL_MAX);
+    char *g = malloc(MS_REPR_MAX), *deg = malloc(MS_DEG_MAX), *rel = malloc(MS_REL_MAX);
     if (g == NULL || deg == NULL || rel == NULL)
         goto done;
     for (size_t i = 0; i + 8 <= size && i < 256; i += 8) {
+        const int shortest = i < 64;
         uint64_t bits;
         memcpy(&bits, data + i, 8);
         double d;
         memcpy(&d, &bits, 8);
         float f;
         memcpy(&f, data + i, 4);
-        if (ms_w_g4(g, d) <= g || ms_w_g4(g, (double)f) <= g)
-            abort();
+        /* the Info column's floats (summary.c w_float): finite values only, NaN and inf are its own words */
+        if (isfinite(d)) {
+            char *end = ms_w_double_repr(g, d);
+            if (end <= g || end > g + 24)
+                abort(); /* "-1.2345678901234567e-308" */
+            check_float_text(g, end, 0, d, 0, 0, shortest);
+        }
+        for (int k = 0; k < 2; k++) {
+            memcpy(&f, data + i + 4 * k, 4);
+            if (!isfinite(f))
+                continue;
+            char *end = ms_w_f32_repr(g, f);
+            if (end <= g || end > g + 19)
+                abort();
+            check_float_text(g, end, 1, 0, f, 0, shortest);
+        }
+        memcpy(&f, data + i, 4);
         if (ms_w_degrees(deg, (int64_t)bits, (int)(bits & 1)) <= deg)
             abort();
         (void)ms_w_reltime(rel, d);
@@ -803,33 +960,27 @@ static void learn_streams(ms_signing *s, const uint8_t *d, size_t n) {
     }
 }
 
-/* The notes the walker writes itself (mavscope.native.walk.note_templates, which the glue hands over) and
- * MAVLink's ports (Dissector.MAVLINK_PORTS): set on every walk, so the unsigned-in-signed and bad-CRC frames
- * are written natively as the glue has them written. */
-static const char *const TPL[MS_NOTE_TPLS][4] = {
-    {"{\"code\":\"unsigned-in-signed-stream\",\"severity\":\"warn\",\"message\":\"unsigned ", " from ",
-     ", which sends signed frames\",\"offset\":", "}"},
-    {"{\"code\":\"v1-in-signed-stream\",\"severity\":\"warn\",\"message\":\"MAVLink v1 ", " from ",
-     ", which sends signed frames\",\"offset\":", "}"},
-    {"{\"code\":\"bad-crc\",\"severity\":\"error\",\"message\":\"CRC 0x", " does not match the frame\",\"offset\":",
-     "}", NULL},
-};
-static const uint16_t PORTS[] = {5760, 5761, 5762, 5763, 14540, 14550, 14555, 14557, 14560, 14580, 18570};
-
+/* The notes the walker writes itself and MAVLink's ports, as the glue gives them (module.c: the templates
+ * copied, the ports an exactly sized list; $MAVSCOPE_FUZZ_NOTES): set on every walk, so the unsigned and
+ * MAVLink 1 frames of a sender that signs and the bad-CRC frames are written natively as the glue has them
+ * written. */
 static void set_notes(ms_walker *w) {
     for (int i = 0; i < MS_NOTE_TPLS; i++)
-        for (int j = 0; j < 4 && TPL[i][j] != NULL; j++) {
-            w->note_tpl[i][j] = strdup(TPL[i][j]);
-            if (w->note_tpl[i][j] == NULL)
+        for (int j = 0; j < 4 && tpl[i][j] != NULL; j++) {
+            char *piece = malloc(tpl_len[i][j] + 1); /* the walker frees them, as the glue's copies */
+            if (piece == NULL)
                 abort();
-            w->note_tpl_len[i][j] = strlen(TPL[i][j]);
+            memcpy(piece, tpl[i][j], tpl_len[i][j]);
+            piece[tpl_len[i][j]] = '\0';
+            w->note_tpl[i][j] = piece;
+            w->note_tpl_len[i][j] = tpl_len[i][j];
         }
-    uint16_t *ports = malloc(sizeof PORTS);
+    uint16_t *ports = malloc(tpl_nports ? tpl_nports * sizeof *ports : 1); /* exactly sized: a read past is an overflow */
     if (ports == NULL)
         abort();
-    memcpy(ports, PORTS, sizeof PORTS);
+    memcpy(ports, tpl_ports, tpl_nports * sizeof *ports);
     w->ports = ports;
-    w->nports = sizeof PORTS / sizeof PORTS[0];
+    w->nports = tpl_nports;
 }
 
 /* One walk of the file in `mf` (as JSON Lines, or as summary lines with `sum`), checking what comes out. */
@@ -866,9 +1017,14 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
     w.cols = cols;
     ms_buf out;
     ms_buf_init(&out);
+    /* the sources Python's Dissector.mavlink_endpoints takes (module.c sync_endpoints): without room for
+     * them every datagram of a new source is handed back */
+    const size_t endpoints_max = (sel & 0x80) && (control & 0x40) ? 1 + n % 3 : MS_MAX_ENDPOINTS;
+    size_t endpoints = 0;
     for (;;) {
         if (preset)
             ms_signer_set(&w, (preset << 8) | 1u); /* a sender seen signing, as Python may add */
+        w.endpoint_room = endpoints >= endpoints_max ? 0 : endpoints_max - endpoints;
         out.len = 0;
         ms_record rec;
         int r = ms_walk(&w, &out, 4096, &rec);
@@ -911,6 +1067,7 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
         }
         if (r == MS_WALK_END)
             break;
+        endpoints += w.n_new_endpoints;
         w.n_new_signers = 0;
         w.n_new_endpoints = 0;
     }
@@ -1043,12 +1200,20 @@ static void walk_fed(const uint8_t *file, size_t n, unsigned sel, unsigned contr
     ms_walker_init(&w, ms_memory_source(&mf), n, MS_KIND_PCAP, &table);
     w.sign_mode = (sel & 4) ? MS_SIGNED_NOKEY : MS_SIGNED_HANDBACK;
     w.fuzz_any_crc = (sel & 8) != 0;
+    set_notes(&w);
+    w.endpoint_room = MS_MAX_ENDPOINTS; /* (a 64 KiB input has fewer sources) */
+    if ((sel >> 4) & 7)
+        ms_signer_set(&w, ((sel >> 4) & 7) << 8 | 1u);
     walk_collect(&w, &whole);
     ms_walker_free(&w);
     ms_memory_file mf2 = {file, bounds[0], 0, 0, 0, 0};
     ms_walker_init(&w, ms_memory_source(&mf2), bounds[0], MS_KIND_PCAP, &table);
     w.sign_mode = (sel & 4) ? MS_SIGNED_NOKEY : MS_SIGNED_HANDBACK;
     w.fuzz_any_crc = (sel & 8) != 0;
+    set_notes(&w);
+    w.endpoint_room = MS_MAX_ENDPOINTS; /* (a 64 KiB input has fewer sources) */
+    if ((sel >> 4) & 7)
+        ms_signer_set(&w, ((sel >> 4) & 7) << 8 | 1u);
     int ok = walk_collect(&w, &fed) == MS_WALK_END;
     for (size_t i = 1; ok && i < nb; i++) {
         mf2.size = bounds[i];

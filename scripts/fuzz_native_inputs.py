@@ -2,11 +2,13 @@
 
     python scripts/fuzz_native_inputs.py OUT_DIR CORPUS_DIR
 
-writes OUT_DIR/table.bin (message layouts), summary.bin (the summary writer's table) and plan.bin (the
-`stats` accumulator's plan), and seeds CORPUS_DIR: every bundled capture under the selector of its own
-format (0 pcap, 1 pcapng, 2 tlog, 3 raw), with and without native signed frames (bit 2), with every CRC
-taken (bit 3), judged with keys (a preset sender, bits 4-6, bit 2 clear), and as hostile files (bit 7: a
-control byte, then a small read window, shrinking, a failed read); and 600 frames of the bench capture
+writes OUT_DIR/table.bin (message layouts), summary.bin (the summary writer's table), plan.bin (the
+`stats` accumulator's plan) and notes.bin (the notes the walker writes itself and MAVLink's UDP ports, as
+the glue hands them over: mavscope.native.walk.note_templates and MAVLINK_PORTS; notes_blob says the
+layout), and seeds CORPUS_DIR: every bundled capture under the selector of its own format (0 pcap,
+1 pcapng, 2 tlog, 3 raw), with and without native signed frames (bit 2), with every CRC taken (bit 3),
+judged with keys (a preset sender, bits 4-6, bit 2 clear), and as hostile files (bit 7: a control byte,
+then a small read window, shrinking, a failed read); and 600 frames of the bench capture
 (benchmarks/bench_capture.py, two senders signing). fuzz/fuzz_native.c documents the selector.
 tests/meta/test_fuzz_inputs.py runs both halves, so a moved builder fails the suite, not the fuzzer.
 """
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import struct
 import sys
 import tempfile
 from pathlib import Path
@@ -24,11 +27,15 @@ from mavscope.mavlink.dialect import load_dialect
 from mavscope.native.plan import build_plan
 from mavscope.native.summary import build_summary_table
 from mavscope.native.table_blob import build_table
+from mavscope.native.walk import note_templates
+from mavscope.pipeline.dissect import MAVLINK_PORTS
 
 ROOT = Path(__file__).resolve().parents[1]
 SELECTOR = {"pcap": 0, "pcapng": 1, "tlog": 2, "raw": 3}
 EXTRAS = (0, 4, 8, 12, 0x10, 0x18, 0x70)
-HOSTILE_CONTROLS = (0x00, 0x10, 0x38)  # a 64-byte read window; shrinking after 2 reads to 2/7; a failed read
+# a 64-byte read window; shrinking after 2 reads to 2/7; a failed read; a 512-byte window and the set of
+# MAVLink sources nearly full
+HOSTILE_CONTROLS = (0x00, 0x10, 0x38, 0x43)
 
 
 def write_tables(out: Path) -> None:
@@ -41,6 +48,21 @@ def write_tables(out: Path) -> None:
     (out / "table.bin").write_bytes(build_table(dialect))
     (out / "summary.bin").write_bytes(build_summary_table(dialect))
     (out / "plan.bin").write_bytes(plan)
+    (out / "notes.bin").write_bytes(notes_blob())
+
+
+def notes_blob() -> bytes:
+    """The walker's note templates and MAVLink's ports as the glue gives them (native/walk.py): per template
+    (walk.h MS_TPL_*, in order) u8 piece count, then per piece u16 length and the bytes; then u16 port count
+    and each port as u16 (all little-endian)."""
+    blob = bytearray()
+    for template in note_templates():
+        blob += struct.pack("<B", len(template))
+        for piece in template:
+            blob += struct.pack("<H", len(piece)) + piece
+    ports = sorted(MAVLINK_PORTS)
+    blob += struct.pack(f"<H{len(ports)}H", len(ports), *ports)
+    return bytes(blob)
 
 
 def _bench_capture(path: Path, frames: int) -> None:
