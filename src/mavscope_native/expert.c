@@ -439,7 +439,8 @@ int ms_expert_finish(ms_acc *a) {
         }
         h->behind.n = h->behind_more.n = h->ahead.n = h->ahead_more.n = 0;
     }
-    qsort(left, n, sizeof *left, by_order);
+    if (n) /* qsort(NULL, 0, ...) is undefined: no copy held */
+        qsort(left, n, sizeof *left, by_order);
     int r = 0;
     for (size_t i = 0; i < n && r == 0; i++) {
         ms_link *lk = &a->links.v[a->link_of[left[i].sender]];
