@@ -92,6 +92,30 @@ SLOW: tuple[str, ...] = (
     "tests/analysis/test_replays.py::test_a_dropout_longer_than_the_counter_is_not_a_replay",
     # every ordering of a mission exchange on both engines (test_transfers_are_what_the_parties_did keeps each)
     "tests/analysis/test_mission_orderings.py::test_every_ordering_is_the_same_on_both_engines",
+    # long walks of the TUI through Pilot: every screen with hostile words (tests/cli/test_hostile_words.py and
+    # the module's fast test keep the rule), the live follow mode's key and drop runs, the filter bar's error
+    # positions, the key dialog's passes, the objects screen under a filter (each module keeps faster walks)
+    "tests/tui/test_hostile_screens.py::test_every_screen_shows_hostile_words_escaped",
+    "tests/tui/test_live_follow.py::test_a_key_added_while_live_judges_the_kept_frames_again_and_those_that_follow",
+    "tests/tui/test_live_follow.py::test_follow_mode_survives_moving_and_filtering_while_rows_are_dropped",
+    "tests/tui/test_app.py::test_filter_bar_apply_inline_error_at_the_position_and_escape",
+    "tests/tui/test_app.py::test_key_dialog_adds_a_passphrase_and_the_verdicts_update",
+    "tests/tui/test_objects_screen.py::test_objects_screen_under_a_filter_and_with_nothing_to_show",
+    "tests/security/test_hostile_keys.py::test_the_key_dialog_masks_what_is_typed_and_its_error",
+    # scale and floods on both engines (the modules keep a bound's smaller cases)
+    "tests/native/test_stats_limits.py::test_commanders_sprayed_at_three_vehicles",
+    "tests/native/test_stats_limits.py::test_copies_past_what_replayed_commands_remembers",
+    "tests/pipeline/test_endpoint_bound.py::test_both_engines_say_it_on_the_same_records",
+    "tests/export/test_audit_findings.py::test_a_command_flood_past_the_matchers_bound_is_in_the_export",
+    "tests/transport/test_hostile_tcp.py::test_memory_does_not_grow_with_the_number_of_streams[syn-generations]",
+    # one large real capture read again, a second engine of a live run
+    "tests/analysis/test_story_real.py::test_parameter_sets_as_pymavlink_reads_them",
+    "tests/live/test_live.py::test_pcap_flushed_while_running[pure-python]",
+    "tests/live/test_live.py::test_sigterm_and_sigint_stop_cleanly[pure-python]",
+    "tests/tui/test_app.py::test_key_dialog_shows_the_command_lines_error_for_a_bad_key",
+    "tests/tui/test_app.py::test_key_dialog_tab_from_the_key_lands_on_add",
+    "tests/native/test_stats_generated.py::test_story_is_identical",
+    "tests/export/test_dask.py::test_dask_export_gives_the_local_rows",
 )
 
 # Parametrized tests (node id without the brackets) -> the parametrizations kept fast (fnmatch over the id);
