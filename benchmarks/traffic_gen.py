@@ -208,9 +208,18 @@ def _tcp_pcap(path: Path, sends: Sends, rng: random.Random) -> int:
     return len(pkts)
 
 
+def _glued_crc_ok(glued: bytes) -> bool:
+    """Whether a reader taking a cut frame's head and the bytes after it as one frame sees a good CRC (never,
+    when those bytes end before that frame's CRC would)."""
+    from scripts.capgen.frames import frame_crc_ok
+
+    size = (8 if glued[0] == 0xFE else 12) + glued[1]
+    return len(glued) >= size and frame_crc_ok(glued)
+
+
 def _raw(path: Path, sends: Sends, rng: random.Random) -> tuple[int, int, int]:
     """The byte stream with line noise; (frames kept whole, noise bursts, frames cut short)."""
-    from scripts.capgen.frames import assert_no_stx, frame_crc_ok
+    from scripts.capgen.frames import assert_no_stx
 
     frames = [f.data for _, _, fs in sends for f in fs]
     out, whole, noise, cut = bytearray(), 0, 0, 0
@@ -226,7 +235,7 @@ def _raw(path: Path, sends: Sends, rng: random.Random) -> tuple[int, int, int]:
         quiet = max(quiet - 1, 0)
         cut_here = (rng.random() < CUT_SHARE and not quiet and i + 2 < len(frames)
                      and b"\xfd" not in f[1:keep] and b"\xfe" not in f[1:keep]
-                     and not frame_crc_ok(f[:keep] + frames[i + 1] + frames[i + 2]))
+                     and not _glued_crc_ok(f[:keep] + frames[i + 1] + frames[i + 2]))
         # a frame cut short: its head holds no second start byte, and a reader that took the next frames'
         # bytes as its tail sees a bad CRC
         if cut_here:
