@@ -60,7 +60,7 @@ def record(out: Path, real: Path | None, pure: bool) -> int:
         for name, args in COMMANDS.items():
             argv = [str(cap) if a == "FILE" else a for a in args]
             done = subprocess.run(exe + argv, capture_output=True, env=env, cwd=ROOT, timeout=900)
-            (where / f"{name}.out").write_bytes(done.stdout)
+            (where / f"{name}.out").write_bytes(done.stdout.replace(str(cap).encode(), b"FILE"))
             (where / f"{name}.err").write_bytes(done.stderr.replace(str(cap).encode(), b"FILE"))
             (where / f"{name}.rc").write_text(f"{done.returncode}\n")
         print(f"recorded {cap.name}", file=sys.stderr)
@@ -80,9 +80,14 @@ def compare(old: Path, new: Path) -> int:
         if a.read_bytes() == b.read_bytes():
             continue
         differ += 1
-        lines = list(difflib.unified_diff(a.read_text(errors="replace").splitlines(),
-                                          b.read_text(errors="replace").splitlines(),
-                                          str(a), str(b), lineterm="", n=1))
+        a_lines, b_lines = a.read_text(errors="replace").splitlines(), b.read_text(errors="replace").splitlines()
+        if len(a_lines) + len(b_lines) > 20_000:  # difflib is quadratic: the first lines that differ, and counts
+            first = next((i for i, (x, y) in enumerate(zip(a_lines, b_lines)) if x != y), min(len(a_lines),
+                                                                                              len(b_lines)))
+            print(f"--- {a}\n+++ {b}\n{len(a_lines)} and {len(b_lines)} lines; first difference at line {first + 1}:")
+            print("\n".join(f"-{x}\n+{y}" for x, y in zip(a_lines[first:first + 3], b_lines[first:first + 3])))
+            continue
+        lines = list(difflib.unified_diff(a_lines, b_lines, str(a), str(b), lineterm="", n=1))
         print("\n".join(lines[:40]) + (f"\n... {len(lines) - 40} more diff lines" if len(lines) > 40 else ""))
     print(f"{differ} of {len(names)} files differ", file=sys.stderr)
     return 1 if differ else 0
