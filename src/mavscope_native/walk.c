@@ -433,17 +433,22 @@ static int note_source(ms_walker *w, const ms_udp *udp) {
     return note_endpoint(w, &e);
 }
 
+/* Whether the datagram's source (`dst` 0) or destination (1) is an endpoint this walker knows. */
+static int end_seen(const ms_walker *w, const ms_udp *udp, int dst) {
+    ms_endpoint e;
+    memset(&e, 0, sizeof e);
+    e.v6 = (uint8_t)udp->v6;
+    memcpy(e.addr, dst ? udp->dst : udp->src, udp->v6 ? 16 : 4);
+    e.port = dst ? udp->dport : udp->sport;
+    return seen_has(w, &e);
+}
+
 /* A datagram from a source Python's mavlink_endpoints would not take: the set is full (Dissector._learn) and
  * the source is not in it. Python dissects it, and says the give-up on the same record as the pure path. */
 static int source_refused(const ms_walker *w, const ms_udp *udp) {
     if (w->n_new_endpoints < w->endpoint_room)
         return 0;
-    ms_endpoint e;
-    memset(&e, 0, sizeof e);
-    e.v6 = (uint8_t)udp->v6;
-    memcpy(e.addr, udp->src, udp->v6 ? 16 : 4);
-    e.port = udp->sport;
-    return !seen_has(w, &e);
+    return !end_seen(w, udp, 0);
 }
 
 /* The frames of a record written natively: counted, and what Python's Dissector._index would hold. */
@@ -527,16 +532,7 @@ static int trusted(const ms_walker *w, const ms_udp *udp) {
     for (size_t i = 0; i < w->nports; i++)
         if (w->ports[i] == udp->sport || w->ports[i] == udp->dport)
             return 1;
-    ms_endpoint e;
-    memset(&e, 0, sizeof e);
-    e.v6 = (uint8_t)udp->v6;
-    memcpy(e.addr, udp->src, udp->v6 ? 16 : 4);
-    e.port = udp->sport;
-    if (seen_has(w, &e))
-        return 1;
-    memcpy(e.addr, udp->dst, udp->v6 ? 16 : 4);
-    e.port = udp->dport;
-    return seen_has(w, &e);
+    return end_seen(w, udp, 0) || end_seen(w, udp, 1);
 }
 
 /* MS_WALK_FULL when the record was written (or had nothing), MS_WALK_HANDBACK, or MS_WALK_NOMEM. */
