@@ -50,7 +50,7 @@ from scripts.capgen.constants import (  # noqa: E402
     SIGNING_KEY,
 )
 
-GEN_VERSION = 3  # bump when a generated capture changes
+GEN_VERSION = 5  # bump when a generated capture changes
 KINDS = ("clean", "mixsign", "signedv1", "badcrc", "tcp", "tlog", "raw")
 SIGNED_KINDS = ("mixsign", "signedv1")
 SUFFIX = {"tlog": ".tlog", "raw": ".raw"}  # the others: .pcap
@@ -217,6 +217,21 @@ def _glued_crc_ok(glued: bytes) -> bool:
     return len(glued) >= size and frame_crc_ok(glued)
 
 
+def _ends_on_a_frame(f: bytes, keep: int, after: list[bytes]) -> bool:
+    """Whether the cut frame's LEN, counted over the frames after it, ends where one of them ends: then the
+    framer (and MAVLink's C parser, which reads LEN bytes on) takes head and frames as one bad-CRC frame and
+    the frames inside it are read by no receiver, which this capture's truth does not count."""
+    size = (8 if f[0] == 0xFE else 12) + f[1]
+    at = keep
+    for g in after:
+        at += len(g)
+        if at == size:
+            return True
+        if at > size:
+            return False
+    return False
+
+
 def _raw(path: Path, sends: Sends, rng: random.Random) -> tuple[int, int, int]:
     """The byte stream with line noise; (frames kept whole, noise bursts, frames cut short)."""
     from scripts.capgen.frames import assert_no_stx
@@ -226,16 +241,19 @@ def _raw(path: Path, sends: Sends, rng: random.Random) -> tuple[int, int, int]:
     clean = bytes(b for b in range(256) if b not in (0xFD, 0xFE))
     quiet = 0  # no noise in the two frames after a cut: the glued bytes checked below are what is written
     for i, f in enumerate(frames):
-        if rng.random() < NOISE_SHARE and not quiet:
+        noisy = rng.random() < NOISE_SHARE and not quiet
+        if noisy:
             junk = bytes(rng.choice(clean) for _ in range(rng.randint(1, 24)))
             assert_no_stx(junk, "line noise")
             out += junk
             noise += 1
         keep = rng.randint(10, len(f) - 1)  # its header whole (v2), some of the rest
         quiet = max(quiet - 1, 0)
-        cut_here = (rng.random() < CUT_SHARE and not quiet and i + 2 < len(frames)
+        # (no cut right after noise: the framer reports noise and a cut head together as skipped bytes)
+        cut_here = (rng.random() < CUT_SHARE and not quiet and not noisy and i + 2 < len(frames)
                      and b"\xfd" not in f[1:keep] and b"\xfe" not in f[1:keep]
-                     and not _glued_crc_ok(f[:keep] + frames[i + 1] + frames[i + 2]))
+                     and not _glued_crc_ok(f[:keep] + frames[i + 1] + frames[i + 2])
+                     and not _ends_on_a_frame(f, keep, frames[i + 1:i + 4]))
         # a frame cut short: its head holds no second start byte, and a reader that took the next frames'
         # bytes as its tail sees a bad CRC
         if cut_here:
