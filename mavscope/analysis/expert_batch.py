@@ -13,7 +13,6 @@
 from __future__ import annotations
 
 import heapq
-from collections.abc import Iterable
 
 import numpy as np
 
@@ -22,23 +21,12 @@ from mavscope.analysis.expert import Detector, Expert, SequenceAnomalies
 from mavscope.analysis.replays import ReplayedCommands
 from mavscope.analysis.sequence_batch import CODE, STEP_NAMES, Steps, feed_batch
 from mavscope.mavlink.frame import SignatureStatus
-from mavscope.pipeline.batch import VERDICTS, FrameBatch
+from mavscope.pipeline.batch import TRANSPORTS, VERDICTS, FrameBatch
 from mavscope.transport.base import TRANSPORT_TLOG
 
 _BACK = np.array([CODE["duplicate"], CODE["late"], CODE["unchanged"]], np.int8)
 _REPLAY = VERDICTS.index(SignatureStatus.REPLAY.value)
-_TLOG = ("udp", "tcp", "tlog", "raw").index(TRANSPORT_TLOG)
-
-
-def _labels(b: FrameBatch, names: Iterable[str | int]) -> np.ndarray:
-    """Per row, whether its message is one of `names` (names, or ids as ints)."""
-    ids = b.tables._labels
-    want = [ids[n] for n in names if isinstance(n, str) and n in ids]
-    nums = [n for n in names if isinstance(n, int)]
-    mask = np.isin(b.label, np.asarray(want, np.int32)) if want else np.zeros(b.n, np.bool_)
-    if nums:
-        mask |= np.isin(b.msgid, np.asarray(nums, np.uint32))
-    return mask
+_TLOG = TRANSPORTS.index(TRANSPORT_TLOG)
 
 
 class _Fields:
@@ -79,7 +67,7 @@ def _generic(d: Detector, b: FrameBatch, fields: _Fields) -> None:
     if wanted is None:
         rows = np.arange(b.n)
     else:
-        given = ~b.clean | _labels(b, wanted)
+        given = ~b.clean | b.of_messages(wanted)
         rows = np.flatnonzero(given)
         signers = getattr(d, "signers", None)
         if signers is not None:
@@ -104,7 +92,7 @@ def _sequence(d: SequenceAnomalies, b: FrameBatch, steps: Steps) -> None:
 
 def _replays(d: ReplayedCommands, b: FrameBatch, steps: Steps) -> None:
     d.seqs = steps.seqs
-    candidate = _labels(b, COMMANDING) | (b.verdict == _REPLAY)
+    candidate = b.of_messages(COMMANDING) | (b.verdict == _REPLAY)
     heap = np.flatnonzero(candidate).tolist()  # ascending: a heap
     held = {id(tr) for tr in steps.trackers} & d.held.keys()
     for t, tr in enumerate(steps.trackers):

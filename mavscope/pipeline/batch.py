@@ -18,7 +18,7 @@ columns their ids (endpoints, message labels) for a whole pass, so ids mean the 
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any, Protocol
 
 import numpy as np
@@ -52,7 +52,8 @@ class Tables:
         self.label_defs: list[MessageDef | None] = []
         self._labels: dict[str, int] = {}
         self._native: list[int] = []  # the native walker's endpoint ids -> ours
-        self._positions: dict[int, np.ndarray] = {}  # id(messages) -> per table position, its label id
+        # id(messages) -> (messages, per table position the label id of its message)
+        self._positions: dict[int, tuple[Sequence[MessageDef], np.ndarray]] = {}
 
     def endpoint(self, e: Endpoint | None) -> int:
         if e is None:
@@ -88,9 +89,10 @@ class Tables:
     def native_labels(self, messages: Sequence[MessageDef]) -> np.ndarray:
         """Per position of the walker's layout table, the label id of its message."""
         got = self._positions.get(id(messages))
-        if got is None:
-            got = self._positions[id(messages)] = np.asarray([self.label(md.id, md) for md in messages], np.int32)
-        return got
+        if got is None or got[0] is not messages:  # (the list kept with its ids: an id is never reused for it)
+            got = self._positions[id(messages)] = (
+                messages, np.asarray([self.label(md.id, md) for md in messages], np.int32))
+        return got[1]
 
 
 class NativeChunk(Protocol):
@@ -200,6 +202,16 @@ class FrameBatch:
         if f is not None or self._raw is None:
             return self.frame(row).raw
         return self._raw(row)
+
+    def of_messages(self, names: Iterable[str | int]) -> np.ndarray:
+        """Per row, whether its message is one of `names` (message names, or ids as ints)."""
+        ids = self.tables._labels
+        want = [ids[n] for n in names if isinstance(n, str) and n in ids]
+        nums = [n for n in names if isinstance(n, int)]
+        mask = np.isin(self.label, np.asarray(want, np.int32)) if want else np.zeros(self.n, np.bool_)
+        if nums:
+            mask |= np.isin(self.msgid, np.asarray(nums, np.uint32))
+        return mask
 
     def msgname(self, row: int) -> str:
         """The message's name as the sequence findings name it (its id for an unknown one)."""
