@@ -34,21 +34,18 @@
  * taken from the input (lengths and checksums checked), and a pcap input is walked again fed in pieces
  * ending at record boundaries (ms_reader_extend), which must give the whole walk's output when its
  * record headers are sane.
- * Every input is walked a third time with the `stats` accumulator (acc.h, with the plan of
- * $MAVSCOPE_FUZZ_PLAN): the walker's clean records go into it, and the frames of every handed-back record
- * are fed to ms_acc_add as the glue feeds Python's frames, with made-up verdicts: each STX in the record
- * starts a frame of the length it announces (cut at the record's end), its CRC and signature verdicts,
- * known flag and time taken from the input's bytes, its payload given or not, its endpoints the text of
- * a few of the record's bytes (so that damaged, unknown and truncated frames reach every detector). The
- * accumulator's dump is then read back whole against its layout (acc_dump.c), its totals checked against
- * its rows, and everything freed (LeakSanitizer).
- * A third walk fills the export's column buffers (columns.c, in chunks of 1 to 16 frames picked by the
- * input's length, each checked and started over): every frame's wire bytes must be the file's at the
- * offset its column states, its header columns and payload those bytes', every fixed-width column one
- * value per frame, the offsets in order and inside their bytes, each message row its frame's payload
- * zero-extended to the message's length and pointing at a frame of that message, endpoint ids known.
- * With the input's length odd the column walk feeds a `stats` accumulator too, as the export's findings
- * do (walk.c: columns and accumulator together; a full accumulator takes nothing more), its dump checked.
+ * Every input is then walked three times more into the export's column buffers (columns.c, in chunks of
+ * 1 to 16 frames picked by the input's length, each checked and started over; the limit changed after
+ * each take): the export's full walk without notes, the same with `notes` (as Columns(notes=True) has it:
+ * frames whose only notes are "unsigned/v1 frame of a sender seen signing" and "bad CRC" taken, their
+ * MS_NOTE_* bits in the note column) and the TUI's index-only walk. Every frame's wire bytes must be the
+ * file's at the offset its column states, its header columns and payload those bytes', every fixed-width
+ * column one value per frame, the offsets in order and inside their bytes, each message row its frame's
+ * payload zero-extended to the message's length and pointing at a frame of that message, endpoint ids
+ * known. The note column: one byte per frame, only MS_NOTE_UNSIGNED (an unsigned MAVLink 2 frame),
+ * MS_NOTE_V1 (a MAVLink 1 frame) and MS_NOTE_BAD_CRC (an unsigned frame whose CRC the harness recomputes
+ * as bad, every bad one so marked), all zero without `notes`; a bad-CRC frame has no message row, every
+ * other frame exactly one.
  * Signed frames with keys (signing.c, sha256.c): with selector bit 2 clear and a preset sender (bits
  * 4-6), the walk judges signed frames against a signing state (MS_SIGNED_VERIFY) holding four keys
  * (the bench capture's, the bundled captures' "mavscope-demo", one whose name is as long as the writer
@@ -66,13 +63,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "acc.h"
 #include "capture.h"
 #include "columns.h"
 #include "decode.h"
 #include "fmt.h"
 #include "mavlink.h"
-#include "plan.h"
 #include "recv.h"
 #include "sha256.h"
 #include "signing.h"
@@ -82,7 +77,6 @@
 
 static ms_table table;
 static ms_summary summary;
-static ms_plan plan;
 /* the note templates (walk.h MS_TPL_*) and ports of $MAVSCOPE_FUZZ_NOTES, pointing into notes_blob */
 static uint8_t notes_blob[4096];
 static const char *tpl[MS_NOTE_TPLS][4];
@@ -158,22 +152,6 @@ int LLVMFuzzerInitialize(int *argc, char ***argv) {
     fclose(f);
     if (ms_summary_parse(&summary, &table, blob, n) != 0) {
         fprintf(stderr, "fuzz_native: %s is not a summary blob of this table\n", spath);
-        abort();
-    }
-    const char *ppath = getenv("MAVSCOPE_FUZZ_PLAN");
-    if (ppath == NULL) {
-        fprintf(stderr, "fuzz_native: set MAVSCOPE_FUZZ_PLAN to the statistics plan (scripts/fuzz-native.sh)\n");
-        abort();
-    }
-    f = fopen(ppath, "rb");
-    if (f == NULL) {
-        perror(ppath);
-        abort();
-    }
-    n = fread(blob, 1, sizeof blob, f);
-    fclose(f);
-    if (ms_plan_parse(&plan, blob, n) != 0) {
-        fprintf(stderr, "fuzz_native: %s is not a statistics plan\n", ppath);
         abort();
     }
     const char *npath = getenv("MAVSCOPE_FUZZ_NOTES");
@@ -548,210 +526,6 @@ done:
     free(rel);
 }
 
-/* The frames of a handed-back record into the accumulator, as the glue feeds the Python pipeline's frames:
- * a frame at each STX, its verdicts and endpoints made up from the record's bytes. */
-static void feed_record(ms_acc *acc, const ms_record *rec, unsigned sel) {
-    const uint8_t *d = rec->data;
-    const size_t n = rec->len;
-    for (size_t pos = 0; pos < n; pos++) {
-        if (d[pos] != MS_STX_V2 && d[pos] != MS_STX_V1)
-            continue;
-        const int v2 = d[pos] == MS_STX_V2;
-        const size_t hlen = v2 ? MS_HEADER_V2 : MS_HEADER_V1;
-        size_t left = n - pos, len = left > 1 ? d[pos + 1] : 0;
-        size_t size = hlen + len + 2 + (v2 && left > 2 && (d[pos + 2] & 1) ? MS_SIGNATURE_LEN : 0);
-        if (size > left)
-            size = left;
-        uint8_t h[10] = {0};
-        memcpy(h, d + pos, size < 10 ? size : 10);
-        const uint8_t mix = (uint8_t)(h[1] ^ (pos & 0xFF) ^ sel);
-        ms_acc_frame f;
-        memset(&f, 0, sizeof f);
-        f.record = rec->number;
-        double t;
-        f.has_time = ms_record_time(rec, &t) > 0 && (mix & 0x40) == 0;
-        f.time = f.has_time ? t : 0.0;
-        f.transport = (int)((sel >> 5) & 3);
-        f.raw = d + pos;
-        f.raw_len = size;
-        f.version = v2 ? 2 : 1;
-        f.seq = h[v2 ? 4 : 2];
-        f.sysid = h[v2 ? 5 : 3];
-        f.compid = h[v2 ? 6 : 4];
-        f.msgid = v2 ? (uint32_t)h[7] | ((uint32_t)h[8] << 8) | ((uint32_t)h[9] << 16) : h[5];
-        f.known = ms_table_get(&table, f.msgid) != NULL;
-        f.crc = mix % MS_CRC_N;
-        f.sig = (mix >> 2) % MS_SIG_N;
-        f.has_signature = (mix >> 5) & 1;
-        if (!(mix & 0x80) && size >= hlen) {
-            f.payload = d + pos + hlen;
-            f.payload_len = size - hlen < len ? size - hlen : len;
-        }
-        char text[2][8];
-        int32_t ids[2] = {-1, -1};
-        for (int k = 0; k < 2; k++) {
-            if ((mix >> k) & 1)
-                continue;
-            int m = snprintf(text[k], sizeof text[k], "%02x:%u", h[k + 3], (unsigned)(k + (mix & 4)));
-            ids[k] = ms_acc_intern(acc, text[k], (size_t)m);
-            if (ids[k] == -1)
-                return;
-            if (ids[k] < 0)
-                ids[k] = -1;
-        }
-        f.src = ids[0];
-        f.dst = f.src < 0 ? -1 : ids[1];
-        if (ms_acc_add(acc, &f) < 0)
-            return;
-    }
-}
-
-/* The dump read back against its layout (acc_dump.c); its totals against its rows. */
-typedef struct {
-    const uint8_t *p, *e;
-} rd;
-
-static void skip(rd *r, size_t n) {
-    if ((size_t)(r->e - r->p) < n)
-        abort(); /* the dump is shorter than its layout says */
-    r->p += n;
-}
-
-/* a little-endian number of n <= 8 bytes */
-static uint64_t take(rd *r, size_t n) {
-    const uint8_t *p = r->p;
-    skip(r, n);
-    uint64_t v = 0;
-    for (size_t i = 0; i < n; i++)
-        v |= (uint64_t)p[i] << (8 * i);
-    return v;
-}
-
-static void skip_fn(rd *r) {
-    skip(r, 8);
-    uint64_t n = take(r, 4);
-    if (n > MS_FN_MAX)
-        abort();
-    for (uint64_t i = 0; i < n; i++)
-        skip(r, 8);
-}
-
-static void skip_pairs(rd *r) {
-    uint64_t n = take(r, 4);
-    for (uint64_t i = 0; i < n; i++)
-        skip(r, 16);
-}
-
-static void check_dump(const ms_acc *a, const ms_buf *b) {
-    rd r = {(const uint8_t *)b->data, (const uint8_t *)b->data + b->len};
-    if (take(&r, 4) != 0x4453534Du || take(&r, 4) != 4) /* "MSSD" */
-        abort();
-    const uint64_t total = take(&r, 8);
-    skip(&r, 8 + 1 + 16 + 8 * MS_CRC_N + 8 * MS_SIG_N + 16);
-    const uint64_t unfollowed = take(&r, 8); /* frames of streams past the plan's MS_K_MAX_STREAMS */
-    skip(&r, 8);
-    uint64_t nstr = take(&r, 4);
-    for (uint64_t i = 0; i < nstr; i++)
-        skip(&r, (size_t)take(&r, 4));
-    uint64_t counted = 0, n = take(&r, 4);
-    for (uint64_t i = 0; i < n; i++) {
-        skip(&r, 8);
-        counted += take(&r, 8);
-        skip(&r, 8 + 1 + 16 + 1 + 8);
-        uint64_t bins = take(&r, 4);
-        if (bins > (uint64_t)plan.k[MS_K_RATE_BINS])
-            abort();
-        for (uint64_t k = 0; k < bins; k++)
-            skip(&r, 8);
-    }
-    uint64_t received = 0;
-    n = take(&r, 4);
-    for (uint64_t i = 0; i < n; i++) {
-        skip(&r, 2);
-        received += take(&r, 8);
-        skip(&r, 24 + 8 * MS_CRC_N + 8 * MS_SIG_N + 1 + 16 + 12);
-        uint64_t chans = take(&r, 4);
-        for (uint64_t c = 0; c < chans; c++) {
-            skip(&r, 8);
-            const int64_t lost = (int64_t)take(&r, 8);
-            skip(&r, 32);
-            const int64_t shared = (int64_t)take(&r, 8), full = (int64_t)take(&r, 8), steps = (int64_t)take(&r, 8);
-            skip(&r, 8 + 4 + 8);
-            if (shared < 0 || shared > lost || full < 0 || full > steps)
-                abort(); /* the numbers other ids used are among those missing; full steps among the jumps */
-            uint64_t gaps = take(&r, 1);
-            for (uint64_t g = 0; g < gaps; g++) {
-                skip(&r, 11);
-                const uint64_t remaining = take(&r, 1);
-                if (take(&r, 1) > remaining)
-                    abort();
-            }
-        }
-    }
-    if (counted + unfollowed != total || received != total)
-        abort(); /* every frame counted once per stream (or unfollowed) and once per link */
-    skip_pairs(&r);
-    n = take(&r, 4);
-    for (uint64_t i = 0; i < n; i++)
-        skip(&r, 1 + 8 + 32 + 1 + 16);
-    skip_pairs(&r);
-    n = take(&r, 4);
-    for (uint64_t i = 0; i < n; i++) {
-        skip(&r, 3);
-        skip_fn(&r);
-    }
-    n = take(&r, 4); /* the messages of the events' frames: every owner an event */
-    for (uint64_t i = 0; i < n; i++) {
-        if (take(&r, 4) >= a->ev.n)
-            abort();
-        skip(&r, 12);
-    }
-    n = take(&r, 4);
-    for (uint64_t i = 0; i < n; i++) {
-        skip(&r, 20);
-        skip_fn(&r);
-    }
-    skip_pairs(&r);
-    for (int v = 0; v < 4; v++) {
-        n = take(&r, 4);
-        for (uint64_t i = 0; i < n; i++)
-            if (take(&r, 4) >= a->named.n)
-                abort(); /* an index past the entries */
-    }
-    skip(&r, 64);
-    n = take(&r, 4);
-    for (uint64_t i = 0; i < n; i++)
-        skip(&r, 24);
-    n = take(&r, 4); /* the vehicles with new commanders: each counted, its shown ones within the plan's */
-    if (n > 256)
-        abort();
-    for (uint64_t i = 0; i < n; i++) {
-        skip(&r, 3);
-        const uint64_t shown = take(&r, 1);
-        if (shown == 0 || shown > (uint64_t)plan.k[MS_K_COMMANDERS_SHOWN])
-            abort();
-        skip(&r, 6 * shown);
-        const uint64_t count = take(&r, 8), listed = take(&r, 4); /* fn: every commander counted */
-        if (count < shown || listed > MS_FN_MAX)
-            abort();
-        skip(&r, 8 * listed);
-    }
-    n = take(&r, 4);
-    for (uint64_t i = 0; i < n; i++) {
-        skip(&r, 6 + 4 + 24 + 8);
-        skip(&r, (size_t)take(&r, 2));
-        skip(&r, (size_t)take(&r, 2));
-    }
-    n = take(&r, 4);
-    for (uint64_t i = 0; i < n; i++) {
-        skip(&r, 5);
-        skip_fn(&r);
-        skip(&r, 8 + 32 + 32);
-    }
-    if (r.p != r.e)
-        abort(); /* the dump is longer than its layout says */
-}
-
 static int32_t i32_at(const ms_buf *b, size_t i) {
     int32_t v;
     memcpy(&v, b->data + 4 * i, 4);
@@ -773,6 +547,12 @@ static void check_offsets(const ms_buf *at, const ms_buf *bytes, size_t n) {
 static void check_index_columns(const ms_cols *c, const uint8_t *file, size_t size) {
     const size_t n = c->n;
     for (int k = 0; k < MS_NCOLS; k++) {
+#ifdef MS_FUZZ_STEP_OVER_INDEX_NOTE
+        /* FUZZ_CFLAGS=-DMS_FUZZ_STEP_OVER_INDEX_NOTE steps over a finding reported and not yet fixed:
+         * columns.c writes the note column in an index chunk too (a zero per frame); remove with the fix */
+        if (k == MS_COL_NOTE)
+            continue;
+#endif
         const size_t want = ((MS_INDEX_COLUMNS >> k) & 1u) ? n * MS_COL_WIDTH[k] : 0;
         if (c->col[k].len != want)
             abort(); /* the columns the index does not take stay empty */
@@ -817,24 +597,34 @@ static void check_endpoint_cache(const ms_cols *c) {
             abort();
 }
 
-/* A chunk of the column buffers against the file they were read from. */
-/* An accumulator's dump checked (when it could be made), then the accumulator freed. */
-static void check_and_free(ms_acc *acc) {
-    ms_buf dump;
-    ms_buf_init(&dump);
-    if (ms_acc_dump(acc, &dump) == 0)
-        check_dump(acc, &dump);
-    ms_buf_free(&dump);
-    ms_acc_free(acc);
+/* MAVLink's X.25 checksum (CRC-16/MCRF4XX) of the frame's bytes after STX and the message's CRC_EXTRA, as
+ * mavlink_helpers.h crc_accumulate computes it (written here, not mavlink.c's ms_crc16: the harness judges
+ * the note column's bad-CRC bit on its own). */
+static uint16_t x25(const uint8_t *p, size_t n, uint8_t extra) {
+    uint16_t crc = 0xFFFF;
+    for (size_t i = 0; i <= n; i++) {
+        uint8_t t = (uint8_t)((i < n ? p[i] : extra) ^ (crc & 0xFF));
+        t = (uint8_t)(t ^ (t << 4));
+        crc = (uint16_t)((crc >> 8) ^ ((uint16_t)t << 8) ^ ((uint16_t)t << 3) ^ (t >> 4));
+    }
+    return crc;
 }
 
-static void check_columns(const ms_cols *c, const uint8_t *file, size_t size) {
+#define RADIO_STATUS_ID 109 /* unsigned in a signed stream without a note (security/stage.py) */
+
+/* A chunk of the column buffers against the file they were read from; `any_crc`: the walk took every CRC
+ * for good (fuzz_any_crc). */
+static void check_columns(const ms_cols *c, const uint8_t *file, size_t size, int any_crc) {
     const size_t n = c->n;
     check_endpoint_cache(c);
     if (c->index_only) {
         check_index_columns(c, file, size);
         return;
     }
+    uint8_t *seen = calloc(n ? n : 1, 1); /* message rows pointing at each frame */
+    if (seen == NULL)
+        abort();
+    size_t bad = 0;
     for (int k = 0; k < MS_NCOLS; k++)
         if (MS_COL_WIDTH[k] && c->col[k].len != n * MS_COL_WIDTH[k])
             abort();
@@ -873,6 +663,25 @@ static void check_columns(const ms_cols *c, const uint8_t *file, size_t size) {
             abort();
         if (src < -1 || dst < -1 || (src >= 0 && (uint32_t)src >= c->nends) || (dst >= 0 && (uint32_t)dst >= c->nends))
             abort();
+        /* the note column (columns.h MS_NOTE_*): zero without `notes`; with it an unsigned MAVLink 2 or a
+         * MAVLink 1 frame's bit (never both, never RADIO_STATUS's), and the bad-CRC bit exactly when the
+         * CRC as sent is not the frame's (unsigned frames only: the walk hands signed bad ones back) */
+        const uint8_t note = (uint8_t)c->col[MS_COL_NOTE].data[i];
+        const int is_signed = version == 2 && (raw[2] & 1);
+        const int crc_bad = !any_crc && x25(raw + 1, hlen - 1 + plen, c->table->messages[m].crc_extra) !=
+                                            (uint16_t)(raw[hlen + plen] | raw[hlen + plen + 1] << 8);
+        if ((note & ~(MS_NOTE_UNSIGNED | MS_NOTE_V1 | MS_NOTE_BAD_CRC)) || (!c->notes && note) ||
+            !(note & MS_NOTE_BAD_CRC) != !crc_bad)
+            abort();
+        if ((note & MS_NOTE_UNSIGNED) && (version != 2 || is_signed || (note & MS_NOTE_V1)))
+            abort();
+        if ((note & MS_NOTE_V1) && version != 1)
+            abort();
+        if ((note & (MS_NOTE_UNSIGNED | MS_NOTE_V1)) && msgid == RADIO_STATUS_ID)
+            abort();
+        if ((note & MS_NOTE_BAD_CRC) && is_signed)
+            abort();
+        bad += (note & MS_NOTE_BAD_CRC) != 0;
     }
     for (uint32_t t = 0; t < c->ntouched; t++) {
         const uint32_t k = c->touched[t];
@@ -884,8 +693,8 @@ static void check_columns(const ms_cols *c, const uint8_t *file, size_t size) {
             uint32_t f;
             memcpy(&f, r->frame.data + 4 * j, 4);
             int32_t fm;
-            if (f >= n)
-                abort();
+            if (f >= n || seen[f]++ || (c->col[MS_COL_NOTE].data[f] & MS_NOTE_BAD_CRC))
+                abort(); /* one row per frame, none for a frame with a bad CRC (its fields are no one's) */
             memcpy(&fm, c->col[MS_COL_MESSAGE].data + 4 * f, 4);
             const uint8_t plen = (uint8_t)c->col[MS_COL_LEN].data[f];
             const uint8_t *row = (const uint8_t *)r->rows.data + (size_t)j * m->length;
@@ -898,8 +707,9 @@ static void check_columns(const ms_cols *c, const uint8_t *file, size_t size) {
         }
         rows += r->n;
     }
-    if (rows != n)
-        abort();
+    free(seen);
+    if (rows + bad != n)
+        abort(); /* every frame but the bad-CRC ones in its message's rows */
 }
 
 /* The signing state of a walk that judges signed frames: four keys, streams preset for the usual senders
@@ -985,7 +795,7 @@ static void set_notes(ms_walker *w) {
 
 /* One walk of the file in `mf` (as JSON Lines, or as summary lines with `sum`), checking what comes out. */
 static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigned sel, unsigned control,
-                      const ms_summary *sum, ms_acc *acc, ms_cols *cols) {
+                      const ms_summary *sum, ms_cols *cols) {
     ms_walker w;
     ms_walker_init(&w, ms_memory_source(mf), n, MS_KIND_PCAP + (int)(sel & 3), &table);
     if (sel & 0x80)
@@ -994,8 +804,8 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
     ms_signing signing;
     ms_signing_init(&signing);
     w.sign_mode = (sel & 4) ? MS_SIGNED_NOKEY : preset ? MS_SIGNED_VERIFY : MS_SIGNED_HANDBACK;
-    if (w.sign_mode == MS_SIGNED_VERIFY && (acc != NULL || cols != NULL))
-        w.sign_mode = MS_SIGNED_HANDBACK; /* the stats and column walks never judge MACs (their glue hands back) */
+    if (w.sign_mode == MS_SIGNED_VERIFY && cols != NULL)
+        w.sign_mode = MS_SIGNED_HANDBACK; /* the column walks never judge MACs (their glue hands back) */
     if (w.sign_mode == MS_SIGNED_VERIFY) {
         if (signing_setup(&signing, preset, n) != 0) {
             ms_signing_free(&signing);
@@ -1013,7 +823,6 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
         w.has_t0 = (n & 3) != 0;
         w.t0 = (n & 3) == 3 ? __builtin_nan("") : T0[n & 3];
     }
-    w.acc = acc;
     w.cols = cols;
     ms_buf out;
     ms_buf_init(&out);
@@ -1030,13 +839,11 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
         int r = ms_walk(&w, &out, 4096, &rec);
         if (r == MS_WALK_NOMEM)
             break;
-        if (acc != NULL && out.len)
-            abort(); /* the stats walk writes no text */
         if (cols != NULL) {
             if (out.len != 0)
                 abort(); /* column mode writes no text */
             if (r != MS_WALK_FULL || ms_cols_full(cols)) {
-                check_columns(cols, file, n);
+                check_columns(cols, file, n, (sel & 8) != 0);
                 ms_cols_restart(cols);
                 cols->limit = 1 + ((cols->limit * 5 + 3) & 31); /* the glue may change it between chunks */
             }
@@ -1060,8 +867,6 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
             double t;
             (void)ms_record_time(&rec, &t);
             (void)s;
-            if (acc != NULL)
-                feed_record(acc, &rec, sel);
             if (w.signing != NULL && rec.len)
                 learn_streams(&signing, rec.data, rec.len);
         }
@@ -1267,27 +1072,16 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
             }
         }
         if (pass < 2) {
-            walk_file(&mf, file, n, sel, control, pass ? &summary : NULL, NULL, NULL);
-            continue;
-        }
-        if (pass == 2) {
-            ms_acc acc;
-            if (ms_acc_init(&acc, &plan) != 0)
-                break;
-            walk_file(&mf, file, n, sel, control, NULL, &acc, NULL);
-            check_and_free(&acc);
+            walk_file(&mf, file, n, sel, control, pass ? &summary : NULL, NULL);
             continue;
         }
         ms_cols cols;
         if (ms_cols_init(&cols, &table, 1 + (uint32_t)(n & 15)) != 0)
             break;
+        cols.notes = pass == 3;      /* the export's windows: Columns(notes=True) */
         cols.index_only = pass == 4; /* the TUI's index: only the columns it takes */
-        ms_acc acc; /* the export's findings: its column walk feeds the accumulator too */
-        const int with_acc = pass == 3 && (n & 1) != 0 && ms_acc_init(&acc, &plan) == 0;
-        walk_file(&mf, file, n, sel, control, NULL, with_acc ? &acc : NULL, &cols);
+        walk_file(&mf, file, n, sel, control, NULL, &cols);
         ms_cols_free(&cols);
-        if (with_acc)
-            check_and_free(&acc);
     }
     if ((sel & 3) == 0) /* a pcap: fed in pieces as live capture feeds it */
         walk_fed(file, n, sel, control);

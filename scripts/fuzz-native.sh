@@ -36,7 +36,6 @@ done
 
 export MAVSCOPE_FUZZ_TABLE="$PWD/$OUT/table.bin"
 export MAVSCOPE_FUZZ_SUMMARY="$PWD/$OUT/summary.bin"
-export MAVSCOPE_FUZZ_PLAN="$PWD/$OUT/plan.bin"
 export MAVSCOPE_FUZZ_NOTES="$PWD/$OUT/notes.bin"
 export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}"
@@ -54,11 +53,18 @@ fi
 PROFDATA="$(command -v llvm-profdata-14 || command -v llvm-profdata || true)"
 LLVMCOV="$(command -v llvm-cov-14 || command -v llvm-cov || true)"
 if [ -n "$PROFDATA" ] && [ -n "$LLVMCOV" ]; then
-    "$CLANG" -std=c11 -O1 -fsanitize=fuzzer -fprofile-instr-generate -fcoverage-mapping -I"$SRC" \
-        fuzz/fuzz_native.c "${CORE[@]}" -lm -o "$OUT/fuzz_native_cov"
+    "$CLANG" -std=c11 -O1 -fsanitize=fuzzer -fprofile-instr-generate -fcoverage-mapping ${FUZZ_CFLAGS:-} \
+        -Wno-unused-command-line-argument -I"$SRC" fuzz/fuzz_native.c "${CORE[@]}" -ffp-contract=off -lm \
+        -o "$OUT/fuzz_native_cov"
     rm -f "$OUT"/cov.profraw
-    (cd "$OUT" && LLVM_PROFILE_FILE=cov.profraw ./fuzz_native_cov -runs=0 corpus >/dev/null 2>&1) || true
-    "$PROFDATA" merge -sparse "$OUT/cov.profraw" -o "$OUT/cov.profdata"
-    "$LLVMCOV" report "$OUT/fuzz_native_cov" -instr-profile="$OUT/cov.profdata" "$SRC"/*.c
+    # (an input that aborts ends the replay before the profile is written: no report then, not a false one)
+    if (cd "$OUT" && LLVM_PROFILE_FILE=cov.profraw ./fuzz_native_cov -runs=0 corpus >/dev/null 2>&1) &&
+        [ -s "$OUT/cov.profraw" ]; then
+        "$PROFDATA" merge -sparse "$OUT/cov.profraw" -o "$OUT/cov.profdata"
+        "$LLVMCOV" report "$OUT/fuzz_native_cov" -instr-profile="$OUT/cov.profdata" "$SRC"/*.c
+    else
+        echo "fuzz-native: the coverage replay stopped on an input of the corpus (a finding?): no coverage report" >&2
+        status=1
+    fi
 fi
 exit $status

@@ -2,13 +2,13 @@
 
     python scripts/fuzz_native_inputs.py OUT_DIR CORPUS_DIR
 
-writes OUT_DIR/table.bin (message layouts), summary.bin (the summary writer's table), plan.bin (the
-`stats` accumulator's plan) and notes.bin (the notes the walker writes itself and MAVLink's UDP ports, as
-the glue hands them over: mavscope.native.walk.note_templates and MAVLINK_PORTS; notes_blob says the
-layout), and seeds CORPUS_DIR: every bundled capture under the selector of its own format (0 pcap,
-1 pcapng, 2 tlog, 3 raw), with and without native signed frames (bit 2), with every CRC taken (bit 3),
-judged with keys (a preset sender, bits 4-6, bit 2 clear), and as hostile files (bit 7: a control byte,
-then a small read window, shrinking, a failed read); and 600 frames of the bench capture
+writes OUT_DIR/table.bin (message layouts), summary.bin (the summary writer's table) and notes.bin (the
+notes the walker writes itself and MAVLink's UDP ports, as the glue hands them over:
+mavscope.native.walk.note_templates and MAVLINK_PORTS; notes_blob says the layout), and seeds CORPUS_DIR:
+every bundled capture under the selector of its own format (0 pcap, 1 pcapng, 2 tlog, 3 raw), with and
+without native signed frames (bit 2), with every CRC taken (bit 3), judged with keys (a preset sender,
+bits 4-6, bit 2 clear), and as hostile files (bit 7: a control byte, then a small read window, shrinking,
+a failed read); and 600 frames of the bench capture
 (benchmarks/bench_capture.py, two senders signing). fuzz/fuzz_native.c documents the selector.
 tests/meta/test_fuzz_inputs.py runs both halves, so a moved builder fails the suite, not the fuzzer.
 """
@@ -24,7 +24,6 @@ from pathlib import Path
 
 from mavscope.capture.detect import detect_kind
 from mavscope.mavlink.dialect import load_dialect
-from mavscope.native.plan import build_plan
 from mavscope.native.summary import build_summary_table
 from mavscope.native.table_blob import build_table
 from mavscope.native.walk import note_templates
@@ -39,15 +38,11 @@ HOSTILE_CONTROLS = (0x00, 0x10, 0x38, 0x43)
 
 
 def write_tables(out: Path) -> None:
-    """The default dialect's message table, summary table and accumulator plan, as the fuzzer loads them."""
+    """The default dialect's message table, summary table and note templates, as the fuzzer loads them."""
     dialect = load_dialect()
-    plan = build_plan(dialect)
-    if plan is None:
-        raise SystemExit("fuzz_native_inputs: the default dialect has no accumulator plan")
     out.mkdir(parents=True, exist_ok=True)
     (out / "table.bin").write_bytes(build_table(dialect))
     (out / "summary.bin").write_bytes(build_summary_table(dialect))
-    (out / "plan.bin").write_bytes(plan)
     (out / "notes.bin").write_bytes(notes_blob())
 
 

@@ -12,8 +12,10 @@ from tests.conftest import CAPTURES
 
 def test_tables_are_written(tmp_path: Path) -> None:
     inputs.write_tables(tmp_path)
-    for name in ("table.bin", "summary.bin", "plan.bin"):
+    for name in ("table.bin", "summary.bin"):
         assert (tmp_path / name).stat().st_size > 1000, name
+    assert (tmp_path / "notes.bin").stat().st_size > 0
+    assert not (tmp_path / "plan.bin").exists()  # the stats accumulator and its plan are gone from C
 
 
 def test_seeds_cover_every_bundled_capture(tmp_path: Path) -> None:
