@@ -547,12 +547,6 @@ static void check_offsets(const ms_buf *at, const ms_buf *bytes, size_t n) {
 static void check_index_columns(const ms_cols *c, const uint8_t *file, size_t size) {
     const size_t n = c->n;
     for (int k = 0; k < MS_NCOLS; k++) {
-#ifdef MS_FUZZ_STEP_OVER_INDEX_NOTE
-        /* FUZZ_CFLAGS=-DMS_FUZZ_STEP_OVER_INDEX_NOTE steps over a finding reported and not yet fixed:
-         * columns.c writes the note column in an index chunk too (a zero per frame); remove with the fix */
-        if (k == MS_COL_NOTE)
-            continue;
-#endif
         const size_t want = ((MS_INDEX_COLUMNS >> k) & 1u) ? n * MS_COL_WIDTH[k] : 0;
         if (c->col[k].len != want)
             abort(); /* the columns the index does not take stay empty */

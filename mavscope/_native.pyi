@@ -30,10 +30,9 @@ KIND_TLOG: int
 KIND_RAW: int
 COLUMN_TRANSPORT_UDP: int  # columns.h MS_TRANSPORT_*: the codes of the `transport` column (0: never written)
 COLUMN_TRANSPORT_TLOG: int
-STATS_TRANSPORT_UDP: int  # acc.h MS_TR_*: Stats.add's `transport`
-STATS_TRANSPORT_TCP: int
-STATS_TRANSPORT_TLOG: int
-STATS_TRANSPORT_RAW: int
+NOTE_UNSIGNED: int  # columns.h MS_NOTE_*: the bits of the `note` column (Columns(notes=True))
+NOTE_V1: int
+NOTE_BAD_CRC: int
 TABLE_VERSION: int  # the layout table blob's version (table.h)
 UDP_PCAP_HEADER: bytes  # the global header of the pcap live capture's records make (module_recv.c)
 
@@ -54,18 +53,6 @@ class Summary:
 
 
 @final
-class Stats:
-    """The `stats` accumulator (acc.h) over the plan of mavscope.native.plan.build_plan."""
-
-    def __init__(self, table: Table, plan: Buffer) -> None: ...
-    def add(self, record: int, time: float | None, transport: int, src: str | None, dst: str | None, raw: Buffer,
-            version: int, seq: int, sysid: int, compid: int, msgid: int, known: bool, crc: int, sig: int,
-            has_signature: bool, payload: Buffer | None, /) -> None: ...
-    def full(self) -> bool: ...
-    def dump(self) -> bytes: ...
-
-
-@final
 class Block:
     """Read-only bytes of a column chunk, owned by Python once taken (the buffer protocol); not made in Python."""
 
@@ -75,9 +62,10 @@ class Block:
 
 @final
 class Columns:
-    """The column buffers a Walker fills in column mode (columns.h); `index`: only the index's columns."""
+    """The column buffers a Walker fills in column mode (columns.h); `index`: only the index's columns;
+    `notes`: frames with the notes of NOTE_* are taken (their bits in the `note` column), not handed back."""
 
-    def __init__(self, table: Table, limit: int = 65536, *, index: bool = False) -> None: ...
+    def __init__(self, table: Table, limit: int = 65536, *, index: bool = False, notes: bool = False) -> None: ...
     @property
     def frames(self) -> int: ...
     limit: int  # frames a chunk holds (settable between walks)
@@ -104,13 +92,13 @@ class SigningState:
 
 @final
 class Walker:
-    """Walks a capture (pread on `fd`; -1: a pcap that grows by `feed`), writing JSON Lines, summary lines,
-    statistics or columns, and handing back every record it does not take."""
+    """Walks a capture (pread on `fd`; -1: a pcap that grows by `feed`), writing JSON Lines, summary lines or
+    columns, and handing back every record it does not take."""
 
     def __init__(self, fd: int, size: int, kind: int, table: Table, endpoints: set[_E],
                  endpoint: Callable[[bytes, int], _E], signed_senders: set[tuple[int, int]], window: int = ...,
-                 summary: Summary | None = None, t0: float | None = None, stats: Stats | None = None,
-                 columns: Columns | None = None, receivers: dict[int, _V] | None = None,
+                 summary: Summary | None = None, t0: float | None = None, columns: Columns | None = None,
+                 receivers: dict[int, _V] | None = None,
                  notes: _NoteTemplates | None = None, ports: tuple[int, ...] | None = None) -> None: ...
     def next(self, signed_nokey: bool = False, limit: int = 1 << 20, into: bytearray | None = None,
              signing: SigningState | None = None) -> list[bytes | bytearray | _HandedBack] | None: ...

@@ -65,6 +65,7 @@ class CommandSources:
     the end, when every HEARTBEAT has been seen."""
 
     clean: frozenset[str | int] = COMMANDING | {0}  # message id 0: the HEARTBEATs, by id as `add` tells them
+    notes: frozenset[str] = frozenset()  # it reads its messages alone, whatever their notes
 
     def __init__(self) -> None:
         self.gcs: set[int] = set()
@@ -108,7 +109,7 @@ class CommandSources:
         return new + [fd for target, fd in self.out if target not in self.gcs]
 
 
-# CommandSources' findings (the native accumulator's state is written by these too)
+# CommandSources' findings
 def new_commanders(target: int, c: Commanded) -> Finding:
     """The `new-commander` finding of vehicle `target`: its one new commander, or how many and the first."""
     count = c.frames.count

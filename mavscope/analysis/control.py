@@ -91,6 +91,7 @@ class ControlSources:
 
     wants = WANTS
     clean: frozenset[str | int] = WANTS  # what `add` reads (see expert.Detector)
+    notes: frozenset[str] = frozenset()  # it reads its messages alone, whatever their notes
 
     def __init__(self, dialect: Dialect) -> None:
         self.dialect = dialect
@@ -233,7 +234,7 @@ class ControlSources:
         return out
 
 
-# ControlSources' findings (the native accumulator's events are written by these too)
+# ControlSources' findings
 def mission_clear(sender: int, vehicle: int, clear_all: bool, record: int, holder: int, since: int) -> Finding:
     what = "MISSION_CLEAR_ALL" if clear_all else "an upload of 0 mission items"
     return finding("unexpected-mission-clear", f"system {sender} clears the mission of vehicle {vehicle} ({what}, "

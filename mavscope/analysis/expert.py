@@ -21,7 +21,7 @@ from mavscope.analysis.crcextra import Group, Mismatches
 from mavscope.analysis.framelist import MAX_FRAMES
 from mavscope.analysis.framelist import frame_numbers as _frames
 from mavscope.analysis.gnss import GnssAnomalies
-from mavscope.analysis.replays import COPIES_KEPT as COPIES_KEPT  # the native plan names it here
+from mavscope.analysis.replays import COPIES_KEPT as COPIES_KEPT  # (named here for the tests)
 from mavscope.analysis.replays import ReplayedCommands
 from mavscope.analysis.sequence import GAP_MIN, SeqChannels, SeqTracker, totals
 from mavscope.mavlink.dialect import Dialect
@@ -40,8 +40,7 @@ OWN_COUNTER = frozenset({"REQUEST_DATA_STREAM"})
 OWN_COUNTER_MIN = 3  # frames stepping back before a message's own counter is named
 WHICH_SHOWN = 3  # messages named in a sequence finding
 # (sender, event, message) counts kept in all for the sequence findings' names: a capture can name a new
-# message (an unknown id) in every frame. The native accumulator hands over to this path past the same
-# number (its plan's MS_K_MAX_NAMED), so both paths name the same messages.
+# message (an unknown id) in every frame.
 MAX_NAMED = 1 << 18
 
 def _link(f: Frame) -> str:
@@ -70,6 +69,7 @@ class BadCrcBursts:
     listed: past it the smallest goes (of equals the newest), said as a `capacity` finding."""
 
     clean: frozenset[str | int] = frozenset()  # bad-CRC frames only (see Detector)
+    notes: frozenset[str] = frozenset({"bad-crc"})
     dialect: Dialect | None = None  # the loaded dialect, to name the definitions (Expert.findings sets it)
 
     def __init__(self) -> None:
@@ -315,6 +315,7 @@ class UnsignedCommands:
     listed, all counted per sender)."""
 
     clean: frozenset[str | int] = COMMANDING  # and which systems sign: `signers`, where frames are counted in bulk
+    notes: frozenset[str] = frozenset()  # (a frame whose note is a code is unsigned: `add` reads its commands)
 
     def __init__(self) -> None:
         self.signing: set[int] = set()
@@ -355,6 +356,7 @@ class KeyLeaks:
     """SETUP_SIGNING carries the secret key in clear: whoever holds the capture holds the key."""
 
     clean: frozenset[str | int] = frozenset({"SETUP_SIGNING"})
+    notes: frozenset[str] = frozenset()
 
     def __init__(self) -> None:
         self.frames = _frames()
@@ -375,6 +377,7 @@ class HiddenFrames:
     framer's `hidden-frame` notes, summed up with what the frames are."""
 
     clean: frozenset[str | int] = frozenset()  # a clean frame carries no note
+    notes: frozenset[str] = frozenset({"hidden-frame"})
 
     def __init__(self) -> None:
         self.frames = _frames()
@@ -402,7 +405,10 @@ class Detector(Protocol):
     A detector may say in a `clean` attribute which clean frames (good CRC, no note, plaintext, no verdict
     but `no-key`) can change what it finds: the names (or ids) of their messages. A caller that knows
     which frames are clean (the export's native source) then gives it only those of them, and every
-    other frame. Without the attribute it gets every frame."""
+    other frame. Without the attribute it gets every frame. With `clean`, it may also say in `notes` which
+    notes it reads on frames of other messages: a caller that knows a frame's notes are only some it
+    can tell without a Frame (FrameBatch.coded: bad-crc, unsigned-in-signed-stream, v1-in-signed-stream)
+    gives it such a frame of another message only when it has one of those."""
 
     def add(self, f: Frame, fields: Fields | None) -> None: ...
 
@@ -425,7 +431,7 @@ class Expert:
         self.detectors = [d(dialect) if d in DIALECT_DETECTORS else d()
                           for d in (DETECTORS if detectors is None else detectors)]
         self.decode = COMMANDING.union({"HEARTBEAT"}, *(getattr(d, "wants", ()) for d in self.detectors))
-        self.recorded = False  # frames from a tlog, a ground station's recording (the native pass sets it too)
+        self.recorded = False  # frames from a tlog, a ground station's recording (expert_batch sets it too)
         self.seqs = SeqChannels()  # the sequence counters batches are fed to (expert_batch.feed) without steps
 
     def add(self, f: Frame) -> Fields | None:
@@ -461,7 +467,7 @@ class Expert:
         for d in self.detectors:
             if isinstance(d, SequenceAnomalies):
                 d.logged_in_part = part
-            if isinstance(d, BadCrcBursts):  # (the native pass hands over one made without the dialect)
+            if isinstance(d, BadCrcBursts):  # (made without the dialect: DETECTORS' factories take none)
                 d.dialect = self.dialect
             out.extend(d.findings())
         return sort_findings(out)

@@ -2,8 +2,10 @@
 
 - A detector that says which clean frames can change what it finds (`clean`: message names or ids, see
   `expert.Detector`) gets those rows and every row that is not clean, one by one as `Frame`s with the
-  decoded fields `Expert.fields` gives; one with a `signers` method (UnsignedCommands) is told in bulk
-  which systems the other clean rows show signing.
+  decoded fields `Expert.fields` gives; but of the rows whose only notes a native chunk gave as codes
+  (`FrameBatch.coded`: a bad CRC, an unsigned frame of a signing sender), one that also says which notes
+  it reads on other messages (`notes`) gets only those with such a note; one with a `signers` method
+  (UnsignedCommands) is told in bulk which systems the other clean rows show signing.
 - SequenceAnomalies and ReplayedCommands read the steps of the batch's sequence counters (`Steps`, one
   `SeqChannels` for the pass, shared with the statistics where `stats` runs both): the former counts
   frames per sender and records the rows that stepped back; the latter judges its command and setpoint
@@ -21,7 +23,7 @@ from mavscope.analysis.expert import Detector, Expert, SequenceAnomalies
 from mavscope.analysis.replays import ReplayedCommands
 from mavscope.analysis.sequence_batch import CODE, STEP_NAMES, Steps, feed_batch
 from mavscope.mavlink.frame import SignatureStatus
-from mavscope.pipeline.batch import TRANSPORTS, VERDICTS, FrameBatch
+from mavscope.pipeline.batch import NOTE_CODES, TRANSPORTS, VERDICTS, FrameBatch
 from mavscope.transport.base import TRANSPORT_TLOG
 
 _BACK = np.array([CODE["duplicate"], CODE["late"], CODE["unchanged"]], np.int8)
@@ -68,6 +70,10 @@ def _generic(d: Detector, b: FrameBatch, fields: _Fields) -> None:
         rows = np.arange(b.n)
     else:
         given = ~b.clean | b.of_messages(wanted)
+        noted: frozenset[str] | None = getattr(d, "notes", None)
+        if noted is not None:  # of the rows whose notes are codes, those of its messages and notes alone
+            bits = sum(NOTE_CODES.get(code, 0) for code in noted)
+            given &= (b.coded == 0) | (b.coded & bits != 0) | b.of_messages(wanted)
         rows = np.flatnonzero(given)
         signers = getattr(d, "signers", None)
         if signers is not None:

@@ -47,7 +47,7 @@ ACCEL_MPS2 = 15.0  # plus what an acceleration this strong adds over the interva
 MARGIN_M = 30.0  # plus this much for the receiver's accuracy (and 3x h_acc where reported)
 NULL_ISLAND = 0.01  # degrees: positions this close to 0, 0 are "no position yet" (ArduPilot before its EKF
 # origin is set reports offsets from 0, 0; the jump to the real position is no anomaly)
-MAX_EPISODES = MAX_SENDERS  # episodes held (the native pass hands over to this path past them: its plan's)
+MAX_EPISODES = MAX_SENDERS  # episodes held
 MAX_GAP_S = 10.0  # positions further apart in time than this are not compared (a gap, not a jump)
 MIN_SATS = 6  # a fix with fewer satellites is weak
 COLLAPSE_WINDOW_S = 5.0  # a collapse falls this soon after a good fix
@@ -120,6 +120,7 @@ class GnssAnomalies:
 
     wants = WANTS
     clean: frozenset[str | int] = WANTS  # what `add` reads (see expert.Detector)
+    notes: frozenset[str] = frozenset()  # it reads its messages alone, whatever their notes
 
     def __init__(self, dialect: Dialect | None = None) -> None:
         self.senders: dict[Addr, _Sender] = {}
@@ -338,7 +339,7 @@ class GnssAnomalies:
         return out if said is None else [*out, said]
 
 
-# The sentences of the worst episode of each kind (the native accumulator's episodes are written by these too)
+# The sentences of the worst episode of each kind
 def jump_text(d: float, dt: float, v: float, before: int, record: int, allowed: float) -> str:
     return (f"{d:.0f} m in {dt:.2f} s while reporting {v:.1f} m/s (frames {before} -> {record}; at most "
             f"{allowed:.0f} m expected)")

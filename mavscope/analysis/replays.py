@@ -18,7 +18,7 @@ from mavscope.mavlink.frame import CrcStatus, Frame, SignatureStatus
 from mavscope.notes import Finding, FrameNumbers, GivenUp, finding, pop_newest
 
 COPIES_KEPT = 65_536  # commanding frames remembered for replay detection (past it the newest but the new one goes)
-LISTED = MAX_FRAMES // 2  # copies of a run held with their frames (acc.h MS_LISTED): beyond, counted by message
+LISTED = MAX_FRAMES // 2  # copies of a run held with their frames; beyond, counted by message
 IN_PLACE = frozenset({"first", "next", "late", "reset"})  # a copy with this step is where its sender's counter is
 PASSED = frozenset({"next", "gap", "reset"})  # the counter moved past the number a copy ahead of it took
 

@@ -289,7 +289,7 @@ def warner(env: Env) -> Callable[[str], None]:
 def capture_session(args: argparse.Namespace, env: Env, dialect: Dialect | None = None) -> Iterator[Session]:
     """The session of the capture named by `args`, with the pipeline its options ask for."""
     with open_session(capture_path(args), pipeline_options(args, env), dialect=dialect,
-                      warn=warner(env)) as session:
+                      warn=warner(env), environ=env.environ) as session:
         yield session
         walked = session.walked  # the native walker's counts, where it read the capture
         size = walked["size"] if walked else session.reader.size

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import io
-import os
 from typing import cast
 
 from mavscope.analysis import expert_batch
@@ -34,8 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
-    computed = _native(args, env) if _native_eligible(args, env) else None
-    stats, findings, path, select = computed if computed is not None else _pure(args, env)
+    stats, findings, path, select = _compute(args, env)
     doc = stats.to_json(select)
     if args.json:
         doc["findings"] = [f.to_json() for f in findings]
@@ -95,7 +92,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     return ExitStatus.OK
 
 
-def _pure(args: argparse.Namespace, env: Env) -> tuple[Stats, list[Finding], str, Selection]:
+def _compute(args: argparse.Namespace, env: Env) -> tuple[Stats, list[Finding], str, Selection]:
     """The statistics and the findings (those about a selected frame), the capture's name, the selection.
 
     Without a display filter every frame goes in column batches (`Session.batches`); a filter must see
@@ -111,7 +108,7 @@ def _pure(args: argparse.Namespace, env: Env) -> tuple[Stats, list[Finding], str
         expert = Expert(session.dialect)
         problems = Problems(env, session.name)
         try:
-            for b in session.batches(problems.item, env.environ, native=False):
+            for b in session.batches(problems.item):
                 expert_batch.feed(expert, b, builder.add_batch(b))
         finally:
             problems.close()
@@ -119,49 +116,6 @@ def _pure(args: argparse.Namespace, env: Env) -> tuple[Stats, list[Finding], str
     stats = builder.result()
     stats.logged_in_part = expert.logged_in_part()
     return stats, expert.findings(), path, Selection()
-
-
-def _native_eligible(args: argparse.Namespace, env: Env) -> bool:
-    """The native engine serves `stats` without a display filter (a filter must see every frame as a Python
-    Frame: the pure path runs it), when it is built and MAVSCOPE_PURE is not set (docs/native.md)."""
-    if args.display_filter:
-        return False
-    from mavscope.native.core import engine
-
-    return engine(env.environ) == "native"
-
-
-def _native(args: argparse.Namespace, env: Env) -> tuple[Stats, list[Finding], str, Selection] | None:
-    """What `_pure` gives, from mavscope.native.stats: what capture_session and Pass do, in the same order
-    (dialect, capture file, key options; problems on stderr, then the no-frames line). None when the native
-    pass gave up (the dialect cannot be described to C, a table of the accumulator filled up): what it
-    wrote on stderr is held back until then, so that the pure path starts from nothing."""
-    from mavscope.capture.detect import detect_kind
-    from mavscope.commands.common import Problems, capture_path, pipeline_options, warner
-    from mavscope.mavlink.dialect import load_dialect
-    from mavscope.native.dump import plan_for
-    from mavscope.native.stats import native_stats
-    from mavscope.pipeline.session import make_security_stage
-
-    path = capture_path(args)
-    options = pipeline_options(args, env)
-    dialect = load_dialect(options.dialects)
-    if plan_for(dialect) is None:
-        return None
-    kind = detect_kind(path)  # the capture's errors before the key options', as open_session orders them
-    held = Env(stdout=env.stdout, stderr=io.StringIO(), environ=env.environ)
-    stage = make_security_stage(options, warner(held))
-    name = os.fsencode(path).decode("utf-8", "backslashreplace")  # Session.name
-    problems = Problems(held, name)
-    result = native_stats(path, dialect, stage, problems, kind)
-    if result is None:
-        return None
-    problems.close()
-    env.stderr.write(held.stderr.getvalue())  # type: ignore[attr-defined]
-    if result.frames == 0:
-        env.say(f"no MAVLink frames found in {name} ({result.size} bytes, detected as {kind})")
-    result.stats.logged_in_part = result.logged_in_part
-    return result.stats, result.findings, name, Selection()
 
 
 def _lost(tot: dict) -> str:

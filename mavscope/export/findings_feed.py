@@ -1,11 +1,9 @@
 """The findings of the native batch source: the analyses of `pure.Analyses`, fed each window of frames in
 the state the pure source's one pass would leave them, without a Python Frame for every frame.
 
-The expert's detectors (`stats`' findings) are not fed here: the C walker puts its frames into the
-`stats` accumulator (native_dump.Accumulator, acc.h: the detectors that see every frame, ported step for
-step) and the export adds the handed-back frames to it, in capture order; at the end its state becomes
-the Expert. What is fed here, window by window, is what the accumulator does not hold: the audit, the
-object tracker and the parameter tracker.
+The expert's detectors (`stats`' findings) are not fed here: the export gives them each window as a
+`FrameBatch` (analysis.expert_batch, as `stats` does). What is fed here, window by window, is the audit,
+the object tracker and the parameter tracker.
 
 A window is a chunk of frames the C walker took (clean: good CRC, no note, plaintext, no verdict but
 `no-key`) and the frames the Python pipeline made of the records handed back among them, in capture order.
@@ -159,7 +157,7 @@ class Window:
 
 class NativeFeed:
     """Feeds the audit, object and parameter analyses of `analyses` window by window (see the module
-    docstring); the expert's detectors are the accumulator's."""
+    docstring); the expert's detectors are fed by the export's batches (native.export)."""
 
     def __init__(self, analyses: Analyses, messages: Sequence[MessageDef]) -> None:
         self.a = analyses

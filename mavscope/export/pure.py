@@ -127,13 +127,6 @@ def pure_pass(path: str, options: ExportOptions, dialect: Dialect, take: Callabl
                 take(item)
 
 
-def expert_pass(path: str, options: ExportOptions, dialect: Dialect) -> Expert:
-    """The expert's detectors over a pure pass (where the native accumulator cannot hold a capture)."""
-    ex = Expert(dialect)
-    pure_pass(path, options, dialect, ex.add)
-    return ex
-
-
 def command_pass(path: str, options: ExportOptions, dialect: Dialect) -> CommandMatcher:
     """The audit's command matcher over a pure pass (where the native feed's commands could have reached
     its bound: native_commands.CommandKeys.may_give_up)."""

@@ -323,6 +323,12 @@ def bad_crc_note(crc_hex: str, offset: int | None) -> Note:
     return note("bad-crc", f"CRC 0x{crc_hex} does not match the frame", offset)
 
 
+def with_bad_crc(frame: Frame) -> Frame:
+    """`frame`, whole and otherwise clean, as `build_frame` gives it when its CRC does not match (the native
+    walker's column mode gives such a frame as a code: mavscope.native.windows.noted)."""
+    return frame._replace(crc_status=BAD, notes=(*frame.notes, bad_crc_note(f"{frame.crc:04x}", frame.offset)))
+
+
 def char_notes(md: MessageDef, payload: bytes, offset: int | None) -> list[Note]:
     """`char-after-nul` for each char array of `payload` (a plaintext payload of message `md`) that holds
     bytes after the NUL ending its string: the field and the count, for what no reader of the value sees."""

@@ -49,6 +49,7 @@ class Chunk:
         self.raw = bytes(b["raw"]) if n else b""
         self.payload_at = np.frombuffer(b["payload_at"], np.int32, count=n + 1 if n else 0)
         self.payload = memoryview(b["payload"])
+        self.note = view("note", "u1")  # columns.h MS_NOTE_* bits (zeros unless Columns(notes=True))
         self.signed = (self.iflags & 1).astype(np.bool_)
 
     def payload_of(self, i: int) -> bytes:

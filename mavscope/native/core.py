@@ -7,8 +7,8 @@ it imports it from here (`from mavscope.native.core import _native`), and choose
   unset (or empty, or 0). `engine(environ)` says the same as "native" or "pure-python".
 - `KINDS`: capture kind -> the Walker's `kind` (capture.h's enum, as the module exports it: KIND_*).
 - `COLUMN_TRANSPORTS`: the transport column's code (columns.h, COLUMN_TRANSPORT_*) -> the transport's
-  name (None: a code never written); `STATS_TRANSPORTS`: Stats.add's transport code (acc.h,
-  STATS_TRANSPORT_*) -> name. The names are mavscope.transport.base's.
+  name (None: a code never written; the names are mavscope.transport.base's); `NOTE_*`: the bits of the
+  note column (columns.h MS_NOTE_*).
 
 The typed contract of the extension is mavscope/_native.pyi (tests/meta/test_native_contract.py holds
 it to the built module). Without the extension the constants are empty: nothing walks natively then.
@@ -19,7 +19,7 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping
 
-from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TCP, TRANSPORT_TLOG, TRANSPORT_UDP
+from mavscope.transport.base import TRANSPORT_TLOG, TRANSPORT_UDP
 from mavscope.transport.dispatch import TABLES
 
 try:
@@ -50,21 +50,12 @@ def _by_code(codes: Mapping[int, str]) -> tuple[str | None, ...]:
     return tuple(codes.get(k) for k in range(max(codes, default=-1) + 1))
 
 
-def _dense(codes: Mapping[int, str]) -> tuple[str, ...]:
-    """A tuple indexed by code of codes numbered 0, 1, ... without a gap."""
-    if sorted(codes) != list(range(len(codes))):
-        raise ImportError(f"mavscope._native: codes {sorted(codes)} are not 0..{len(codes) - 1}")
-    return tuple(codes[k] for k in range(len(codes)))
-
-
 KINDS: Mapping[str, int] = {}
 COLUMN_TRANSPORTS: tuple[str | None, ...] = ()
-STATS_TRANSPORTS: tuple[str, ...] = ()
+NOTE_UNSIGNED = NOTE_V1 = NOTE_BAD_CRC = 0  # the note column's bits (columns.h MS_NOTE_*)
 if _native is not None:
     KINDS = {"pcap": _native.KIND_PCAP, "pcapng": _native.KIND_PCAPNG, "tlog": _native.KIND_TLOG,
              "raw": _native.KIND_RAW}
+    NOTE_UNSIGNED, NOTE_V1, NOTE_BAD_CRC = _native.NOTE_UNSIGNED, _native.NOTE_V1, _native.NOTE_BAD_CRC
     COLUMN_TRANSPORTS = _by_code({_native.COLUMN_TRANSPORT_UDP: TRANSPORT_UDP,
                                   _native.COLUMN_TRANSPORT_TLOG: TRANSPORT_TLOG})
-    STATS_TRANSPORTS = _dense({_native.STATS_TRANSPORT_UDP: TRANSPORT_UDP, _native.STATS_TRANSPORT_TCP: TRANSPORT_TCP,
-                               _native.STATS_TRANSPORT_TLOG: TRANSPORT_TLOG,
-                             _native.STATS_TRANSPORT_RAW: TRANSPORT_RAW})

@@ -24,6 +24,8 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 
+from mavscope.analysis import expert_batch
+from mavscope.analysis.expert import Expert
 from mavscope.capture.detect import open_capture
 from mavscope.capture.reader import WINDOW, open_file
 from mavscope.endpoint import Endpoint
@@ -35,7 +37,6 @@ from mavscope.export.pure import (
     CaptureSummary,
     captures_batch,
     command_pass,
-    expert_pass,
     findings_batch,
     python_source,
 )
@@ -45,9 +46,9 @@ from mavscope.mavlink.frame import Frame
 from mavscope.native.chunk import Chunk
 from mavscope.native.columns import Names, frames_batch, message_batch, message_plan
 from mavscope.native.core import KINDS, _native
-from mavscope.native.dump import Accumulator, plan_for
 from mavscope.native.tables import table_for
 from mavscope.native.windows import DONE, FINISH, column_steps
+from mavscope.pipeline.batch import FrameBatch, Tables
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.pipeline.session import make_security_stage
 from mavscope.security.stage import SecurityStage
@@ -165,9 +166,9 @@ class _Export:
         self.pending = _Pending(options.batch_rows)
         self.analyses = Analyses(dialect)
         self.feed = NativeFeed(self.analyses, self.messages)
-        # the expert's detectors: the `stats` accumulator, fed by the walker and by `python`
-        plan = plan_for(dialect) if self.want_findings else None
-        self.acc = Accumulator(_native.Stats(self.table, plan)) if plan is not None and _native is not None else None
+        # the expert's detectors, fed each window as a FrameBatch (what `stats` computes them from)
+        self.expert = Expert(dialect)
+        self.tables = Tables()
         self.ends: list[Endpoint] = []
         self.names = Names(pa.array([], pa.string()), names)
         self.types: set[str] = set()  # messages with rows
@@ -188,8 +189,6 @@ class _Export:
                     yield b
                 continue
             self.summary.damage(item)
-            if self.acc is not None:
-                self.acc.add(item)
             self.pos.append(at)
             self.py.append(item)
             if self.want_messages:
@@ -218,6 +217,8 @@ class _Export:
         if self.want_messages:
             yield from self._messages(c, parts, gn, gp)
         if self.want_findings:
+            expert_batch.feed(self.expert, FrameBatch.of_window(c, py, pos, self.ends, self.messages, self.tables,
+                                                                reset))
             self.feed.window(c, py, pos, self.ends, parts, self.py_anomalies)
         self._times(c, gn, gp)
         self.py, self.pos, self.py_anomalies = [], [], []
@@ -263,7 +264,6 @@ class _Export:
             cols = _native.Columns(self.table, WINDOW_FRAMES)
             walker = _native.Walker(f.fileno(), size, KINDS[self.kind], self.table, self.dissector.mavlink_endpoints,
                                     Endpoint.from_packed, self.stage.signed_senders, WINDOW, columns=cols,
-                                    stats=None if self.acc is None else self.acc.acc,
                                     receivers=self.dissector.receivers)
             try:
                 yield from self._walk(walker, cols, progress)
@@ -298,16 +298,12 @@ class _Export:
                 cols.limit = goal() - len(self.py)  # > cols.frames here
 
     def settle(self) -> None:
-        """The expert's detectors with the state of the whole capture (after `run`): the accumulator's, or
-        where it could not hold the capture (a table at its cap; a dialect it cannot be told), those of a
-        pure pass; and the audit's command matcher, from a pure pass where the capture sent more commands
-        than it holds (native_commands.CommandKeys; else it gives up none, unfed)."""
+        """The expert's detectors with the state of the whole capture (after `run`); and the audit's command
+        matcher, from a pure pass where the capture sent more commands than it holds
+        (native_commands.CommandKeys; else it gives up none, unfed)."""
         if not self.want_findings:
             return
-        if self.acc is not None and not self.acc.full():
-            self.analyses.expert = self.acc.result(self.dialect)[1]
-        else:
-            self.analyses.expert = expert_pass(self.path, self.options, self.dialect)
+        self.analyses.expert = self.expert
         if self.feed.commands.may_give_up:
             self.analyses.audit_pass.matcher = command_pass(self.path, self.options, self.dialect)
 

@@ -89,8 +89,7 @@ class NativeWalk:
     The file is opened here (CaptureError as the readers raise it) and read by the walker with pread, a
     `window` of bytes at a time as the Python readers read it (the tests make it small).
     With `summary` (a `_native.Summary`, mavscope.native.summary) the text is summary lines, their
-    times relative to `t0`, instead of JSON Lines; with `stats` (a `_native.Stats`, mavscope.native.stats)
-    there is no text: the frames go to that accumulator.
+    times relative to `t0`, instead of JSON Lines.
     `endpoints` and `signed_senders` are the Python sets both paths share (the dissector's
     `mavlink_endpoints` and the security stage's `signed_senders`), `receivers` the dissector's (a
     datagram to a destination whose receivers are in a frame is handed back). `signed_nokey()` is asked before
@@ -102,7 +101,7 @@ class NativeWalk:
     def __init__(self, path: str | os.PathLike[str] | None, dialect: Dialect, endpoints: set[Endpoint],
                  signed_senders: set[tuple[int, int]], kind: str | None = None, window: int = WINDOW,
                  summary: _native.Summary | None = None, t0: float | None = None,
-                 stats: _native.Stats | None = None, receivers: Receivers | None = None) -> None:
+                 receivers: Receivers | None = None) -> None:
         if _native is None:
             raise RuntimeError("mavscope._native is not built")
         self._file: IO[bytes] | None = None
@@ -114,7 +113,7 @@ class NativeWalk:
             fd = self._file.fileno()
         try:
             self.walker = _native.Walker(fd, self.opened_size, KINDS[self.kind], table_for(dialect), endpoints,
-                                         Endpoint.from_packed, signed_senders, window, summary, t0, stats,
+                                         Endpoint.from_packed, signed_senders, window, summary, t0,
                                          receivers=receivers, notes=note_templates(),
                                          ports=tuple(sorted(MAVLINK_PORTS)))
         except BaseException:

@@ -1,8 +1,9 @@
 """The native walker's column mode: a capture as windows of frames in capture order.
 
 `windows(path, kind, dialect, stage)` walks the capture with the C extension (src/mavscope_native,
-column mode: columns.h): the records whose frames are all clean fill column buffers in bulk (a `Chunk`
-of numpy views), every other record is handed back, in capture order, to `Dissector.feed` and the
+column mode: columns.h): the records whose frames are all clean, or carry only the notes the chunk gives
+as codes (an unsigned frame of a sender that signs, a bad CRC: `noted`), fill column buffers in bulk (a
+`Chunk` of numpy views), every other record is handed back, in capture order, to `Dissector.feed` and the
 security stage, and its frames and anomalies join the window after as many native rows as came before
 them. A `Window` holds at most `limit` rows; `FrameBatch.of_window` makes one batch of it. The export
 (its tables) and `stats` (its analyses) read the same windows.
@@ -18,11 +19,14 @@ from mavscope.capture.reader import WINDOW, handed_back_record, open_file
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import Frame
+from mavscope.mavlink.framing import with_bad_crc
 from mavscope.native.chunk import Chunk
-from mavscope.native.core import KINDS, _native
+from mavscope.native.core import KINDS, NOTE_BAD_CRC, _native
 from mavscope.native.core import available as available  # the engine choice, for the session
-from mavscope.pipeline.dissect import Anomaly, Dissector
-from mavscope.security.stage import SecurityStage
+from mavscope.native.tables import table_for
+from mavscope.pipeline.batch import FrameBatch, Tables
+from mavscope.pipeline.dissect import MAVLINK_PORTS, Anomaly, Dissector
+from mavscope.security.stage import SecurityStage, with_unsigned_note
 
 WINDOW_FRAMES = 65_536  # rows per window
 
@@ -40,6 +44,17 @@ class Window:
     ends: list[Endpoint] = field(default_factory=list)
     reset: bool = False
     parts: list[tuple[int, Any, Any, int]] = field(default_factory=list)
+
+
+def noted(frame: Frame, code: int) -> Frame:
+    """The Frame of a row whose notes the chunk gives as a code (columns.h MS_NOTE_*), as the Python pipeline
+    makes it: the framer's bad-CRC note first, then the security stage's unsigned-in-signed-stream (or
+    v1-in-signed-stream) note."""
+    if code & NOTE_BAD_CRC:
+        frame = with_bad_crc(frame)
+    if code & ~NOTE_BAD_CRC:
+        frame = with_unsigned_note(frame)
+    return frame
 
 
 def messages_of(dialect: Dialect) -> list[MessageDef]:
@@ -124,10 +139,10 @@ def windows(path: str, kind: str, dialect: Dialect, stage: SecurityStage, table:
     walk = _Walk(stage, dissector)
     _, f, size = open_file(path)
     try:
-        cols = _native.Columns(table, limit)
+        cols = _native.Columns(table, limit, notes=True)
         walker = _native.Walker(f.fileno(), size, KINDS[kind], table, dissector.mavlink_endpoints,
-                                Endpoint.from_packed, stage.signed_senders, WINDOW, columns=cols, stats=None,
-                                receivers=dissector.receivers)
+                                Endpoint.from_packed, stage.signed_senders, WINDOW, columns=cols,
+                                receivers=dissector.receivers, ports=tuple(sorted(MAVLINK_PORTS)))
         try:
             cols.limit = limit
             for kind_, items, at in column_steps(walker, cols, dissector, lambda: not stage.check_signatures):
@@ -146,3 +161,24 @@ def windows(path: str, kind: str, dialect: Dialect, stage: SecurityStage, table:
             walker.close()
     finally:
         f.close()
+
+
+def batches(path: str, kind: str, dialect: Dialect, stage: SecurityStage, report: Callable[[Frame | Anomaly], object],
+            tables: Tables, limit: int = WINDOW_FRAMES, stats: dict[str, int] | None = None) -> Iterator[FrameBatch]:
+    """The capture's frames as a FrameBatch per window (`Session.batches` on the native engine), ids from
+    `tables`; `report` gets each anomaly and each handed-back frame with notes, in capture order (the rows
+    the chunk notes by code carry none that tells of capture damage: a bad CRC, an unsigned frame)."""
+    messages = messages_of(dialect)
+    for w in windows(path, kind, dialect, stage, table_for(dialect), limit, stats=stats):
+        after = iter(w.anomalies)
+        j, anomaly = next(after, (-1, None))
+        for k, f in enumerate(w.py):
+            while anomaly is not None and j <= k:
+                report(anomaly)
+                j, anomaly = next(after, (-1, None))
+            if f.notes:
+                report(f)
+        while anomaly is not None:
+            report(anomaly)
+            j, anomaly = next(after, (-1, None))
+        yield FrameBatch.of_window(w.chunk, w.py, w.pos, w.ends, messages, tables, w.reset, noted)

@@ -27,13 +27,16 @@ from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import MessageDef
 from mavscope.mavlink.frame import CrcStatus, Frame, Signature, SignatureStatus, new_frame
 from mavscope.mavlink.semantics import message_label
-from mavscope.native.core import COLUMN_TRANSPORTS
+from mavscope.native.core import COLUMN_TRANSPORTS, NOTE_BAD_CRC, NOTE_UNSIGNED, NOTE_V1
 
 TRANSPORTS: tuple[str, ...] = ("udp", "tcp", "tlog", "raw")  # FrameBatch.transport codes
 CRC_STATUSES: tuple[CrcStatus, ...] = tuple(CrcStatus)  # FrameBatch.crc codes
 VERDICTS: tuple[str, ...] = ("unsigned", *(s.value for s in SignatureStatus))  # FrameBatch.verdict codes
 UNSIGNED, NO_KEY = 0, VERDICTS.index(SignatureStatus.NO_KEY.value)
-CRC_OK = CRC_STATUSES.index(CrcStatus.OK)
+CRC_OK, CRC_BAD = CRC_STATUSES.index(CrcStatus.OK), CRC_STATUSES.index(CrcStatus.BAD)
+# the notes a native chunk gives as codes (FrameBatch.coded) -> their bits
+NOTE_CODES: dict[str, int] = {"bad-crc": NOTE_BAD_CRC, "unsigned-in-signed-stream": NOTE_UNSIGNED,
+                              "v1-in-signed-stream": NOTE_V1}
 _CRC_CODE = {s: k for k, s in enumerate(CRC_STATUSES)}
 _VERDICT_CODE = {s: k for k, s in enumerate(VERDICTS)}
 _TRANSPORT_CODE = {t: k for k, t in enumerate(TRANSPORTS)}
@@ -120,8 +123,12 @@ class NativeChunk(Protocol):
     sig_link: np.ndarray
     sig_time: np.ndarray
     signed: np.ndarray
+    note: np.ndarray
     raw: bytes
     raw_at: np.ndarray
+
+
+Noted = Callable[[Frame, int], Frame]  # a clean row's Frame -> the Frame its note code (Chunk.note) says
 
 
 def clean(f: Frame) -> bool:
@@ -144,8 +151,8 @@ class FrameBatch:
     """Frames in capture order as columns (see the module docstring); `frame(row)` gives a row's Frame."""
 
     __slots__ = ("n", "record", "time", "timed", "transport", "src", "dst", "version", "seq", "sysid", "compid",
-                 "msgid", "label", "size", "crc", "verdict", "signed", "clean", "tables", "_frames", "_make", "_raw",
-                 "_many")
+                 "msgid", "label", "size", "crc", "verdict", "signed", "clean", "coded", "tables", "_frames", "_make",
+                 "_raw", "_many")
     n: int
     record: np.ndarray  # int64: the capture record that completed the frame
     time: np.ndarray  # float64: its time (0.0 where `timed` is not set)
@@ -164,6 +171,7 @@ class FrameBatch:
     verdict: np.ndarray  # uint8: VERDICTS
     signed: np.ndarray  # bool: a signature block
     clean: np.ndarray  # bool: see `clean`
+    coded: np.ndarray  # uint8: NOTE_CODES bits of a row whose only notes a native chunk gave as codes, else 0
     tables: Tables
 
     def __init__(self, n: int, tables: Tables, columns: dict[str, np.ndarray], frames: list[Frame | None],
@@ -246,22 +254,25 @@ class FrameBatch:
             "verdict": np.asarray([_verdict(f) for f in frames], np.uint8),
             "signed": np.asarray([s is not None for s in signature], np.bool_),
             "clean": np.asarray([clean(f) for f in frames], np.bool_),
+            "coded": np.zeros(n, np.uint8),
         }
         return cls(n, tables, columns, list(frames), many=_no_frames)
 
     @classmethod
     def of_window(cls, c: NativeChunk, py: Sequence[Frame], pos: Sequence[int], ends: Sequence[Endpoint],
-                  messages: Sequence[MessageDef], tables: Tables, reset: bool = False) -> FrameBatch:
-        """Chunk `c`'s rows (clean frames) and the handed-back frames `py` (the j-th after `pos[j]` native
-        rows), in capture order."""
+                  messages: Sequence[MessageDef], tables: Tables, reset: bool = False,
+                  noted: Noted | None = None) -> FrameBatch:
+        """Chunk `c`'s rows (clean frames, and frames whose notes the chunk gives as codes: `noted` makes
+        their Frames) and the handed-back frames `py` (the j-th after `pos[j]` native rows), in capture
+        order."""
         n, p = c.n, len(py)
         if not p:
-            return cls._native(c, ends, messages, tables, reset)
+            return cls._native(c, ends, messages, tables, reset, noted)
         size = n + p
         at = np.asarray(pos, np.int64)
         gn = np.arange(n) + np.searchsorted(at, np.arange(n), side="right")
         gp = at + np.arange(p)
-        a = cls._native(c, ends, messages, tables, reset)
+        a = cls._native(c, ends, messages, tables, reset, noted)
         b = cls.of_frames(py, tables)
         columns = {}
         for name in _COLUMNS:
@@ -282,19 +293,22 @@ class FrameBatch:
 
     @classmethod
     def _native(cls, c: NativeChunk, ends: Sequence[Endpoint], messages: Sequence[MessageDef], tables: Tables,
-                reset: bool) -> FrameBatch:
+                reset: bool, noted: Noted | None) -> FrameBatch:
         n = c.n
         ids = tables.native_endpoints(ends, reset)
         signed = np.asarray(c.signed, np.bool_)
+        clean_rows = c.note == 0
         columns = {
             "record": c.record, "time": np.where(c.time_ok, c.time, 0.0), "timed": np.asarray(c.time_ok, np.bool_),
             "transport": _NATIVE_TRANSPORT[c.transport], "src": ids[c.src], "dst": ids[c.dst],
             "version": c.version, "seq": c.seq, "sysid": c.sysid, "compid": c.compid, "msgid": c.msgid,
             "label": tables.native_labels(messages)[c.message] if n else np.empty(0, np.int32),
             "size": np.diff(c.raw_at).astype(np.int32) if n else np.empty(0, np.int32),
-            "crc": np.full(n, CRC_OK, np.uint8), "verdict": np.where(signed, NO_KEY, UNSIGNED).astype(np.uint8),
-            "signed": signed, "clean": np.ones(n, np.bool_),
+            "crc": np.where(c.note & NOTE_BAD_CRC, CRC_BAD, CRC_OK).astype(np.uint8),
+            "verdict": np.where(signed, NO_KEY, UNSIGNED).astype(np.uint8), "signed": signed, "clean": clean_rows,
+            "coded": c.note,
         }
+        notes_of = c.note
         ends_of = [*tables.endpoints]
         transports = TRANSPORTS
         chunk_raw, raw_at = c.raw, c.raw_at
@@ -312,16 +326,20 @@ class FrameBatch:
             end = raw_at[idx + 1].tolist()
             out = []
             for (a, z, record, index, time, ok, transport, src, dst, offset, version, length, iflags, cflags, seq,
-                 sysid, compid, msgid, crc, message, is_signed, link, stamp) in zip(
+                 sysid, compid, msgid, crc, message, is_signed, link, stamp, code) in zip(
                     at, end, *(col[idx].tolist() for col in (
                         c.record, c.index, c.time, c.time_ok, transport_ids, src_ids, dst_ids, c.offset, c.version,
                         c.len, c.iflags, c.cflags, c.seq, c.sysid, c.compid, c.msgid, c.crc, c.message, signed,
-                        c.sig_link, c.sig_time))):
+                        c.sig_link, c.sig_time, notes_of))):
                 raw = chunk_raw[a:z]
-                out.append(new_frame(
+                f = new_frame(
                     record, index, time if ok else None, transports[transport], ends_of[src], ends_of[dst], offset,
                     raw, version, length, iflags, cflags, seq, sysid, compid, msgid, crc, CrcStatus.OK,
-                    messages_of[message], Signature(link, stamp, raw[-6:]) if is_signed else None, (), None))
+                    messages_of[message], Signature(link, stamp, raw[-6:]) if is_signed else None, (), None)
+                if code:
+                    assert noted is not None, "a chunk with notes needs `noted`"
+                    f = noted(f, code)
+                out.append(f)
             return out
 
         def make(i: int) -> Frame:
@@ -335,12 +353,12 @@ def _no_frames(rows: list[int]) -> list[Frame]:
 
 
 _COLUMNS = ("record", "time", "timed", "transport", "src", "dst", "version", "seq", "sysid", "compid", "msgid",
-            "label", "size", "crc", "verdict", "signed", "clean")
+            "label", "size", "crc", "verdict", "signed", "clean", "coded")
 _DTYPES: dict[str, Any] = {"record": np.int64, "time": np.float64, "timed": np.bool_, "transport": np.uint8,
                            "src": np.int32, "dst": np.int32, "version": np.uint8, "seq": np.uint8,
                            "sysid": np.uint8, "compid": np.uint8, "msgid": np.uint32, "label": np.int32,
                            "size": np.int32, "crc": np.uint8, "verdict": np.uint8, "signed": np.bool_,
-                           "clean": np.bool_}
+                           "clean": np.bool_, "coded": np.uint8}
 
 
 def _empty() -> dict[str, np.ndarray]:

@@ -25,7 +25,6 @@ from mavscope.capture.reader import CaptureReader
 from mavscope.mavlink.dialect import Dialect, load_dialect
 from mavscope.mavlink.frame import Frame
 from mavscope.native import windows
-from mavscope.native.tables import table_for
 from mavscope.pipeline.batch import FrameBatch, Tables
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.pipeline.options import PipelineOptions
@@ -101,6 +100,7 @@ class Session:
     t0: float | None  # time of the capture's first record: relative times count from it (as tshark's)
     frame_count: int = 0  # frames that came out of the security stage so far (before the filter)
     walked: dict[str, int] = field(default_factory=dict)  # the native walker's counts (size...), when it ran
+    environ: Mapping[str, str] | None = None  # the environment the engine is chosen by (MAVSCOPE_PURE)
 
     def _counted(self, items: Iterator[Frame | Anomaly]) -> Iterator[Frame | Anomaly]:
         for item in items:
@@ -122,30 +122,19 @@ class Session:
         """Every frame (no anomalies, no filter)."""
         return (item for item in self.items if type(item) is not Anomaly)
 
-    def batches(self, report: Callable[[Frame | Anomaly], object], environ: Mapping[str, str] | None = None,
-                native: bool = False) -> Iterator[FrameBatch]:
+    def batches(self, report: Callable[[Frame | Anomaly], object]) -> Iterator[FrameBatch]:
         """Every frame (no filter) as column batches, in capture order; `report` gets each anomaly and each
-        frame with notes, in capture order too. The engine is chosen here: the native walker's windows
-        (pipeline.windows) where the extension is built, `native` allows it, MAVSCOPE_PURE is not set and
-        it reads the capture's kind, else the Python pipeline's frames BATCH at a time."""
+        frame with notes that may tell of capture damage, in capture order too (the rows whose notes a
+        native chunk gives as codes tell of none: a bad CRC, an unsigned frame of a signing sender). The
+        engine is chosen here: the native walker's windows (native.windows.batches) where the extension is
+        built, MAVSCOPE_PURE is not set in `environ` and it reads the capture's kind, else the Python
+        pipeline's frames BATCH at a time."""
         tables = Tables()
-        if native and windows.available(environ) and self.reader.kind in windows.KINDS:
-            messages = windows.messages_of(self.dialect)
-            for w in windows.windows(self.path, self.reader.kind, self.dialect, self.security,
-                                     table_for(self.dialect), stats=self.walked):
-                after = iter(w.anomalies)
-                j, anomaly = next(after, (-1, None))
-                for k, f in enumerate(w.py):
-                    while anomaly is not None and j <= k:
-                        report(anomaly)
-                        j, anomaly = next(after, (-1, None))
-                    if f.notes:
-                        report(f)
-                while anomaly is not None:
-                    report(anomaly)
-                    j, anomaly = next(after, (-1, None))
-                self.frame_count += w.chunk.n + len(w.py)
-                yield FrameBatch.of_window(w.chunk, w.py, w.pos, w.ends, messages, tables, w.reset)
+        if windows.available(self.environ) and self.reader.kind in windows.KINDS:
+            for b in windows.batches(self.path, self.reader.kind, self.dialect, self.security, report, tables,
+                                     stats=self.walked):
+                self.frame_count += b.n
+                yield b
             return
         chunk: list[Frame] = []
         for item in self.items:
@@ -172,15 +161,16 @@ def peek_time(records: Iterator[Record]) -> tuple[float | None, Iterator[Record]
 
 @contextmanager
 def open_session(path: str, options: PipelineOptions, *, dialect: Dialect | None = None,
-                 warn: Warn = _quiet) -> Iterator[Session]:
+                 warn: Warn = _quiet, environ: Mapping[str, str] | None = None) -> Iterator[Session]:
     """Open the capture at `path` and build its pipeline (CaptureError, UsageError, FilterError when the
-    file or the options are wrong; `warn` receives warnings such as a keyring readable by others)."""
+    file or the options are wrong; `warn` receives warnings such as a keyring readable by others; `environ`:
+    the environment the engine is chosen by, os.environ when None)."""
     if dialect is None:
         dialect = load_dialect(options.dialects)
     with open_capture(path) as reader:
         t0, records = peek_time(iter(reader))
         security = make_security_stage(options, warn)
         flt = make_filter(options, dialect)
-        session = Session(path, reader, dialect, iter(()), security, flt, t0)
+        session = Session(path, reader, dialect, iter(()), security, flt, t0, environ=environ)
         session.items = session._counted(security.run(Dissector(dialect, security.material.wifi).run(records)))
         yield session

@@ -95,6 +95,14 @@ def unsigned_note(version: int, message: str, sender: str, offset: int | None) -
     return SignatureReason.UNSIGNED_IN_SIGNED_STREAM, note("unsigned-in-signed-stream", f"unsigned {what}", offset)
 
 
+def with_unsigned_note(frame: Frame) -> Frame:
+    """`frame` (unsigned, of a sender that signs, plaintext, no key message) as `SecurityStage.process` gives
+    it (the native walker's column mode gives such a frame as a code: mavscope.native.windows.noted)."""
+    reason, n = unsigned_note(frame.version, str(frame.msgname or frame.msgid), f"{frame.sysid}/{frame.compid}",
+                              frame.offset)
+    return frame._replace(security=Security(None, None, None, reason, "", None), notes=(*frame.notes, n))
+
+
 class SecurityStage:
     """One instance per capture: it keeps the replay state, the senders seen signing, the epochs."""
 

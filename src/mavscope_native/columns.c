@@ -13,7 +13,7 @@ const char *const MS_COL_NAMES[MS_NCOLS] = {
     [MS_COL_MESSAGE] = "message", [MS_COL_CRC] = "crc", [MS_COL_SIG_LINK] = "signature_link_id",
     [MS_COL_SIG_TIME] = "signature_timestamp", [MS_COL_SIG_VALUE] = "signature_value",
     [MS_COL_OFFSET] = "offset", [MS_COL_PAYLOAD_AT] = "payload_at", [MS_COL_PAYLOAD] = "payload",
-    [MS_COL_RAW_AT] = "raw_at", [MS_COL_RAW] = "raw", [MS_COL_SIZE] = "size",
+    [MS_COL_RAW_AT] = "raw_at", [MS_COL_RAW] = "raw", [MS_COL_SIZE] = "size", [MS_COL_NOTE] = "note",
 };
 
 const uint8_t MS_COL_WIDTH[MS_NCOLS] = {
@@ -21,7 +21,7 @@ const uint8_t MS_COL_WIDTH[MS_NCOLS] = {
     [MS_COL_SRC] = 4, [MS_COL_DST] = 4, [MS_COL_VERSION] = 1, [MS_COL_LEN] = 1, [MS_COL_IFLAGS] = 1,
     [MS_COL_CFLAGS] = 1, [MS_COL_SEQ] = 1, [MS_COL_SYSID] = 1, [MS_COL_COMPID] = 1, [MS_COL_MSGID] = 4,
     [MS_COL_MESSAGE] = 4, [MS_COL_CRC] = 2, [MS_COL_SIG_LINK] = 1, [MS_COL_SIG_TIME] = 8, [MS_COL_SIG_VALUE] = 6,
-    [MS_COL_OFFSET] = 8, [MS_COL_SIZE] = 2,
+    [MS_COL_OFFSET] = 8, [MS_COL_SIZE] = 2, [MS_COL_NOTE] = 1,
 };
 
 int ms_cols_init(ms_cols *c, const ms_table *table, uint32_t limit) {
@@ -163,8 +163,8 @@ static int message_row(ms_cols *c, const ms_message *m, const uint8_t *payload, 
     return 0;
 }
 
-int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uint32_t *frames, size_t count,
-                   int has_time, double t, const ms_udp *udp) {
+int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uint32_t *frames, const uint8_t *notes,
+                   size_t count, int has_time, double t, const ms_udp *udp) {
     if (c->failed)
         return -1;
     int32_t src = -1, dst = -1;
@@ -221,10 +221,12 @@ int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uin
         put(c, MS_COL_MSGID, &msgid);
         put(c, MS_COL_OFFSET, &offset);
         put(c, MS_COL_SIZE, &fsize);
+        const uint8_t fnote = notes != NULL ? notes[i] : 0;
         if (!full) {
             c->n++;
             continue;
         }
+        put_u8(c, MS_COL_NOTE, fnote);
         const int32_t message = (int32_t)(m - c->table->messages);
         const uint16_t crc = (uint16_t)(f[hlen + len] | (f[hlen + len + 1] << 8));
         const int is_signed = v2 && (f[2] & 1);
@@ -249,7 +251,7 @@ int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uin
         put_i32(c, MS_COL_PAYLOAD_AT, (int32_t)c->col[MS_COL_PAYLOAD].len);
         ms_buf_put(&c->col[MS_COL_RAW], f, size);
         put_i32(c, MS_COL_RAW_AT, (int32_t)c->col[MS_COL_RAW].len);
-        if (message_row(c, m, f + hlen, len) != 0) {
+        if (!(fnote & MS_NOTE_BAD_CRC) && message_row(c, m, f + hlen, len) != 0) {
             c->failed = 1;
             return -1;
         }

@@ -52,6 +52,7 @@ enum {
     MS_COL_RAW_AT,     /* int32 offsets (n + 1) into RAW */
     MS_COL_RAW,        /* bytes: the frames as on the wire (header to signature) */
     MS_COL_SIZE,       /* uint16: the frame's size in bytes (header to signature) */
+    MS_COL_NOTE,       /* uint8: the frame's notes (MS_NOTE_*: 0 for a clean frame; only with `notes`) */
     MS_NCOLS,
 };
 
@@ -61,6 +62,10 @@ extern const char *const MS_COL_NAMES[MS_NCOLS];
 extern const uint8_t MS_COL_WIDTH[MS_NCOLS];
 
 enum { MS_TRANSPORT_UDP = 1, MS_TRANSPORT_TLOG = 2 };
+
+/* the note column's bits (a frame the walk takes with notes: walk.c, as its JSON Lines walk writes them):
+ * an unsigned MAVLink 2 or a MAVLink 1 frame of a sender that signs, and a bad CRC */
+enum { MS_NOTE_UNSIGNED = 1, MS_NOTE_V1 = 2, MS_NOTE_BAD_CRC = 4 };
 
 /* the columns an index_only chunk fills (bit k: MS_COL_k) */
 #define MS_INDEX_COLUMNS                                                                                     \
@@ -97,6 +102,8 @@ typedef struct {
     ms_endpoint recent[8]; /* endpoints looked up lately, by a cheap hash of port and address (the map's */
     uint32_t recent_id[8]; /* FNV hash costs a fifth of an index walk); valid while recent_ok, until the */
     uint8_t recent_ok[8];  /* map starts over */
+    int notes;             /* the walk takes frames with the notes of MS_NOTE_* (with their code in NOTE)
+                              instead of handing their records back */
     int index_only;        /* the TUI's index (mavscope/browse/native.py): only MS_INDEX_COLUMNS are filled,
                               no payloads, wire bytes, signatures or message rows (those columns stay empty) */
     int failed;
@@ -110,10 +117,11 @@ static inline int ms_cols_full(const ms_cols *c) {
     return c->n >= c->limit;
 }
 
-/* Append the `count` frames of a clean record (their (position, size) pairs in `frames`, within d[0..n));
- * `udp` NULL for a tlog entry. 0, or -1 when memory runs out. */
-int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uint32_t *frames, size_t count,
-                   int has_time, double t, const ms_udp *udp);
+/* Append the `count` frames of a record the walk takes (their (position, size) pairs in `frames`, within
+ * d[0..n); per frame its MS_NOTE_* bits in `notes`, NULL for none); `udp` NULL for a tlog entry. 0, or -1
+ * when memory runs out. A frame with a bad CRC gets no message row (its fields are no one's). */
+int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uint32_t *frames, const uint8_t *notes,
+                   size_t count, int has_time, double t, const ms_udp *udp);
 
 /* Start the next chunk: the buffers are emptied (the caller took their memory: it zeroed each ms_buf
  * it took), message rows forgotten, endpoint ids since `first_new` no longer new; the endpoint map starts

@@ -2,13 +2,9 @@
  *
  *   Table(blob: bytes)                  the message layouts, compiled by mavscope.native from a Dialect
  *   Summary(table, blob: bytes)         what summary lines show per message (mavscope.native_summary)
- *   Stats(table, plan: bytes)           the `stats` accumulator (acc.h; mavscope.native_stats)
- *     .add(record, time, transport, src, dst, raw, version, seq, sysid, compid, msgid, known, crc, sig,
- *          has_signature, payload)      one frame of a handed-back record
- *     .full() -> bool, .dump() -> bytes
  *   Walker(fd: int, size: int, kind: int, table, endpoints: set, endpoint: Callable[[bytes, int], object],
  *          signed_senders: set[tuple[int, int]], window: int = 1 << 20, summary: Summary | None = None,
- *          t0: float | None = None, stats: Stats | None = None, columns: Columns | None = None,
+ *          t0: float | None = None, columns: Columns | None = None,
  *          receivers: dict | None = None)
  *                                        with `receivers` (the Dissector's: UDP port -> receivers): a datagram
  *                                        to one of its ports is handed back (read after each record
@@ -16,9 +12,6 @@
  *                                        its `hand_back` (a dict subclass's attribute, read per `next`) is
  *                                        true (a TCP hole waits, which any record's time may end)
  *                                        with `summary`: summary lines (relative to t0) instead of JSON;
- *                                        with `stats`: no text, the frames go to the accumulator
- *                                        (with `columns` too: the export's findings; once `full` the
- *                                        accumulator takes nothing more and the walk goes on)
  *     .next(signed_nokey: bool, limit: int = 1 << 20, into: bytearray | None = None,
  *           signing: SigningState | None = None) -> list[bytes | bytearray | tuple] | None
  *         with `signing` (and not signed_nokey): signed frames of known streams judged against it
@@ -33,8 +26,9 @@
  *     .put(stream, last: int, key: int), len()
  *   sha256(data) -> bytes, format_skew(x) -> bytes   (the signing code, for the tests)
  *   Receiver, udp_record, UDP_PCAP_HEADER (module_recv.c: live capture's batched receive)
- *   Columns(table, limit: int = 65536, *, index: bool = False)  column mode for the export (columns.h):
- *       Walker(..., columns=Columns); `index`: only the columns the TUI's index takes; `.limit` settable
+ *   Columns(table, limit: int = 65536, *, index: bool = False, notes: bool = False)  column mode (columns.h):
+ *       Walker(..., columns=Columns); `index`: only the columns the TUI's index takes; `notes`: frames with
+ *       the notes of NOTE_* are taken, their code in the `note` column; `.limit` settable
  *     fills it instead of writing JSON Lines, stopping once it holds `limit` frames
  *     .frames -> int                     frames held
  *     .take() -> (frames, endpoints_reset, new_endpoints, columns, messages)   the chunk, whose memory
@@ -43,7 +37,7 @@
  *         new_endpoints, (packed address, port) of the endpoint ids first used in this chunk, in id order
  *   COLUMN_NAMES: tuple[str, ...]       the names of those columns, in order
  *   KIND_*: the capture kinds a Walker takes (capture.h MS_KIND_*); COLUMN_TRANSPORT_*: the codes of the
- *       transport column (columns.h MS_TRANSPORT_*); STATS_TRANSPORT_*: Stats.add's transport (acc.h MS_TR_*).
+ *       transport column (columns.h MS_TRANSPORT_*); NOTE_*: the bits of the note column (MS_NOTE_*).
  *       Python reads them from here only (mavscope/native/core.py; the typed contract: mavscope/_native.pyi)
  *   format_double(x) -> bytes, text_json(b) -> bytes   (the JSON formatting, for the tests)
  *   format_f32(x, repr), format_double_repr(x), format_degrees(v, unsigned), format_reltime(t), repr_ascii(b) -> bytes | None
@@ -56,7 +50,6 @@
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
-#include "acc.h"
 #include "buf.h"
 #include "capture.h"
 #include "columns.h"
@@ -173,173 +166,6 @@ static PyTypeObject SummaryType = {
     .tp_new = PyType_GenericNew,
 };
 
-/* ---- Stats -------------------------------------------------------------------------------- */
-
-typedef struct {
-    PyObject_HEAD
-    ms_plan plan;
-    ms_acc acc;
-    PyObject *table; /* TableObject the walkers that feed this accumulator use */
-    int ok;
-} StatsObject;
-
-static void Stats_dealloc(StatsObject *self) {
-    if (self->ok) {
-        ms_acc_free(&self->acc);
-        ms_plan_free(&self->plan);
-    }
-    Py_XDECREF(self->table);
-    Py_TYPE(self)->tp_free((PyObject *)self);
-}
-
-static int Stats_init(StatsObject *self, PyObject *args, PyObject *kwds) {
-    static char *kwlist[] = {"table", "plan", NULL};
-    PyObject *table;
-    Py_buffer blob;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "O!y*", kwlist, &TableType, &table, &blob))
-        return -1;
-    if (self->ok) {
-        PyBuffer_Release(&blob);
-        PyErr_SetString(PyExc_RuntimeError, "Stats already initialised");
-        return -1;
-    }
-    int r = ms_plan_parse(&self->plan, (const uint8_t *)blob.buf, (size_t)blob.len);
-    PyBuffer_Release(&blob);
-    if (r != 0) {
-        PyErr_SetString(PyExc_ValueError, "malformed statistics plan");
-        return -1;
-    }
-    if (ms_acc_init(&self->acc, &self->plan) != 0) {
-        ms_plan_free(&self->plan);
-        PyErr_NoMemory();
-        return -1;
-    }
-    Py_INCREF(table);
-    self->table = table;
-    self->ok = 1;
-    return 0;
-}
-
-/* The id of an endpoint's text (None: -1); -2 with an exception set, -3 when a table is full. */
-static int32_t intern_text(StatsObject *self, PyObject *text) {
-    if (text == Py_None)
-        return -1;
-    Py_ssize_t n;
-    const char *s = PyUnicode_AsUTF8AndSize(text, &n);
-    if (s == NULL)
-        return -2;
-    int32_t id = ms_acc_intern(&self->acc, s, (size_t)n);
-    if (id == -1) {
-        PyErr_NoMemory();
-        return -2;
-    }
-    return id == -2 ? -3 : id;
-}
-
-static PyObject *Stats_add(StatsObject *self, PyObject *args) {
-    unsigned long long record;
-    PyObject *time, *src, *dst, *payload;
-    int transport, version, known, crc, sig, has_signature;
-    unsigned int seq, sysid, compid, msgid;
-    Py_buffer raw;
-    if (!PyArg_ParseTuple(args, "KOiOOy*iIIIIpiipO", &record, &time, &transport, &src, &dst, &raw, &version, &seq,
-                          &sysid, &compid, &msgid, &known, &crc, &sig, &has_signature, &payload))
-        return NULL;
-    PyObject *res = NULL;
-    Py_buffer pl = {0};
-    int have_pl = 0;
-    if (!self->ok || transport < 0 || transport >= MS_TR_N || crc < 0 || crc >= MS_CRC_N || sig < 0 ||
-        sig >= MS_SIG_N || seq > 255 || sysid > 255 || compid > 255 || msgid > 0xFFFFFF) {
-        PyErr_SetString(PyExc_ValueError, "not a frame");
-        goto done;
-    }
-    ms_acc_frame f;
-    memset(&f, 0, sizeof f);
-    f.record = record;
-    f.has_time = time != Py_None;
-    if (f.has_time) {
-        f.time = PyFloat_AsDouble(time);
-        if (f.time == -1.0 && PyErr_Occurred())
-            goto done;
-    }
-    f.transport = transport;
-    f.raw = (const uint8_t *)raw.buf;
-    f.raw_len = (size_t)raw.len;
-    f.version = version;
-    f.seq = seq;
-    f.sysid = sysid;
-    f.compid = compid;
-    f.msgid = msgid;
-    f.known = known;
-    f.crc = crc;
-    f.sig = sig;
-    f.has_signature = has_signature;
-    if (payload != Py_None) {
-        if (PyObject_GetBuffer(payload, &pl, PyBUF_SIMPLE) != 0)
-            goto done;
-        have_pl = 1;
-        f.payload = (const uint8_t *)pl.buf;
-        f.payload_len = (size_t)pl.len;
-        if (f.payload == NULL)
-            f.payload = (const uint8_t *)"";
-    }
-    f.src = intern_text(self, src);
-    f.dst = f.src < -1 ? -1 : intern_text(self, dst);
-    if (f.src == -2 || f.dst == -2)
-        goto done;
-    if (f.src != -3 && f.dst != -3 && ms_acc_add(&self->acc, &f) < 0) {
-        PyErr_NoMemory();
-        goto done;
-    }
-    res = Py_NewRef(Py_None);
-done:
-    if (have_pl)
-        PyBuffer_Release(&pl);
-    PyBuffer_Release(&raw);
-    return res;
-}
-
-static PyObject *Stats_full(StatsObject *self, PyObject *Py_UNUSED(ignored)) {
-    return PyBool_FromLong(self->ok && self->acc.full);
-}
-
-static PyObject *Stats_dump(StatsObject *self, PyObject *Py_UNUSED(ignored)) {
-    if (!self->ok) {
-        PyErr_SetString(PyExc_RuntimeError, "Stats not initialised");
-        return NULL;
-    }
-    ms_buf out;
-    ms_buf_init(&out);
-    if (ms_acc_dump(&self->acc, &out) != 0) {
-        ms_buf_free(&out);
-        return PyErr_NoMemory();
-    }
-    PyObject *res = PyBytes_FromStringAndSize(out.data, (Py_ssize_t)out.len);
-    ms_buf_free(&out);
-    return res;
-}
-
-static PyMethodDef Stats_methods[] = {
-    {"add", (PyCFunction)Stats_add, METH_VARARGS,
-     "add(record, time, transport, src, dst, raw, version, seq, sysid, compid, msgid, known, crc, sig, "
-     "has_signature, payload): one frame the Python pipeline made"},
-    {"full", (PyCFunction)Stats_full, METH_NOARGS, "whether a table reached its cap (then run the pure path)"},
-    {"dump", (PyCFunction)Stats_dump, METH_NOARGS, "the whole state as bytes (acc_dump.c has the layout)"},
-    {NULL, NULL, 0, NULL},
-};
-
-static PyTypeObject StatsType = {
-    PyVarObject_HEAD_INIT(NULL, 0)
-    .tp_name = "mavscope._native.Stats",
-    .tp_basicsize = sizeof(StatsObject),
-    .tp_dealloc = (destructor)Stats_dealloc,
-    .tp_flags = Py_TPFLAGS_DEFAULT,
-    .tp_doc = "The `stats` accumulator (built by mavscope.native_stats).",
-    .tp_methods = Stats_methods,
-    .tp_init = (initproc)Stats_init,
-    .tp_new = PyType_GenericNew,
-};
-
 /* ---- Block, Columns (the export's column mode) -------------------------------------------- */
 
 /* Memory the column buffers grew in C, handed to Python without a copy (read-only buffer protocol). */
@@ -403,12 +229,17 @@ static void Columns_dealloc(ColumnsObject *self) {
 }
 
 static int Columns_init(ColumnsObject *self, PyObject *args, PyObject *kwds) {
-    static char *kwlist[] = {"table", "limit", "index", NULL};
+    static char *kwlist[] = {"table", "limit", "index", "notes", NULL};
     PyObject *table;
     Py_ssize_t limit = 65536;
-    int index_only = 0;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "O!|n$p", kwlist, &TableType, &table, &limit, &index_only))
+    int index_only = 0, notes = 0;
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "O!|n$pp", kwlist, &TableType, &table, &limit, &index_only,
+                                     &notes))
         return -1;
+    if (index_only && notes) {
+        PyErr_SetString(PyExc_ValueError, "an index chunk carries no notes");
+        return -1;
+    }
     if (self->ok) {
         PyErr_SetString(PyExc_RuntimeError, "Columns already initialised");
         return -1;
@@ -422,6 +253,7 @@ static int Columns_init(ColumnsObject *self, PyObject *args, PyObject *kwds) {
         return -1;
     }
     self->cols.index_only = index_only;
+    self->cols.notes = notes;
     Py_INCREF(table);
     self->table = table;
     self->ok = 1;
@@ -727,7 +559,6 @@ typedef struct {
     long long signers_epoch;
     Py_ssize_t signers_pos;
     PyObject *summary;   /* SummaryObject or NULL (JSON Lines) */
-    PyObject *stats;     /* StatsObject or NULL */
     PyObject *columns;   /* ColumnsObject or NULL: column mode */
     PyObject *receivers; /* the Dissector's receivers (dict: UDP port -> receivers), or NULL */
     int waiting_stale;   /* Python may have changed `receivers` (it was handed a record) since they were read */
@@ -754,22 +585,21 @@ static void Walker_dealloc(WalkerObject *self) {
     Py_XDECREF(self->senders);
     Py_XDECREF(self->receivers);
     Py_XDECREF(self->summary);
-    Py_XDECREF(self->stats);
     Py_XDECREF(self->columns);
     Py_TYPE(self)->tp_free((PyObject *)self);
 }
 
 static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
     static char *kwlist[] = {"fd", "size", "kind", "table", "endpoints", "endpoint", "signed_senders", "window",
-                             "summary", "t0", "stats", "columns", "receivers", "notes", "ports", NULL};
-    PyObject *table, *endpoints, *endpoint, *senders, *summary = Py_None, *t0 = Py_None, *stats = Py_None;
+                             "summary", "t0", "columns", "receivers", "notes", "ports", NULL};
+    PyObject *table, *endpoints, *endpoint, *senders, *summary = Py_None, *t0 = Py_None;
     PyObject *columns = Py_None, *receivers = Py_None, *notes = Py_None, *ports = Py_None;
     int fd, kind;
     unsigned long long size;
     Py_ssize_t window = MS_WINDOW;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|nOOOOOOO", kwlist, &fd, &size, &kind, &TableType,
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|nOOOOOO", kwlist, &fd, &size, &kind, &TableType,
                                      &table, &PySet_Type, &endpoints, &endpoint, &PySet_Type, &senders, &window,
-                                     &summary, &t0, &stats, &columns, &receivers, &notes, &ports))
+                                     &summary, &t0, &columns, &receivers, &notes, &ports))
         return -1;
     static const Py_ssize_t pieces[MS_NOTE_TPLS] = {4, 4, 3}; /* walk.h MS_TPL_*: the values between them */
     if (notes != Py_None) { /* MS_NOTE_TPLS tuples of bytes objects, each at most MS_NOTE_TPL_MAX long */
@@ -802,11 +632,6 @@ static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
     }
     if (receivers != Py_None && !PyDict_Check(receivers)) {
         PyErr_SetString(PyExc_TypeError, "receivers must be a dict (the Dissector's receivers) or None");
-        return -1;
-    }
-    if (stats != Py_None && (!PyObject_TypeCheck(stats, &StatsType) || ((StatsObject *)stats)->table != table ||
-                             !((StatsObject *)stats)->ok || summary != Py_None)) {
-        PyErr_SetString(PyExc_TypeError, "stats must be a Stats of the same table (without summary), or None");
         return -1;
     }
     if (columns != Py_None && (!PyObject_TypeCheck(columns, &ColumnsType) || ((ColumnsObject *)columns)->table != table ||
@@ -871,11 +696,6 @@ static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
         self->walker.summary = &((SummaryObject *)summary)->summary;
         self->walker.has_t0 = t0 != Py_None;
         self->walker.t0 = t0v;
-    }
-    if (stats != Py_None) {
-        Py_INCREF(stats);
-        self->stats = stats;
-        self->walker.acc = &((StatsObject *)stats)->acc;
     }
     if (columns != Py_None) {
         Py_INCREF(columns);
@@ -1553,7 +1373,7 @@ static struct PyModuleDef native_module = {
 
 PyMODINIT_FUNC PyInit__native(void) {
     if (PyType_Ready(&TableType) < 0 || PyType_Ready(&SummaryType) < 0 || PyType_Ready(&WalkerType) < 0 ||
-        PyType_Ready(&StatsType) < 0 || PyType_Ready(&BlockType) < 0 || PyType_Ready(&ColumnsType) < 0 ||
+        PyType_Ready(&BlockType) < 0 || PyType_Ready(&ColumnsType) < 0 ||
         PyType_Ready(&SigningType) < 0)
         return NULL;
     PyObject *m = PyModule_Create(&native_module);
@@ -1581,7 +1401,6 @@ PyMODINIT_FUNC PyInit__native(void) {
     Py_INCREF(&TableType);
     Py_INCREF(&WalkerType);
     Py_INCREF(&SummaryType);
-    Py_INCREF(&StatsType);
     Py_INCREF(&BlockType);
     Py_INCREF(&ColumnsType);
     Py_INCREF(&SigningType);
@@ -1589,7 +1408,6 @@ PyMODINIT_FUNC PyInit__native(void) {
         PyModule_AddObject(m, "Walker", (PyObject *)&WalkerType) < 0 ||
         PyModule_AddObject(m, "Summary", (PyObject *)&SummaryType) < 0 ||
         PyModule_AddObject(m, "SigningState", (PyObject *)&SigningType) < 0 ||
-        PyModule_AddObject(m, "Stats", (PyObject *)&StatsType) < 0 ||
         PyModule_AddObject(m, "Block", (PyObject *)&BlockType) < 0 ||
         PyModule_AddObject(m, "Columns", (PyObject *)&ColumnsType) < 0 ||
         PyModule_AddIntConstant(m, "MAX_ENDPOINTS", MS_MAX_ENDPOINTS) < 0 ||
@@ -1598,11 +1416,10 @@ PyMODINIT_FUNC PyInit__native(void) {
         PyModule_AddIntConstant(m, "KIND_TLOG", MS_KIND_TLOG) < 0 ||
         PyModule_AddIntConstant(m, "KIND_RAW", MS_KIND_RAW) < 0 ||
         PyModule_AddIntConstant(m, "COLUMN_TRANSPORT_UDP", MS_TRANSPORT_UDP) < 0 ||
+        PyModule_AddIntConstant(m, "NOTE_UNSIGNED", MS_NOTE_UNSIGNED) < 0 ||
+        PyModule_AddIntConstant(m, "NOTE_V1", MS_NOTE_V1) < 0 ||
+        PyModule_AddIntConstant(m, "NOTE_BAD_CRC", MS_NOTE_BAD_CRC) < 0 ||
         PyModule_AddIntConstant(m, "COLUMN_TRANSPORT_TLOG", MS_TRANSPORT_TLOG) < 0 ||
-        PyModule_AddIntConstant(m, "STATS_TRANSPORT_UDP", MS_TR_UDP) < 0 ||
-        PyModule_AddIntConstant(m, "STATS_TRANSPORT_TCP", MS_TR_TCP) < 0 ||
-        PyModule_AddIntConstant(m, "STATS_TRANSPORT_TLOG", MS_TR_TLOG) < 0 ||
-        PyModule_AddIntConstant(m, "STATS_TRANSPORT_RAW", MS_TR_RAW) < 0 ||
         PyModule_AddIntConstant(m, "TABLE_VERSION", 1) < 0 || ms_py_add_receiver(m) < 0) {
         Py_DECREF(m);
         return NULL;

@@ -200,6 +200,15 @@ static int verify_signed(ms_walker *w, const uint8_t *f, size_t size, size_t k) 
     return CLEAN;
 }
 
+/* Whether the walk takes a frame with note template `tpl`'s note (MS_TPL_*) rather than handing its record
+ * back: the JSON Lines and summary walks write it (their templates are set), the column mode with `notes`
+ * gives its code (columns.h MS_NOTE_*). */
+static int takes_notes(const ms_walker *w, int tpl) {
+    if (w->cols != NULL)
+        return w->cols->notes;
+    return w->note_tpl[tpl][0] != NULL;
+}
+
 /* Whether d[0..n) is a run of frames the native path writes; their (position, size) in w->frames. */
 static int scan_clean(ms_walker *w, const uint8_t *d, size_t n, size_t *count, size_t *nsigners) {
     size_t k = 0, t = 0, pos = 0;
@@ -255,7 +264,7 @@ static int scan_clean(ms_walker *w, const uint8_t *d, size_t n, size_t *count, s
              * CRC-valid frame begins, checked at the next frame), unsigned (a receiver reads a bad frame's
              * signature afresh) and not ending in an STX byte (mavlink_parse_char starts a frame there:
              * hidden.py), in the JSON Lines and summary walks; anything else is the Python path's */
-            if (w->note_tpl[MS_TPL_BAD_CRC][0] == NULL || w->acc != NULL || w->cols != NULL || is_signed ||
+            if (!takes_notes(w, MS_TPL_BAD_CRC) || is_signed ||
                 f[size - 1] == MS_STX_V2 || f[size - 1] == MS_STX_V1 || (k > 0 && w->fbad[k - 1]))
                 return NOT_CLEAN;
             bad = 1;
@@ -280,8 +289,9 @@ static int scan_clean(ms_walker *w, const uint8_t *d, size_t n, size_t *count, s
         uint8_t fnote = MS_FNOTE_NONE;
         if (!is_signed && known) {
             /* an unsigned frame of a sender that signs: its note, which the JSON Lines and summary walks write
-             * (security/stage.py unsigned_note); the statistics and column modes hand it back */
-            if (w->note_tpl[0][0] == NULL || w->acc != NULL || w->cols != NULL)
+             * (security/stage.py unsigned_note), the column mode with `notes` as a code; the statistics mode
+             * hands it back */
+            if (!takes_notes(w, 0))
                 return NOT_CLEAN;
             if (m->msgid != RADIO_STATUS)
                 fnote = f[0] == MS_STX_V2 ? MS_FNOTE_UNSIGNED : MS_FNOTE_V1;
@@ -490,32 +500,6 @@ static int write_summary_record(ms_walker *w, const ms_record *rec, ms_buf *out,
     return MS_WALK_FULL;
 }
 
-/* The frames of a clean record into the `stats` accumulator: ms_acc_record's 0, 1 (a table is full) or -1. */
-static int acc_record(ms_walker *w, const ms_record *rec, const uint8_t *d, size_t count, int has_time, double t,
-                      const ms_udp *udp) {
-    char src[MS_ENDPOINT_TEXT];
-    int src_len = 0, dst_len = 0;
-    const char *dst = NULL;
-    if (udp != NULL) {
-        memcpy(src, endpoint_text(w, udp->v6, udp->src, udp->sport, &src_len), MS_ENDPOINT_TEXT);
-        dst = endpoint_text(w, udp->v6, udp->dst, udp->dport, &dst_len);
-    }
-    return ms_acc_record(w->acc, rec->number, has_time, t, udp != NULL, src, (size_t)src_len, dst, (size_t)dst_len,
-                         d, w->frames, count);
-}
-
-/* `stats` alone: MS_WALK_FULL, MS_WALK_END when one of the accumulator's tables is full (the caller then
- * runs the pure path), or MS_WALK_NOMEM. */
-static int stats_record(ms_walker *w, const ms_record *rec, const uint8_t *d, size_t count, int has_time, double t,
-                        const ms_udp *udp) {
-    int r = acc_record(w, rec, d, count, has_time, t, udp);
-    if (r < 0)
-        return MS_WALK_NOMEM;
-    if (r > 0)
-        return MS_WALK_END;
-    return count_frames(w, d, count);
-}
-
 /* Whether the datagram goes to a UDP port whose receivers are in a frame (w->waiting: the ports of
  * mavscope.mavlink.receivers.Sockets, only while a datagram to them ended in a frame). The port alone: a socket
  * bound to the wildcard address reads the datagrams to its unicast, broadcast and IPv4-mapped addresses alike. */
@@ -601,15 +585,16 @@ static int walk_record(ms_walker *w, const ms_record *rec, ms_buf *out) {
         (void)ms_signing_put(w->signing, w->pending[i].stream, w->pending[i].last, w->pending[i].key);
     if (is_udp && !w->fbad[0] && note_source(w, &udp) != 0) /* (a source is learnt from a first frame that is valid) */
         return MS_WALK_NOMEM;
-    if (w->acc != NULL && w->cols == NULL)
-        return stats_record(w, rec, d, count, has_time, t, is_udp ? &udp : NULL);
     if (w->summary != NULL)
         return count_frames(w, d, count);
     if (w->cols != NULL) {
-        /* the export's findings: a full accumulator takes nothing more (the caller asks `full`) */
-        if (w->acc != NULL && !w->acc->full && acc_record(w, rec, d, count, has_time, t, is_udp ? &udp : NULL) < 0)
-            return MS_WALK_NOMEM;
-        if (ms_cols_record(w->cols, rec, d, w->frames, count, has_time, t, is_udp ? &udp : NULL) != 0)
+        const uint8_t *notes = NULL;
+        if (w->cols->notes) {
+            for (size_t i = 0; i < count; i++) /* (nothing reads fnote after this in column mode) */
+                w->fnote[i] = (uint8_t)(w->fnote[i] | (w->fbad[i] ? MS_NOTE_BAD_CRC : 0));
+            notes = w->fnote;
+        }
+        if (ms_cols_record(w->cols, rec, d, w->frames, notes, count, has_time, t, is_udp ? &udp : NULL) != 0)
             return MS_WALK_NOMEM;
         return count_frames(w, d, count);
     }

@@ -23,7 +23,6 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "acc.h"
 #include "buf.h"
 #include "capture.h"
 #include "columns.h"
@@ -37,7 +36,7 @@
  * timestamp is written as `valid`; anything else is handed back for the Python verifier). */
 enum { MS_SIGNED_HANDBACK = 0, MS_SIGNED_NOKEY = 1, MS_SIGNED_VERIFY = 2 };
 /* a frame's note the walker writes itself: none, an unsigned or a MAVLink 1 frame of a sender that signs */
-enum { MS_FNOTE_NONE = 0, MS_FNOTE_UNSIGNED = 1, MS_FNOTE_V1 = 2 };
+enum { MS_FNOTE_NONE = 0, MS_FNOTE_UNSIGNED = MS_NOTE_UNSIGNED, MS_FNOTE_V1 = MS_NOTE_V1 }; /* columns.h's codes */
 #define MS_NOTE_TPL_MAX 256 /* bytes of one template piece */
 enum { MS_TPL_UNSIGNED = 0, MS_TPL_V1 = 1, MS_TPL_BAD_CRC = 2, MS_NOTE_TPLS = 3 };
 enum { MS_WALK_NOMEM = -1, MS_WALK_END = 0, MS_WALK_FULL = 1, MS_WALK_HANDBACK = 2 };
@@ -56,7 +55,6 @@ typedef struct {
     int sign_mode;              /* MS_SIGNED_*, set by the glue before each batch */
     ms_signing *signing;        /* MS_SIGNED_VERIFY: the signing state shared with Python (signing.h) */
     const ms_summary *summary;  /* non-NULL: summary lines (summary.h) instead of JSON Lines */
-    ms_acc *acc;                /* non-NULL: the frames go to the `stats` accumulator (acc.h), no text */
     int has_t0;                 /* summary lines: relative times count from t0 (the first record's time) */
     double t0;
     ms_cols *cols;              /* non-NULL: column mode (columns.h, the export) instead of JSON Lines; the

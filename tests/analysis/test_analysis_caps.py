@@ -21,7 +21,6 @@ import pytest
 from pymavlink.dialects.v20 import ardupilotmega as v2
 
 from mavscope.analysis import command_log, gnss, timeline, vehicles
-from mavscope.native import dump as native_dump
 from tests.conftest import Cli
 from tests.support.builders import vehicle_heartbeat_msg
 from tests.support.flows import T0, Sender, command_long, write_tlog
@@ -143,10 +142,8 @@ def test_gnss_episodes_past_their_bound_give_up_the_least_established_senders(
     senders 5, 6, 7 (records 50, 52, 54) are as established: their episodes are given up (give-ups 1-3); the
     vehicle, with 41 frames (bit length 6), gives up the newest of the least established, sender 4's (give-up
     4). Said at the 1st, 2nd and 4th: records 50, 52, 55. Findings: jumps of senders 1-3 and of the vehicle
-    (the old policy, the first kept, dropped the vehicle's). The native pass hands over to the pure path at
-    the bound: both engines give the same output."""
+    (the old policy, the first kept, dropped the vehicle's). Both engines give the same output."""
     monkeypatch.setattr(gnss, "MAX_EPISODES", 4)
-    monkeypatch.setattr(native_dump, "_plans", [])
     vehicle = Sender(1, 1)
     entries = [(T0 + i, vehicle.pack(_gps(100.0 + i, 473977419))) for i in range(40)]
     flood = flood_senders(7)

@@ -181,10 +181,10 @@ def test_native_windows_give_the_python_pipelines_batches(path: Path) -> None:
         pytest.skip("the C extension is not built")
     got: dict[bool, list[FrameBatch]] = {}
     for native in (False, True):
-        with open_session(str(path), PipelineOptions()) as s:
-            got[native] = list(s.batches(lambda _item: None, {}, native=native))
+        with open_session(str(path), PipelineOptions(), environ={} if native else {"MAVSCOPE_PURE": "1"}) as s:
+            got[native] = list(s.batches(lambda _item: None))
     columns = ("record", "time", "timed", "transport", "version", "seq", "sysid", "compid", "msgid", "size", "crc",
-               "verdict", "signed")
+               "verdict", "signed", "clean")
 
     def joined(batches: list[FrameBatch], name: str) -> np.ndarray:
         return np.concatenate([getattr(b, name) for b in batches]) if batches else np.empty(0)
@@ -200,5 +200,5 @@ def test_native_windows_give_the_python_pipelines_batches(path: Path) -> None:
         return [b.tables.text(i) for b in batches for i in getattr(b, name).tolist()]
 
     assert texts(got[True], "src") == texts(got[False], "src") and texts(got[True], "dst") == texts(got[False], "dst")
-    walked = [f[:22] for b in got[True] for f in b.frames(list(range(b.n)))]
-    assert walked == [f[:22] for b in got[False] for f in b.frames(list(range(b.n)))]
+    walked = [f for b in got[True] for f in b.frames(list(range(b.n)))]
+    assert walked == [f for b in got[False] for f in b.frames(list(range(b.n)))]

@@ -222,26 +222,6 @@ def test_payload_rows_decode_as_the_message_decoder_decodes(md: MessageDef, data
     assert [_bits_of(d) for d in got] == [_bits_of(md.decode(r)) for r in rows]
 
 
-@pytest.mark.parametrize("why", ["full", "no-plan"])
-def test_the_findings_come_from_a_pure_pass_where_the_accumulator_cannot_serve(
-        why: str, monkeypatch: pytest.MonkeyPatch) -> None:
-    """A capture the accumulator cannot hold (a table at its cap: forced here) or a dialect it cannot be
-    told: the expert's findings come from a pure pass, the same as the pure source's (gcs_takeover.pcap
-    has `stats` findings: a second commander, a mode change)."""
-    if why == "full":
-        monkeypatch.setattr(native.Accumulator, "full", lambda self: True)
-    else:
-        monkeypatch.setattr(native, "plan_for", lambda dialect: None)
-    passes: list[str] = []
-    expert_pass = native.expert_pass
-    monkeypatch.setattr(native, "expert_pass", lambda path, *a: passes.append(path) or expert_pass(path, *a))
-    path = CAPTURES / "gcs_takeover.pcap"
-    want = [dataclasses.asdict(f) for f in pure_analyses(path, PipelineOptions()).expert.findings()]
-    assert want
-    assert state(native_analyses(path, PipelineOptions()))["findings"] == want
-    assert passes == [str(path)]
-
-
 @pytest.mark.parametrize("window", [65_536, 3])
 def test_heartbeats_left_out_change_nothing_the_parameter_tracker_holds(
         window: int, dialect: Dialect, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -52,10 +52,6 @@ LAYERS: tuple[tuple[str, int], ...] = (
     ("mavscope.native.table_blob", 3),  # the dialect's layouts as the blob C takes (from mavlink's MessageDefs)
     ("mavscope.native.tables", 4),  # the dialect's compiled layout table: read, stats, export, the TUI's index
     ("mavscope.native.windows", 7),  # the native walker's windows: the dissector and security stage composed
-    # The `stats` accumulator's plan (compiled from the dialect and the analyses) and its state read back
-    # into the analyses' objects: `stats` and the export's findings both use them.
-    ("mavscope.native.plan", 9),
-    ("mavscope.native.dump", 9),
     ("mavscope.native.index", 9),  # the TUI's index filled from native chunks (browse's layer)
     ("mavscope.native.columns", 9),  # the export's Arrow columns from native chunks (the export's layer)
     ("mavscope.native.export", 9),  # the export's native batch source
@@ -64,7 +60,6 @@ LAYERS: tuple[tuple[str, int], ...] = (
     ("mavscope.native.walk", 10),
     ("mavscope.native.summary", 10),
     ("mavscope.native.live", 10),
-    ("mavscope.native.stats", 10),
     # The C extension (not a .py: listed for the record) imports nothing; mavscope.native.core imports it.
     ("mavscope._native", 2),
     ("mavscope.cli", 10),

@@ -21,7 +21,7 @@ CORE = PACKAGE / "native" / "core.py"
 STUB = PACKAGE / "_native.pyi"
 KIND_NAMES = {"pcap", "pcapng", "tlog", "raw"}
 TRANSPORT_NAMES = {"udp", "tcp", "tlog", "raw"}
-# a numbering copied from the C headers cites the header's enum (capture.h, columns.h, acc.h)
+# a numbering copied from the C headers cites the header's enum (capture.h, columns.h)
 HEADER_ENUMS = re.compile(r"\bMS_(KIND|TRANSPORT|TR)_")
 
 
@@ -129,5 +129,7 @@ def test_the_constants_are_the_extensions() -> None:
     assert core.COLUMN_TRANSPORTS[native.COLUMN_TRANSPORT_UDP] == "udp"
     assert core.COLUMN_TRANSPORTS[native.COLUMN_TRANSPORT_TLOG] == "tlog"
     assert core.COLUMN_TRANSPORTS[0] is None  # columns.h: 0 is never written
-    assert [core.STATS_TRANSPORTS[getattr(native, f"STATS_TRANSPORT_{t.upper()}")]
-            for t in ("udp", "tcp", "tlog", "raw")] == ["udp", "tcp", "tlog", "raw"]
+    # the note column's bits, one each (columns.h MS_NOTE_*)
+    bits = (core.NOTE_UNSIGNED, core.NOTE_V1, core.NOTE_BAD_CRC)
+    assert bits == (native.NOTE_UNSIGNED, native.NOTE_V1, native.NOTE_BAD_CRC)
+    assert sorted(bits) == [1, 2, 4]

@@ -1,7 +1,9 @@
 """Both engines of `mavscope stats`, through the API, as comparable values.
 
-`pure_stats` is the pure path as the command runs it (Dissector, SecurityStage, StatsBuilder and Expert
-over every frame, problems through `Problems`); `native_stats_of` is mavscope.native.stats. `observed`
+`pure_stats` is the per-frame reference (Dissector, SecurityStage, then StatsBuilder.add and Expert.add
+frame by frame, problems through `Problems`); `native_stats_of` is what `stats` runs on the native engine:
+the native walker's windows as FrameBatches (mavscope.native.windows.batches, notes as codes) into
+StatsBuilder.add_batch and expert_batch.feed. `observed`
 turns either into what the command's outputs are made of: the `--json` document (rows, totals,
 findings), the order of the streams (the busiest ones are picked by a stable sort: ties keep it) and of
 the conversations, every stream's sparkline series, and what went to stderr.
@@ -52,20 +54,26 @@ def pure_stats(path: str | Path, dialect: Dialect, keys: str = "none") -> dict[s
             frames.append(item)
     problems.close()
     stats = compute_stats(frames, expert)
-    stats.logged_in_part = frozenset()  # the accumulator's Stats leaves it to the command
+    stats.logged_in_part = frozenset()  # (the command sets it from the expert)
     return observed(stats, expert.findings(), err.getvalue())
 
 
 def native_stats_of(path: str | Path, dialect: Dialect, keys: str = "none",
-                    window: int | None = None) -> dict[str, object] | None:
-    """The native pass's observed outputs, or None when it gave up (a cap of the accumulator)."""
-    from mavscope.capture.reader import WINDOW
-    from mavscope.native.stats import native_stats
+                    limit: int | None = None) -> dict[str, object]:
+    """The native engine's observed outputs (`limit`: rows per window, to cut batches small)."""
+    from mavscope.analysis import expert_batch
+    from mavscope.analysis.stats import StatsBuilder
+    from mavscope.capture.detect import detect_kind
+    from mavscope.native import windows
+    from mavscope.pipeline.batch import Tables
 
     err = io.StringIO()
     problems = Problems(Env(stdout=io.StringIO(), stderr=err, environ={}), str(path))
-    result = native_stats(path, dialect, SecurityStage(material(keys)), problems, window=window or WINDOW)
-    if result is None:
-        return None
+    builder, expert = StatsBuilder(), Expert(dialect)
+    for b in windows.batches(str(path), detect_kind(path), dialect, SecurityStage(material(keys)), problems.item,
+                             Tables(), limit or windows.WINDOW_FRAMES):
+        expert_batch.feed(expert, b, builder.add_batch(b))
     problems.close()
-    return observed(result.stats, result.findings, err.getvalue())
+    stats = builder.result()
+    stats.logged_in_part = frozenset()
+    return observed(stats, expert.findings(), err.getvalue())

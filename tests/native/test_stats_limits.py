@@ -1,14 +1,12 @@
-"""The Python analyses' own limits, reached on the native engine as on the pure path.
+"""The analyses' limits, reached by the batches (native windows) as by the per-frame reference.
 
-Each capture is made to go past one cap the pure path has (and the C port copies): the copies
-ReplayedCommands remembers (COPIES_KEPT, the newest but the one just seen forgotten: the native pass hands
-over there), the senders Systems, ControlSources and GnssAnomalies follow
-(every (sysid, compid) pair: more than the 4,096 they once followed), the channels of one sender
-(MAX_CHANNELS) and in all (MAX_EXTRA), and, lowered for the test (the plan reads them when it is built),
-the streams and conversations StatsBuilder follows
-(MAX_STREAMS, MAX_CONVERSATIONS). The expected answers are the pure path's (the reference); the native
-pass must not give up on them. Past the sequence findings' counted names (MAX_NAMED, lowered too) it
-gives up, and the command prints the pure path's output.
+Each capture is made to go past one cap of the analyses: the copies ReplayedCommands remembers
+(COPIES_KEPT, the newest but the one just seen forgotten), the senders Systems, ControlSources and
+GnssAnomalies follow (every (sysid, compid) pair: more than the 4,096 they once followed), the channels of
+one sender (MAX_CHANNELS) and in all (MAX_EXTRA), and, lowered for the test, the streams and conversations
+StatsBuilder follows (MAX_STREAMS, MAX_CONVERSATIONS) and the sequence findings' counted names
+(MAX_NAMED). The per-frame code is the reference (StatsBuilder.add, Expert.add); the batch code must give
+its answers exactly at each cap, where a counter is fed per column and a cap is met per row.
 """
 
 from __future__ import annotations
@@ -23,7 +21,6 @@ from mavscope.analysis.framelist import MAX_FRAMES
 from mavscope.analysis.sequence import MAX_CHANNELS, MAX_EXTRA
 from mavscope.analysis.vehicles import MAX_SENDERS
 from mavscope.mavlink.dialect import load_dialect
-from mavscope.native import dump as native_dump
 from tests.conftest import Cli
 from tests.native import build as nh
 from tests.native.engines import PURE, capture_file
@@ -45,15 +42,14 @@ def check(data: bytes) -> dict[str, object]:
     with capture_file(data) as path:
         pure = pure_stats(path, DIALECT)
         native = native_stats_of(path, DIALECT)
-    assert native is not None
     assert native == pure
     return pure
 
 
 def test_copies_past_what_replayed_commands_remembers() -> None:
     """COPIES_KEPT + 2000 different COMMAND_LONGs (past the bound the newest remembered but the one just seen
-    is forgotten), then copies out of the sender's sequence of forgotten and of remembered ones. The native
-    pass hands over at the bound (the pure path forgets and says it: tests/analysis/test_replay_bounds.py)."""
+    is forgotten), then copies out of the sender's sequence of forgotten and of remembered ones (forgotten
+    and said: tests/analysis/test_replay_bounds.py)."""
     n = COPIES_KEPT + 2000
     frames = [frame("COMMAND_LONG", {"target_system": 1, "command": 511, "param1": float(i)}, i, 255, 190)
               for i in range(n)]
@@ -63,7 +59,7 @@ def test_copies_past_what_replayed_commands_remembers() -> None:
     data = nh.tlog([(T0 + i * 1000, f) for i, f in enumerate(entries)])
     with capture_file(data) as path:
         found = pure_stats(path, DIALECT)
-        assert native_stats_of(path, DIALECT) is None
+        assert native_stats_of(path, DIALECT) == found
     codes = [f["code"] for f in found["findings"]]  # type: ignore[attr-defined]
     assert "replayed-command" in codes and "capacity" in codes
 
@@ -147,9 +143,7 @@ def test_a_dump_of_nothing() -> None:
 
 @pytest.fixture
 def caps(monkeypatch: pytest.MonkeyPatch) -> Callable[..., None]:
-    """Lowers the analyses' caps named (module attribute = value) for the test; the native plan, compiled
-    from those modules when it is built, is built afresh."""
-    monkeypatch.setattr(native_dump, "_plans", [])
+    """Lowers the analyses' caps named (module attribute = value) for the test."""
 
     def lower(**values: int) -> None:
         for name, value in values.items():
@@ -162,8 +156,7 @@ def caps(monkeypatch: pytest.MonkeyPatch) -> Callable[..., None]:
 def test_more_streams_and_conversations_than_stats_follows(caps: Callable[..., None]) -> None:
     """MAX_STREAMS 5 and MAX_CONVERSATIONS 3: 4 senders x 2 messages from 4 UDP ports, twice. By hand: the
     first 5 (sender, message) streams are followed, the other 3 streams' frames (2 each) are unfollowed, 6;
-    the first 3 endpoint pairs are followed, the fourth one's frames (2 a round) are unfollowed, 4. The
-    native pass no longer gives up there: it counts them as the pure path does."""
+    the first 3 endpoint pairs are followed, the fourth one's frames (2 a round) are unfollowed, 4."""
     caps(MAX_STREAMS=5, MAX_CONVERSATIONS=3)
     records = []
     for rnd in range(2):
@@ -176,19 +169,16 @@ def test_more_streams_and_conversations_than_stats_follows(caps: Callable[..., N
     assert (totals["unfollowed_stream_frames"], totals["unfollowed_conversation_frames"]) == (6, 4)
 
 
-def test_more_named_messages_than_the_sequence_findings_keep_runs_the_pure_path(
-        caps: Callable[..., None], cli: Cli) -> None:
+def test_more_named_messages_than_the_sequence_findings_keep(caps: Callable[..., None], cli: Cli) -> None:
     """MAX_NAMED 2: one sender's frames step back to 6 numbers seen (not one after the other: no restarted
-    counter) with 3 messages, so the third is not named. The native accumulator hands over to the pure
-    path there (its table of counted names is full), and `stats` prints what the pure path prints:
-    "(... and more)"."""
+    counter) with 3 messages, so the third is not named: "(... and more)", on both engines."""
     caps(MAX_NAMED=2)
     names = ("HEARTBEAT", "ATTITUDE", "SYS_STATUS")
     entries = [frame(names[i % 3], {}, i, 1, 1) for i in range(30)]
     entries += [frame(names[i % 3], {}, seq, 1, 1) for i, seq in enumerate((5, 3, 7, 1, 9, 2))]  # duplicates
     data = nh.tlog([(T0 + i * 1000, f) for i, f in enumerate(entries)])
     with capture_file(data) as path:
-        assert native_stats_of(path, DIALECT) is None
+        assert native_stats_of(path, DIALECT) == pure_stats(path, DIALECT)
         pure = cli("stats", path, "--json", environ=PURE)
         native = cli("stats", path, "--json", environ={})
     assert native == pure
