@@ -32,16 +32,20 @@ _TLOG = TRANSPORTS.index(TRANSPORT_TLOG)
 
 
 class _Fields:
-    """The decoded fields of each row the detectors are given, decoded once."""
+    """The decoded fields of each row the detectors are given (`Expert.fields`), decoded once, in bulk."""
 
     def __init__(self, expert: Expert, b: FrameBatch) -> None:
         self.expert, self.b = expert, b
         self.got: dict[int, Fields | None] = {}
 
-    def __call__(self, row: int) -> Fields | None:
-        if row not in self.got:
-            self.got[row] = self.expert.fields(self.b.frame(row))
-        return self.got[row]
+    def take(self, rows: list[int]) -> list[Fields | None]:
+        """The fields of `rows` (those not decoded yet decoded together: FrameBatch.decoded)."""
+        got = self.got
+        new = [r for r in rows if r not in got]
+        if new:
+            for r, fields in zip(new, self.b.decoded(new, self.expert.decode)):
+                got[r] = fields
+        return [got[r] for r in rows]
 
 
 def feed(expert: Expert, b: FrameBatch, steps: Steps | None = None) -> Steps:
@@ -81,8 +85,9 @@ def _generic(d: Detector, b: FrameBatch, fields: _Fields) -> None:
             if quiet.any():
                 signers(np.unique(b.sysid[quiet]).tolist())
     listed = rows.tolist()
-    for r, f in zip(listed, b.frames(listed)):
-        d.add(f, fields(r))
+    decoded = fields.take(listed)  # (before the Frames: a row without one is decoded without making it)
+    for f, values in zip(b.frames(listed), decoded):
+        d.add(f, values)
 
 
 def _sequence(d: SequenceAnomalies, b: FrameBatch, steps: Steps) -> None:

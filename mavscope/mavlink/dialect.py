@@ -119,6 +119,9 @@ class MessageDef:
     source: str  # dialect file that defined it
     crc_extra_byte: bytes = field(repr=False, compare=False)
     decode: Callable[[bytes], Decoded] = field(repr=False, compare=False)
+    # `decode` of each of many payloads (each at most `length` bytes), in one call: a message of scalar fields
+    # only is unpacked by one struct.iter_unpack over the padded payloads (the same Struct as `decode`'s)
+    decode_many: Callable[[list[bytes]], list[Decoded]] = field(default=lambda _p: [], repr=False, compare=False)
     xml_order: tuple[str, ...] = ()  # field names in XML order (pymavlink's `fieldnames`; CSV columns)
     # its char arrays that hold strings (wire order): those whose bytes after the NUL are noted (char-after-nul)
     chars: tuple[FieldDef, ...] = field(default=(), repr=False, compare=False)
@@ -182,6 +185,21 @@ def bytes_text(raw: bytes) -> str:
 def char_value(fd: FieldDef) -> Callable[[bytes], str]:
     """How char array `fd`'s value is made from its bytes: `char_text`, or `bytes_text` for VALUE_BYTES."""
     return char_text if is_text(fd) else bytes_text
+
+
+def _make_many_decoder(fields: tuple[FieldDef, ...], length: int) -> Callable[[list[bytes]], list[Decoded]]:
+    """`_make_decoder`'s decoder of many payloads at once (MessageDef.decode_many)."""
+    if not all(f.array_length == 0 and f.type != "char" for f in fields):
+        one = _make_decoder(fields, length)
+        return lambda payloads: [one(p) for p in payloads]
+    iter_unpack = struct.Struct(wire_format(fields)).iter_unpack
+    names = tuple(f.name for f in fields)
+
+    def decode_many(payloads: list[bytes]) -> list[Decoded]:
+        padded = b"".join(p if len(p) == length else p.ljust(length, b"\0") for p in payloads)
+        return [dict(zip(names, t)) for t in iter_unpack(padded)]
+
+    return decode_many
 
 
 def _make_decoder(fields: tuple[FieldDef, ...], length: int) -> Callable[[bytes], Decoded]:
@@ -251,6 +269,7 @@ def _compile_message(m: list, source: str) -> MessageDef:
         source=source,
         crc_extra_byte=bytes((crc_extra,)),
         decode=_make_decoder(ftuple, length),
+        decode_many=_make_many_decoder(ftuple, length),
         xml_order=tuple(xml_order),
         chars=tuple(f for f in ftuple if f.type == "char" and is_text(f)),
     )

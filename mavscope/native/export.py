@@ -27,7 +27,6 @@ import pyarrow as pa
 from mavscope.analysis import expert_batch
 from mavscope.analysis.expert import Expert
 from mavscope.capture.detect import open_capture
-from mavscope.capture.reader import WINDOW, open_file
 from mavscope.endpoint import Endpoint
 from mavscope.export.columns import AnomalyColumns, MessageTables, frame_batch
 from mavscope.export.findings_feed import NativeFeed, window_rows
@@ -45,9 +44,9 @@ from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import Frame
 from mavscope.native.chunk import Chunk
 from mavscope.native.columns import Names, frames_batch, message_batch, message_plan
-from mavscope.native.core import KINDS, _native
+from mavscope.native.core import _native
 from mavscope.native.tables import table_for
-from mavscope.native.windows import DONE, FINISH, column_steps
+from mavscope.native.windows import DONE, FINISH, column_steps, column_walker
 from mavscope.pipeline.batch import FrameBatch, Tables
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.pipeline.session import make_security_stage
@@ -259,19 +258,10 @@ class _Export:
 
     def run(self, progress: Progress | None) -> Iterator[pa.RecordBatch]:
         assert _native is not None
-        spath, f, size = open_file(self.path)
-        try:
-            cols = _native.Columns(self.table, WINDOW_FRAMES)
-            walker = _native.Walker(f.fileno(), size, KINDS[self.kind], self.table, self.dissector.mavlink_endpoints,
-                                    Endpoint.from_packed, self.stage.signed_senders, WINDOW, columns=cols,
-                                    receivers=self.dissector.receivers)
-            try:
-                yield from self._walk(walker, cols, progress)
-                stats = walker.stats()
-            finally:
-                walker.close()
-        finally:
-            f.close()
+        cols = _native.Columns(self.table, WINDOW_FRAMES)
+        with column_walker(self.path, self.kind, self.dialect, self.stage, self.dissector, cols) as (walker, _):
+            yield from self._walk(walker, cols, progress)
+            stats = walker.stats()
         self.size = int(stats["size"])
         if progress is not None:
             progress(int(stats["position"]))

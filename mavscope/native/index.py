@@ -23,14 +23,13 @@ import numpy as np
 
 from mavscope.browse.rows import Progress
 from mavscope.capture.detect import open_capture
-from mavscope.capture.reader import WINDOW, open_file
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
 from mavscope.native import core
 from mavscope.native.core import COLUMN_TRANSPORTS, KINDS, _native
 from mavscope.native.tables import table_for
-from mavscope.native.windows import DONE, FINISH, NATIVE, column_steps
+from mavscope.native.windows import DONE, FINISH, NATIVE, column_steps, column_walker
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.security.stage import SecurityStage
 
@@ -82,7 +81,6 @@ def native_build(index: Any, path: str, dialect: Dialect, stage: SecurityStage, 
     with open_capture(path) as reader:  # the capture's errors first, as the pure build gives them
         kind = reader.kind
     dissector = Dissector(dialect, stage.material.wifi)
-    spath, f, size = open_file(path)
     cols = _native.Columns(table_for(dialect), FIRST_CHUNK, index=True)
     ends: list[int] = []  # walker endpoint id -> index endpoint id
     ends_map = np.zeros(1, np.uint32)  # ends, offset by one: position 0 is the walker's -1 (no endpoint)
@@ -114,40 +112,32 @@ def native_build(index: Any, path: str, dialect: Dialect, stage: SecurityStage, 
             index.extend(Chunk(n, blocks, names), None if same[0] else ends_map, _TRANSPORTS)
             items[0] += n
 
-    try:
-        walker = _native.Walker(f.fileno(), size, KINDS[kind], table_for(dialect), dissector.mavlink_endpoints,
-                                Endpoint.from_packed, stage.signed_senders, WINDOW, columns=cols,
-                                receivers=dissector.receivers)
-        try:
-            first = True
-            for kind_, got, _at in column_steps(walker, cols, dissector, lambda: not stage.check_signatures):
-                if kind_ == NATIVE:
-                    chunk()  # the batch's native rows, before the records it handed back
-                    continue
-                python(got)
-                if kind_ == FINISH:
-                    chunk()
-                    break
-                if kind_ != DONE:
-                    continue
-                if first and items[0]:
-                    first = False
-                    cols.limit = CHUNK
-                if items[0] - told_at[0] >= every or told_at[0] == 0 and items[0]:
-                    told_at[0] = items[0]
-                    position = int(walker.stats()["position"])
-                    index.progress = Progress(len(index), position, size, False)
+    with column_walker(path, kind, dialect, stage, dissector, cols) as (walker, size):
+        first = True
+        for kind_, got, _at in column_steps(walker, cols, dissector, lambda: not stage.check_signatures):
+            if kind_ == NATIVE:
+                chunk()  # the batch's native rows, before the records it handed back
+                continue
+            python(got)
+            if kind_ == FINISH:
+                chunk()
+                break
+            if kind_ != DONE:
+                continue
+            if first and items[0]:
+                first = False
+                cols.limit = CHUNK
+            if items[0] - told_at[0] >= every or told_at[0] == 0 and items[0]:
+                told_at[0] = items[0]
+                position = int(walker.stats()["position"])
+                index.progress = Progress(len(index), position, size, False)
+                if on_progress is not None:
+                    on_progress(index.progress)
+                if cancelled():
+                    index.progress = Progress(len(index), position, size, False, True)
                     if on_progress is not None:
                         on_progress(index.progress)
-                    if cancelled():
-                        index.progress = Progress(len(index), position, size, False, True)
-                        if on_progress is not None:
-                            on_progress(index.progress)
-                        return index.progress
-        finally:
-            walker.close()
-    finally:
-        f.close()
+                    return index.progress
     index.progress = Progress(len(index), size, size, True)
     if on_progress is not None:
         on_progress(index.progress)

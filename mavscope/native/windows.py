@@ -12,6 +12,7 @@ them. A `Window` holds at most `limit` rows; `FrameBatch.of_window` makes one ba
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -129,39 +130,47 @@ def column_steps(walker: _native.Walker, cols: _native.Columns, dissector: Disse
     yield FINISH, dissector.finish(), cols.frames
 
 
-def windows(path: str, kind: str, dialect: Dialect, stage: SecurityStage, table: _native.Table,
-            limit: int = WINDOW_FRAMES, progress: Any = None, stats: dict[str, int] | None = None,
-            ) -> Iterator[Window]:
-    """The capture's frames in windows of at most `limit` rows (see the module docstring). `table`: the
-    dialect's `_native.Table`; `progress(position)` after each window; `stats` gets the walker's counts."""
+@contextmanager
+def column_walker(path: str, kind: str, dialect: Dialect, stage: SecurityStage, dissector: Dissector,
+                  cols: _native.Columns) -> Iterator[tuple[_native.Walker, int]]:
+    """The one column-mode walker (the analyses' windows, the export, the TUI's index): the capture opened,
+    a Walker filling `cols` with the dissector's and the security stage's shared sets and MAVLink's ports
+    (as the JSON Lines walk has them), and the file's size; closed at the end."""
     assert _native is not None
-    dissector = Dissector(dialect, stage.material.wifi)
-    walk = _Walk(stage, dissector)
     _, f, size = open_file(path)
     try:
-        cols = _native.Columns(table, limit, notes=True)
-        walker = _native.Walker(f.fileno(), size, KINDS[kind], table, dissector.mavlink_endpoints,
+        walker = _native.Walker(f.fileno(), size, KINDS[kind], table_for(dialect), dissector.mavlink_endpoints,
                                 Endpoint.from_packed, stage.signed_senders, WINDOW, columns=cols,
                                 receivers=dissector.receivers, ports=tuple(sorted(MAVLINK_PORTS)))
         try:
-            cols.limit = limit
-            for kind_, items, at in column_steps(walker, cols, dissector, lambda: not stage.check_signatures):
-                walk.python(items, at)
-                if kind_ == FINISH:
-                    yield walk.take(cols.take())
-                elif kind_ == DONE:
-                    if cols.frames + len(walk.py) >= limit:
-                        yield walk.take(cols.take())
-                        if progress is not None:
-                            progress(int(walker.stats()["position"]))
-                    cols.limit = max(1, limit - len(walk.py))
-            if stats is not None:
-                stats.update(walker.stats())
+            yield walker, size
         finally:
             walker.close()
     finally:
         f.close()
 
+
+def windows(path: str, kind: str, dialect: Dialect, stage: SecurityStage, limit: int = WINDOW_FRAMES,
+            progress: Any = None, stats: dict[str, int] | None = None) -> Iterator[Window]:
+    """The capture's frames in windows of at most `limit` rows (see the module docstring); `progress(position)`
+    after each window; `stats` gets the walker's counts."""
+    assert _native is not None
+    dissector = Dissector(dialect, stage.material.wifi)
+    walk = _Walk(stage, dissector)
+    cols = _native.Columns(table_for(dialect), limit, notes=True)
+    with column_walker(path, kind, dialect, stage, dissector, cols) as (walker, _size):
+        for kind_, items, at in column_steps(walker, cols, dissector, lambda: not stage.check_signatures):
+            walk.python(items, at)
+            if kind_ == FINISH:
+                yield walk.take(cols.take())
+            elif kind_ == DONE:
+                if cols.frames + len(walk.py) >= limit:
+                    yield walk.take(cols.take())
+                    if progress is not None:
+                        progress(int(walker.stats()["position"]))
+                cols.limit = max(1, limit - len(walk.py))
+        if stats is not None:
+            stats.update(walker.stats())
 
 def batches(path: str, kind: str, dialect: Dialect, stage: SecurityStage, report: Callable[[Frame | Anomaly], object],
             tables: Tables, limit: int = WINDOW_FRAMES, stats: dict[str, int] | None = None) -> Iterator[FrameBatch]:
@@ -169,7 +178,7 @@ def batches(path: str, kind: str, dialect: Dialect, stage: SecurityStage, report
     `tables`; `report` gets each anomaly and each handed-back frame with notes, in capture order (the rows
     the chunk notes by code carry none that tells of capture damage: a bad CRC, an unsigned frame)."""
     messages = messages_of(dialect)
-    for w in windows(path, kind, dialect, stage, table_for(dialect), limit, stats=stats):
+    for w in windows(path, kind, dialect, stage, limit, stats=stats):
         after = iter(w.anomalies)
         j, anomaly = next(after, (-1, None))
         for k, f in enumerate(w.py):

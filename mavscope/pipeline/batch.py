@@ -25,7 +25,7 @@ import numpy as np
 
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import MessageDef
-from mavscope.mavlink.frame import CrcStatus, Frame, Signature, SignatureStatus, new_frame
+from mavscope.mavlink.frame import CrcStatus, Frame, Signature, SignatureStatus, decode_payload, new_frame
 from mavscope.mavlink.semantics import message_label
 from mavscope.native.core import COLUMN_TRANSPORTS, NOTE_BAD_CRC, NOTE_UNSIGNED, NOTE_V1
 
@@ -126,6 +126,8 @@ class NativeChunk(Protocol):
     note: np.ndarray
     raw: bytes
     raw_at: np.ndarray
+    payload: memoryview
+    payload_at: np.ndarray
 
 
 Noted = Callable[[Frame, int], Frame]  # a clean row's Frame -> the Frame its note code (Chunk.note) says
@@ -152,7 +154,7 @@ class FrameBatch:
 
     __slots__ = ("n", "record", "time", "timed", "transport", "src", "dst", "version", "seq", "sysid", "compid",
                  "msgid", "label", "size", "crc", "verdict", "signed", "clean", "coded", "tables", "_frames", "_make",
-                 "_raw", "_many")
+                 "_raw", "_many", "_payloads")
     n: int
     record: np.ndarray  # int64: the capture record that completed the frame
     time: np.ndarray  # float64: its time (0.0 where `timed` is not set)
@@ -176,9 +178,10 @@ class FrameBatch:
 
     def __init__(self, n: int, tables: Tables, columns: dict[str, np.ndarray], frames: list[Frame | None],
                  make: Callable[[int], Frame] | None = None, raw: Callable[[int], bytes] | None = None,
-                 many: Callable[[list[int]], list[Frame]] | None = None) -> None:
+                 many: Callable[[list[int]], list[Frame]] | None = None,
+                 payloads: Callable[[list[int]], list[tuple[MessageDef | None, bytes]]] | None = None) -> None:
         self.n, self.tables, self._frames, self._make = n, tables, frames, make
-        self._raw, self._many = raw, many
+        self._raw, self._many, self._payloads = raw, many, payloads
         for name, values in columns.items():
             setattr(self, name, values)
 
@@ -210,6 +213,33 @@ class FrameBatch:
         if f is not None or self._raw is None:
             return self.frame(row).raw
         return self._raw(row)
+
+    def decoded(self, rows: Sequence[int], names: frozenset[str]) -> list[dict[str, object] | None]:
+        """Per row of `rows`, what `Expert.fields` gives its Frame: the decoded payload where its message is
+        one of `names` and its CRC is not bad, else None. The rows without a Frame yet (a native chunk's:
+        plaintext, their payload as on the wire) are decoded per message in one call (MessageDef.decode_many)
+        and get no Frame; the others are their Frames' `decode_payload`."""
+        out: list[dict[str, object] | None] = [None] * len(rows)
+        got, bad = self._frames, self.crc[np.asarray(rows, np.int64)] == CRC_BAD if len(rows) else []
+        bare = [k for k, r in enumerate(rows) if got[r] is None and not bad[k]]
+        if bare:
+            assert self._payloads is not None
+            groups: dict[int, tuple[MessageDef, list[int], list[bytes]]] = {}
+            for k, (md, payload) in zip(bare, self._payloads([rows[k] for k in bare])):
+                if md is not None and md.name in names:
+                    g = groups.get(id(md))
+                    if g is None:
+                        g = groups[id(md)] = (md, [], [])
+                    g[1].append(k)
+                    g[2].append(payload)
+            for md, ks, payloads in groups.values():
+                for k, fields in zip(ks, md.decode_many(payloads)):
+                    out[k] = fields
+        for k, r in enumerate(rows):
+            f = got[r]
+            if f is not None and not bad[k] and f.msgdef is not None and f.msgdef.name in names:
+                out[k] = decode_payload(f)
+        return out
 
     def of_messages(self, names: Iterable[str | int]) -> np.ndarray:
         """Per row, whether its message is one of `names` (message names, or ids as ints)."""
@@ -286,10 +316,11 @@ class FrameBatch:
             frames[j] = f
         native_of = np.full(size, -1, np.int64)
         native_of[gn] = np.arange(n)
-        make, raw, many = a._make, a._raw, a._many
-        assert make is not None and raw is not None and many is not None
+        make, raw, many, payloads = a._make, a._raw, a._many, a._payloads
+        assert make is not None and raw is not None and many is not None and payloads is not None
         return cls(size, tables, columns, frames, lambda row: make(int(native_of[row])),
-                   lambda row: raw(int(native_of[row])), lambda rows: many(native_of[rows].tolist()))
+                   lambda row: raw(int(native_of[row])), lambda rows: many(native_of[rows].tolist()),
+                   lambda rows: payloads(native_of[rows].tolist()))
 
     @classmethod
     def _native(cls, c: NativeChunk, ends: Sequence[Endpoint], messages: Sequence[MessageDef], tables: Tables,
@@ -345,7 +376,14 @@ class FrameBatch:
         def make(i: int) -> Frame:
             return many([i])[0]
 
-        return cls(n, tables, columns, [None] * n, make, raw_of, many)
+        payload, payload_at, message_col = c.payload, c.payload_at, c.message
+
+        def payloads(rows: list[int]) -> list[tuple[MessageDef | None, bytes]]:
+            idx = np.asarray(rows, np.int64)
+            return [(messages_of[m], bytes(payload[a:z])) for m, a, z in zip(
+                message_col[idx].tolist(), payload_at[idx].tolist(), payload_at[idx + 1].tolist())]
+
+        return cls(n, tables, columns, [None] * n, make, raw_of, many, payloads)
 
 
 def _no_frames(rows: list[int]) -> list[Frame]:
