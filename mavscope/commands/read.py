@@ -24,9 +24,11 @@ from mavscope.commands.common import (
     whole_number,
 )
 from mavscope.errors import UsageError
+from mavscope.native.core import NATIVE
 
 if TYPE_CHECKING:
-    from mavscope.output.capture_out import FrameWriter
+    from mavscope.output.capture_out import FrameWriter, Written
+    from mavscope.pipeline.session import Session
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -55,18 +57,28 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     records_out = binary_stdout(env) if args.write == STDOUT else None
     if records_out is not None:
         args.quiet = True
-    out_b = env.stdout_bytes
-    if _native_eligible(args, env):
-        return _run_native(args, env)
-    # the Python path's modules, imported here: the native engine needs none of them
+    with capture_session(args, env) as session:
+        if _native_eligible(args, env, session):
+            _run_native(args, env, session)
+            return ExitStatus.OK
+        written = _run_python(args, env, session, records_out)
+    if written is not None and written.warning:
+        env.say(f"warning: -w {args.write}: {written.warning}")
+    return ExitStatus.OK
+
+
+def _run_python(args: argparse.Namespace, env: Env, session: Session, records_out: BinaryIO | None,
+                ) -> Written | None:
+    """The frames of `session` through the Python pipeline: the printer, -w, -c, -q."""
     from mavscope.output.capture_out import open_output, write_records
     from mavscope.output.printer import FramePrinter
     from mavscope.pipeline.dissect import Anomaly
 
+    out_b = env.stdout_bytes
     limit = args.count if args.count is not None else -1
     shown_records: set[int] = set()
     shown = 0
-    with capture_session(args, env) as session, contextlib.ExitStack() as files:
+    with contextlib.ExitStack() as files:
         t0 = session.t0
         path, name, dialect = session.path, session.name, session.dialect
         frame_writer = _open_writer(args.write, session.reader.kind, records_out) if args.write else None
@@ -104,63 +116,41 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         out_b.flush()
         if out_file is not None:
             written = write_records(path, args.write, shown_records, out_file)
-    if written is not None and written.warning:
-        env.say(f"warning: -w {args.write}: {written.warning}")
-    return ExitStatus.OK
+    return written
 
 
-def _native_eligible(args: argparse.Namespace, env: Env) -> bool:
-    """The native engine serves plain `read -T jsonl` (no filter, count, -w or -q) and the plain summary
-    lines (`read FILE`, `-c N` too; no -V, -x, filter, -w or -q) written to a stream that is not a
-    terminal and takes UTF-8, when it is built and MAVSCOPE_PURE is not set; its output is
-    byte-identical to the Python path's (docs/native.md)."""
-    if args.display_filter or args.write or args.quiet:
+def _native_eligible(args: argparse.Namespace, env: Env, session: Session) -> bool:
+    """The native engine (where the session runs on it) serves plain `read -T jsonl` (no filter, count, -w
+    or -q) and the plain summary lines (`read FILE`, `-c N` too; no -V, -x, filter, -w or -q) written to a
+    stream that is not a terminal and takes UTF-8; its output is byte-identical to the Python path's
+    (docs/native.md)."""
+    if session.engine != NATIVE or args.display_filter or args.write or args.quiet:
         return False
     if args.format == "jsonl":
-        if args.count is not None:
-            return False
-    elif args.format != "text" or args.verbose or args.hex or not plain_utf8(env):
-        return False
-    from mavscope.native.core import engine
-
-    return engine(env.environ) == "native"
+        return args.count is None
+    return args.format == "text" and not args.verbose and not args.hex and plain_utf8(env)
 
 
-def _run_native(args: argparse.Namespace, env: Env) -> ExitStatus:
-    """`read -T jsonl` through mavscope.native.write_jsonl, the summary lines through
-    mavscope.native.summary.write_summary: what capture_session and the loop of `run` do, in the same
-    order (dialect, capture file and its first record's time, key options; problems on stderr, then the
-    no-frames line)."""
-    from mavscope.capture.detect import detect_kind, open_capture
-    from mavscope.commands.common import capture_path, pipeline_options, warner
-    from mavscope.mavlink.dialect import load_dialect
-    from mavscope.pipeline.session import make_security_stage
-
-    path = capture_path(args)
-    options = pipeline_options(args, env)
-    dialect = load_dialect(options.dialects)
-    kind = detect_kind(path)  # the capture's errors before the key options', as open_session orders them
-    t0 = None
-    if args.format == "text":
-        with open_capture(path) as reader:  # the session's t0: the time of the first record
-            first = next(iter(reader), None)
-            t0 = None if first is None else first.time
-    stage = make_security_stage(options, warner(env))
-    name = os.fsencode(path).decode("utf-8", "backslashreplace")  # Session.name
+def _run_native(args: argparse.Namespace, env: Env, session: Session) -> None:
+    """`read -T jsonl` through mavscope.native.walk.write_jsonl, the summary lines through
+    mavscope.native.summary.write_summary, over the session's capture, dialect and security stage (the
+    session opened them: its errors and warnings came first); the walk's counts go to the session, which
+    says when the capture held no frame."""
     out_b = env.stdout_bytes
-    where = _Position(os.path.getsize(path))
+    where = _Position(os.path.getsize(session.path))
     update, stop = progress(env, where)  # type: ignore[arg-type]  # it reads .size and .position only
-    problems = Problems(env, name)
+    problems = Problems(env, session.name)
 
     def advance(position: int) -> None:
         where.position = position
         update()
 
+    path, dialect, stage, kind = session.path, session.dialect, session.security, session.reader.kind
     try:
         if args.format == "text":
             from mavscope.native.summary import write_summary
 
-            stats = write_summary(path, dialect, stage, out_b, problems, t0, args.count, progress=advance,
+            stats = write_summary(path, dialect, stage, out_b, problems, session.t0, args.count, progress=advance,
                                   kind=kind)
         else:
             from mavscope.native.walk import write_jsonl
@@ -170,9 +160,8 @@ def _run_native(args: argparse.Namespace, env: Env) -> ExitStatus:
         stop()
         problems.close()
     out_b.flush()
-    if stats["frames"] == 0:
-        env.say(f"no MAVLink frames found in {name} ({stats['size']} bytes, detected as {kind})")
-    return ExitStatus.OK
+    session.walked.update(stats)
+    session.frame_count = stats["frames"]
 
 
 class _Position:

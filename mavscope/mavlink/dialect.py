@@ -119,8 +119,7 @@ class MessageDef:
     source: str  # dialect file that defined it
     crc_extra_byte: bytes = field(repr=False, compare=False)
     decode: Callable[[bytes], Decoded] = field(repr=False, compare=False)
-    # `decode` of each of many payloads (each at most `length` bytes), in one call: a message of scalar fields
-    # only is unpacked by one struct.iter_unpack over the padded payloads (the same Struct as `decode`'s)
+    # `decode` of many payloads (at most `length` bytes each) in one call (_make_many_decoder)
     decode_many: Callable[[list[bytes]], list[Decoded]] = field(default=lambda _p: [], repr=False, compare=False)
     xml_order: tuple[str, ...] = ()  # field names in XML order (pymavlink's `fieldnames`; CSV columns)
     # its char arrays that hold strings (wire order): those whose bytes after the NUL are noted (char-after-nul)
@@ -188,18 +187,14 @@ def char_value(fd: FieldDef) -> Callable[[bytes], str]:
 
 
 def _make_many_decoder(fields: tuple[FieldDef, ...], length: int) -> Callable[[list[bytes]], list[Decoded]]:
-    """`_make_decoder`'s decoder of many payloads at once (MessageDef.decode_many)."""
+    """`_make_decoder`'s decoder of many payloads at once: for scalar fields only, one struct.iter_unpack over
+    the payloads padded to `length` (the Struct `decode` unpacks with); else `decode` of each."""
     if not all(f.array_length == 0 and f.type != "char" for f in fields):
         one = _make_decoder(fields, length)
         return lambda payloads: [one(p) for p in payloads]
-    iter_unpack = struct.Struct(wire_format(fields)).iter_unpack
-    names = tuple(f.name for f in fields)
-
-    def decode_many(payloads: list[bytes]) -> list[Decoded]:
-        padded = b"".join(p if len(p) == length else p.ljust(length, b"\0") for p in payloads)
-        return [dict(zip(names, t)) for t in iter_unpack(padded)]
-
-    return decode_many
+    iter_unpack, names = struct.Struct(wire_format(fields)).iter_unpack, tuple(f.name for f in fields)
+    return lambda payloads: [dict(zip(names, t)) for t in iter_unpack(b"".join(
+        p if len(p) == length else p.ljust(length, b"\0") for p in payloads))]
 
 
 def _make_decoder(fields: tuple[FieldDef, ...], length: int) -> Callable[[bytes], Decoded]:

@@ -16,7 +16,7 @@ index takes, not the payloads, wire bytes and message rows the export reads.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import numpy as np
@@ -26,7 +26,6 @@ from mavscope.capture.detect import open_capture
 from mavscope.endpoint import Endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
-from mavscope.native import core
 from mavscope.native.core import COLUMN_TRANSPORTS, KINDS, _native
 from mavscope.native.tables import table_for
 from mavscope.native.windows import DONE, FINISH, NATIVE, column_steps, column_walker
@@ -39,10 +38,10 @@ _RAW = "raw"  # raw streams stay on the pure path
 _TRANSPORTS = tuple(t or "" for t in COLUMN_TRANSPORTS)  # the transport column's codes -> names ("": none)
 
 
-def available(kind: str | None = None, environ: Mapping[str, str] | None = None) -> bool:
-    """Whether a capture of `kind` is indexed natively: the extension is built, MAVSCOPE_PURE is not set,
-    and the walker reads that kind."""
-    return core.available(environ) and (kind is None or (kind in KINDS and kind != _RAW))
+def indexes(kind: str) -> bool:
+    """Whether the native index reads a capture of `kind` (a raw stream is the pure index's); whether the
+    native engine runs at all is the session's choice (`Session.engine`)."""
+    return kind in KINDS and kind != _RAW
 
 
 class Chunk:

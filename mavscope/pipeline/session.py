@@ -25,6 +25,7 @@ from mavscope.capture.reader import CaptureReader
 from mavscope.mavlink.dialect import Dialect, load_dialect
 from mavscope.mavlink.frame import Frame
 from mavscope.native import windows
+from mavscope.native.core import NATIVE, PURE
 from mavscope.pipeline.batch import FrameBatch, Tables
 from mavscope.pipeline.dissect import Anomaly, Dissector
 from mavscope.pipeline.options import PipelineOptions
@@ -101,6 +102,7 @@ class Session:
     frame_count: int = 0  # frames that came out of the security stage so far (before the filter)
     walked: dict[str, int] = field(default_factory=dict)  # the native walker's counts (size...), when it ran
     environ: Mapping[str, str] | None = None  # the environment the engine is chosen by (MAVSCOPE_PURE)
+    engine: str = PURE  # NATIVE where the native walker reads this capture: chosen here, once
 
     def _counted(self, items: Iterator[Frame | Anomaly]) -> Iterator[Frame | Anomaly]:
         for item in items:
@@ -125,12 +127,12 @@ class Session:
     def batches(self, report: Callable[[Frame | Anomaly], object]) -> Iterator[FrameBatch]:
         """Every frame (no filter) as column batches, in capture order; `report` gets each anomaly and each
         frame with notes that may tell of capture damage, in capture order too (the rows whose notes a
-        native chunk gives as codes tell of none: a bad CRC, an unsigned frame of a signing sender). The
-        engine is chosen here: the native walker's windows (native.windows.batches) where the extension is
-        built, MAVSCOPE_PURE is not set in `environ` and it reads the capture's kind, else the Python
-        pipeline's frames BATCH at a time."""
+        native chunk gives as codes tell of none: a bad CRC, an unsigned frame of a signing sender). On the
+        session's `engine` (open_session chose it: native where the extension is built, MAVSCOPE_PURE is not
+        set in `environ` and the walker reads the capture's kind): the native walker's windows
+        (native.windows.batches), else the Python pipeline's frames BATCH at a time."""
         tables = Tables()
-        if windows.available(self.environ) and self.reader.kind in windows.KINDS:
+        if self.engine == NATIVE:
             for b in windows.batches(self.path, self.reader.kind, self.dialect, self.security, report, tables,
                                      stats=self.walked):
                 self.frame_count += b.n
@@ -164,13 +166,16 @@ def open_session(path: str, options: PipelineOptions, *, dialect: Dialect | None
                  warn: Warn = _quiet, environ: Mapping[str, str] | None = None) -> Iterator[Session]:
     """Open the capture at `path` and build its pipeline (CaptureError, UsageError, FilterError when the
     file or the options are wrong; `warn` receives warnings such as a keyring readable by others; `environ`:
-    the environment the engine is chosen by, os.environ when None)."""
+    the environment the engine is chosen by, os.environ when None). The engine is chosen here, once
+    (`Session.engine`): every front end that can run on the native walker asks the session which."""
     if dialect is None:
         dialect = load_dialect(options.dialects)
     with open_capture(path) as reader:
         t0, records = peek_time(iter(reader))
         security = make_security_stage(options, warn)
         flt = make_filter(options, dialect)
-        session = Session(path, reader, dialect, iter(()), security, flt, t0, environ=environ)
+        native = windows.available(environ) and reader.kind in windows.KINDS
+        session = Session(path, reader, dialect, iter(()), security, flt, t0, environ=environ,
+                          engine=NATIVE if native else PURE)
         session.items = session._counted(security.run(Dissector(dialect, security.material.wifi).run(records)))
         yield session

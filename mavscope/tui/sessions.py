@@ -21,11 +21,12 @@ from mavscope.endpoint import Endpoint
 from mavscope.live.udp import UdpSource, parse_endpoint
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
-from mavscope.native.index import available as native_available
+from mavscope.native.core import NATIVE
+from mavscope.native.index import indexes as native_indexes
 from mavscope.native.index import native_build
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.pipeline.options import PipelineOptions
-from mavscope.pipeline.session import build_pipeline, make_security_stage, peek_time
+from mavscope.pipeline.session import build_pipeline, make_security_stage, open_session, peek_time
 from mavscope.security.stage import NOTE_CODES, SecurityStage
 
 DEFAULT_KEEP = 200_000
@@ -69,16 +70,19 @@ class FrameSource:
 
     def index_natively(self, index: FrameIndex, on_progress: Callable[[Progress], object],
                        cancelled: Callable[[], bool]) -> bool:
-        """Fill `index` through the native engine (mavscope.native.index) when it can read this capture;
-        False (nothing done) when the pure pipeline must (no extension, MAVSCOPE_PURE, a raw stream)."""
-        with open_capture(self.path) as reader:  # the capture's errors as the pure path raises them
-            kind = reader.kind
-            t0, _ = peek_time(iter(reader))
-        if not native_available(kind):
-            return False
-        index.t0 = t0
-        native_build(index, self.path, self.dialect, make_security_stage(self.pipeline_options(), self.warn),
-                     on_progress=on_progress, cancelled=cancelled)
+        """Fill `index` through the native engine (mavscope.native.index) when the session runs on it and the
+        index reads this kind; False (nothing done) when the pure pipeline must (no extension, MAVSCOPE_PURE,
+        a raw stream). The session (open_session) opens the capture, the stages and chooses the engine, as
+        for every front end."""
+        said: list[str] = []  # the stages' warnings: said once, by the pipeline that reads the capture
+        with open_session(self.path, self.pipeline_options(), dialect=self.dialect, warn=said.append) as session:
+            if session.engine != NATIVE or not native_indexes(session.reader.kind):
+                return False
+            for message in said:
+                self.warn(message)
+            index.t0 = session.t0
+            native_build(index, self.path, self.dialect, session.security, on_progress=on_progress,
+                         cancelled=cancelled)
         return True
 
     def check(self) -> None:
