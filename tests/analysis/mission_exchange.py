@@ -3,12 +3,13 @@ tests whose expected answers follow from how the exchange was built."""
 
 from __future__ import annotations
 
-import struct
 from pathlib import Path
 from types import ModuleType
 
 from pymavlink.dialects.v10 import ardupilotmega as v10
 from pymavlink.dialects.v20 import ardupilotmega as v20
+
+from tests.support.builders import write_raw, write_tlog
 
 T0 = 1_760_000_000.0  # capture time of the first frame (Unix seconds)
 
@@ -48,14 +49,10 @@ class Exchange:
         self.send("gcs", "HEARTBEAT", 6, 8, 0, 0, 4, 3)
 
     def tlog(self, path: Path) -> str:
-        with open(path, "wb") as fh:
-            for t, raw in self.frames:
-                fh.write(struct.pack(">Q", round(t * 1e6)) + raw)
-        return str(path)
+        return write_tlog(path.parent, self.frames, path.name)
 
     def raw(self, path: Path) -> str:
-        path.write_bytes(b"".join(raw for _, raw in self.frames))
-        return str(path)
+        return write_raw(path.parent, [raw for _, raw in self.frames], path.name)
 
 
 def item_int(x: Exchange, side: str, target: tuple[int, int], seq: int, command: int, lat: float, lon: float,

@@ -22,13 +22,14 @@ it waits for, as after its timeout.
 
 from __future__ import annotations
 
-import struct
 from collections import deque
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as v20
+
+from tests.support.builders import write_tlog
 
 T0 = 1_760_000_000.0
 ACCEPTED, NO_SPACE, DENIED = 0, 4, 14  # MAV_MISSION_RESULT
@@ -66,8 +67,7 @@ class Link:
                     p.hear(src.addr, msg)
 
     def tlog(self, path: Path) -> str:
-        path.write_bytes(b"".join(struct.pack(">Q", round(t * 1e6)) + raw for t, raw in self.frames))
-        return str(path)
+        return write_tlog(path.parent, self.frames, path.name)
 
 
 class Party:

@@ -7,7 +7,6 @@ systems took `mission` 88 s in those scans. The whole tracker was also compared 
 
 from __future__ import annotations
 
-import struct
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -22,6 +21,7 @@ from mavscope.analysis.mission.state import Deadlines, narrow, open_events, open
 from mavscope.mavlink.dialect import Dialect
 from mavscope.pipeline.options import PipelineOptions
 from mavscope.pipeline.session import open_session
+from tests.support.builders import tlog_spaced
 from tests.support.cost import lines_run
 
 ADDRS = st.tuples(st.sampled_from([0, 1, 2]), st.sampled_from([0, 1, 190]))  # system or component 0: a broadcast
@@ -117,7 +117,7 @@ def test_deadlines_stay_small_when_the_clock_runs_backwards() -> None:
 def _frames_of(tmp_path: Path, name: str, raws: list[bytes]) -> list:  # type: ignore[type-arg]
     """`raws` as a tlog (one frame a millisecond), read back through the pipeline."""
     path = tmp_path / name
-    path.write_bytes(b"".join(struct.pack(">Q", 1_700_000_000_000_000 + i * 1000) + r for i, r in enumerate(raws)))
+    path.write_bytes(tlog_spaced(raws, 1_700_000_000_000_000, 1000))
     with open_session(str(path), PipelineOptions()) as s:
         return list(s.frames())
 

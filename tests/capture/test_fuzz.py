@@ -24,7 +24,7 @@ from mavscope.capture.writer import PcapngWriter
 from mavscope.notes import CODES
 from mavscope.transport.base import Payload
 from mavscope.transport.decap import Decapsulator
-from tests.support.builders import pcap_bytes, tlog_us
+from tests.support.builders import pcap_bytes, tlog_spaced
 
 FUZZ = settings(max_examples=150, deadline=None, derandomize=True,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
@@ -58,7 +58,7 @@ def _pcapng() -> tuple[bytes, list[int]]:
 
 
 def _tlog() -> tuple[bytes, list[int]]:
-    out = tlog_us((int(T0 * 1e6) + i * 1000, f) for i, f in enumerate(FRAMES))
+    out = tlog_spaced(FRAMES, int(T0 * 1e6), 1000)
     ends = list(itertools.accumulate(8 + len(f) for f in FRAMES))  # each entry: 8-byte time, then its frame
     return out, ends
 

@@ -21,6 +21,7 @@ from mavscope.capture.detect import open_capture
 from mavscope.capture.synth import udp_packet
 from mavscope.capture.writer import PcapngWriter, PcapWriter
 from tests.conftest import Cli
+from tests.support.builders import pcapng_epb, pcapng_idb, pcapng_shb
 from tests.support.pmav import heartbeat, mav2
 
 T0 = 1_700_000_000
@@ -29,17 +30,10 @@ PCAP_LAST = (1 << 32) - 1  # the last second a pcap record holds
 DATETIME_LAST = 253_402_300_799  # 9999-12-31T23:59:59Z
 
 
-def _block(btype: int, body: bytes) -> bytes:
-    body += b"\0" * (-len(body) & 3)
-    return struct.pack("<II", btype, 12 + len(body)) + body + struct.pack("<I", 12 + len(body))
-
-
 def _pcapng(options: bytes, ticks: list[int]) -> bytes:
-    shb = _block(0x0A0D0D0A, struct.pack("<IHHq", 0x1A2B3C4D, 1, 0, -1))
-    idb = _block(1, struct.pack("<HHI", LINKTYPE_ETHERNET, 0, 65535) + options + struct.pack("<HH", 0, 0))
-    epbs = b"".join(_block(6, struct.pack("<IIIII", 0, t >> 32, t & 0xFFFFFFFF, len(PACKET), len(PACKET)) + PACKET)
-                    for t in ticks)
-    return shb + idb + epbs
+    """One Ethernet interface (snaplen 65535) with `options` as given, a packet of PACKET at each of `ticks`."""
+    idb = pcapng_idb(LINKTYPE_ETHERNET, snaplen=65535, options=options)
+    return pcapng_shb() + idb + b"".join(pcapng_epb(0, t, PACKET) for t in ticks)
 
 
 TSOFFSET = 14

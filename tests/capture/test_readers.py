@@ -17,8 +17,10 @@ from mavscope.capture.base import (
 from mavscope.capture.detect import detect_kind, open_capture
 from mavscope.capture.raw import CHUNK
 from mavscope.errors import CaptureError
+from tests.support.builders import pcapng_block, pcapng_epb, pcapng_idb, pcapng_shb, tlog_spaced
 
 T0 = 1_700_000_000
+T0_US = T0 * 1_000_000  # the tlogs' first entry (tlog_spaced: entries 1 ms apart)
 
 
 def pcap_bytes(records: list[tuple[int, int, bytes, int]], endian: str = "<", ns: bool = False,
@@ -32,42 +34,11 @@ def pcap_bytes(records: list[tuple[int, int, bytes, int]], endian: str = "<", ns
     return b"".join(out)
 
 
-def block(btype: int, body: bytes, e: str = "<") -> bytes:
-    """One pcapng block (body padded to 4 bytes)."""
-    body += b"\0" * (-len(body) & 3)
-    n = 12 + len(body)
-    return struct.pack(e + "II", btype, n) + body + struct.pack(e + "I", n)
-
-
-def shb(e: str = "<") -> bytes:
-    return block(0x0A0D0D0A, struct.pack(e + "IHHq", 0x1A2B3C4D, 1, 0, -1), e)
-
-
-def idb(linktype: int, tsresol: int | None = None, tsoffset: int = 0, e: str = "<", snaplen: int = 0) -> bytes:
-    opts = b""
-    if tsresol is not None:
-        opts += struct.pack(e + "HHB3x", 9, 1, tsresol)
-    if tsoffset:
-        opts += struct.pack(e + "HHq", 14, 8, tsoffset)
-    if opts:
-        opts += struct.pack(e + "HH", 0, 0)
-    return block(1, struct.pack(e + "HHI", linktype, 0, snaplen) + opts, e)
-
-
-def epb(iface: int, ts: int, data: bytes, orig: int | None = None, e: str = "<") -> bytes:
-    body = struct.pack(e + "IIIII", iface, ts >> 32, ts & 0xFFFFFFFF, len(data), orig or len(data)) + data
-    return block(6, body, e)
-
-
 def v2_frame(seq: int, payload: bytes = b"\x01\x02\x03", signed: bool = False) -> bytes:
     """A v2 frame by layout only (the CRC is not checked here)."""
     flags = 1 if signed else 0
     frame = bytes([0xFD, len(payload), flags, 0, seq, 1, 1, 0, 0, 0]) + payload + b"\xaa\xbb"
     return frame + (bytes(13) if signed else b"")
-
-
-def tlog_bytes(frames: list[bytes], t0_us: int = T0 * 1_000_000) -> bytes:
-    return b"".join(struct.pack(">Q", t0_us + i * 1000) + f for i, f in enumerate(frames))
 
 
 def write(tmp_path: Path, name: str, content: bytes) -> Path:
@@ -102,8 +73,8 @@ def test_pcap_both_byte_orders_and_resolutions(tmp_path: Path, endian: str, ns: 
 
 def test_detection_ignores_extension(tmp_path: Path) -> None:
     assert detect_kind(write(tmp_path, "a.pcapng", pcap_bytes([]))) == "pcap"
-    assert detect_kind(write(tmp_path, "b.pcap", shb() + idb(1))) == "pcapng"
-    assert detect_kind(write(tmp_path, "c.pcap", tlog_bytes([v2_frame(0), v2_frame(1)]))) == "tlog"
+    assert detect_kind(write(tmp_path, "b.pcap", pcapng_shb() + pcapng_idb(1))) == "pcapng"
+    assert detect_kind(write(tmp_path, "c.pcap", tlog_spaced([v2_frame(0), v2_frame(1)], T0_US))) == "tlog"
     assert detect_kind(write(tmp_path, "d.tlog", b"\xfd\x09hello, not a tlog")) == "raw"
 
 
@@ -180,43 +151,44 @@ def test_pcap_short_file_header(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("e", ["<", ">"])
 def test_pcapng_two_interfaces_different_linktypes_and_resolutions(tmp_path: Path, e: str) -> None:
-    content = (shb(e) + idb(LINKTYPE_ETHERNET, e=e) + idb(LINKTYPE_RAW, tsresol=9, e=e)
-               + idb(LINKTYPE_LINUX_SLL, tsresol=0x80 | 10, tsoffset=1000, e=e)
-               + epb(0, T0 * 10**6 + 250_000, b"eth", e=e) + epb(1, T0 * 10**9 + 1, b"raw!", e=e)
-               + epb(2, 5 * 1024 + 512, b"sll", e=e) + block(5, b"\0" * 20, e))  # an ISB is skipped
+    content = (pcapng_shb(e) + pcapng_idb(LINKTYPE_ETHERNET, e=e) + pcapng_idb(LINKTYPE_RAW, tsresol=9, e=e)
+               + pcapng_idb(LINKTYPE_LINUX_SLL, tsresol=0x80 | 10, tsoffset=1000, e=e)
+               + pcapng_epb(0, T0 * 10**6 + 250_000, b"eth", e=e) + pcapng_epb(1, T0 * 10**9 + 1, b"raw!", e=e)
+               + pcapng_epb(2, 5 * 1024 + 512, b"sll", e=e) + pcapng_block(5, b"\0" * 20, e))  # an ISB is skipped
     recs = read_all(write(tmp_path, "two.pcapng", content))
     assert [(r.linktype, r.data) for r in recs] == [(1, b"eth"), (101, b"raw!"), (113, b"sll")]
     assert recs[0].time == pytest.approx(T0 + 0.25)
     assert recs[1].time == pytest.approx(T0 + 1e-9, abs=1e-6)
     assert recs[2].time == pytest.approx(1000 + 5.5)
-    idbs = len(idb(1, e=e)) + len(idb(101, 9, e=e)) + len(idb(113, 0x8A, 1000, e=e))
-    assert recs[0].offset == len(shb(e)) + idbs + 28
+    idbs = len(pcapng_idb(1, e=e)) + len(pcapng_idb(101, 9, e=e)) + len(pcapng_idb(113, 0x8A, 1000, e=e))
+    assert recs[0].offset == len(pcapng_shb(e)) + idbs + 28
 
 
 def test_pcapng_sections_reset_interfaces_and_byte_order(tmp_path: Path) -> None:
-    content = (shb("<") + idb(LINKTYPE_ETHERNET) + epb(0, 1, b"a")
-               + shb(">") + idb(LINKTYPE_RAW, e=">") + epb(0, 2, b"b", e=">"))
+    content = (pcapng_shb("<") + pcapng_idb(LINKTYPE_ETHERNET) + pcapng_epb(0, 1, b"a")
+               + pcapng_shb(">") + pcapng_idb(LINKTYPE_RAW, e=">") + pcapng_epb(0, 2, b"b", e=">"))
     recs = read_all(write(tmp_path, "sec.pcapng", content))
     assert [(r.linktype, r.data) for r in recs] == [(1, b"a"), (101, b"b")]
 
 
 def test_pcapng_simple_and_obsolete_packet_blocks(tmp_path: Path) -> None:
-    spb = block(3, struct.pack("<I", 10) + b"0123456789")
-    opb = block(2, struct.pack("<HHIIII", 0, 0, 0, 7_000_000, 3, 3) + b"opb")
-    recs = read_all(write(tmp_path, "spb.pcapng", shb() + idb(LINKTYPE_ETHERNET) + spb + opb))
+    spb = pcapng_block(3, struct.pack("<I", 10) + b"0123456789")
+    opb = pcapng_block(2, struct.pack("<HHIIII", 0, 0, 0, 7_000_000, 3, 3) + b"opb")
+    recs = read_all(write(tmp_path, "spb.pcapng", pcapng_shb() + pcapng_idb(LINKTYPE_ETHERNET) + spb + opb))
     assert recs[0].data == b"0123456789" and recs[0].time is None and recs[0].orig_len == 10
     assert recs[1].data == b"opb" and recs[1].time == pytest.approx(7.0)
 
 
 def test_pcapng_snapped_and_truncated(tmp_path: Path) -> None:
-    content = shb() + idb(1) + epb(0, 1, b"abcd", orig=60) + epb(0, 2, b"0123456789")
+    content = pcapng_shb() + pcapng_idb(1) + pcapng_epb(0, 1, b"abcd", orig=60) + pcapng_epb(0, 2, b"0123456789")
     recs = read_all(write(tmp_path, "cut.pcapng", content[:-10]))
     assert recs[0].notes[0].code == "record-snapped"
     assert recs[1].notes[-1].code == "record-truncated" and recs[1].data.startswith(b"01234")
 
 
 def test_pcapng_corrupt_block_length_resyncs(tmp_path: Path) -> None:
-    blocks = [shb(), idb(1), epb(0, 1, b"one"), epb(0, 2, b"two"), epb(0, 3, b"three")]
+    blocks = [pcapng_shb(), pcapng_idb(1), pcapng_epb(0, 1, b"one"), pcapng_epb(0, 2, b"two"),
+              pcapng_epb(0, 3, b"three")]
     content = bytearray(b"".join(blocks))
     at = len(blocks[0]) + len(blocks[1]) + len(blocks[2])
     struct.pack_into("<I", content, at + 4, 0x00FFFFF0)
@@ -226,7 +198,8 @@ def test_pcapng_corrupt_block_length_resyncs(tmp_path: Path) -> None:
 
 
 def test_pcapng_undefined_interface(tmp_path: Path) -> None:
-    recs = read_all(write(tmp_path, "noif.pcapng", shb() + idb(1) + epb(3, 1, b"x") + epb(0, 1, b"y")))
+    content = pcapng_shb() + pcapng_idb(1) + pcapng_epb(3, 1, b"x") + pcapng_epb(0, 1, b"y")
+    recs = read_all(write(tmp_path, "noif.pcapng", content))
     assert [r.data for r in recs] == [b"y"] and recs[0].notes[0].code == "capture-garbage"
 
 
@@ -236,7 +209,7 @@ def test_pcapng_undefined_interface(tmp_path: Path) -> None:
 def test_tlog_entries_v1_v2_signed(tmp_path: Path) -> None:
     v1 = bytes([0xFE, 2, 7, 1, 1, 0, 9, 9, 0xAA, 0xBB])
     frames = [v2_frame(0), v1, v2_frame(1, b"\xfd" * 5, signed=True)]
-    recs = read_all(write(tmp_path, "x.tlog", tlog_bytes(frames)))
+    recs = read_all(write(tmp_path, "x.tlog", tlog_spaced(frames, T0_US)))
     assert [r.data for r in recs] == frames
     assert all(r.linktype == LINKTYPE_MAVLINK_TLOG for r in recs)
     assert recs[1].time == pytest.approx(T0 + 0.001) and recs[0].offset == 8
@@ -244,7 +217,7 @@ def test_tlog_entries_v1_v2_signed(tmp_path: Path) -> None:
 
 def test_tlog_resync_and_truncation(tmp_path: Path) -> None:
     frames = [v2_frame(i) for i in range(4)]
-    content = bytearray(tlog_bytes(frames))
+    content = bytearray(tlog_spaced(frames, T0_US))
     entry = 8 + len(frames[0])
     content[entry + 8] = 0x00  # the second entry loses its STX
     content = bytes(content[:-3])  # and the last entry is cut

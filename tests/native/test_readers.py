@@ -10,7 +10,6 @@ frames written natively.
 from __future__ import annotations
 
 import os
-import struct
 import subprocess
 import sys
 from collections.abc import Iterator
@@ -24,6 +23,7 @@ from tests.capture.test_hostile_shrink import KINDS, _damage, make_capture
 from tests.conftest import ROOT, Cli
 from tests.native import build as nh
 from tests.native.engines import native_output, pure_output, same
+from tests.support.builders import tlog_spaced
 from tests.support.pmav import heartbeat, mav2
 
 pytest.importorskip("mavscope._native", reason="the native extension is not built (no compiler at install)")
@@ -146,7 +146,7 @@ def test_tlog_text_runs_end_at_frames_written_natively(tmp_path: Path, cli: Cli)
     entries = [b"a", b"b", heartbeat(mav), b"c", b"d", b"e", heartbeat(mav), heartbeat(mav)]
     t0 = 1_746_714_528_149_261
     path = tmp_path / "console.tlog"
-    path.write_bytes(b"".join(struct.pack(">Q", t0 + 20 * i) + e for i, e in enumerate(entries)))
+    path.write_bytes(tlog_spaced(entries, t0, 20))
     result = same(cli, path)
     assert result.out.count("\n") == 3
     lines = result.err.splitlines()

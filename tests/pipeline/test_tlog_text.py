@@ -11,14 +11,10 @@ from pathlib import Path
 from mavscope.capture.detect import open_capture
 from mavscope.pipeline import textrun
 from tests.conftest import Cli
-from tests.support.builders import tlog_us
+from tests.support.builders import tlog_spaced
 from tests.support.pmav import heartbeat, mav2
 
 T0 = 1_746_714_528_149_261  # µs
-
-
-def _tlog(entries: list[bytes]) -> bytes:
-    return tlog_us((T0 + 20 * i, e) for i, e in enumerate(entries))  # 20 µs apart
 
 
 def test_a_tlog_that_starts_with_console_text_is_a_tlog(tmp_path: Path, cli: Cli) -> None:
@@ -26,7 +22,7 @@ def test_a_tlog_that_starts_with_console_text_is_a_tlog(tmp_path: Path, cli: Cli
     text = [bytes([c]) for c in b"\nInit ArduRover\n"]
     entries = text + [heartbeat(mav), b"BAD", heartbeat(mav), heartbeat(mav)]
     path = tmp_path / "console.tlog"
-    path.write_bytes(_tlog(entries))
+    path.write_bytes(tlog_spaced(entries, T0, 20))  # 20 µs apart
     with open_capture(path) as reader:
         assert reader.kind == "tlog"
         records = list(reader)
@@ -49,7 +45,7 @@ def test_a_long_text_run_is_reported_in_bounded_pieces(tmp_path: Path, cli: Cli)
     per_entry = 16
     n = textrun.MAX_BYTES // per_entry + 2  # one entry past a full run
     path = tmp_path / "chatty.tlog"
-    path.write_bytes(_tlog([b"x" * per_entry] * n + [heartbeat(mav2())]))
+    path.write_bytes(tlog_spaced([b"x" * per_entry] * n + [heartbeat(mav2())], T0, 20))
     status, out, err = cli("read", path)
     assert status == 0 and out.count("HEARTBEAT") == 1
     lines = err.splitlines()

@@ -4,8 +4,9 @@ Files are written with mavscope's own writers (capture/writer.py, tested against
 in tests/capture) around packets from capture/synth.py (Ethernet/IPv4 or IPv6/UDP with correct checksums);
 frames are encoded by pymavlink, an implementation independent of mavscope's framer, signed by it when the
 encoder is given a key. Files whose every byte a test chooses (byte order, time resolution, link headers,
-checksums left 0) are packed by hand in tests/native/build.py; a test that needs a layout neither makes (a
-broken header on purpose) keeps its own and says why.
+checksums left 0) are packed by hand in tests/native/build.py, pcapng blocks with chosen options, byte order
+and lengths by `pcapng_*` here; a test that needs a layout none of them makes (a broken header on purpose)
+keeps its own and says why.
 
 A tlog entry is an 8-byte big-endian timestamp in microseconds, then one frame (captures/README.md).
 """
@@ -55,10 +56,15 @@ def _write_pcap(out: Path | BinaryIO, records: Iterable[tuple[float | None, byte
             w.write(t, data)
 
 
+def timed(items: Iterable[bytes], t0: float = 1.0, step: float = 1.0) -> list[tuple[float, bytes]]:
+    """(time, item) records, one every `step` seconds from `t0` (for `write_pcap`, `pcap_bytes` or `tlog`)."""
+    return [(t0 + i * step, item) for i, item in enumerate(items)]
+
+
 def udp_records(datagrams: Sequence[Datagram], t0: float = 1.0, step: float = 1.0) -> list[tuple[float, bytes]]:
     """UDP datagrams as Ethernet records, one every `step` seconds from `t0`: IPv4, or IPv6 where an end is an
     IPv6 address (an IPv4 end then written IPv4-mapped)."""
-    return [(t0 + i * step, udp_packet(*src, *dst, payload)) for i, (src, dst, payload) in enumerate(datagrams)]
+    return timed((udp_packet(*src, *dst, payload) for src, dst, payload in datagrams), t0, step)
 
 
 def write_udp_pcap(path: Path, datagrams: Sequence[Datagram], t0: float = 1.0, step: float = 1.0) -> Path:
@@ -66,9 +72,51 @@ def write_udp_pcap(path: Path, datagrams: Sequence[Datagram], t0: float = 1.0, s
     return write_pcap(path, udp_records(datagrams, t0, step))
 
 
+def pcapng_block(btype: int, body: bytes, e: str = "<") -> bytes:
+    """One pcapng block of type `btype` in byte order `e` ("<" or ">"), its body padded to 4 bytes (pcapng
+    spec, section 3.1: type, total length, body, total length again)."""
+    body += b"\0" * (-len(body) & 3)
+    n = 12 + len(body)
+    return struct.pack(e + "II", btype, n) + body + struct.pack(e + "I", n)
+
+
+def pcapng_shb(e: str = "<") -> bytes:
+    """A Section Header Block: byte-order magic, version 1.0, section length -1 (not given)."""
+    return pcapng_block(0x0A0D0D0A, struct.pack(e + "IHHq", 0x1A2B3C4D, 1, 0, -1), e)
+
+
+def pcapng_idb(linktype: int, tsresol: int | None = None, tsoffset: int = 0, e: str = "<", snaplen: int = 0,
+               options: bytes | None = None) -> bytes:
+    """An Interface Description Block; its options if_tsresol (9) and if_tsoffset (14) where given, closed by
+    opt_endofopt; or `options` as they are given (then closed by opt_endofopt even when empty)."""
+    if options is None:
+        opts = b""
+        if tsresol is not None:
+            opts += struct.pack(e + "HHB3x", 9, 1, tsresol)
+        if tsoffset:
+            opts += struct.pack(e + "HHq", 14, 8, tsoffset)
+    else:
+        opts = options
+    if opts or options is not None:
+        opts += struct.pack(e + "HH", 0, 0)
+    return pcapng_block(1, struct.pack(e + "HHI", linktype, 0, snaplen) + opts, e)
+
+
+def pcapng_epb(iface: int, ts: int, data: bytes, orig: int | None = None, e: str = "<") -> bytes:
+    """An Enhanced Packet Block of interface `iface` at `ts` ticks (of its if_tsresol), `orig` the original
+    length (default: the data's)."""
+    body = struct.pack(e + "IIIII", iface, ts >> 32, ts & 0xFFFFFFFF, len(data), orig or len(data)) + data
+    return pcapng_block(6, body, e)
+
+
 def tlog_us(entries: Iterable[tuple[int, bytes]]) -> bytes:
     """A tlog of (microseconds since the epoch, frame) entries."""
     return b"".join(struct.pack(">Q", us) + frame for us, frame in entries)
+
+
+def tlog_spaced(frames: Iterable[bytes], t0_us: int = 1_700_000_000_000_000, step_us: int = 1000) -> bytes:
+    """A tlog of `frames`, the first at `t0_us` microseconds since the epoch, the rest `step_us` apart."""
+    return tlog_us((t0_us + i * step_us, frame) for i, frame in enumerate(frames))
 
 
 def tlog(entries: Iterable[tuple[float, bytes]]) -> bytes:

@@ -41,10 +41,6 @@ def tcp_packet(src: bytes, dst: bytes, sport: int, dport: int, seq: int, flags: 
     return b"\x02\0\0\0\0\x02\x02\0\0\0\0\x01\x08\x00" + ip + tcp + data
 
 
-def write_pcap(path: Path, packets: list[bytes]) -> None:
-    builders.write_pcap(path, [(1_700_000_000 + i, p) for i, p in enumerate(packets)])  # a second apart
-
-
 def dissect(path: Path, dialect) -> tuple[list[Frame], list[str]]:  # type: ignore[no-untyped-def]
     """The frames of a capture and the note codes of frames and anomalies."""
     with open_capture(path) as reader:
@@ -79,7 +75,7 @@ def test_the_note_code_is_registered() -> None:
 @pytest.mark.parametrize("isn", [500_000, 1001 + 13 * 21 + 5, 3_000_000_000, 0, 1001 + 13 * 21 - 1, 1000])
 def test_an_injected_syn_hides_no_frame(tmp_path: Path, dialect, isn: int) -> None:  # type: ignore[no-untyped-def]
     path = tmp_path / "syn.pcap"
-    write_pcap(path, stream_with_syn(isn))
+    builders.write_pcap(path, builders.timed(stream_with_syn(isn), 1_700_000_000))  # a second apart
     frames, codes = dissect(path, dialect)
     assert [f.raw for f in frames] == frames_30() and all(f.crc_status is CrcStatus.OK for f in frames)
     assert len({f.src for f in frames}) == 1
@@ -94,7 +90,7 @@ def test_an_injected_syn_hides_no_frame(tmp_path: Path, dialect, isn: int) -> No
 def test_an_injected_syn_with_a_frame_shows_both_streams(tmp_path: Path, dialect) -> None:  # type: ignore[no-untyped-def]
     forged = command_long_rtl(mav2(255, 190))
     path = tmp_path / "syn_data.pcap"
-    write_pcap(path, stream_with_syn(77_777_777, forged))
+    builders.write_pcap(path, builders.timed(stream_with_syn(77_777_777, forged), 1_700_000_000))
     frames, codes = dissect(path, dialect)
     assert [f.raw for f in frames if f.raw != forged] == frames_30()
     injected = [f for f in frames if f.raw == forged]
