@@ -2,7 +2,7 @@
 """Every analysis command on six hostile tlogs: time and peak memory per command, to show both stay
 bounded by the input (docs/security.md, "Bounded time and memory per byte").
 
-    benchmarks/hostile_matrix.py [--frames N] [--out DIR]
+    benchmarks/hostile_matrix.py [--frames N] [--out DIR] [--commands NAME,...]
 
 The tlogs (N frames each, 200,000 by default; pymavlink packs the frames, seeded): every frame from a
 random one of the 65,025 senders with a random sequence number, and
@@ -84,15 +84,17 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=200_000)
     ap.add_argument("--out", type=Path, default=Path(__file__).parent / "out")
+    ap.add_argument("--commands", help="only these commands (their first words, comma-separated: stats,export)")
     args = ap.parse_args()
+    commands = COMMANDS if not args.commands else [c for c in COMMANDS if c.split()[0] in args.commands.split(",")]
     args.out.mkdir(parents=True, exist_ok=True)
     mavscope = str(Path(sys.executable).parent / "mavscope")
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
-    print("| capture | MB | " + " | ".join(f"`{c.split()[0]}`" for c in COMMANDS) + " |")
-    print("|---|---:|" + "---:|" * len(COMMANDS))
+    print("| capture | MB | " + " | ".join(f"`{c.split()[0]}`" for c in commands) + " |")
+    print("|---|---:|" + "---:|" * len(commands))
     for path in _tlogs(args.frames, args.out):
         cells = []
-        for command in COMMANDS:
+        for command in commands:
             with tempfile.TemporaryDirectory() as tmp:
                 words = command.format(ds=Path(tmp) / "ds").split()
                 timing = Path(tmp) / "time"
