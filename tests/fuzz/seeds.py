@@ -106,6 +106,7 @@ def wpa_seed() -> bytes:
 
 def _pcap(pkts: list, name: str) -> bytes:  # type: ignore[type-arg]
     """The bytes of a pcap of scapy's `pkts` (written by scapy to a scratch file)."""
+    # not builders.pcap_bytes: scapy's own writer, each packet's time and the link type taken from scapy's layers
     from scapy.utils import wrpcap
 
     path = ROOT / ".cache" / "fuzz" / f"{name}.tmp"

@@ -13,26 +13,14 @@ from mavscope.capture.base import LINKTYPE_MAVLINK_RAW, LINKTYPE_MAVLINK_TLOG, R
 from mavscope.mavlink.dialect import Dialect, load_dialect
 from mavscope.mavlink.frame import Frame
 from mavscope.pipeline.dissect import Anomaly, Dissector
-from tests.support import pmav
+from tests.support.builders import mixed_frames
 
 _DIALECT: Dialect = load_dialect()
 _SETTINGS = settings(max_examples=150, deadline=None, derandomize=True,
                      suppress_health_check=[HealthCheck.too_slow])
 
 
-def _session() -> bytes:
-    mav = pmav.mav2()
-    mav.signing.secret_key = bytes(32)
-    parts = [pmav.heartbeat(mav), pmav.statustext(mav, "\xfd\xfe inside"), pmav.command_long_rtl(mav)]
-    mav.signing.sign_outgoing = True
-    mav.signing.timestamp = 1000
-    parts.append(pmav.heartbeat(mav))
-    v1 = pmav.mav1()
-    parts.append(v1.heartbeat_encode(2, 3, 81, 0, 4, 3).pack(v1))
-    return b"".join(parts)
-
-
-SESSION = _session()
+SESSION = b"".join(mixed_frames())
 
 
 @st.composite

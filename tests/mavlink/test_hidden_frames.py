@@ -22,6 +22,7 @@ from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import CrcStatus, Frame
 from mavscope.pipeline.dissect import Dissector
 from tests.support import pmav
+from tests.support.builders import mixed_frames
 from tests.support.cparser import CParser, require_c_parser
 
 ENCAPSULATED_DATA = 131  # 255-byte payload: room for a whole frame
@@ -195,14 +196,7 @@ def test_the_audit_and_stats_report_it(cli, tmp_path) -> None:  # type: ignore[n
 
 def _sessions() -> list[bytes]:
     """Frames to mutate: a vehicle's, a ground station's, a signed one, v1, and carriers holding frames."""
-    mav = pmav.mav2()
-    parts = [pmav.heartbeat(mav), pmav.statustext(mav, "\xfd\xfe inside"), pmav.command_long_rtl(mav)]
-    mav.signing.secret_key = bytes(32)
-    mav.signing.sign_outgoing = True
-    mav.signing.timestamp = 1000
-    parts.append(pmav.heartbeat(mav))
-    v1 = pmav.mav1()
-    parts.append(v1.heartbeat_encode(2, 3, 81, 0, 4, 3).pack(v1))
+    parts = mixed_frames()
     parts.append(carrier(arm()))
     parts.append(carrier(pmav.heartbeat(pmav.mav2()) + arm(), 0x80))
     return parts

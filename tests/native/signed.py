@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pymavlink.dialects.v20 import all as v2
 
 from tests.native import build as nh
-from tests.support.security import signer
+from tests.support.security import heartbeat, signer
 
 T0 = 1_773_482_400  # capture start, Unix seconds
 TS0 = (T0 - nh.SIGNING_EPOCH) * 100_000  # its signature timestamp
@@ -67,8 +67,8 @@ def signed_frame(secret: bytes, sysid: int, compid: int, link_id: int, timestamp
     """A frame pymavlink signs with `secret` at `timestamp`: HEARTBEAT, COMMAND_LONG or ATTITUDE."""
     mav = signer(secret, sysid, compid, link_id, timestamp)
     if kind == 0:
-        msg = mav.heartbeat_encode(6, 8, 192, 0, 4, 3)
-    elif kind == 1:
+        return heartbeat(mav)
+    if kind == 1:
         msg = mav.command_long_encode(1, 1, 400, 0, value, 0, 0, 0, 0, 0, 0)
     else:
         msg = mav.attitude_encode(int(timestamp) & 0xFFFFFFFF, value, -value, value / 3, 0.0, 0.5, -0.25)
@@ -76,8 +76,7 @@ def signed_frame(secret: bytes, sysid: int, compid: int, link_id: int, timestamp
 
 
 def unsigned_frame(sysid: int, compid: int) -> bytes:
-    mav = signer(None, sysid, compid)
-    return bytes(mav.heartbeat_encode(6, 8, 192, 0, 4, 3).pack(mav))
+    return heartbeat(signer(None, sysid, compid))
 
 
 def setup_signing_frame(secret: bytes, sysid: int = 255, compid: int = 190) -> bytes:

@@ -183,9 +183,10 @@ def heartbeat(mav: v2.MAVLink | v1.MAVLink, mav_type: int = 2, autopilot: int = 
     return bytes(mav.heartbeat_encode(mav_type, autopilot, base_mode, custom_mode, system_status, version).pack(mav))
 
 
-def gcs_heartbeat(mav: v2.MAVLink | v1.MAVLink, base_mode: int = 0) -> bytes:
-    """A ground station's HEARTBEAT (MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID)."""
-    return heartbeat(mav, 6, 8, base_mode)
+def gcs_heartbeat(mav: v2.MAVLink | v1.MAVLink | None = None, base_mode: int = 0) -> bytes:
+    """A ground station's HEARTBEAT (MAV_TYPE_GCS, MAV_AUTOPILOT_INVALID); without `mav`, the first frame of
+    a MAVLink 2 ground station 255/190 (sequence 0)."""
+    return heartbeat(mav or mav2(255, 190), 6, 8, base_mode)
 
 
 def command_long_msg(command: int = 400, *params: float, target_system: int = 1, target_component: int = 1,
@@ -202,6 +203,12 @@ def command_long(mav: v2.MAVLink | v1.MAVLink, command: int = 20, *params: float
     return bytes(mav.command_long_encode(target_system, target_component, command, confirmation, *p).pack(mav))
 
 
+def gcs_arm(arm: float = 1, mav: v2.MAVLink | v1.MAVLink | None = None) -> bytes:
+    """COMMAND_LONG MAV_CMD_COMPONENT_ARM_DISARM (400) to 1/1, param1 `arm` (1 arm, 0 disarm); without `mav`,
+    the first frame of a MAVLink 2 ground station 255/190 (sequence 0)."""
+    return command_long(mav or mav2(255, 190), 400, arm)
+
+
 def statustext(mav: v2.MAVLink | v1.MAVLink, text: str = "hello", severity: int = 6) -> bytes:
     return bytes(mav.statustext_encode(severity, text.encode()).pack(mav))
 
@@ -213,3 +220,15 @@ def attitude(mav: v2.MAVLink | v1.MAVLink, time_boot_ms: int = 0, roll: float = 
 
 def radio_status(mav: v2.MAVLink) -> bytes:
     return bytes(mav.radio_status_encode(200, 190, 100, 50, 40, 0, 0).pack(mav))
+
+
+def mixed_frames() -> list[bytes]:
+    """Frames of each kind a framer meets, from 1/1: a quadrotor's HEARTBEAT, a STATUSTEXT whose text holds
+    0xFD and 0xFE, COMMAND_LONG MAV_CMD_NAV_RETURN_TO_LAUNCH, a signed HEARTBEAT (key 32 zero bytes,
+    timestamp 1000) and a MAVLink 1 HEARTBEAT (MAV_TYPE_QUADROTOR, MAV_AUTOPILOT_ARDUPILOTMEGA, base mode 81)."""
+    mav = mav2()
+    parts = [heartbeat(mav), statustext(mav, "\xfd\xfe inside"), command_long(mav, 20)]
+    mav.signing.secret_key = bytes(32)
+    mav.signing.sign_outgoing = True
+    mav.signing.timestamp = 1000
+    return [*parts, heartbeat(mav), heartbeat(mav1(), 2, 3, 81)]

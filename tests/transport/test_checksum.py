@@ -25,20 +25,12 @@ from scapy.utils import checksum, rdpcap, wrpcap
 from mavscope.capture.detect import open_capture
 from mavscope.transport.checksum import PROTO_TCP, PROTO_UDP, Checksum, judge
 from mavscope.transport.decap import Decapsulator
-from tests.support.builders import command_long, gcs_heartbeat, mav2
+from tests.support.builders import gcs_arm, gcs_heartbeat
 
 MACS = {"src": "02:00:00:00:00:02", "dst": "02:00:00:00:00:01"}
 V4 = {"src": "10.0.0.2", "dst": "10.0.0.1"}
 V6 = {"src": "fd00::2", "dst": "fd00::1"}
 ENGINES = ({"MAVSCOPE_PURE": "0"}, {"MAVSCOPE_PURE": "1"})
-
-
-def heartbeat() -> bytes:
-    return gcs_heartbeat(mav2(255, 190))
-
-
-def arm(value: int) -> bytes:
-    return command_long(mav2(255, 190), 400, value)
 
 
 def pseudo_sum(src: bytes, dst: bytes, proto: int, length: int) -> int:
@@ -121,7 +113,7 @@ def test_real_loopback_captures_hold_offload_placeholders(real_captures: Path) -
 
 def udp_capture(path: Path) -> list[int | None]:
     """Eight datagrams with a HEARTBEAT each: their UDP checksum fields (None: left to scapy)."""
-    hb = heartbeat()
+    hb = gcs_heartbeat()
     n = 8 + len(hb)
     placeholder = pseudo_sum(bytes([10, 0, 0, 2]), bytes([10, 0, 0, 1]), PROTO_UDP, n)
     fields: list[int | None] = [None, 0x1234, 0, placeholder, None, 0, 0x4321, placeholder ^ 1]
@@ -155,7 +147,7 @@ def test_wrong_udp_checksums_are_noted_where_tshark_finds_them(cli, tmp_path: Pa
     del bad[4]  # scapy's pseudo-header sum, worked out in udp_capture
     bad[6] = bad[7]
     m = mavlink.MAVLink(None)
-    want = [(x.get_srcSystem(), x.get_msgId()) for x in m.parse_buffer(heartbeat())]
+    want = [(x.get_srcSystem(), x.get_msgId()) for x in m.parse_buffer(gcs_heartbeat())]
     for environ in ENGINES:
         frames = cli.jsonl(pcap, environ=environ)
         assert [(f["sysid"], f["msgid"]) for f in frames] == want * 8
@@ -173,7 +165,7 @@ def test_wrong_udp_checksums_are_noted_where_tshark_finds_them(cli, tmp_path: Pa
 def test_a_udp_length_past_the_packet_is_noted(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     """A UDP length 10 bytes past the IP packet's end (Linux drops it as a short packet): a malformed-packet
     note, the frame shown from the bytes there are, on both engines."""
-    raw = bytearray(bytes(Ether(**MACS) / IP(**V4) / UDP(sport=14550, dport=14555, chksum=0) / heartbeat()))
+    raw = bytearray(bytes(Ether(**MACS) / IP(**V4) / UDP(sport=14550, dport=14555, chksum=0) / gcs_heartbeat()))
     raw[38:40] = struct.pack("!H", len(raw) - 34 + 10)
     pcap = tmp_path / "long.pcap"
     wrpcap(str(pcap), [Ether(bytes(raw))])
@@ -190,11 +182,11 @@ def test_wrong_ipv4_header_checksums_are_noted_where_tshark_finds_them(cli, tmp_
     header checksum before the ARM: tshark's bad ones (ip.checksum.status 0) less the zeros are noted, with
     tshark's calculated value as the right one; the DISARM is left out (pymavlink's parse of the ARM); both
     engines agree; `audit` reports them."""
-    hb, ip = heartbeat(), IP(**V4)
+    hb, ip = gcs_heartbeat(), IP(**V4)
     pkts = [Ether(**MACS) / IP(**V4, chksum=c) / UDP(sport=14550, dport=14555) / hb for c in (None, 0x1234, 0)]
     pkts += [Ether(**MACS) / ip / TCP(sport=40000, dport=5760, flags="S", seq=999),
-             Ether(**MACS) / IP(**V4, chksum=0x4321) / TCP(sport=40000, dport=5760, flags="PA", seq=1000) / arm(0),
-             Ether(**MACS) / ip / TCP(sport=40000, dport=5760, flags="PA", seq=1000) / arm(1)]
+             Ether(**MACS) / IP(**V4, chksum=0x4321) / TCP(sport=40000, dport=5760, flags="PA", seq=1000) / gcs_arm(0),
+             Ether(**MACS) / ip / TCP(sport=40000, dport=5760, flags="PA", seq=1000) / gcs_arm(1)]
     pcap = tmp_path / "ip.pcap"
     wrpcap(str(pcap), pkts)
     judged = tshark_checksums(tshark_exe, pcap, "ip")
@@ -202,7 +194,7 @@ def test_wrong_ipv4_header_checksums_are_noted_where_tshark_finds_them(cli, tmp_
     assert sorted(bad) == [2, 3, 5]
     del bad[3]  # 0: left to the NIC
     m = mavlink.MAVLink(None)
-    want = [(x.get_msgId(), getattr(x, "param1", None)) for x in m.parse_buffer(hb * 3 + arm(1))]
+    want = [(x.get_msgId(), getattr(x, "param1", None)) for x in m.parse_buffer(hb * 3 + gcs_arm(1))]
     for environ in ENGINES:
         frames = cli.jsonl(pcap, environ=environ)
         assert [(f["msgid"], f["fields"].get("param1")) for f in frames] == want
@@ -221,7 +213,7 @@ def test_wrong_ipv4_header_checksums_are_noted_where_tshark_finds_them(cli, tmp_
 def tcp_packets(wrong: int | None) -> list[Ether]:
     """A SYN, an inserted DISARM at the ARM's sequence number (checksum `wrong`), the ARM, an inserted RST
     (same checksum) and a HEARTBEAT after the ARM: scapy computes the other checksums."""
-    a, d, hb = arm(1), arm(0), heartbeat()
+    a, d, hb = gcs_arm(1), gcs_arm(0), gcs_heartbeat()
     assert len(a) == len(d)
     ip = IP(**V4)
 
@@ -247,7 +239,7 @@ def test_an_inserted_segment_with_a_wrong_checksum_is_left_out(cli, tmp_path: Pa
     bad = {n: int(calc, 16) for n, status, calc in judged if status == "0"}
     assert sorted(bad) == [2, 4]
     m = mavlink.MAVLink(None)
-    want = [(x.get_msgId(), getattr(x, "param1", None)) for x in m.parse_buffer(arm(1) + heartbeat())]
+    want = [(x.get_msgId(), getattr(x, "param1", None)) for x in m.parse_buffer(gcs_arm(1) + gcs_heartbeat())]
     for environ in ENGINES:
         frames = cli.jsonl(pcap, environ=environ)
         assert [(f["msgid"], f["fields"].get("param1")) for f in frames] == want == [(76, 1.0), (0, None)]
@@ -270,7 +262,7 @@ def test_without_a_right_checksum_on_its_direction_a_segment_is_read(cli, tmp_pa
         p[TCP].chksum = 0xBEEF
     wrpcap(str(pcap), pkts)
     m = mavlink.MAVLink(None)
-    want = [(x.get_msgId(), getattr(x, "param1", None)) for x in m.parse_buffer(arm(0) + heartbeat())]
+    want = [(x.get_msgId(), getattr(x, "param1", None)) for x in m.parse_buffer(gcs_arm(0) + gcs_heartbeat())]
     frames = cli.jsonl(pcap)
     assert [(f["msgid"], f["fields"].get("param1")) for f in frames] == want == [(76, 0.0), (0, None)]
     status, out, _ = cli("audit", pcap, "--json")
@@ -296,7 +288,7 @@ def test_a_snapped_datagram_is_not_judged(v6: bool) -> None:
     from mavscope.capture.base import LINKTYPE_ETHERNET, Record
 
     raw = bytes(Ether(**MACS) / (IPv6(**V6) if v6 else IP(**V4)) / UDP(sport=14550, dport=14555, chksum=0x1234)
-                / heartbeat())
+                / gcs_heartbeat())
     d = Decapsulator()
     (p,) = d.feed(Record(1, 0.0, LINKTYPE_ETHERNET, raw[:-3], 0, len(raw)))
-    assert not p.notes and p.data == heartbeat()[:-3]
+    assert not p.notes and p.data == gcs_heartbeat()[:-3]

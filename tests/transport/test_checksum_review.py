@@ -18,7 +18,8 @@ from scapy.utils import checksum, wrpcap
 
 from mavscope.transport.checksum import PROTO_TCP, PROTO_UDP, Checksum, judge
 from mavscope.transport.decap import Decapsulator
-from tests.transport.test_checksum import ENGINES, MACS, V4, arm, heartbeat, pseudo_sum
+from tests.support.builders import gcs_arm, gcs_heartbeat
+from tests.transport.test_checksum import ENGINES, MACS, V4, pseudo_sum
 
 
 def insertion(inserted: Ether | bytes) -> list[Ether]:
@@ -29,12 +30,12 @@ def insertion(inserted: Ether | bytes) -> list[Ether]:
     def seg(flags: str, seq: int, data: bytes = b"") -> Ether:
         return Ether(**MACS) / ip / TCP(sport=40000, dport=5760, flags=flags, seq=seq) / data
 
-    a = arm(1)
-    return [seg("S", 999), Ether(bytes(inserted)), seg("PA", 1000, a), seg("PA", 1000 + len(a), heartbeat())]
+    a = gcs_arm(1)
+    return [seg("S", 999), Ether(bytes(inserted)), seg("PA", 1000, a), seg("PA", 1000 + len(a), gcs_heartbeat())]
 
 
 def disarm_segment(**ip: object) -> Ether:
-    return Ether(**MACS) / IP(**V4, **ip) / TCP(sport=40000, dport=5760, flags="PA", seq=1000) / arm(0)
+    return Ether(**MACS) / IP(**V4, **ip) / TCP(sport=40000, dport=5760, flags="PA", seq=1000) / gcs_arm(0)
 
 
 def refreshed(pkt: Ether, edit: slice, value: bytes) -> bytes:
@@ -108,7 +109,7 @@ INSERTIONS: dict[str, Callable[[], list[Ether]]] = {
     "fragments-wrong-header": lambda: _fragments(lambda f: _header(f, slice(10, 12), b"\x13\x57", fix=False)),
     "fragments-header-0": lambda: _fragments(lambda f: _header(f, slice(10, 12), b"\0\0", fix=False)),
     "fragments-total-length-0": lambda: _fragments(lambda f: _header(f, slice(2, 4), b"\0\0")),
-    "fragments-big-placeholder": lambda: _fragments(lambda f: f, arm(0) * 45),
+    "fragments-big-placeholder": lambda: _fragments(lambda f: f, gcs_arm(0) * 45),
     # Linux's ip_options_compile: an option whose length (1) is under 2 (tshark: an expert error on it)
     "ip-option-malformed": lambda: [disarm_segment(options=[IPOption(b"\x83\x01\x00\x00")])],
     "ip-option-pointer": lambda: [disarm_segment(options=[IPOption(b"\x07\x07\x02\x00\x00\x00\x00\x00")])],
@@ -130,7 +131,7 @@ def test_an_insertion_a_linux_receiver_drops_is_left_out(cli, tmp_path: Path, ki
     pcap = tmp_path / f"{kind}.pcap"
     wrpcap(str(pcap), pkts)
     m = mavlink.MAVLink(None)
-    want = [(x.get_msgId(), getattr(x, "param1", None)) for x in m.parse_buffer(arm(1) + heartbeat())]
+    want = [(x.get_msgId(), getattr(x, "param1", None)) for x in m.parse_buffer(gcs_arm(1) + gcs_heartbeat())]
     for environ in ENGINES:
         frames = cli.jsonl(pcap, environ=environ)
         assert [(f["msgid"], f["fields"].get("param1")) for f in frames] == want, (kind, environ)
@@ -143,7 +144,7 @@ def test_a_receivers_merge_keeps_the_placeholder_and_is_read(cli, tmp_path: Path
     """Linux's GRO leaves the pseudo-header's sum on the segments it merged (tcp_gro_complete), in a capture
     taken on the receiver: a segment larger than one Ethernet frame holds, and than any with a right
     checksum on its direction, is read without a note; the same placeholder on a small one is not."""
-    hb = heartbeat()
+    hb = gcs_heartbeat()
     big = hb * 80  # 1,680 bytes: two segments' worth
     ip = IP(**V4)
 
@@ -201,12 +202,12 @@ def test_a_right_header_checksum_of_0_is_right(cli, tmp_path: Path) -> None:  # 
     """Once in 65,535 headers the right IPv4 header checksum is 0x0000 (scapy: an IP id found for it): on a
     checked direction that segment is read like any other, with no note."""
     ident = next(i for i in range(65536) if IP(bytes(IP(**V4, id=i) / TCP(sport=40000, dport=5760, flags="PA",
-                                                                               seq=1000) / arm(1))).chksum == 0)
-    a = arm(1)
+                                                                               seq=1000) / gcs_arm(1))).chksum == 0)
+    a = gcs_arm(1)
     ip = IP(**V4)
     pkts = [Ether(**MACS) / ip / TCP(sport=40000, dport=5760, flags="S", seq=999),
             Ether(**MACS) / IP(**V4, id=ident) / TCP(sport=40000, dport=5760, flags="PA", seq=1000) / a,
-            Ether(**MACS) / ip / TCP(sport=40000, dport=5760, flags="PA", seq=1000 + len(a)) / heartbeat()]
+            Ether(**MACS) / ip / TCP(sport=40000, dport=5760, flags="PA", seq=1000 + len(a)) / gcs_heartbeat()]
     assert bytes(pkts[1])[24:26] == b"\0\0"
     pcap = tmp_path / "zero.pcap"
     wrpcap(str(pcap), pkts)
@@ -219,7 +220,7 @@ def test_a_right_header_checksum_of_0_is_right(cli, tmp_path: Path) -> None:  # 
 def test_a_new_connection_on_a_loopback_starts_unknown(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     """On a loopback the kernel's own RST has a right checksum while the connections' segments hold
     placeholders: a later connection on the same 4-tuple, all placeholders, is read whole, with no note."""
-    hb = heartbeat()
+    hb = gcs_heartbeat()
     lo = {"src": "127.0.0.1", "dst": "127.0.0.1"}
 
     def seg(flags: str, seq: int, data: bytes = b"", placeholder: bool = True) -> Ether:
@@ -239,7 +240,7 @@ def test_a_new_connection_on_a_loopback_starts_unknown(cli, tmp_path: Path) -> N
 def test_a_large_send_with_no_length_is_read(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     """Windows' LSOv2 gives its NIC a packet larger than a frame with IPv4 total length 0 (a sender's capture):
     not a length that lies; the frames in it are read (pymavlink's parse of its payload)."""
-    payload = heartbeat() * 100
+    payload = gcs_heartbeat() * 100
     raw = bytearray(bytes(Ether(**MACS) / IP(**V4) / UDP(sport=14550, dport=14555, chksum=0) / payload))
     raw[16:18] = b"\0\0"
     pcap = tmp_path / "lso.pcap"
@@ -263,7 +264,7 @@ def test_ipv4_options_that_parse_are_read(cli, tmp_path: Path) -> None:  # type:
     """Options that parse (a NOP and a router alert; a record-route with its pointer right): the packet's
     frames are read on both engines (scapy builds the options, pymavlink parses the payload)."""
     options = [IPOption(b"\x01"), IPOption(b"\x94\x04\x00\x00"), IPOption(b"\x07\x07\x04\x00\x00\x00\x00")]
-    pkt = Ether(**MACS) / IP(**V4, options=options) / UDP(sport=14550, dport=14555) / heartbeat()
+    pkt = Ether(**MACS) / IP(**V4, options=options) / UDP(sport=14550, dport=14555) / gcs_heartbeat()
     assert len(bytes(pkt[IP])) - len(bytes(pkt[UDP])) == 32
     pcap = tmp_path / "options.pcap"
     wrpcap(str(pcap), [pkt])

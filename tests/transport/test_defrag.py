@@ -33,20 +33,14 @@ from mavscope.pipeline.dissect import Dissector
 from mavscope.transport.base import Payload
 from mavscope.transport.decap import Decapsulator
 from mavscope.transport.defrag import FRAGMENT_COST, MAX_DIST, QUEUE_COST, TIMEOUT_V4, TIMEOUT_V6, Defragmenter
+from tests.support.builders import gcs_arm, gcs_heartbeat
 from tests.support.cost import lines_run
 
 MACS = {"src": "02:00:00:00:00:02", "dst": "02:00:00:00:00:01"}
 GCS, VEHICLE = "10.0.0.2", "10.0.0.1"
 
 
-def frames_bytes() -> bytes:
-    """A HEARTBEAT, an ARM COMMAND_LONG, a HEARTBEAT and a disarm, as pymavlink packs them."""
-    gcs = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
-    out = b""
-    for arm in (1, 0):
-        out += gcs.heartbeat_encode(6, 8, 0, 0, 4).pack(gcs)
-        out += gcs.command_long_encode(1, 1, 400, 0, arm, 0, 0, 0, 0, 0, 0).pack(gcs)
-    return out
+FRAMES = gcs_heartbeat() + gcs_arm(1) + gcs_heartbeat() + gcs_arm(0)  # a ground station's, as pymavlink packs them
 
 
 def pymavlink_frames(payload: bytes) -> list[tuple[int, int, int, int]]:
@@ -96,7 +90,7 @@ def datagram(payload: bytes, v6: bool = False) -> tuple[bytes, list[bytes]]:
 @pytest.mark.parametrize("v6", [False, True], ids=["ipv4", "ipv6"])
 @pytest.mark.parametrize("order", ["in-order", "reversed", "shuffled"])
 def test_a_datagram_is_whole_in_any_order(v6: bool, order: str) -> None:
-    whole, frags = datagram(frames_bytes(), v6)
+    whole, frags = datagram(FRAMES, v6)
     assert len(frags) >= 4
     numbered = list(enumerate(frags, 1))
     if order == "reversed":
@@ -106,7 +100,7 @@ def test_a_datagram_is_whole_in_any_order(v6: bool, order: str) -> None:
     out = run([record(n, f) for n, f in numbered])
     assert len(out) == 1 and not out[0].notes
     p = out[0]
-    assert p.data == whole[8:] == frames_bytes()  # the UDP payload scapy built
+    assert p.data == whole[8:] == FRAMES  # the UDP payload scapy built
     assert p.record == numbered[-1][0]  # where the datagram is complete (tshark shows it there too)
     assert p.span == tuple(range(1, len(frags) + 1)) and p.offset is None
     assert (str(p.src), str(p.dst)) == (("[fd00::2]:14550", "[fd00::1]:14555") if v6 else
@@ -116,7 +110,7 @@ def test_a_datagram_is_whole_in_any_order(v6: bool, order: str) -> None:
 def test_frames_of_a_fragmented_datagram(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     """`read` shows the frames pymavlink parses from the whole datagram, at the record that completes it,
     reassembled from every fragment's record; `-w` writes those records, which reassemble again."""
-    payload = frames_bytes()
+    payload = FRAMES
     _, frags = datagram(payload)
     pcap = tmp_path / "frag.pcap"
     hb = bytes(Ether(**MACS) / IP(src=VEHICLE, dst=GCS) / UDP(sport=14555, dport=14550) / payload[:21])
@@ -137,7 +131,7 @@ def test_frames_of_a_fragmented_datagram(cli, tmp_path: Path) -> None:  # type: 
 def test_tshark_reassembles_to_the_same_frames(tmp_path: Path, tshark_exe: str, lua_dissector: Path) -> None:
     from tests.support import tshark
 
-    payload = frames_bytes()
+    payload = FRAMES
     pcap = tmp_path / "frag.pcap"
     _, frags4 = datagram(payload)
     _, frags6 = datagram(payload, v6=True)
@@ -371,7 +365,7 @@ def test_a_snapped_fragment_is_said_to_be_incomplete_in_the_capture() -> None:
 
 def test_both_engines_agree_on_fragments(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     """The native walker hands every fragment to Python: read and stats are the same with MAVSCOPE_PURE."""
-    payload = frames_bytes()
+    payload = FRAMES
     _, frags4 = datagram(payload)
     _, frags6 = datagram(payload, v6=True)
     hb = bytes(Ether(**MACS) / IP(src=VEHICLE, dst=GCS) / UDP(sport=14555, dport=14550) / payload[:21])
@@ -429,8 +423,8 @@ def test_any_cut_in_any_order_with_repeats_gives_the_datagram(data: st.DataObjec
     without one of its fragments it never is, and one `ip-fragment` note says so at the end. The expected
     bytes are the datagram's own."""
     v6 = data.draw(st.booleans(), "v6")
-    whole = (head6(frames_bytes()) if v6 else HEAD[:4] + struct.pack("!H", 8 + len(frames_bytes())) + HEAD[6:]
-             ) + frames_bytes()
+    whole = (head6(FRAMES) if v6 else HEAD[:4] + struct.pack("!H", 8 + len(FRAMES)) + HEAD[6:]
+             ) + FRAMES
     cuts = sorted(data.draw(st.sets(st.integers(1, (len(whole) - 1) // 8), min_size=1, max_size=12), "cuts"))
     bounds = [0, *(c * 8 for c in cuts), len(whole)]
     pieces = [(a, whole[a:b], b == len(whole)) for a, b in zip(bounds, bounds[1:])]
@@ -486,7 +480,7 @@ def test_hostile_fragments_never_raise_and_stay_within_the_hold(frags: list[tupl
 def test_a_frame_in_many_fragments_names_the_first_records(cli, tmp_path: Path) -> None:  # type: ignore[no-untyped-def]
     """`read -V` names 8 of a frame's records and counts the rest (each frame of a datagram in thousands of
     fragments named them all: 74 MB of text for a 268 kB capture)."""
-    whole = HEAD[:4] + struct.pack("!H", 8 + len(frames_bytes())) + HEAD[6:] + frames_bytes()
+    whole = HEAD[:4] + struct.pack("!H", 8 + len(FRAMES)) + HEAD[6:] + FRAMES
     cuts = list(range(0, len(whole), 8))
     pcap = tmp_path / "many.pcap"
     wrpcap(str(pcap), [Ether(raw4(a, whole[a:a + 8], a + 8 < len(whole))) for a in cuts])

@@ -24,19 +24,17 @@ from scapy.utils import wrpcap
 from mavscope.capture.base import LINKTYPE_ETHERNET, Record
 from mavscope.transport.decap import Decapsulator
 from mavscope.transport.tunnel import MAX_DEPTH
+from tests.support.builders import gcs_arm, gcs_heartbeat
 
 MAC = {"src": "02:00:00:00:00:02", "dst": "02:00:00:00:00:01"}
 OUTER = IP(src="10.0.0.2", dst="10.0.0.1")
 
 
-def frames_bytes() -> bytes:
-    gcs = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
-    return gcs.heartbeat_encode(6, 8, 0, 0, 4).pack(gcs) + gcs.command_long_encode(
-        1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0).pack(gcs)
+FRAMES = gcs_heartbeat() + gcs_arm(1)  # a ground station's HEARTBEAT and ARM, as pymavlink packs them
 
 
 def inner() -> Packet:
-    return IP(src="172.17.0.2", dst="172.17.0.3") / UDP(sport=14550, dport=14555) / frames_bytes()
+    return IP(src="172.17.0.2", dst="172.17.0.3") / UDP(sport=14550, dport=14555) / FRAMES
 
 
 TUNNELS = {
@@ -47,7 +45,7 @@ TUNNELS = {
     "gre bridging ethernet": Ether(**MAC) / OUTER / GRE(proto=0x6558) / Ether(**MAC) / inner(),
     "vxlan": Ether(**MAC) / OUTER / UDP(sport=5555, dport=4789) / VXLAN(vni=42) / Ether(**MAC) / inner(),
     "ipv6 in ipv4": Ether(**MAC) / OUTER / IPv6(src="fd00::2", dst="fd00::3") / UDP(sport=14550, dport=14555)
-    / frames_bytes(),
+    / FRAMES,
 }
 
 
@@ -59,7 +57,7 @@ def feed(pkt: Packet | bytes) -> list:
 @pytest.mark.parametrize("name", TUNNELS)
 def test_the_inner_datagram_is_read(name: str) -> None:
     out = feed(TUNNELS[name])
-    assert len(out) == 1 and out[0].data == frames_bytes() and not out[0].notes
+    assert len(out) == 1 and out[0].data == FRAMES and not out[0].notes
     want = ("[fd00::2]:14550", "[fd00::3]:14555") if "ipv6" in name else ("172.17.0.2:14550", "172.17.0.3:14555")
     assert (str(out[0].src), str(out[0].dst)) == want
 
@@ -68,8 +66,8 @@ def test_what_is_no_tunnel_or_does_not_fit() -> None:
     """VXLAN's I flag clear: no VXLAN, the datagram is read as any UDP (scanned for MAVLink). GRE version 1
     (PPTP) carries PPP: passed over. A GRE header whose flags announce a key that is not there, and tunnels
     nested past MAX_DEPTH, are one note."""
-    plain = Ether(**MAC) / OUTER / UDP(sport=5555, dport=4789) / (bytes(8) + frames_bytes())
-    assert feed(plain)[0].data == bytes(8) + frames_bytes()
+    plain = Ether(**MAC) / OUTER / UDP(sport=5555, dport=4789) / (bytes(8) + FRAMES)
+    assert feed(plain)[0].data == bytes(8) + FRAMES
     assert feed(Ether(**MAC) / OUTER / Raw(b"\x30\x01\x88\x0b" + bytes(12))) == []  # proto 0 inside IP: ignored
     pptp = bytes(Ether(**MAC) / IP(src="10.0.0.2", dst="10.0.0.1", proto=47) / Raw(b"\x30\x01\x88\x0b" + bytes(8)))
     assert feed(pptp) == []
@@ -83,13 +81,13 @@ def test_what_is_no_tunnel_or_does_not_fit() -> None:
     nested = inner()
     for _ in range(MAX_DEPTH):
         nested = IP(src="10.0.0.2", dst="10.0.0.1") / nested
-    assert feed(Ether(**MAC) / nested)[0].data == frames_bytes()
+    assert feed(Ether(**MAC) / nested)[0].data == FRAMES
 
 
 def expected_frames() -> list[tuple[int, int, int, int]]:
     """(record, sysid, compid, msgid) of what pymavlink parses from the inner payload, in each record."""
     parsed = [(f.get_srcSystem(), f.get_srcComponent(), f.get_msgId())
-              for f in mavlink.MAVLink(None).parse_buffer(frames_bytes())]
+              for f in mavlink.MAVLink(None).parse_buffer(FRAMES)]
     return [(n, *p) for n in range(1, len(TUNNELS) + 1) for p in parsed]
 
 

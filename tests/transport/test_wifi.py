@@ -24,21 +24,19 @@ from scapy.utils import wrpcap
 
 from mavscope.capture.base import LINKTYPE_IEEE802_11, LINKTYPE_IEEE802_11_RADIOTAP, Record
 from mavscope.transport.decap import Decapsulator
+from tests.support.builders import gcs_arm, gcs_heartbeat
 
 AP, STA = "02:00:00:00:00:01", "02:00:00:00:00:02"
 
 
-def frames_bytes() -> bytes:
-    gcs = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
-    return gcs.heartbeat_encode(6, 8, 0, 0, 4).pack(gcs) + gcs.command_long_encode(
-        1, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0).pack(gcs)
+FRAMES = gcs_heartbeat() + gcs_arm(1)  # a ground station's HEARTBEAT and ARM, as pymavlink packs them
 
 
 def ip() -> Packet:
     """IP and UDP with their lengths set, so that bytes after them (an FCS) are not theirs."""
-    n = len(frames_bytes())
+    n = len(FRAMES)
     return IP(src="192.168.4.2", dst="192.168.4.1", len=28 + n) / UDP(sport=14550, dport=14555, len=8 + n) / \
-        frames_bytes()
+        FRAMES
 
 
 def data(fc: str = "to_DS", subtype: int = 0) -> Packet:
@@ -46,7 +44,7 @@ def data(fc: str = "to_DS", subtype: int = 0) -> Packet:
                  else None)
 
 
-READABLE = {  # what each readable frame is: the frames in it are pymavlink's parse of frames_bytes()
+READABLE = {  # what each readable frame is: the frames in it are pymavlink's parse of FRAMES
     "data": RadioTap() / data() / LLC() / SNAP() / ip(),
     "qos data": RadioTap() / data(subtype=8) / Dot11QoS() / LLC() / SNAP() / ip(),
     "four addresses (a mesh or WDS hop)": RadioTap() / data("to_DS+from_DS") / LLC() / SNAP() / ip(),
@@ -65,7 +63,7 @@ SILENT = {"beacon": RadioTap() / Dot11(type=0, subtype=8) / Raw(b"beacon"),
 
 def pymavlink_frames() -> list[tuple[int, int, int]]:
     return [(f.get_srcSystem(), f.get_srcComponent(), f.get_msgId())
-            for f in mavlink.MAVLink(None).parse_buffer(frames_bytes())]
+            for f in mavlink.MAVLink(None).parse_buffer(FRAMES)]
 
 
 def feed(pkt: Packet, linktype: int = LINKTYPE_IEEE802_11_RADIOTAP) -> list:
@@ -76,10 +74,10 @@ def feed(pkt: Packet, linktype: int = LINKTYPE_IEEE802_11_RADIOTAP) -> list:
 @pytest.mark.parametrize("name", READABLE)
 def test_data_frames_carry_their_udp(name: str) -> None:
     out = feed(READABLE[name])
-    assert len(out) == 1 and out[0].data == frames_bytes() and not out[0].notes
+    assert len(out) == 1 and out[0].data == FRAMES and not out[0].notes
     assert (str(out[0].src), str(out[0].dst)) == ("192.168.4.2:14550", "192.168.4.1:14555")
     bare = feed(READABLE[name][Dot11], LINKTYPE_IEEE802_11)  # link type 105: the same frame, no radio header
-    assert bare[0].data == frames_bytes()
+    assert bare[0].data == FRAMES
 
 
 def amsdu(*packets: bytes, radio: Packet | None = None, fcs: bool = False) -> Packet:
@@ -99,20 +97,20 @@ def test_radiotap_padding_and_fcs() -> None:
     0x10, the frame ends with its 4-byte FCS, which is no A-MSDU subframe (tshark reads both so)."""
     padded = RadioTap(present="Flags", Flags="pad") / data(subtype=8) / Dot11QoS() / Raw(b"\x00\x00") / LLC() \
         / SNAP() / ip()
-    assert [p.data for p in feed(padded)] == [frames_bytes()]
+    assert [p.data for p in feed(padded)] == [FRAMES]
     with_fcs = amsdu(bytes(ip()), radio=RadioTap(present="Flags", Flags="FCS"), fcs=True)
     out = feed(with_fcs)
-    assert [p.data for p in out] == [frames_bytes()] and not out[0].notes
+    assert [p.data for p in out] == [FRAMES] and not out[0].notes
 
 
 def test_an_amsdu_carries_each_of_its_packets() -> None:
-    other = IP(src="192.168.4.3", dst="192.168.4.1") / UDP(sport=14551, dport=14555) / frames_bytes()[:21]
+    other = IP(src="192.168.4.3", dst="192.168.4.1") / UDP(sport=14551, dport=14555) / FRAMES[:21]
     out = feed(amsdu(bytes(ip()), bytes(other)))
-    assert [(p.data, str(p.src)) for p in out] == [(frames_bytes(), "192.168.4.2:14550"),
-                                                  (frames_bytes()[:21], "192.168.4.3:14551")]
+    assert [(p.data, str(p.src)) for p in out] == [(FRAMES, "192.168.4.2:14550"),
+                                                  (FRAMES[:21], "192.168.4.3:14551")]
     cut = bytes(amsdu(bytes(ip()), bytes(other)))[:-10]
     out = Decapsulator().feed(Record(1, 1.0, LINKTYPE_IEEE802_11_RADIOTAP, cut, 0, len(cut)))
-    assert out[0].data == frames_bytes() and [n.code for n in out[0].notes] == ["malformed-packet"]
+    assert out[0].data == FRAMES and [n.code for n in out[0].notes] == ["malformed-packet"]
     assert "A-MSDU subframe of 57 bytes cut short" in out[0].notes[0].message  # 8 + 20 + 8 + 21
 
 
@@ -131,7 +129,7 @@ def test_frames_without_ip_are_passed_over(name: str) -> None:
 def every_kind(path: Path) -> tuple[Path, list[tuple[int, int, int, int]]]:
     """A pcap of every frame above, and the (record, sysid, compid, msgid) of the frames pymavlink parses from
     the readable ones' UDP payloads (the A-MSDU's second packet is the HEARTBEAT alone)."""
-    other = IP(src="192.168.4.3", dst="192.168.4.1") / UDP(sport=14551, dport=14555) / frames_bytes()[:21]
+    other = IP(src="192.168.4.3", dst="192.168.4.1") / UDP(sport=14551, dport=14555) / FRAMES[:21]
     pkts = [*READABLE.values(), amsdu(bytes(ip()), bytes(other)), *(p for p, _ in UNREADABLE.values()),
             *SILENT.values()]
     wrpcap(str(path), pkts)

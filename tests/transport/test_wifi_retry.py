@@ -30,10 +30,6 @@ from tests.support.builders import gcs_heartbeat, mav2
 AP, STA, STA2 = "02:00:00:00:00:01", "02:00:00:00:00:02", "02:00:00:00:00:03"
 
 
-def heartbeat(seq: int) -> bytes:
-    return gcs_heartbeat(mav2(255, 190, seq))
-
-
 def frame(a1: str, a2: str, sn: int, seq: int, retry: bool = False, tid: int | None = None,
           flags: str = "") -> Packet:
     """A data frame from `a2` to `a1` with 802.11 sequence number `sn`, carrying the HEARTBEAT of MAVLink
@@ -42,7 +38,7 @@ def frame(a1: str, a2: str, sn: int, seq: int, retry: bool = False, tid: int | N
     d = Dot11(type=2, subtype=8 if tid is not None else 0, FCfield=fc, addr1=a1, addr2=a2, addr3=AP, SC=sn << 4)
     if tid is not None:
         d = d / Dot11QoS(TID=tid)
-    body = heartbeat(seq)
+    body = gcs_heartbeat(mav2(255, 190, seq))
     return RadioTap() / d / LLC() / SNAP() / IP(src="192.168.4.2", dst="192.168.4.1") / UDP(
         sport=14550, dport=14555) / body
 
@@ -172,7 +168,7 @@ def relay_pair(sta: str, sn: int, seq: int, da: str = STA2) -> list[Packet]:
     """`sta`'s packet for `da` sent to the access point (To DS: Address 3 the destination), and the access
     point's relay of it (From DS: Address 3 the source): one MSDU, twice on the air (IEEE 802.11-2016 5.7,
     the distribution system's service)."""
-    body = heartbeat(seq)
+    body = gcs_heartbeat(mav2(255, 190, seq))
     ip_udp = LLC() / SNAP() / IP(src="192.168.4.2", dst="192.168.4.3") / UDP(sport=14550, dport=14555) / body
     up = RadioTap() / Dot11(type=2, FCfield="to_DS", addr1=AP, addr2=sta, addr3=da, SC=sn << 4) / ip_udp
     down = RadioTap() / Dot11(type=2, FCfield="from_DS", addr1=da, addr2=AP, addr3=sta, SC=(sn + 1) << 4) / ip_udp
