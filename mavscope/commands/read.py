@@ -28,6 +28,7 @@ from mavscope.native.core import NATIVE
 
 if TYPE_CHECKING:
     from mavscope.output.capture_out import FrameWriter, Written
+    from mavscope.output.fields_out import FieldsWriter
     from mavscope.pipeline.session import Session
 
 
@@ -39,8 +40,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_key_options(p)
     p.add_argument("-V", dest="verbose", action="store_true", help="print the detail tree of every frame")
     p.add_argument("-x", dest="hex", action="store_true", help="print a hex dump of every frame")
-    p.add_argument("-T", dest="format", choices=("text", "json", "jsonl"), default="text",
-                   help="output format (default text)")
+    p.add_argument("-T", dest="format", choices=("text", "json", "jsonl", "fields"), default="text",
+                   help="output format (default text; fields: the -e fields, as tshark -T fields prints them)")
+    p.add_argument("-e", dest="fields", action="append", default=[], metavar="FIELD",
+                   help="with -T fields: a field to print (any registry name, e.g. mavlink.seq, ATTITUDE.roll, "
+                        "mavlink_proto.sysid); repeat for more columns")
+    p.add_argument("-E", dest="field_options", action="append", default=[], metavar="OPTION=VALUE",
+                   help="with -T fields: header=y|n, separator=/t|/s|C, quote=d|s|n, occurrence=f|l|a, "
+                        "aggregator=/s|C (as tshark's -E)")
     p.add_argument("-c", dest="count", type=whole_number(1, " of frames"), metavar="N", help="stop after N frames")
     add_output_option(p, "-w", dest="write", metavar="OUT", kind=OutputKind.BINARY,
                       help="write the capture records holding the shown frames (.pcapng, .tlog by the name; pcap "
@@ -54,6 +61,11 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     # asked for as well is refused, as tshark refuses "-w - -V": both cannot go to standard output
     asked = "-V" if args.verbose else "-x" if args.hex else f"-T {args.format}" if args.format != "text" else None
     check_outputs(args, env, stdout_used=asked)
+    if (args.fields or args.field_options) and args.format != "fields":
+        raise UsageError('read: -e and -E are for -T fields (tshark: "-e" was specified, but the output format is '
+                         'not "fields")')
+    if args.format == "fields" and not args.fields:
+        raise UsageError("read: -T fields prints the fields named with -e FIELD: name at least one")
     records_out = binary_stdout(env) if args.write == STDOUT else None
     if records_out is not None:
         args.quiet = True
@@ -85,8 +97,8 @@ def _run_python(args: argparse.Namespace, env: Env, session: Session, records_ou
         out_file = records_out if records_out is not None and frame_writer is None else \
             files.enter_context(open_output(args.write)) if args.write and frame_writer is None else None
         update, stop = progress(env, session.reader)
-        printer = FramePrinter(env.stdout, out_b, dialect, args.format, verbose=args.verbose, hex=args.hex,
-                               quiet=args.quiet, t0=t0)
+        printer = _fields_writer(args, env, session) if args.format == "fields" else FramePrinter(
+            env.stdout, out_b, dialect, args.format, verbose=args.verbose, hex=args.hex, quiet=args.quiet, t0=t0)
         show = printer.frame
         problems = Problems(env, name)
         try:
@@ -117,6 +129,24 @@ def _run_python(args: argparse.Namespace, env: Env, session: Session, records_ou
         if out_file is not None:
             written = write_records(path, args.write, shown_records, out_file)
     return written
+
+
+def _fields_writer(args: argparse.Namespace, env: Env, session: Session) -> FieldsWriter | _Quiet:
+    """The -T fields writer of the -e fields and -E options (nothing printed with -q)."""
+    from mavscope.fields.registry import FieldRegistry
+    from mavscope.output.fields_out import FieldsWriter, parse_format
+
+    writer = FieldsWriter(env.stdout, FieldRegistry(session.dialect), args.fields,
+                          parse_format(args.field_options))
+    return _Quiet() if args.quiet else writer
+
+
+class _Quiet:
+    """-q: the frames are read, counted and written with -w, nothing printed."""
+
+    def begin(self) -> None: ...
+    def frame(self, _frame: object) -> None: ...
+    def end(self) -> None: ...
 
 
 def _native_eligible(args: argparse.Namespace, env: Env, session: Session) -> bool:
