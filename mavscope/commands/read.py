@@ -53,10 +53,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                       help="write the capture records holding the shown frames (.pcapng, .tlog by the name; pcap "
                            "otherwise and for -; with - nothing else is printed on standard output, as tshark's)")
     p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w)")
+    p.add_argument("-G", dest="glossary", choices=("fields", "values"),
+                   help="print a glossary instead of reading a capture, as tshark -G prints it: fields (every "
+                        "field's name, type and description) or values (the named values of integer fields)")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    if args.glossary:
+        return _glossary(args, env)
     # -w - writes the records to standard output and prints no frame there (tshark's -w -); a frame output
     # asked for as well is refused, as tshark refuses "-w - -V": both cannot go to standard output
     asked = "-V" if args.verbose else "-x" if args.hex else f"-T {args.format}" if args.format != "text" else None
@@ -129,6 +134,20 @@ def _run_python(args: argparse.Namespace, env: Env, session: Session, records_ou
         if out_file is not None:
             written = write_records(path, args.write, shown_records, out_file)
     return written
+
+
+def _glossary(args: argparse.Namespace, env: Env) -> ExitStatus:
+    """`read -G fields|values` (no capture read): the loaded dialect's fields or named values."""
+    from mavscope.mavlink.dialect import load_dialect
+    from mavscope.output.glossary import fields_lines, values_lines
+
+    if args.file or args.file_opt:
+        raise UsageError("read: -G prints a glossary and reads no capture: give no FILE")
+    lines = fields_lines if args.glossary == "fields" else values_lines
+    out = env.stdout
+    for line in lines(load_dialect(tuple(args.dialect))):
+        out.write(line + "\n")
+    return ExitStatus.OK
 
 
 def _fields_writer(args: argparse.Namespace, env: Env, session: Session) -> FieldsWriter | _Quiet:
