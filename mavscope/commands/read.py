@@ -25,6 +25,8 @@ from mavscope.commands.common import (
 )
 from mavscope.errors import UsageError
 from mavscope.native.core import NATIVE
+from mavscope.output.timefmt import Clock, check_format
+from mavscope.pipeline.dissect import Anomaly
 
 if TYPE_CHECKING:
     from mavscope.output.capture_out import FrameWriter, Written
@@ -48,6 +50,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-E", dest="field_options", action="append", default=[], metavar="OPTION=VALUE",
                    help="with -T fields: header=y|n, separator=/t|/s|C, quote=d|s|n, occurrence=f|l|a, "
                         "aggregator=/s|C (as tshark's -E)")
+    p.add_argument("-t", dest="time_format", metavar="FORMAT", default="r",
+                   help="the time column of summary lines, as tshark's -t: r (relative, default), a, ad, adoy "
+                        "(absolute, local time), u, ud, udoy (UTC), e (epoch), d (since the previous frame), "
+                        "dd (since the previous shown frame)")
     p.add_argument("-c", dest="count", type=whole_number(1, " of frames"), metavar="N", help="stop after N frames")
     add_output_option(p, "-w", dest="write", metavar="OUT", kind=OutputKind.BINARY,
                       help="write the capture records holding the shown frames (.pcapng, .tlog by the name; pcap "
@@ -66,6 +72,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     # asked for as well is refused, as tshark refuses "-w - -V": both cannot go to standard output
     asked = "-V" if args.verbose else "-x" if args.hex else f"-T {args.format}" if args.format != "text" else None
     check_outputs(args, env, stdout_used=asked)
+    check_format(args.time_format)
     if (args.fields or args.field_options) and args.format != "fields":
         raise UsageError('read: -e and -E are for -T fields (tshark: "-e" was specified, but the output format is '
                          'not "fields")')
@@ -89,7 +96,6 @@ def _run_python(args: argparse.Namespace, env: Env, session: Session, records_ou
     """The frames of `session` through the Python pipeline: the printer, -w, -c, -q."""
     from mavscope.output.capture_out import open_output, write_records
     from mavscope.output.printer import FramePrinter
-    from mavscope.pipeline.dissect import Anomaly
 
     out_b = env.stdout_bytes
     limit = args.count if args.count is not None else -1
@@ -102,8 +108,11 @@ def _run_python(args: argparse.Namespace, env: Env, session: Session, records_ou
         out_file = records_out if records_out is not None and frame_writer is None else \
             files.enter_context(open_output(args.write)) if args.write and frame_writer is None else None
         update, stop = progress(env, session.reader)
-        printer = _fields_writer(args, env, session) if args.format == "fields" else FramePrinter(
-            env.stdout, out_b, dialect, args.format, verbose=args.verbose, hex=args.hex, quiet=args.quiet, t0=t0)
+        clock = Clock(args.time_format, t0)
+        session.record_hooks.append(lambda rec: clock.captured(rec.number, rec.time))  # every record's (-t d)
+        printer = _fields_writer(args, env, session, clock) if args.format == "fields" else FramePrinter(
+            env.stdout, out_b, dialect, args.format, verbose=args.verbose, hex=args.hex, quiet=args.quiet, t0=t0,
+            clock=clock if args.time_format != "r" else None)
         show = printer.frame
         problems = Problems(env, name)
         try:
@@ -150,13 +159,13 @@ def _glossary(args: argparse.Namespace, env: Env) -> ExitStatus:
     return ExitStatus.OK
 
 
-def _fields_writer(args: argparse.Namespace, env: Env, session: Session) -> FieldsWriter | _Quiet:
+def _fields_writer(args: argparse.Namespace, env: Env, session: Session, clock: Clock) -> FieldsWriter | _Quiet:
     """The -T fields writer of the -e fields and -E options (nothing printed with -q)."""
     from mavscope.fields.registry import FieldRegistry
     from mavscope.output.fields_out import FieldsWriter, parse_format
 
     writer = FieldsWriter(env.stdout, FieldRegistry(session.dialect), args.fields,
-                          parse_format(args.field_options))
+                          parse_format(args.field_options), clock)
     return _Quiet() if args.quiet else writer
 
 
@@ -173,7 +182,7 @@ def _native_eligible(args: argparse.Namespace, env: Env, session: Session) -> bo
     or -q) and the plain summary lines (`read FILE`, `-c N` too; no -V, -x, filter, -w or -q) written to a
     stream that is not a terminal and takes UTF-8; its output is byte-identical to the Python path's
     (docs/native.md)."""
-    if session.engine != NATIVE or args.display_filter or args.write or args.quiet:
+    if session.engine != NATIVE or args.display_filter or args.write or args.quiet or args.time_format != "r":
         return False
     if args.format == "jsonl":
         return args.count is None

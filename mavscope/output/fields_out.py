@@ -36,6 +36,7 @@ from mavscope.fields.registry import BYTES, MISSING, NONE, Field, FieldRegistry,
 from mavscope.mavlink.dialect import MessageDef
 from mavscope.mavlink.floats import f32_text
 from mavscope.mavlink.frame import Frame, decode_payload
+from mavscope.output.timefmt import TIME_FIELDS, Clock
 from mavscope.visible import visible
 
 OCCURRENCES = ("f", "l", "a")
@@ -149,14 +150,21 @@ def _accessor(registry: FieldRegistry, name: str) -> tuple[Values, bool, bool]:
     return header, False, field.name.startswith(RECORD_PREFIXES) and field.name not in PER_FRAME
 
 
+def _time_accessor(clock: Clock, name: str) -> tuple[Values, bool, bool]:
+    """`frame.time*` as tshark prints them (output.timefmt.Clock: the run's first time, the frames before)."""
+    return (lambda frame, _fields: [clock.field(name, frame)] if frame.time is not None else []), False, True
+
+
 class FieldsWriter:
     """Writes the fields lines of the frames given, a line per record (see the module docstring)."""
 
-    def __init__(self, out: IO[str], registry: FieldRegistry, names: Sequence[str], fmt: FieldsFormat) -> None:
+    def __init__(self, out: IO[str], registry: FieldRegistry, names: Sequence[str], fmt: FieldsFormat,
+                 clock: Clock | None = None) -> None:
         if not names:
             raise UsageError("-T fields: name at least one field with -e")
         self.out, self.names, self.fmt = out, list(names), fmt
-        got = [_accessor(registry, n) for n in names]
+        self.clock = clock = clock if clock is not None else Clock("r", None)
+        got = [_time_accessor(clock, n) if n in TIME_FIELDS else _accessor(registry, n) for n in names]
         self.accessors = [a for a, _, _ in got]
         self.decode = any(d for _, d, _ in got)
         self.per_record = [r for _, _, r in got]
@@ -176,6 +184,8 @@ class FieldsWriter:
         for got, accessor, per_record in zip(self.values, self.accessors, self.per_record):
             if first or not per_record:
                 got.extend(accessor(frame, fields))
+        if first:
+            self.clock.show(frame)
 
     def end(self) -> None:
         self._flush()

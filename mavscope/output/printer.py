@@ -12,6 +12,7 @@ from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
 from mavscope.output.jsonout import jsonl_bytes
 from mavscope.output.text import detail_text, hexdump, summary_line
+from mavscope.output.timefmt import Clock
 
 
 class FramePrinter:
@@ -29,6 +30,7 @@ class FramePrinter:
         hex: bool = False,  # noqa: A002 - the option is called -x / hex everywhere else
         quiet: bool = False,
         t0: float | None = None,
+        clock: Clock | None = None,
     ) -> None:
         self.out = out
         self.out_b = out_b
@@ -38,6 +40,7 @@ class FramePrinter:
         self.hex = hex
         self.quiet = quiet
         self.t0 = t0  # relative times in summary lines count from it (None: no relative time)
+        self.clock = clock  # read -t's time column (None: relative to t0)
         self.count = 0  # frames passed to frame()
 
     def begin(self) -> None:
@@ -55,7 +58,8 @@ class FramePrinter:
             self.out_b.write((b"\n" if self.count == 1 else b",\n") + jsonl_bytes(frame)[:-1])
         else:
             out = self.out
-            out.write(summary_line(frame, self.dialect, self.t0) + "\n")
+            when = self.clock.text(frame) if self.clock is not None else None
+            out.write(summary_line(frame, self.dialect, self.t0, time_text=when) + "\n")
             if self.verbose:
                 out.write(detail_text(frame, self.dialect) + "\n")
             if self.hex:

@@ -8,9 +8,13 @@ from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
 
 
-def summary_line(frame: Frame, dialect: Dialect, t0: float | None, fields: dict[str, object] | None = None) -> str:
-    """One tshark-like line: number, relative time, src -> dst, sysid/compid, seq, info."""
-    if frame.time is not None and t0 is not None:
+def summary_line(frame: Frame, dialect: Dialect, t0: float | None, fields: dict[str, object] | None = None,
+                 time_text: str | None = None) -> str:
+    """One tshark-like line: number, time (relative to `t0`, or `time_text`: read -t's column), src -> dst,
+    sysid/compid, seq, info."""
+    if time_text is not None:
+        t = time_text
+    elif frame.time is not None and t0 is not None:
         t = f"{frame.time - t0:11.6f}"
     else:
         t = f"{'-':>11}"

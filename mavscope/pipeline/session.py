@@ -103,6 +103,16 @@ class Session:
     walked: dict[str, int] = field(default_factory=dict)  # the native walker's counts (size...), when it ran
     environ: Mapping[str, str] | None = None  # the environment the engine is chosen by (MAVSCOPE_PURE)
     engine: str = PURE  # NATIVE where the native walker reads this capture: chosen here, once
+    # called with every capture record as the Python pipeline reads it (`items`), before its frames
+    record_hooks: list[Callable[[Record], object]] = field(default_factory=list)
+
+    def _watched(self, records: Iterator[Record]) -> Iterator[Record]:
+        """The records, each shown first to every hook of `record_hooks` (read -t d: every record's time)."""
+        hooks = self.record_hooks
+        for rec in records:
+            for hook in hooks:
+                hook(rec)
+            yield rec
 
     def _counted(self, items: Iterator[Frame | Anomaly]) -> Iterator[Frame | Anomaly]:
         for item in items:
@@ -177,5 +187,6 @@ def open_session(path: str, options: PipelineOptions, *, dialect: Dialect | None
         native = windows.available(environ) and reader.kind in windows.KINDS
         session = Session(path, reader, dialect, iter(()), security, flt, t0, environ=environ,
                           engine=NATIVE if native else PURE)
-        session.items = session._counted(security.run(Dissector(dialect, security.material.wifi).run(records)))
+        watched = session._watched(records)
+        session.items = session._counted(security.run(Dissector(dialect, security.material.wifi).run(watched)))
         yield session

@@ -13,6 +13,7 @@ the same value to tshark's precision. The captures hold several MAVLink frames i
 
 from __future__ import annotations
 
+import re
 import subprocess
 from pathlib import Path
 
@@ -31,11 +32,12 @@ OPTIONS = [("separator=,",), ("separator=/s", "occurrence=f"), ("occurrence=l", 
            ("header=y", "quote=d")]
 
 
-def _tshark_lines(exe: str, lua: Path, capture: Path, names: tuple[str, ...], options: tuple[str, ...]) -> list[str]:
+def _tshark_lines(exe: str, lua: Path, capture: Path, names: tuple[str, ...], options: tuple[str, ...],
+                  flt: str | None = None) -> list[str]:
     cmd = [exe, "-n", "-X", f"lua_script:{lua}", "-r", str(capture)]
     for port in sorted(tshark.mavlink_udp_ports(capture) - tshark.LUA_UDP_PORTS):
         cmd += ["-d", f"udp.port=={port},{tshark.LUA_PROTO}"]
-    cmd += ["-Y", tshark.LUA_PROTO, "-T", "fields", *(a for n in names for a in ("-e", n)),
+    cmd += ["-Y", flt or tshark.LUA_PROTO, "-T", "fields", *(a for n in names for a in ("-e", n)),
             *(a for o in options for a in ("-E", o))]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, check=False,
                           env=tshark._tshark_env(lua.parent))
@@ -96,3 +98,46 @@ def test_fields_options_are_checked(cli: Cli) -> None:
                         (("-T", "fields", "-e", "HEARTBEAT"), "a message, not a field")):
         got = cli("read", capture, *argv)
         assert got.status == 2 and words in got.err and got.out == "", (argv, got.err)
+
+
+TIME_FIELDS = ("frame.number", "frame.time", "frame.time_epoch", "frame.time_relative", "frame.time_delta",
+               "frame.time_delta_displayed")
+
+
+@pytest.mark.parametrize("flt", [None, "frame.number != 2 && frame.number != 7"])
+def test_time_fields_as_tshark_prints_them(flt: str | None, tshark_exe: str, lua_dissector: Path, cli: Cli) -> None:
+    """tshark's frame.time* fields (TZ=UTC on both), with and without a display filter (which changes
+    frame.time_delta_displayed, not frame.time_delta)."""
+    capture = CAPTURES / "px4_sitl_udp.pcap"
+    want = _tshark_lines(tshark_exe, lua_dissector, capture, TIME_FIELDS, (),
+                         f"{tshark.LUA_PROTO} && ({flt})" if flt else None)
+    got = cli("read", str(capture), *(("-Y", flt) if flt else ()), "-T", "fields",
+              *(a for n in TIME_FIELDS for a in ("-e", n)), environ={"TZ": "UTC"})
+    assert got.status == 0, got.err
+    assert got.out.splitlines() == want
+
+
+@pytest.mark.parametrize("fmt", ["a", "ad", "adoy", "d", "dd", "e", "r", "u", "ud", "udoy"])
+def test_time_column_as_tshark_shows_it(fmt: str, tshark_exe: str, lua_dissector: Path, cli: Cli) -> None:
+    """`read -t FMT`'s time column against tshark's `-t FMT` column of the same record (the first frame of a
+    record: tshark shows a packet once), both filtered to MAVLink (tshark: the Lua dissector's protocol) and
+    to all but two records: `d` counts from the record before (shown or not, MAVLink or not), `dd` from the
+    last shown."""
+    capture = CAPTURES / "px4_sitl_udp.pcap"
+    flt = "frame.number != 2 && frame.number != 7"
+    cmd = [tshark_exe, "-n", "-X", f"lua_script:{lua_dissector}", "-r", str(capture), "-t", fmt,
+           "-Y", f"{tshark.LUA_PROTO} && ({flt})", "-T", "fields", "-e", "frame.number", "-e", "_ws.col.Time"]
+    for port in sorted(tshark.mavlink_udp_ports(capture) - tshark.LUA_UDP_PORTS):
+        cmd[-8:-8] = ["-d", f"udp.port=={port},{tshark.LUA_PROTO}"]
+    ref = subprocess.run(cmd, capture_output=True, text=True, timeout=300, check=False,
+                         env=tshark._tshark_env(lua_dissector.parent))
+    assert ref.returncode == 0, ref.stderr[-300:]
+    want = dict(line.split("\t") for line in ref.stdout.splitlines())
+    got = cli("read", str(capture), "-Y", flt, "-t", fmt, environ={"TZ": "UTC"})
+    assert got.status == 0, got.err
+    seen: dict[str, str] = {}
+    for line in got.out.splitlines():
+        m = re.match(r"\s*(\S+) +(.*?) +127\.0\.0\.1:", line)
+        assert m is not None, line
+        seen.setdefault(m.group(1).partition(".")[0], m.group(2))
+    assert seen == want and len(seen) > 100

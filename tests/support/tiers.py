@@ -124,6 +124,7 @@ SWEEPS: dict[str, tuple[str, ...]] = {
     # tshark -T fields against ours: every -E form on the signed capture, the others on one form
     "tests/crosscheck/test_tshark_fields.py::test_integer_fields_as_tshark_prints_them":
         ("signed_udp.pcap-*", "*-header=y quote=d"),
+    "tests/crosscheck/test_tshark_fields.py::test_time_column_as_tshark_shows_it": ("d", "dd", "ud"),
     # the mutants of a pcap with damage and of a raw stream (the framer's resynchronisation)
     "tests/pipeline/test_mutation_sweep.py::test_mutants_never_raise_and_stay_bounded":
         ("damaged.pcap", "serial_dump.raw"),
