@@ -818,6 +818,10 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
         w.t0 = (n & 3) == 3 ? __builtin_nan("") : T0[n & 3];
     }
     w.cols = cols;
+    /* a raw stream in the JSON Lines and summary walks: clean stretches written, pieces handed back (walk.c
+     * walk_raw); after each piece the framer's state is made up below, as any RawLink may report it */
+    w.raw_native = (sel & 3) == 3 && cols == NULL;
+    unsigned steps = 0;
     ms_buf out;
     ms_buf_init(&out);
     /* the sources Python's Dissector.mavlink_endpoints takes (module.c sync_endpoints): without room for
@@ -863,6 +867,11 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
             (void)s;
             if (w.signing != NULL && rec.len)
                 learn_streams(&signing, rec.data, rec.len);
+            if (w.raw_native) { /* idle, or holding some of the last bytes (or more than it was fed) */
+                steps++;
+                w.raw_held = (steps * 7 + control) % 3 == 0 ? -1 : (int64_t)((steps * 131u + rec.len) % 700u);
+                w.raw_frames += steps & 3;
+            }
         }
         if (r == MS_WALK_END)
             break;

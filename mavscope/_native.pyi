@@ -90,6 +90,11 @@ class SigningState:
     def __deepcopy__(self, memo: Any, /) -> NoReturn: ...
 
 
+# A raw stream's state the Walker shares with Python (mavscope.pipeline.dissect.RawLink): its int `frames` read
+# before and set after each `next`, its int `held` (-1: the stream's framer is idle) read before it
+_RawLink = Any
+
+
 @final
 class Walker:
     """Walks a capture (pread on `fd`; -1: a pcap that grows by `feed`), writing JSON Lines, summary lines or
@@ -99,7 +104,8 @@ class Walker:
                  endpoint: Callable[[bytes, int], _E], signed_senders: set[tuple[int, int]], window: int = ...,
                  summary: Summary | None = None, t0: float | None = None, columns: Columns | None = None,
                  receivers: dict[int, _V] | None = None,
-                 notes: _NoteTemplates | None = None, ports: tuple[int, ...] | None = None) -> None: ...
+                 notes: _NoteTemplates | None = None, ports: tuple[int, ...] | None = None,
+                 raw: _RawLink | None = None) -> None: ...
     def next(self, signed_nokey: bool = False, limit: int = 1 << 20, into: bytearray | None = None,
              signing: SigningState | None = None) -> list[bytes | bytearray | _HandedBack] | None: ...
     def walked(self) -> tuple[int, float | None, int | None] | None: ...

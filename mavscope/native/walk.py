@@ -40,7 +40,7 @@ from mavscope.mavlink.framing import bad_crc_note
 from mavscope.native.core import KINDS, _native
 from mavscope.native.tables import table_for
 from mavscope.output.jsonout import jsonl_bytes
-from mavscope.pipeline.dissect import MAVLINK_PORTS, Anomaly, Dissector, Receivers
+from mavscope.pipeline.dissect import MAVLINK_PORTS, Anomaly, Dissector, RawLink, Receivers
 from mavscope.security.stage import SecurityStage, unsigned_note
 
 BATCH_BYTES = 1 << 20  # JSON text per batch handed to Python
@@ -96,12 +96,15 @@ class NativeWalk:
     each batch whether signed frames may be written natively (no signing key configured: `no-key`).
     The walker stops after each handed-back record, so what Python does with it (keys learnt, senders
     seen signing) holds for the records after it.
+    With `raw` (the dissector's RawLink) a raw stream's clean stretches are written natively and only the
+    pieces around damage handed back (as records of the stream's bytes, with their file offset): the walker
+    numbers its frames on from `raw.frames` and reads `raw.held` before each batch (docs/native.md).
     """
 
     def __init__(self, path: str | os.PathLike[str] | None, dialect: Dialect, endpoints: set[Endpoint],
                  signed_senders: set[tuple[int, int]], kind: str | None = None, window: int = WINDOW,
                  summary: _native.Summary | None = None, t0: float | None = None,
-                 receivers: Receivers | None = None) -> None:
+                 receivers: Receivers | None = None, raw: RawLink | None = None) -> None:
         if _native is None:
             raise RuntimeError("mavscope._native is not built")
         self._file: IO[bytes] | None = None
@@ -115,7 +118,7 @@ class NativeWalk:
             self.walker = _native.Walker(fd, self.opened_size, KINDS[self.kind], table_for(dialect), endpoints,
                                          Endpoint.from_packed, signed_senders, window, summary, t0,
                                          receivers=receivers, notes=note_templates(),
-                                         ports=tuple(sorted(MAVLINK_PORTS)))
+                                         ports=tuple(sorted(MAVLINK_PORTS)), raw=raw)
         except BaseException:
             self.close_file()
             raise
@@ -399,7 +402,7 @@ def write_lines(path: str | os.PathLike[str], dialect: Dialect, stage: SecurityS
     signing = share_signing(stage)
     try:
         with NativeWalk(path, dialect, dissector.mavlink_endpoints, stage.signed_senders, kind, window,
-                        summary, t0, receivers=dissector.receivers) as walk:
+                        summary, t0, receivers=dissector.receivers, raw=dissector.raw) as walk:
             drive(walk, dissector, stage, sink, buffers, progress, signing)
             stats = walk.stats()
         if not sink.done:

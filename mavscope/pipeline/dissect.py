@@ -4,7 +4,9 @@
 problem that could not be attached to a frame (`Anomaly`), so nothing the input holds is lost.
 `feed(record)` and `finish()` do the same one record at a time (live capture, the native fast path
 handing records back); `passed(number, time, index)` is told of records dissected elsewhere (the
-native engine, mavscope/native/walk.py), so that what follows them comes out as if they had been fed.
+native engine, mavscope/native/walk.py), so that what follows them comes out as if they had been fed; and
+`raw` (RawLink) is what a raw byte stream shares with the native walker, which writes the stream's clean
+stretches itself: the frame counter, and whether the stream's framer is idle.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from mavscope.notes import GivenUp, Note
 from mavscope.pipeline.textrun import TextRun, is_text_entry
 from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, TRANSPORT_UDP, Payload
 from mavscope.transport.decap import Decapsulator
-from mavscope.transport.dispatch import TABLES
+from mavscope.transport.dispatch import RAW_STREAM, TABLES
 from mavscope.transport.tcp import GAP, TcpReassembler
 from mavscope.transport.wpa import WifiKey, Wpa
 from mavscope.wire import SIGNATURE_LEN, STX_V2
@@ -81,6 +83,29 @@ class Receivers(dict[int, Port]):
         return self.tcp.waiting
 
 
+class RawLink:
+    """What a raw byte stream's dissection shares with the native walker, which writes the stream's clean
+    stretches itself (mavscope/native/walk.py; docs/native.md says the rule): `frames`, the frames of the
+    stream numbered so far by either engine (the walker reads it before each step and sets it after), and
+    `held`: -1 while the stream's framer is idle (it holds no byte, no note and no receiver out of step: fed
+    more bytes at a frame boundary, it gives what a framer that had read everything before would), else how
+    many of the last bytes it was fed it has still to read (it goes on from there when fed more; the walker
+    then hands back the next piece too)."""
+
+    __slots__ = ("frames", "streams")
+
+    def __init__(self, streams: dict[Hashable, StreamFramer]) -> None:
+        self.frames = 0
+        self.streams = streams
+
+    @property
+    def held(self) -> int:
+        sf = self.streams.get(RAW_STREAM)
+        if sf is None or not (sf.buf or sf.pending or sf.walking):
+            return -1
+        return len(sf.buf) - sf.start
+
+
 class Dissector:
     """Finds and checks the MAVLink frames of a capture. One instance per capture (it keeps stream state)."""
 
@@ -104,7 +129,7 @@ class Dissector:
         self.sockets.ports = self.receivers = Receivers(self.decap.tcp)
         self._record = 0
         self._index = 0
-        self._raw_frames = 0  # frames of a raw byte stream so far (they are numbered 1..N)
+        self.raw = RawLink(self.streams)  # frames of a raw byte stream so far (they are numbered 1..N)
         self._time: float | None = None
         self._text = TextRun()  # non-MAVLink tlog entries, reported as one anomaly per run
         # record -> the last frame index it gave, for the records a later one may date frames by (_later): kept
@@ -366,8 +391,8 @@ class Dissector:
             if raw:
                 # A raw stream has no records of its own (its chunks are the reader's), so its frames are
                 # numbered 1..N and each is its own "record": frame 999 is 999, not 1.999.
-                self._raw_frames += 1
-                record, index, span = self._raw_frames, 1, None
+                self.raw.frames += 1
+                record, index, span = self.raw.frames, 1, None
             else:
                 # a frame is the record's that completed it (its last byte, readable in order there: after
                 # a hole the capture missed, an earlier record than this one), with the records holding it
@@ -383,7 +408,7 @@ class Dissector:
                 p_transport, src, dst, off, notes, span,
             )
         if orphans:
-            yield Anomaly(self._raw_frames if raw else self._record, tuple(orphans))
+            yield Anomaly(self.raw.frames if raw else self._record, tuple(orphans))
 
     def _later(self, record: int) -> int:
         """The index of one more frame of `record`, an earlier record than the one read: a frame a TCP hole held

@@ -5,7 +5,11 @@
  *   Walker(fd: int, size: int, kind: int, table, endpoints: set, endpoint: Callable[[bytes, int], object],
  *          signed_senders: set[tuple[int, int]], window: int = 1 << 20, summary: Summary | None = None,
  *          t0: float | None = None, columns: Columns | None = None,
- *          receivers: dict | None = None)
+ *          receivers: dict | None = None, notes=None, ports=None, raw: RawLink | None = None)
+ *                                        with `raw` (kind raw, no columns; the Dissector's RawLink): the raw
+ *                                        stream's clean stretches are written, pieces around damage handed
+ *                                        back (walk.c walk_raw); its `frames` and `held` read per `next`,
+ *                                        `frames` set after it
  *                                        with `receivers` (the Dissector's: UDP port -> receivers): a datagram
  *                                        to one of its ports is handed back (read after each record
  *                                        handed back, the only thing that changes it); every record while
@@ -561,6 +565,7 @@ typedef struct {
     PyObject *summary;   /* SummaryObject or NULL (JSON Lines) */
     PyObject *columns;   /* ColumnsObject or NULL: column mode */
     PyObject *receivers; /* the Dissector's receivers (dict: UDP port -> receivers), or NULL */
+    PyObject *raw;       /* a raw stream's RawLink (the Dissector's `raw`: `frames`, `held`), or NULL */
     int waiting_stale;   /* Python may have changed `receivers` (it was handed a record) since they were read */
     int endpoints_full;  /* `endpoints` reached MS_MAX_ENDPOINTS and was loaded into the walker's memory once */
     ms_buf out;
@@ -584,6 +589,7 @@ static void Walker_dealloc(WalkerObject *self) {
     Py_XDECREF(self->endpoint);
     Py_XDECREF(self->senders);
     Py_XDECREF(self->receivers);
+    Py_XDECREF(self->raw);
     Py_XDECREF(self->summary);
     Py_XDECREF(self->columns);
     Py_TYPE(self)->tp_free((PyObject *)self);
@@ -591,15 +597,15 @@ static void Walker_dealloc(WalkerObject *self) {
 
 static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
     static char *kwlist[] = {"fd", "size", "kind", "table", "endpoints", "endpoint", "signed_senders", "window",
-                             "summary", "t0", "columns", "receivers", "notes", "ports", NULL};
+                             "summary", "t0", "columns", "receivers", "notes", "ports", "raw", NULL};
     PyObject *table, *endpoints, *endpoint, *senders, *summary = Py_None, *t0 = Py_None;
-    PyObject *columns = Py_None, *receivers = Py_None, *notes = Py_None, *ports = Py_None;
+    PyObject *columns = Py_None, *receivers = Py_None, *notes = Py_None, *ports = Py_None, *raw = Py_None;
     int fd, kind;
     unsigned long long size;
     Py_ssize_t window = MS_WINDOW;
-    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|nOOOOOO", kwlist, &fd, &size, &kind, &TableType,
+    if (!PyArg_ParseTupleAndKeywords(args, kwds, "iKiO!O!OO!|nOOOOOOO", kwlist, &fd, &size, &kind, &TableType,
                                      &table, &PySet_Type, &endpoints, &endpoint, &PySet_Type, &senders, &window,
-                                     &summary, &t0, &columns, &receivers, &notes, &ports))
+                                     &summary, &t0, &columns, &receivers, &notes, &ports, &raw))
         return -1;
     static const Py_ssize_t pieces[MS_NOTE_TPLS] = {4, 4, 3}; /* walk.h MS_TPL_*: the values between them */
     if (notes != Py_None) { /* MS_NOTE_TPLS tuples of bytes objects, each at most MS_NOTE_TPL_MAX long */
@@ -684,12 +690,18 @@ static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
         self->receivers = receivers;
         self->waiting_stale = 1;
     }
+    if (raw != Py_None && kind == MS_KIND_RAW && columns == Py_None) {
+        /* the stream's clean stretches are written here (walk.c walk_raw); without it, chunks are handed back */
+        Py_INCREF(raw);
+        self->raw = raw;
+    }
     ms_buf_init(&self->out);
     ms_source src = {fed_read, &self->fed};
     if (fd != -1)
         src = ms_fd_source(&self->fd);
     ms_walker_init(&self->walker, src, (uint64_t)size, kind, &((TableObject *)table)->table);
     self->walker.reader.window = (size_t)window; /* bytes read at a time: the tests make it small */
+    self->walker.raw_native = self->raw != NULL;
     if (summary != Py_None) {
         Py_INCREF(summary);
         self->summary = summary;
@@ -1004,6 +1016,33 @@ static int sync_waiting(WalkerObject *self) {
     return 0;
 }
 
+/* Read the raw stream's state from Python's RawLink before a step: the frames it numbered so far (its framer
+ * numbers on from those the walker writes) and whether its framer is idle (`held` -1) or how many bytes it
+ * holds (the walker hands back the next piece: walk.c walk_raw). */
+static int sync_raw(WalkerObject *self) {
+    PyObject *frames = PyObject_GetAttrString(self->raw, "frames");
+    if (frames == NULL)
+        return -1;
+    unsigned long long n = PyLong_AsUnsignedLongLong(frames);
+    Py_DECREF(frames);
+    if (n == (unsigned long long)-1 && PyErr_Occurred())
+        return -1;
+    PyObject *held = PyObject_GetAttrString(self->raw, "held");
+    if (held == NULL)
+        return -1;
+    long long h = PyLong_AsLongLong(held);
+    Py_DECREF(held);
+    if (h == -1 && PyErr_Occurred())
+        return -1;
+    if (h < -1) {
+        PyErr_SetString(PyExc_ValueError, "RawLink.held must be -1 or a count of bytes");
+        return -1;
+    }
+    self->walker.raw_frames = (uint64_t)n;
+    self->walker.raw_held = (int64_t)h;
+    return 0;
+}
+
 static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds) {
     static char *kwlist[] = {"signed_nokey", "limit", "into", "signing", NULL};
     int nokey = 0;
@@ -1046,6 +1085,8 @@ static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds)
             return NULL;
         self->walker.hand_back_all = yes;
     }
+    if (self->raw != NULL && sync_raw(self) != 0)
+        return NULL;
     ColumnsObject *cols = (ColumnsObject *)self->columns;
     if (cols != NULL && (cols->busy || cols->cols.failed)) {
         PyErr_SetString(PyExc_RuntimeError, cols->busy ? "another Walker is filling these Columns"
@@ -1082,6 +1123,13 @@ static PyObject *Walker_next(WalkerObject *self, PyObject *args, PyObject *kwds)
     }
     if (push_state(self) != 0)
         return NULL;
+    if (self->raw != NULL) { /* the frames this step numbered: Python's frames of the stream go on from them */
+        PyObject *frames = PyLong_FromUnsignedLongLong((unsigned long long)self->walker.raw_frames);
+        int bad = frames == NULL || PyObject_SetAttrString(self->raw, "frames", frames) != 0;
+        Py_XDECREF(frames);
+        if (bad)
+            return NULL;
+    }
     PyObject *list = PyList_New(0);
     if (list == NULL)
         return NULL;

@@ -112,7 +112,27 @@ typedef struct {
                                    the current call (Python's general scanner sets it: records with a
                                    MAVLink 1 frame); -1: unchanged */
     uint64_t records_native, records_handed_back, frames_native; /* counters */
+    /* A raw byte stream (MS_KIND_RAW) with `raw_native` (set by the glue: the JSON Lines and summary walks): its
+     * clean stretches are written here, and only the pieces around damage are handed back, to Python's
+     * framer for the stream (walk.c walk_raw says where a piece is cut). Without it every chunk is handed
+     * back whole. */
+    int raw_native;
+    int64_t raw_held;           /* set by the glue before each ms_walk (Python's RawLink.held): -1 when the
+                                   stream's framer is idle, else how many of the last bytes it was fed it has
+                                   still to read (it goes on from there) */
+    uint64_t raw_frames;        /* the stream's frames numbered so far by either engine (RawLink.frames: loaded by
+                                   the glue before each ms_walk, given back after it) */
+    ms_record raw_rec;          /* the chunk being walked; its data stays valid until the next ms_reader_next */
+    int raw_have;               /* raw_rec has bytes from raw_pos on that are neither written nor handed back */
+    size_t raw_pos;
+    uint8_t *carry;             /* the bytes Python's framer had still to read at the end of the chunk before (at
+                                   most MS_RAW_CARRY): a piece's cut is judged from where its framer goes on */
+    size_t carry_len, cap_carry;
+    uint64_t carry_base;        /* file offset of carry[0]; carry ends where raw_rec begins */
+    int carry_ok;               /* carry holds every byte Python's framer has to read from before raw_rec */
 } ms_walker;
+
+#define MS_RAW_CARRY 65536
 
 int ms_walker_init(ms_walker *w, ms_source src, uint64_t size, int kind, const ms_table *table);
 /* Make room for n waiting destinations (w->waiting, w->n_waiting set by the caller): 0, or -1 (no memory). */
