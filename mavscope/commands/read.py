@@ -25,6 +25,7 @@ from mavscope.commands.common import (
 )
 from mavscope.errors import UsageError
 from mavscope.native.core import NATIVE
+from mavscope.output.colour import wants_colour
 from mavscope.output.timefmt import Clock, check_format
 from mavscope.pipeline.dissect import Anomaly
 
@@ -54,6 +55,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="the time column of summary lines, as tshark's -t: r (relative, default), a, ad, adoy "
                         "(absolute, local time), u, ud, udoy (UTC), e (epoch), d (since the previous frame), "
                         "dd (since the previous shown frame)")
+    p.add_argument("--color", dest="color", default="auto", metavar="WHEN",
+                   help="colour summary lines by verdict, as Wireshark's colouring rules: auto (on a terminal, "
+                        "unless NO_COLOR is set; default), always, never")
     p.add_argument("-c", dest="count", type=whole_number(1, " of frames"), metavar="N", help="stop after N frames")
     add_output_option(p, "-w", dest="write", metavar="OUT", kind=OutputKind.BINARY,
                       help="write the capture records holding the shown frames (.pcapng, .tlog by the name; pcap "
@@ -73,6 +77,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     asked = "-V" if args.verbose else "-x" if args.hex else f"-T {args.format}" if args.format != "text" else None
     check_outputs(args, env, stdout_used=asked)
     check_format(args.time_format)
+    wants_colour(args.color, env.stdout, env.environ)  # (a wrong --color before the capture is read)
     if (args.fields or args.field_options) and args.format != "fields":
         raise UsageError('read: -e and -E are for -T fields (tshark: "-e" was specified, but the output format is '
                          'not "fields")')
@@ -112,7 +117,8 @@ def _run_python(args: argparse.Namespace, env: Env, session: Session, records_ou
         session.record_hooks.append(lambda rec: clock.captured(rec.number, rec.time))  # every record's (-t d)
         printer = _fields_writer(args, env, session, clock) if args.format == "fields" else FramePrinter(
             env.stdout, out_b, dialect, args.format, verbose=args.verbose, hex=args.hex, quiet=args.quiet, t0=t0,
-            clock=clock if args.time_format != "r" else None)
+            clock=clock if args.time_format != "r" else None,
+            colour=args.format == "text" and wants_colour(args.color, env.stdout, env.environ))
         show = printer.frame
         problems = Problems(env, name)
         try:
@@ -186,7 +192,8 @@ def _native_eligible(args: argparse.Namespace, env: Env, session: Session) -> bo
         return False
     if args.format == "jsonl":
         return args.count is None
-    return args.format == "text" and not args.verbose and not args.hex and plain_utf8(env)
+    return (args.format == "text" and not args.verbose and not args.hex and plain_utf8(env)
+            and not wants_colour(args.color, env.stdout, env.environ))
 
 
 def _run_native(args: argparse.Namespace, env: Env, session: Session) -> None:

@@ -10,6 +10,7 @@ from typing import IO
 
 from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
+from mavscope.output.colour import RESET, line_colour
 from mavscope.output.jsonout import jsonl_bytes
 from mavscope.output.text import detail_text, hexdump, summary_line
 from mavscope.output.timefmt import Clock
@@ -31,6 +32,7 @@ class FramePrinter:
         quiet: bool = False,
         t0: float | None = None,
         clock: Clock | None = None,
+        colour: bool = False,
     ) -> None:
         self.out = out
         self.out_b = out_b
@@ -41,6 +43,7 @@ class FramePrinter:
         self.quiet = quiet
         self.t0 = t0  # relative times in summary lines count from it (None: no relative time)
         self.clock = clock  # read -t's time column (None: relative to t0)
+        self.colour = colour  # summary lines coloured by verdict (output.colour)
         self.count = 0  # frames passed to frame()
 
     def begin(self) -> None:
@@ -59,7 +62,9 @@ class FramePrinter:
         else:
             out = self.out
             when = self.clock.text(frame) if self.clock is not None else None
-            out.write(summary_line(frame, self.dialect, self.t0, time_text=when) + "\n")
+            line = summary_line(frame, self.dialect, self.t0, time_text=when)
+            code = line_colour(frame) if self.colour else None
+            out.write(f"{code}{line}{RESET}\n" if code is not None else line + "\n")
             if self.verbose:
                 out.write(detail_text(frame, self.dialect) + "\n")
             if self.hex:
