@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import os
 import struct
+from collections.abc import Sequence
 from types import TracebackType
 from typing import BinaryIO
 
@@ -18,6 +19,7 @@ DEFAULT_SNAPLEN = 262144
 _PCAP_GLOBAL = struct.Struct("<IHHiIII")
 _PCAP_RECORD = struct.Struct("<IIII")
 _EPB_HEAD = struct.Struct("<IIIIIII")
+OPT_COMMENT = 1  # pcapng opt_comment: a UTF-8 comment, any block
 _TLOG_TIME = struct.Struct(">Q")
 
 
@@ -147,6 +149,17 @@ class PcapWriter(_Writer):
         return self
 
 
+def _options(comments: Sequence[str]) -> bytes:
+    """A block's opt_comment options (code 1) and opt_endofopt, or nothing without a comment."""
+    if not comments:
+        return b""
+    out = []
+    for text in comments:
+        raw = text.encode("utf-8")[:0xFFFF].decode("utf-8", "ignore").encode("utf-8")  # (whole characters)
+        out.append(struct.pack("<HH", OPT_COMMENT, len(raw)) + raw + b"\0" * (-len(raw) & 3))
+    return b"".join(out) + struct.pack("<HH", 0, 0)
+
+
 class PcapngWriter(_Writer):
     """Writes a little-endian pcapng file: one section, one interface per link type, Enhanced Packet Blocks."""
 
@@ -185,9 +198,11 @@ class PcapngWriter(_Writer):
         return iface
 
     def write(
-        self, time: float | None, data: bytes, orig_len: int | None = None, linktype: int | None = None
+        self, time: float | None, data: bytes, orig_len: int | None = None, linktype: int | None = None,
+        comments: Sequence[str] = (),
     ) -> None:
-        """Append one packet of `linktype` (default: the writer's), adding its interface on first use."""
+        """Append one packet of `linktype` (default: the writer's), adding its interface on first use;
+        `comments`: its opt_comment options (UTF-8, each at most 65,535 bytes: longer ones are cut there)."""
         if self.closed:
             raise UsageError("write to a closed PcapngWriter")
         lt = linktype if linktype is not None else self.linktype
@@ -202,10 +217,11 @@ class PcapngWriter(_Writer):
             self._clamp(time)
         ts = sec * self.units + frac
         pad = -len(data) & 3
-        blen = 32 + len(data) + pad
+        options = _options(comments)
+        blen = 32 + len(data) + pad + len(options)
         self._f.write(_EPB_HEAD.pack(BT_EPB, blen, iface, ts >> 32, ts & 0xFFFFFFFF, len(data),
                                     min(orig, 0xFFFFFFFF)))
-        self._f.write(data + b"\0" * pad + struct.pack("<I", blen))
+        self._f.write(data + b"\0" * pad + options + struct.pack("<I", blen))
 
     def __enter__(self) -> PcapngWriter:
         return self

@@ -99,12 +99,13 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
 def _run_python(args: argparse.Namespace, env: Env, session: Session, records_out: BinaryIO | None,
                 ) -> Written | None:
     """The frames of `session` through the Python pipeline: the printer, -w, -c, -q."""
-    from mavscope.output.capture_out import open_output, write_records
+    from mavscope.output.capture_out import frame_comment, open_output, write_records
     from mavscope.output.printer import FramePrinter
 
     out_b = env.stdout_bytes
     limit = args.count if args.count is not None else -1
     shown_records: set[int] = set()
+    comments: dict[int, list[str]] = {}  # -w OUT.pcapng: each record's frames' verdicts, as packet comments
     shown = 0
     with contextlib.ExitStack() as files:
         t0 = session.t0
@@ -137,6 +138,7 @@ def _run_python(args: argparse.Namespace, env: Env, session: Session, records_ou
                     frame_writer.write(frame)
                 elif args.write:
                     shown_records.update(frame.records)
+                    comments.setdefault(frame.record, []).append(frame_comment(frame))
                 show(frame)
                 if shown == limit:
                     break
@@ -147,7 +149,7 @@ def _run_python(args: argparse.Namespace, env: Env, session: Session, records_ou
             written = frame_writer.close() if frame_writer is not None else None
         out_b.flush()
         if out_file is not None:
-            written = write_records(path, args.write, shown_records, out_file)
+            written = write_records(path, args.write, shown_records, out_file, comments)
     return written
 
 

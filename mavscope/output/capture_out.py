@@ -10,7 +10,7 @@ so Wireshark's MAVLink dissector decodes the file. A `.tlog` output writes tlog 
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -22,6 +22,7 @@ from mavscope.capture.writer import PcapngWriter, PcapWriter, TlogWriter
 from mavscope.endpoint import Endpoint
 from mavscope.errors import CaptureError, UsageError
 from mavscope.mavlink.frame import Frame
+from mavscope.visible import visible
 
 SYNTH_SRC = Endpoint("127.0.0.1", 14550)
 SYNTH_DST = Endpoint("127.0.0.1", 14550)
@@ -49,9 +50,11 @@ def open_output(out: str | os.PathLike[str]) -> BinaryIO:
 
 
 def write_records(source: str | os.PathLike[str], out: str | os.PathLike[str], records: set[int],
-                  file: BinaryIO | None = None) -> Written:
+                  file: BinaryIO | None = None, comments: Mapping[int, Sequence[str]] | None = None) -> Written:
     """Copy the records numbered in `records` from the packet capture `source` to `out` (or to `file`,
-    already opened for `out` by open_output, left open)."""
+    already opened for `out` by open_output, left open); a pcapng `out` carries each record's `comments`
+    (its frames' verdicts: frame_comment) as packet comments, which a pcap cannot hold."""
+    comments = comments or {}
     kind = _output_kind(out)
     if kind == "tlog":
         raise UsageError("-w: a packet capture can be written as .pcap or .pcapng, not .tlog")
@@ -62,7 +65,8 @@ def write_records(source: str | os.PathLike[str], out: str | os.PathLike[str], r
             with PcapngWriter(target) as w:
                 n = 0
                 for rec in chosen:
-                    w.write(rec.time, rec.data, rec.orig_len, linktype=rec.linktype)
+                    w.write(rec.time, rec.data, rec.orig_len, linktype=rec.linktype,
+                            comments=comments.get(rec.number, ()))
                     n += 1
             return Written(n, w.clamp_message())
         writer: PcapWriter | None = None
@@ -85,6 +89,24 @@ def write_records(source: str | os.PathLike[str], out: str | os.PathLike[str], r
         return Written(n, writer.clamp_message())
 
 
+def frame_comment(frame: Frame) -> str:
+    """The packet comment `-w OUT.pcapng` gives a shown frame: its number, message and sender, its CRC and
+    signature verdicts, decryption, and each note with its severity, as Wireshark's expert info reads
+    (`mavscope: frame 4.2 ATTITUDE from 1/1: CRC bad; note warn bad-crc: CRC 0x1234 does not match the
+    frame`). Text from the capture or a dialect is escaped (visible)."""
+    words = [f"CRC {frame.crc_status.value}"]
+    status = frame.signature_status
+    sec = frame.security
+    if status is not None:
+        reason = f" ({sec.reason_text})" if sec is not None and sec.reason is not None else ""
+        words.append(f"signature {status.value}{reason}")
+    if sec is not None and sec.encryption is not None:
+        words.append(f"payload {sec.encryption.status.value}")
+    words += [f"note {n.severity.value} {n.code}: {n.message}" for n in frame.notes]
+    name = frame.msgname or f"message {frame.msgid}"
+    return visible(f"mavscope: frame {frame.number} {name} from {frame.sysid}/{frame.compid}: {'; '.join(words)}")
+
+
 class FrameWriter:
     """Writes shown frames of a tlog or raw input to a pcap, pcapng or tlog file as they come (to `file`,
     opened for `out`, when given: standard output for `read -w -`, left open)."""
@@ -102,6 +124,8 @@ class FrameWriter:
     def write(self, frame: Frame) -> None:
         if isinstance(self._w, TlogWriter):
             self._w.write(frame.time, frame.raw)
+        elif isinstance(self._w, PcapngWriter):
+            self._w.write(frame.time, endpoint_packet(SYNTH_SRC, SYNTH_DST, frame.raw), comments=[frame_comment(frame)])
         else:
             self._w.write(frame.time, endpoint_packet(SYNTH_SRC, SYNTH_DST, frame.raw))
         self.count += 1
