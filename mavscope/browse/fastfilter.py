@@ -206,7 +206,10 @@ class ColumnFilter:
 
     def _payload(self, lhs: PayloadField, node: Test, comp: Compiler, pred: Pred,
                  msgids: np.ndarray) -> _Payload | None:
-        """A payload test numpy can decide exactly: scalar numbers against numbers, or None."""
+        """A payload test numpy can decide exactly: scalar numbers against numbers, or None (a display-unit
+        companion, fields.units, is decided frame by frame)."""
+        if lhs.divisors is not None:
+            return None
         op = node.op
         if op is not None and op not in _OPS and op not in ("in", "&"):
             return None

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from operator import attrgetter
 
 from mavscope.fields import containers
+from mavscope.fields.units import companion, companion_name, scale_of, scaled
 from mavscope.mavlink.dialect import Dialect, FieldDef, MessageDef
 from mavscope.mavlink.frame import IFLAG_ENCRYPTION_MASK, EncryptionStatus, Frame, SignatureStatus, signature_status
 from mavscope.notes import CODES, frame_codes
@@ -337,14 +338,24 @@ def field(name: str) -> Field:
 
 @dataclass(frozen=True, slots=True)
 class PayloadField:
-    """A payload field name: `MSG.field` (one message) or a bare `field` (every message that has it)."""
+    """A payload field name: `MSG.field` (one message) or a bare `field` (every message that has it); or a
+    display-unit companion of a scaled field (`MSG.lat_deg`: fields.units), whose value is the field's divided
+    by `divisors[msgid]`."""
 
     name: str
     defs: dict[int, FieldDef]  # msgid -> the field's definition in that message
+    divisors: dict[int, int] | None = None  # a companion: msgid -> the scale's divisor
 
     @property
     def bare(self) -> bool:
         return "." not in self.name
+
+    def value(self, frame: Frame, fields: dict[str, object] | None) -> object:
+        """The field's value in `frame` (decoded `fields`), in the companion's unit; MISSING where it has none."""
+        value = payload_value(self.defs, frame, fields)
+        if self.divisors is None or value is MISSING:
+            return value
+        return scaled(value, self.divisors[frame.msgid])
 
 
 def payload_value(defs: dict[int, FieldDef], frame: Frame, fields: dict[str, object] | None) -> object:
@@ -370,6 +381,7 @@ class FieldRegistry:
         self.dialect = dialect
         self._bare: dict[str, dict[int, FieldDef]] | None = None
         self._lua: dict[str, FieldDef] | None = None
+        self._companions: dict[str, dict[int, tuple[FieldDef, int]]] | None = None
 
     def _bare_index(self) -> dict[str, dict[int, FieldDef]]:
         if self._bare is None:
@@ -407,14 +419,36 @@ class FieldRegistry:
             if md is None:
                 return None
             fd = md.field(fname)
-            return PayloadField(name, {md.id: fd}) if fd is not None else None
+            if fd is not None:
+                return PayloadField(name, {md.id: fd})
+            got = companion(md, fname)
+            return PayloadField(name, {md.id: got[0]}, {md.id: got[1].divisor}) if got is not None else None
         md = self.dialect.by_name.get(name)
         if md is not None:
             return md
         defs = self._bare_index().get(name)
         if defs:
             return PayloadField(name, defs)
+        scaled_defs = self._companion_index().get(name)
+        if scaled_defs:
+            return PayloadField(name, {m: fd for m, (fd, _) in scaled_defs.items()},
+                                {m: d for m, (_, d) in scaled_defs.items()})
         return BY_NAME.get(f"mavlink.{name}")
+
+    def _companion_index(self) -> dict[str, dict[int, tuple[FieldDef, int]]]:
+        """Bare companion name -> per message, the scaled field and its divisor."""
+        if self._companions is None:
+            idx: dict[str, dict[int, tuple[FieldDef, int]]] = {}
+            bare = self._bare_index()
+            for md in self.dialect.messages.values():
+                for fd in md.fields:
+                    cname = companion_name(fd)
+                    if cname is not None and md.field(cname) is None and cname not in bare:
+                        s = scale_of(fd)
+                        assert s is not None
+                        idx.setdefault(cname, {})[md.id] = (fd, s.divisor)
+            self._companions = idx
+        return self._companions
 
     def all_names(self) -> list[str]:
         """Every registered name and alias, every `MSG.field` and message name (for suggestions)."""
@@ -422,5 +456,8 @@ class FieldRegistry:
         for md in self.dialect.messages.values():
             names.append(md.name)
             names.extend(fd.filter_name for fd in md.fields)
+            names.extend(f"{md.name}.{c}" for c in (companion_name(fd) for fd in md.fields)
+                         if c is not None and md.field(c) is None)
         names.extend(self._bare_index())
+        names.extend(self._companion_index())
         return names

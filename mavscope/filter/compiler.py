@@ -32,6 +32,7 @@ from mavscope.fields.registry import (
     PayloadField,
     payload_value,
 )
+from mavscope.fields.units import companion_name, looks_displayed, scale_of
 from mavscope.filter.errors import FilterError
 from mavscope.filter.lexer import KEYWORDS
 from mavscope.filter.matchers import CMP, matcher
@@ -95,6 +96,7 @@ class _Side:
     payload: bool
     kinds: dict[int, tuple[str, FieldDef | None]] = field(default_factory=dict)  # msgid -> kind (payload)
     frame_field: Field | None = None
+    companion: bool = False  # a display-unit companion of a scaled field (fields.units)
 
 
 class Compiler:
@@ -104,6 +106,7 @@ class Compiler:
         self.registry = registry or FieldRegistry(dialect)
         self.needs_payload = False
         self.names: set[str] = set()
+        self.warnings: list[str] = []  # what the filter may not mean (unit_warnings): said, not refused
 
     def error(self, message: str, node: Name | Value | Range) -> FilterError:
         return FilterError(message, self.text, node.pos, node.end - node.pos)
@@ -131,6 +134,9 @@ class Compiler:
         self.needs_payload = True
         defs = hit.defs
         kinds: dict[int, tuple[str, FieldDef | None]] = {mid: (_field_kind(fd), fd) for mid, fd in defs.items()}
+        if hit.divisors is not None:  # a display-unit companion (fields.units): a float in that unit
+            kinds = {mid: (FLOAT if kind == INT else kind, fd) for mid, (kind, fd) in kinds.items()}
+            return _Side(name, hit.value, True, kinds, companion=True)
         return _Side(name, lambda f, d: payload_value(defs, f, d), True, kinds)
 
     # literals -----------------------------------------------------------------------------------
@@ -157,7 +163,12 @@ class Compiler:
                 hit = self.dialect.enum_value(v.text)
                 if hit is not None:
                     return hit[1]
-                raise self.error(f'"{v.text}" is not a number, nor an enum name in the loaded dialects', v)
+                ed = self.dialect.enums.get(enum) if enum else None
+                names = list(ed.by_name) if ed is not None else [n for e in self.dialect.enums.values()
+                                                                  for n in e.by_name]
+                close = difflib.get_close_matches(v.text, names, n=1, cutoff=0.75)
+                hint = f'; did you mean "{close[0]}"?' if close else ""
+                raise self.error(f'"{v.text}" is not a number, nor an enum name in the loaded dialects{hint}', v)
             raise self.error(f'"{v.text}" is not a number', v)
         if kind == STR:
             if op == "matches":
@@ -271,6 +282,8 @@ class Compiler:
                       for e in node.values]
             return self.frame_test(getter, node.op, consts, ff.multi, ff.type)
         # payload field: per message, convert the literals for that message's field type
+        if not lhs.companion:
+            self.unit_warnings(node, lhs)
         per_msg: dict[int, tuple[str, list[object]]] = {}
         first_error: FilterError | None = None
         for mid, (kind, fd) in lhs.kinds.items():
@@ -283,6 +296,34 @@ class Compiler:
             assert first_error is not None
             raise first_error
         return self.payload_test(getter, node.op or "==", per_msg)
+
+    def unit_warnings(self, node: Test, lhs: _Side) -> None:
+        """A warning (`warnings`) for a number compared with a scaled field that only makes sense in its display
+        unit (fields.units.looks_displayed: `GLOBAL_POSITION_INT.lat > 40.07`), naming the unit and the ways
+        to say it: the companion in the display unit, or the raw number."""
+        numbers = [e for e in node.values if isinstance(e, Value) and e.kind == "number"]
+        numbers += [x for e in node.values if isinstance(e, Range) for x in (e.lo, e.hi) if x.kind == "number"]
+        for v in numbers:
+            try:
+                n = _number(v)
+            except ValueError:
+                continue
+            for kind, fd in lhs.kinds.values():
+                if fd is None or not looks_displayed(fd, n):
+                    continue
+                s = scale_of(fd)
+                cname = companion_name(fd)
+                assert s is not None and cname is not None
+                name = node.name.text
+                owner = name.rpartition(".")[0] if "." in name else ""
+                better = f"{owner}.{cname}" if owner else cname
+                raw = n * s.divisor
+                raw_text = str(int(raw)) if float(raw).is_integer() else f"{raw:g}"
+                self.warnings.append(
+                    f"{name} is sent in {fd.units} ({s.what}): {v.text} is compared with the value as sent; "
+                    f"in {s.display} write {better} {node.op or '=='} {v.text} (or {name} {node.op or '=='} "
+                    f"{raw_text})")
+                return
 
     def _is_field_word(self, lhs: _Side, v: Value) -> bool:
         """A bare word on the right is a field when it names one, unless it is a value of the left field."""
@@ -376,6 +417,7 @@ class DisplayFilter:
     predicate: Pred
     needs_payload: bool
     names: frozenset[str]
+    warnings: tuple[str, ...] = ()  # what it may not mean (Compiler.unit_warnings), for stderr
 
     def matches(self, frame: Frame, fields: dict[str, object] | None = None) -> bool:
         if self.needs_payload and fields is None:
@@ -391,4 +433,4 @@ def compile_filter(text: str, dialect: Dialect, registry: FieldRegistry | None =
     node = parse(text)
     comp = Compiler(text, dialect, registry)
     pred = comp.compile(node)
-    return DisplayFilter(text, pred, comp.needs_payload, frozenset(comp.names))
+    return DisplayFilter(text, pred, comp.needs_payload, frozenset(comp.names), tuple(comp.warnings))

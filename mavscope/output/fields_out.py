@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from typing import IO
 
 from mavscope.errors import UsageError
-from mavscope.fields.registry import BYTES, MISSING, NONE, Field, FieldRegistry, PayloadField, payload_value
+from mavscope.fields.registry import BYTES, MISSING, NONE, Field, FieldRegistry, PayloadField
 from mavscope.mavlink.dialect import MessageDef
 from mavscope.mavlink.floats import f32_text
 from mavscope.mavlink.frame import Frame, decode_payload
@@ -121,10 +121,10 @@ def _accessor(registry: FieldRegistry, name: str) -> tuple[Values, bool, bool]:
     if isinstance(got, MessageDef):
         raise UsageError(f"-e {name}: a message, not a field (its fields: {name}.FIELD)")
     if isinstance(got, PayloadField):
-        defs = got.defs
+        defs, value_of = got.defs, got.value  # (a display-unit companion's value is in its unit)
 
         def payload(frame: Frame, fields: dict[str, object] | None) -> list[str]:
-            value = payload_value(defs, frame, fields)
+            value = value_of(frame, fields)
             if value is MISSING:
                 return []
             fd = defs[frame.msgid]

@@ -55,13 +55,17 @@ def make_security_stage(options: PipelineOptions, warn: Warn = _quiet) -> Securi
     return SecurityStage(material)
 
 
-def make_filter(options: PipelineOptions, dialect: Dialect) -> DisplayFilter | None:
-    """The compiled display filter of `options` (FilterError if it does not compile), None without one."""
+def make_filter(options: PipelineOptions, dialect: Dialect, warn: Warn = _quiet) -> DisplayFilter | None:
+    """The compiled display filter of `options` (FilterError if it does not compile), None without one; what
+    it may not mean (a scaled field against a number in its display unit) goes to `warn`."""
     if not options.display_filter:
         return None
     from mavscope.filter import compile_filter
 
-    return compile_filter(options.display_filter, dialect)
+    flt = compile_filter(options.display_filter, dialect)
+    for message in flt.warnings:
+        warn(f"warning: -Y: {message}")
+    return flt
 
 
 def filter_stage(flt: DisplayFilter, items: Iterable[Frame | Anomaly]) -> Iterator[Frame | Anomaly]:
@@ -79,7 +83,7 @@ def build_pipeline(options: PipelineOptions, dialect: Dialect, records: Iterable
     Live capture passes its own `security` stage, to hand it keys while it runs."""
     if security is None:
         security = make_security_stage(options, warn)
-    flt = make_filter(options, dialect)
+    flt = make_filter(options, dialect, warn)
     items = security.run(Dissector(dialect, security.material.wifi).run(records))
     return filter_stage(flt, items) if flt is not None else items
 
@@ -183,7 +187,7 @@ def open_session(path: str, options: PipelineOptions, *, dialect: Dialect | None
     with open_capture(path) as reader:
         t0, records = peek_time(iter(reader))
         security = make_security_stage(options, warn)
-        flt = make_filter(options, dialect)
+        flt = make_filter(options, dialect, warn)
         native = windows.available(environ) and reader.kind in windows.KINDS
         session = Session(path, reader, dialect, iter(()), security, flt, t0, environ=environ,
                           engine=NATIVE if native else PURE)

@@ -124,9 +124,10 @@ def test_large_capture_first_rows_before_the_index_completes(tmp_path: Path, dia
     7 by assuming it)."""
     import threading
 
+    from mavscope.native import core
     from mavscope.native import index as native
 
-    if engine == "native" and not native.available("pcap"):
+    if engine == "native" and not (core.available({}) and native.indexes("pcap")):
         pytest.skip("the native engine is not built")
     monkeypatch.setenv("MAVSCOPE_PURE", "1" if engine == "pure" else "")
     path = tmp_path / "big.pcap"

@@ -78,11 +78,12 @@ def test_frames_held_by_a_hole_come_after_later_records(tmp_path: Path, dialect)
 def _index_by(path: Path, dialect, how: str) -> FrameIndex:  # type: ignore[no-untyped-def]
     index = FrameIndex(dialect, path)
     if how == "native":
+        from mavscope.native import core
         from mavscope.native import index as native
         from mavscope.security.stage import SecurityStage
         from tests.native.engines import material
 
-        if not native.available("pcap"):
+        if not core.available({}):
             pytest.skip("the native extension is not built")
         native.native_build(index, os.fspath(path), dialect, SecurityStage(material("none")))
     else:
