@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
+from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, BinaryIO
 
 from mavscope.cli import Env, ExitStatus
@@ -24,6 +25,7 @@ from mavscope.commands.common import (
     whole_number,
 )
 from mavscope.errors import UsageError
+from mavscope.mavlink.frame import Frame
 from mavscope.native.core import NATIVE
 from mavscope.output.colour import wants_colour
 from mavscope.output.timefmt import Clock, check_format
@@ -62,7 +64,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_output_option(p, "-w", dest="write", metavar="OUT", kind=OutputKind.BINARY,
                       help="write the capture records holding the shown frames (.pcapng, .tlog by the name; pcap "
                            "otherwise and for -; with - nothing else is printed on standard output, as tshark's)")
-    p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w)")
+    p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w, -z)")
+    p.add_argument("-z", dest="statistics", action="append", default=[], metavar="STAT",
+                   help="statistics after the frames, as tshark's -z: io,stat,INTERVAL[,FILTER...], conv,udp, "
+                        "conv,tcp, endpoints,udp, endpoints,tcp, expert, mavlink,msgs, mavlink,links, "
+                        "mavlink,signing (repeatable; -q: only them)")
     p.add_argument("-G", dest="glossary", choices=("fields", "values"),
                    help="print a glossary instead of reading a capture, as tshark -G prints it: fields (every "
                         "field's name, type and description) or values (the named values of integer fields)")
@@ -114,6 +120,13 @@ def _run_python(args: argparse.Namespace, env: Env, session: Session, records_ou
         out_file = records_out if records_out is not None and frame_writer is None else \
             files.enter_context(open_output(args.write)) if args.write and frame_writer is None else None
         update, stop = progress(env, session.reader)
+        zstats = None
+        if args.statistics:
+            from mavscope.output.zstats import ZStats
+
+            zstats = ZStats(args.statistics, dialect, t0)
+        if zstats is not None:  # every frame, as tshark's statistics see every packet whatever -Y shows
+            session.items = _fed(session.items, zstats.frame)
         clock = Clock(args.time_format, t0)
         session.record_hooks.append(lambda rec: clock.captured(rec.number, rec.time))  # every record's (-t d)
         printer = _fields_writer(args, env, session, clock) if args.format == "fields" else FramePrinter(
@@ -143,6 +156,10 @@ def _run_python(args: argparse.Namespace, env: Env, session: Session, records_ou
                 if shown == limit:
                     break
             printer.end()
+            if zstats is not None:
+                for _ in session.items:  # (-c stopped early: the statistics still count every frame)
+                    pass
+                zstats.write(env.stdout)
         finally:
             stop()
             problems.close()
@@ -165,6 +182,13 @@ def _glossary(args: argparse.Namespace, env: Env) -> ExitStatus:
     for line in lines(load_dialect(tuple(args.dialect))):
         out.write(line + "\n")
     return ExitStatus.OK
+
+
+def _fed(items: Iterator[Frame | Anomaly], take: Callable[[Frame], None]) -> Iterator[Frame | Anomaly]:
+    for item in items:
+        if type(item) is not Anomaly:
+            take(item)
+        yield item
 
 
 def _fields_writer(args: argparse.Namespace, env: Env, session: Session, clock: Clock) -> FieldsWriter | _Quiet:
@@ -190,7 +214,8 @@ def _native_eligible(args: argparse.Namespace, env: Env, session: Session) -> bo
     or -q) and the plain summary lines (`read FILE`, `-c N` too; no -V, -x, filter, -w or -q) written to a
     stream that is not a terminal and takes UTF-8; its output is byte-identical to the Python path's
     (docs/native.md)."""
-    if session.engine != NATIVE or args.display_filter or args.write or args.quiet or args.time_format != "r":
+    if (session.engine != NATIVE or args.display_filter or args.write or args.quiet or args.time_format != "r"
+            or args.statistics):
         return False
     if args.format == "jsonl":
         return args.count is None
