@@ -16,6 +16,7 @@ from types import TracebackType
 from typing import BinaryIO
 
 from mavscope.capture.base import Record
+from mavscope.capture.stream import STDIN, STREAM_WINDOW, UNKNOWN_SIZE, StreamBytes
 from mavscope.errors import CaptureError
 from mavscope.notes import Note, note
 
@@ -170,8 +171,14 @@ class CaptureReader:
     kind: str = ""
     window: int = WINDOW  # bytes read at a time (tests make it small to cross many window boundaries)
 
-    def __init__(self, path: str | os.PathLike[str]) -> None:
-        self.path, self._file, self.size = open_file(path)
+    def __init__(self, path: str | os.PathLike[str] | StreamBytes) -> None:
+        self._stream: StreamBytes | None = None
+        self._file: BinaryIO | None
+        if isinstance(path, StreamBytes):  # standard input (capture.stream): its size is known at its end
+            self.path, self._file, self.size, self._stream = STDIN, None, UNKNOWN_SIZE, path
+            self.window = STREAM_WINDOW
+        else:
+            self.path, self._file, self.size = open_file(path)
         self.opened_size = self.size
         self.position = 0
         self._linktype = -2  # the link type of a record the reader makes up (set by subclasses)
@@ -191,6 +198,12 @@ class CaptureReader:
         want = min(n, self.size - offset)
         if want <= 0:
             return b""
+        if self._stream is not None:
+            data = self._stream.read_at(offset, want)
+            if len(data) < want:  # the stream ended: its size (not a file that shrank)
+                self.size = self.opened_size = offset + len(data)
+            return data
+        assert self._file is not None
         data = pread(self._file, want, offset)
         if len(data) < want:
             self.size = offset + len(data)
@@ -222,8 +235,9 @@ class CaptureReader:
         return next(self._iter)
 
     def close(self) -> None:
-        """Close the file (idempotent)."""
-        self._file.close()
+        """Close the file (idempotent; standard input is left open)."""
+        if self._file is not None:
+            self._file.close()
 
     def __enter__(self) -> CaptureReader:
         return self

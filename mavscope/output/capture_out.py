@@ -17,6 +17,7 @@ from typing import BinaryIO
 
 from mavscope.capture.base import LINKTYPE_ETHERNET, Record
 from mavscope.capture.detect import open_capture
+from mavscope.capture.stream import STDIN
 from mavscope.capture.synth import endpoint_packet
 from mavscope.capture.writer import PcapngWriter, PcapWriter, TlogWriter
 from mavscope.endpoint import Endpoint
@@ -58,6 +59,9 @@ def write_records(source: str | os.PathLike[str], out: str | os.PathLike[str], r
     kind = _output_kind(out)
     if kind == "tlog":
         raise UsageError("-w: a packet capture can be written as .pcap or .pcapng, not .tlog")
+    if os.fspath(source) == STDIN:
+        raise UsageError("-w: the records of standard input cannot be read again to be written: save the capture "
+                         "to a file first (tshark -w FILE, tcpdump -w FILE) and read that")
     target: str | os.PathLike[str] | BinaryIO = file if file is not None else out
     with open_capture(source) as reader:
         chosen: Iterable[Record] = (r for r in reader if r.number in records and r.linktype >= 0)

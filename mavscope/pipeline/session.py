@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING
 from mavscope.capture.base import Record
 from mavscope.capture.detect import open_capture
 from mavscope.capture.reader import CaptureReader
+from mavscope.capture.stream import STDIN
 from mavscope.mavlink.dialect import Dialect, load_dialect
 from mavscope.mavlink.frame import Frame
 from mavscope.native import windows
@@ -188,7 +189,8 @@ def open_session(path: str, options: PipelineOptions, *, dialect: Dialect | None
         t0, records = peek_time(iter(reader))
         security = make_security_stage(options, warn)
         flt = make_filter(options, dialect, warn)
-        native = windows.available(environ) and reader.kind in windows.KINDS
+        # (standard input is the Python readers': the native walker reads a file by offset)
+        native = windows.available(environ) and reader.kind in windows.KINDS and path != STDIN
         session = Session(path, reader, dialect, iter(()), security, flt, t0, environ=environ,
                           engine=NATIVE if native else PURE)
         watched = session._watched(records)
