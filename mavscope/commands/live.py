@@ -41,7 +41,9 @@ from mavscope.live.stop import Stopper
 from mavscope.live.udp import BatchReceiver, UdpSource, parse_endpoint
 from mavscope.mavlink.dialect import Dialect, load_dialect
 from mavscope.mavlink.frame import Frame
+from mavscope.output.colour import wants_colour
 from mavscope.output.printer import FramePrinter
+from mavscope.output.timefmt import Clock, check_format
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.pipeline.session import build_pipeline
 
@@ -67,6 +69,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-T", dest="format", choices=("text", "jsonl"), default="text",
                    help="output format (default text)")
     p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w)")
+    p.add_argument("-t", dest="time_format", metavar="FORMAT", default="r",
+                   help="the time column of summary lines, as tshark's -t (read -t): r, a, ad, adoy, u, ud, udoy, "
+                        "e, d, dd")
+    p.add_argument("--color", dest="color", default="auto", metavar="WHEN",
+                   help="colour summary lines by verdict (read --color): auto, always, never")
     p.add_argument("-c", dest="count", type=whole_number(1, " of frames"), metavar="N", help="stop after N frames")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     add_output_option(p, "-w", dest="write", metavar="OUT.pcap", kind=OutputKind.BINARY,
@@ -130,9 +137,10 @@ def _native_lines(args: argparse.Namespace, env: Env, source: LiveSource) -> boo
     or -q (lines made and dropped: the frames are counted, problems reported) (mavscope.native.live)."""
     if not isinstance(source, UdpSource) or not source.batched:
         return False
-    if args.display_filter or args.verbose or args.hex:
+    if args.display_filter or args.verbose or args.hex or args.time_format != "r":
         return False
-    if args.format != "jsonl" and not args.quiet and not plain_utf8(env):
+    if args.format != "jsonl" and not args.quiet and (not plain_utf8(env)
+                                                      or wants_colour(args.color, env.stdout, env.environ)):
         return False
     from mavscope.native.core import engine
 
@@ -200,6 +208,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     packets_out = binary_stdout(env) if args.write == STDOUT else None
     if packets_out is not None:
         args.quiet = True
+    check_format(args.time_format)
+    wants_colour(args.color, env.stdout, env.environ)  # (a wrong --color before anything is received)
     dialect = load_dialect(args.dialect)
     source = make_source(args, env)
     try:
@@ -207,8 +217,10 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     except BaseException:
         source.close()
         raise
+    clock = Clock(args.time_format, None)  # (its first time: the first record's, below)
     printer = FramePrinter(env.stdout, env.stdout_bytes, dialect, args.format, verbose=args.verbose, hex=args.hex,
-                           quiet=args.quiet)
+                           quiet=args.quiet, clock=clock if args.time_format != "r" else None,
+                           colour=args.format == "text" and wants_colour(args.color, env.stdout, env.environ))
     writer: LivePcapWriter | None = None
     restore: list[tuple[signal.Signals, object]] = []
     timer: threading.Timer | None = None
@@ -236,7 +248,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         def records() -> Iterator[Record]:
             for rec in source.records(on_idle=idle):
                 if printer.t0 is None:
-                    printer.t0 = rec.time
+                    printer.t0 = clock.t0 = rec.time
+                clock.captured(rec.number, rec.time)
                 if writer is not None:
                     writer.write(rec)  # every datagram received goes to the pcap, decoded or not
                 if stopper.decode():

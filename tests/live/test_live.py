@@ -478,3 +478,23 @@ def test_signature_verdicts_live() -> None:
     assert status == ExitStatus.OK
     frames = _frames_of(out)
     assert [f["signature"]["status"] for f in frames] == ["valid", "invalid"]  # type: ignore[index]
+
+
+def test_time_formats_and_colour_live() -> None:
+    """`live -t e --color=always`: the read options on live lines (a summary line's time column as epoch
+    seconds: the datagram's receive time, so within the test's clock; a bad-CRC frame in red, the TUI's
+    RED as 24-bit SGR, a good one uncoloured)."""
+    before = time.time()
+    run = LiveRun("--udp", "127.0.0.1:0", "-t", "e", "--color=always", "-c", "2", "--duration", "8")
+    vehicle = pmav.mav2(1, 1)
+    bad = bytearray(pmav.heartbeat(vehicle))
+    bad[-3] ^= 0x55
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.sendto(pmav.heartbeat(vehicle), ("127.0.0.1", run.port))
+        s.sendto(bytes(bad), ("127.0.0.1", run.port))
+    status, out, _ = run.join()
+    assert status == ExitStatus.OK
+    good, red = out.splitlines()[:2]
+    assert "\x1b" not in good and red.startswith("\x1b[1;38;2;255;95;95m") and red.endswith("\x1b[0m")
+    epoch = float(good.split()[1])
+    assert before - 1 <= epoch <= time.time() + 1
