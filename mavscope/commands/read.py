@@ -89,6 +89,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                          'not "fields")')
     if args.format == "fields" and not args.fields:
         raise UsageError("read: -T fields prints the fields named with -e FIELD: name at least one")
+    if args.statistics and args.write == STDOUT:
+        raise UsageError("read: -z prints on standard output, where -w - writes the records: write them to a file")
     records_out = binary_stdout(env) if args.write == STDOUT else None
     if records_out is not None:
         args.quiet = True
