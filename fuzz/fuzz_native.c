@@ -45,7 +45,11 @@
  * known. The note column: one byte per frame, only MS_NOTE_UNSIGNED (an unsigned MAVLink 2 frame),
  * MS_NOTE_V1 (a MAVLink 1 frame) and MS_NOTE_BAD_CRC (an unsigned frame whose CRC the harness recomputes
  * as bad, every bad one so marked), all zero without `notes`; a bad-CRC frame has no message row, every
- * other frame exactly one.
+ * other frame exactly one. A raw stream (selector 3) is walked by walk_raw in the column walks too (clean
+ * stretches into the columns, cut at their limit, pieces handed back, the framer's state made up after each
+ * piece): each of its rows must be a record of its own (numbers rising within the chunk), index 1, without
+ * time or endpoints, transport MS_TRANSPORT_RAW; every other capture's rows UDP (both endpoints) or tlog
+ * (none).
  * Signed frames with keys (signing.c, sha256.c): with selector bit 2 clear and a preset sender (bits
  * 4-6), the walk judges signed frames against a signing state (MS_SIGNED_VERIFY) holding four keys
  * (the bench capture's, the bundled captures' "mavscope-demo", one whose name is as long as the writer
@@ -583,6 +587,35 @@ static void check_index_columns(const ms_cols *c, const uint8_t *file, size_t si
     }
 }
 
+/* Every frame's record, index, time, transport and endpoints as the Python pipeline has them: a raw stream's
+ * (`raw`) each a record of its own (numbered on, so strictly increasing within a chunk), index 1, no time,
+ * transport raw, no endpoints (Dissector._stream); another capture's transport UDP or tlog, a tlog entry's
+ * without endpoints, a datagram's with both. */
+static void check_record_columns(const ms_cols *c, int raw) {
+    int64_t last = 0;
+    for (size_t i = 0; i < c->n; i++) {
+        int64_t record;
+        int32_t index, src, dst;
+        double time;
+        memcpy(&record, c->col[MS_COL_RECORD].data + 8 * i, 8);
+        memcpy(&index, c->col[MS_COL_INDEX].data + 4 * i, 4);
+        memcpy(&src, c->col[MS_COL_SRC].data + 4 * i, 4);
+        memcpy(&dst, c->col[MS_COL_DST].data + 4 * i, 4);
+        memcpy(&time, c->col[MS_COL_TIME].data + 8 * i, 8);
+        const uint8_t transport = (uint8_t)c->col[MS_COL_TRANSPORT].data[i];
+        const uint8_t time_ok = (uint8_t)c->col[MS_COL_TIME_OK].data[i];
+        if (raw) {
+            if (transport != MS_TRANSPORT_RAW || index != 1 || time_ok != 0 || time != 0.0 || src != -1 ||
+                dst != -1 || record <= last)
+                abort();
+            last = record;
+        } else if (index < 1 || (transport == MS_TRANSPORT_TLOG ? src != -1 || dst != -1
+                                 : transport != MS_TRANSPORT_UDP || src < 0 || dst < 0)) {
+            abort();
+        }
+    }
+}
+
 /* The endpoint cache in front of the map holds only what the map holds. */
 static void check_endpoint_cache(const ms_cols *c) {
     for (int r = 0; r < 8; r++)
@@ -608,9 +641,10 @@ static uint16_t x25(const uint8_t *p, size_t n, uint8_t extra) {
 
 /* A chunk of the column buffers against the file they were read from; `any_crc`: the walk took every CRC
  * for good (fuzz_any_crc). */
-static void check_columns(const ms_cols *c, const uint8_t *file, size_t size, int any_crc) {
+static void check_columns(const ms_cols *c, const uint8_t *file, size_t size, int any_crc, int raw) {
     const size_t n = c->n;
     check_endpoint_cache(c);
+    check_record_columns(c, raw);
     if (c->index_only) {
         check_index_columns(c, file, size);
         return;
@@ -818,9 +852,10 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
         w.t0 = (n & 3) == 3 ? __builtin_nan("") : T0[n & 3];
     }
     w.cols = cols;
-    /* a raw stream in the JSON Lines and summary walks: clean stretches written, pieces handed back (walk.c
-     * walk_raw); after each piece the framer's state is made up below, as any RawLink may report it */
-    w.raw_native = (sel & 3) == 3 && cols == NULL;
+    /* a raw stream in every walk: clean stretches written (or put into the columns, as far as their limit), pieces
+     * handed back (walk.c walk_raw); after each piece the framer's state is made up below, as any RawLink may
+     * report it */
+    w.raw_native = (sel & 3) == 3;
     unsigned steps = 0;
     ms_buf out;
     ms_buf_init(&out);
@@ -841,7 +876,7 @@ static void walk_file(ms_memory_file *mf, const uint8_t *file, size_t n, unsigne
             if (out.len != 0)
                 abort(); /* column mode writes no text */
             if (r != MS_WALK_FULL || ms_cols_full(cols)) {
-                check_columns(cols, file, n, (sel & 8) != 0);
+                check_columns(cols, file, n, (sel & 8) != 0, w.raw_native);
                 ms_cols_restart(cols);
                 cols->limit = 1 + ((cols->limit * 5 + 3) & 31); /* the glue may change it between chunks */
             }

@@ -30,6 +30,7 @@ KIND_TLOG: int
 KIND_RAW: int
 COLUMN_TRANSPORT_UDP: int  # columns.h MS_TRANSPORT_*: the codes of the `transport` column (0: never written)
 COLUMN_TRANSPORT_TLOG: int
+COLUMN_TRANSPORT_RAW: int  # a raw byte stream's frame (no time, no endpoints: Dissector._stream's)
 NOTE_UNSIGNED: int  # columns.h MS_NOTE_*: the bits of the `note` column (Columns(notes=True))
 NOTE_V1: int
 NOTE_BAD_CRC: int
@@ -91,7 +92,8 @@ class SigningState:
 
 
 # A raw stream's state the Walker shares with Python (mavscope.pipeline.dissect.RawLink): its int `frames` read
-# before and set after each `next`, its int `held` (-1: the stream's framer is idle) read before it
+# before and set after each `next`, its int `held` (-1: the stream's framer is idle) read before it (JSON Lines,
+# summary lines and column mode alike)
 _RawLink = Any
 
 

@@ -19,7 +19,7 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping
 
-from mavscope.transport.base import TRANSPORT_TLOG, TRANSPORT_UDP
+from mavscope.transport.base import TRANSPORT_RAW, TRANSPORT_TLOG, TRANSPORT_UDP
 from mavscope.transport.dispatch import TABLES
 
 try:
@@ -58,4 +58,5 @@ if _native is not None:
              "raw": _native.KIND_RAW}
     NOTE_UNSIGNED, NOTE_V1, NOTE_BAD_CRC = _native.NOTE_UNSIGNED, _native.NOTE_V1, _native.NOTE_BAD_CRC
     COLUMN_TRANSPORTS = _by_code({_native.COLUMN_TRANSPORT_UDP: TRANSPORT_UDP,
-                                  _native.COLUMN_TRANSPORT_TLOG: TRANSPORT_TLOG})
+                                  _native.COLUMN_TRANSPORT_TLOG: TRANSPORT_TLOG,
+                                  _native.COLUMN_TRANSPORT_RAW: TRANSPORT_RAW})

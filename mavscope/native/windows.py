@@ -134,14 +134,17 @@ def column_steps(walker: _native.Walker, cols: _native.Columns, dissector: Disse
 def column_walker(path: str, kind: str, dialect: Dialect, stage: SecurityStage, dissector: Dissector,
                   cols: _native.Columns) -> Iterator[tuple[_native.Walker, int]]:
     """The one column-mode walker (the analyses' windows, the export, the TUI's index): the capture opened,
-    a Walker filling `cols` with the dissector's and the security stage's shared sets and MAVLink's ports
-    (as the JSON Lines walk has them), and the file's size; closed at the end."""
+    a Walker filling `cols` with the dissector's and the security stage's shared sets, MAVLink's ports and a
+    raw stream's link (as the JSON Lines walk has them: a raw stream's clean stretches become rows, numbered
+    on from `dissector.raw.frames`, and only the pieces around damage are handed back), and the file's size;
+    closed at the end."""
     assert _native is not None
     _, f, size = open_file(path)
     try:
         walker = _native.Walker(f.fileno(), size, KINDS[kind], table_for(dialect), dissector.mavlink_endpoints,
                                 Endpoint.from_packed, stage.signed_senders, WINDOW, columns=cols,
-                                receivers=dissector.receivers, ports=tuple(sorted(MAVLINK_PORTS)))
+                                receivers=dissector.receivers, ports=tuple(sorted(MAVLINK_PORTS)),
+                                raw=dissector.raw)
         try:
             yield walker, size
         finally:

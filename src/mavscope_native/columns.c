@@ -163,31 +163,18 @@ static int message_row(ms_cols *c, const ms_message *m, const uint8_t *payload, 
     return 0;
 }
 
-int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uint32_t *frames, const uint8_t *notes,
-                   size_t count, int has_time, double t, const ms_udp *udp) {
-    if (c->failed)
-        return -1;
-    int32_t src = -1, dst = -1;
-    if (udp != NULL) {
-        int64_t s = endpoint_id(c, udp->v6, udp->src, udp->sport);
-        int64_t e = s < 0 ? -1 : endpoint_id(c, udp->v6, udp->dst, udp->dport);
-        if (s < 0 || e < 0 || s > INT32_MAX || e > INT32_MAX) {
-            c->failed = 1;
-            return -1;
-        }
-        src = (int32_t)s;
-        dst = (int32_t)e;
-    }
+/* The frames of one record (`raw` 0: record `number`, index i + 1) or of a raw stream's stretch (`raw` 1: record
+ * `number + i`, index 1), all with the same time, transport and endpoints. */
+static int put_frames(ms_cols *c, const uint8_t *d, uint64_t base, const uint32_t *frames, const uint8_t *notes,
+                      size_t count, int64_t number, int raw, int has_time, double t, uint8_t transport, int32_t src,
+                      int32_t dst) {
     const int full = !c->index_only;
     if (full && c->n == 0 && c->col[MS_COL_PAYLOAD_AT].len == 0) {
         put_i32(c, MS_COL_PAYLOAD_AT, 0);
         put_i32(c, MS_COL_RAW_AT, 0);
     }
-    const int64_t number = (int64_t)rec->number;
     const uint8_t time_ok = has_time ? 1 : 0;
     const double time = has_time ? t : 0.0;
-    const uint8_t transport = udp != NULL ? MS_TRANSPORT_UDP : MS_TRANSPORT_TLOG;
-    const uint64_t base = rec->offset + (uint64_t)(d - rec->data);
     for (size_t i = 0; i < count; i++) {
         if (c->n >= MS_COLS_MAX_FRAMES) {
             c->failed = 1;
@@ -204,10 +191,11 @@ int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uin
             c->failed = 1;
             return -1;
         }
-        const int32_t index = (int32_t)(i + 1);
+        const int32_t index = raw ? 1 : (int32_t)(i + 1);
+        const int64_t record = raw ? number + (int64_t)i : number;
         const int64_t offset = (int64_t)(base + frames[2 * i]);
         const uint16_t fsize = (uint16_t)size;
-        put(c, MS_COL_RECORD, &number);
+        put(c, MS_COL_RECORD, &record);
         put(c, MS_COL_INDEX, &index);
         put(c, MS_COL_TIME, &time);
         put_u8(c, MS_COL_TIME_OK, time_ok);
@@ -264,6 +252,36 @@ int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uin
         }
     }
     return 0;
+}
+
+int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uint32_t *frames, const uint8_t *notes,
+                   size_t count, int has_time, double t, const ms_udp *udp) {
+    if (c->failed)
+        return -1;
+    int32_t src = -1, dst = -1;
+    if (udp != NULL) {
+        int64_t s = endpoint_id(c, udp->v6, udp->src, udp->sport);
+        int64_t e = s < 0 ? -1 : endpoint_id(c, udp->v6, udp->dst, udp->dport);
+        if (s < 0 || e < 0 || s > INT32_MAX || e > INT32_MAX) {
+            c->failed = 1;
+            return -1;
+        }
+        src = (int32_t)s;
+        dst = (int32_t)e;
+    }
+    return put_frames(c, d, rec->offset + (uint64_t)(d - rec->data), frames, notes, count, (int64_t)rec->number, 0,
+                      has_time, t, udp != NULL ? MS_TRANSPORT_UDP : MS_TRANSPORT_TLOG, src, dst);
+}
+
+int ms_cols_raw(ms_cols *c, const uint8_t *d, uint64_t base, const uint32_t *frames, const uint8_t *notes,
+                size_t count, uint64_t first) {
+    if (c->failed)
+        return -1;
+    if (first > (uint64_t)INT64_MAX - count) {
+        c->failed = 1;
+        return -1;
+    }
+    return put_frames(c, d, base, frames, notes, count, (int64_t)first, 1, 0, 0.0, MS_TRANSPORT_RAW, -1, -1);
 }
 
 void ms_cols_restart(ms_cols *c) {

@@ -31,7 +31,7 @@ enum {
     MS_COL_TIME,       /* double: capture time (0.0 where TIME_OK is 0) */
     MS_COL_TIME_OK,    /* uint8: 1 when the record has a time */
     MS_COL_TRANSPORT,  /* uint8: MS_TRANSPORT_* */
-    MS_COL_SRC,        /* int32: endpoint id, -1 for none (tlog) */
+    MS_COL_SRC,        /* int32: endpoint id, -1 for none (tlog, raw) */
     MS_COL_DST,        /* int32 */
     MS_COL_VERSION,    /* uint8: 1 or 2 */
     MS_COL_LEN,        /* uint8: LEN */
@@ -61,7 +61,7 @@ extern const char *const MS_COL_NAMES[MS_NCOLS];
 /* bytes per frame of each fixed-width column (0: the offsets and bytes of PAYLOAD and RAW) */
 extern const uint8_t MS_COL_WIDTH[MS_NCOLS];
 
-enum { MS_TRANSPORT_UDP = 1, MS_TRANSPORT_TLOG = 2 };
+enum { MS_TRANSPORT_UDP = 1, MS_TRANSPORT_TLOG = 2, MS_TRANSPORT_RAW = 3 };
 
 /* the note column's bits (a frame the walk takes with notes: walk.c, as its JSON Lines walk writes them):
  * an unsigned MAVLink 2 or a MAVLink 1 frame of a sender that signs, and a bad CRC */
@@ -122,6 +122,13 @@ static inline int ms_cols_full(const ms_cols *c) {
  * when memory runs out. A frame with a bad CRC gets no message row (its fields are no one's). */
 int ms_cols_record(ms_cols *c, const ms_record *rec, const uint8_t *d, const uint32_t *frames, const uint8_t *notes,
                    size_t count, int has_time, double t, const ms_udp *udp);
+
+/* Append `count` frames of a raw byte stream (walk.c raw_run), as the Python pipeline has them
+ * (Dissector._stream): each a record of its own numbered on from `first` (record `first + i`, index 1), no
+ * time, transport MS_TRANSPORT_RAW, no endpoints (-1); file offset `base + frames[2 * i]`. 0, or -1 when
+ * memory runs out. */
+int ms_cols_raw(ms_cols *c, const uint8_t *d, uint64_t base, const uint32_t *frames, const uint8_t *notes,
+                size_t count, uint64_t first);
 
 /* Start the next chunk: the buffers are emptied (the caller took their memory: it zeroed each ms_buf
  * it took), message rows forgotten, endpoint ids since `first_new` no longer new; the endpoint map starts

@@ -6,10 +6,10 @@
  *          signed_senders: set[tuple[int, int]], window: int = 1 << 20, summary: Summary | None = None,
  *          t0: float | None = None, columns: Columns | None = None,
  *          receivers: dict | None = None, notes=None, ports=None, raw: RawLink | None = None)
- *                                        with `raw` (kind raw, no columns; the Dissector's RawLink): the raw
- *                                        stream's clean stretches are written, pieces around damage handed
- *                                        back (walk.c walk_raw); its `frames` and `held` read per `next`,
- *                                        `frames` set after it
+ *                                        with `raw` (kind raw; the Dissector's RawLink): the raw stream's
+ *                                        clean stretches are written (or put into `columns`), pieces around
+ *                                        damage handed back (walk.c walk_raw); its `frames` and `held` read
+ *                                        per `next`, `frames` set after it
  *                                        with `receivers` (the Dissector's: UDP port -> receivers): a datagram
  *                                        to one of its ports is handed back (read after each record
  *                                        handed back, the only thing that changes it); every record while
@@ -690,8 +690,9 @@ static int Walker_init(WalkerObject *self, PyObject *args, PyObject *kwds) {
         self->receivers = receivers;
         self->waiting_stale = 1;
     }
-    if (raw != Py_None && kind == MS_KIND_RAW && columns == Py_None) {
-        /* the stream's clean stretches are written here (walk.c walk_raw); without it, chunks are handed back */
+    if (raw != Py_None && kind == MS_KIND_RAW) {
+        /* the stream's clean stretches are written here, or put into the columns (walk.c walk_raw); without it,
+         * chunks are handed back */
         Py_INCREF(raw);
         self->raw = raw;
     }
@@ -1468,6 +1469,7 @@ PyMODINIT_FUNC PyInit__native(void) {
         PyModule_AddIntConstant(m, "NOTE_V1", MS_NOTE_V1) < 0 ||
         PyModule_AddIntConstant(m, "NOTE_BAD_CRC", MS_NOTE_BAD_CRC) < 0 ||
         PyModule_AddIntConstant(m, "COLUMN_TRANSPORT_TLOG", MS_TRANSPORT_TLOG) < 0 ||
+        PyModule_AddIntConstant(m, "COLUMN_TRANSPORT_RAW", MS_TRANSPORT_RAW) < 0 ||
         PyModule_AddIntConstant(m, "TABLE_VERSION", 1) < 0 || ms_py_add_receiver(m) < 0) {
         Py_DECREF(m);
         return NULL;

@@ -846,15 +846,22 @@ static int raw_keep(ms_walker *w) {
 #define RAW_PREFIX " " "          -" " " "raw                               " " " /* summary.c ms_summary_prefix's */
 
 /* Write the stretch of clean frames from w->raw_pos of the chunk (Python's framer idle there), as far as it
- * goes: w->raw_pos moves past them. 0, or -1 out of memory. */
-static int raw_run(ms_walker *w, ms_buf *out) {
+ * goes (in column mode: into the columns, as far as their limit; *full then says the stretch stopped there, not
+ * at damage): w->raw_pos moves past them. 0, or -1 out of memory. */
+static int raw_run(ms_walker *w, ms_buf *out, int *full) {
     const ms_record *c = &w->raw_rec;
     const uint8_t *d = c->data;
     const size_t n = c->len, start = w->raw_pos;
     size_t pos = start, k = 0, t = 0, line = out->len;
     static const char prefix[] = RAW_PREFIX;
+    const size_t room = w->cols != NULL ? (w->cols->n < w->cols->limit ? w->cols->limit - w->cols->n : 0) : SIZE_MAX;
+    *full = 0;
     w->n_pending = 0;
     while (pos < n) {
+        if (k >= room) {
+            *full = 1; /* the next frames are the next chunk's (the framer is idle here all the same) */
+            break;
+        }
         const size_t t0 = t, p0 = w->n_pending;
         int r = clean_frame(w, d, pos, n, k, &t);
         if (r == NOMEM)
@@ -886,10 +893,21 @@ static int raw_run(ms_walker *w, ms_buf *out) {
                 out->len = line; /* its line goes */
         }
     }
-    if (k == 0)
+    if (k == 0) {
+        *full = 0; /* (a bad frame the limit stopped after, which no CRC-valid frame follows: a piece from it) */
         return 0;
+    }
     const uint64_t first = w->raw_frames + 1;
-    if (w->summary == NULL) {
+    if (w->cols != NULL) { /* the rows the Python pipeline gives (Dissector._stream): columns.h ms_cols_raw */
+        const uint8_t *notes = NULL;
+        if (w->cols->notes) {
+            for (size_t i = 0; i < k; i++) /* (nothing reads fnote after this in column mode) */
+                w->fnote[i] = (uint8_t)(w->fnote[i] | (w->fbad[i] ? MS_NOTE_BAD_CRC : 0));
+            notes = w->fnote;
+        }
+        if (ms_cols_raw(w->cols, d, c->offset, w->frames, notes, k, first) != 0)
+            return -1;
+    } else if (w->summary == NULL) {
         static const char mid_text[] = ",\"time\":null,\"transport\":\"raw\",\"src\":null,\"dst\":null,\"version\":";
         char mid[LINE_SLACK] = {0};
         memcpy(mid, mid_text, sizeof mid_text - 1);
@@ -935,12 +953,15 @@ static int walk_raw(ms_walker *w, ms_buf *out, ms_record *rec) {
     const ms_record *c = &w->raw_rec;
     uint64_t resume;
     if (w->raw_held < 0) {
-        if (raw_run(w, out) != 0)
+        int full = 0;
+        if (raw_run(w, out, &full) != 0)
             return MS_WALK_NOMEM;
         if (w->raw_pos == c->len) {
             w->raw_have = 0;
             return MS_WALK_FULL;
         }
+        if (full)
+            return MS_WALK_FULL; /* the columns hold their limit: the stretch goes on in the next chunk */
         resume = c->offset + w->raw_pos;
     } else {
         const uint64_t at = c->offset + w->raw_pos;

@@ -112,10 +112,10 @@ typedef struct {
                                    the current call (Python's general scanner sets it: records with a
                                    MAVLink 1 frame); -1: unchanged */
     uint64_t records_native, records_handed_back, frames_native; /* counters */
-    /* A raw byte stream (MS_KIND_RAW) with `raw_native` (set by the glue: the JSON Lines and summary walks): its
-     * clean stretches are written here, and only the pieces around damage are handed back, to Python's
-     * framer for the stream (walk.c walk_raw says where a piece is cut). Without it every chunk is handed
-     * back whole. */
+    /* A raw byte stream (MS_KIND_RAW) with `raw_native` (set by the glue when given the RawLink: every walk, column
+     * mode too): its clean stretches are written here (or put into the columns: ms_cols_raw), and only the
+     * pieces around damage are handed back, to Python's framer for the stream (walk.c walk_raw says where a
+     * piece is cut). Without it every chunk is handed back whole. */
     int raw_native;
     int64_t raw_held;           /* set by the glue before each ms_walk (Python's RawLink.held): -1 when the
                                    stream's framer is idle, else how many of the last bytes it was fed it has

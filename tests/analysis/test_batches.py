@@ -170,11 +170,12 @@ def test_hostile_frames_through_the_expert_alike_in_batches(dialect: Dialect) ->
 
 
 
-@pytest.mark.parametrize("path", [p for p in BUNDLED if p.suffix != ".raw"] + [p for p in _real() if p.suffix in
-                                  (".pcap", ".pcapng", ".tlog")], ids=lambda p: p.name)
+@pytest.mark.parametrize("path", BUNDLED + _real(), ids=lambda p: p.name)
 def test_native_windows_give_the_python_pipelines_batches(path: Path) -> None:
     """pipeline/windows.py (the C walker's column mode and the records it hands back) against the Python
-    pipeline's frames: the same columns row for row, and the same Frames."""
+    pipeline's frames: the same columns row for row, and the same Frames. Raw byte streams (.raw, .bin) too:
+    the walker takes their clean stretches as rows (transport raw, each frame a record of its own) and hands
+    back only the pieces around damage."""
     from mavscope.native import windows
 
     if not windows.available({}):

@@ -20,6 +20,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from mavscope.mavlink.dialect import load_dialect
+from mavscope.mavlink.frame import Frame
+from mavscope.pipeline.dissect import Anomaly
 from tests.conftest import CAPTURES, Cli
 from tests.native import build as nh
 from tests.native.engines import (
@@ -287,3 +289,143 @@ def test_generated_streams(parts: list[bytes], keys: str) -> None:
 def test_generated_streams_across_the_chunk_boundary(before: int, parts: list[bytes]) -> None:
     # the generated part starts `before` bytes ahead of the 64 KiB boundary
     both(b"".join(filler(CHUNK - max(before, 26))) + b"".join(parts) + clean(3, 9))
+
+
+# --- column mode (stats, every analysis over FrameBatches, the export) ----------------------------------------
+#
+# native.windows walks a raw stream in column mode as the JSON Lines walk does: the clean stretches become rows
+# (record = the stream's frame counter, index 1, no time, transport raw, no endpoints), frames with only the
+# notes of the note column as coded rows, the pieces around damage handed back to the stream's framer. The
+# reference is the Python pipeline's Frames (Dissector, SecurityStage) as FrameBatch.of_frames makes columns of
+# them: every column, every endpoint text, every whole Frame, and the anomalies in order.
+
+_COLUMNS = ("record", "time", "timed", "transport", "version", "seq", "sysid", "compid", "msgid", "size", "crc",
+            "verdict", "signed", "clean")
+
+
+def _pure_frames(path: str, keys: str) -> tuple[list[Frame], list[Anomaly]]:
+    from mavscope.capture.detect import open_capture
+    from mavscope.pipeline.dissect import Dissector
+    from mavscope.security.stage import SecurityStage
+    from tests.native.engines import material
+
+    frames: list[Frame] = []
+    anomalies: list[Anomaly] = []
+    with open_capture(path) as reader:
+        for item in SecurityStage(material(keys)).run(Dissector(DIALECT).run(reader)):
+            if type(item) is Anomaly:
+                anomalies.append(item)
+            else:
+                frames.append(item)
+    return frames, anomalies
+
+
+def columns_both(data: bytes, keys: str = "none", limit: int = 65_536) -> tuple[list[Frame], dict[str, int], list[int]]:
+    """The column windows (native.windows.batches, windows of `limit` rows) of the raw stream `data` against the
+    Python pipeline: identical columns, endpoint texts, Frames and anomalies. The pipeline's Frames, the walker's
+    counters and the windows' sizes."""
+    from mavscope.native import windows
+    from mavscope.pipeline.batch import FrameBatch, Tables
+    from mavscope.security.stage import SecurityStage
+    from tests.native.engines import material
+
+    with capture_file(data, ".raw") as path:
+        pure, pure_anomalies = _pure_frames(path, keys)
+        reported: list[object] = []
+        stats: dict[str, int] = {}
+        got = list(windows.batches(path, "raw", DIALECT, SecurityStage(material(keys)), reported.append, Tables(),
+                                   limit, stats))
+    ref = FrameBatch.of_frames(pure, Tables())
+    for name in _COLUMNS:  # (`coded`: the pure batch codes nothing; a coded row's Frame is compared below)
+        assert [v for b in got for v in getattr(b, name).tolist()] == getattr(ref, name).tolist(), name
+    for name in ("src", "dst"):
+        assert [b.tables.text(i) for b in got for i in getattr(b, name).tolist()] == \
+            [ref.tables.text(i) for i in getattr(ref, name).tolist()]
+    assert [f for b in got for f in b.frames(list(range(b.n)))] == pure
+    assert [a for a in reported if type(a) is Anomaly] == pure_anomalies
+    return pure, stats, [b.n for b in got]
+
+
+def test_columns_of_a_clean_stream_are_taken_whole() -> None:
+    frames, stats, sizes = columns_both(clean(50))
+    assert [f.record for f in frames] == list(range(1, 51))
+    assert stats["frames_native"] == 50 and stats["records_handed_back"] == 0
+
+
+def test_columns_stop_at_the_window_limit_without_handing_back() -> None:
+    # 50 clean frames in windows of 7 rows: the stretch is cut where the columns are full and goes on in the next
+    # chunk (the framer is idle there), never handed back
+    _, stats, sizes = columns_both(clean(50), limit=7)
+    assert sizes == [7] * 7 + [1]
+    assert stats["frames_native"] == 50 and stats["records_handed_back"] == 0
+    for limit in (1, 2, 3, 5):  # a bad frame at the limit: kept where a valid frame follows it
+        data = clean(4) + bad_crc(v2(30, seq=4)) + clean(4, 5) + bad_crc(v2(30, seq=9))
+        _, stats, _ = columns_both(data, limit=limit)
+        assert stats["frames_native"] == 9  # the last bad frame (no frame after it) is the framer's
+
+
+def test_coded_rows_of_a_raw_stream() -> None:
+    # 1/1 signs (no key: verdict no-key), then sends unsigned frames: unsigned-in-signed-stream (code 1); 2/1 sends
+    # a bad-CRC frame a valid frame follows (bad-crc, code 4); 1/1 a bad-CRC one (both notes: 5); a MAVLink 1 frame
+    # of 1/1 (v1-in-signed-stream: 2), RADIO_STATUS of 1/1 (no note: security/stage.py), 3/1's frames (none).
+    # The codes by hand from those rules; every frame is the walker's (no piece handed back).
+    ts = (1_700_000_000 - nh.SIGNING_EPOCH) * 100_000
+    signed = [v2(0, seq=i, iflags=1, link_id=1, timestamp=ts + i, key=nh.KEY) for i in range(3)]
+    bad2, bad1 = bad_crc(v2(30, seq=10, sysid=2)), bad_crc(v2(30, seq=11))
+    assert bad2[-1] not in (0xFD, 0xFE) and bad1[-1] not in (0xFD, 0xFE)  # (a bad frame ending in an STX is Python's)
+    parts = [*signed, v2(30, seq=3), v2(33, seq=4), bad2, v2(30, seq=5, sysid=3), bad1, v2(30, seq=6, sysid=3),
+             v1(0, 7), v2(109, seq=8), v2(30, seq=9, sysid=3)]
+    codes = [0, 0, 0, 1, 1, 4, 0, 5, 0, 2, 0, 0]
+    for limit in (65_536, 4, 1):
+        frames, stats, _ = columns_both(b"".join(parts), limit=limit)
+        assert stats["frames_native"] == 12 and stats["records_handed_back"] == 0
+        assert [[n.code for n in f.notes] for f in frames] == [
+            [], [], [], ["unsigned-in-signed-stream"], ["unsigned-in-signed-stream"], ["bad-crc"], [],
+            ["bad-crc", "unsigned-in-signed-stream"], [], ["v1-in-signed-stream"], [], []]
+    from mavscope.native import windows
+    from mavscope.pipeline.batch import Tables
+    from mavscope.security.stage import SecurityStage
+    from tests.native.engines import material
+
+    with capture_file(b"".join(parts), ".raw") as path:
+        got = list(windows.batches(path, "raw", DIALECT, SecurityStage(material("none")), lambda _i: None, Tables()))
+    assert [c for b in got for c in b.coded.tolist()] == codes
+
+
+def test_columns_with_damage_hand_back_only_the_pieces() -> None:
+    # noise between two clean stretches: one piece handed back (to the next CRC-valid frame's end), the rest rows
+    data = clean(30) + b"\x01\x02\x03\x04\x05" + clean(30, 30)
+    frames, stats, _ = columns_both(data)
+    assert len(frames) == 60 and stats["records_handed_back"] == 1 and stats["frames_native"] == 59
+    for keys in ("none", "key", "leaked"):  # signed frames with a key: the column walk hands them back
+        ts = (1_700_000_000 - nh.SIGNING_EPOCH) * 100_000
+        signed = b"".join(v2(0, seq=i, iflags=1, link_id=1, timestamp=ts + i, key=nh.KEY) for i in range(5))
+        columns_both(clean(5) + signed + clean(5, 10) + v1(0, 99), keys)
+
+
+def test_columns_across_the_chunk_boundary() -> None:
+    for cut in (1, 3, 39):  # a frame cut by the 64 KiB boundary: one frame, the framer's
+        head = filler(CHUNK - 40 + cut)
+        frames, stats, _ = columns_both(b"".join(head) + clean(5, 200), limit=1000)
+        assert len(frames) == len(head) + 5 and stats["frames_native"] >= len(frames) - 3
+    for at in (CHUNK - 5, CHUNK):
+        for damage in (b"\x11\x22\x33", bad_crc(v2(30, seq=7)), v2(30, seq=8)[:17]):
+            columns_both(b"".join(filler(at)) + damage + clean(6, 100), limit=3000)
+
+
+@pytest.mark.parametrize("name", REAL_RAW)
+def test_columns_of_the_real_raw_captures(name: str, real_captures: Path) -> None:
+    # the walker takes the clean stretches of real streams (the corrupt serial capture: 33,404 frames on the
+    # pure path, damage here and there) as rows, and hands back exactly the pieces the JSON Lines walk hands
+    # back (the same rules take the same frames; the windows' limit cuts no piece) (serial_dump.raw: bundled)
+    path = real_captures / name if (real_captures / name).exists() else CAPTURES / name
+    pure, stats, _ = columns_both(path.read_bytes(), limit=4096)
+    _, _, jsonl = native_output(path, DIALECT)
+    assert stats["frames_native"] == jsonl["frames_native"] and stats["frames_native"] > 0.95 * len(pure)
+    assert stats["records_handed_back"] == jsonl["records_handed_back"]
+
+
+@settings(max_examples=40, deadline=None, derandomize=True, suppress_health_check=list(HealthCheck))
+@given(st.lists(segment(), max_size=40), st.sampled_from(["none", "key"]), st.sampled_from([1, 3, 7, 65_536]))
+def test_generated_streams_in_column_mode(parts: list[bytes], keys: str, limit: int) -> None:
+    columns_both(b"".join(parts), keys, limit)
