@@ -39,7 +39,7 @@ DIALECT = load_dialect()
 M = DIALECT.messages
 CHUNK = 65536  # capture/raw.py CHUNK: the reader's chunks, on both engines
 REAL_RAW = ("ap_hw_copter_cubeorange_raw_serial_corrupt_adsb_v1.raw", "gomavlib_signed_testvectors_key4F_DERIVED.raw",
-            "px4_fw_mission_download_raw.bin", "serial_dump.raw")
+            "px4_fw_mission_download_raw.bin")  # (serial_dump.raw is a bundled capture: BUNDLED's tests)
 KEY4F = "hex:" + "4f" * 32  # the gomavlib test vectors' key (PROVENANCE.md)
 
 
@@ -117,6 +117,7 @@ def test_bundled_raw_captures(name: str, cli: Cli) -> None:
 
 @pytest.mark.parametrize("name", REAL_RAW)
 def test_real_raw_captures(name: str, real_captures: Path, cli: Cli) -> None:
+    assert (real_captures / name).is_file(), name  # (a name that is not there would compare two errors)
     cli_same(cli, real_captures / name)
 
 
