@@ -111,6 +111,7 @@ def _replays(d: ReplayedCommands, b: FrameBatch, steps: Steps) -> None:
             for r in np.flatnonzero(steps.which == t).tolist():
                 heapq.heappush(heap, r)
     done = -1
+    pushed: dict[int, int] = {}  # channel -> the row after which its rows are all in the heap
     while heap:
         r = heapq.heappop(heap)
         if r <= done:
@@ -123,5 +124,8 @@ def _replays(d: ReplayedCommands, b: FrameBatch, steps: Steps) -> None:
             continue  # a row of a channel whose copies were judged since
         d.judge(b.frame(r), STEP_NAMES[steps.code[r]], key)
         if not was_held and key in d.held:  # the channel holds a copy now: its later rows are judged too
-            for later in np.flatnonzero(steps.which[r + 1:] == steps.which[r]).tolist():
-                heapq.heappush(heap, r + 1 + later)
+            channel = int(steps.which[r])
+            if pushed.get(channel, r + 1) > r:  # (once a channel's later rows are in the heap, they stay)
+                pushed[channel] = r
+                for later in np.flatnonzero(steps.which[r + 1:] == channel).tolist():
+                    heapq.heappush(heap, r + 1 + later)

@@ -127,6 +127,9 @@ class _Feed:
                     self.one(r)
 
 
+_INF = 1 << 62  # (a row past every batch's)
+
+
 class _Run:
     """The rows of trackers that share nothing but `ch` (None: one tracker alone), fed in order."""
 
@@ -134,6 +137,8 @@ class _Run:
         self.f, self.ch = feed, ch
         self.members = members
         self.done = [0] * len(members)
+        # each member's first row not taken yet (`_INF` past its last): a sync skips the members with none before
+        self.next_row = [int(rows[0]) if len(rows) else _INF for _, rows in members]
         if ch is not None:
             self.rows = np.sort(np.concatenate([g for _, g in members]))
             self.base = ch.frames
@@ -172,12 +177,20 @@ class _Run:
         tr.last_raw = self.f.b.raw(int(rows[upto - 1]))
         if self.ch is not None:
             tr.at = self.at_of(int(rows[upto - 1]))
+        self.taken(m, upto)
+
+    def taken(self, m: int, upto: int) -> None:
+        """Member m's rows before index `upto` are taken."""
         self.done[m] = upto
+        rows = self.members[m][1]
+        self.next_row[m] = int(rows[upto]) if upto < len(rows) else _INF
 
     def sync(self, row: int) -> None:
         """Every member's rows before `row`."""
+        next_row = self.next_row
         for m, (_, rows) in enumerate(self.members):
-            self.bulk(m, int(np.searchsorted(rows, row)))
+            if next_row[m] < row:
+                self.bulk(m, int(np.searchsorted(rows, row)))
 
     def go(self) -> None:
         f = self.f
@@ -198,7 +211,7 @@ class _Run:
                 self.bulk(m, i)
             what, _ = SeqChannels.feed_one(tr, int(f.sender[r]), int(f.seq[r]), int(f.b.record[r]), f.b.raw(r))
             f.code[r] = CODE[what]
-            self.done[m] = i + 1
+            self.taken(m, i + 1)
             if i + 1 >= len(rows):
                 continue
             if tr.last != int(f.seq[r]):  # the counter stayed where it was: the next step is from there

@@ -19,6 +19,7 @@ columns their ids (endpoints, message labels) for a whole pass, so ids mean the 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
+from operator import itemgetter
 from typing import Any, Protocol
 
 import numpy as np
@@ -351,29 +352,41 @@ class FrameBatch:
         src_ids, dst_ids, transport_ids = columns["src"], columns["dst"], columns["transport"]
         ends_of.append(None)  # type: ignore[arg-type]  # an id of -1: no endpoint
 
+        sources = (c.record, c.index, c.time, c.time_ok, transport_ids, src_ids, dst_ids, c.offset, c.version, c.len,
+                   c.iflags, c.cflags, c.seq, c.sysid, c.compid, c.msgid, c.crc, c.message, signed, c.sig_link,
+                   c.sig_time, notes_of)
+
+        def build(a: int, z: int, record: int, index: int, time: float, ok: bool, transport: int, src: int, dst: int,
+                  offset: int, version: int, length: int, iflags: int, cflags: int, seq: int, sysid: int,
+                  compid: int, msgid: int, crc: int, message: int, is_signed: bool, link: int, stamp: int,
+                  code: int) -> Frame:
+            raw = chunk_raw[a:z]
+            f = new_frame(
+                record, index, time if ok else None, transports[transport], ends_of[src], ends_of[dst], offset,
+                raw, version, length, iflags, cflags, seq, sysid, compid, msgid, crc, CrcStatus.OK,
+                messages_of[message], Signature(link, stamp, raw[-6:]) if is_signed else None, (), None)
+            if code:
+                assert noted is not None, "a chunk with notes needs `noted`"
+                f = noted(f, code)
+            return f
+
+        lists: list[list[Any]] = []  # every column as a list, made once where rows are asked for one by one
+
         def many(rows: list[int]) -> list[Frame]:
+            if lists:
+                at, cols = lists[0], lists[1:]
+                if len(rows) == 1:
+                    r = rows[0]
+                    return [build(at[r], at[r + 1], *[col[r] for col in cols])]
+                take, ends = itemgetter(*rows), itemgetter(*[r + 1 for r in rows])
+                return [build(*values) for values in zip(take(at), ends(at), *(take(col) for col in cols))]
             idx = np.asarray(rows, np.int64)
-            at = raw_at[idx].tolist()
-            end = raw_at[idx + 1].tolist()
-            out = []
-            for (a, z, record, index, time, ok, transport, src, dst, offset, version, length, iflags, cflags, seq,
-                 sysid, compid, msgid, crc, message, is_signed, link, stamp, code) in zip(
-                    at, end, *(col[idx].tolist() for col in (
-                        c.record, c.index, c.time, c.time_ok, transport_ids, src_ids, dst_ids, c.offset, c.version,
-                        c.len, c.iflags, c.cflags, c.seq, c.sysid, c.compid, c.msgid, c.crc, c.message, signed,
-                        c.sig_link, c.sig_time, notes_of))):
-                raw = chunk_raw[a:z]
-                f = new_frame(
-                    record, index, time if ok else None, transports[transport], ends_of[src], ends_of[dst], offset,
-                    raw, version, length, iflags, cflags, seq, sysid, compid, msgid, crc, CrcStatus.OK,
-                    messages_of[message], Signature(link, stamp, raw[-6:]) if is_signed else None, (), None)
-                if code:
-                    assert noted is not None, "a chunk with notes needs `noted`"
-                    f = noted(f, code)
-                out.append(f)
-            return out
+            return [build(*values) for values in zip(raw_at[idx].tolist(), raw_at[idx + 1].tolist(),
+                                                     *(col[idx].tolist() for col in sources))]
 
         def make(i: int) -> Frame:
+            if not lists:  # (a detector judging rows one by one: one conversion per batch, not per row)
+                lists.extend([raw_at.tolist(), *(col.tolist() for col in sources)])
             return many([i])[0]
 
         payload, payload_at, message_col = c.payload, c.payload_at, c.message
