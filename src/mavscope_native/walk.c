@@ -983,19 +983,24 @@ static int walk_raw(ms_walker *w, ms_buf *out, ms_record *rec) {
     return MS_WALK_HANDBACK;
 }
 
+/* What ms_walk does with a step's result `r`: MS_WALK_NOMEM when the output failed, a hand-back counted and
+ * returned, any other result but MS_WALK_FULL returned; MS_WALK_FULL (the step is done) goes on: -2. */
+#define GO_ON (-2)
+static int step_result(ms_walker *w, const ms_buf *out, int r) {
+    if (out->failed)
+        return MS_WALK_NOMEM;
+    if (r == MS_WALK_HANDBACK)
+        w->records_handed_back++;
+    return r == MS_WALK_FULL ? GO_ON : r;
+}
+
 int ms_walk(ms_walker *w, ms_buf *out, size_t limit, ms_record *rec) {
     w->n_walked = 0;
     w->py_index = -1;
     while (out->len < limit && (w->cols == NULL || !ms_cols_full(w->cols))) {
         if (w->raw_native) {
-            int r = walk_raw(w, out, rec);
-            if (out->failed)
-                return MS_WALK_NOMEM;
-            if (r == MS_WALK_HANDBACK) {
-                w->records_handed_back++;
-                return MS_WALK_HANDBACK;
-            }
-            if (r != MS_WALK_FULL)
+            int r = step_result(w, out, walk_raw(w, out, rec));
+            if (r != GO_ON)
                 return r;
             continue;
         }
@@ -1004,14 +1009,8 @@ int ms_walk(ms_walker *w, ms_buf *out, size_t limit, ms_record *rec) {
             return MS_WALK_NOMEM;
         if (got == 0)
             return MS_WALK_END;
-        int r = walk_record(w, rec, out);
-        if (out->failed)
-            return MS_WALK_NOMEM;
-        if (r == MS_WALK_HANDBACK) {
-            w->records_handed_back++;
-            return MS_WALK_HANDBACK;
-        }
-        if (r != MS_WALK_FULL)
+        int r = step_result(w, out, walk_record(w, rec, out));
+        if (r != GO_ON)
             return r;
         w->walked = *rec;
         w->walked.data = NULL;
