@@ -34,14 +34,13 @@ from mavscope.security.stage import SecurityStage
 
 FIRST_CHUNK = 256  # frames in the first chunk: the first rows go out at once
 CHUNK = 1 << 18  # frames per chunk afterwards
-_RAW = "raw"  # raw streams stay on the pure path
 _TRANSPORTS = tuple(t or "" for t in COLUMN_TRANSPORTS)  # the transport column's codes -> names ("": none)
 
 
 def indexes(kind: str) -> bool:
-    """Whether the native index reads a capture of `kind` (a raw stream is the pure index's); whether the
-    native engine runs at all is the session's choice (`Session.engine`)."""
-    return kind in KINDS and kind != _RAW
+    """Whether the native index reads a capture of `kind` (every kind the walker reads, raw streams too);
+    whether the native engine runs at all is the session's choice (`Session.engine`)."""
+    return kind in KINDS
 
 
 class Chunk:
