@@ -51,8 +51,10 @@ SUMMARY_FIELDS: dict[str, tuple[str, ...]] = {
 _MAX_DEFAULT = 4
 CONTAINER_MESSAGES = frozenset({"FILE_TRANSFER_PROTOCOL"})  # their Info is the inner protocol's
 # STATUSTEXT: a chunk of a long text (id not 0) says which ("[chunk 1 of id 7]"): the events join them
-# (analysis/events/statustext.py). Its Info and the containers' are Python's (the native writer hands back)
-PYTHON_INFO = CONTAINER_MESSAGES | {"STATUSTEXT"}
+# (analysis/events/statustext.py). The containers' Info is Python's (the native writer hands their frames
+# back), and a STATUSTEXT's where its `id` is not 0 (PYTHON_IF: message -> the field that decides)
+PYTHON_INFO = CONTAINER_MESSAGES
+PYTHON_IF = {"STATUSTEXT": "id"}
 
 
 # How a summary shows one field: by its name, an enum's names, degE7 as degrees, or by the value's type

@@ -24,7 +24,7 @@ from collections.abc import Callable
 from typing import IO
 
 from mavscope.capture.reader import WINDOW
-from mavscope.fields.summary import DEGREES, ENUM, PLAIN, PYTHON_INFO, summary_plan
+from mavscope.fields.summary import DEGREES, ENUM, PLAIN, PYTHON_IF, PYTHON_INFO, summary_plan
 from mavscope.mavlink.dialect import Dialect, MessageDef
 from mavscope.mavlink.frame import Frame
 from mavscope.mavlink.semantics import COMMAND_MESSAGES, COMMAND_PARAM_INDEX, MESSAGE_ID_LABELS
@@ -37,7 +37,7 @@ from mavscope.security.stage import SecurityStage
 from mavscope.visible import visible
 
 SUMMARY_MAGIC = b"MSSM"
-SUMMARY_VERSION = 2
+SUMMARY_VERSION = 3
 NO_FIELD = 0xFFFF
 
 # the integer wire types and the values they hold; other types (float, double, char, arrays) are shown
@@ -165,7 +165,15 @@ def _message_entry(md: MessageDef, dialect: Dialect, commands: Callable[[], byte
     command = _command_fields(md, commands)
     if python_only or command is None:
         python_only, items, command = True, [], _NO_COMMAND
-    return (struct.pack("<IBBH", md.id, int(python_only), len(items), len(title)) + title + command
+    flags, python_if = int(python_only), b""
+    watched = PYTHON_IF.get(md.name, "")
+    decides = md.field(watched) if watched and not python_only else None
+    if decides is not None:
+        if decides.type not in _COMMAND_TYPES or decides.array_length:
+            flags, items, command = 1, [], _NO_COMMAND  # (a dialect's other `id`: the line is Python's)
+        else:  # a scalar integer of at most 32 bits (summary.c int_at)
+            flags, python_if = flags | 2, struct.pack("<H", index[watched])
+    return (struct.pack("<IBBH", md.id, flags, len(items), len(title)) + title + python_if + command
             + b"".join(items))
 
 

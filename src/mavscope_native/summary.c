@@ -81,7 +81,7 @@ int ms_summary_parse(ms_summary *s, const ms_table *t, const uint8_t *blob, size
         return -1;
     memcpy(s->blob, blob, len);
     ms_cursor c = {s->blob + 4, s->blob + len, 0};
-    if (ms_take(&c, 4) != 2 || ms_take(&c, 4) != t->count)
+    if (ms_take(&c, 4) != 3 || ms_take(&c, 4) != t->count)
         goto fail;
     s->messages = calloc(t->count ? t->count : 1, sizeof *s->messages);
     if (s->messages == NULL)
@@ -92,12 +92,20 @@ int ms_summary_parse(ms_summary *s, const ms_table *t, const uint8_t *blob, size
         ms_smessage *m = &s->messages[i];
         if (ms_take(&c, 4) != tm->msgid)
             goto fail;
-        m->python_only = (uint8_t)(ms_take(&c, 1) & 1);
+        const uint64_t flags = ms_take(&c, 1);
+        m->python_only = (uint8_t)(flags & 1);
         m->nitems = (uint8_t)ms_take(&c, 1);
         m->name_len = (uint16_t)ms_take(&c, 2);
         m->name = take_text(&c, m->name_len);
         if (c.bad)
             goto fail;
+        m->python_if = MS_NO_FIELD;
+        if (flags & 2) { /* a scalar integer field of the message */
+            m->python_if = (uint16_t)ms_take(&c, 2);
+            if (c.bad || m->python_if >= tm->nfields || tm->fields[m->python_if].type < MS_T_U8 ||
+                tm->fields[m->python_if].type > MS_T_I32) /* (MS_T_ARRAY is above: no list) */
+                goto fail;
+        }
         m->param1 = (uint16_t)ms_take(&c, 2);
         m->command = (uint16_t)ms_take(&c, 2);
         uint64_t ncommands = ms_take(&c, 4);
@@ -545,6 +553,11 @@ int ms_write_summary(const ms_summary *s, ms_buf *out, uint64_t number, const ch
             len = m->length; /* never: the scan hands longer payloads back */
         memcpy(padded, f + hlen, len);
         memset(padded + len, 0, (size_t)m->length - len);
+        if (sm->python_if != MS_NO_FIELD) {
+            const ms_field *pf = &m->fields[sm->python_if];
+            if (int_at(pf->type, padded + pf->offset) != 0)
+                return 1; /* STATUSTEXT's chunk of a long text: "[chunk N of id M]" is Python's */
+        }
         const ms_command *cmd = sm->command != MS_NO_FIELD ? find_command(sm, m, padded) : NULL;
         const unsigned labelled = cmd != NULL ? cmd->labelled : 0;
         int64_t whole = 0;

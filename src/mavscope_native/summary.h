@@ -4,8 +4,10 @@
  * same `summary_plan` of fields/summary.py the pure path uses: SUMMARY_FIELDS, enum names, degE7 as
  * degrees) and handed to C as one byte string, parallel to the layout table (table.h):
  *
- *   "MSSM", u32 version (2), u32 message count (= the layout table's, in its order), then per message:
- *   u32 msgid, u8 flags (bit 0: Python only), u8 item count, u16 name length, the name (UTF-8);
+ *   "MSSM", u32 version (3), u32 message count (= the layout table's, in its order), then per message:
+ *   u32 msgid, u8 flags (bit 0: Python only; bit 1: a u16 field index follows the name, of a scalar integer
+ *   field of at most 32 bits whose value not 0 leaves the line to Python: STATUSTEXT's `id`, a chunk of a
+ *   long text), u8 item count, u16 name length, the name (UTF-8), [u16 that field index];
  *   u16 param1 field index (0xFFFF: none; a command message's param1, named after its command's <param>
  *   and never infinite, as semantics.command_param_name requires), u16 command field index (0xFFFF: not a
  *   command message; an integer of at most 32 bits), u32 command count, per command (sorted by value):
@@ -61,6 +63,7 @@ typedef struct {
 
 typedef struct {
     uint8_t python_only;
+    uint16_t python_if; /* field index: a frame where it is not 0 is Python's (flags bit 1); MS_NO_FIELD */
     uint16_t param1;  /* field index, or MS_NO_FIELD */
     uint16_t command; /* field index of a command message's command, or MS_NO_FIELD */
     uint32_t ncommands;

@@ -56,15 +56,34 @@ def test_real_capture(name: str, real_captures: Path, cli: Cli) -> None:
 
 def test_most_frames_are_written_natively(dialect: object) -> None:
     """The native writer does the work: on px4_sitl_udp.pcap (clean UDP, HEARTBEAT, ATTITUDE, positions,
-    COMMAND_LONG among them) every frame is written in C but the STATUSTEXTs, whose Info (a chunk says which)
-    is Python's: the two records handed back hold no frame, the 5 STATUSTEXT records one each."""
+    COMMAND_LONG, STATUSTEXT of id 0 among them) every frame is written in C: the two records handed back
+    hold no frame."""
     out, _, stats = native_summary_output(CAPTURES / "px4_sitl_udp.pcap", dialect)  # type: ignore[arg-type]
-    # pymavlink's counts (captures/expected.json frame_list): 1371 frames, 5 STATUSTEXT (msgid 253), one a record
+    # pymavlink's counts (captures/expected.json frame_list): 1371 frames, 5 STATUSTEXT (msgid 253)
     expected = json.loads((CAPTURES / "expected.json").read_text())["px4_sitl_udp.pcap"]
-    statustext = [f for f in expected["frame_list"] if f[5] == 253]
-    assert len(statustext) == 5 and out.count(b"\n") == 1371
-    assert stats["frames_native"] == 1371 - len(statustext)
-    assert stats["records_handed_back"] == 2 + len({f[0] for f in statustext})
+    assert len([f for f in expected["frame_list"] if f[5] == 253]) == 5 and out.count(b"\n") == 1371
+    assert stats["frames_native"] == 1371
+    assert stats["records_handed_back"] == 2
+
+
+def test_a_chunk_of_a_long_statustext_is_pythons(dialect: object, cli: Cli) -> None:
+    """STATUSTEXT's Info says which chunk of a long text a frame is ("[chunk 1 of id 7]", fields/summary.py)
+    where its `id` is not 0: those frames are handed back, the others written in C; both engines print the
+    same lines (built with pymavlink: id 0, id 7 chunk 0 and 1, a v1 STATUSTEXT, which has no id)."""
+    from tests.support.builders import mav1, mav2, tlog_spaced
+
+    v, old = mav2(1, 1), mav1(1, 1)
+    frames = [bytes(v.statustext_encode(6, b"plain", 0, 0).pack(v)),
+              bytes(v.statustext_encode(6, b"first part", 7, 0).pack(v)),
+              bytes(v.statustext_encode(6, b"second part", 7, 1).pack(v)),
+              bytes(old.statustext_encode(4, b"v1 text").pack(old))]
+    with capture_file(tlog_spaced(frames)) as path:
+        out, _, stats = native_summary_output(path, dialect)  # type: ignore[arg-type]
+        assert stats["frames_native"] == 2 and stats["records_handed_back"] == 2  # the two chunks of id 7
+        lines = out.decode().splitlines()
+        assert lines[1].endswith("[chunk 0 of id 7]") and lines[2].endswith("[chunk 1 of id 7]")
+        assert "chunk" not in lines[0] and "chunk" not in lines[3]
+        same(cli, path, fmt=SUMMARY)
 
 
 def check(data: bytes, keys: str, count: int | None = None) -> None:
