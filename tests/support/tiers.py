@@ -52,6 +52,7 @@ _CAPTURE_SUFFIXES = {".pcap", ".pcapng", ".tlog", ".raw", ".bin"}
 # over large inputs), searches (a header checksum of 0 among 65,536 IP ids), regenerating every capture, mypy.
 SLOW: tuple[str, ...] = (
     "tests/capture/test_stdin.py::test_a_long_stream_in_bounded_memory",  # 60 MB through a pipe, pure path
+    "tests/capture/test_stdin.py::test_real_captures_on_a_pipe",  # three real captures, six processes
     "tests/meta/test_lint.py::test_mypy_finds_nothing",  # the whole package type-checked: also `make lint`
     "tests/meta/test_tiers.py::test_every_module_keeps_a_fast_test_and_every_rule_names_tests",
     "tests/pipeline/test_captures_reproducible.py::test_regenerated_files_are_identical",
@@ -124,11 +125,10 @@ SLOW: tuple[str, ...] = (
 SWEEPS: dict[str, tuple[str, ...]] = {
     # tshark -T fields against ours: every -E form on the signed capture, the others on one form
     "tests/crosscheck/test_tshark_fields.py::test_integer_fields_as_tshark_prints_them":
-        ("signed_udp.pcap-*", "*-header=y quote=d"),
-    "tests/crosscheck/test_tshark_fields.py::test_time_column_as_tshark_shows_it": ("d", "dd", "ud"),
-    # a capture from a pipe: one of each kind of reader
-    "tests/capture/test_stdin.py::test_a_pipe_gives_the_files_frames":
-        ("damaged.pcap", "px4_sitl_sll2.pcapng", "serial_dump.raw", "px4_sitl.tlog"),
+        ("signed_udp.pcap-header=y quote=d", "px4_sitl_udp.pcap-occurrence=l aggregator=;"),
+    "tests/crosscheck/test_tshark_fields.py::test_time_column_as_tshark_shows_it": ("dd",),
+    # a capture from a pipe: a packet capture with damage and a raw stream (every kind in test-slow)
+    "tests/capture/test_stdin.py::test_a_pipe_gives_the_files_frames": ("damaged.pcap", "serial_dump.raw"),
     # the mutants of a pcap with damage and of a raw stream (the framer's resynchronisation)
     "tests/pipeline/test_mutation_sweep.py::test_mutants_never_raise_and_stay_bounded":
         ("damaged.pcap", "serial_dump.raw"),
