@@ -53,6 +53,10 @@ _CAPTURE_SUFFIXES = {".pcap", ".pcapng", ".tlog", ".raw", ".bin"}
 SLOW: tuple[str, ...] = (
     "tests/capture/test_stdin.py::test_a_long_stream_in_bounded_memory",  # 60 MB through a pipe, pure path
     "tests/capture/test_stdin.py::test_real_captures_on_a_pipe",  # three real captures, six processes
+    "tests/export/test_sources.py::test_real_captures_in_small_windows",  # every real capture, 7-frame chunks
+    "tests/native/test_raw_native.py::test_damage_at_the_chunk_boundary",  # 64 KiB streams, both engines
+    "tests/native/test_raw_native.py::test_real_raw_captures",  # the real raw streams through the CLI
+    "tests/meta/test_native_contract.py::test_the_contract_constants_have_one_definition",  # reads every source
     "tests/meta/test_lint.py::test_mypy_finds_nothing",  # the whole package type-checked: also `make lint`
     "tests/meta/test_tiers.py::test_every_module_keeps_a_fast_test_and_every_rule_names_tests",
     "tests/pipeline/test_captures_reproducible.py::test_regenerated_files_are_identical",
