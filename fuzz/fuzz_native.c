@@ -595,13 +595,11 @@ static void check_record_columns(const ms_cols *c, int raw) {
     int64_t last = 0;
     for (size_t i = 0; i < c->n; i++) {
         int64_t record;
-        int32_t index, src, dst;
         double time;
         memcpy(&record, c->col[MS_COL_RECORD].data + 8 * i, 8);
-        memcpy(&index, c->col[MS_COL_INDEX].data + 4 * i, 4);
-        memcpy(&src, c->col[MS_COL_SRC].data + 4 * i, 4);
-        memcpy(&dst, c->col[MS_COL_DST].data + 4 * i, 4);
         memcpy(&time, c->col[MS_COL_TIME].data + 8 * i, 8);
+        const int32_t index = i32_at(&c->col[MS_COL_INDEX], i), src = i32_at(&c->col[MS_COL_SRC], i),
+                      dst = i32_at(&c->col[MS_COL_DST], i);
         const uint8_t transport = (uint8_t)c->col[MS_COL_TRANSPORT].data[i];
         const uint8_t time_ok = (uint8_t)c->col[MS_COL_TIME_OK].data[i];
         if (raw) {
@@ -681,12 +679,9 @@ static void check_columns(const ms_cols *c, const uint8_t *file, size_t size, in
         if ((uint8_t)c->col[MS_COL_SEQ].data[i] != raw[version == 2 ? 4 : 2] ||
             (uint8_t)c->col[MS_COL_SYSID].data[i] != raw[version == 2 ? 5 : 3])
             abort();
-        int32_t m, src, dst;
-        uint32_t msgid;
-        memcpy(&m, c->col[MS_COL_MESSAGE].data + 4 * i, 4);
-        memcpy(&msgid, c->col[MS_COL_MSGID].data + 4 * i, 4);
-        memcpy(&src, c->col[MS_COL_SRC].data + 4 * i, 4);
-        memcpy(&dst, c->col[MS_COL_DST].data + 4 * i, 4);
+        const int32_t m = i32_at(&c->col[MS_COL_MESSAGE], i), src = i32_at(&c->col[MS_COL_SRC], i),
+                      dst = i32_at(&c->col[MS_COL_DST], i);
+        const uint32_t msgid = (uint32_t)i32_at(&c->col[MS_COL_MSGID], i);
         if (m < 0 || (size_t)m >= c->table->count || c->table->messages[m].msgid != msgid)
             abort();
         if (src < -1 || dst < -1 || (src >= 0 && (uint32_t)src >= c->nends) || (dst >= 0 && (uint32_t)dst >= c->nends))
