@@ -337,6 +337,7 @@ CODES: dict[str, Code] = {
         Code("encrypted-no-key", _NOTE, Group.SECURITY, _C, "encrypted frames without a cipher for their method"),
         Code("default-key", _ERROR, Group.SECURITY, _C, "frames signed with a well-known key (all zeros, ...)"),
         Code("weak-passphrase", _ERROR, Group.SECURITY, _C, "the signing passphrase is in the wordlist"),
+        Code("rule", _WARN, Group.SECURITY, _C, "a detection rule matched (its own severity: docs/rules.md)"),
         Code("passphrase-not-found", _NOTE, Group.SECURITY, _C, "no word of the wordlist derives the signing key"),
         Code("keystream-reuse", _ERROR, Group.SECURITY, _C,
              "payload encryption reuses its keystream: payloads readable without the key"),
@@ -393,10 +394,11 @@ class Finding:
     severity: Severity
     message: str
     frames: tuple[int, ...] = ()
+    rule: str | None = None  # a detection rule's id (code `rule`: mavscope.rules), shown as `rule` in JSON
 
     def to_json(self) -> dict[str, object]:
         return {"code": self.code, "severity": self.severity.value, "frames": list(self.frames),
-                "message": self.message}
+                "message": self.message, **({"rule": self.rule} if self.rule is not None else {})}
 
 
 class FrameNumbers:
@@ -483,7 +485,8 @@ def finding_line(f: Finding) -> str:
     nums = f.frames
     shown = ", ".join(map(str, nums[:FRAMES_SHOWN])) + (f" and {len(nums) - FRAMES_SHOWN} more"
                                                          if len(nums) > FRAMES_SHOWN else "")
-    return f"[{f.severity.value}] {f.code}: {f.message}" + (f" (frames {shown})" if nums else "")
+    code = f"{f.code} {f.rule}" if f.rule else f.code  # a rule's finding: "rule ID"
+    return f"[{f.severity.value}] {code}: {f.message}" + (f" (frames {shown})" if nums else "")
 
 
 def explanation(code: str) -> str:

@@ -7,7 +7,9 @@ the whole capture (mavscope.security.downgrade: an unsigned command placed befor
 frame is a finding as one placed after it), and the commands the command matcher gave up (its bound hides
 a command's answer); `result(expert)` at the end merges them with every security and capacity finding of
 the expert's detectors, the pass `stats` runs (a code both report, `replay`, `key-leak`, `hidden-frame`, is
-given once, as the expert words it, as `stats` shows it).
+given once, as the expert words it, as `stats` shows it). With `rules` (a mavscope.rules RuleSet: the shipped
+pack, the user's), each frame is judged by the detection rules too, their findings (code `rule`, each with
+its rule id) among the audit's own.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from mavscope.mavlink.dialect import Dialect
 from mavscope.mavlink.frame import Frame
 from mavscope.notes import CODES, Finding, Group, sort_findings
 from mavscope.pipeline.dissect import Anomaly
+from mavscope.rules import RuleEngine, RuleSet
 from mavscope.security.audit import Audit
 from mavscope.security.downgrade import Downgrades
 from mavscope.security.keystream import Recovery
@@ -38,13 +41,15 @@ class AuditPass:
     `result(expert_findings)`. A caller that feeds frames in bulk (the export's native source) gives each
     part what `add` would: `audit`, `downgrades`, and `command(frame)` for the command messages."""
 
-    def __init__(self, dialect: Dialect, *, story: bool = False) -> None:
+    def __init__(self, dialect: Dialect, *, story: bool = False, rules: RuleSet | None = None) -> None:
         self.audit = Audit()
         self.downgrades = Downgrades()
         self.matcher = CommandMatcher(dialect)  # `commands`' matching: what its bound gives up hides an answer
         # `story`: the flight's story too (`events`, and through it `mission`), for what its bounds give up (a
         # flood that hides an arming, a command or an upload from those lists is said; `audit` runs it)
         self.story = EventLog(dialect) if story else None
+        # the detection rules, reading the vehicles' HEARTBEAT state from the event log's Systems when it runs
+        self.rules = None if rules is None else RuleEngine(rules, self.story.systems if self.story else None)
 
     def anomaly(self, item: Anomaly) -> None:
         """A record's notes that belong to no frame."""
@@ -55,6 +60,8 @@ class AuditPass:
         self.audit.add(f)
         self.downgrades.add(f)
         self.command(f, fields)
+        if self.rules is not None:
+            self.rules.add(f, fields)
         if self.story is not None:
             self.story.add(f)
 
@@ -69,6 +76,8 @@ class AuditPass:
         own, recoveries = self.audit.result(words=words, qgc=qgc, known=known, early=self.downgrades.judged())
         gave_up = self.matcher.given_up.finding()
         own += [gave_up] if gave_up is not None else []
+        if self.rules is not None:
+            own += self.rules.findings()
         if self.story is not None:
             own += [f for f in self.story.finish().capacity if f not in own]  # (its command matcher's is ours)
         return merged(expert, own), recoveries

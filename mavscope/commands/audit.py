@@ -3,7 +3,8 @@ passphrases, fixed keystreams) as a list, or `{"findings": [...]}` with --json.
 
 One pass serves every finding: the audit's own and every security-group finding of the expert detectors,
 the very pass `stats` runs (mavscope.analysis.expert), put together by mavscope.analysis.audit_pass (the
-one implementation the export's findings table uses too)."""
+one implementation the export's findings table uses too), with the detection rules: the shipped pack unless
+--no-default-rules, and the files of --rules (docs/rules.md)."""
 
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ from mavscope.commands.common import add_capture_options, add_key_options, captu
 from mavscope.errors import UsageError
 from mavscope.mavlink.dialect import load_dialect
 from mavscope.notes import Severity, finding_line
+from mavscope.rules import rule_set
 from mavscope.security.keystream import parse_known_plaintext
 from mavscope.security.passphrase import read_wordlist
 
@@ -34,6 +36,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="with --wordlist, also try QGroundControl's PBKDF2 derivation (600000 iterations: slow)")
     p.add_argument("--known-plaintext", action="append", default=[], metavar="MSG=HEX",
                    help="a guessed plaintext payload of message MSG, to recover a fixed keystream")
+    p.add_argument("--rules", action="append", default=[], metavar="FILE|DIR",
+                   help="detection rules of a TOML file, or of every *.toml of a directory (docs/rules.md); "
+                        "may be given more than once")
+    p.add_argument("--no-default-rules", action="store_true", help="without the shipped pack of detection rules")
     p.add_argument("--json", action="store_true", help='print {"findings": [...]}')
     p.set_defaults(run=run)
 
@@ -51,7 +57,8 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         except OSError as exc:
             raise UsageError(f"audit: --wordlist {args.wordlist}: {exc.strerror or exc}") from None
         words = read_wordlist(args.wordlist)
-    audit, expert = AuditPass(dialect, story=True), Expert(dialect)
+    rules = rule_set(dialect, args.rules, default=not args.no_default_rules)  # (refused before the capture is read)
+    audit, expert = AuditPass(dialect, story=True, rules=rules), Expert(dialect)
     with capture_session(args, env, dialect) as session:
         for frame in Pass(session, env, audit.anomaly):  # (damage and anomalies on stderr, as read says them)
             audit.add(frame, expert.add(frame))  # the fields the expert decoded, decoded once

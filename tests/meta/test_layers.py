@@ -40,9 +40,11 @@ LAYERS: tuple[tuple[str, int], ...] = (
     ("mavscope.filter", 6),
     ("mavscope.pipeline.session", 7),
     ("mavscope.analysis", 8),
+    ("mavscope.rules", 8),  # detection rules as data: display filters over the analyses' vehicle state
     ("mavscope.browse", 9),
     ("mavscope.export", 9),  # captures into a columnar dataset: builds on pipeline.session and the analyses
     ("mavscope.output", 10),
+    ("mavscope.report", 10),  # the incident report (HTML, JSON): over the analyses and output's helpers
     # mavscope/native/: the glue to the C extension, each module in the layer of what it serves. The
     # package and its core (the extension's one import, the engine choice, the contract's constants: they
     # name transport.base's transports) and the column chunk's numpy views import nothing above transport.
