@@ -1,0 +1,54 @@
+"""Every rule of the shipped pack fires on a capture built to trigger it and stays quiet on its near miss
+(tests/support/ruleflows.py: what each case builds is its expected answer), run through `AuditPass` as every
+report of the audit's findings runs it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from mavscope.analysis.audit_pass import AuditPass
+from mavscope.mavlink.dialect import load_dialect
+from mavscope.notes import Finding
+from mavscope.pipeline.dissect import Anomaly
+from mavscope.pipeline.options import PipelineOptions
+from mavscope.pipeline.session import open_session
+from mavscope.rules import load_rules, rule_set
+from tests.support.ruleflows import CASES, write_case
+
+DIALECT = load_dialect([])
+PACK = load_rules()
+
+
+def rule_findings(path: Path) -> dict[str, Finding]:
+    """The rule findings of `audit`'s pass over `path` with the shipped pack, by rule id."""
+    audit = AuditPass(DIALECT, story=True, rules=rule_set(DIALECT))
+    with open_session(str(path), PipelineOptions(), dialect=DIALECT) as session:
+        for item in session.items:
+            if type(item) is Anomaly:
+                audit.anomaly(item)
+            else:
+                audit.add(item)
+    findings, _ = audit.result([])
+    return {f.rule: f for f in findings if f.rule is not None}
+
+
+def test_every_rule_of_the_pack_has_a_case_and_a_reference() -> None:
+    assert sorted(r.id for r in PACK) == sorted(CASES)
+    for r in PACK:
+        assert r.references and all(ref.startswith("https://") for ref in r.references), r.id
+        assert r.explanation and r.remediation, r.id
+
+
+@pytest.mark.parametrize("rule", sorted(CASES))
+def test_the_rule_fires_on_its_trigger_and_not_on_its_near_miss(rule: str, tmp_path: Path) -> None:
+    got = rule_findings(write_case(tmp_path, rule, True))
+    assert rule in got, f"{rule} did not fire; fired: {sorted(got)}"
+    f = got[rule]
+    pack = {r.id: r for r in PACK}[rule]
+    assert f.code == "rule" and f.severity is pack.severity and f.frames
+    assert f.to_json()["rule"] == rule
+    quiet = rule_findings(write_case(tmp_path, rule, False))
+    assert rule not in quiet, f"{rule} fired on its near miss: {quiet[rule]}"
+
