@@ -2,8 +2,8 @@
 the state the pure source's one pass would leave them, without a Python Frame for every frame.
 
 The expert's detectors (`stats`' findings) are not fed here: the export gives them each window as a
-`FrameBatch` (analysis.expert_batch, as `stats` does). What is fed here, window by window, is the audit,
-the object tracker and the parameter tracker.
+`FrameBatch` (analysis.expert_batch, as `stats` does). What is fed here, window by window, is the audit (with
+its detection rules), the object tracker and the parameter tracker.
 
 A window is a chunk of frames the C walker took (clean: good CRC, no note, plaintext, no verdict but
 `no-key`) and the frames the Python pipeline made of the records handed back among them, in capture order.
@@ -12,6 +12,8 @@ What each analysis does with a frame is kept exactly; what differs is how often 
 - Frames of the messages the object and parameter trackers read, and every handed-back frame, are built as
   Frames and given to them one by one, in capture order; but not the HEARTBEATs that cannot change what
   the parameter tracker holds (`NativeFeed._quiet_heartbeats`).
+- The detection rules (mavscope.rules) are given, in capture order, the frames of the messages they read and,
+  where they read them, every signed frame (`RuleEngine.reads`), and every handed-back frame.
 - The audit's per-frame parts on clean frames are a first plaintext per (system, message) (a
   `setdefault` at the first one) and the signing streams' target frames (`Targets.add_run`, by count);
   the object and parameter trackers' activity clock counts every frame (`tick`), set before each frame
@@ -171,6 +173,9 @@ class NativeFeed:
         self.heartbeat: tuple[int, int, int, int] | None = None  # (position, length, type, autopilot)
         # PARAM_VALUE's table position, length and the offsets of the fields the parameter tracker reads
         self.param_value: tuple[int, int, int, int, int, int] | None = None  # (position, length, and the value,
+        self.rules = analyses.audit_pass.rules  # the detection rules: the frames they read (RuleEngine.reads)
+        ids, self.rules_signed = self.rules.reads if self.rules is not None else (frozenset(), False)
+        self.rules_msgs = None if ids is None else self._mask(lambda md: md.id in ids)
         for k, md in enumerate(messages):  # count, id and type offsets)
             if md.name == "HEARTBEAT":
                 t, a = md.field("type"), md.field("autopilot")
@@ -202,6 +207,7 @@ class NativeFeed:
         w.build(w.native_rows(build))
         self._audit(w, anomalies)
         self._downgrades(w)
+        self._rules(w)
         if not self.commands.may_give_up:
             self.commands.window(c, py, parts)
         self._objects(w, params, reports)
@@ -318,6 +324,19 @@ class NativeFeed:
             s = int(stream[g[0]])
             members = rows[g].tolist()
             audit.targets.add_run((s >> 16, (s >> 8) & 255, s & 255), len(g), _nth(w, members))
+
+    def _rules(self, w: Window) -> None:
+        """The detection rules: the window's frames they read, in capture order."""
+        if self.rules is None:
+            return
+        c = w.c
+        mask = np.ones(c.n, np.bool_) if self.rules_msgs is None else self.rules_msgs[c.message]
+        if self.rules_signed:
+            mask = mask | c.signed.astype(np.bool_)
+        w.build(w.native_rows(mask))
+        add = self.rules.add
+        for row in self._in_order(w, mask):
+            add(w.frame(row))
 
     def _downgrades(self, w: Window) -> None:
         """`Downgrades.add` for every frame of the window, in bulk: the rows of senders not yet seen signing,

@@ -29,6 +29,7 @@ from mavscope.mavlink.frame import Frame
 from mavscope.notes import CODES, Finding, Note, is_capture_damage, problem_line
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.pipeline.session import open_session
+from mavscope.rules import rule_set
 
 PYTHON = "python"
 
@@ -43,6 +44,7 @@ def findings_batch(capture_id: str, found: list[tuple[str, Finding]]) -> pa.Reco
         pa.array([CODES[f.code].group.value for _, f in found], pa.string()),
         pa.array([f.message for _, f in found], pa.string()),
         pa.array([list(f.frames) for _, f in found], pa.list_(pa.int64())),
+        pa.array([f.rule for _, f in found], pa.string()),
     ], schema=findings_schema())
 
 
@@ -83,11 +85,11 @@ class CaptureSummary:
 
 class Analyses:
     """The analyses whose findings make the findings table: `stats`' expert detectors, `audit` (no
-    wordlist: its one pass, `AuditPass`, whose `audit` part is `audit` here), `objects` and `params` with
-    their default limits."""
+    wordlist: its one pass, `AuditPass`, whose `audit` part is `audit` here, with the shipped pack of detection
+    rules, as `audit` runs it by default), `objects` and `params` with their default limits."""
 
     def __init__(self, dialect: Dialect) -> None:
-        self.expert, self.audit_pass = Expert(dialect), AuditPass(dialect)
+        self.expert, self.audit_pass = Expert(dialect), AuditPass(dialect, rules=rule_set(dialect))
         self.audit = self.audit_pass.audit
         self.objects, self.params = ObjectTracker(), ParamTracker()
         self.objects.use_dialect(dialect)

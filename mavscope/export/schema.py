@@ -269,6 +269,7 @@ def findings_schema() -> pa.Schema:
         pa.field("group", pa.string()),
         pa.field("message", pa.string()),
         pa.field("frames", pa.list_(pa.int64()), metadata={b"description": b"frame numbers (the first listed)"}),
+        pa.field("rule", pa.string(), metadata={b"description": b"the detection rule's id (code rule; docs/rules.md)"}),
     ], metadata=_meta(FINDINGS))
 
 

@@ -8,9 +8,9 @@ over frames; `pack/` the shipped pack. `AuditPass(dialect, rules=...)` (mavscope
 them for every report of `audit`'s findings.
 """
 
-from mavscope.rules.engine import RuleEngine, RuleSet, rule_set
+from mavscope.rules.engine import RuleEngine, RuleSet, pack_rules, rule_set
 from mavscope.rules.loader import PACK_DIR, RuleError, load_rules, read_file
 from mavscope.rules.model import Conditions, Per, Rule, SenderState, Threshold
 
 __all__ = ["PACK_DIR", "Conditions", "Per", "Rule", "RuleEngine", "RuleError", "RuleSet", "SenderState",
-           "Threshold", "load_rules", "read_file", "rule_set"]
+           "Threshold", "load_rules", "pack_rules", "read_file", "rule_set"]

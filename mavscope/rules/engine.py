@@ -123,6 +123,15 @@ class RuleEngine:
             watched |= {HEARTBEAT, EXTENDED_SYS_STATE, GLOBAL_POSITION_INT}
         self.watched = frozenset(watched) if rules.vehicle else frozenset()
 
+    @property
+    def reads(self) -> tuple[frozenset[int] | None, bool]:
+        """The frames `add` reads (a caller that feeds frames in bulk gives it those alone): the message ids
+        (None: every frame), and whether every signed frame too (the links' signing state, the rules on
+        signature fields)."""
+        if self.set.anywhere:
+            return None, True
+        return frozenset(self.set.by_message) | self.watched, bool(self.set.signed) or self.set.unsigned
+
     def add(self, f: Frame, fields: Fields | None = None) -> None:
         """Frame `f`; `fields`: its payload where the caller decoded it already."""
         if f.crc_status is not CrcStatus.OK:
@@ -240,12 +249,17 @@ class RuleEngine:
 _pack: list[RuleSet] = []  # the shipped pack compiled for the Dialect last asked for
 
 
+def pack_rules(dialect: Dialect) -> RuleSet:
+    """The shipped pack compiled for `dialect` (once per Dialect)."""
+    if not _pack or _pack[0].dialect is not dialect:
+        _pack[:] = [RuleSet(load_rules(), dialect)]
+    return _pack[0]
+
+
 def rule_set(dialect: Dialect, paths: Sequence[str] = (), *, default: bool = True) -> RuleSet | None:
     """The shipped pack (unless `default` is False) and the rule files or directories `paths`, compiled for
-    `dialect`; None when that is no rule at all. The pack alone is compiled once per Dialect."""
+    `dialect`; None when that is no rule at all."""
     if default and not paths:
-        if not _pack or _pack[0].dialect is not dialect:
-            _pack[:] = [RuleSet(load_rules(), dialect)]
-        return _pack[0]
+        return pack_rules(dialect)
     rules = load_rules(paths, default=default)
     return RuleSet(rules, dialect) if rules else None

@@ -1,4 +1,5 @@
-"""`e`: expert findings (mavscope.analysis.expert), most severe first; Enter jumps to the first frame."""
+"""`e`: expert findings (mavscope.analysis.expert) and those of the shipped pack of detection rules
+(mavscope.rules, as `audit` runs it), most severe first; Enter jumps to the first frame."""
 
 from __future__ import annotations
 
@@ -8,11 +9,12 @@ from rich.text import Text
 from textual.app import ComposeResult
 from textual.widgets import DataTable, Label
 
-from mavscope.analysis.expert import expert_findings
+from mavscope.analysis.expert import Expert
 from mavscope.analysis.selection import Selection
 from mavscope.mavlink.frame import Frame
-from mavscope.notes import Finding, Severity
+from mavscope.notes import Finding, Severity, sort_findings
 from mavscope.output.console import text
+from mavscope.rules import RuleEngine, pack_rules
 from mavscope.tui.screens.analysis import AnalysisScreen, first_rows
 from mavscope.tui.verdicts import BLUE, DIM, ORANGE, RED
 from mavscope.tui.widgets.words import Table, Title
@@ -32,7 +34,12 @@ class ExpertScreen(AnalysisScreen):
         yield Table(id="findings", cursor_type="row", zebra_stripes=True)
 
     def analyse(self, frames: Iterator[Frame], selection: Selection) -> list[Finding]:
-        return [f for f in expert_findings(frames, self.index.dialect) if selection.any_record(f.frames)]
+        dialect = self.index.dialect
+        expert, rules = Expert(dialect), RuleEngine(pack_rules(dialect))  # the shipped pack, as audit runs it
+        for f in frames:
+            rules.add(f, expert.add(f))  # the fields the expert decoded, decoded once
+        found = sort_findings(expert.findings() + rules.findings())
+        return [f for f in found if selection.any_record(f.frames)]
 
     def show(self, result: object) -> None:
         findings: list[Finding] = result  # type: ignore[assignment]
@@ -41,7 +48,8 @@ class ExpertScreen(AnalysisScreen):
         listed, cut = first_rows(findings, "stats")
         for i, f in enumerate(listed):
             frames = ", ".join(map(str, f.frames[:8])) + ("…" if len(f.frames) > 8 else "")
-            table.add_row(Text(f.severity.value, style=SEVERITY_STYLE.get(f.severity, "")), f.code,
+            code = f"{f.code} {f.rule}" if f.rule else f.code  # a detection rule's finding: "rule ID"
+            table.add_row(Text(f.severity.value, style=SEVERITY_STYLE.get(f.severity, "")), code,
                           text(f.message), frames, key=str(i))  # a message is no markup
         counts = {s: sum(1 for f in findings if f.severity is s) for s in Severity}
         summary = ", ".join(f"{n} {s.value}" for s, n in counts.items() if n) or "no findings"
