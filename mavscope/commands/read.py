@@ -95,6 +95,9 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     if records_out is not None:
         args.quiet = True
     with capture_session(args, env) as session:
+        if _batch_fields(args):
+            _run_fields_batches(args, env, session)
+            return ExitStatus.OK
         if _native_eligible(args, env, session):
             _run_native(args, env, session)
             return ExitStatus.OK
@@ -201,6 +204,40 @@ def _fields_writer(args: argparse.Namespace, env: Env, session: Session, clock: 
     writer = FieldsWriter(env.stdout, FieldRegistry(session.dialect), args.fields,
                           parse_format(args.field_options), clock)
     return _Quiet() if args.quiet else writer
+
+
+def _batch_fields(args: argparse.Namespace) -> bool:
+    """`-T fields` over the session's batches (output.fields_batch), on either engine: every frame shown (no
+    display filter), nothing written or counted after (-w, -z), no field that needs every record's time."""
+    from mavscope.output.fields_batch import serves
+
+    return (args.format == "fields" and not args.quiet and not args.display_filter and not args.write
+            and not args.statistics and serves(args.fields))
+
+
+def _run_fields_batches(args: argparse.Namespace, env: Env, session: Session) -> None:
+    from mavscope.fields.registry import FieldRegistry
+    from mavscope.output.fields_batch import BatchFieldsWriter
+    from mavscope.output.fields_out import parse_format
+
+    writer = BatchFieldsWriter(env.stdout, FieldRegistry(session.dialect), args.fields,
+                               parse_format(args.field_options), Clock(args.time_format, session.t0))
+    problems = Problems(env, session.name)
+    update, stop = progress(env, session.reader)
+    left = args.count
+    try:
+        writer.begin()
+        for b in session.batches(problems.item):
+            update()
+            taken = writer.batch(b, left)
+            if left is not None:
+                left -= taken
+                if left <= 0:
+                    break
+        writer.end()
+    finally:
+        stop()
+        problems.close()
 
 
 class _Quiet:

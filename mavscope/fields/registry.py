@@ -352,18 +352,28 @@ class PayloadField:
 
     def value(self, frame: Frame, fields: dict[str, object] | None) -> object:
         """The field's value in `frame` (decoded `fields`), in the companion's unit; MISSING where it has none."""
-        value = payload_value(self.defs, frame, fields)
+        return self.value_at(frame.msgid, frame.msgdef, fields)
+
+    def value_at(self, msgid: int, md: MessageDef | None, fields: dict[str, object] | None) -> object:
+        """`value` of a frame of message `msgid` (its definition `md`) whose payload decoded as `fields`."""
+        value = payload_value_at(self.defs, msgid, md, fields)
         if self.divisors is None or value is MISSING:
             return value
-        return scaled(value, self.divisors[frame.msgid])
+        return scaled(value, self.divisors[msgid])
 
 
 def payload_value(defs: dict[int, FieldDef], frame: Frame, fields: dict[str, object] | None) -> object:
     """The value of a payload field in `frame` (decoded `fields`), MISSING where it has none."""
+    return payload_value_at(defs, frame.msgid, frame.msgdef, fields)
+
+
+def payload_value_at(defs: dict[int, FieldDef], msgid: int, md: MessageDef | None,
+                     fields: dict[str, object] | None) -> object:
+    """`payload_value` of a frame of message `msgid`, defined by `md`."""
     if fields is None:
         return MISSING
-    fd = defs.get(frame.msgid)
-    if fd is None or frame.msgdef is None or frame.msgdef.name != fd.message:
+    fd = defs.get(msgid)
+    if fd is None or md is None or md.name != fd.message:
         return MISSING
     return fields.get(fd.name, MISSING)
 

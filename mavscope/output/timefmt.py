@@ -98,7 +98,10 @@ class Clock:
     def field(self, name: str, frame: Frame) -> str:
         """A `frame.time*` field of a shown frame, as tshark prints it with -e: nine decimals, of which the
         capture's microseconds (the last three zero, as tshark prints a pcap's); empty without a time."""
-        t = frame.time
+        return self.at(name, frame.time, frame.record)
+
+    def at(self, name: str, t: float | None, record: int) -> str:
+        """`field` of a frame of capture record `record` captured at `t`."""
         if t is None:
             return ""
         if name == "frame.time":
@@ -112,7 +115,7 @@ class Clock:
             return _ns(t)
         if name == "frame.time_relative":
             return _ns(_us(t) - _us(self.t0), True) if self.t0 is not None else ""
-        prev, shown = self._previous(frame)
+        prev, shown = self.times.get(record - 1), self.shown
         base = prev if name == "frame.time_delta" else shown
         return _ns(0 if base is None else _us(t) - _us(base), True)
 

@@ -25,7 +25,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from mavscope.endpoint import Endpoint
-from mavscope.mavlink.dialect import MessageDef
+from mavscope.mavlink.dialect import FieldDef, MessageDef, wire_format
 from mavscope.mavlink.frame import CrcStatus, Frame, Signature, SignatureStatus, decode_payload, new_frame
 from mavscope.mavlink.semantics import message_label
 from mavscope.native.core import COLUMN_TRANSPORTS, NOTE_BAD_CRC, NOTE_UNSIGNED, NOTE_V1
@@ -155,7 +155,7 @@ class FrameBatch:
 
     __slots__ = ("n", "record", "time", "timed", "transport", "src", "dst", "version", "seq", "sysid", "compid",
                  "msgid", "label", "size", "crc", "verdict", "signed", "clean", "coded", "tables", "_frames", "_make",
-                 "_raw", "_many", "_payloads")
+                 "_raw", "_many", "_payloads", "_block")
     n: int
     record: np.ndarray  # int64: the capture record that completed the frame
     time: np.ndarray  # float64: its time (0.0 where `timed` is not set)
@@ -183,6 +183,9 @@ class FrameBatch:
                  payloads: Callable[[list[int]], list[tuple[MessageDef | None, bytes]]] | None = None) -> None:
         self.n, self.tables, self._frames, self._make = n, tables, frames, make
         self._raw, self._many, self._payloads = raw, many, payloads
+        # a native chunk's payload bytes and where each row's begins, and per row its chunk row (-1: a Frame
+        # of the Python pipeline; None: every row is the chunk's own)
+        self._block: tuple[np.ndarray, np.ndarray, np.ndarray | None] | None = None
         for name, values in columns.items():
             setattr(self, name, values)
 
@@ -215,13 +218,17 @@ class FrameBatch:
             return self.frame(row).raw
         return self._raw(row)
 
-    def decoded(self, rows: Sequence[int], names: frozenset[str]) -> list[dict[str, object] | None]:
+    def decoded(self, rows: Sequence[int], names: frozenset[str], *, bad_crc: bool = False,
+                ) -> list[dict[str, object] | None]:
         """Per row of `rows`, what `Expert.fields` gives its Frame: the decoded payload where its message is
-        one of `names` and its CRC is not bad, else None. The rows without a Frame yet (a native chunk's:
-        plaintext, their payload as on the wire) are decoded per message in one call (MessageDef.decode_many)
-        and get no Frame; the others are their Frames' `decode_payload`."""
+        one of `names` and its CRC is not bad (with `bad_crc`, bad too: `decode_payload`'s), else None. The
+        rows without a Frame yet (a native chunk's: plaintext, their payload as on the wire) are decoded per
+        message in one call (MessageDef.decode_many) and get no Frame; the others are their Frames'
+        `decode_payload`."""
         out: list[dict[str, object] | None] = [None] * len(rows)
-        got, bad = self._frames, self.crc[np.asarray(rows, np.int64)] == CRC_BAD if len(rows) else []
+        got = self._frames
+        bad = np.zeros(len(rows), np.bool_) if bad_crc or not len(rows) else \
+            self.crc[np.asarray(rows, np.int64)] == CRC_BAD
         bare = [k for k, r in enumerate(rows) if got[r] is None and not bad[k]]
         if bare:
             assert self._payloads is not None
@@ -240,6 +247,32 @@ class FrameBatch:
             f = got[r]
             if f is not None and not bad[k] and f.msgdef is not None and f.msgdef.name in names:
                 out[k] = decode_payload(f)
+        return out
+
+    def field_values(self, rows: Sequence[int], fd: FieldDef) -> list[object]:
+        """Per row of `rows` (frames of scalar field `fd`'s message), the field's value as `decode_payload`
+        gives it (None where the payload cannot be decoded): a native chunk's rows read from its payload
+        bytes by numpy, zero-extended as `decode` pads a short payload; the others from their Frames."""
+        out: list[object] = [None] * len(rows)
+        idx = np.asarray(rows, np.int64)
+        framed = range(len(rows))
+        if self._block is not None and len(rows):
+            pay, at, native_of = self._block
+            chunk_row = idx if native_of is None else native_of[idx]
+            ks = np.flatnonzero(chunk_row >= 0)
+            src = chunk_row[ks]
+            start, length = at[src] + fd.offset, at[src + 1] - at[src]
+            raw = np.zeros((len(src), fd.size), np.uint8)
+            for j in range(fd.size):
+                there = fd.offset + j < length
+                raw[there, j] = pay[start[there] + j]
+            for k, v in zip(ks.tolist(), raw.reshape(-1).view(np.dtype(wire_format((fd,)))).tolist()):
+                out[k] = v
+            framed = np.flatnonzero(chunk_row < 0).tolist()  # type: ignore[assignment]
+        for k in framed:
+            fields = decode_payload(self.frame(rows[k]))
+            if fields is not None:
+                out[k] = fields.get(fd.name)
         return out
 
     def of_messages(self, names: Iterable[str | int]) -> np.ndarray:
@@ -319,9 +352,12 @@ class FrameBatch:
         native_of[gn] = np.arange(n)
         make, raw, many, payloads = a._make, a._raw, a._many, a._payloads
         assert make is not None and raw is not None and many is not None and payloads is not None
-        return cls(size, tables, columns, frames, lambda row: make(int(native_of[row])),
-                   lambda row: raw(int(native_of[row])), lambda rows: many(native_of[rows].tolist()),
-                   lambda rows: payloads(native_of[rows].tolist()))
+        merged = cls(size, tables, columns, frames, lambda row: make(int(native_of[row])),
+                     lambda row: raw(int(native_of[row])), lambda rows: many(native_of[rows].tolist()),
+                     lambda rows: payloads(native_of[rows].tolist()))
+        if a._block is not None:
+            merged._block = (a._block[0], a._block[1], native_of)
+        return merged
 
     @classmethod
     def _native(cls, c: NativeChunk, ends: Sequence[Endpoint], messages: Sequence[MessageDef], tables: Tables,
@@ -396,7 +432,9 @@ class FrameBatch:
             return [(messages_of[m], bytes(payload[a:z])) for m, a, z in zip(
                 message_col[idx].tolist(), payload_at[idx].tolist(), payload_at[idx + 1].tolist())]
 
-        return cls(n, tables, columns, [None] * n, make, raw_of, many, payloads)
+        batch = cls(n, tables, columns, [None] * n, make, raw_of, many, payloads)
+        batch._block = (np.frombuffer(payload, np.uint8) if n else np.empty(0, np.uint8), payload_at, None)
+        return batch
 
 
 def _no_frames(rows: list[int]) -> list[Frame]:

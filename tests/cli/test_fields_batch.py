@@ -1,0 +1,134 @@
+"""`read -T fields` over column batches (mavscope.output.fields_batch) against the frame-by-frame writer.
+
+The batch writer is the fast form of FieldsWriter: its lines must be the frame-by-frame writer's, byte for
+byte, for every field it serves, on both engines. The reference here is FieldsWriter fed the session's
+frames one by one (its own answers are held to tshark and to lines written by hand in
+tests/crosscheck/test_tshark_fields.py and tests/cli/test_fields_output.py). Swept over every bundled
+capture and every shared real one (the tiers keep two bundled and one real in `make test`), and over every
+way of cutting a capture into batches (a record of several frames cut across two batches included).
+"""
+
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mavscope.fields.registry import BY_NAME, FieldRegistry
+from mavscope.mavlink.frame import Frame
+from mavscope.output.fields_batch import UNSERVED, BatchFieldsWriter, serves
+from mavscope.output.fields_out import FieldsWriter, parse_format
+from mavscope.output.timefmt import Clock
+from mavscope.pipeline.batch import FrameBatch, Tables
+from mavscope.pipeline.dissect import Anomaly
+from mavscope.pipeline.options import PipelineOptions
+from mavscope.pipeline.session import open_session
+from tests.conftest import Cli
+from tests.support.builders import attitude, heartbeat, mav2, statustext, write_udp_pcap
+
+ROOT = Path(__file__).resolve().parents[2]
+BUNDLED = sorted(p for p in (ROOT / "captures").iterdir() if p.suffix in (".pcap", ".pcapng", ".tlog", ".raw"))
+REAL_DIR = ROOT.parent / "shared" / "real-captures"
+REAL = sorted(p for p in REAL_DIR.iterdir() if p.suffix in (".pcap", ".pcapng", ".tlog", ".raw", ".bin")) \
+    if REAL_DIR.is_dir() else []
+# every registered field but the two the batch writer leaves to the frame-by-frame one, and payload fields
+# of every form: one message's, a bare name of many messages, an array, a char array, a companion in a
+# display unit, a container's field
+HEADER = [n for n in BY_NAME if n not in UNSERVED]
+PAYLOAD = ["ATTITUDE.roll", "HEARTBEAT.custom_mode", "time_boot_ms", "GPS_RAW_INT.satellites_visible",
+           "STATUSTEXT.text", "PARAM_VALUE.param_id", "SERVO_OUTPUT_RAW.servo1_raw", "MISSION_ITEM_INT.x",
+           "GLOBAL_POSITION_INT.lat_deg", "lat_deg", "alt_m", "COMMAND_LONG.command", "ftp.opcode",
+           "FILE_TRANSFER_PROTOCOL.payload", "mavlink_proto.sysid", "mavlink_proto.GLOBAL_POSITION_INT_lat"]
+FORMATS = [(), ("occurrence=f", "quote=d", "separator=,"), ("occurrence=l", "aggregator=/s", "quote=s")]
+
+
+def _per_frame(path: Path, names: list[str], options: tuple[str, ...], environ: dict[str, str]) -> str:
+    out = io.StringIO()
+    with open_session(str(path), PipelineOptions(), environ=environ) as s:
+        w = FieldsWriter(out, FieldRegistry(s.dialect), names, parse_format(options), Clock("r", s.t0))
+        w.begin()
+        for item in s.items:
+            if type(item) is not Anomaly:
+                w.frame(item)
+        w.end()
+    return out.getvalue()
+
+
+def _batched(path: Path, names: list[str], options: tuple[str, ...], environ: dict[str, str]) -> str:
+    out = io.StringIO()
+    with open_session(str(path), PipelineOptions(), environ=environ) as s:
+        w = BatchFieldsWriter(out, FieldRegistry(s.dialect), names, parse_format(options), Clock("r", s.t0))
+        w.begin()
+        for b in s.batches(lambda _item: None):
+            w.batch(b)
+        w.end()
+    return out.getvalue()
+
+
+def _names(dialect_names: FieldRegistry) -> list[str]:
+    return [n for n in HEADER + PAYLOAD if dialect_names.lookup(n) is not None]
+
+
+@pytest.mark.parametrize("engine", ["native", "pure"])
+@pytest.mark.parametrize("path", BUNDLED + REAL, ids=lambda p: p.name)
+def test_batch_lines_are_the_frame_by_frame_lines(path: Path, engine: str) -> None:
+    environ = {"MAVSCOPE_PURE": "1"} if engine == "pure" else {}
+    with open_session(str(path), PipelineOptions(), environ={}) as s:
+        names = _names(FieldRegistry(s.dialect))
+    want = _per_frame(path, names, (), environ)
+    assert want.count("\n") > 0
+    assert _batched(path, names, (), environ) == want
+    for options in FORMATS[1:]:  # (the -E forms on a handful of fields)
+        few = ["frame.number", "mavlink.seq", "ip.addr", "ATTITUDE.roll", "STATUSTEXT.text", "frame.src"]
+        assert _batched(path, few, options, environ) == _per_frame(path, few, options, environ)
+
+
+def _datagrams(tmp: Path) -> Path:
+    v = mav2(1, 1)
+    two = attitude(mav2(1, 1, 1), 10, 0.5) + attitude(mav2(1, 1, 2), 20, -0.25)
+    three = heartbeat(mav2(1, 1, 3)) + statustext(mav2(1, 1, 4), 'x"y') + attitude(mav2(1, 1, 5), 30, 1.5)
+    return write_udp_pcap(tmp / "d.pcap", [((f"10.0.0.{k % 3 + 1}", 14550 + k), ("10.0.0.9", 14580), p)
+                                           for k, p in enumerate([heartbeat(v), two, three, two, heartbeat(v)])])
+
+
+@settings(max_examples=60, deadline=None)
+@given(cuts=st.lists(st.integers(0, 9), max_size=6), form=st.sampled_from(FORMATS))
+def test_any_cut_into_batches_gives_the_same_lines(tmp_path_factory: pytest.TempPathFactory, cuts: list[int],
+                                                   form: tuple[str, ...]) -> None:
+    path = _datagrams(tmp_path_factory.mktemp("cut"))
+    names = ["frame.number", "frame.index", "mavlink.seq", "roll", "STATUSTEXT.text", "udp.srcport", "ip.addr",
+             "mavlink.msgname", "frame.time_relative"]
+    with open_session(str(path), PipelineOptions(), environ={"MAVSCOPE_PURE": "1"}) as s:
+        frames: list[Frame] = [f for f in s.items if type(f) is not Anomaly]
+        dialect, t0 = s.dialect, s.t0
+    want = io.StringIO()
+    ref = FieldsWriter(want, FieldRegistry(dialect), names, parse_format(form), Clock("r", t0))
+    for f in frames:
+        ref.frame(f)
+    ref.end()
+    got = io.StringIO()
+    w = BatchFieldsWriter(got, FieldRegistry(dialect), names, parse_format(form), Clock("r", t0))
+    tables = Tables()
+    bounds = [0, *sorted(c for c in cuts if c <= len(frames)), len(frames)]
+    for a, z in zip(bounds, bounds[1:]):
+        w.batch(FrameBatch.of_frames(frames[a:z], tables))
+    w.end()
+    assert got.getvalue() == want.getvalue()
+    # by hand: five datagrams of 1, 2, 3, 2, 1 frames make five lines
+    assert got.getvalue().count("\n") == 5
+
+
+def test_count_stops_inside_a_record_as_frame_by_frame(cli: Cli, tmp_path: Path) -> None:
+    path = str(_datagrams(tmp_path))
+    # -c 4: the heartbeat of record 1, both frames of record 2, the first of record 3's three (seq 3)
+    got = cli("read", path, "-T", "fields", "-e", "frame.number", "-e", "mavlink.seq", "-c", "4")
+    assert got.status == 0, got.err
+    assert got.out.splitlines() == ["1\t0", "2\t1,2", "3\t3"]
+
+
+def test_the_fields_that_need_every_record_keep_the_frame_by_frame_writer() -> None:
+    assert serves(["frame.number", "ATTITUDE.roll"])
+    assert not serves(["frame.number", "frame.time_delta"]) and not serves(["frame.time_delta_displayed"])
