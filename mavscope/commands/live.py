@@ -16,9 +16,11 @@ import signal
 import threading
 from collections.abc import Callable, Iterator
 from types import FrameType
+from typing import TYPE_CHECKING
 
 from mavscope.capture.base import Record
 from mavscope.cli import Env, ExitStatus
+from mavscope.commands import tshark_options
 from mavscope.commands.common import (
     STDOUT,
     OutputKind,
@@ -34,6 +36,7 @@ from mavscope.commands.common import (
     warner,
     whole_number,
 )
+from mavscope.commands.tshark_options import add_fields_options, add_statistics_option
 from mavscope.errors import MavscopeError, UsageError
 from mavscope.live.sink import LivePcapWriter
 from mavscope.live.source import DEFAULT_QUEUE_ITEMS, LiveSource
@@ -46,6 +49,9 @@ from mavscope.output.printer import FramePrinter
 from mavscope.output.timefmt import Clock, check_format
 from mavscope.pipeline.dissect import Anomaly
 from mavscope.pipeline.session import build_pipeline
+
+if TYPE_CHECKING:
+    from mavscope.output.fields_out import FieldsWriter
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -66,8 +72,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_key_options(p)
     p.add_argument("-V", dest="verbose", action="store_true", help="print the detail tree of every frame")
     p.add_argument("-x", dest="hex", action="store_true", help="print a hex dump of every frame")
-    p.add_argument("-T", dest="format", choices=("text", "jsonl"), default="text",
-                   help="output format (default text)")
+    p.add_argument("-T", dest="format", choices=("text", "jsonl", "fields"), default="text",
+                   help="output format (default text; fields: the -e fields, as read -T fields)")
+    add_fields_options(p)
+    add_statistics_option(p)
     p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w)")
     p.add_argument("-t", dest="time_format", metavar="FORMAT", default="r",
                    help="the time column of summary lines, as tshark's -t (read -t): r, a, ad, adoy, u, ud, udoy, "
@@ -137,7 +145,8 @@ def _native_lines(args: argparse.Namespace, env: Env, source: LiveSource) -> boo
     or -q (lines made and dropped: the frames are counted, problems reported) (mavscope.native.live)."""
     if not isinstance(source, UdpSource) or not source.batched:
         return False
-    if args.display_filter or args.verbose or args.hex or args.time_format != "r":
+    if (args.display_filter or args.verbose or args.hex or args.time_format != "r" or args.format == "fields"
+            or args.statistics):
         return False
     if args.format != "jsonl" and not args.quiet and (not plain_utf8(env)
                                                       or wants_colour(args.color, env.stdout, env.environ)):
@@ -205,6 +214,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     # for as well is refused, as for `read`
     asked = "-V" if args.verbose else "-x" if args.hex else f"-T {args.format}" if args.format != "text" else None
     check_outputs(args, env, stdout_used=asked)
+    tshark_options.check(args, "live", stdout_records=args.write == STDOUT)
     packets_out = binary_stdout(env) if args.write == STDOUT else None
     if packets_out is not None:
         args.quiet = True
@@ -218,9 +228,21 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         source.close()
         raise
     clock = Clock(args.time_format, None)  # (its first time: the first record's, below)
-    printer = FramePrinter(env.stdout, env.stdout_bytes, dialect, args.format, verbose=args.verbose, hex=args.hex,
-                           quiet=args.quiet, clock=clock if args.time_format != "r" else None,
-                           colour=args.format == "text" and wants_colour(args.color, env.stdout, env.environ))
+    printer: FramePrinter | FieldsWriter = FramePrinter(
+        env.stdout, env.stdout_bytes, dialect, args.format, verbose=args.verbose, hex=args.hex, quiet=args.quiet,
+        clock=clock if args.time_format != "r" else None,
+        colour=args.format == "text" and wants_colour(args.color, env.stdout, env.environ))
+    if args.format == "fields" and not args.quiet:
+        from mavscope.fields.registry import FieldRegistry
+        from mavscope.output.fields_out import FieldsWriter, parse_format
+
+        printer = FieldsWriter(env.stdout, FieldRegistry(dialect), args.fields, parse_format(args.field_options),
+                               clock)
+    zstats = None
+    if args.statistics:
+        from mavscope.output.zstats import ZStats
+
+        zstats = ZStats(args.statistics, dialect, None)  # (its t0: the first record's, below)
     writer: LivePcapWriter | None = None
     restore: list[tuple[signal.Signals, object]] = []
     timer: threading.Timer | None = None
@@ -247,8 +269,12 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
 
         def records() -> Iterator[Record]:
             for rec in source.records(on_idle=idle):
-                if printer.t0 is None:
-                    printer.t0 = clock.t0 = rec.time
+                if clock.t0 is None:
+                    clock.t0 = rec.time
+                    if isinstance(printer, FramePrinter):
+                        printer.t0 = rec.time
+                    if zstats is not None:
+                        zstats.t0 = rec.time
                 clock.captured(rec.number, rec.time)
                 if writer is not None:
                     writer.write(rec)  # every datagram received goes to the pcap, decoded or not
@@ -265,10 +291,13 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         if timer is not None:
             timer.start()
         try:
+            printer.begin()
             if native:
+                assert isinstance(printer, FramePrinter)
                 shown = _write_native(args, env, source, dialect, stopper, writer, problems, printer)
             else:
-                for item in build_pipeline(pipeline_options(args, env), dialect, records(), warn=warner(env)):
+                for item in build_pipeline(pipeline_options(args, env), dialect, records(), warn=warner(env),
+                                           tap=zstats.frame if zstats is not None else None):
                     if type(item) is Anomaly:
                         problems.anomaly(item)
                         continue
@@ -277,6 +306,10 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
                     if shown == limit:
                         source.stop(drain=False)
                         break
+            printer.end()
+            if zstats is not None:  # the statistics after the frames, as read -z
+                printer.flush()
+                zstats.write(env.stdout)
         except BrokenPipeError:
             raise  # `mavscope live ... | head`: main() ends quietly
         except OSError as e:

@@ -5,10 +5,10 @@ from __future__ import annotations
 import argparse
 import contextlib
 import os
-from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, BinaryIO
 
 from mavscope.cli import Env, ExitStatus
+from mavscope.commands import tshark_options
 from mavscope.commands.common import (
     STDOUT,
     OutputKind,
@@ -24,12 +24,13 @@ from mavscope.commands.common import (
     progress,
     whole_number,
 )
+from mavscope.commands.tshark_options import add_fields_options, add_statistics_option
 from mavscope.errors import UsageError
-from mavscope.mavlink.frame import Frame
 from mavscope.native.core import NATIVE
 from mavscope.output.colour import wants_colour
 from mavscope.output.timefmt import Clock, check_format
 from mavscope.pipeline.dissect import Anomaly
+from mavscope.pipeline.session import tapped
 
 if TYPE_CHECKING:
     from mavscope.output.capture_out import FrameWriter, Written
@@ -47,12 +48,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-x", dest="hex", action="store_true", help="print a hex dump of every frame")
     p.add_argument("-T", dest="format", choices=("text", "json", "jsonl", "fields"), default="text",
                    help="output format (default text; fields: the -e fields, as tshark -T fields prints them)")
-    p.add_argument("-e", dest="fields", action="append", default=[], metavar="FIELD",
-                   help="with -T fields: a field to print (any registry name, e.g. mavlink.seq, ATTITUDE.roll, "
-                        "mavlink_proto.sysid); repeat for more columns")
-    p.add_argument("-E", dest="field_options", action="append", default=[], metavar="OPTION=VALUE",
-                   help="with -T fields: header=y|n, separator=/t|/s|C, quote=d|s|n, occurrence=f|l|a, "
-                        "aggregator=/s|C (as tshark's -E)")
+    add_fields_options(p)
     p.add_argument("-t", dest="time_format", metavar="FORMAT", default="r",
                    help="the time column of summary lines, as tshark's -t: r (relative, default), a, ad, adoy "
                         "(absolute, local time), u, ud, udoy (UTC), e (epoch), d (since the previous frame), "
@@ -65,10 +61,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                       help="write the capture records holding the shown frames (.pcapng, .tlog by the name; pcap "
                            "otherwise and for -; with - nothing else is printed on standard output, as tshark's)")
     p.add_argument("-q", dest="quiet", action="store_true", help="no per-frame output (useful with -w, -z)")
-    p.add_argument("-z", dest="statistics", action="append", default=[], metavar="STAT",
-                   help="statistics after the frames, as tshark's -z: io,stat,INTERVAL[,FILTER...], conv,udp, "
-                        "conv,tcp, endpoints,udp, endpoints,tcp, expert, mavlink,msgs, mavlink,links, "
-                        "mavlink,signing (repeatable; -q: only them)")
+    add_statistics_option(p)
     p.add_argument("-G", dest="glossary", choices=("fields", "values"),
                    help="print a glossary instead of reading a capture, as tshark -G prints it: fields (every "
                         "field's name, type and description) or values (the named values of integer fields)")
@@ -84,13 +77,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
     check_outputs(args, env, stdout_used=asked)
     check_format(args.time_format)
     wants_colour(args.color, env.stdout, env.environ)  # (a wrong --color before the capture is read)
-    if (args.fields or args.field_options) and args.format != "fields":
-        raise UsageError('read: -e and -E are for -T fields (tshark: "-e" was specified, but the output format is '
-                         'not "fields")')
-    if args.format == "fields" and not args.fields:
-        raise UsageError("read: -T fields prints the fields named with -e FIELD: name at least one")
-    if args.statistics and args.write == STDOUT:
-        raise UsageError("read: -z prints on standard output, where -w - writes the records: write them to a file")
+    tshark_options.check(args, "read", stdout_records=args.write == STDOUT)
     records_out = binary_stdout(env) if args.write == STDOUT else None
     if records_out is not None:
         args.quiet = True
@@ -131,7 +118,7 @@ def _run_python(args: argparse.Namespace, env: Env, session: Session, records_ou
 
             zstats = ZStats(args.statistics, dialect, t0)
         if zstats is not None:  # every frame, as tshark's statistics see every packet whatever -Y shows
-            session.items = _fed(session.items, zstats.frame)
+            session.items = tapped(session.items, zstats.frame)
         clock = Clock(args.time_format, t0)
         session.record_hooks.append(lambda rec: clock.captured(rec.number, rec.time))  # every record's (-t d)
         printer = _fields_writer(args, env, session, clock) if args.format == "fields" else FramePrinter(
@@ -187,13 +174,6 @@ def _glossary(args: argparse.Namespace, env: Env) -> ExitStatus:
     for line in lines(load_dialect(tuple(args.dialect))):
         out.write(line + "\n")
     return ExitStatus.OK
-
-
-def _fed(items: Iterator[Frame | Anomaly], take: Callable[[Frame], None]) -> Iterator[Frame | Anomaly]:
-    for item in items:
-        if type(item) is not Anomaly:
-            take(item)
-        yield item
 
 
 def _fields_writer(args: argparse.Namespace, env: Env, session: Session, clock: Clock) -> FieldsWriter | _Quiet:

@@ -190,6 +190,12 @@ class FieldsWriter:
     def end(self) -> None:
         self._flush()
 
+    def flush(self) -> None:
+        """The record gathered so far as its line, and the stream flushed (`live`, when the link is idle: a
+        record's frames all come out of the pipeline before the next record is read)."""
+        self._flush()
+        self.out.flush()
+
     def _quoted(self, text: str) -> str:
         q = self.fmt.quote
         return f"{q}{text.replace(q, q + q)}{q}" if q else text

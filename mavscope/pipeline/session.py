@@ -78,15 +78,27 @@ def filter_stage(flt: DisplayFilter, items: Iterable[Frame | Anomaly]) -> Iterat
 
 
 def build_pipeline(options: PipelineOptions, dialect: Dialect, records: Iterable[Record], *,
-                   security: SecurityStage | None = None, warn: Warn = _quiet) -> Iterator[Frame | Anomaly]:
-    """Frames and anomalies of `records` after every stage `options` asks for, display filter included.
+                   security: SecurityStage | None = None, warn: Warn = _quiet,
+                   tap: Callable[[Frame], object] | None = None) -> Iterator[Frame | Anomaly]:
+    """Frames and anomalies of `records` after every stage `options` asks for, display filter included;
+    `tap` gets every frame before the filter (statistics count every frame, whatever it shows).
 
     Live capture passes its own `security` stage, to hand it keys while it runs."""
     if security is None:
         security = make_security_stage(options, warn)
     flt = make_filter(options, dialect, warn)
     items = security.run(Dissector(dialect, security.material.wifi).run(records))
+    if tap is not None:
+        items = tapped(items, tap)
     return filter_stage(flt, items) if flt is not None else items
+
+
+def tapped(items: Iterator[Frame | Anomaly], take: Callable[[Frame], object]) -> Iterator[Frame | Anomaly]:
+    """`items`, each frame given to `take` as it passes."""
+    for item in items:
+        if type(item) is not Anomaly:
+            take(item)
+        yield item
 
 
 @dataclass
