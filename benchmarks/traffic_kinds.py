@@ -10,7 +10,8 @@ with line noise; generated once, deterministically, and cached in benchmarks/out
 Each figure is a fresh process of the repository's `.venv/bin/mavscope` (start-up and dialect load
 included), stdout to a file in benchmarks/out/kinds_run/, best wall time of --repeat runs:
 `read F -T jsonl`, `read F` (summary lines), `read F -T jsonl --key hex:KEY` (the signed kinds),
-`stats F --json` under /usr/bin/time -v for its peak resident set (the largest of the runs). The
+`stats F --json` under /usr/bin/time -v for its peak resident set (the largest of the runs), `read F -T
+fields` with six fields (FIELDS). The
 baseline is pymavlink doing the same job as `read -T jsonl`: MAVLink.parse_buffer (robust parsing) and
 json.dumps(msg.to_dict()) per message to a file; benchmarks/baselines.py's `struct` loop for the UDP
 pcaps, this script's `--baseline tcp|tlog|raw` for the others (each direction's TCP payloads in capture
@@ -51,6 +52,9 @@ MAVSCOPE = str(ROOT / ".venv" / "bin" / "mavscope")
 BASELINES = str(HERE / "baselines.py")
 TIME = "/usr/bin/time"
 SECTION = "## Seven kinds of traffic"
+# `read -T fields`'s job: header numbers, a name, a float32 and a scaled payload field, an endpoint
+FIELDS = ("-T", "fields", "-e", "frame.number", "-e", "mavlink.seq", "-e", "mavlink.msgname", "-e", "ATTITUDE.roll",
+          "-e", "GLOBAL_POSITION_INT.lat", "-e", "frame.src")
 BEGIN, END = "<!-- traffic_kinds:begin -->", "<!-- traffic_kinds:end -->"
 LABEL = {"clean": "clean UDP", "mixsign": "1 sender signs 1 frame in 4", "signedv1": "signed vehicle + v1 GCS",
          "badcrc": "3% bad CRC", "tcp": "MAVLink over TCP", "tlog": "tlog", "raw": "raw serial, line noise"}
@@ -168,6 +172,12 @@ def check_lines(kind: str, truth: dict[str, Any], out: Path, fmt: str, key: bool
         check(f"{kind} --key: valid signatures", data.count(b'"status":"valid"'), truth["signed"])
 
 
+def check_fields(kind: str, truth: dict[str, Any], out: Path) -> None:
+    """`-T fields` (FIELDS): a line per record, every frame's sequence number among its occurrences."""
+    seqs = sum(line.split(b"\t")[1].count(b",") + 1 for line in out.read_bytes().splitlines())
+    check(f"{kind} fields: mavlink.seq occurrences", seqs, truth["frames"] + truth["truncated"])
+
+
 def check_stats(kind: str, truth: dict[str, Any], out: Path) -> None:
     tot = json.loads(out.read_bytes())["totals"]
     check(f"{kind} stats: frames", tot["frames"], truth["frames"] + truth["truncated"])
@@ -188,7 +198,7 @@ def measure(kind: str, path: Path, truth: dict[str, Any], args: argparse.Namespa
     work.mkdir(parents=True, exist_ok=True)
     jobs: dict[str, tuple[list[str], str]] = {
         "jsonl": (["read", str(path), "-T", "jsonl"], "jsonl"), "summary": (["read", str(path)], "summary"),
-        "stats": (["stats", str(path), "--json"], "stats")}
+        "stats": (["stats", str(path), "--json"], "stats"), "fields": (["read", str(path), *FIELDS], "fields")}
     if kind in SIGNED_KINDS:
         jobs["key"] = (["read", str(path), "-T", "jsonl", "--key", "hex:" + KEY.hex()], "jsonl")
     res: dict[str, Any] = {}
@@ -199,6 +209,8 @@ def measure(kind: str, path: Path, truth: dict[str, Any], args: argparse.Namespa
             secs, peak, _ = run([MAVSCOPE, *argv], out, 1 if pure else args.repeat, pure, rss=job == "stats")
             if fmt == "stats":
                 check_stats(kind, truth, out)
+            elif fmt == "fields":
+                check_fields(kind, truth, out)
             else:
                 check_lines(kind, truth, out, fmt, key=job == "key")
             res[name] = (secs, peak)
@@ -256,6 +268,9 @@ def report(results: dict[str, tuple[dict[str, Any], dict[str, Any]]], args: argp
         ("key", f"`mavscope read F -T jsonl --key hex:{KEY.hex()[:8]}...` (the right key): at least 700k "
                 "frames/s", "| traffic | frames | seconds | frames/s | target met |" + ph,
          "|---|---:|---:|---:|---|" + pd),
+        ("fields", f"`mavscope read F {' '.join(FIELDS)}`: at the JSON Lines speed",
+         "| traffic | frames | seconds | frames/s | `-T jsonl` s | x `-T jsonl` time | target met |" + ph,
+         "|---|---:|---:|---:|---:|---:|---|" + pd),
         ("stats", "`mavscope stats F --json`: at least 1M frames/s in at most 150 MB (peak RSS)",
          "| traffic | frames | seconds | frames/s | peak MB | target met |" + ph, "|---|---:|---:|---:|---:|---|" + pd),
     ]
@@ -272,6 +287,9 @@ def report(results: dict[str, tuple[dict[str, Any], dict[str, Any]]], args: argp
                 bs = r["baseline"][0]
                 need = 1_500_000 if kind in FAST else 1_000_000
                 row += f" {bs:.2f} | {bs / secs:.1f}x | {_yes(bs / secs >= 15 and rate >= need)} |"
+            elif job == "fields":
+                js = r["jsonl"][0]
+                row += f" {js:.2f} | {secs / js:.2f}x | {_yes(secs <= js * 1.1)} |"
             elif job == "stats":
                 mb = peak / 1024
                 row += f" {mb:.0f} | {_yes(rate >= 1_000_000 and mb <= 150)} |"

@@ -238,7 +238,7 @@ class BatchFieldsWriter(FieldsWriter):
             lo = 1
         if groups - 1 > lo:
             self._flush()
-            self.out.write("".join(self._lines(occ, bounds, range(lo, groups - 1))))
+            self.out.write(self._lines(occ, bounds, range(lo, groups - 1)))
         if groups - 1 >= lo:
             self._take(occ, range(bounds[groups - 1], n), record)
         return n
@@ -259,7 +259,7 @@ class BatchFieldsWriter(FieldsWriter):
                     elif v is not None:
                         got.append(v)
 
-    def _lines(self, occ: list[Occurrences], bounds: list[int], groups: range) -> list[str]:
+    def _lines(self, occ: list[Occurrences], bounds: list[int], groups: range) -> str:
         """The lines of whole records: group `g` is the rows bounds[g]..bounds[g + 1] (FieldsWriter._flush's
         cells, from the columns)."""
         fmt = self.fmt
@@ -277,6 +277,14 @@ class BatchFieldsWriter(FieldsWriter):
                         values[g - groups.start] = [v for row in column[bounds[g]:bounds[g + 1]] for v in row]
                 values = [agg.join(v if how == "a" else v[:1] if how == "f" else v[-1:]) if v else None
                           for v in values]
+            elif many and not per_record and None not in column:  # (a header number: every row has one)
+                base = groups.start
+                if how == "a":
+                    for g in many:
+                        values[g - base] = agg.join(column[bounds[g]:bounds[g + 1]])
+                elif how == "l":
+                    for g in many:
+                        values[g - base] = column[bounds[g + 1] - 1]
             elif many and not per_record:
                 for g in many:
                     got = [v for v in column[bounds[g]:bounds[g + 1]] if v is not None]
@@ -288,4 +296,4 @@ class BatchFieldsWriter(FieldsWriter):
                 cells.append(["" if v is None else v for v in values])
             else:
                 cells.append(values)
-        return [line + "\n" for line in map(fmt.separator.join, zip(*cells))]
+        return "\n".join(map(fmt.separator.join, zip(*cells))) + "\n"
