@@ -77,7 +77,8 @@ class _Checker:
     def bad(self, line: int, message: str) -> None:
         self.problems.append([f"{self.path}:{line}: {message}"])
 
-    def string(self, k: int, table: dict[str, object], key: str, *, required: bool, label: str) -> str:
+    def string(self, k: int, table: dict[str, object], key: str, *, required: bool, label: str,
+               one_line: bool = False) -> str:
         value = table.get(key)
         if value is None:
             if required:
@@ -86,9 +87,9 @@ class _Checker:
         if not isinstance(value, str) or not value.strip():
             self.bad(self.text.key(k, key), f"{label}: `{key}` must be a non-empty string")
             return ""
-        if len(value) > MAX_TEXT or not _printable(value):
+        if len(value) > MAX_TEXT or not _printable(value) or (one_line and not value.isprintable()):
             self.bad(self.text.key(k, key), f"{label}: `{key}` must be printable text of at most {MAX_TEXT} "
-                                            "characters")
+                                            f"characters{' on one line' if one_line else ''}")
             return ""
         return value
 
@@ -158,13 +159,13 @@ class _Checker:
             self.bad(self.text.header(k), "a `[[rule]]` must be a table")
             return None
         before = len(self.problems)
-        ident = self.string(k, table, "id", required=True, label=f"rule {k + 1}")
+        ident = self.string(k, table, "id", required=True, label=f"rule {k + 1}", one_line=True)
         if ident and not ID.fullmatch(ident):
             self.bad(self.text.key(k, "id"), f"rule {k + 1}: `id` must be 1-64 of a-z 0-9 . _ - (starting with a "
                                              "letter or digit)")
         label = f"rule {ident or k + 1}"
         self.unknown(k, table, RULE_KEYS, label, "")
-        title = self.string(k, table, "title", required=True, label=label)
+        title = self.string(k, table, "title", required=True, label=label, one_line=True)
         severity = table.get("severity")
         if severity not in SEVERITIES:
             self.bad(self.text.key(k, "severity"), f"{label}: `severity` must be one of {', '.join(SEVERITIES)}")

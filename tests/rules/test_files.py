@@ -148,3 +148,11 @@ def test_a_user_rule_on_a_real_capture(cli: Cli, tmp_path: Path) -> None:
     (f,) = [f for f in doc["findings"] if f["code"] == "rule"]
     assert (f["rule"], f["severity"], len(f["frames"])) == ("my-heartbeat", "note", len(want))
     assert "first from 1/" in f["message"]
+
+
+def test_a_title_on_two_lines_or_with_control_characters_is_refused(tmp_path: Path) -> None:
+    """A title is printed in audit's text lines: a line break or an escape sequence in it could forge a line."""
+    for title in ('"two\\nlines"', '"bell\\u0007"', '"bidi\\u202e"'):
+        lines = problems(write(tmp_path, GOOD.replace('"Heartbeat of system 1"', title)))
+        assert lines == [f"{tmp_path / 'mine.toml'}:4: rule my-heartbeat: `title` must be printable text of at most "
+                         "4000 characters on one line"], lines
