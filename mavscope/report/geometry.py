@@ -27,6 +27,14 @@ def nice_step(span: float, ticks: int = 4) -> float:
     return next((n * power for n in NICE if n * power >= raw), 10 * power)
 
 
+def nice_floor(x: float) -> float:
+    """The largest round length (1, 2 or 5 times a power of ten) not above `x` (> 0)."""
+    if not x > 0 or not math.isfinite(x):
+        return 1.0
+    power = 10 ** math.floor(math.log10(x))
+    return max(n * power for n in NICE if n * power <= x * (1 + 1e-12))
+
+
 def _fmt(v: float) -> str:
     return f"{v:.1f}".rstrip("0").rstrip(".") if math.isfinite(v) else "0"
 
@@ -114,7 +122,7 @@ def map_view(geo: dict) -> MapView | None:
         view.shapes.append(Shape(kind, name, x=round(x, 1), y=round(y, 1), r=round(min(r, 4 * MAP_W), 1),
                                  colour=tracks, inclusion=inclusion))
     metres_per_px = EARTH_M_PER_DEG / scale
-    bar = nice_step(metres_per_px * MAP_W / 4, 1)
+    bar = nice_floor(metres_per_px * MAP_W / 4)  # a round length of at most a quarter of the width
     view.scale_px = round(bar / metres_per_px, 1)
     view.scale_text = f"{_fmt(bar / 1000)} km" if bar >= 1000 else f"{_fmt(bar)} m"
     return view
