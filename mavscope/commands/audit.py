@@ -36,9 +36,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="with --wordlist, also try QGroundControl's PBKDF2 derivation (600000 iterations: slow)")
     p.add_argument("--known-plaintext", action="append", default=[], metavar="MSG=HEX",
                    help="a guessed plaintext payload of message MSG, to recover a fixed keystream")
-    p.add_argument("--rules", action="append", default=[], metavar="FILE|DIR",
-                   help="detection rules of a TOML file, or of every *.toml of a directory (docs/rules.md); "
-                        "may be given more than once")
+    p.add_argument("--rules", action="append", default=[], metavar="RULES",
+                   help="detection rules: a TOML file, or a directory (its *.toml files) (docs/rules.md); may be "
+                        "given more than once")
     p.add_argument("--no-default-rules", action="store_true", help="without the shipped pack of detection rules")
     p.add_argument("--json", action="store_true", help='print {"findings": [...]}')
     p.set_defaults(run=run)

@@ -19,7 +19,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("rules", description="Detection rules (docs/rules.md): list the shipped pack, check a file.")
     actions = p.add_subparsers(dest="action", metavar="ACTION")
     ls = actions.add_parser("list", help="the rules audit runs: id, severity, title, references")
-    ls.add_argument("--rules", action="append", default=[], metavar="FILE|DIR", help="list these rules too")
+    ls.add_argument("--rules", action="append", default=[], metavar="RULES",
+                    help="list the rules of this TOML file or directory too")
     ls.add_argument("--no-default-rules", action="store_true", help="without the shipped pack")
     ls.add_argument("--json", action="store_true", help='print {"rules": [...]}')
     check = actions.add_parser("check", help="validate rule files: TOML, keys, and every filter compiled")

@@ -58,6 +58,7 @@ RUNS: dict[str, list[tuple[tuple[str, ...], tuple[str, ...]]]] = {
     "tui": [],  # tests/tui/test_hostile_screens.py walks every screen
     "verify": [(("CAP", "--key", "hex:" + "00" * 32), ()), (("CAP", "--key", "hex:" + "00" * 32, "--json"), ())],
     "audit": [(("CAP", "--dialect", "DIA"), ()), (("CAP", "--json"), ())],
+    "rules": [(("list", "--dialect", "DIA"), ()), (("list", "--json"), ())],  # (the pack against the dialect)
     "export": [(("CAP", "--parquet", "OUT/ds"), ()), (("CAP", "-T", "csv", "-o", "OUT/csv"), ()),
                (("CAP", "--parquet", "OUT/ds", "--json"), ())],
     "sql": [(("SELECT text FROM STATUSTEXT", "CAP"), (STATUS, STATUS2)),

@@ -225,6 +225,14 @@ SAID: dict[str, str] = {
     "analysis/objects/images.py:MAX_LISTED": "- listed",
     "mavlink/floats.py:_CACHE_MAX": "- a memo, cleared",
     "native/table_blob.py:MAX_PAYLOAD": "- such a message is handed to the pure path",
+    "rules/engine.py:MAX_KEYS": "capacity",
+    "rules/engine.py:FRAMES_KEPT": "- listed, all counted",
+    "rules/state.py:MAX_LINKS": "capacity",
+    "rules/state.py:MAX_FIRST": "capacity",
+    "rules/loader.py:MAX_FILE": "- a rule file the user gives: refused",
+    "rules/loader.py:MAX_RULES": "- as MAX_FILE",
+    "rules/loader.py:MAX_TEXT": "- as MAX_FILE",
+    "rules/prefilter.py:MAX_RANGE": "- the rule is judged on every frame",
 }
 BOUND = re.compile(r"^((?:MAX|[A-Z0-9_]+_MAX|[A-Z0-9_]*_?KEPT|[A-Z0-9_]*LIMIT|MIN_MAX)[A-Z0-9_]*) *[:=]", re.M)
 OUTSIDE = ("tui/", "output/", "commands/", "export/", "filter/", "fields/", "live/", "mavlink/dialect_check.py",
