@@ -250,6 +250,7 @@ def load_rules(paths: Iterable[str | Path] = (), *, default: bool = True) -> lis
     """The shipped pack (unless `default` is False) and the rules of `paths` (files or directories), in that
     order; every problem of every file in one RuleError, a rule id used twice among them too."""
     files = (pack_files() if default else []) + [f for p in paths for f in rule_files(p)]
+    files = list({f.resolve(): f for f in files}.values())  # a file named twice is read once (where first named)
     problems: list[list[str]] = []
     rules: list[Rule] = []
     for f in files:

@@ -156,3 +156,8 @@ def test_a_title_on_two_lines_or_with_control_characters_is_refused(tmp_path: Pa
         lines = problems(write(tmp_path, GOOD.replace('"Heartbeat of system 1"', title)))
         assert lines == [f"{tmp_path / 'mine.toml'}:4: rule my-heartbeat: `title` must be printable text of at most "
                          "4000 characters on one line"], lines
+
+
+def test_a_file_named_twice_is_read_once(tmp_path: Path) -> None:
+    good = write(tmp_path, GOOD)
+    assert [r.id for r in load_rules([good, tmp_path, str(good)], default=False)] == ["my-heartbeat"]
