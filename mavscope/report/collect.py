@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -108,47 +108,56 @@ def float_fields(dialect: Dialect) -> frozenset[tuple[str, str]]:
     return frozenset(out)
 
 
-def plot(plotter: Plotter, b: FrameBatch, frames: Sequence[Frame], floats: frozenset[tuple[str, str]]) -> None:
+def plot(plotter: Plotter, b: FrameBatch, floats: frozenset[tuple[str, str]]) -> None:
     """`plotter.add` for every frame of the batch, for the report's fields (PLOTS: payload fields of one
     message each): the frames until the x axis has its origin go to `add` itself; after that only the
     plotted messages' frames can add a value, and their values are read from the batch's payloads, decoded
-    per message at once (FrameBatch.decoded), rather than by a getter per frame; each goes to its Series as
-    `add` gives it (x from the axis' origin; NaN and the infinities counted apart)."""
+    per message at once (FrameBatch.decoded, before the rows have Frames), rather than by a getter per
+    frame; each goes to its Series as `add` gives it (x from the axis' origin: the frame's capture time, or
+    its record number in a capture without times; NaN and the infinities counted apart)."""
     start = 0
     if plotter.origin is None:
-        for start, f in enumerate(frames, 1):
-            plotter.add(f)
+        for start in range(1, b.n + 1):
+            plotter.add(b.frame(start - 1))
             if plotter.origin is not None:
                 break
         else:
             return
-    rows = [r for r in np.flatnonzero(b.of_messages(PLOTTED)).tolist() if r >= start]
-    if not rows:
-        return
     origin, by_time = plotter.origin, plotter.x_label == "s"
-    wanted = [(expr.split(".", 1), s) for (expr, *_), s in zip(PLOTS, plotter.series)]
-    for row, fields in zip(rows, b.decoded(rows, PLOTTED)):
-        f = frames[row]
-        if fields is None:  # (a bad CRC, a payload it cannot decode: the getters decide, as for `plot`)
-            plotter.add(f)
-            continue
-        if by_time:
-            if f.time is None or not math.isfinite(f.time):
+    assert origin is not None
+    times, timed, records = b.time.tolist(), b.timed.tolist(), b.record.tolist()
+    for message, plots in _by_message(plotter, floats):
+        rows = [r for r in np.flatnonzero(b.of_messages((message,))).tolist() if r >= start]
+        for row, fields in zip(rows, b.decoded(rows, frozenset((message,)))):
+            if fields is None:  # (a bad CRC, a payload it cannot decode: the getters decide, as for `plot`)
+                plotter.add(b.frame(row))
                 continue
-            x = f.time - origin
-        else:
-            x = float(f.record) - origin
-        name = f.msgname
-        for (message, key), s in wanted:
-            v = fields.get(key) if message == name else None
-            if type(v) is float and (message, key) in floats:
-                v = f32_value(v)  # (as the getter gives a float32 field: its shortest decimal)
-            if isinstance(v, bool) or not isinstance(v, (int, float)):
-                continue
-            if math.isfinite(v):
-                s.add(x, float(v))
+            if by_time:
+                t = times[row]
+                if not timed[row] or not math.isfinite(t):
+                    continue
+                x = t - origin
             else:
-                s.not_finite += 1
+                x = float(records[row]) - origin
+            for key, series, is_float in plots:
+                v = fields.get(key)
+                if is_float and type(v) is float:
+                    v = f32_value(v)  # (as the getter gives a float32 field: its shortest decimal)
+                if isinstance(v, bool) or not isinstance(v, (int, float)):
+                    continue
+                if math.isfinite(v):
+                    series.add(x, float(v))
+                else:
+                    series.not_finite += 1
+
+
+def _by_message(plotter: Plotter, floats: frozenset[tuple[str, str]]) -> list[tuple[str, list[tuple[str, Any, bool]]]]:
+    """The plotted fields by message: (message, [(field, its Series, float32)])."""
+    out: dict[str, list[tuple[str, Any, bool]]] = {}
+    for (expr, *_), series in zip(PLOTS, plotter.series):
+        message, key = expr.split(".", 1)
+        out.setdefault(message, []).append((key, series, (message, key) in floats))
+    return list(out.items())
 
 
 class _Kept:
@@ -197,7 +206,10 @@ def _firmware(fields: dict[str, object]) -> dict[str, object]:
         out["flight"] = f"{v >> 24 & 255}.{v >> 16 & 255}.{v >> 8 & 255} (type {v & 255})"
     custom = fields.get("flight_custom_version")
     if isinstance(custom, (bytes, list)):
-        out["git"] = bytes(custom).hex()
+        raw = bytes(custom)
+        # the first bytes of the git hash: ArduPilot sends them as ASCII hex digits, others as bytes
+        text = raw.rstrip(b"\0")
+        out["git"] = text.decode() if text and all(c in b"0123456789abcdef" for c in text) else raw.hex()
     uid = fields.get("uid")
     if isinstance(uid, int):
         out["uid"] = uid
@@ -237,6 +249,7 @@ def collect(session: Session, report: Callable[[Frame | Anomaly], object], rules
     for b in session.batches(seen):
         expert_batch.feed(expert, b, builder.add_batch(b))
         verdicts.add(b)
+        plot(plotter, b, floats)  # (before the rows have Frames: their payloads decoded per message at once)
         frames = b.frames(range(b.n))
         for f in frames:
             add(f)
@@ -245,7 +258,6 @@ def collect(session: Session, report: Callable[[Frame | Anomaly], object], rules
                 story.add(f)
         for row in np.flatnonzero(b.of_messages(positions)).tolist():
             track.add(frames[row])
-        plot(plotter, b, frames, floats)
         rows = np.flatnonzero(b.of_messages((FIRMWARE,))).tolist()
         for row, fields in zip(rows, b.decoded(rows, frozenset((FIRMWARE,)))):
             if fields is not None:

@@ -57,7 +57,7 @@ v.more.events }}</code> lists them all.</p>{% endif %}
 }}" width="10" height="10" fill="#067647"><title>home</title></rect><text x="{{ s.x + 7 }}" y="{{ s.y + 4 }}">H</text>
 {% elif s.kind == 'rally' %}<polygon points="{{ s.x }},{{ s.y - 6 }} {{ s.x + 6 }},{{ s.y + 5 }} {{ s.x - 6 }},{{
 s.y + 5 }}" fill="#b54708"><title>{{ s.name }}</title></polygon>
-{% elif s.kind == 'track' %}<circle cx="{{ s.x }}" cy="{{ s.y }}" r="3" class="track{{ s.colour % 4
+{% elif s.kind == 'track' and not s.points %}<circle cx="{{ s.x }}" cy="{{ s.y }}" r="3" class="track{{ s.colour % 4
 }}" fill="none" stroke-width="2"><title>{{ s.name }}</title></circle>
 {% endif %}{% endfor %}
 <g transform="translate({{ map_w - 34
@@ -139,7 +139,7 @@ endfor %}
 {% for t in ts[:rows.transfers] %}<tr>
 <td class="num" data-label="#">{{ t.transfer }}</td>
 <td data-label="what">{{ t.direction }} {{ t.mission_type }}</td>
-<td data-label="from, to">{{ t.from | addr }}, {{ t.to | addr }}</td>
+<td data-label="from, to" class="nowrap">{{ t.from | addr }} &rarr; {{ t.to | addr }}</td>
 <td class="num" data-label="items">{{ t['items'] | length }} of {{ t.count }}</td>
 <td data-label="outcome">{{ t.outcome }}: {{ t.reason }}</td>
 <td data-label="reached after it">{% if t.reached is defined %}{{ t.reached | length }} of {{ t['items'] | length

@@ -29,7 +29,8 @@ from mavscope.report.geometry import (
 from mavscope.report.template import TEMPLATE, VERDICT_COLOURS
 
 ROWS = {"events": 400, "params": 300, "files": 300, "links": 200, "messages": 150, "commanders": 100,
-        "frames": 12, "items": 200, "transfers": 200, "uploads": 5}
+        "frames": 12, "items": 200, "transfers": 200, "uploads": 5, "key": 30}
+KEY_KINDS = ("vehicle", "arming", "mode", "failsafe", "reboot", "signing")  # the summary's key events
 FOLD_OVER = 25  # a table of more rows than this is folded
 
 
@@ -100,5 +101,5 @@ def render(doc: dict) -> str:
     """The page of the report document `doc` (model.document)."""
     template = environment().from_string(TEMPLATE)
     return template.render(doc=doc, views=[_view(i) for i in doc["inputs"]], rows=ROWS, fold=FOLD_OVER,
-                           colours=VERDICT_COLOURS, map_w=MAP_W, map_h=MAP_H, plot_w=PLOT_W, plot_h=PLOT_H,
-                           pad_l=PLOT_PAD_L, pad_b=PLOT_PAD_B)
+                           colours=VERDICT_COLOURS, key_kinds=KEY_KINDS, map_w=MAP_W, map_h=MAP_H, plot_w=PLOT_W,
+                           plot_h=PLOT_H, pad_l=PLOT_PAD_L, pad_b=PLOT_PAD_B)

@@ -14,6 +14,7 @@ from typing import Any
 
 import orjson
 
+from mavscope.analysis.mission import Item
 from mavscope.analysis.params import diff
 from mavscope.analysis.params.values import Value
 from mavscope.notes import CODES, Severity
@@ -67,6 +68,13 @@ def _progress(events: list[dict[str, Any]]) -> list[tuple[int, int, str, int]]:
     return out
 
 
+def _item(it: Item, names: Names) -> dict[str, object]:
+    """A mission item as `mission --json` shows its numbers (Item.shown: float32s as their shortest text)."""
+    params, x, y, z = it.shown()
+    return {"seq": it.seq, "command": names.enum("MAV_CMD", it.command, "MAV_CMD_"), "params": params, "x": x,
+            "y": y, "z": z, "frame": it.frames[0] if it.frames else None}
+
+
 def _missions(c: Collected, names: Names, events: list[dict[str, Any]]) -> dict[str, object]:
     """Every mission, fence and rally transfer (the story's mission tracker: `mission`'s) with its items; for
     each mission upload, the items its vehicle then said it reached (MISSION_ITEM_REACHED) and was on
@@ -86,9 +94,7 @@ def _missions(c: Collected, names: Names, events: list[dict[str, Any]]) -> dict[
             "mission_type": names.enum("MAV_MISSION_TYPE", t.mission_type, "MAV_MISSION_TYPE_"),
             "from": list(t.sender), "to": list(t.receiver), "count": t.count, "outcome": t.outcome,
             "reason": t.reason, "start": finite(t.start), "frames": [t.frames[0], t.frames[-1]] if t.frames else [],
-            "items": [{"seq": it.seq, "command": names.enum("MAV_CMD", it.command, "MAV_CMD_"), "x": finite(it.x),
-                       "y": finite(it.y), "z": finite(it.z), "frame": it.frames[0] if it.frames else None}
-                      for it in sorted(t.items.values(), key=lambda it: it.seq)]}
+            "items": [_item(it, names) for it in sorted(t.items.values(), key=lambda it: it.seq)]}
         if t.direction == "upload" and t.mission_type == 0 and t.frames:
             vehicle, first = t.receiver[0], t.frames[0]
             later = [f for f in uploads[vehicle] if f > first]

@@ -109,6 +109,14 @@ i.summary.ground_stations | length }}</b></div>
 sev, count in i.findings_by_severity.items() %}{% if count %}<span class="sev sev-{{ sev }}">{{ sev }} {{ count
 }}</span> {% endif %}{% endfor %}</span></div>
 </div>
+{% set key = i.events.events | selectattr('kind', 'in', key_kinds) | list %}
+<h3>Key events</h3>
+{% if key %}<ul class="key-events" id="key-events-{{ n }}">
+{% for e in key[:rows.key] %}<li><span class="mono">{{ e.time | iso }}</span> frame {{ e.frame }}: {{ e.text }}</li>
+{% endfor %}</ul>
+{% if key | length > rows.key %}<p class="more">{{ key | length - rows.key }} more arming, mode, failsafe, reboot and
+signing events in the timeline below.</p>{% endif %}
+{% else %}<p class="muted">No arming, mode change, failsafe, reboot or signing event.</p>{% endif %}
 <h3>Vehicles</h3>
 {% if i.summary.vehicles %}<div class="scroll"><table class="wide" id="vehicles-{{ n }}"><thead>
 <tr>
@@ -134,7 +142,7 @@ x.firmware.get('git') %} git {{ x.firmware['git'] }}{% endif %}{% else %}<span c
 {% endfor %}</tbody></table></div>{% else %}<p class="muted">No HEARTBEAT of a vehicle.</p>{% endif %}
 <h3>Ground stations and who commanded what</h3>
 {% if i.summary.ground_stations %}<p>Ground stations: {% for g in i.summary.ground_stations %}{{ g.sysid }}/{{
-g.compid }} ({{ g.autopilot }}){{ ', ' if not loop.last }}{% endfor %}.</p>{% else
+g.compid }} ({{ g.type }}){{ ', ' if not loop.last }}{% endfor %}.</p>{% else
 %}<p class="muted">No HEARTBEAT of a ground station.</p>{% endif %}
 {% set cmds = i.summary.commanders %}
 {% if cmds %}<details{% if cmds | length <= fold %} open{% endif %}><summary>{{ cmds | length

@@ -1,5 +1,6 @@
 """`mavscope report` against the commands whose answers it shows, on bundled captures: its findings are
-`audit --json`'s, its figures `stats --json`'s, its events `events --json`'s, its map `track --geojson`'s,
+`audit --json`'s, its figures `stats --json`'s, its events `events --json`'s, its plots `plot --json`'s, its
+map `track --geojson`'s,
 with the same key options (the report runs each analysis the way that command does: they must agree). The
 document validates against docs/report.schema.json; two runs differ only in the time of the analysis."""
 
@@ -42,6 +43,13 @@ def _agrees(cli: Cli, tmp: Path, path: Path, *keys: str) -> None:
     events = cli.json("events", str(path), *keys)
     assert [{k: v for k, v in e.items() if k != "show"} for e in one["events"]["events"]] == events["events"]
     assert (one["events"]["counts"], one["events"]["dropped"]) == (events["counts"], events["dropped"])
+    exprs = [p["field"] for p in one["plots"]]
+    plot = cli.json("plot", str(path), *exprs, *keys)
+    for mine, theirs in zip(one["plots"], plot["series"], strict=True):
+        assert mine["field"] == theirs["field"]
+        assert (mine["count"], mine["min"], mine["max"], mine["interval"]) == (
+            theirs["count"], theirs["min"], theirs["max"], theirs["interval"])
+        assert mine["buckets"] == [[b["start"], b["min"], b["max"]] for b in theirs["buckets"]]
     geo = tmp / "t.geojson"
     assert cli("track", str(path), *keys, "--geojson", str(geo)).status == 0
     assert one["map"] == json.loads(geo.read_text())
