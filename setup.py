@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parent
 NATIVE = Path("src") / "mavscope_native"
 SOURCES = ["module.c", "walk.c", "capture.c", "capture_pcap.c", "capture_pcapng.c", "capture_tlog.c",
            "netlayers.c", "mavlink.c", "table.c", "decode.c", "fmt.c", "buf.c", "summary.c", "columns.c",
-           "recv.c", "module_recv.c", "sha256.c", "signing.c"]
+           "recv.c", "module_recv.c", "module_fields.c", "sha256.c", "signing.c"]
 # -ffp-contract=off: the JSON and summary formatters' float arithmetic as Python's (no fused multiply-add)
 CFLAGS = [] if sys.platform == "win32" else ["-std=c11", "-O2", "-Wall", "-Wextra", "-ffp-contract=off"]
 

@@ -201,7 +201,8 @@ def _run_fields_batches(args: argparse.Namespace, env: Env, session: Session) ->
     from mavscope.output.fields_out import parse_format
 
     writer = BatchFieldsWriter(env.stdout, FieldRegistry(session.dialect), args.fields,
-                               parse_format(args.field_options), Clock(args.time_format, session.t0))
+                               parse_format(args.field_options), Clock(args.time_format, session.t0),
+                               native=session.engine == NATIVE)
     problems = Problems(env, session.name)
     update, stop = progress(env, session.reader)
     left = args.count

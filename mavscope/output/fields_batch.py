@@ -31,6 +31,7 @@ import numpy as np
 
 from mavscope.fields.registry import MISSING, Field, FieldRegistry, PayloadField
 from mavscope.mavlink.floats import f32_text
+from mavscope.native.core import _native
 from mavscope.output.fields_out import FieldsFormat, FieldsWriter, _accessor, _text
 from mavscope.output.timefmt import Clock
 from mavscope.pipeline.batch import FrameBatch
@@ -105,13 +106,9 @@ class _Frames:
         return got
 
 
-_BYTE = [str(k) for k in range(256)]
-
-
 def _direct(column: str) -> Column:
     def values(b: FrameBatch, _frames: _Frames) -> Occurrences:
-        col = getattr(b, column)
-        return list(map(_BYTE.__getitem__ if col.dtype == np.uint8 else str, col.tolist()))
+        return getattr(b, column).astype(np.int64)  # (numbers: see _lines)
     return values
 
 
@@ -203,8 +200,12 @@ class BatchFieldsWriter(FieldsWriter):
     """A FieldsWriter that also takes whole batches (`batch`); frames given one by one (`frame`) as it does."""
 
     def __init__(self, out: IO[str], registry: FieldRegistry, names: Sequence[str], fmt: FieldsFormat,
-                 clock: Clock | None = None) -> None:
+                 clock: Clock | None = None, *, native: bool = False) -> None:
+        """`native`: the session runs on the native engine, whose line joiner (`_native.join_fields`) joins
+        the cells; else `join_cells`."""
         super().__init__(out, registry, names, fmt, clock)
+        self.join: Join = \
+            _native.join_fields if native and _native is not None else join_cells
         self.columns: list[Column] = []
         for name in names:
             got = registry.lookup(name)
@@ -256,18 +257,25 @@ class BatchFieldsWriter(FieldsWriter):
                     v = column[r]
                     if isinstance(v, list):
                         got.extend(v)
+                    elif isinstance(v, np.integer):
+                        got.append(str(v))
                     elif v is not None:
                         got.append(v)
 
     def _lines(self, occ: list[Occurrences], bounds: list[int], groups: range) -> str:
         """The lines of whole records: group `g` is the rows bounds[g]..bounds[g + 1] (FieldsWriter._flush's
-        cells, from the columns)."""
+        cells, from the columns: a header number's as the rows' numbers, the joiner picks and joins them)."""
         fmt = self.fmt
-        q, qq, agg, how = fmt.quote, fmt.quote * 2, fmt.aggregator, fmt.occurrence
+        agg, how = fmt.aggregator, fmt.occurrence
         starts = bounds[groups.start:groups.stop]
         many = [g for g in groups if bounds[g + 1] - bounds[g] > 1]  # records of several frames
-        cells = []
+        cells: list[Any] = []
+        modes = bytearray()
         for column, per_record in zip(occ, self.per_record):
+            modes.append(ord("f" if per_record else how))
+            if isinstance(column, np.ndarray):  # header numbers, one per row
+                cells.append(column)
+                continue
             multi = bool(column) and isinstance(column[0], list)
             # (every record of one frame: its rows; else the first of each record's)
             values: list = column[starts[0]:bounds[groups.stop]] if not many else [column[s] for s in starts]
@@ -277,23 +285,41 @@ class BatchFieldsWriter(FieldsWriter):
                         values[g - groups.start] = [v for row in column[bounds[g]:bounds[g + 1]] for v in row]
                 values = [agg.join(v if how == "a" else v[:1] if how == "f" else v[-1:]) if v else None
                           for v in values]
-            elif many and not per_record and None not in column:  # (a header number: every row has one)
-                base = groups.start
-                if how == "a":
-                    for g in many:
-                        values[g - base] = agg.join(column[bounds[g]:bounds[g + 1]])
-                elif how == "l":
-                    for g in many:
-                        values[g - base] = column[bounds[g + 1] - 1]
             elif many and not per_record:
                 for g in many:
                     got = [v for v in column[bounds[g]:bounds[g + 1]] if v is not None]
                     values[g - groups.start] = (agg.join(got) if how == "a" else got[0] if how == "f" else got[-1]
                                                 ) if got else None
-            if q:
-                cells.append(["" if v is None else f"{q}{v.replace(q, qq)}{q}" for v in values])
-            elif None in values:
-                cells.append(["" if v is None else v for v in values])
+            cells.append(values)
+        edges = np.asarray(bounds[groups.start:groups.stop + 1], np.int64)
+        return self.join(cells, edges, bytes(modes), fmt.separator, fmt.quote, agg)
+
+
+Join = Callable[[list[Any], Any, bytes, str, str, str], str]  # (join_cells, _native.join_fields)
+
+
+def join_cells(cells: list[Any], bounds: np.ndarray, modes: bytes, separator: str, quote: str,
+               aggregator: str) -> str:
+    """The lines of records: line g is rows bounds[g]..bounds[g + 1]. Each column is a list of a cell per
+    line (str, or None: no value, an empty cell) or an int64 array of a number per row, of which the
+    record's first (mode `f`), last (`l`) or all joined by `aggregator` (`a`) make the cell. A line's cells
+    are joined by `separator`, each with a value in `quote` (a quote inside doubled). The reference of the
+    native engine's `_native.join_fields` (the same arguments)."""
+    edges = bounds.tolist()
+    starts, ends = edges[:-1], edges[1:]
+    cols = []
+    qq = quote * 2
+    for column, mode in zip(cells, modes):
+        if isinstance(column, np.ndarray):
+            texts = list(map(str, column.tolist()))
+            if mode == ord("f"):
+                column = [texts[a] for a in starts]
+            elif mode == ord("l"):
+                column = [texts[z - 1] for z in ends]
             else:
-                cells.append(values)
-        return "\n".join(map(fmt.separator.join, zip(*cells))) + "\n"
+                column = [aggregator.join(texts[a:z]) for a, z in zip(starts, ends)]
+        if quote:
+            cols.append(["" if v is None else f"{quote}{v.replace(quote, qq)}{quote}" for v in column])
+        else:
+            cols.append(["" if v is None else v for v in column])
+    return "".join(line + "\n" for line in map(separator.join, zip(*cols)))

@@ -30,6 +30,7 @@
  *     .put(stream, last: int, key: int), len()
  *   sha256(data) -> bytes, format_skew(x) -> bytes   (the signing code, for the tests)
  *   Receiver, udp_record, UDP_PCAP_HEADER (module_recv.c: live capture's batched receive)
+ *   join_fields(columns, separator, quote) -> str   (module_fields.c: read -T fields' lines)
  *   Columns(table, limit: int = 65536, *, index: bool = False, notes: bool = False)  column mode (columns.h):
  *       Walker(..., columns=Columns); `index`: only the columns the TUI's index takes; `notes`: frames with
  *       the notes of NOTE_* are taken, their code in the `note` column; `.limit` settable
@@ -58,6 +59,7 @@
 #include "capture.h"
 #include "columns.h"
 #include "fmt.h"
+#include "module_fields.h"
 #include "module_recv.h"
 #include "netlayers.h"
 #include "sha256.h"
@@ -1410,6 +1412,9 @@ static PyMethodDef module_methods[] = {
     {"records_to_micro", ms_py_records_to_micro, METH_O,
      "records_to_micro(records): a live batch's records with microsecond times as the pcap writer writes them, "
      "and their number"},
+    {"join_fields", ms_py_join_fields, METH_VARARGS,
+     "join_fields(columns, separator, quote): the -T fields lines of columns of cells (lists of str or None, "
+     "int64 buffers)"},
     {"udp_record", ms_py_udp_record, METH_VARARGS,
      "udp_record(sec, nsec, src, sport, dst, dport, payload): the pcap record live capture makes of a datagram"},
     {NULL, NULL, 0, NULL},

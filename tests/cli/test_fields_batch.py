@@ -13,13 +13,15 @@ from __future__ import annotations
 import io
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mavscope.fields.registry import BY_NAME, FieldRegistry
 from mavscope.mavlink.frame import Frame
-from mavscope.output.fields_batch import UNSERVED, BatchFieldsWriter, serves
+from mavscope.native.core import NATIVE, _native
+from mavscope.output.fields_batch import UNSERVED, BatchFieldsWriter, join_cells, serves
 from mavscope.output.fields_out import FieldsWriter, parse_format
 from mavscope.output.timefmt import Clock
 from mavscope.pipeline.batch import FrameBatch, Tables
@@ -60,7 +62,8 @@ def _per_frame(path: Path, names: list[str], options: tuple[str, ...], environ: 
 def _batched(path: Path, names: list[str], options: tuple[str, ...], environ: dict[str, str]) -> str:
     out = io.StringIO()
     with open_session(str(path), PipelineOptions(), environ=environ) as s:
-        w = BatchFieldsWriter(out, FieldRegistry(s.dialect), names, parse_format(options), Clock("r", s.t0))
+        w = BatchFieldsWriter(out, FieldRegistry(s.dialect), names, parse_format(options), Clock("r", s.t0),
+                              native=s.engine == NATIVE)
         w.begin()
         for b in s.batches(lambda _item: None):
             w.batch(b)
@@ -110,7 +113,8 @@ def test_any_cut_into_batches_gives_the_same_lines(tmp_path_factory: pytest.Temp
         ref.frame(f)
     ref.end()
     got = io.StringIO()
-    w = BatchFieldsWriter(got, FieldRegistry(dialect), names, parse_format(form), Clock("r", t0))
+    w = BatchFieldsWriter(got, FieldRegistry(dialect), names, parse_format(form), Clock("r", t0),
+                          native=_native is not None)
     tables = Tables()
     bounds = [0, *sorted(c for c in cuts if c <= len(frames)), len(frames)]
     for a, z in zip(bounds, bounds[1:]):
@@ -119,6 +123,50 @@ def test_any_cut_into_batches_gives_the_same_lines(tmp_path_factory: pytest.Temp
     assert got.getvalue() == want.getvalue()
     # by hand: five datagrams of 1, 2, 3, 2, 1 frames make five lines
     assert got.getvalue().count("\n") == 5
+
+
+_CELL = st.one_of(st.none(), st.text(alphabet=st.sampled_from('ab"\'é,\t§ '), max_size=4))
+
+
+@st.composite
+def _joins(draw: st.DrawFn) -> tuple[list[object], np.ndarray, bytes, str, str, str]:
+    sizes = draw(st.lists(st.integers(1, 3), max_size=6))
+    bounds = np.cumsum([0, *sizes]).astype(np.int64)
+    rows, lines = int(bounds[-1]), len(sizes)
+    cells: list[object] = []
+    modes = bytearray()
+    for _ in range(draw(st.integers(1, 4))):
+        if draw(st.booleans()):
+            ints = draw(st.lists(st.integers(-(1 << 63), (1 << 63) - 1), min_size=rows, max_size=rows))
+            cells.append(np.asarray(ints, np.int64))
+        else:
+            cells.append(draw(st.lists(_CELL, min_size=lines, max_size=lines)))
+        modes += draw(st.sampled_from([b"f", b"l", b"a"]))
+    quote = draw(st.sampled_from(["", '"', "'"]))
+    return cells, bounds, bytes(modes), draw(st.sampled_from(["\t", ",", " ", "§"])), quote, \
+        draw(st.sampled_from([",", " ", "§"]))
+
+
+@pytest.mark.skipif(_native is None, reason="the C extension is not built")
+@settings(max_examples=400, deadline=None)
+@given(case=_joins())
+def test_the_native_joiner_is_the_reference_joiner(case: tuple[list[object], np.ndarray, bytes, str, str, str]
+                                                    ) -> None:
+    assert _native is not None
+    assert _native.join_fields(*case) == join_cells(*case)
+
+
+def test_the_joiner_by_hand() -> None:
+    # two records (rows 0..1 and 2), a number column whose record joins all, a text column of a cell per
+    # record with a quote inside: written out by hand
+    cells = [np.asarray([7, -8, 9], np.int64), ['a"b', None]]
+    want = '"7;-8"\t"a""b"\n"9"\t\n'
+    args = (cells, np.asarray([0, 2, 3], np.int64), b"aa", "\t", '"', ";")
+    assert join_cells(*args) == want
+    last = (cells, np.asarray([0, 2, 3], np.int64), b"la", "\t", "", ";")
+    assert join_cells(*last) == '-8\ta"b\n9\t\n'
+    if _native is not None:
+        assert _native.join_fields(*args) == join_cells(*args)
 
 
 def test_count_stops_inside_a_record_as_frame_by_frame(cli: Cli, tmp_path: Path) -> None:
