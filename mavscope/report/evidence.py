@@ -101,6 +101,8 @@ first frame.</p>
 {% if p.envelope %}<polygon points="{{ p.envelope }}" fill="#175cd3" fill-opacity="0.25" stroke="none"/>
 <polyline points="{{ p.upper }}" fill="none" stroke="#175cd3" stroke-width="1"/><polyline points="{{ p.lower
 }}" fill="none" stroke="#175cd3" stroke-width="1"/>{% endif %}
+{% for x, y in p.dots %}<circle cx="{{ x }}" cy="{{ y }}" r="2.5" fill="#175cd3"/>
+{% endfor %}
 {% for name, pts in p.lines %}<polyline points="{{ pts }}" fill="none" stroke="{{ colours.get(name, '#344054')
 }}" stroke-width="1.5"><title>{{ name }}</title></polyline>
 {% endfor %}

@@ -16,6 +16,7 @@ PLOT_W, PLOT_H, PLOT_PAD_L, PLOT_PAD_B = 800.0, 160.0, 56.0, 22.0
 MAX_MAP_POINTS = 4000  # points drawn of one line (the JSON keeps every one)
 EARTH_M_PER_DEG = 111_320.0  # metres per degree of latitude (and of longitude at the equator)
 NICE = (1, 2, 5)
+FEW_COLUMNS = 60  # a plot of at most this many pixel columns with values draws a dot at each
 
 
 def nice_step(span: float, ticks: int = 4) -> float:
@@ -142,6 +143,7 @@ class PlotView:
     high: float | None = None
     lines: list[tuple[str, str]] = field(default_factory=list)  # (name, polyline): the signing plot's
     marks: list[tuple[float, str]] = field(default_factory=list)  # (x, what): link losses and recoveries
+    dots: list[tuple[float, float]] = field(default_factory=list)  # each column's maximum, when columns are few
 
 
 def _x_ticks(x_end: float) -> list[tuple[float, str]]:
@@ -191,6 +193,8 @@ def plot_view(series: dict, x_end: float) -> PlotView:
     bottom = [f"{x:.1f},{_y(lo, y0, y1)}" for x, lo, _ in cols]
     view.upper, view.lower = " ".join(top), " ".join(bottom)
     view.envelope = " ".join(top + bottom[::-1])
+    if len(cols) <= FEW_COLUMNS:  # a value or two would be no line at all: each is drawn as a dot too
+        view.dots = [(x, _y(hi, y0, y1)) for x, _, hi in cols] + [(x, _y(lo, y0, y1)) for x, lo, hi in cols if lo != hi]
     view.x_ticks = _x_ticks(x_end)
     return view
 

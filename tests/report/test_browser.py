@@ -46,6 +46,10 @@ def test_the_rendered_page(report: tuple[Path, dict, Path]) -> None:
         assert table.group(1).count("<tr class=\"ev-") == len(one["events"]["events"])
     assert dom.count('class="finding"') == sum(len(i["findings"]) for i in doc["inputs"])
     assert "<svg" in dom and 'id="mapsvg-2"' in dom  # gps_spoof.pcap's track is drawn
+    mine = re.search(r'<svg[^>]*id="mapsvg-1">(.*?)</svg>', dom, re.S)
+    assert mine is not None  # the built flight's map: its fence, rally point, home and waypoint
+    for title in ("fence inclusion", "rally 1", "home", "1 NAV_WAYPOINT", "system 1/1 (GLOBAL_POSITION_INT)"):
+        assert f"<title>{title}</title>" in mine.group(1), title
 
 
 def test_nothing_is_fetched_and_nothing_fails(report: tuple[Path, dict, Path]) -> None:

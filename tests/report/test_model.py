@@ -69,12 +69,30 @@ def test_summary(built: tuple[Path, dict, int]) -> None:
 
 def test_missions_uploaded_against_reached(built: tuple[Path, dict, int]) -> None:
     m = built[1]["inputs"][0]["missions"]
-    (t,) = m["transfers"]
+    t, fence, rally = m["transfers"]
+    assert [(x["mission_type"], x["count"], x["outcome"]) for x in (fence, rally)] == [("FENCE", 4, "complete"),
+                                                                                      ("RALLY", 1, "complete")]
+    assert "reached" not in fence  # (only mission uploads are held against the items reached)
     assert (t["direction"], t["mission_type"], t["count"], t["from"], t["to"]) == ("upload", "MISSION", 2,
                                                                                    [255, 190], [1, 1])
     assert [(i["seq"], i["command"]) for i in t["items"]] == [(0, "NAV_WAYPOINT"), (1, "NAV_WAYPOINT")]
     assert t["reached"] == [1]
     assert m["progress"] == [{"sysid": 1, "reached": [1], "current": []}]
+
+
+def test_the_map_has_the_track_mission_fence_and_rally(built: tuple[Path, dict, int]) -> None:
+    features = built[1]["inputs"][0]["map"]["features"]
+    kinds = sorted(f["properties"]["kind"] for f in features)
+    # ArduPilot's item 0 is home, item 1 the one waypoint; the fence one polygon of the 4 vertices (closed)
+    assert kinds == ["fence", "home", "rally", "track", "waypoint"]
+    (fence,) = [f for f in features if f["properties"]["kind"] == "fence"]
+    ring = fence["geometry"]["coordinates"][0]
+    want = {(round((fl.LON + dx) / 1e7, 7), round((fl.LAT + dy) / 1e7, 7)) for dy, dx in fl.FENCE}
+    assert {(round(x, 7), round(y, 7)) for x, y in ring} == want and ring[0] == ring[-1]
+    (rally,) = [f for f in features if f["properties"]["kind"] == "rally"]
+    assert rally["geometry"]["coordinates"][:2] == pytest.approx([(fl.LON - 500) / 1e7, (fl.LAT + 500) / 1e7])
+    (home,) = [f for f in features if f["properties"]["kind"] == "home"]
+    assert home["geometry"]["coordinates"][:2] == pytest.approx([fl.LON / 1e7, fl.LAT / 1e7])
 
 
 def test_plots_hold_the_values_sent(built: tuple[Path, dict, int]) -> None:
