@@ -7,6 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from pymavlink.dialects.v20 import ardupilotmega as v2
 
 from mavscope.analysis.audit_pass import AuditPass
 from mavscope.mavlink.dialect import load_dialect
@@ -15,7 +16,7 @@ from mavscope.pipeline.dissect import Anomaly
 from mavscope.pipeline.options import PipelineOptions
 from mavscope.pipeline.session import open_session
 from mavscope.rules import load_rules, rule_set
-from tests.support.ruleflows import CASES, write_case
+from tests.support.ruleflows import CASES, Capture, write_case
 
 DIALECT = load_dialect([])
 PACK = load_rules()
@@ -52,3 +53,14 @@ def test_the_rule_fires_on_its_trigger_and_not_on_its_near_miss(rule: str, tmp_p
     quiet = rule_findings(write_case(tmp_path, rule, False))
     assert rule not in quiet, f"{rule} fired on its near miss: {quiet[rule]}"
 
+
+
+@pytest.mark.parametrize(("param1", "fires"), [(float("nan"), True), (-1e10, True), (-3.0, True), (4.0, False)])
+def test_a_fence_vertex_count_that_is_not_a_count(param1: float, fires: bool, tmp_path: Path) -> None:
+    """ArduPilot issue 31903's fence items: MAV_CMD_NAV_FENCE_POLYGON_VERTEX_INCLUSION (5001) whose param1 (the
+    vertex count) is NaN or negative; 4 vertices is a fence."""
+    c = Capture()
+    c.send(v2.MAVLink_mission_item_int_message(1, 1, 0, 5, 5001, 0, 1, param1, 0, 0, 0, 473_977_420, 85_455_940, 0,
+                                               1))
+    got = rule_findings(c.write(tmp_path, "fence"))
+    assert ("ardupilot-mission-param1-out-of-range" in got) is fires

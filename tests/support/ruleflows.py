@@ -23,7 +23,7 @@ AUTO, LOITER = 3, 5  # ArduCopter custom modes
 MAV_STATE_STANDBY, MAV_STATE_ACTIVE = 3, 4
 ON_GROUND, IN_AIR = 1, 2  # MAV_LANDED_STATE
 KEY = bytes(range(32))
-FTP_CREATE_DIR, FTP_CREATE, FTP_OPEN_WO = 9, 6, 11
+FTP_CREATE_DIR, FTP_CREATE, FTP_WRITE, FTP_OPEN_WO = 9, 6, 7, 11
 FORCE = 21196  # MAV_CMD_COMPONENT_ARM_DISARM's param2 that skips the checks
 
 
@@ -198,6 +198,18 @@ def log_path(c: Capture, trigger: bool) -> None:
     c.ftp(FTP_CREATE_DIR, "/fs/microsd/log/" + ("A" * 70 if trigger else "2026-03-14"))
 
 
+def mission_param1(c: Capture, trigger: bool) -> None:
+    # issue 31902's item: param1 1e+10; the near miss: a waypoint whose param1 is a hold time of 10 s
+    c.send(v2.MAVLink_mission_item_int_message(1, 1, 0, 3, 16, 0, 1, 1e10 if trigger else 10.0, 0, 0, 0,
+                                               473_977_420, 85_455_940, 50, 0))
+
+
+def ftp_offset(c: Capture, trigger: bool) -> None:
+    # issue 34051's WriteFile at offset 0xFFFFFF12; the near miss: at 1 MiB
+    op = FTP_OP(1, 0, FTP_WRITE, 4, 0, 0, 0xFFFFFF12 if trigger else 1 << 20, bytearray(b"AAAA"))
+    c.send(v2.MAVLink_file_transfer_protocol_message(0, 1, 1, list(bytes(op.pack()).ljust(251, b"\0")[:251])))
+
+
 # rule id -> its case (each rule of the shipped pack has one: tests/rules/test_pack.py checks)
 CASES: dict[str, Build] = {
     "cmd-flight-termination": flight_termination,
@@ -221,6 +233,8 @@ CASES: dict[str, Build] = {
     "px4-trajectory-waypoints-overflow": waypoints,
     "px4-trajectory-bezier-overflow": bezier,
     "px4-log-path-overflow": log_path,
+    "ardupilot-mission-param1-out-of-range": mission_param1,
+    "ardupilot-ftp-offset-wrap": ftp_offset,
 }
 
 
