@@ -8,6 +8,7 @@ frame, then by key), so the same inputs give the same document but for `custody.
 
 from __future__ import annotations
 
+import bisect
 import shlex
 from collections.abc import Sequence
 from typing import Any
@@ -87,6 +88,13 @@ def _missions(c: Collected, names: Names, events: list[dict[str, Any]]) -> dict[
     for t in transfers:
         if t.direction == "upload" and t.mission_type == 0 and t.frames:
             uploads.setdefault(t.receiver[0], []).append(t.frames[0])
+    for starts in uploads.values():
+        starts.sort()
+    by_vehicle: dict[int, tuple[list[int], list[tuple[str, int]]]] = {}  # system -> (frames, (what, seq)), by frame
+    for frame, sysid, what, seq in sorted(progress):
+        got = by_vehicle.setdefault(sysid, ([], []))
+        got[0].append(frame)
+        got[1].append((what, seq))
     out = []
     for n, t in enumerate(transfers, 1):
         doc: dict[str, object] = {
@@ -97,12 +105,13 @@ def _missions(c: Collected, names: Names, events: list[dict[str, Any]]) -> dict[
             "items": [_item(it, names) for it in sorted(t.items.values(), key=lambda it: it.seq)]}
         if t.direction == "upload" and t.mission_type == 0 and t.frames:
             vehicle, first = t.receiver[0], t.frames[0]
-            later = [f for f in uploads[vehicle] if f > first]
-            until = later[0] if later else None
-            seen = [(what, seq) for frame, sysid, what, seq in progress
-                    if sysid == vehicle and frame >= first and (until is None or frame < until)]
-            doc["reached"] = sorted({seq for what, seq in seen if what == "reached"})
-            doc["current"] = sorted({seq for what, seq in seen if what == "current"})
+            starts = uploads[vehicle]
+            later = bisect.bisect_right(starts, first)
+            frames, said = by_vehicle.get(vehicle, ([], []))
+            a = bisect.bisect_left(frames, first)
+            z = bisect.bisect_left(frames, starts[later]) if later < len(starts) else len(frames)
+            doc["reached"] = sorted({seq for what, seq in said[a:z] if what == "reached"})
+            doc["current"] = sorted({seq for what, seq in said[a:z] if what == "current"})
         out.append(doc)
     per: dict[int, dict[str, set[int]]] = {}
     for _frame, sysid, what, seq in progress:
