@@ -62,6 +62,7 @@ SLOW: tuple[str, ...] = (
     "tests/report/test_browser.py::test_nothing_is_fetched_and_nothing_fails",  # Chromium under DevTools
     "tests/report/test_browser.py::test_the_watch_sees_a_request",  # Chromium under DevTools
     "tests/report/test_browser.py::test_screenshots",  # two Chromium screenshots
+    "tests/report/test_big.py::test_a_long_capture_makes_a_short_page",  # 21,000 frames built and reported
     "tests/rules/test_real_captures.py::test_the_pack_on_every_real_capture",  # the pack over every real capture
     "tests/meta/test_tiers.py::test_every_module_keeps_a_fast_test_and_every_rule_names_tests",
     "tests/pipeline/test_captures_reproducible.py::test_regenerated_files_are_identical",
