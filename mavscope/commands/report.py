@@ -31,6 +31,7 @@ from mavscope.report.collect import collect
 from mavscope.report.model import document, input_doc, json_text
 from mavscope.report.summary import Names
 from mavscope.rules import rule_set
+from mavscope.security.keys import KEYRING_ENV
 
 MAX_PARAM_FILE = 16 * 1024 * 1024
 KEY_OPTIONS = (("key", "--key"), ("cipher", "--cipher"), ("ecdh_private", "--ecdh-private"),
@@ -126,6 +127,7 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         "dialects": coc.dialect_files(dialect),
         "keys": {flag: coc.key_names(getattr(args, dest)) for dest, flag in KEY_OPTIONS},
         "use_leaked_keys": bool(args.use_leaked_keys),
+        "keyring": env.environ.get(KEYRING_ENV) or None,  # (its path: the keys in it are named, never shown)
         "params_file": coc.file_hash(args.params_file).to_json() if args.params_file else None,
         "rules": coc.rule_files(args.rules, default=not args.no_default_rules),
     }

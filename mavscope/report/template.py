@@ -65,7 +65,7 @@ doc.custody.tool.pymavlink }})</td></tr>
 <th>keys given (names only)</th><td>{% set ns = namespace(any=false) %}{% for flag, names in
 doc.custody['keys'].items() %}{% if names %}{% set ns.any = true %}{{ flag }}: {{ names | join(', ') }}; {% endif
 %}{% endfor %}{% if not ns.any %}none{% endif %}{% if doc.custody.use_leaked_keys %}; --use-leaked-keys{% endif
-%}</td></tr>
+%}{% if doc.custody.keyring %}; keyring <code>{{ doc.custody.keyring }}</code> ($MAVSCOPE_KEYRING){% endif %}</td></tr>
 {% if doc.custody.params_file %}<tr>
 <th>parameter file compared</th><td><code>{{ doc.custody.params_file.path }}</code> ({{ doc.custody.params_file.size
 | size }}, SHA-256 <code>{{ doc.custody.params_file.sha256 }}</code>)</td></tr>{% endif %}

@@ -91,3 +91,26 @@ def test_usage_errors(cli: Cli, tmp_path: Path) -> None:
     status, _, err = cli("report", str(cap), "-o", str(tmp_path / "r.html"), "--params-file", str(bad))
     assert status == 2 and "--params-file" in err
     assert not (tmp_path / "r.html").exists()
+
+
+def test_no_secret_in_the_page_or_the_json(cli: Cli, tmp_path: Path) -> None:
+    """Every kind of key option and a keyring ($MAVSCOPE_KEYRING): the page, the JSON and the streams name
+    the keys (and the keyring's path), never a secret, in any case (tests/security/test_no_secret_printed's
+    secrets and key options)."""
+    from tests.security.test_no_secret_printed import KEYS as ALL_KEYS
+    from tests.security.test_no_secret_printed import RING_KEY, SECRETS
+
+    ring = tmp_path / "ring.toml"
+    ring.write_text(f'[keys]\nfleet = "hex:{RING_KEY}"\n')
+    ring.chmod(0o600)
+    html, js = tmp_path / "r.html", tmp_path / "r.json"
+    status, out, err = cli("report", str(CAPTURES / "signed_udp.pcap"), *ALL_KEYS, "-o", str(html), "--json", str(js),
+                           environ={"MAVSCOPE_KEYRING": str(ring)})
+    assert status == 0, err
+    written = html.read_text(encoding="utf-8") + js.read_text(encoding="utf-8") + out + err
+    for secret in SECRETS:
+        assert secret not in written and secret.lower() not in written.lower()
+    custody = json.loads(js.read_text())["custody"]
+    assert custody["keys"] == {"--key": ["(passphrase, unnamed)", "vehicle"], "--cipher": ["2"],
+                               "--ecdh-private": ["(hex, unnamed)"], "--wifi-key": []}
+    assert custody["keyring"] == str(ring)
