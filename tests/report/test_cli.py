@@ -13,6 +13,7 @@ from pathlib import Path
 import jsonschema
 import pytest
 
+from mavscope.native.core import available
 from tests.conftest import CAPTURES, ROOT, Cli
 
 KEY = ("--key", "vehicle=passphrase:mavscope-demo")  # captures/README.md: signed_udp.pcap's passphrase
@@ -114,3 +115,22 @@ def test_no_secret_in_the_page_or_the_json(cli: Cli, tmp_path: Path) -> None:
     assert custody["keys"] == {"--key": ["(passphrase, unnamed)", "vehicle"], "--cipher": ["2"],
                                "--ecdh-private": ["(hex, unnamed)"], "--wifi-key": []}
     assert custody["keyring"] == str(ring)
+
+
+@pytest.mark.skipif(not available({}), reason="the C extension is not built: only the pure engine runs")
+def test_both_engines_give_the_same_report(tmp_path: Path) -> None:
+    """The native walker's batches and the Python pipeline's (MAVSCOPE_PURE=1) give the same document but for
+    the engine named and the time (the analyses are the same Python over either, docs/architecture.md)."""
+    docs = []
+    for environ in ({}, {"MAVSCOPE_PURE": "1"}):
+        out = tmp_path / f"r{len(docs)}.json"
+        status, _, err = Cli(environ)("report", str(CAPTURES / "signed_udp.pcap"), *KEY, "-o", str(tmp_path / "r.html"),
+                                      "--json", str(out))
+        assert status == 0, err
+        docs.append(json.loads(out.read_text()))
+    engines = [d["inputs"][0].pop("engine") for d in docs]
+    for d in docs:
+        d["custody"].pop("analysed_at")
+        d["custody"].pop("command_line")
+    assert engines == ["native", "pure-python"]
+    assert docs[0] == docs[1]
