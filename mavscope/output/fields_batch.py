@@ -1,21 +1,27 @@
 """`read -T fields` over column batches (`Session.batches`): the lines `FieldsWriter` writes frame by frame,
 from a `FrameBatch`'s columns, without a `Frame` per row where the columns hold the answer.
 
-Each `-e` field becomes a column of occurrences per row, by the first way that serves it:
+Each `-e` field becomes a column of a value (or none) per row, or of several (an array, `ip.addr`), by the
+first way that serves it:
 - a header number the batch holds (`frame.number`, `frame.len`, `mavlink.seq`, `.sysid`, `.compid`,
-  `.msgid`, `.version`): its column as text;
+  `.msgid`, `.version`): its column, as int64;
 - a field whose value only depends on columns the batch holds (`KEYED`: the endpoints and transport for
   `frame.src`, `ip.*`, `udp.*`, `tcp.*`; the message label for `mavlink.msgname`; the CRC and signature
-  verdicts): the registry's own getter on one row's `Frame` per distinct key, that row's text for every row
-  of the key;
+  verdicts): the registry's own getter on one row's `Frame` per distinct combination (`Coded`: the texts
+  and each row's);
 - `frame.time`, `frame.time_epoch`, `frame.time_relative`: output.timefmt.Clock.at over the time column;
-- a payload field (`ATTITUDE.roll`, a bare `roll`, a display-unit companion): the rows of its messages
-  decoded per message in one call (FrameBatch.decoded, a bad CRC's payload too, as `decode_payload` does
-  it) and the registry's own `PayloadField.value_at`;
+- a scalar payload field of one message (`ATTITUDE.roll`): its values read from the payload bytes
+  (FrameBatch.field_column; `Numbers`: float32 and the integers an int64 holds);
+- another payload field (a bare `roll`, an array, a char array, a display-unit companion): the rows of its
+  messages decoded per message in one call (FrameBatch.decoded, a bad CRC's payload too, as
+  `decode_payload` does it) and the registry's own `PayloadField.value_at`, as text;
 - any other field: the registry's getter on every row's `Frame` (FrameBatch.frames).
-Values are written as FieldsWriter writes them (`_text`), and a record whose frames share a line (several
-in a datagram, or a record cut across two batches) goes through FieldsWriter's own aggregation, so the
-lines are the frame-by-frame writer's, byte for byte (tests/cli/test_fields_batch.py holds them to it).
+The lines of whole records are joined from the columns in one call (`join_cells`, or on the native
+engine its C form `_native.join_fields`: the record's values picked or joined as `-E occurrence` says,
+numbers written as `_text` writes them, cells quoted); a record that may go on across batches (the first
+and last of a batch) goes through FieldsWriter's own aggregation. The lines are the frame-by-frame
+writer's, byte for byte (tests/cli/test_fields_batch.py holds them to it, and the C joiner to its
+reference).
 
 `frame.time_delta` needs the time of every captured record, with or without MAVLink, and
 `frame.time_delta_displayed` the last line's: those two, a display filter, `-w` and `-z` keep the
@@ -69,7 +75,7 @@ class _Frames:
         self.b = b
         self._all: list | None = None
         self._decoded: dict[frozenset[str], tuple[list[int], list[dict[str, object] | None]]] = {}
-        self._keys: dict[tuple[str, ...], tuple[list[int], list[int]]] = {}
+        self._keys: dict[tuple[str, ...], tuple[list[int], np.ndarray]] = {}
         self._rows: dict[frozenset[str], list[int]] = {}
 
     def all(self) -> list:
@@ -77,17 +83,12 @@ class _Frames:
             self._all = self.b.frames(range(self.b.n))
         return self._all
 
-    def keys(self, columns: tuple[str, ...]) -> tuple[list[int], list[int]]:
-        """The distinct combinations of the `columns`' values: the first row of each, and each row's."""
+    def keys(self, columns: tuple[str, ...]) -> tuple[list[int], np.ndarray]:
+        """The distinct combinations of the `columns`' values: a row of each, and each row's combination
+        (int64, numbering them)."""
         got = self._keys.get(columns)
         if got is None:
-            b = self.b
-            key = np.zeros(b.n, np.int64)
-            for c in columns:  # (one number per distinct combination)
-                distinct, inverse = np.unique(getattr(b, c), return_inverse=True)
-                key = key * len(distinct) + inverse.reshape(-1)
-            _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
-            got = self._keys[columns] = (first.tolist(), inverse.reshape(-1).tolist())
+            got = self._keys[columns] = _distinct([getattr(self.b, c) for c in columns])
         return got
 
     def rows(self, names: frozenset[str]) -> list[int]:
@@ -112,16 +113,61 @@ def _direct(column: str) -> Column:
     return values
 
 
+def _distinct(columns: list[np.ndarray]) -> tuple[list[int], np.ndarray]:
+    """A row of each distinct combination of the columns' values, and each row's combination's number:
+    the values offset into one number (a table as long as the product of their ranges, when that is no
+    longer than four times the rows), else by sorting (np.unique)."""
+    n = len(columns[0])
+    key = np.zeros(n, np.int64)
+    size = 1
+    for col in columns:
+        lo, hi = (int(col.min()), int(col.max())) if n else (0, 0)
+        size *= hi - lo + 1
+        if size > max(4 * n, 1 << 16):
+            break
+        key = key * (hi - lo + 1) + (col.astype(np.int64) - lo)
+    else:
+        row = np.full(size, -1, np.int64)
+        row[key] = np.arange(n)  # (a row of each: any of them serves)
+        present = np.flatnonzero(row >= 0)
+        number = np.zeros(size, np.int64)
+        number[present] = np.arange(len(present))
+        return row[present].tolist(), number[key]
+    key = np.zeros(n, np.int64)
+    for col in columns:
+        distinct, inverse = np.unique(col, return_inverse=True)
+        key = key * len(distinct) + inverse.reshape(-1)
+    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+    return first.tolist(), inverse.reshape(-1).astype(np.int64)
+
+
+class Coded:
+    """A column of one value (or none) per row as a table of the distinct values and each row's number in
+    it (a value that depends on a few columns alone: the registry's getter runs once per distinct one)."""
+
+    __slots__ = ("texts", "ids")
+
+    def __init__(self, texts: list[str | None], ids: np.ndarray) -> None:
+        self.texts, self.ids = texts, ids
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def __getitem__(self, k: Any) -> Any:
+        if isinstance(k, slice):
+            return Coded(self.texts, self.ids[k])
+        return self.texts[int(self.ids[k])]
+
+
 def _keyed(columns: tuple[str, ...], accessor: Callable) -> Column:
     def values(b: FrameBatch, frames: _Frames) -> Occurrences:
         if not b.n:
             return []
-        first, at = frames.keys(columns)
-        texts = [accessor(b.frame(r), None) for r in first]
+        first, ids = frames.keys(columns)
+        texts = [accessor(f, None) for f in b.frames(first)]  # (those rows' Frames only)
         if all(len(t) <= 1 for t in texts):
-            one = [t[0] if t else None for t in texts]
-            return [one[k] for k in at]
-        return [texts[k] for k in at]
+            return Coded([t[0] if t else None for t in texts], ids)  # type: ignore[return-value]
+        return [texts[k] for k in ids.tolist()]
     return values
 
 
@@ -142,6 +188,30 @@ _SCALAR: dict[str, Callable[[Any], str]] = {
 }
 
 
+# the scalar types a Numbers column holds: float32 ("f4") and the integers an int64 holds ("i8")
+_NUMBERS = {"float": "f4", **{t: "i8" for t in ("int8_t", "uint8_t", "uint8_t_mavlink_version", "int16_t", "uint16_t",
+                                               "int32_t", "uint32_t", "int64_t")}}
+_NUMBER_TEXT: dict[str, Callable[[Any], str]] = {"f4": f32_text, "i8": str}
+
+
+class Numbers:
+    """A column of a payload number (or none) per row: `kind` f4 (float32, written as its shortest text) or
+    i8 (an integer), the values and whether each row has one."""
+
+    __slots__ = ("kind", "values", "present")
+
+    def __init__(self, kind: str, values: np.ndarray, present: np.ndarray) -> None:
+        self.kind, self.values, self.present = kind, values, present
+
+    def __len__(self) -> int:
+        return len(self.values)
+
+    def __getitem__(self, k: Any) -> Any:
+        if isinstance(k, slice):
+            return Numbers(self.kind, self.values[k], self.present[k])
+        return _NUMBER_TEXT[self.kind](self.values[k].item()) if self.present[k] else None
+
+
 def _payload(field: PayloadField) -> Column:
     names = frozenset(fd.message for fd in field.defs.values())
     floats = {m: fd.type == "float" for m, fd in field.defs.items()}
@@ -153,9 +223,16 @@ def _payload(field: PayloadField) -> Column:
         out: list = [None] * b.n
         if plain is not None and not plain.array_length and plain.type in _SCALAR:
             rows = frames.rows(names)
+            values, present = b.field_column(rows, plain)
+            kind = _NUMBERS.get(plain.type)
+            if kind is not None:  # (the joiner writes them)
+                full = np.zeros(b.n, values.dtype if kind == "f4" else np.int64)
+                there = np.zeros(b.n, np.bool_)
+                full[rows], there[rows] = values, present
+                return Numbers(kind, full, there)  # type: ignore[return-value]
             text = _SCALAR[plain.type]  # (_text's text of the type's values)
-            for r, value in zip(rows, b.field_values(rows, plain)):
-                if value is not None:
+            for r, value, ok in zip(rows, values.tolist(), present.tolist()):
+                if ok:
                     out[r] = text(value)
             return out
         rows, decoded = frames.decoded(names)
@@ -264,34 +341,34 @@ class BatchFieldsWriter(FieldsWriter):
 
     def _lines(self, occ: list[Occurrences], bounds: list[int], groups: range) -> str:
         """The lines of whole records: group `g` is the rows bounds[g]..bounds[g + 1] (FieldsWriter._flush's
-        cells, from the columns: a header number's as the rows' numbers, the joiner picks and joins them)."""
+        cells, from the columns). A column of a value (or none) per row goes to the joiner as it is, which
+        picks or joins a record's (join_cells); a column of several values per row (an array, `ip.addr`)
+        becomes a cell per record here."""
         fmt = self.fmt
         agg, how = fmt.aggregator, fmt.occurrence
-        starts = bounds[groups.start:groups.stop]
-        many = [g for g in groups if bounds[g + 1] - bounds[g] > 1]  # records of several frames
+        edges = np.asarray(bounds[groups.start:groups.stop + 1], np.int64)
         cells: list[Any] = []
         modes = bytearray()
+        many: list[int] | None = None
         for column, per_record in zip(occ, self.per_record):
-            modes.append(ord("f" if per_record else how))
-            if isinstance(column, np.ndarray):  # header numbers, one per row
+            modes.append(ord("r" if per_record else how))
+            if isinstance(column, np.ndarray):  # header numbers
                 cells.append(column)
-                continue
-            multi = bool(column) and isinstance(column[0], list)
-            # (every record of one frame: its rows; else the first of each record's)
-            values: list = column[starts[0]:bounds[groups.stop]] if not many else [column[s] for s in starts]
-            if multi:  # each row's occurrences: a record's, those of each of its frames
-                if many and not per_record:
+            elif isinstance(column, Coded):
+                cells.append((column.texts, column.ids))
+            elif isinstance(column, Numbers):
+                cells.append((column.kind, column.values, column.present))
+            elif not (column and isinstance(column[0], list)):
+                cells.append((column, None))
+            else:  # each row's occurrences: a record's, those of each of its frames
+                if many is None:  # (the records of several frames)
+                    many = (np.flatnonzero(np.diff(edges) > 1) + groups.start).tolist()
+                values = [column[s] for s in bounds[groups.start:groups.stop]]
+                if not per_record:
                     for g in many:
                         values[g - groups.start] = [v for row in column[bounds[g]:bounds[g + 1]] for v in row]
-                values = [agg.join(v if how == "a" else v[:1] if how == "f" else v[-1:]) if v else None
-                          for v in values]
-            elif many and not per_record:
-                for g in many:
-                    got = [v for v in column[bounds[g]:bounds[g + 1]] if v is not None]
-                    values[g - groups.start] = (agg.join(got) if how == "a" else got[0] if how == "f" else got[-1]
-                                                ) if got else None
-            cells.append(values)
-        edges = np.asarray(bounds[groups.start:groups.stop + 1], np.int64)
+                cells.append([agg.join(v if how == "a" else v[:1] if how == "f" else v[-1:]) if v else None
+                              for v in values])
         return self.join(cells, edges, bytes(modes), fmt.separator, fmt.quote, agg)
 
 
@@ -300,24 +377,37 @@ Join = Callable[[list[Any], Any, bytes, str, str, str], str]  # (join_cells, _na
 
 def join_cells(cells: list[Any], bounds: np.ndarray, modes: bytes, separator: str, quote: str,
                aggregator: str) -> str:
-    """The lines of records: line g is rows bounds[g]..bounds[g + 1]. Each column is a list of a cell per
-    line (str, or None: no value, an empty cell) or an int64 array of a number per row, of which the
-    record's first (mode `f`), last (`l`) or all joined by `aggregator` (`a`) make the cell. A line's cells
-    are joined by `separator`, each with a value in `quote` (a quote inside doubled). The reference of the
-    native engine's `_native.join_fields` (the same arguments)."""
+    """The lines of records: line g is rows bounds[g]..bounds[g + 1]. A column is a list of a cell per line
+    (str, or None: no value, an empty cell), or a value per row: an int64 array of numbers, a pair (the
+    distinct texts, each str or None, and an int64 array of each row's text's position among them; None:
+    the texts are the rows'), or a triple (kind, values, present: a bool per row) of payload numbers, kind
+    `f4` float32 values written as their shortest text (f32_text), `i8` int64 values; of a
+    value per row, the cell is the record's first row's (mode `r`), or of the values its rows have (None
+    has none) the first (`f`), the last (`l`) or all joined by `aggregator` (`a`), empty when none has one.
+    A line's cells are joined by `separator`, each with a value in `quote` (a quote inside doubled, the
+    aggregator's too). The reference of the native engine's `_native.join_fields` (the same arguments)."""
     edges = bounds.tolist()
     starts, ends = edges[:-1], edges[1:]
     cols = []
     qq = quote * 2
     for column, mode in zip(cells, modes):
-        if isinstance(column, np.ndarray):
-            texts = list(map(str, column.tolist()))
-            if mode == ord("f"):
-                column = [texts[a] for a in starts]
-            elif mode == ord("l"):
-                column = [texts[z - 1] for z in ends]
+        if isinstance(column, (np.ndarray, tuple)):
+            if isinstance(column, np.ndarray):
+                rows: list[str | None] = list(map(str, column.tolist()))
+            elif len(column) == 3:  # (kind, values, present)
+                text = _NUMBER_TEXT[column[0]]
+                rows = [text(v) if ok else None for v, ok in zip(column[1].tolist(), column[2].tolist())]
             else:
-                column = [aggregator.join(texts[a:z]) for a, z in zip(starts, ends)]
+                texts, ids = column
+                rows = texts if ids is None else [texts[k] for k in ids.tolist()]
+            if mode == ord("r"):
+                column = [rows[a] for a in starts]
+            else:
+                column = []
+                for a, z in zip(starts, ends):
+                    got = [v for v in rows[a:z] if v is not None]
+                    column.append(None if not got else got[0] if mode == ord("f") else got[-1]
+                                  if mode == ord("l") else aggregator.join(got))
         if quote:
             cols.append(["" if v is None else f"{quote}{v.replace(quote, qq)}{quote}" for v in column])
         else:

@@ -249,11 +249,13 @@ class FrameBatch:
                 out[k] = decode_payload(f)
         return out
 
-    def field_values(self, rows: Sequence[int], fd: FieldDef) -> list[object]:
+    def field_column(self, rows: Sequence[int], fd: FieldDef) -> tuple[np.ndarray, np.ndarray]:
         """Per row of `rows` (frames of scalar field `fd`'s message), the field's value as `decode_payload`
-        gives it (None where the payload cannot be decoded): a native chunk's rows read from its payload
-        bytes by numpy, zero-extended as `decode` pads a short payload; the others from their Frames."""
-        out: list[object] = [None] * len(rows)
+        gives it, in a numpy array of the field's type, and whether the row has one (not where the payload
+        cannot be decoded): a native chunk's rows read from its payload bytes by numpy, zero-extended as
+        `decode` pads a short payload; the others from their Frames."""
+        values = np.zeros(len(rows), np.dtype(wire_format((fd,))))
+        present = np.zeros(len(rows), np.bool_)
         idx = np.asarray(rows, np.int64)
         framed = range(len(rows))
         if self._block is not None and len(rows):
@@ -266,14 +268,15 @@ class FrameBatch:
             for j in range(fd.size):
                 there = fd.offset + j < length
                 raw[there, j] = pay[start[there] + j]
-            for k, v in zip(ks.tolist(), raw.reshape(-1).view(np.dtype(wire_format((fd,)))).tolist()):
-                out[k] = v
+            values[ks] = raw.reshape(-1).view(values.dtype)
+            present[ks] = True
             framed = np.flatnonzero(chunk_row < 0).tolist()  # type: ignore[assignment]
         for k in framed:
             fields = decode_payload(self.frame(rows[k]))
-            if fields is not None:
-                out[k] = fields.get(fd.name)
-        return out
+            if fields is not None and fd.name in fields:
+                values[k] = fields[fd.name]
+                present[k] = True
+        return values, present
 
     def of_messages(self, names: Iterable[str | int]) -> np.ndarray:
         """Per row, whether its message is one of `names` (message names, or ids as ints)."""

@@ -136,15 +136,30 @@ def _joins(draw: st.DrawFn) -> tuple[list[object], np.ndarray, bytes, str, str, 
     cells: list[object] = []
     modes = bytearray()
     for _ in range(draw(st.integers(1, 4))):
-        if draw(st.booleans()):
+        kind = draw(st.sampled_from(["ints", "coded", "rows", "cells", "f4", "i8"]))
+        if kind == "ints":
             ints = draw(st.lists(st.integers(-(1 << 63), (1 << 63) - 1), min_size=rows, max_size=rows))
             cells.append(np.asarray(ints, np.int64))
+        elif kind == "coded":
+            texts = draw(st.lists(_CELL, min_size=1, max_size=4))
+            ids = draw(st.lists(st.integers(0, len(texts) - 1), min_size=rows, max_size=rows))
+            cells.append((texts, np.asarray(ids, np.int64)))
+        elif kind == "f4":  # any float32 bits: NaNs, infinities, subnormals
+            bits = draw(st.lists(st.integers(0, (1 << 32) - 1), min_size=rows, max_size=rows))
+            present = draw(st.lists(st.booleans(), min_size=rows, max_size=rows))
+            cells.append(("f4", np.asarray(bits, np.uint32).view(np.float32), np.asarray(present, np.bool_)))
+        elif kind == "i8":
+            ints = draw(st.lists(st.integers(-(1 << 63), (1 << 63) - 1), min_size=rows, max_size=rows))
+            present = draw(st.lists(st.booleans(), min_size=rows, max_size=rows))
+            cells.append(("i8", np.asarray(ints, np.int64), np.asarray(present, np.bool_)))
+        elif kind == "rows":
+            cells.append((draw(st.lists(_CELL, min_size=rows, max_size=rows)), None))
         else:
             cells.append(draw(st.lists(_CELL, min_size=lines, max_size=lines)))
-        modes += draw(st.sampled_from([b"f", b"l", b"a"]))
+        modes += draw(st.sampled_from([b"r", b"f", b"l", b"a"]))
     quote = draw(st.sampled_from(["", '"', "'"]))
     return cells, bounds, bytes(modes), draw(st.sampled_from(["\t", ",", " ", "§"])), quote, \
-        draw(st.sampled_from([",", " ", "§"]))
+        draw(st.sampled_from([",", " ", "§", '"']))
 
 
 @pytest.mark.skipif(_native is None, reason="the C extension is not built")
@@ -165,8 +180,17 @@ def test_the_joiner_by_hand() -> None:
     assert join_cells(*args) == want
     last = (cells, np.asarray([0, 2, 3], np.int64), b"la", "\t", "", ";")
     assert join_cells(*last) == '-8\ta"b\n9\t\n'
+    # a coded column: texts x, None, y; rows 0..2 have x, None, y: the record's first row (r), the first and
+    # last values (f, l: None has none), all of them (a)
+    coded = [(["x", None, "y"], np.asarray([0, 1, 2], np.int64))] * 4
+    both = (coded, np.asarray([0, 2, 3], np.int64), b"rfla", ",", "", ";")
+    assert join_cells(*both) == "x,x,x,x\ny,y,y,y\n"
+    late = ([(["x", None, "y"], np.asarray([1, 2, 1], np.int64))] * 4, np.asarray([0, 2, 3], np.int64), b"rfla",
+            ",", "", ";")
+    assert join_cells(*late) == ",y,y,y\n,,,\n"
     if _native is not None:
-        assert _native.join_fields(*args) == join_cells(*args)
+        for case in (args, last, both, late):
+            assert _native.join_fields(*case) == join_cells(*case)
 
 
 def test_count_stops_inside_a_record_as_frame_by_frame(cli: Cli, tmp_path: Path) -> None:
