@@ -54,7 +54,7 @@ RUNS: dict[str, list[tuple[tuple[str, ...], tuple[str, ...]]]] = {
                (("CAP", "--json"), ())],
     "track": [(("CAP", "--json"), ()), (("CAP", "--geojson", "OUT/t.geojson"), ())],
     "plot": [(("CAP", "NAMED_VALUE_FLOAT.value"), ()), (("CAP", "NAMED_VALUE_FLOAT.value", "--json"), ())],
-    "report": [(("CAP", "--dialect", "DIA", "-o", "OUT/r.html", "--json", "OUT/r.json"), ())],  # (the page: tests/report)
+    "report": [(("CAP", "--dialect", "DIA", "-o", "OUT/r.html", "--json", "OUT/r.json"), ())],
     "tui": [],  # tests/tui/test_hostile_screens.py walks every screen
     "verify": [(("CAP", "--key", "hex:" + "00" * 32), ()), (("CAP", "--key", "hex:" + "00" * 32, "--json"), ())],
     "audit": [(("CAP", "--dialect", "DIA"), ()), (("CAP", "--json"), ())],
