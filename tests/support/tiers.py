@@ -58,11 +58,10 @@ SLOW: tuple[str, ...] = (
     "tests/native/test_raw_native.py::test_real_raw_captures",  # the real raw streams through the CLI
     "tests/meta/test_native_contract.py::test_the_contract_constants_have_one_definition",  # reads every source
     "tests/meta/test_lint.py::test_mypy_finds_nothing",  # the whole package type-checked: also `make lint`
-    "tests/report/test_real.py::test_real_capture_report",  # every real capture: a report and four commands each
     "tests/report/test_browser.py::test_nothing_is_fetched_and_nothing_fails",  # Chromium under DevTools
     "tests/report/test_browser.py::test_the_watch_sees_a_request",  # Chromium under DevTools
     "tests/report/test_browser.py::test_screenshots",  # two Chromium screenshots
-    "tests/report/test_big.py::test_a_long_capture_makes_a_short_page",  # 21,000 frames built and reported
+    "tests/report/test_cli.py::test_a_long_capture_makes_a_short_page",  # 21,000 frames built and reported
     "tests/rules/test_real_captures.py::test_the_pack_on_every_real_capture",  # the pack over every real capture
     "tests/meta/test_tiers.py::test_every_module_keeps_a_fast_test_and_every_rule_names_tests",
     "tests/pipeline/test_captures_reproducible.py::test_regenerated_files_are_identical",
