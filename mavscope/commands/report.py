@@ -45,11 +45,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                                    "ground stations, commands, signing, findings), the events, a map, plots, "
                                    "missions, parameters, files moved over FTP and the links (docs/report.md).")
     p.add_argument("files", nargs="+", metavar="FILE", help="capture files (pcap, pcapng, tlog, raw)")
-    add_output_option(p, "-o", "--out", metavar="REPORT.html", kind=OutputKind.TEXT, required=True,
-                      help="write the HTML report")
+    add_output_option(p, "-o", "--out", metavar="REPORT.html", kind=OutputKind.TEXT, help="write the HTML report")
     add_output_option(p, "--json", metavar="REPORT.json", kind=OutputKind.TEXT,
                       help="write the same facts as one JSON document (docs/report.schema.json)")
-    p.add_argument("--rules", action="append", default=[], metavar="FILE|DIR",
+    p.add_argument("--rules", action="append", default=[], metavar="RULES",
                    help="detection rules of a TOML file or directory, as `audit --rules` (docs/rules.md)")
     p.add_argument("--no-default-rules", action="store_true", help="without the shipped pack of detection rules")
     p.add_argument("--params-file", metavar="FILE",
@@ -79,7 +78,9 @@ def _param_file(path: str) -> tuple[str, dict[str, Value]]:
 
 def _command_line(args: argparse.Namespace) -> list[str]:
     """The command line as run, the key options by name only (a secret is never written)."""
-    words = ["mavscope", "report", *args.files, "-o", args.out]
+    words = ["mavscope", "report", *args.files]
+    if args.out:
+        words += ["-o", args.out]
     if args.json:
         words += ["--json", args.json]
     if args.params_file:
@@ -99,6 +100,8 @@ def _command_line(args: argparse.Namespace) -> list[str]:
 
 
 def run(args: argparse.Namespace, env: Env) -> ExitStatus:
+    if not args.out and not args.json:
+        raise UsageError("report: say where to write: -o REPORT.html, --json REPORT.json, or both")
     for option, out in (("-o", args.out), ("--json", args.json)):
         for path in args.files:
             if out and out != "-" and os.path.exists(out) and os.path.exists(path) and os.path.samefile(out, path):
@@ -132,11 +135,12 @@ def run(args: argparse.Namespace, env: Env) -> ExitStatus:
         "rules": coc.rule_files(args.rules, default=not args.no_default_rules),
     }
     doc = document(custody, inputs)
-    from mavscope.report.html import render
+    if args.out:
+        from mavscope.report.html import render
 
-    write_output(env, args, "-o", args.out, render(doc))
+        write_output(env, args, "-o", args.out, render(doc))
     if args.json:
         write_output(env, args, "--json", args.json, json_text(doc))
-    report_env.say(f"report: {len(inputs)} capture(s) in {time.perf_counter() - t0:.1f} s: wrote {args.out}"
-                   + (f" and {args.json}" if args.json else ""))
+    written = " and ".join(w for w in (args.out, args.json) if w)
+    report_env.say(f"report: {len(inputs)} capture(s) in {time.perf_counter() - t0:.1f} s: wrote {written}")
     return ExitStatus.OK
