@@ -169,7 +169,7 @@ g.compid }} ({{ g.type }}){{ ', ' if not loop.last }}{% endfor %}.</p>{% else
 v.more.events }}</code> lists every command.</p>{% endif %}
 </details>{% else %}<p class="muted">No command, parameter set or mission upload in the capture.</p>{% endif %}
 <h3>Signing per link</h3>
-<div class="scroll"><table class="wide" id="signing-{{ n }}"><thead>
+{% if i.summary.signing %}<div class="scroll"><table class="wide" id="signing-{{ n }}"><thead>
 <tr>
 <th>sender</th>
 <th class="num">frames</th>
@@ -188,6 +188,7 @@ length - 4 }} more{% endif %}</td></tr>
 {% endfor %}</tbody></table></div>
 {% if i.summary.signing | length > rows.links %}<p class="more">{{ i.summary.signing | length - rows.links
 }} more: <code>{{ v.more.links }}</code></p>{% endif %}
+{% else %}<p class="muted">No MAVLink frames.</p>{% endif %}
 <h3>Findings by severity</h3>
 {% if i.findings %}<ul class="findings-summary">
 {% for f in i.findings %}<li><span class="sev sev-{{ f.severity }}">{{ f.severity }}</span> <b>{{ f.code }}</b>{% if
