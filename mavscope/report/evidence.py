@@ -89,7 +89,7 @@ first frame.</p>
 <figure class="plot" data-field="{{ p.title }}">
 <h3>{{ p.title }}{% if p.unit %} ({{ p.unit }}){% endif %}</h3>
 {% if p.count %}
-<svg viewBox="0 0 {{ plot_w }} {{ plot_h }}" role="img" aria-label="{{ p.title }}">
+<div class="scroll"><svg viewBox="0 0 {{ plot_w }} {{ plot_h }}" role="img" aria-label="{{ p.title }}">
 {% for y, label in p.y_ticks %}<line x1="{{ pad_l }}" x2="{{ plot_w }}" y1="{{ y }}" y2="{{ y
 }}" stroke="#eaecf0"/><text x="{{ pad_l - 4 }}" y="{{ y + 4 }}" text-anchor="end">{{ label }}</text>
 {% endfor %}
@@ -106,7 +106,7 @@ first frame.</p>
 {% for name, pts in p.lines %}<polyline points="{{ pts }}" fill="none" stroke="{{ colours.get(name, '#344054')
 }}" stroke-width="1.5"><title>{{ name }}</title></polyline>
 {% endfor %}
-</svg>
+</svg></div>
 {% if p.lines %}<p class="legend">{% for name, pts in p.lines %}<span><i class="sw" style="background:{{
 colours.get(name, '#344054') }}"></i>{{ name }}</span>{% endfor %}{% if p.marks
 %}<span><i class="sw" style="background:#b42318"></i>link lost / heard again ({{ p.marks | length }})</span>{% endif

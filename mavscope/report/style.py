@@ -21,6 +21,7 @@ td.num,th.num{text-align:right;white-space:nowrap}
 .kv th{width:14em}
 .sha256,code.hash{word-break:break-all}
 figure{margin:0 0 8px}
+figure.plot svg{min-width:560px}
 .nowrap{white-space:nowrap}
 .sev{display:inline-block;border-radius:3px;padding:0 6px;color:#fff;font-size:12px;font-weight:600}
 .sev-error{background:var(--error)}.sev-warn{background:var(--warn)}.sev-note{background:var(--note)}
@@ -35,6 +36,7 @@ svg text{font:11px system-ui,sans-serif;fill:#344054}
 .track0{stroke:#175cd3}.track1{stroke:#c11574}.track2{stroke:#067647}.track3{stroke:#b54708}
 .more{color:var(--muted);font-style:italic}
 nav ul{columns:3 200px;padding-left:18px;margin:4px 0}
+nav a{overflow-wrap:anywhere}
 .legend span{margin-right:14px;white-space:nowrap}
 .sw{display:inline-block;width:12px;height:3px;vertical-align:middle;margin-right:4px}
 @media (max-width:640px){body{padding:8px;font-size:13px}.kv th,.kv td{display:block;width:auto}

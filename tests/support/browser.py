@@ -10,6 +10,7 @@ nothing), and a time limit.
 
 from __future__ import annotations
 
+import base64
 import json
 import os
 import shutil
@@ -48,11 +49,11 @@ def dump_dom(page: Path, width: int = 1400) -> str:
 
 
 def screenshot(page: Path, out: Path, width: int, height: int) -> Path:
-    """A PNG of `page` in a window of `width` x `height` pixels."""
-    with tempfile.TemporaryDirectory() as profile:
-        p = subprocess.run([*_base(profile), f"--window-size={width},{height}", f"--screenshot={out}", page.as_uri()],
-                           capture_output=True, timeout=TIMEOUT, check=False)
-    assert p.returncode == 0 and out.is_file(), p.stderr.decode(errors="replace")[-2000:]
+    """A PNG of `page` laid out `width` CSS pixels wide, its first `height` pixels (the DevTools protocol's
+    device metrics: a headless window is never narrower than 500 pixels, so --window-size cannot give a phone's
+    width)."""
+    load(page, width=width, height=height, shot=out)
+    assert out.is_file()
     return out
 
 
@@ -111,9 +112,11 @@ class _Pipe:
             self.events.append(self.receive(deadline))
 
 
-def load(page: Path, expressions: tuple[str, ...] = (), width: int = 1400) -> Load:
-    """Load `page` in headless Chromium under the DevTools protocol; what it requested and said, and the
-    values of `expressions` once it has loaded."""
+def load(page: Path, expressions: tuple[str, ...] = (), width: int = 1400, height: int = 1000,
+         shot: Path | None = None) -> Load:
+    """Load `page` in headless Chromium under the DevTools protocol, laid out `width` CSS pixels wide; what it
+    requested and said, the values of `expressions` once it has loaded, and with `shot` a PNG of its first
+    `height` pixels written there."""
     to_browser_r, to_browser_w = os.pipe()
     from_browser_r, from_browser_w = os.pipe()
     with tempfile.TemporaryDirectory() as profile:
@@ -129,9 +132,16 @@ def load(page: Path, expressions: tuple[str, ...] = (), width: int = 1400) -> Lo
             session = pipe.call("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
             for domain in ("Network", "Runtime", "Log", "Page"):
                 pipe.call(f"{domain}.enable", session=session)
+            pipe.call("Emulation.setDeviceMetricsOverride", {"width": width, "height": height, "deviceScaleFactor": 1,
+                                                             "mobile": False}, session=session)
             pipe.call("Page.navigate", {"url": page.as_uri()}, session=session)
             pipe.wait_for("Page.loadEventFired")
             out = Load()
+            if shot is not None:
+                got = pipe.call("Page.captureScreenshot", {"format": "png", "clip": {
+                    "x": 0, "y": 0, "width": width, "height": height, "scale": 1}, "captureBeyondViewport": True},
+                    session=session)
+                shot.write_bytes(base64.b64decode(got["data"]))
             for e in expressions:
                 got = pipe.call("Runtime.evaluate", {"expression": e, "returnByValue": True}, session=session)
                 out.values[e] = got.get("result", {}).get("value")
