@@ -72,9 +72,14 @@ m.scale_text }}</text></g>
 <span><i class="sw" style="background:#b42318"></i>fence</span>
 <span><i class="sw" style="background:#b54708"></i>rally</span>
 <span><i class="sw" style="background:#067647"></i>home</span></p>
-<ul>{% for f in i.map.features if f.properties.kind == 'track' %}<li>{{ f.properties.name }}: {{
-"{:,}".format(f.properties.positions) }} positions{% if f.properties.every > 1 %} (every {{ f.properties.every
-}}th kept){% endif %}</li>{% endfor %}</ul>
+{% set trs = i.map.features | selectattr('properties.kind', 'equalto', 'track') | list %}
+<ul>{% for f in trs[:rows.systems] %}<li>{{ f.properties.name }}: {{ "{:,}".format(f.properties.positions) }}
+positions{%
+if f.properties.every > 1 %} (every {{ f.properties.every }}th kept){% endif %}</li>{% endfor %}</ul>
+{% if trs | length > rows.systems %}<p class="more">{{ trs | length - rows.systems }} more tracks: <code>mavscope track
+{{ i.file.path }} --geojson OUT</code> writes them all.</p>{% endif %}
+{% for k, c in m.left_out | dictsort %}<p class="more">{{ c }} {{ k }} features not drawn (the drawing keeps the tracks
+of the most positions and the first of each other kind; the JSON report holds every one).</p>{% endfor %}
 <p class="muted">North up, equirectangular about the middle latitude; no map tiles. The same features:
 <code>mavscope track {{ i.file.path }} --geojson OUT</code>.</p>
 {% else %}<p class="muted">No position in the capture (GLOBAL_POSITION_INT, GPS_RAW_INT with a fix) and no mission,

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 MAP_W, MAP_H, MAP_PAD = 800.0, 520.0, 24.0
 PLOT_W, PLOT_H, PLOT_PAD_L, PLOT_PAD_B = 800.0, 160.0, 56.0, 22.0
 MAX_MAP_POINTS = 4000  # points drawn of one line (the JSON keeps every one)
+MAX_MAP_TRACKS = 20  # tracks drawn: those of the most positions (the JSON keeps every one)
+MAX_MAP_SHAPES = 2000  # waypoints, fence polygons and circles, rally points drawn, of each kind
 EARTH_M_PER_DEG = 111_320.0  # metres per degree of latitude (and of longitude at the equator)
 NICE = (1, 2, 5)
 FEW_COLUMNS = 60  # a plot of at most this many pixel columns with values draws a dot at each
@@ -59,6 +61,7 @@ class MapView:
     scale_text: str = ""  # ...and what it measures
     width: float = MAP_W
     height: float = MAP_H
+    left_out: dict[str, int] = field(default_factory=dict)  # kind -> features not drawn (MAX_MAP_TRACKS, _SHAPES)
 
 
 def _coords(geom: dict) -> list[Sequence[float]]:
@@ -79,10 +82,35 @@ def _ok(p: Sequence[float]) -> bool:
         and -180 <= p[0] <= 180 and -90 <= p[1] <= 90
 
 
+def _drawn(feats: list[dict]) -> tuple[list[dict], dict[str, int]]:
+    """The features drawn, in their order (the tracks of the most positions, MAX_MAP_TRACKS of them; of each
+    other kind the first MAX_MAP_SHAPES), and how many of each kind are not."""
+    def kind(f: dict) -> str:
+        return str((f.get("properties") or {}).get("kind", ""))
+
+    def positions(f: dict) -> int:
+        n = (f.get("properties") or {}).get("positions")
+        return n if isinstance(n, int) else 0
+
+    tracks = [f for f in feats if kind(f) == "track"]
+    keep = {id(f) for f in sorted(tracks, key=lambda f: -positions(f))[:MAX_MAP_TRACKS]}
+    seen: dict[str, int] = {}
+    out: list[dict] = []
+    left_out: dict[str, int] = {}
+    for f in feats:
+        k = kind(f)
+        seen[k] = seen.get(k, 0) + 1
+        if (id(f) in keep) if k == "track" else seen[k] <= MAX_MAP_SHAPES:
+            out.append(f)
+        else:
+            left_out[k] = left_out.get(k, 0) + 1
+    return out, left_out
+
+
 def map_view(geo: dict) -> MapView | None:
     """The features of `geo` (a GeoJSON FeatureCollection) on an equirectangular projection about their
     middle latitude, north up, fitted into the drawing; None when nothing has a position."""
-    feats = [f for f in geo.get("features", []) if isinstance(f, dict)]
+    feats, left_out = _drawn([f for f in geo.get("features", []) if isinstance(f, dict)])
     pts = [p for f in feats for p in _coords(f.get("geometry") or {}) if _ok(p)]
     if not pts:
         return None
@@ -103,7 +131,7 @@ def map_view(geo: dict) -> MapView | None:
         kept = ps[::step] + ([ps[-1]] if ps and (len(ps) - 1) % step else [])
         return " ".join(f"{x:.1f},{y:.1f}" for x, y in map(xy, kept))
 
-    view = MapView()
+    view = MapView(left_out=left_out)
     tracks = 0
     for f in feats:
         props, geom = f.get("properties") or {}, f.get("geometry") or {}

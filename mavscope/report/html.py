@@ -29,7 +29,8 @@ from mavscope.report.geometry import (
 from mavscope.report.template import TEMPLATE, VERDICT_COLOURS
 
 ROWS = {"events": 400, "params": 300, "files": 300, "links": 200, "messages": 150, "commanders": 100,
-        "frames": 12, "items": 200, "transfers": 200, "uploads": 5, "key": 30}
+        "frames": 12, "items": 200, "transfers": 200, "uploads": 5, "key": 30,
+        "systems": 100, "findings": 200, "summary_findings": 40}
 KEY_KINDS = ("vehicle", "arming", "mode", "failsafe", "reboot", "signing")  # the summary's key events
 FOLD_OVER = 25  # a table of more rows than this is folded
 

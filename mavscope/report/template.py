@@ -129,7 +129,7 @@ signing events in the timeline below.</p>{% endif %}
 <th>state</th></tr></thead>
 <tbody>
 
-{% for x in i.summary.vehicles %}<tr>
+{% for x in i.summary.vehicles[:rows.systems] %}<tr>
 <td data-label="system">{{ x.sysid }}/{{ x.compid }}</td>
 <td data-label="type">{{ x.type }}</td>
 <td data-label="autopilot">{{ x.autopilot }}</td>
@@ -139,10 +139,15 @@ x.firmware.get('git') %} git {{ x.firmware['git'] }}{% endif %}{% else %}<span c
 <td data-label="last mode">{{ x.mode }}</td>
 <td data-label="armed">{{ 'yes' if x.armed else 'no' }}</td>
 <td data-label="state">{{ x.state }}</td></tr>
-{% endfor %}</tbody></table></div>{% else %}<p class="muted">No HEARTBEAT of a vehicle.</p>{% endif %}
+{% endfor %}</tbody></table></div>
+{% if i.summary.vehicles | length > rows.systems %}<p class="more">{{ i.summary.vehicles | length - rows.systems }} more
+vehicles: the JSON report (--json) lists them all.</p>{% endif %}
+{% else %}<p class="muted">No HEARTBEAT of a vehicle.</p>{% endif %}
 <h3>Ground stations and who commanded what</h3>
-{% if i.summary.ground_stations %}<p>Ground stations: {% for g in i.summary.ground_stations %}{{ g.sysid }}/{{
-g.compid }} ({{ g.type }}){{ ', ' if not loop.last }}{% endfor %}.</p>{% else
+{% set gcs = i.summary.ground_stations %}
+{% if gcs %}<p>Ground stations: {% for g in gcs[:rows.systems] %}{{ g.sysid }}/{{ g.compid }} ({{ g.type }}){{ ', ' if
+not loop.last }}{% endfor %}{% if gcs | length > rows.systems %} and {{ gcs | length - rows.systems }} more{% endif
+%}.</p>{% else
 %}<p class="muted">No HEARTBEAT of a ground station.</p>{% endif %}
 {% set cmds = i.summary.commanders %}
 {% if cmds %}<details{% if cmds | length <= fold %} open{% endif %}><summary>{{ cmds | length
@@ -191,15 +196,19 @@ length - 4 }} more{% endif %}</td></tr>
 {% else %}<p class="muted">No MAVLink frames.</p>{% endif %}
 <h3>Findings by severity</h3>
 {% if i.findings %}<ul class="findings-summary">
-{% for f in i.findings %}<li><span class="sev sev-{{ f.severity }}">{{ f.severity }}</span> <b>{{ f.code }}</b>{% if
+{% for f in i.findings[:rows.summary_findings] %}<li><span class="sev sev-{{ f.severity }}">{{ f.severity
+}}</span> <b>{{ f.code }}</b>{% if
 f.get('rule') %} ({{ f['rule'] }}){% endif %}: {{ f.summary or f.message }}</li>
-{% endfor %}</ul>{% else %}<p>No findings.</p>{% endif %}
+{% endfor %}</ul>
+{% if i.findings | length > rows.summary_findings %}<p class="more">{{ i.findings | length - rows.summary_findings }}
+more findings below.</p>{% endif %}
+{% else %}<p>No findings.</p>{% endif %}
 </section>
 
 <section id="findings-{{ n }}">
 <h2>{{ i.file.name }}: findings</h2>
 <p class="muted">As <code>{{ v.more.findings }}</code> gives them.</p>
-{% for f in i.findings %}<div class="finding" data-code="{{ f.code }}">
+{% for f in i.findings[:rows.findings] %}<div class="finding" data-code="{{ f.code }}">
 <h3><span class="sev sev-{{ f.severity }}">{{ f.severity }}</span> {{ f.code }}</h3>
 <p>{{ f.message }}</p>
 {% if f.explanation %}<p class="muted">{{ f.explanation }}</p>{% endif %}
@@ -209,6 +218,8 @@ f.get('rule') %} ({{ f['rule'] }}){% endif %}: {{ f.summary or f.message }}</li>
 Show them: <code>{{ f.show }}</code></p>{% endif %}
 </div>
 {% else %}<p>No findings.</p>{% endfor %}
+{% if i.findings | length > rows.findings %}<p class="more">{{ i.findings | length - rows.findings }} more findings:
+<code>{{ v.more.findings }}</code> lists them all.</p>{% endif %}
 </section>
 
 """ + EVIDENCE + """<footer><p class="muted">mavscope {{ doc.custody.tool.version }}; report schema {{ doc.schema }}

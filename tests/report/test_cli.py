@@ -175,3 +175,24 @@ def test_a_long_capture_makes_a_short_page(cli: Cli, tmp_path: Path) -> None:
     changes = doc["inputs"][0]["params"]["changes"]
     assert len(changes) == 2_999  # one PARAM_VALUE in four of the texts: the first its value, each later one a change
     assert f"{len(changes) - 300} more: <code>mavscope params {cap} --json</code>" in page
+
+
+def test_a_flood_of_senders_is_cut_and_said(cli: Cli, tmp_path: Path) -> None:
+    """150 made-up vehicles (a HEARTBEAT and two positions each, sysid 1..150): the page lists the first 100
+    vehicles and tracks and says 50 more of each, and draws the 20 tracks of the most positions (all have
+    two: the first 20), saying 130 left out; the JSON keeps all 150."""
+    flow = Flow()
+    for n in range(1, 151):
+        flow.send((n, 1), heartbeat_msg(10, 3, 1, 0, 4))
+        for k in (0, 1):
+            flow.send((n, 1), v2.MAVLink_global_position_int_message(k, 473_977_420 + n * 100, 85_455_940 + k * 100,
+                                                                      500_000, 0, 0, 0, 0, 0))
+    cap = flow.write(tmp_path, "flood.tlog")
+    doc, page = _report(cli, tmp_path, str(cap))
+    one = doc["inputs"][0]
+    assert len(one["summary"]["vehicles"]) == 150
+    assert sum(1 for f in one["map"]["features"] if f["properties"]["kind"] == "track") == 150
+    assert "50 more\nvehicles" in page and "50 more tracks" in page
+    assert "130 track features not drawn" in page
+    svg = re.search(r'<svg[^>]*id="mapsvg-1">(.*?)</svg>', page, re.S)
+    assert svg is not None and svg.group(1).count("<polyline class=\"track") == 20

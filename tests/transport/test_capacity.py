@@ -182,6 +182,8 @@ SAID: dict[str, str] = {
     "analysis/track.py:MAX_POINTS": "- resolution",
     "report/collect.py:MAX_VERDICT_CELLS": "- resolution (the report's signing slots double in width)",
     "report/geometry.py:MAX_MAP_POINTS": "- resolution (points drawn of a line; the JSON keeps every one)",
+    "report/geometry.py:MAX_MAP_TRACKS": "- said on the page (features not drawn; the JSON keeps every one)",
+    "report/geometry.py:MAX_MAP_SHAPES": "- said on the page (features not drawn; the JSON keeps every one)",
     "analysis/timeline.py:MAX_CLOCKS": "- timeline: unfollowed_readings",
     "analysis/params/tracker.py:MAX_COMPONENTS": "- params: limits.given_up",
     "analysis/params/tracker.py:MAX_NAMES": "- params: limits.given_up",
