@@ -244,7 +244,6 @@ PyObject *ms_py_join_fields(PyObject *mod, PyObject *args) {
             cols[k].coded = 1;
             bad = groups > 0 && (cols[k].view.len / cols[k].view.itemsize < bounds[groups] ||
                                  cols[k].present.len < bounds[groups]);
-            bad = bad || (modes[k] != 'r' && modes[k] != 'f' && modes[k] != 'l' && modes[k] != 'a');
         } else if (PyTuple_Check(c) && PyTuple_GET_SIZE(c) == 2 && PyList_Check(PyTuple_GET_ITEM(c, 0))) {
             cols[k].list = PyTuple_GET_ITEM(c, 0);
             cols[k].coded = 1;
@@ -259,7 +258,6 @@ PyObject *ms_py_join_fields(PyObject *mod, PyObject *args) {
                 cols[k].have_view = 1;
                 bad = groups > 0 && cols[k].view.len / 8 < bounds[groups];
             }
-            bad = bad || (modes[k] != 'r' && modes[k] != 'f' && modes[k] != 'l' && modes[k] != 'a');
         } else {
             if (int64_view(c, &cols[k].view) < 0) {
                 release(cols, k);
@@ -268,8 +266,9 @@ PyObject *ms_py_join_fields(PyObject *mod, PyObject *args) {
             }
             cols[k].have_view = 1;
             bad = groups > 0 && cols[k].view.len / 8 < bounds[groups];
-            bad = bad || (modes[k] != 'r' && modes[k] != 'f' && modes[k] != 'l' && modes[k] != 'a');
         }
+        if (!cols[k].list || cols[k].coded) /* a value per row: a mode picks or joins a record's */
+            bad = bad || (modes[k] != 'r' && modes[k] != 'f' && modes[k] != 'l' && modes[k] != 'a');
         if (bad) {
             release(cols, k + 1);
             PyBuffer_Release(&bview);

@@ -9,14 +9,10 @@ from pathlib import Path
 import pytest
 from pymavlink.dialects.v20 import ardupilotmega as v2
 
-from mavscope.analysis.audit_pass import AuditPass
 from mavscope.mavlink.dialect import load_dialect
 from mavscope.notes import Finding
-from mavscope.pipeline.dissect import Anomaly
-from mavscope.pipeline.options import PipelineOptions
-from mavscope.pipeline.session import open_session
-from mavscope.rules import load_rules, rule_set
-from tests.support.ruleflows import CASES, Capture, write_case
+from mavscope.rules import load_rules
+from tests.support.ruleflows import CASES, Capture, pack_findings, write_case
 
 DIALECT = load_dialect([])
 PACK = load_rules()
@@ -24,15 +20,7 @@ PACK = load_rules()
 
 def rule_findings(path: Path) -> dict[str, Finding]:
     """The rule findings of `audit`'s pass over `path` with the shipped pack, by rule id."""
-    audit = AuditPass(DIALECT, story=True, rules=rule_set(DIALECT))
-    with open_session(str(path), PipelineOptions(), dialect=DIALECT) as session:
-        for item in session.items:
-            if type(item) is Anomaly:
-                audit.anomaly(item)
-            else:
-                audit.add(item)
-    findings, _ = audit.result([])
-    return {f.rule: f for f in findings if f.rule is not None}
+    return {f.rule: f for f in pack_findings(path) if f.rule is not None}
 
 
 def test_every_rule_of_the_pack_has_a_case_and_a_reference() -> None:

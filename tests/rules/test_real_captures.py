@@ -8,15 +8,11 @@ from pathlib import Path
 
 import pytest
 
-from mavscope.analysis.audit_pass import AuditPass
 from mavscope.mavlink.dialect import load_dialect
-from mavscope.notes import Finding, Severity
-from mavscope.pipeline.dissect import Anomaly
-from mavscope.pipeline.options import PipelineOptions
-from mavscope.pipeline.session import open_session
-from mavscope.rules import pack_rules
+from mavscope.notes import Severity
 from tests.conftest import REAL_CAPTURES
 from tests.support.pymavlink_reader import read_pcap
+from tests.support.ruleflows import pack_findings
 
 DIALECT = load_dialect([])
 ATTACK = "ap_sitl_attack1_signed_knownkey.pcap"
@@ -30,17 +26,6 @@ def real(name: str) -> Path:
     if not path.exists():
         pytest.skip("../shared/real-captures is absent (a fresh clone)")
     return path
-
-
-def pack_findings(path: Path) -> list[Finding]:
-    audit = AuditPass(DIALECT, story=True, rules=pack_rules(DIALECT))
-    with open_session(str(path), PipelineOptions(), dialect=DIALECT) as session:
-        for item in session.items:
-            if type(item) is Anomaly:
-                audit.anomaly(item)
-            else:
-                audit.add(item)
-    return [f for f in audit.result([])[0] if f.rule is not None]
 
 
 CAPTURES = sorted(p.name for p in REAL_CAPTURES.glob("*") if p.suffix in {".pcap", ".pcapng", ".tlog", ".raw", ".bin"})

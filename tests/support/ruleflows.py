@@ -15,6 +15,13 @@ from pathlib import Path
 from pymavlink.dialects.v20 import ardupilotmega as v2
 from pymavlink.mavftp_op import FTP_OP
 
+from mavscope.analysis.audit_pass import AuditPass
+from mavscope.mavlink.dialect import load_dialect
+from mavscope.notes import Finding
+from mavscope.pipeline.dissect import Anomaly
+from mavscope.pipeline.options import PipelineOptions
+from mavscope.pipeline.session import open_session
+from mavscope.rules import pack_rules
 from tests.support.builders import EPOCH_2026, command_long_msg, signer, tlog, vehicle_heartbeat_msg
 from tests.support.flows import T0, Sender
 
@@ -242,3 +249,17 @@ def write_case(tmp: Path, rule: str, trigger: bool) -> Path:
     c = Capture()
     CASES[rule](c, trigger)
     return c.write(tmp, f"{rule}-{'trigger' if trigger else 'quiet'}")
+
+
+def pack_findings(path: Path) -> list[Finding]:
+    """The rule findings of `audit`'s pass (AuditPass with the story, as `mavscope audit` runs it) over `path`
+    with the shipped pack, in its order."""
+    dialect = load_dialect([])
+    audit = AuditPass(dialect, story=True, rules=pack_rules(dialect))
+    with open_session(str(path), PipelineOptions(), dialect=dialect) as session:
+        for item in session.items:
+            if type(item) is Anomaly:
+                audit.anomaly(item)
+            else:
+                audit.add(item)
+    return [f for f in audit.result([])[0] if f.rule is not None]
